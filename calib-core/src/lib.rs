@@ -4,6 +4,21 @@
 //! runs it at 1 kHz in f32; the host runs the same code in f64 against the simulator.
 #![cfg_attr(not(feature = "std"), no_std)]
 
+pub mod correction;
+pub mod kinematics;
 pub mod omni_cal;
+pub mod robot;
 pub mod stats;
 pub mod umbmark;
+
+pub use correction::Corrections;
+pub use kinematics::{Kinematics, Twist};
+pub use robot::{Robot, RobotKind};
+pub mod motion;
+pub mod odometry;
+pub use odometry::{Odometry, Pose};
+pub mod control;
+pub mod encoder;
+#[cfg(feature = "std")]
+pub mod robot_file;
+pub mod stepper;

@@ -1,0 +1,240 @@
+//! Odometry corrections: Borenstein's c_L, c_R, E_b for differential drive and 001's
+//! F_lat, F_lon for omni robots.
+//!
+//! Both are expressed the same way underneath, as an effective radius multiplier per wheel
+//! and a multiplier on the wheels' distance from the body origin. Kinematics built from
+//! the corrected geometry is then used for wheel commands and odometry alike, which is
+//! what "applied consistently" means: the robot is commanded and dead-reckoned with the
+//! geometry it really has.
+
+use crate::robot::{Robot, RobotKind, MAX_WHEELS};
+use core::fmt;
+use heapless::Vec;
+use serde::{Deserialize, Serialize};
+
+/// Factors outside this range are rejected: a real robot's wheels are not off by 2x.
+pub const FACTOR_MIN: f64 = 0.5;
+pub const FACTOR_MAX: f64 = 2.0;
+
+/// The correction factors a board stores.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Corrections {
+    /// Nominal geometry.
+    None,
+    /// Borenstein & Feng: effective left/right radius multipliers and actual/nominal
+    /// wheelbase.
+    DiffDrive { c_l: f64, c_r: f64, e_b: f64 },
+    /// 001 eq. 6: wheel command = f_lon * f_lat[i] * (J * twist)_i.
+    Omni {
+        f_lat: Vec<f64, MAX_WHEELS>,
+        f_lon: f64,
+    },
+}
+
+/// Why a set of factors was refused.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CorrectionError {
+    /// Factor `name` (index for f_lat) is NaN or infinite.
+    NotFinite {
+        name: &'static str,
+        index: Option<usize>,
+    },
+    /// Factor outside [0.5, 2.0].
+    OutOfRange {
+        name: &'static str,
+        index: Option<usize>,
+        value: f64,
+    },
+    /// Omni factors need one f_lat per wheel.
+    WrongWheelCount { expected: usize, got: usize },
+    /// Differential factors on an omni robot or the reverse.
+    WrongKind { robot: RobotKind },
+}
+
+impl fmt::Display for CorrectionError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let at = |f: &mut fmt::Formatter<'_>, name: &str, index: &Option<usize>| match index {
+            Some(i) => write!(f, "{name}[{i}]"),
+            None => write!(f, "{name}"),
+        };
+        match self {
+            CorrectionError::NotFinite { name, index } => {
+                at(f, name, index)?;
+                write!(f, " must be a finite number")
+            }
+            CorrectionError::OutOfRange { name, index, value } => {
+                at(f, name, index)?;
+                write!(f, " = {value} is outside [{FACTOR_MIN}, {FACTOR_MAX}]")
+            }
+            CorrectionError::WrongWheelCount { expected, got } => {
+                write!(f, "f_lat needs one factor per wheel: {expected}, got {got}")
+            }
+            CorrectionError::WrongKind { robot } => write!(
+                f,
+                "these factors do not fit a {} robot (diff_drive takes c_l, c_r, e_b; omni takes f_lat, f_lon)",
+                robot.as_str()
+            ),
+        }
+    }
+}
+
+#[cfg(feature = "std")]
+impl std::error::Error for CorrectionError {}
+
+fn check(name: &'static str, index: Option<usize>, v: f64) -> Result<(), CorrectionError> {
+    if !v.is_finite() {
+        return Err(CorrectionError::NotFinite { name, index });
+    }
+    if !(FACTOR_MIN..=FACTOR_MAX).contains(&v) {
+        return Err(CorrectionError::OutOfRange {
+            name,
+            index,
+            value: v,
+        });
+    }
+    Ok(())
+}
+
+impl Corrections {
+    pub const fn none() -> Self {
+        Corrections::None
+    }
+
+    /// Checks the factors are finite, within [0.5, 2.0] and fit the robot.
+    pub fn validate(&self, robot: &Robot) -> Result<(), CorrectionError> {
+        match self {
+            Corrections::None => Ok(()),
+            Corrections::DiffDrive { c_l, c_r, e_b } => {
+                if robot.kind == RobotKind::Omni {
+                    return Err(CorrectionError::WrongKind { robot: robot.kind });
+                }
+                check("c_l", None, *c_l)?;
+                check("c_r", None, *c_r)?;
+                check("e_b", None, *e_b)
+            }
+            Corrections::Omni { f_lat, f_lon } => {
+                if robot.kind != RobotKind::Omni {
+                    return Err(CorrectionError::WrongKind { robot: robot.kind });
+                }
+                if f_lat.len() != robot.wheel_count() {
+                    return Err(CorrectionError::WrongWheelCount {
+                        expected: robot.wheel_count(),
+                        got: f_lat.len(),
+                    });
+                }
+                for (i, f) in f_lat.iter().enumerate() {
+                    check("f_lat", Some(i), *f)?;
+                }
+                check("f_lon", None, *f_lon)
+            }
+        }
+    }
+
+    /// Effective radius multiplier of wheel `i`. For omni, a wheel commanded at
+    /// f_lon * f_lat times nominal behaves as if its radius were nominal / (f_lon * f_lat).
+    pub fn radius_scale(&self, robot: &Robot, i: usize) -> f64 {
+        match self {
+            Corrections::None => 1.0,
+            Corrections::DiffDrive { c_l, c_r, .. } => {
+                // The left wheel is the one on the +y side of the body.
+                let (_, y) = robot.wheels[i].position();
+                if y >= 0.0 {
+                    *c_l
+                } else {
+                    *c_r
+                }
+            }
+            Corrections::Omni { f_lat, f_lon } => {
+                1.0 / (f_lon * f_lat.get(i).copied().unwrap_or(1.0))
+            }
+        }
+    }
+
+    /// Multiplier on every wheel's distance from the body origin (E_b).
+    pub fn wheelbase_scale(&self) -> f64 {
+        match self {
+            Corrections::DiffDrive { e_b, .. } => *e_b,
+            _ => 1.0,
+        }
+    }
+
+    /// The robot with the corrected geometry: what calibration says it really is.
+    pub fn apply_to(&self, robot: &Robot) -> Robot {
+        let mut out = robot.clone();
+        let eb = self.wheelbase_scale();
+        for (i, w) in out.wheels.iter_mut().enumerate() {
+            w.radius_m *= self.radius_scale(robot, i);
+            w.l_m *= eb;
+        }
+        out
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::robot::presets;
+
+    #[test]
+    fn range_and_kind_are_checked() {
+        let dd = presets::mobolab();
+        let ok = Corrections::DiffDrive {
+            c_l: 1.01,
+            c_r: 0.99,
+            e_b: 1.05,
+        };
+        assert_eq!(ok.validate(&dd), Ok(()));
+        let bad = Corrections::DiffDrive {
+            c_l: 2.5,
+            c_r: 0.99,
+            e_b: 1.0,
+        };
+        assert_eq!(
+            bad.validate(&dd),
+            Err(CorrectionError::OutOfRange {
+                name: "c_l",
+                index: None,
+                value: 2.5
+            })
+        );
+        let nan = Corrections::DiffDrive {
+            c_l: 1.0,
+            c_r: f64::NAN,
+            e_b: 1.0,
+        };
+        assert!(matches!(
+            nan.validate(&dd),
+            Err(CorrectionError::NotFinite { name: "c_r", .. })
+        ));
+        let omni = presets::omni4();
+        assert!(matches!(
+            ok.validate(&omni),
+            Err(CorrectionError::WrongKind { .. })
+        ));
+        let f = Corrections::Omni {
+            f_lat: Vec::from_slice(&[1.0, 1.0, 1.0]).unwrap(),
+            f_lon: 1.0,
+        };
+        assert_eq!(
+            f.validate(&omni),
+            Err(CorrectionError::WrongWheelCount {
+                expected: 4,
+                got: 3
+            })
+        );
+    }
+
+    #[test]
+    fn corrected_geometry() {
+        let dd = presets::mobolab();
+        let c = Corrections::DiffDrive {
+            c_l: 1.02,
+            c_r: 0.98,
+            e_b: 1.05,
+        };
+        let g = c.apply_to(&dd);
+        assert!((g.wheels[0].radius_m - 0.05 * 1.02).abs() < 1e-15);
+        assert!((g.wheels[1].radius_m - 0.05 * 0.98).abs() < 1e-15);
+        assert!((g.wheels[1].l_m - 0.20 * 1.05).abs() < 1e-15);
+    }
+}

@@ -1,0 +1,264 @@
+//! Wheel kinematics after Siegwart & Nourbakhsh: inverse (body twist -> wheel rates, the
+//! n x 3 Jacobian of 001 with its 1/(r cos gamma) prefactor) and forward (wheel increments
+//! -> body motion by least squares).
+//!
+//! The least-squares pseudo-inverse is computed once at construction so the 1 kHz tick
+//! only does a 3 x n product. Standard wheels also contribute their sliding constraint
+//! (zero sideways velocity), which is what makes a two-wheel differential drive solvable
+//! exactly; Swedish wheels do not have one.
+
+use crate::correction::Corrections;
+use crate::robot::{Robot, MAX_WHEELS};
+use num_traits::Float;
+
+/// A planar body velocity (or displacement over a tick) in the body frame.
+#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+pub struct Twist<T> {
+    pub vx: T,
+    pub vy: T,
+    pub omega: T,
+}
+
+impl<T: Float> Twist<T> {
+    pub fn new(vx: T, vy: T, omega: T) -> Self {
+        Twist { vx, vy, omega }
+    }
+
+    pub fn zero() -> Self {
+        Twist {
+            vx: T::zero(),
+            vy: T::zero(),
+            omega: T::zero(),
+        }
+    }
+
+    pub fn scale(self, k: T) -> Self {
+        Twist {
+            vx: self.vx * k,
+            vy: self.vy * k,
+            omega: self.omega * k,
+        }
+    }
+}
+
+/// Per-wheel values (rates in rad/s, or angle increments in rad), in the robot's wheel
+/// order.
+pub type WheelValues<T> = heapless::Vec<T, MAX_WHEELS>;
+
+/// Precomputed inverse and forward kinematics of one robot with one set of corrections.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Kinematics<T> {
+    n: usize,
+    /// Row i: wheel rate per unit body twist, rolling_row / (r cos gamma).
+    jacobian: [[T; 3]; MAX_WHEELS],
+    /// Least-squares solution: body twist = pinv * wheel rates (wheel columns only; the
+    /// sliding constraints' right-hand side is zero).
+    pinv: [[T; MAX_WHEELS]; 3],
+}
+
+/// Weight of a standard wheel's sliding constraint relative to its rolling constraint.
+///
+/// Small on purpose: the sliding rows only have to pin down what the rolling rows cannot
+/// see (a differential drive's sideways velocity). A skid-steered robot with four standard
+/// wheels (002's wheeled-legged robot) can only turn by skidding, so its sliding
+/// constraints contradict each other while turning; weighted equally they would shrink the
+/// turn rate the wheels measure. Weighted 1e-3, they move the estimate by ~1e-6 relative.
+const SLIDING_WEIGHT: f64 = 1e-3;
+
+/// Rows of the stacked constraint system in f64: rolling rows in rad/m, sliding rows
+/// scaled by SLIDING_WEIGHT / r.
+fn constraint_rows(
+    robot: &Robot,
+    corr: &Corrections,
+) -> ([[f64; 3]; MAX_WHEELS], [[f64; 3]; MAX_WHEELS], usize) {
+    let n = robot.wheels.len();
+    let mut rolling = [[0.0; 3]; MAX_WHEELS];
+    let mut sliding = [[0.0; 3]; MAX_WHEELS];
+    let lb = corr.wheelbase_scale();
+    for (i, w) in robot.wheels.iter().enumerate() {
+        let r = w.radius_m * corr.radius_scale(robot, i);
+        let mut wheel = w.clone();
+        wheel.l_m *= lb;
+        let k = 1.0 / (r * libm::cos(w.gamma_rad));
+        let row = wheel.rolling_row();
+        rolling[i] = [row[0] * k, row[1] * k, row[2] * k];
+        let s = wheel.sliding_row();
+        let ks = SLIDING_WEIGHT / r;
+        sliding[i] = [s[0] * ks, s[1] * ks, s[2] * ks];
+    }
+    (rolling, sliding, n)
+}
+
+fn normal_matrix(
+    robot: &Robot,
+    corr: &Corrections,
+) -> ([[f64; 3]; 3], [[f64; 3]; MAX_WHEELS], usize) {
+    let (rolling, sliding, n) = constraint_rows(robot, corr);
+    let mut m = [[0.0; 3]; 3];
+    let use_sliding = robot.kind.wheels_have_sliding_constraint();
+    for i in 0..n {
+        for a in 0..3 {
+            for b in 0..3 {
+                m[a][b] += rolling[i][a] * rolling[i][b];
+                if use_sliding {
+                    m[a][b] += sliding[i][a] * sliding[i][b];
+                }
+            }
+        }
+    }
+    (m, rolling, n)
+}
+
+fn det3(m: &[[f64; 3]; 3]) -> f64 {
+    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+}
+
+/// Determinant of the normal matrix and a scale to compare it against (product of its
+/// diagonal), for the rank check in [`Robot::new`].
+pub(crate) fn normal_matrix_determinant(robot: &Robot, corr: &Corrections) -> Option<(f64, f64)> {
+    let (m, _, _) = normal_matrix(robot, corr);
+    let scale = m[0][0] * m[1][1] * m[2][2];
+    (scale.is_finite() && scale > 0.0).then(|| (det3(&m), scale))
+}
+
+fn inverse3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
+    let d = det3(m);
+    if !d.is_finite() || d.abs() < 1e-300 {
+        return None;
+    }
+    let c =
+        |r0: usize, c0: usize, r1: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
+    let adj = [
+        [c(1, 1, 2, 2), -c(0, 1, 2, 2), c(0, 1, 1, 2)],
+        [-c(1, 0, 2, 2), c(0, 0, 2, 2), -c(0, 0, 1, 2)],
+        [c(1, 0, 2, 1), -c(0, 0, 2, 1), c(0, 0, 1, 1)],
+    ];
+    let mut out = [[0.0; 3]; 3];
+    for a in 0..3 {
+        for b in 0..3 {
+            out[a][b] = adj[a][b] / d;
+        }
+    }
+    Some(out)
+}
+
+/// The robot's geometry cannot resolve the body twist.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct SingularGeometry;
+
+impl<T: Float> Kinematics<T> {
+    /// Kinematics of `robot` with `corr` applied (use [`Corrections::None`] for nominal).
+    pub fn new(robot: &Robot, corr: &Corrections) -> Result<Self, SingularGeometry> {
+        let (m, rolling, n) = normal_matrix(robot, corr);
+        let scale = m[0][0] * m[1][1] * m[2][2];
+        if scale.is_nan() || scale <= 0.0 || det3(&m).abs() <= 1e-9 * scale {
+            return Err(SingularGeometry);
+        }
+        let inv = inverse3(&m).ok_or(SingularGeometry)?;
+        let cast = |v: f64| T::from(v).unwrap_or_else(T::zero);
+        let mut jacobian = [[T::zero(); 3]; MAX_WHEELS];
+        let mut pinv = [[T::zero(); MAX_WHEELS]; 3];
+        for i in 0..n {
+            for a in 0..3 {
+                jacobian[i][a] = cast(rolling[i][a]);
+                pinv[a][i] = cast((0..3).map(|b| inv[a][b] * rolling[i][b]).sum());
+            }
+        }
+        Ok(Kinematics { n, jacobian, pinv })
+    }
+
+    /// Number of wheels.
+    pub fn wheel_count(&self) -> usize {
+        self.n
+    }
+
+    /// Row i of the Jacobian: rad/s of wheel i per unit (vx, vy, omega).
+    pub fn jacobian_row(&self, i: usize) -> [T; 3] {
+        self.jacobian[i]
+    }
+
+    /// Wheel i's rate for a body twist.
+    pub fn wheel_rate(&self, i: usize, t: &Twist<T>) -> T {
+        let j = &self.jacobian[i];
+        j[0] * t.vx + j[1] * t.vy + j[2] * t.omega
+    }
+
+    /// Inverse kinematics: wheel rates (rad/s) for a body twist (m/s, rad/s).
+    pub fn inverse(&self, t: &Twist<T>) -> WheelValues<T> {
+        (0..self.n).map(|i| self.wheel_rate(i, t)).collect()
+    }
+
+    /// Inverse kinematics into a caller's slice (no allocation of a Vec on the hot path).
+    pub fn inverse_into(&self, t: &Twist<T>, out: &mut [T]) {
+        for (i, o) in out.iter_mut().enumerate().take(self.n) {
+            *o = self.wheel_rate(i, t);
+        }
+    }
+
+    /// Forward kinematics: least-squares body twist (or displacement) from wheel rates (or
+    /// angle increments). Exact when the wheels agree; a redundant robot's disagreeing
+    /// wheels are averaged in the least-squares sense.
+    pub fn forward(&self, wheels: &[T]) -> Twist<T> {
+        let mut out = [T::zero(); 3];
+        for (a, o) in out.iter_mut().enumerate() {
+            for (i, w) in wheels.iter().enumerate().take(self.n) {
+                *o = *o + self.pinv[a][i] * *w;
+            }
+        }
+        Twist {
+            vx: out[0],
+            vy: out[1],
+            omega: out[2],
+        }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::robot::presets;
+
+    fn close(a: f64, b: f64, tol: f64) -> bool {
+        (a - b).abs() <= tol
+    }
+
+    #[test]
+    fn diff_drive_by_hand() {
+        let r = presets::mobolab(); // r = 0.05, b = 0.40
+        let k = Kinematics::<f64>::new(&r, &Corrections::None).unwrap();
+        let w = k.inverse(&Twist::new(0.5, 0.0, 1.0));
+        // left (0.5 - 0.2)/0.05 = 6, right (0.5 + 0.2)/0.05 = 14
+        assert!(close(w[0], 6.0, 1e-12) && close(w[1], 14.0, 1e-12));
+        let t = k.forward(&[6.0, 14.0]);
+        assert!(close(t.vx, 0.5, 1e-12) && close(t.vy, 0.0, 1e-12) && close(t.omega, 1.0, 1e-12));
+    }
+
+    #[test]
+    fn omni4_paths_use_two_wheels() {
+        // 001: path 4W-1 (along x) turns wheels 1 and 3 only; 4W-2 (along y) wheels 2 and 4.
+        let k = Kinematics::<f64>::new(&presets::omni4(), &Corrections::None).unwrap();
+        let w = k.inverse(&Twist::new(0.1, 0.0, 0.0));
+        assert!(close(w[0], 0.1 / 0.03, 1e-12) && close(w[2], -0.1 / 0.03, 1e-12));
+        assert!(close(w[1], 0.0, 1e-12) && close(w[3], 0.0, 1e-12));
+        let w = k.inverse(&Twist::new(0.0, 0.1, 0.0));
+        assert!(close(w[0], 0.0, 1e-12) && close(w[2], 0.0, 1e-12));
+        assert!(close(w[1], 0.1 / 0.03, 1e-12) && close(w[3], -0.1 / 0.03, 1e-12));
+    }
+
+    #[test]
+    fn omni_correction_scales_commands() {
+        let robot = presets::omni4();
+        let f_lat = heapless::Vec::from_slice(&[1.08, 0.96, 1.02, 0.98]).unwrap();
+        let c = Corrections::Omni { f_lat, f_lon: 0.94 };
+        let k0 = Kinematics::<f64>::new(&robot, &Corrections::None).unwrap();
+        let k = Kinematics::<f64>::new(&robot, &c).unwrap();
+        let t = Twist::new(0.1, 0.05, 0.3);
+        let (n, f) = (k0.inverse(&t), k.inverse(&t));
+        for (i, fl) in [1.08, 0.96, 1.02, 0.98].iter().enumerate() {
+            // 001 eq. 6: final rate = F_lon * F_lat * J * twist.
+            assert!(close(f[i], 0.94 * fl * n[i], 1e-12));
+        }
+    }
+}

@@ -1,0 +1,382 @@
+//! Robot description files (formats.md §1, TOML) on the host.
+//!
+//! Every error names the file, the line and column, and the field: a person edits these
+//! by hand, so "wheel 2 ('right'): radius_m must be positive, got -0.05" at the right line
+//! is the whole point.
+
+use crate::robot::{
+    Drive, DriveType, Legs, Problem, Robot, RobotError, RobotKind, Wheel, WheelName,
+};
+use serde::Deserialize;
+use std::fmt;
+use std::path::{Path, PathBuf};
+use toml::Spanned;
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct RobotFile {
+    name: Spanned<String>,
+    kind: Spanned<String>,
+    drive: Spanned<DriveFile>,
+    wheels: Spanned<Vec<Spanned<WheelFile>>>,
+    legs: Option<Spanned<LegsFile>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct DriveFile {
+    #[serde(rename = "type")]
+    kind: Spanned<String>,
+    steps_per_rev: Option<Spanned<u32>>,
+    microsteps: Option<Spanned<u32>>,
+    gear_ratio: Option<Spanned<f64>>,
+    encoder_counts_per_rev: Option<Spanned<f64>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct WheelFile {
+    name: Spanned<String>,
+    radius_m: Spanned<f64>,
+    alpha_deg: Spanned<f64>,
+    l_m: Spanned<f64>,
+    #[serde(default)]
+    beta_deg: Option<Spanned<f64>>,
+    #[serde(default)]
+    gamma_deg: Option<Spanned<f64>>,
+    #[serde(default)]
+    driven: Option<bool>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct LegsFile {
+    length_m: f64,
+    body_length_m: f64,
+    body_mass_kg: f64,
+    leg_mass_kg: f64,
+}
+
+/// A robot file that could not be read: where and why.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RobotFileError {
+    pub path: PathBuf,
+    /// 1-based line and column, when known.
+    pub line: Option<usize>,
+    pub column: Option<usize>,
+    pub message: String,
+}
+
+impl fmt::Display for RobotFileError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path.display())?;
+        if let (Some(l), Some(c)) = (self.line, self.column) {
+            write!(f, ":{l}:{c}")?;
+        }
+        write!(f, ": {}", self.message)
+    }
+}
+
+impl std::error::Error for RobotFileError {}
+
+/// 1-based (line, column) of a byte offset.
+pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
+    let offset = offset.min(text.len());
+    let before = &text[..offset];
+    let line = before.matches('\n').count() + 1;
+    let col = before.rfind('\n').map_or(offset, |p| offset - p - 1) + 1;
+    (line, col)
+}
+
+/// Reads and validates a robot file.
+pub fn load(path: &Path) -> Result<Robot, RobotFileError> {
+    let text = std::fs::read_to_string(path).map_err(|e| RobotFileError {
+        path: path.to_path_buf(),
+        line: None,
+        column: None,
+        message: format!("cannot read robot file: {e}"),
+    })?;
+    parse(&text, path)
+}
+
+/// Parses and validates robot TOML; `path` is only used in messages.
+pub fn parse(text: &str, path: &Path) -> Result<Robot, RobotFileError> {
+    let at = |span: Option<core::ops::Range<usize>>, message: String| {
+        let (line, column) = match span {
+            Some(s) => {
+                let (l, c) = line_col(text, s.start);
+                (Some(l), Some(c))
+            }
+            None => (None, None),
+        };
+        RobotFileError {
+            path: path.to_path_buf(),
+            line,
+            column,
+            message,
+        }
+    };
+    let file: RobotFile =
+        toml::from_str(text).map_err(|e| at(e.span(), e.message().trim().to_string()))?;
+
+    let kind = match file.kind.get_ref().as_str() {
+        "diff_drive" => RobotKind::DiffDrive,
+        "omni" => RobotKind::Omni,
+        "wheeled_legged" => RobotKind::WheeledLegged,
+        other => {
+            return Err(at(
+                Some(file.kind.span()),
+                format!(
+                    "kind: unknown kind \"{other}\" (expected diff_drive, omni or wheeled_legged)"
+                ),
+            ))
+        }
+    };
+    let d = file.drive.get_ref();
+    let drive_kind = match d.kind.get_ref().as_str() {
+        "stepper" => DriveType::Stepper,
+        "dc" => DriveType::Dc,
+        other => {
+            return Err(at(
+                Some(d.kind.span()),
+                format!("drive.type: unknown drive \"{other}\" (expected stepper or dc)"),
+            ))
+        }
+    };
+    if drive_kind == DriveType::Stepper && d.steps_per_rev.is_none() {
+        return Err(at(
+            Some(file.drive.span()),
+            "drive.steps_per_rev: required for a stepper drive".into(),
+        ));
+    }
+    let drive = Drive {
+        kind: drive_kind,
+        steps_per_rev: d.steps_per_rev.as_ref().map_or(200, |v| *v.get_ref()),
+        microsteps: d.microsteps.as_ref().map_or(1, |v| *v.get_ref()),
+        gear_ratio: d.gear_ratio.as_ref().map_or(1.0, |v| *v.get_ref()),
+        encoder_counts_per_rev: d
+            .encoder_counts_per_rev
+            .as_ref()
+            .map_or(crate::robot::DEFAULT_COUNTS_PER_REV, |v| *v.get_ref()),
+    };
+    let mut wheels = Vec::new();
+    for (i, w) in file.wheels.get_ref().iter().enumerate() {
+        let w = w.get_ref();
+        let mut name = WheelName::new();
+        if name.push_str(w.name.get_ref()).is_err() {
+            return Err(at(
+                Some(w.name.span()),
+                format!(
+                    "wheel {} : name \"{}\" is longer than 16 characters",
+                    i + 1,
+                    w.name.get_ref()
+                ),
+            ));
+        }
+        wheels.push(Wheel {
+            name,
+            radius_m: *w.radius_m.get_ref(),
+            alpha_rad: w.alpha_deg.get_ref().to_radians(),
+            l_m: *w.l_m.get_ref(),
+            beta_rad: w
+                .beta_deg
+                .as_ref()
+                .map_or(0.0, |v| v.get_ref().to_radians()),
+            gamma_rad: w
+                .gamma_deg
+                .as_ref()
+                .map_or(0.0, |v| v.get_ref().to_radians()),
+            driven: w.driven.unwrap_or(true),
+        });
+    }
+    let legs = file.legs.as_ref().map(|l| {
+        let l = l.get_ref();
+        Legs {
+            length_m: l.length_m,
+            body_length_m: l.body_length_m,
+            body_mass_kg: l.body_mass_kg,
+            leg_mass_kg: l.leg_mass_kg,
+        }
+    });
+    Robot::new(file.name.get_ref(), kind, drive, &wheels, legs).map_err(|e| {
+        let span = span_of(&file, &e);
+        at(span, e.to_string())
+    })
+}
+
+/// Where in the file the field a validation error names was written.
+fn span_of(file: &RobotFile, e: &RobotError) -> Option<core::ops::Range<usize>> {
+    use crate::robot::Field::*;
+    if let Some((i, _)) = &e.wheel {
+        let w = file.wheels.get_ref().get(*i)?;
+        let wf = w.get_ref();
+        return Some(match e.field {
+            Name => wf.name.span(),
+            RadiusM => wf.radius_m.span(),
+            AlphaDeg => wf.alpha_deg.span(),
+            LM => wf.l_m.span(),
+            BetaDeg => wf.beta_deg.as_ref().map_or(w.span(), |v| v.span()),
+            GammaDeg => wf.gamma_deg.as_ref().map_or(w.span(), |v| v.span()),
+            _ => w.span(),
+        });
+    }
+    let d = file.drive.get_ref();
+    Some(match e.field {
+        StepsPerRev => d
+            .steps_per_rev
+            .as_ref()
+            .map_or(file.drive.span(), |v| v.span()),
+        Microsteps => d
+            .microsteps
+            .as_ref()
+            .map_or(file.drive.span(), |v| v.span()),
+        GearRatio => d
+            .gear_ratio
+            .as_ref()
+            .map_or(file.drive.span(), |v| v.span()),
+        EncoderCountsPerRev => d
+            .encoder_counts_per_rev
+            .as_ref()
+            .map_or(file.drive.span(), |v| v.span()),
+        Legs => file.legs.as_ref().map_or(file.kind.span(), |l| l.span()),
+        Kind => file.kind.span(),
+        _ if matches!(
+            e.problem,
+            Problem::SingularJacobian
+                | Problem::TooFewWheels(_)
+                | Problem::TooManyWheels(_)
+                | Problem::WrongWheelCount { .. }
+        ) =>
+        {
+            file.wheels.span()
+        }
+        _ => file.name.span(),
+    })
+}
+
+/// Writes a robot description back as TOML (for `--write-robot` and the simulator's
+/// recordings), in formats.md §1 layout.
+pub fn to_toml(robot: &Robot) -> String {
+    use std::fmt::Write;
+    let mut s = String::new();
+    let _ = writeln!(s, "name = \"{}\"", robot.name);
+    let _ = writeln!(s, "kind = \"{}\"", robot.kind.as_str());
+    let _ = writeln!(s, "\n[drive]");
+    let d = &robot.drive;
+    match d.kind {
+        DriveType::Stepper => {
+            let _ = writeln!(
+                s,
+                "type = \"stepper\"\nsteps_per_rev = {}\nmicrosteps = {}",
+                d.steps_per_rev, d.microsteps
+            );
+        }
+        DriveType::Dc => {
+            let _ = writeln!(s, "type = \"dc\"");
+        }
+    }
+    let _ = writeln!(
+        s,
+        "gear_ratio = {:?}\nencoder_counts_per_rev = {:?}",
+        d.gear_ratio, d.encoder_counts_per_rev
+    );
+    for w in &robot.wheels {
+        let _ = writeln!(s, "\n[[wheels]]\nname = \"{}\"\nradius_m = {:?}\nalpha_deg = {:?}\nl_m = {:?}\nbeta_deg = {:?}\ngamma_deg = {:?}\ndriven = {}",
+            w.name, w.radius_m, w.alpha_rad.to_degrees(), w.l_m, w.beta_rad.to_degrees(), w.gamma_rad.to_degrees(), w.driven);
+    }
+    if let Some(l) = &robot.legs {
+        let _ = writeln!(s, "\n[legs]\nlength_m = {:?}\nbody_length_m = {:?}\nbody_mass_kg = {:?}\nleg_mass_kg = {:?}",
+            l.length_m, l.body_length_m, l.body_mass_kg, l.leg_mass_kg);
+    }
+    s
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const MOBOLAB: &str = r#"name = "mobolab"
+kind = "diff_drive"
+
+[drive]
+type = "stepper"
+steps_per_rev = 200
+microsteps = 1
+gear_ratio = 4.875
+encoder_counts_per_rev = 1920
+
+[[wheels]]
+name = "left"
+radius_m = 0.05
+alpha_deg = 90.0
+l_m = 0.2
+beta_deg = 0.0
+
+[[wheels]]
+name = "right"
+radius_m = 0.05
+alpha_deg = -90.0
+l_m = 0.2
+beta_deg = 180.0
+"#;
+
+    #[test]
+    fn parses_and_round_trips() {
+        let r = parse(MOBOLAB, Path::new("mobolab.toml")).unwrap();
+        assert_eq!(r.wheels.len(), 2);
+        assert!((r.wheels[1].beta_rad - core::f64::consts::PI).abs() < 1e-15);
+        assert!(
+            (r.drive.steps_per_wheel_rad() - 200.0 * 4.875 / core::f64::consts::TAU).abs() < 1e-9
+        );
+        let again = parse(&to_toml(&r), Path::new("x")).unwrap();
+        assert_eq!(again.wheels[1].radius_m, r.wheels[1].radius_m);
+        assert!((again.wheels[1].alpha_rad - r.wheels[1].alpha_rad).abs() < 1e-15);
+    }
+
+    #[test]
+    fn negative_radius_names_file_line_wheel_and_field() {
+        let bad = MOBOLAB.replacen(
+            "radius_m = 0.05\nalpha_deg = -90.0",
+            "radius_m = -0.05\nalpha_deg = -90.0",
+            1,
+        );
+        let e = parse(&bad, Path::new("robots/bad.toml")).unwrap_err();
+        let text = e.to_string();
+        assert_eq!(e.line, Some(20), "{text}");
+        assert!(
+            text.starts_with("robots/bad.toml:20:12: wheel 2 ('right'): radius_m"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn unknown_kind_and_syntax_errors_have_positions() {
+        let bad = MOBOLAB.replace("diff_drive", "tank");
+        let e = parse(&bad, Path::new("r.toml")).unwrap_err();
+        assert_eq!((e.line, e.column), (Some(2), Some(8)));
+        assert!(e.message.contains("unknown kind \"tank\""));
+        let e = parse("name = \"x\"\nkind = = 3\n", Path::new("r.toml")).unwrap_err();
+        assert_eq!(e.line, Some(2));
+        let e = parse(
+            &MOBOLAB.replace(
+                "l_m = 0.2\nbeta_deg = 0.0",
+                "l_m = 0.2\nbeta_deg = 0.0\nwheel_colour = 3",
+            ),
+            Path::new("r.toml"),
+        )
+        .unwrap_err();
+        assert!(e.message.contains("wheel_colour"), "{e}");
+    }
+
+    #[test]
+    fn singular_geometry_points_at_wheels() {
+        let bad = MOBOLAB.replace(
+            "alpha_deg = -90.0\nl_m = 0.2\nbeta_deg = 180.0",
+            "alpha_deg = 90.0\nl_m = 0.2\nbeta_deg = 0.0",
+        );
+        // Both wheels at the same place: the twist cannot be resolved.
+        let e = parse(&bad, Path::new("r.toml")).unwrap_err();
+        assert!(e.message.contains("rank < 3"), "{e}");
+        assert!(e.line.is_some());
+    }
+}
