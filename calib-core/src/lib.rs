@@ -7,6 +7,7 @@
 pub mod correction;
 pub mod kinematics;
 pub mod omni_cal;
+pub mod protocol;
 pub mod robot;
 pub mod stats;
 pub mod umbmark;
@@ -19,6 +20,8 @@ pub mod odometry;
 pub use odometry::{Odometry, Pose};
 pub mod control;
 pub mod encoder;
+#[cfg(feature = "std")]
+pub mod recording;
 #[cfg(feature = "std")]
 pub mod robot_file;
 pub mod stepper;

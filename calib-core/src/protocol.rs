@@ -1,0 +1,1 @@
+//! Serial protocol messages and framing (placeholder: the firmware/protocol work fills this in).

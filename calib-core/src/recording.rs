@@ -1,0 +1,1 @@
+//! Recordings (formats.md §2): placeholder, written next.
