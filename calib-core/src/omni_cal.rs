@@ -317,7 +317,8 @@ pub fn infer_arc(length_m: f64, run: &OmniRun) -> Option<ArcMotion> {
     };
     let sc = sinc(theta / 2.0);
     // |theta| >= 2 pi: a full turn or more cannot be told from the end point.
-    if !(sc > 1e-9) || libm::fabs(theta) >= 2.0 * PI {
+    let reachable = sc > 1e-9 && libm::fabs(theta) < 2.0 * PI;
+    if !reachable {
         return None;
     }
     Some(ArcMotion {
@@ -545,7 +546,10 @@ pub fn compose(
 }
 
 #[cfg(test)]
+// Tests walk several parallel per-wheel arrays by index; that reads clearer here.
+#[allow(clippy::needless_range_loop)]
 mod tests {
+    extern crate std;
     use super::*;
     use core::f64::consts::FRAC_PI_2;
 

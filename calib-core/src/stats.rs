@@ -326,6 +326,7 @@ pub fn error_decrease_pe(max_error_before: f64, max_error_after: f64) -> Result<
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
 
     // Textbook set: mean 5, population variance 4. Hand computation: sum of squared
@@ -381,7 +382,7 @@ mod tests {
             sample_std_dev(&[1.0, f64::INFINITY]),
             Err(StatsError::NonFinite)
         );
-        let msg = format!("{}", StatsError::TooFewSamples { need: 2, got: 1 });
+        let msg = std::format!("{}", StatsError::TooFewSamples { need: 2, got: 1 });
         assert_eq!(msg, "need at least 2 samples, got 1");
     }
 
@@ -517,5 +518,17 @@ mod tests {
         let pe = error_decrease_pe(97.15, 8.54).unwrap();
         assert!((pe - 88.61 / 97.15).abs() < 1e-12);
         assert!(error_decrease_pe(-1.0, 0.0).is_err());
+        // 000 Table 1's "Improvement" column (11, 10, 5) is NOT eq. 19: it is the ratio
+        // E_max,sys before/after, truncated (97.15/8.54 = 11.4, 101.42/9.43 = 10.8,
+        // 33.39/6.23 = 5.4), while eq. 19 gives 0.91, 0.91, 0.81.
+        for (before, after, column) in [
+            (97.15, 8.54, 11.0),
+            (101.42, 9.43, 10.0),
+            (33.39, 6.23, 5.0),
+        ] {
+            assert_eq!(libm::floor(before / after), column);
+            let pe = error_decrease_pe(before, after).unwrap();
+            assert!((0.8..0.92).contains(&pe), "{pe}");
+        }
     }
 }

@@ -320,7 +320,9 @@ fn closed_form_params(
         beta_rad: beta,
     };
     // |half| >= 1 means a leg radius inside the wheelbase; alpha >= 90 deg means no turn.
-    if !(libm::fabs(half) < 1.0) || !(alpha < FRAC_PI_2) || !(libm::fabs(beta) < PI) {
+    // Written as a positive test so that NaN also fails it.
+    let explainable = libm::fabs(half) < 1.0 && alpha < FRAC_PI_2 && libm::fabs(beta) < PI;
+    if !explainable {
         return Err(too_large);
     }
     let ed = (1.0 + half) / (1.0 - half);
@@ -547,6 +549,7 @@ pub fn exact_fit(
 
 #[cfg(test)]
 mod tests {
+    extern crate std;
     use super::*;
 
     const L: f64 = 4.0;
