@@ -25,14 +25,8 @@ pub struct Run {
     pub y_err_m: f64,
 }
 
-/// Direction in which the square was driven.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize, serde::Deserialize)]
-pub enum Direction {
-    /// Clockwise: right turns at the corners.
-    Cw,
-    /// Counter-clockwise: left turns at the corners.
-    Ccw,
-}
+/// Direction in which the square was driven (the motion programs' own type).
+pub use crate::motion::Direction;
 
 fn direction_label(d: Option<Direction>) -> &'static str {
     match d {
@@ -42,13 +36,11 @@ fn direction_label(d: Option<Direction>) -> &'static str {
     }
 }
 
-impl Direction {
-    /// +1 for left (ccw) turns, -1 for right (cw) turns.
-    fn turn_sign(self) -> f64 {
-        match self {
-            Direction::Cw => -1.0,
-            Direction::Ccw => 1.0,
-        }
+/// +1 for left (ccw) turns, -1 for right (cw) turns.
+fn turn_sign(d: Direction) -> f64 {
+    match d {
+        Direction::Cw => -1.0,
+        Direction::Ccw => 1.0,
     }
 }
 
@@ -391,7 +383,7 @@ fn square_end_error_unchecked(
 ) -> (f64, f64, f64) {
     let (c_l, c_r) = wheel_factors(ed);
     let b_actual = eb * wheelbase_m;
-    let sign = dir.turn_sign();
+    let sign = turn_sign(dir);
     // A commanded leg: both wheels commanded L; actual travel scaled per wheel.
     let (leg_l, leg_r) = (side_m * c_l, side_m * c_r);
     // A commanded 90-deg turn in place: wheels commanded -/+ (pi/2)(b/2) (ccw).
