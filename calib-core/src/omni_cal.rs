@@ -77,7 +77,7 @@ impl DrivenWheel {
 
 /// One test path with its runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
-pub struct OmniPath<'a> {
+pub struct PathRuns<'a> {
     /// Commanded straight length L.
     pub length_m: f64,
     /// Commanded direction in the body frame (0 for 4W-1 along +x, pi/2 for 4W-2).
@@ -341,7 +341,7 @@ fn wheel_travel(row: &[f64; 3], arc: &ArcMotion, direction_rad: f64) -> f64 {
     row[0] * dx + row[1] * dy + row[2] * arc.heading_change_rad
 }
 
-fn validate_path(p: usize, path: &OmniPath<'_>, wheel_count: usize) -> Result<(), OmniCalError> {
+fn validate_path(p: usize, path: &PathRuns<'_>, wheel_count: usize) -> Result<(), OmniCalError> {
     if !(path.length_m.is_finite() && path.length_m > 0.0) {
         return Err(OmniCalError::InvalidLength {
             path: p,
@@ -406,7 +406,7 @@ fn validate_path(p: usize, path: &OmniPath<'_>, wheel_count: usize) -> Result<()
 /// of 1/k_i and f_lat[i] = (1/k_i)/f_lon, so f_lon f_lat[i] = 1/k_i: every wheel delivers
 /// its nominal travel. A robot that stops short (x_err < 0) gets f_lon > 1.
 pub fn calibrate(
-    paths: &[OmniPath<'_>],
+    paths: &[PathRuns<'_>],
     wheel_count: usize,
 ) -> Result<OmniCalibration, OmniCalError> {
     if wheel_count == 0 || wheel_count > MAX_WHEELS {
@@ -637,13 +637,13 @@ mod tests {
         let runs2 = [synth_run(2, K2, sideways, with_theta); 3];
         let (d1, d2) = (driven(1), driven(2));
         let paths = [
-            OmniPath {
+            PathRuns {
                 length_m: LEN,
                 direction_rad: 0.0,
                 driven: &d1,
                 runs: &runs1,
             },
-            OmniPath {
+            PathRuns {
                 length_m: LEN,
                 direction_rad: FRAC_PI_2,
                 driven: &d2,
@@ -708,7 +708,7 @@ mod tests {
             theta_err_rad: None,
         }; 2];
         let d = driven(1);
-        let paths = [OmniPath {
+        let paths = [PathRuns {
             length_m: LEN,
             direction_rad: 0.0,
             driven: &d,
@@ -732,7 +732,7 @@ mod tests {
             y_err_m: 0.0,
             theta_err_rad: None,
         }; 2];
-        let paths = [OmniPath {
+        let paths = [PathRuns {
             length_m: LEN,
             direction_rad: 0.0,
             driven: &d,
@@ -762,7 +762,7 @@ mod tests {
         let off = [K1[0] * 1.01, K1[1] * 0.995];
         let runs_a = [synth_run(1, off, 0.0, false); 2];
         let d = driven(1);
-        let pa = [OmniPath {
+        let pa = [PathRuns {
             length_m: LEN,
             direction_rad: 0.0,
             driven: &d,
@@ -772,7 +772,7 @@ mod tests {
         let m1 = first.wheel_multipliers();
         let eff = [K1[0] * m1[0], K1[1] * m1[2]];
         let runs_b = [synth_run(1, eff, 0.0, false); 2];
-        let pb = [OmniPath {
+        let pb = [PathRuns {
             length_m: LEN,
             direction_rad: 0.0,
             driven: &d,
@@ -804,7 +804,7 @@ mod tests {
             theta_err_rad: None,
         }];
         let mk = |len, runs| {
-            [OmniPath {
+            [PathRuns {
                 length_m: len,
                 direction_rad: 0.0,
                 driven: &d,
@@ -879,7 +879,7 @@ mod tests {
             Err(OmniCalError::InvalidWheelCount { .. })
         ));
         let dup = [d[0], d[0]];
-        let p = [OmniPath {
+        let p = [PathRuns {
             length_m: LEN,
             direction_rad: 0.0,
             driven: &dup,
@@ -893,7 +893,7 @@ mod tests {
             nominal_travel_m: 0.0,
             ..d[0]
         }];
-        let p = [OmniPath {
+        let p = [PathRuns {
             length_m: LEN,
             direction_rad: 0.0,
             driven: &zero,
@@ -903,7 +903,7 @@ mod tests {
             calibrate(&p, 4),
             Err(OmniCalError::ZeroNominalTravel { .. })
         ));
-        let p = [OmniPath {
+        let p = [PathRuns {
             length_m: LEN,
             direction_rad: 0.0,
             driven: &[],
