@@ -1,1 +1,574 @@
-//! Recordings (formats.md §2): placeholder, written next.
+//! Recordings (formats.md §2): one CSV row per sample with time, per-wheel commands and
+//! encoder counts, the measured pose (blank between camera samples) and, for
+//! wheeled-legged robots, the leg angles.
+//!
+//! Read on the host by the diagnose tool and written by the simulator and the console's
+//! log export. Every error names the file, the line and the column, because people make
+//! these files with their own measuring setups.
+
+use crate::robot::{Robot, RobotKind};
+use std::fmt;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// The columns of one wheel.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct WheelSeries {
+    pub name: String,
+    /// Commanded wheel rate, rad/s; `None` in a row = not recorded at that instant.
+    pub cmd: Option<Vec<Option<f64>>>,
+    /// Cumulative encoder count.
+    pub enc: Option<Vec<Option<i64>>>,
+}
+
+/// A whole recording, column-wise.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Recording {
+    /// Seconds since start, strictly increasing.
+    pub t: Vec<f64>,
+    /// One entry per wheel of the robot file, in its order.
+    pub wheels: Vec<WheelSeries>,
+    pub x: Vec<Option<f64>>,
+    pub y: Vec<Option<f64>>,
+    pub theta: Vec<Option<f64>>,
+    pub leg_front: Option<Vec<Option<f64>>>,
+    pub leg_rear: Option<Vec<Option<f64>>>,
+    /// Notes for the reader (ignored unknown columns).
+    pub notes: Vec<String>,
+}
+
+/// A recording that could not be read.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RecordingError {
+    pub path: PathBuf,
+    /// 1-based line (the header is line 1).
+    pub line: Option<usize>,
+    /// 1-based column number and the column's name.
+    pub column: Option<(usize, String)>,
+    pub message: String,
+}
+
+impl fmt::Display for RecordingError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path.display())?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+            if let Some((c, _)) = &self.column {
+                write!(f, ":{c}")?;
+            }
+        }
+        write!(f, ": ")?;
+        if let Some((_, name)) = &self.column {
+            write!(f, "column '{name}': ")?;
+        }
+        write!(f, "{}", self.message)
+    }
+}
+
+impl std::error::Error for RecordingError {}
+
+#[derive(Clone, Copy, PartialEq)]
+enum Col {
+    T,
+    Cmd(usize),
+    Enc(usize),
+    X,
+    Y,
+    Theta,
+    LegFront,
+    LegRear,
+    Ignored,
+}
+
+impl Recording {
+    /// An empty recording with the robot's wheels and the given columns present.
+    pub fn new(robot: &Robot, with_cmd: bool, with_enc: bool) -> Self {
+        let legs = robot.kind == RobotKind::WheeledLegged;
+        Recording {
+            wheels: robot
+                .wheels
+                .iter()
+                .map(|w| WheelSeries {
+                    name: w.name.to_string(),
+                    cmd: with_cmd.then(Vec::new),
+                    enc: with_enc.then(Vec::new),
+                })
+                .collect(),
+            leg_front: legs.then(Vec::new),
+            leg_rear: legs.then(Vec::new),
+            ..Default::default()
+        }
+    }
+
+    /// Number of rows.
+    pub fn len(&self) -> usize {
+        self.t.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.t.is_empty()
+    }
+
+    /// Appends a row. Slices must have one value per wheel when the columns exist.
+    pub fn push_row(&mut self, row: Row<'_>) {
+        self.t.push(row.t);
+        for (i, w) in self.wheels.iter_mut().enumerate() {
+            if let Some(c) = &mut w.cmd {
+                c.push(row.cmd.and_then(|v| v.get(i).copied()));
+            }
+            if let Some(e) = &mut w.enc {
+                e.push(row.enc.and_then(|v| v.get(i).copied()));
+            }
+        }
+        let (x, y, th) = match row.pose {
+            Some((x, y, t)) => (Some(x), Some(y), Some(t)),
+            None => (None, None, None),
+        };
+        self.x.push(x);
+        self.y.push(y);
+        self.theta.push(th);
+        if let Some(f) = &mut self.leg_front {
+            f.push(row.legs.map(|l| l.0));
+        }
+        if let Some(r) = &mut self.leg_rear {
+            r.push(row.legs.map(|l| l.1));
+        }
+    }
+
+    /// Rows where the pose was measured.
+    pub fn pose_rows(&self) -> impl Iterator<Item = (usize, f64, f64, f64)> + '_ {
+        (0..self.len()).filter_map(move |i| match (self.x[i], self.y[i], self.theta[i]) {
+            (Some(x), Some(y), Some(t)) => Some((i, x, y, t)),
+            _ => None,
+        })
+    }
+
+    /// Reads and checks a recording against the robot it was made with.
+    pub fn load(path: &Path, robot: &Robot) -> Result<Self, RecordingError> {
+        let text = std::fs::read_to_string(path).map_err(|e| RecordingError {
+            path: path.to_path_buf(),
+            line: None,
+            column: None,
+            message: format!("cannot read recording: {e}"),
+        })?;
+        Self::parse(&text, path, robot)
+    }
+
+    /// Parses CSV text; `path` is only used in messages.
+    pub fn parse(text: &str, path: &Path, robot: &Robot) -> Result<Self, RecordingError> {
+        let err = |line: Option<usize>, column: Option<(usize, String)>, message: String| {
+            RecordingError {
+                path: path.to_path_buf(),
+                line,
+                column,
+                message,
+            }
+        };
+        let mut reader = csv::ReaderBuilder::new()
+            .has_headers(true)
+            .trim(csv::Trim::All)
+            .from_reader(text.as_bytes());
+        let headers = reader
+            .headers()
+            .map_err(|e| err(Some(1), None, format!("cannot read the header row: {e}")))?
+            .clone();
+        if headers.iter().all(|h| h.is_empty()) {
+            return Err(err(Some(1), None, "empty recording: no header row".into()));
+        }
+        let mut rec = Recording::new(robot, false, false);
+        let mut cols = Vec::with_capacity(headers.len());
+        let mut seen = std::collections::HashSet::new();
+        for (ci, h) in headers.iter().enumerate() {
+            let at = Some((ci + 1, h.to_string()));
+            if !seen.insert(h.to_string()) {
+                return Err(err(Some(1), at, "duplicate column".into()));
+            }
+            let wheel = |prefix: &str| -> Result<Option<usize>, RecordingError> {
+                match h.strip_prefix(prefix) {
+                    None => Ok(None),
+                    Some(name) => robot.wheel_index(name).map(Some).ok_or_else(|| {
+                        let names: Vec<&str> =
+                            robot.wheels.iter().map(|w| w.name.as_str()).collect();
+                        err(
+                            Some(1),
+                            at.clone(),
+                            format!(
+                                "no wheel '{name}' in the robot file (its wheels: {})",
+                                names.join(", ")
+                            ),
+                        )
+                    }),
+                }
+            };
+            let col = match h {
+                "t" => Col::T,
+                "x" => Col::X,
+                "y" => Col::Y,
+                "theta" => Col::Theta,
+                "leg_front" => Col::LegFront,
+                "leg_rear" => Col::LegRear,
+                _ => {
+                    if let Some(i) = wheel("cmd_")? {
+                        rec.wheels[i].cmd = Some(Vec::new());
+                        Col::Cmd(i)
+                    } else if let Some(i) = wheel("enc_")? {
+                        rec.wheels[i].enc = Some(Vec::new());
+                        Col::Enc(i)
+                    } else {
+                        rec.notes
+                            .push(format!("ignored unknown column '{h}' (column {})", ci + 1));
+                        Col::Ignored
+                    }
+                }
+            };
+            if matches!(col, Col::LegFront | Col::LegRear) {
+                if robot.kind != RobotKind::WheeledLegged {
+                    rec.notes.push(format!(
+                        "ignored column '{h}': the robot is not wheeled_legged"
+                    ));
+                    cols.push(Col::Ignored);
+                    continue;
+                }
+                if col == Col::LegFront {
+                    rec.leg_front = Some(Vec::new());
+                } else {
+                    rec.leg_rear = Some(Vec::new());
+                }
+            }
+            cols.push(col);
+        }
+        for required in ["t", "x", "y", "theta"] {
+            if !headers.iter().any(|h| h == required) {
+                return Err(err(
+                    Some(1),
+                    None,
+                    format!("missing required column '{required}'"),
+                ));
+            }
+        }
+        if robot.kind == RobotKind::WheeledLegged {
+            for (name, present) in [
+                ("leg_front", rec.leg_front.is_some()),
+                ("leg_rear", rec.leg_rear.is_some()),
+            ] {
+                if !present {
+                    return Err(err(
+                        Some(1),
+                        None,
+                        format!("missing column '{name}' (required for wheeled_legged robots)"),
+                    ));
+                }
+            }
+        }
+        for (w, wheel) in rec.wheels.iter().zip(&robot.wheels) {
+            if wheel.driven && w.cmd.is_none() && w.enc.is_none() {
+                return Err(err(
+                    Some(1),
+                    None,
+                    format!(
+                        "driven wheel '{}' needs a 'cmd_{0}' or an 'enc_{0}' column",
+                        w.name
+                    ),
+                ));
+            }
+        }
+
+        let mut record = csv::StringRecord::new();
+        let mut last_t = f64::NEG_INFINITY;
+        loop {
+            let line = reader.position().line() as usize;
+            match reader.read_record(&mut record) {
+                Ok(false) => break,
+                Ok(true) => {}
+                Err(e) => return Err(err(Some(line), None, format!("malformed CSV row: {e}"))),
+            }
+            let line = record.position().map_or(line, |p| p.line() as usize);
+            if record.len() != headers.len() {
+                return Err(err(
+                    Some(line),
+                    None,
+                    format!(
+                        "row has {} cells, the header has {}",
+                        record.len(),
+                        headers.len()
+                    ),
+                ));
+            }
+            let mut t = None;
+            let mut pose = [None; 3];
+            let mut legs = [None; 2];
+            let row_index = rec.t.len();
+            for (ci, (cell, col)) in record.iter().zip(&cols).enumerate() {
+                if *col == Col::Ignored {
+                    continue;
+                }
+                let at = || Some((ci + 1, headers[ci].to_string()));
+                if cell.is_empty() {
+                    if *col == Col::T {
+                        return Err(err(Some(line), at(), "time must not be blank".into()));
+                    }
+                    continue;
+                }
+                if let Col::Enc(i) = col {
+                    let v: i64 = cell.parse().map_err(|_| {
+                        err(
+                            Some(line),
+                            at(),
+                            format!("encoder count must be an integer, got '{cell}'"),
+                        )
+                    })?;
+                    let series = rec.wheels[*i].enc.as_mut().expect("declared in the header");
+                    series.resize(row_index, None);
+                    series.push(Some(v));
+                    continue;
+                }
+                let v: f64 = cell
+                    .parse()
+                    .map_err(|_| err(Some(line), at(), format!("not a number: '{cell}'")))?;
+                if !v.is_finite() {
+                    return Err(err(
+                        Some(line),
+                        at(),
+                        format!("must be a finite number, got '{cell}'"),
+                    ));
+                }
+                match col {
+                    Col::T => t = Some(v),
+                    Col::X => pose[0] = Some(v),
+                    Col::Y => pose[1] = Some(v),
+                    Col::Theta => pose[2] = Some(v),
+                    Col::LegFront => legs[0] = Some(v),
+                    Col::LegRear => legs[1] = Some(v),
+                    Col::Cmd(i) => {
+                        let series = rec.wheels[*i].cmd.as_mut().expect("declared in the header");
+                        series.resize(row_index, None);
+                        series.push(Some(v));
+                    }
+                    Col::Enc(_) | Col::Ignored => {}
+                }
+            }
+            let t = t.expect("t column exists and is never blank");
+            if t <= last_t {
+                let ci = cols.iter().position(|c| *c == Col::T).unwrap_or(0);
+                return Err(err(
+                    Some(line),
+                    Some((ci + 1, "t".into())),
+                    format!("time must increase strictly: {t} after {last_t}"),
+                ));
+            }
+            if pose.iter().any(Option::is_some) && !pose.iter().all(Option::is_some) {
+                return Err(err(
+                    Some(line),
+                    None,
+                    "x, y and theta must be all given or all blank".into(),
+                ));
+            }
+            last_t = t;
+            rec.t.push(t);
+            rec.x.push(pose[0]);
+            rec.y.push(pose[1]);
+            rec.theta.push(pose[2]);
+            if let Some(f) = &mut rec.leg_front {
+                f.push(legs[0]);
+            }
+            if let Some(r) = &mut rec.leg_rear {
+                r.push(legs[1]);
+            }
+            let n = rec.t.len();
+            for w in &mut rec.wheels {
+                if let Some(c) = &mut w.cmd {
+                    c.resize(n, None);
+                }
+                if let Some(e) = &mut w.enc {
+                    e.resize(n, None);
+                }
+            }
+        }
+        if rec.is_empty() {
+            return Err(err(
+                None,
+                None,
+                "empty recording: a header but no rows".into(),
+            ));
+        }
+        if rec.pose_rows().next().is_none() {
+            return Err(err(
+                None,
+                None,
+                "no row has a measured pose (x, y, theta)".into(),
+            ));
+        }
+        Ok(rec)
+    }
+
+    /// Writes the recording as formats.md §2 CSV.
+    pub fn write_csv<W: Write>(&self, out: W) -> std::io::Result<()> {
+        let mut w = csv::Writer::from_writer(out);
+        let mut header = vec!["t".to_string()];
+        for s in &self.wheels {
+            if s.cmd.is_some() {
+                header.push(format!("cmd_{}", s.name));
+            }
+        }
+        for s in &self.wheels {
+            if s.enc.is_some() {
+                header.push(format!("enc_{}", s.name));
+            }
+        }
+        header.extend(["x", "y", "theta"].map(String::from));
+        if self.leg_front.is_some() {
+            header.push("leg_front".into());
+        }
+        if self.leg_rear.is_some() {
+            header.push("leg_rear".into());
+        }
+        w.write_record(&header)?;
+        let f = |v: Option<f64>| v.map_or(String::new(), |v| format!("{v}"));
+        let mut row = Vec::with_capacity(header.len());
+        for i in 0..self.len() {
+            row.clear();
+            row.push(format!("{}", self.t[i]));
+            for s in &self.wheels {
+                if let Some(c) = &s.cmd {
+                    row.push(f(c[i]));
+                }
+            }
+            for s in &self.wheels {
+                if let Some(e) = &s.enc {
+                    row.push(e[i].map_or(String::new(), |v| v.to_string()));
+                }
+            }
+            row.push(f(self.x[i]));
+            row.push(f(self.y[i]));
+            row.push(f(self.theta[i]));
+            if let Some(l) = &self.leg_front {
+                row.push(f(l[i]));
+            }
+            if let Some(l) = &self.leg_rear {
+                row.push(f(l[i]));
+            }
+            w.write_record(&row)?;
+        }
+        w.flush()
+    }
+
+    /// Writes to a file.
+    pub fn save(&self, path: &Path) -> std::io::Result<()> {
+        let file = std::fs::File::create(path)?;
+        self.write_csv(std::io::BufWriter::new(file))
+    }
+}
+
+/// One row to append with [`Recording::push_row`].
+#[derive(Debug, Clone, Copy, Default)]
+pub struct Row<'a> {
+    pub t: f64,
+    pub cmd: Option<&'a [f64]>,
+    pub enc: Option<&'a [i64]>,
+    pub pose: Option<(f64, f64, f64)>,
+    pub legs: Option<(f64, f64)>,
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::robot::presets;
+
+    fn sample() -> &'static str {
+        "t,cmd_left,cmd_right,enc_left,enc_right,x,y,theta,extra\n\
+         0.0,1.0,1.0,100,-5,0,0,0,7\n\
+         0.01,1.0,1.5,103,-2,,,,7\n\
+         0.02,1.0,1.5,106,2,0.001,0.0,0.01,7\n"
+    }
+
+    #[test]
+    fn reads_columns_in_any_order_with_blanks() {
+        let r = presets::mobolab();
+        let rec = Recording::parse(sample(), Path::new("rec.csv"), &r).unwrap();
+        assert_eq!(rec.len(), 3);
+        assert_eq!(
+            rec.wheels[1].enc.as_ref().unwrap(),
+            &vec![Some(-5), Some(-2), Some(2)]
+        );
+        assert_eq!(rec.x, vec![Some(0.0), None, Some(0.001)]);
+        assert_eq!(rec.pose_rows().count(), 2);
+        assert_eq!(rec.notes.len(), 1);
+        assert!(rec.notes[0].contains("'extra'"));
+        // Reordered columns read the same.
+        let reordered = "x,y,theta,t,enc_right,enc_left\n0,0,0,0,1,2\n";
+        let rec2 = Recording::parse(reordered, Path::new("r.csv"), &r).unwrap();
+        assert_eq!(rec2.wheels[0].enc.as_ref().unwrap()[0], Some(2));
+    }
+
+    #[test]
+    fn round_trips_through_csv() {
+        let r = presets::mobolab();
+        let rec = Recording::parse(sample(), Path::new("rec.csv"), &r).unwrap();
+        let mut buf = Vec::new();
+        rec.write_csv(&mut buf).unwrap();
+        let again =
+            Recording::parse(std::str::from_utf8(&buf).unwrap(), Path::new("x"), &r).unwrap();
+        assert_eq!(again.t, rec.t);
+        assert_eq!(again.wheels, rec.wheels);
+        assert_eq!(again.theta, rec.theta);
+    }
+
+    fn error_of(text: &str) -> RecordingError {
+        Recording::parse(text, Path::new("runs/r.csv"), &presets::mobolab()).unwrap_err()
+    }
+
+    #[test]
+    fn errors_name_file_line_and_column() {
+        let e = error_of("t,enc_left,enc_right,x,y,theta\n0,1,2,0,0,0\n0.1,1.5,2,,,\n");
+        assert_eq!(
+            e.to_string(),
+            "runs/r.csv:3:2: column 'enc_left': encoder count must be an integer, got '1.5'"
+        );
+        let e = error_of("t,enc_left,enc_right,x,y,theta\n0,1,2,0,0,0\n0,1,2,,,\n");
+        assert_eq!((e.line, e.column.as_ref().map(|c| c.0)), (Some(3), Some(1)));
+        assert!(e.message.contains("increase strictly"));
+        let e = error_of("t,enc_left,enc_right,x,y,theta\n0,1,2,NaN,0,0\n");
+        assert_eq!(e.line, Some(2));
+        assert!(e.to_string().contains("column 'x'"));
+        let e = error_of("t,enc_left,enc_wheel3,x,y,theta\n");
+        assert!(e.message.contains("no wheel 'wheel3'"), "{e}");
+        let e = error_of("t,enc_left,x,y,theta\n0,1,0,0,0\n");
+        assert!(e.message.contains("'right'"), "{e}");
+        let e = error_of("t,enc_left,enc_right,x,y\n0,1,2,0,0\n");
+        assert!(e.message.contains("missing required column 'theta'"));
+        let e = error_of("t,enc_left,enc_right,x,y,theta\n");
+        assert!(e.message.contains("empty recording"));
+        let e = error_of("");
+        assert!(e.message.contains("empty recording"));
+        let e = error_of("t,enc_left,enc_right,x,y,theta\n0,1,2,0,0,0\n0.1,1,2,0\n");
+        assert_eq!(e.line, Some(3));
+    }
+
+    #[test]
+    fn reads_the_real_recordings() {
+        let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/real");
+        for dir in ["diff-square-run-01", "omni3-square-run-01"] {
+            let d = base.join(dir);
+            if !d.exists() {
+                continue; // shared/ sits beside the checkout in CI and on developer machines
+            }
+            let robot = crate::robot_file::load(&d.join("robot.toml")).unwrap();
+            let rec = Recording::load(&d.join("recording.csv"), &robot).unwrap();
+            // 69 s at 20 Hz and 51 s at 25 Hz (shared/real/README.md).
+            let expected_rows = if dir.starts_with("diff") {
+                69.0 * 20.0
+            } else {
+                51.0 * 25.0
+            };
+            assert!(
+                (rec.len() as f64 - expected_rows).abs() < 0.05 * expected_rows,
+                "{dir}: {}",
+                rec.len()
+            );
+            assert_eq!(
+                rec.pose_rows().next().map(|p| (p.1, p.2, p.3)),
+                Some((0.0, 0.0, 0.0))
+            );
+        }
+    }
+}
