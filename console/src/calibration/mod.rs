@@ -2,4 +2,5 @@
 //! commands, the guided procedures and the demo.
 
 pub mod omni;
+pub mod procedure;
 pub mod umbmark;
