@@ -48,7 +48,7 @@ fn inv3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
         |r0: usize, c0: usize, r1: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
     let det = m[0][0] * c(1, 1, 2, 2) - m[0][1] * c(1, 0, 2, 2) + m[0][2] * c(1, 0, 2, 1);
     let scale = m[0][0] * m[1][1] * m[2][2];
-    if !det.is_finite() || !(scale > 0.0) || det.abs() <= 1e-9 * scale {
+    if !det.is_finite() || scale.is_nan() || scale <= 0.0 || det.abs() <= 1e-9 * scale {
         return None;
     }
     let adj = [

@@ -37,6 +37,7 @@ pub mod surface;
 pub use effects::{Effect, EffectError, Faults};
 pub use error::SimError;
 pub use motor::DcParams;
+pub use record::{record, LegMotion, Motion, RandomMotion, RecordConfig, SimRecording, TruthRow};
 
 pub use actuator::WheelInput;
 pub use robot::{EncoderMount, SimConfig, SimRobot};
