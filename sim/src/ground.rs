@@ -108,7 +108,7 @@ impl Ground {
                 }
             };
         }
-        self.wheel_twist = geom.twist_from_contacts(&self.contacts);
+        self.wheel_twist = geom.twist_from_contacts(&self.contacts, &self.wheel_twist);
         let w = self.wheel_twist;
         let mut body = Twist::new(w.vx, w.vy - params.side_slip_s * w.vx * w.omega, w.omega);
         if let (Some(tilt), true) = (surface.tilt, moving) {

@@ -315,6 +315,40 @@ fn legs_shift_the_traction_limit() {
 }
 
 #[test]
+fn motors_off_roll_with_the_ground() {
+    // 001's 4W-1 path with wheels 2 and 4 off: wheels 1 and 3 alone set vx and omega
+    // (no slip), the sideways velocity stays 0, and the free wheels' encoders see the
+    // rotation: wheel 1 at r = 1.003 r0, wheel 3 nominal: omega = -(c1 + c3) / (2 l).
+    let r = robot("omni4");
+    let e = Effect::parse("wheel_diameter_mismatch=radius_scale_w1:1.003").unwrap();
+    let mut sim = SimRobot::with_effects(&r, &[e], Surface::flat(), quiet()).unwrap();
+    let w = 0.1 / 0.03;
+    for _ in 0..1000 {
+        sim.step(
+            1e-3,
+            &[
+                WheelInput::Rate(w),
+                WheelInput::Free,
+                WheelInput::Rate(-w),
+                WheelInput::Free,
+            ],
+        )
+        .unwrap();
+    }
+    let t = sim.true_twist();
+    let omega = -(0.1 * 1.003 - 0.1) / (2.0 * 0.035);
+    assert!((t.omega - omega).abs() < 1e-9 && t.vy.abs() < 1e-9, "{t:?}");
+    assert!((t.vx - 0.1 * 2.003 / 2.0).abs() < 1e-9);
+    // Wheel 2 (alpha 180: row [0, 1, -l]) turns at -l omega / r.
+    let expect = -0.035 * omega * 1.0 / 0.03;
+    assert!(
+        (sim.wheel_angle(1) - expect).abs() < 1e-6,
+        "{}",
+        sim.wheel_angle(1)
+    );
+}
+
+#[test]
 fn recordings_are_deterministic_per_seed() {
     let r = robot("omni4");
     let effects = [
