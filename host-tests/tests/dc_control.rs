@@ -33,8 +33,7 @@ fn pi_run(effects: &[Effect]) -> (f64, f64, f64) {
     let (mut set, mut inc, mut speed) = ([0.0; 4], [0.0; 4], [0.0f64; 4]);
     let mut worst = 0.0f64;
     let dt = 1e-3;
-    let mut tick = 0;
-    for _ in 0..9000 {
+    for tick in 0..9000 {
         let tw = runner.twist_at_tick(dt).unwrap_or(Twist::zero());
         k.inverse_into(&tw, &mut set);
         let mut inputs = [WheelInput::Duty(0.0); 4];
@@ -52,7 +51,6 @@ fn pi_run(effects: &[Effect]) -> (f64, f64, f64) {
             }
         }
         odo.update(&k.forward(&inc));
-        tick += 1;
     }
     (sim.true_pose().x, odo.pose().x, worst)
 }

@@ -55,7 +55,7 @@ fn each_effect_acts_in_its_stage() {
             };
             let e = Effect::parse(text).unwrap();
             let nominal = run(&r, &[]);
-            let with = run(&r, &[e.clone()]);
+            let with = run(&r, std::slice::from_ref(&e));
             let moved = nominal
                 .truth
                 .iter()
