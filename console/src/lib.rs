@@ -1,1 +1,9 @@
+//! The `wheelcal` host console: calibration computations and procedures, reports, the
+//! serial client, the virtual board and the diagnose command. The binary is a thin shell
+//! over these modules so the host tests drive the same code.
 
+pub mod calibration;
+pub mod cli;
+pub mod output;
+pub mod report;
+pub mod ros2;

@@ -1,0 +1,5 @@
+//! Calibration computations on measured runs (formats.md §3), shared by the `compute`
+//! commands, the guided procedures and the demo.
+
+pub mod omni;
+pub mod umbmark;
