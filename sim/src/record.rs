@@ -114,6 +114,21 @@ impl LegMotion {
     }
 }
 
+/// How the recorded commands reach the wheels.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum ActuatorMode {
+    /// Commands are ideal wheel rates ([`WheelInput::Rate`]): the wheels do what is
+    /// commanded except for the catalogue's actuator effects. A fault-free recording then
+    /// has encoders that match the commands, which is what diagnose's nominal model
+    /// assumes.
+    #[default]
+    Ideal,
+    /// The board's real chain: stepper drives get step pulses from calib-core's step
+    /// accumulator ([`WheelInput::Steps`]); DC drives are closed by calib-core's PI loop on
+    /// the encoder counters ([`WheelInput::Duty`]), so the motor dynamics show.
+    Physical,
+}
+
 /// Rates and the simulation settings of a recording.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RecordConfig {
@@ -123,6 +138,7 @@ pub struct RecordConfig {
     /// Rows per second written (encoders and commands are sampled on every row).
     pub row_rate_hz: f64,
     pub legs: LegMotion,
+    pub actuator: ActuatorMode,
 }
 
 impl Default for RecordConfig {
@@ -135,6 +151,7 @@ impl Default for RecordConfig {
                 front: std::f64::consts::FRAC_PI_2,
                 rear: std::f64::consts::FRAC_PI_2,
             },
+            actuator: ActuatorMode::Ideal,
         }
     }
 }
@@ -329,6 +346,7 @@ pub fn record(
     let mut enc = vec![0i64; n];
     let mut inputs = vec![WheelInput::Rate(0.0); n];
     let mut legs = legs0;
+    let mut board = PhysicalBoard::new(&sim, robot, cfg.actuator);
     // After the motion, one row period of rest so the last row shows the robot stopped.
     let mut rest = 0;
     let mut row_countdown = 0;
@@ -392,9 +410,7 @@ pub fn record(
             });
         }
         legs = legs_at(&cfg.legs, t + dt, &mut leg_state, &mut rng);
-        for (inp, c) in inputs.iter_mut().zip(&cmd) {
-            *inp = WheelInput::Rate(*c);
-        }
+        board.inputs(&sim, &cmd, dt, &mut inputs);
         sim.step(dt, &inputs)?;
         sim.set_legs(legs.0, legs.1)?;
     }
@@ -411,6 +427,61 @@ pub fn record(
         recording: rec,
         truth,
     })
+}
+
+/// The board side of [`ActuatorMode::Physical`].
+struct PhysicalBoard {
+    mode: ActuatorMode,
+    steppers: Vec<calib_core::stepper::StepAccumulator>,
+    pi: Vec<calib_core::control::PiController>,
+    ext: Vec<calib_core::encoder::CounterExtender>,
+    speed: Vec<f64>,
+    rad_per_count: f64,
+}
+
+impl PhysicalBoard {
+    fn new(sim: &SimRobot, robot: &Robot, mode: ActuatorMode) -> Self {
+        use calib_core::encoder::{CounterExtender, CounterWidth};
+        let n = robot.wheel_count();
+        let stepper = robot.drive.kind == calib_core::robot::DriveType::Stepper;
+        PhysicalBoard {
+            mode,
+            steppers: if stepper {
+                (0..n)
+                    .map(|_| {
+                        calib_core::stepper::StepAccumulator::new(robot.drive.steps_per_wheel_rad())
+                    })
+                    .collect()
+            } else {
+                Vec::new()
+            },
+            pi: vec![calib_core::control::PiController::new(sim.pi_gains()); n],
+            ext: (0..n)
+                .map(|i| CounterExtender::new(CounterWidth::Bits16, sim.encoder_raw(i) as u32))
+                .collect(),
+            speed: vec![0.0; n],
+            rad_per_count: robot.drive.rad_per_count().unwrap_or(0.0),
+        }
+    }
+
+    fn inputs(&mut self, sim: &SimRobot, cmd: &[f64], dt: f64, out: &mut [WheelInput]) {
+        for (i, o) in out.iter_mut().enumerate() {
+            *o = match (self.mode, self.steppers.get_mut(i)) {
+                (ActuatorMode::Ideal, _) => WheelInput::Rate(cmd[i]),
+                (ActuatorMode::Physical, Some(acc)) => {
+                    WheelInput::Steps(acc.advance(cmd[i] as f32, dt as f32))
+                }
+                (ActuatorMode::Physical, None) => {
+                    // Encoder speed at 1 kHz is coarse (one count per tick is several
+                    // rad/s): the loop sees a 10 ms low-pass of it, as firmware would.
+                    let d = self.ext[i].update(sim.encoder_raw(i) as u32) as f64;
+                    self.speed[i] += 0.1 * (d * self.rad_per_count / dt - self.speed[i]);
+                    let duty = self.pi[i].update(cmd[i] as f32, self.speed[i] as f32, dt as f32);
+                    WheelInput::Duty(duty as f64)
+                }
+            };
+        }
+    }
 }
 
 impl SimRecording {

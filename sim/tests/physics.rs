@@ -388,6 +388,27 @@ fn recordings_are_deterministic_per_seed() {
 }
 
 #[test]
+fn physical_recordings_close_the_pi_loop() {
+    // omni4 with DC motors under calib-core's PI: the encoders follow the commands closely
+    // but not exactly (motor dynamics), unlike the ideal mode where they match to a count.
+    let r = robot("omni4");
+    let motion = Motion::Program {
+        program: Box::new(Program::omni_path(calib_core::motion::OmniPath::W1, 0.5)),
+        limits: ProfileLimits::default(),
+    };
+    let mut cfg = RecordConfig::default();
+    let ideal = record(&r, &[], Surface::flat(), &motion, &cfg).unwrap();
+    cfg.actuator = sim::ActuatorMode::Physical;
+    let phys = record(&r, &[], Surface::flat(), &motion, &cfg).unwrap();
+    let end = |rec: &sim::SimRecording| rec.truth.last().unwrap().pose.x;
+    // Both reach 0.5 m: ideal exactly, physical within 2 mm (the PI's integral makes up
+    // the ramps' lag; the position itself is not closed).
+    assert!((end(&ideal) - 0.5).abs() < 1e-9);
+    assert!((end(&phys) - 0.5).abs() < 2e-3, "{}", end(&phys));
+    assert_ne!(ideal.recording.wheels[0].enc, phys.recording.wheels[0].enc);
+}
+
+#[test]
 fn wheeled_legged_recordings_carry_leg_angles() {
     let r = robot("wlr");
     let mut cfg = RecordConfig {
