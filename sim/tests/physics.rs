@@ -437,6 +437,13 @@ fn wheeled_legged_recordings_carry_leg_angles() {
         .all(|v| v.is_some_and(|a| (0.6..=2.5).contains(&a))));
     // Rear wheels are free: no command column, but encoders.
     assert!(rec.recording.wheels[2].cmd.is_none() && rec.recording.wheels[2].enc.is_some());
+    // The directory reads back through calib-core with the legs and the blank commands.
+    let dir = std::env::temp_dir().join(format!("sim-wlr-test-{}", std::process::id()));
+    rec.write_dir(&dir).unwrap();
+    let back = calib_core::recording::Recording::load(&dir.join("recording.csv"), &r).unwrap();
+    assert_eq!(back.len(), rec.recording.len());
+    assert!(back.leg_rear.is_some() && back.wheels[3].cmd.is_none());
+    let _ = std::fs::remove_dir_all(&dir);
 }
 
 #[test]
