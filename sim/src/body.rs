@@ -9,9 +9,10 @@
 //! Free-spinning wheels (free in the robot file, or with their motor off this tick) impose
 //! nothing: they roll with the ground (see [`crate::ground`]). A direction no driven wheel
 //! constrains (001's 4W-1 path with wheels 2 and 4 off leaves the sideways velocity free)
-//! keeps the body's previous velocity: a tiny Tikhonov term (weight 1e-7) pulls the
-//! solution towards it, a stand-in for the body's inertia that changes the constrained
-//! directions by ~1e-12 relative.
+//! keeps the body's previous velocity, less a little rolling resistance: a tiny Tikhonov
+//! term (weight 1e-7) pulls the solution towards it, a stand-in for the body's inertia
+//! that changes the constrained directions by ~1e-12 relative. With every motor off the
+//! robot coasts to a stop (see [`crate::ground`]).
 
 use crate::SimError;
 use calib_core::kinematics::Twist;

@@ -349,6 +349,28 @@ fn motors_off_roll_with_the_ground() {
 }
 
 #[test]
+fn all_motors_off_coasts_to_a_stop() {
+    // E-stop at 0.2 m/s: every wheel free, the body rolls out at 1 m/s^2 (rolling
+    // resistance and gear drag): 0.2 s and 0.2^2 / 2 = 20 mm.
+    let r = robot("mobolab");
+    let mut sim = SimRobot::new(&r, Faults::none(2), Surface::flat(), quiet()).unwrap();
+    for _ in 0..100 {
+        sim.step(1e-3, &[WheelInput::Rate(4.0); 2]).unwrap();
+    }
+    let x0 = sim.true_pose().x;
+    for _ in 0..1000 {
+        sim.step(1e-3, &[WheelInput::Free; 2]).unwrap();
+    }
+    assert_eq!(sim.true_twist().vx, 0.0);
+    // One tick of discretisation: 0.2 m/s x 1 ms / 2.
+    assert!(
+        (sim.true_pose().x - x0 - 0.02).abs() < 2e-4,
+        "{}",
+        sim.true_pose().x - x0
+    );
+}
+
+#[test]
 fn recordings_are_deterministic_per_seed() {
     let r = robot("omni4");
     let effects = [
