@@ -4,6 +4,10 @@
 
 pub mod calibration;
 pub mod cli;
+pub mod client;
+pub mod flash;
+pub mod link;
 pub mod output;
 pub mod report;
 pub mod ros2;
+pub mod virtual_board;
