@@ -21,6 +21,9 @@ pub enum WheelInput {
     Duty(f64),
     /// Stepper: microsteps to issue during this tick (signed).
     Steps(i32),
+    /// Motor off: the wheel rolls with the ground and back-drives the motor (001 turns
+    /// the actuators of the wheels a path does not use off).
+    Free,
 }
 
 impl Default for WheelInput {
@@ -109,6 +112,7 @@ impl Actuator {
                 self.dc.step(d, dt) / self.gear_ratio
             }
             WheelInput::Steps(n) => self.stepper.step(n, dt, None) / self.steps_per_wheel_rad,
+            WheelInput::Free => 0.0,
         };
         self.motor_angle += dm;
         let before = self.wheel_angle;
@@ -120,6 +124,15 @@ impl Actuator {
             self.wheel_angle = self.motor_angle + half;
         }
         self.wheel_angle - before
+    }
+
+    /// The ground turned the wheel by `dphi` over `dt` with the motor off: the motor
+    /// follows (the gear's play stays where it was).
+    pub fn backdrive(&mut self, dphi: f64, dt: f64) {
+        self.wheel_angle += dphi;
+        self.motor_angle += dphi;
+        self.dc.omega = dphi / dt * self.gear_ratio;
+        self.lagged = 0.0;
     }
 
     /// Motor shaft angle in wheel radians (motor angle / gear ratio).

@@ -6,7 +6,13 @@
 //! driven wheels' rolling constraints, so every wheel slips by its residual; standard
 //! wheels add their sliding constraints (zero sideways velocity) weighted 1e-3, enough to
 //! fix the sideways velocity of a differential drive but not to fight a skid-steer turn.
-//! Free-spinning wheels impose nothing: they roll with the ground (see [`crate::ground`]).
+//! Free-spinning wheels (free in the robot file, or with their motor off this tick) impose
+//! nothing: they roll with the ground (see [`crate::ground`]). A direction no driven wheel
+//! constrains (001's 4W-1 path with wheels 2 and 4 off leaves the sideways velocity free)
+//! keeps the body's previous velocity, less a little rolling resistance: a tiny Tikhonov
+//! term (weight 1e-7) pulls the solution towards it, a stand-in for the body's inertia
+//! that changes the constrained directions by ~1e-12 relative. With every motor off the
+//! robot coasts to a stop (see [`crate::ground`]).
 
 use crate::SimError;
 use calib_core::kinematics::Twist;
@@ -14,6 +20,8 @@ use calib_core::robot::{Robot, RobotKind, Wheel};
 
 /// Weight of a standard wheel's sliding constraint relative to rolling (as calib-core).
 const SLIDING_WEIGHT: f64 = 1e-3;
+/// Squared weight of the pull towards the previous twist (inertia in free directions).
+const INERTIA_WEIGHT2: f64 = 1e-14;
 
 /// One wheel's actual geometry.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -39,8 +47,11 @@ impl WheelGeom {
 #[derive(Debug, Clone, PartialEq)]
 pub struct Geometry {
     pub wheels: Vec<WheelGeom>,
-    /// Body twist = sum over driven wheels of gain[i] * contact speed[i].
+    /// Body twist = sum over driven wheels of gain[i] * contact speed[i] + hold * previous.
     gain: Vec<[f64; 3]>,
+    hold: [[f64; 3]; 3],
+    /// Wheels whose motor is off this tick (bit i), besides those free in the file.
+    pub off_mask: u32,
 }
 
 fn inv3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
@@ -48,7 +59,7 @@ fn inv3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
         |r0: usize, c0: usize, r1: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
     let det = m[0][0] * c(1, 1, 2, 2) - m[0][1] * c(1, 0, 2, 2) + m[0][2] * c(1, 0, 2, 1);
     let scale = m[0][0] * m[1][1] * m[2][2];
-    if !det.is_finite() || !(scale > 0.0) || det.abs() <= 1e-9 * scale {
+    if !det.is_finite() || scale.is_nan() || scale <= 0.0 || det.abs() <= 1e-9 * scale {
         return None;
     }
     let adj = [
@@ -66,19 +77,27 @@ fn inv3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
 }
 
 impl Geometry {
-    /// Geometry of an (actual) robot description.
+    /// Geometry of an (actual) robot description, all its driven wheels driving.
     pub fn new(robot: &Robot) -> Result<Self, SimError> {
+        Self::with_motors_off(robot, 0)
+    }
+
+    /// Geometry with the wheels in `off_mask` (bit i = wheel i) rolling freely.
+    pub fn with_motors_off(robot: &Robot, off_mask: u32) -> Result<Self, SimError> {
         let mut wheels = Vec::with_capacity(robot.wheels.len());
         let mut m = [[0.0; 3]; 3];
+        for (a, row) in m.iter_mut().enumerate() {
+            row[a] = INERTIA_WEIGHT2;
+        }
         let sliding = robot.kind.wheels_have_sliding_constraint();
-        for w in &robot.wheels {
+        for (i, w) in robot.wheels.iter().enumerate() {
             let (x, y) = w.position();
             let g = WheelGeom {
                 x,
                 y,
                 row: w.rolling_row(),
                 r_eff: w.radius_m * w.gamma_rad.cos(),
-                driven: w.driven,
+                driven: w.driven && off_mask & (1 << i) == 0,
             };
             for a in 0..3 {
                 for b in 0..3 {
@@ -108,13 +127,28 @@ impl Geometry {
                 }
             })
             .collect();
-        Ok(Geometry { wheels, gain })
+        let mut hold = inv;
+        for row in hold.iter_mut() {
+            for v in row.iter_mut() {
+                *v *= INERTIA_WEIGHT2;
+            }
+        }
+        Ok(Geometry {
+            wheels,
+            gain,
+            hold,
+            off_mask,
+        })
     }
 
     /// Least-squares body twist from the driven wheels' contact speeds (free wheels'
-    /// entries are ignored).
-    pub fn twist_from_contacts(&self, contact: &[f64]) -> Twist<f64> {
+    /// entries are ignored), unconstrained directions keeping `previous`.
+    pub fn twist_from_contacts(&self, contact: &[f64], previous: &Twist<f64>) -> Twist<f64> {
+        let p = [previous.vx, previous.vy, previous.omega];
         let mut t = [0.0; 3];
+        for (a, ta) in t.iter_mut().enumerate() {
+            *ta = self.hold[a][0] * p[0] + self.hold[a][1] * p[1] + self.hold[a][2] * p[2];
+        }
         for (g, c) in self.gain.iter().zip(contact) {
             t[0] += g[0] * c;
             t[1] += g[1] * c;
@@ -202,7 +236,7 @@ mod tests {
                 .zip(&g.wheels)
                 .map(|(w, geo)| w * geo.r_eff)
                 .collect();
-            let back = g.twist_from_contacts(&contacts);
+            let back = g.twist_from_contacts(&contacts, &t);
             assert!((back.vx - t.vx).abs() < 1e-12 && (back.vy - t.vy).abs() < 1e-12);
             assert!((back.omega - t.omega).abs() < 1e-12);
         }

@@ -28,6 +28,12 @@ use rand::Rng;
 use rand_chacha::ChaCha8Rng;
 use rand_distr::StandardNormal;
 
+/// How fast a body that no driven wheel holds (all motors off) rolls to a stop: the
+/// rolling resistance and gear drag of back-driven wheels, m/s^2 and rad/s^2. Only the
+/// directions no driven wheel constrains feel it (see [`crate::body`]).
+const COAST_DECEL_M_S2: f64 = 1.0;
+const COAST_DECEL_RAD_S2: f64 = 5.0;
+
 /// Ground-stage parameters (from [`crate::Faults`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GroundParams {
@@ -108,7 +114,13 @@ impl Ground {
                 }
             };
         }
-        self.wheel_twist = geom.twist_from_contacts(&self.contacts);
+        let toward_zero = |v: f64, a: f64| v - v.clamp(-a * dt, a * dt);
+        let coast = Twist::new(
+            toward_zero(self.wheel_twist.vx, COAST_DECEL_M_S2),
+            toward_zero(self.wheel_twist.vy, COAST_DECEL_M_S2),
+            toward_zero(self.wheel_twist.omega, COAST_DECEL_RAD_S2),
+        );
+        self.wheel_twist = geom.twist_from_contacts(&self.contacts, &coast);
         let w = self.wheel_twist;
         let mut body = Twist::new(w.vx, w.vy - params.side_slip_s * w.vx * w.omega, w.omega);
         if let (Some(tilt), true) = (surface.tilt, moving) {

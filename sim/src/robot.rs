@@ -242,7 +242,7 @@ impl SimRobot {
         }
         let legs = (leg_front_rad, leg_rear_rad);
         let actual = Self::actual_for(&self.nominal, &self.faults, legs);
-        self.geom = Geometry::new(&actual)?;
+        self.geom = Geometry::with_motors_off(&actual, self.geom.off_mask)?;
         self.actual = actual;
         self.legs = legs;
         if self.faults.driven_load_share.is_none() {
@@ -266,6 +266,15 @@ impl SimRobot {
                 message: format!("must be within (0, 1] s, got {dt}"),
             });
         }
+        let mut off = 0u32;
+        for (i, inp) in inputs.iter().enumerate() {
+            if matches!(inp, WheelInput::Free) {
+                off |= 1 << i;
+            }
+        }
+        if off != self.geom.off_mask {
+            self.geom = Geometry::with_motors_off(&self.actual, off)?;
+        }
         for (i, (a, inp)) in self.actuators.iter_mut().zip(inputs).enumerate() {
             self.dphi[i] = if self.geom.wheels[i].driven {
                 a.step(*inp, dt)
@@ -281,8 +290,11 @@ impl SimRobot {
             dt,
             &mut self.rng_ground,
         );
-        for (w, d) in self.wheel_angle.iter_mut().zip(&self.dphi) {
+        for (i, (w, d)) in self.wheel_angle.iter_mut().zip(&self.dphi).enumerate() {
             *w += d;
+            if off & (1 << i) != 0 {
+                self.actuators[i].backdrive(*d, dt);
+            }
         }
         self.t += dt;
         self.vision_new = false;
@@ -344,7 +356,7 @@ impl SimRobot {
     fn encoder_angle(&self, i: usize) -> f64 {
         match (
             self.cfg.encoder_mount,
-            self.geom.wheels.get(i).map(|g| g.driven),
+            self.nominal.wheels.get(i).map(|w| w.driven),
         ) {
             (EncoderMount::Motor, Some(true)) => self.actuators[i].motor_angle(),
             _ => self.wheel_angle(i),
