@@ -265,6 +265,9 @@ pub struct ProcedureArgs {
     /// Runs per direction (UMBmark) or per path (omni).
     #[arg(long, default_value_t = 5)]
     pub runs: usize,
+    /// Runs per direction or path after calibration (default: --runs).
+    #[arg(long)]
+    pub after_runs: Option<usize>,
     /// Measured runs are appended here as they are entered, so a stopped procedure
     /// resumes where it was.
     #[arg(long, default_value = "runs.csv")]
@@ -329,7 +332,11 @@ pub struct DemoArgs {
 /// Entry point of the binary: runs the command, prints errors to stderr.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    let mut ctx = Ctx { port: cli.port.clone(), baud: cli.baud, client: None };
+    let mut ctx = Ctx {
+        port: cli.port.clone(),
+        baud: cli.baud,
+        client: None,
+    };
     match run(cli, &mut ctx) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -351,7 +358,10 @@ pub struct Ctx {
 impl Ctx {
     fn client(&mut self) -> Result<&mut PortClient> {
         if self.client.is_none() {
-            let port = self.port.clone().context("this command talks to a board: give --port DEV (or set WHEELCAL_PORT)")?;
+            let port = self
+                .port
+                .clone()
+                .context("this command talks to a board: give --port DEV (or set WHEELCAL_PORT)")?;
             let link = link::open_serial(&port, self.baud)?;
             let mut c = Client::new(link, &port);
             c.hello()?;
@@ -374,11 +384,22 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             out.emit(&f, || f.human())
         }
         Command::Factors(FactorsCmd::Set(a)) => {
-            let c = board_cmds::corrections_from_args(a.c_l, a.c_r, a.e_b, a.f_lat.as_deref(), a.f_lon)?;
+            let c = board_cmds::corrections_from_args(
+                a.c_l,
+                a.c_r,
+                a.e_b,
+                a.f_lat.as_deref(),
+                a.f_lon,
+            )?;
             let client = ctx.client()?;
             client.set_corrections(c)?;
             let f = FactorsView::from(&client.corrections()?);
-            out.emit(&f, || format!("set (not yet saved: `wheelcal factors save`): {}", f.human()))
+            out.emit(&f, || {
+                format!(
+                    "set (not yet saved: `wheelcal factors save`): {}",
+                    f.human()
+                )
+            })
         }
         Command::Factors(FactorsCmd::Save) => {
             let client = ctx.client()?;
@@ -390,7 +411,9 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             let client = ctx.client()?;
             client.reset_corrections()?;
             let f = FactorsView::from(&client.corrections()?);
-            out.emit(&f, || "corrections reset to nominal (not yet saved: `wheelcal factors save`)\n".into())
+            out.emit(&f, || {
+                "corrections reset to nominal (not yet saved: `wheelcal factors save`)\n".into()
+            })
         }
         Command::Factors(FactorsCmd::Export(a)) => {
             let f = match (&a.from, a.c_l, a.c_r, a.e_b) {
@@ -403,7 +426,8 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 _ => bail!("give --from RESULT.json, all of --c-l, --c-r, --e-b, or --port to read the board"),
             };
             let yaml = ros2::diff_drive_yaml(&f, &a.controller);
-            std::fs::write(&a.ros2, &yaml).with_context(|| format!("cannot write {}", a.ros2.display()))?;
+            std::fs::write(&a.ros2, &yaml)
+                .with_context(|| format!("cannot write {}", a.ros2.display()))?;
             #[derive(serde::Serialize)]
             struct Exported<'a> {
                 ros2_file: &'a std::path::Path,
@@ -411,7 +435,12 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 c_r: f64,
                 e_b: f64,
             }
-            let e = Exported { ros2_file: &a.ros2, c_l: f.c_l, c_r: f.c_r, e_b: f.e_b };
+            let e = Exported {
+                ros2_file: &a.ros2,
+                c_l: f.c_l,
+                c_r: f.c_r,
+                e_b: f.e_b,
+            };
             out.emit(&e, || format!("wrote {}\n{yaml}", a.ros2.display()))
         }
         Command::Drive(a) => {
@@ -419,18 +448,32 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 bail!("--duration must be within (0, 600] seconds");
             }
             let client = ctx.client()?;
-            board_cmds::drive_for(client, Twist::new(a.vx, a.vy, a.omega), Duration::from_secs_f64(a.duration))?;
+            board_cmds::drive_for(
+                client,
+                Twist::new(a.vx, a.vy, a.omega),
+                Duration::from_secs_f64(a.duration),
+            )?;
             let s = client.status()?;
             out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))
         }
         Command::Run(cmd) => {
             let client = ctx.client()?;
             let (no_wait, limit) = match cmd {
-                RunCmd::Umbmark { dir, side, log_rate, no_wait } => {
+                RunCmd::Umbmark {
+                    dir,
+                    side,
+                    log_rate,
+                    no_wait,
+                } => {
                     board_cmds::run_umbmark(client, dir.into(), side, log_rate)?;
                     (no_wait, Duration::from_secs_f64(60.0 + side * 60.0))
                 }
-                RunCmd::Omni { path, length, log_rate, no_wait } => {
+                RunCmd::Omni {
+                    path,
+                    length,
+                    log_rate,
+                    no_wait,
+                } => {
                     board_cmds::run_omni(client, path.into(), length, log_rate)?;
                     (no_wait, Duration::from_secs_f64(60.0 + length * 60.0))
                 }
@@ -476,8 +519,10 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             let client = ctx.client()?;
             let bar = indicatif::ProgressBar::new(0);
             bar.set_style(
-                indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {bytes}/{total_bytes} {bytes_per_sec}")
-                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+                indicatif::ProgressStyle::with_template(
+                    "{msg} [{bar:40}] {bytes}/{total_bytes} {bytes_per_sec}",
+                )
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
             );
             bar.set_message(format!("trial {trial}"));
             let r = board_cmds::pull_trial(client, trial, &file, |done, total| {
@@ -501,7 +546,9 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         }
         Command::Log(LogCmd::Clear) => {
             ctx.client()?.clear_logs()?;
-            out.emit(&serde_json::json!({"cleared": true}), || "trial logs cleared\n".into())
+            out.emit(&serde_json::json!({"cleared": true}), || {
+                "trial logs cleared\n".into()
+            })
         }
         Command::Stop => {
             ctx.client()?.stop()?;
@@ -509,11 +556,15 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         }
         Command::Estop => {
             ctx.client()?.estop()?;
-            out.emit(&serde_json::json!({"estop": true}), || "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into())
+            out.emit(&serde_json::json!({"estop": true}), || {
+                "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into()
+            })
         }
         Command::ClearFault => {
             ctx.client()?.clear_fault()?;
-            out.emit(&serde_json::json!({"cleared": true}), || "fault and E-stop cleared\n".into())
+            out.emit(&serde_json::json!({"cleared": true}), || {
+                "fault and E-stop cleared\n".into()
+            })
         }
         Command::Console => crate::repl::run(ctx, cli.json),
         Command::Umbmark(UmbmarkCmd::Compute(a)) => {
@@ -551,7 +602,11 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::SimBoard(a) => {
             let speed = match a.speed.as_str() {
                 "max" | "inf" => f64::INFINITY,
-                s => s.parse::<f64>().ok().filter(|v| *v > 0.0 && v.is_finite()).context("--speed takes a positive number or `max`")?,
+                s => s
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|v| *v > 0.0 && v.is_finite())
+                    .context("--speed takes a positive number or `max`")?,
             };
             let opts = SimBoardOptions {
                 robot: a.robot,
@@ -582,7 +637,14 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             })
         }
         Command::Demo(a) => {
-            let rep = demo::run(&a.robot, a.seed, a.runs, a.side, a.report.as_deref(), out == Output::Human)?;
+            let rep = demo::run(
+                &a.robot,
+                a.seed,
+                a.runs,
+                a.side,
+                a.report.as_deref(),
+                out == Output::Human,
+            )?;
             out.emit(&rep, || rep.human())
         }
     }
@@ -594,8 +656,13 @@ fn procedure_options(a: &ProcedureArgs, port: &str, kind: procedure::Kind) -> pr
         side_m: a.side,
         length_m: a.length,
         runs: a.runs,
+        after_runs: a.after_runs.unwrap_or(a.runs),
         runs_file: a.runs_file.clone(),
-        auto_measure: a.auto_measure.then(|| a.truth.clone().unwrap_or_else(|| sim_board::truth_file_for(std::path::Path::new(port)))),
+        auto_measure: a.auto_measure.then(|| {
+            a.truth
+                .clone()
+                .unwrap_or_else(|| sim_board::truth_file_for(std::path::Path::new(port)))
+        }),
         report: a.report.clone(),
         after: !a.no_after,
     }
