@@ -1,0 +1,321 @@
+//! Greedy forward selection of catalogue effects.
+//!
+//! Each round fits every remaining effect on top of the model so far, takes the one with
+//! the best information criterion, and keeps it only if it also predicts held-out data
+//! (fit on alternate time blocks, validated on the others) and improves the fit by a
+//! practically visible amount. The chosen effects are then refitted jointly.
+//!
+//! The BIC's sample count is discounted by the residuals' lag-1 autocorrelation: odometry
+//! residuals drift, and counting every sample of a drift as independent evidence would
+//! let any effect that bends the drift a little look significant.
+
+use crate::effects::{Effect, Model, ParamSpec, Stage};
+use crate::fit::levenberg_marquardt;
+use crate::residuals::{Eval, Evaluator, Fold, StageRss};
+use serde::Serialize;
+
+/// Accept an effect only if the BIC drops by more than this ("very strong" evidence on
+/// Kass and Raftery's scale).
+pub const BIC_THRESHOLD: f64 = -10.0;
+/// Held-out sum of squares must drop by at least this fraction.
+pub const HELDOUT_MIN_GAIN: f64 = 0.02;
+/// The effect's stage RMSE must drop by at least this fraction.
+pub const RMSE_MIN_GAIN: f64 = 0.03;
+/// Most effects selected.
+pub const MAX_EFFECTS: usize = 3;
+
+/// One effect tried in one round.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    pub round: usize,
+    pub effect: Effect,
+    pub parameters: Vec<(String, f64)>,
+    pub delta_bic: f64,
+    /// Held-out sum of squares with the effect over without it (only computed for the
+    /// round's best candidate).
+    pub heldout_ratio: Option<f64>,
+    pub accepted: bool,
+    pub note: String,
+}
+
+/// An accepted effect, in the order chosen.
+#[derive(Debug, Clone)]
+pub struct Step {
+    pub effect: Effect,
+    pub delta_bic: f64,
+    pub heldout_ratio: f64,
+    pub before: StageRss,
+    pub after: StageRss,
+}
+
+/// The result of selection.
+#[derive(Debug, Clone)]
+pub struct Selection {
+    pub model: Model,
+    /// 1-sigma uncertainty per effect parameter (value units), same order as `model`.
+    pub sigma: Vec<(Effect, Vec<f64>)>,
+    pub steps: Vec<Step>,
+    pub candidates: Vec<Candidate>,
+    pub nominal: StageRss,
+    pub final_rss: StageRss,
+    pub nominal_eval: Eval,
+    pub final_eval: Eval,
+}
+
+/// Which stage's data speak for an effect.
+pub fn evidence_stage(ev: &Evaluator, e: Effect) -> Stage {
+    if e.stage() == Stage::Actuator && !ev.actuator_wheels().is_empty() {
+        Stage::Actuator
+    } else {
+        Stage::Ground
+    }
+}
+
+fn stage_rmse(r: &StageRss, s: Stage) -> f64 {
+    match s {
+        Stage::Ground => r.ground_rmse(),
+        Stage::Actuator => r.actuator_rmse(),
+    }
+}
+
+/// Fits the parameters of `effects` (all others fixed as in `base`) on a fold.
+/// Returns the model and the 1-sigma uncertainties in value units.
+fn fit_params(
+    ev: &Evaluator,
+    base: &Model,
+    effects: &[Effect],
+    start: &[Vec<f64>],
+    fold: Fold,
+) -> (Model, Vec<Vec<f64>>, f64) {
+    let robot = &ev.p.robot;
+    let specs: Vec<Vec<ParamSpec>> = effects.iter().map(|e| e.params(robot)).collect();
+    let build = |u: &[f64]| -> Model {
+        let mut m = base.clone();
+        let mut i = 0;
+        for (e, sp) in effects.iter().zip(&specs) {
+            let vals = sp
+                .iter()
+                .map(|s| {
+                    i += 1;
+                    s.value(u[i - 1])
+                })
+                .collect();
+            m = m.with(*e, vals);
+        }
+        m
+    };
+    let mut buf = Vec::new();
+    let mut f = |u: &[f64]| -> Vec<f64> {
+        let m = build(u);
+        let e = ev.evaluate(&m, fold);
+        ev.weighted(&e, fold, &mut buf);
+        buf.clone()
+    };
+    let flat_specs: Vec<&ParamSpec> = specs.iter().flatten().collect();
+    let (lo, hi): (Vec<f64>, Vec<f64>) = flat_specs.iter().map(|s| s.bounds()).unzip();
+    // Starting grid (only for a single effect; joint refits start from the current values).
+    let mut best: Option<(Vec<f64>, f64)> = None;
+    for s in start {
+        let u: Vec<f64> = flat_specs
+            .iter()
+            .zip(s)
+            .map(|(sp, v)| sp.internal(*v))
+            .collect();
+        let c: f64 = f(&u).iter().map(|v| v * v).sum();
+        if c.is_finite() && best.as_ref().is_none_or(|b| c < b.1) {
+            best = Some((u, c));
+        }
+    }
+    let u0 = best.map(|b| b.0).unwrap_or_else(|| {
+        flat_specs
+            .iter()
+            .map(|s| s.internal(s.null.clamp(s.min, s.max)))
+            .collect()
+    });
+    let r = levenberg_marquardt(&mut f, &u0, &lo, &hi, 20);
+    let model = build(&r.x);
+    let mut sig = Vec::new();
+    let mut i = 0;
+    for sp in &specs {
+        sig.push(
+            sp.iter()
+                .map(|s| {
+                    let v = s.value(r.x[i]);
+                    let su = r.sigma[i];
+                    i += 1;
+                    match s.scale {
+                        crate::effects::Scale::Linear => su,
+                        crate::effects::Scale::Log => v * su,
+                    }
+                })
+                .collect(),
+        );
+    }
+    (model, sig, r.cost)
+}
+
+/// Discounted BIC change of `cand` against `base` (negative favours `cand`).
+fn delta_bic(ev: &Evaluator, base: &Eval, cand: &Eval, k: usize, stage: Stage) -> f64 {
+    let (rb, rc) = (ev.rss(base, Fold::All), ev.rss(cand, Fold::All));
+    let mut total = 0.0;
+    let mut n_penalty = 1.0;
+    for s in [Stage::Ground, Stage::Actuator] {
+        let n = match s {
+            Stage::Ground => 3 * rc.n_pose,
+            Stage::Actuator => rc.n_act,
+        } as f64;
+        let (c0, c1) = (ev.chi2(&rb, s), ev.chi2(&rc, s));
+        if n < 1.0 || c0 <= 0.0 || c1 <= 0.0 {
+            continue;
+        }
+        let rho = ev.autocorrelation(cand, s);
+        let n_eff = (n * (1.0 - rho) / (1.0 + rho)).max(1.0);
+        if (c1 - c0).abs() > 1e-12 * c0 {
+            total += n_eff * (c1 / c0).ln();
+        }
+        if s == stage {
+            n_penalty = n_eff.max(2.0);
+        }
+    }
+    total + k as f64 * n_penalty.ln()
+}
+
+/// Runs the selection.
+pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
+    let robot = &ev.p.robot;
+    let has_cmd = ev.p.has_commands();
+    let mut model = Model::default();
+    let mut sigma: Vec<(Effect, Vec<f64>)> = Vec::new();
+    let nominal_eval = ev.evaluate(&model, Fold::All);
+    let nominal = ev.rss(&nominal_eval, Fold::All);
+    let mut base_eval = nominal_eval.clone();
+    let mut steps = Vec::new();
+    let mut candidates = Vec::new();
+    let mut rejected: Vec<Effect> = Vec::new();
+    for round in 0..max_effects {
+        let mut tried: Vec<(Effect, Model, Vec<Vec<f64>>, Eval, f64)> = Vec::new();
+        for e in Effect::ALL {
+            if model.get(e).is_some() || rejected.contains(&e) || !e.applies(robot, has_cmd) {
+                continue;
+            }
+            let (m, sig, _) = fit_params(ev, &model, &[e], &e.start_grid(robot), Fold::All);
+            let cand_eval = ev.evaluate(&m, Fold::All);
+            let k = e.params(robot).len();
+            let d = delta_bic(ev, &base_eval, &cand_eval, k, evidence_stage(ev, e));
+            candidates.push(Candidate {
+                round,
+                effect: e,
+                parameters: named(robot, e, m.get(e).unwrap_or(&[])),
+                delta_bic: d,
+                heldout_ratio: None,
+                accepted: false,
+                note: String::new(),
+            });
+            tried.push((e, m, sig, cand_eval, d));
+        }
+        tried.sort_by(|a, b| a.4.total_cmp(&b.4));
+        let mut accepted = false;
+        for (e, m, sig, cand_eval, d) in tried.into_iter().take(3) {
+            let idx = candidates
+                .iter()
+                .rposition(|c| c.round == round && c.effect == e)
+                .expect("recorded above");
+            if d > BIC_THRESHOLD {
+                candidates[idx].note = "BIC does not favour it".into();
+                break;
+            }
+            let stage = evidence_stage(ev, e);
+            let before = ev.rss(&base_eval, Fold::All);
+            let after = ev.rss(&cand_eval, Fold::All);
+            let gain = 1.0 - stage_rmse(&after, stage) / stage_rmse(&before, stage).max(1e-300);
+            let ratio = heldout_ratio(ev, &model, e, m.get(e).unwrap_or(&[]));
+            candidates[idx].heldout_ratio = Some(ratio);
+            if gain < RMSE_MIN_GAIN {
+                candidates[idx].note = format!("improves the {stage} RMSE by only {:.1} %", gain * 100.0);
+                rejected.push(e);
+                continue;
+            }
+            if ratio > 1.0 - HELDOUT_MIN_GAIN {
+                candidates[idx].note = "does not predict held-out data".into();
+                rejected.push(e);
+                continue;
+            }
+            candidates[idx].accepted = true;
+            // Joint refit of everything chosen so far.
+            let chosen: Vec<Effect> = m.effects.iter().map(|(e, _)| *e).collect();
+            let start: Vec<f64> = m.effects.iter().flat_map(|(_, p)| p.clone()).collect();
+            let (mj, sj) = if chosen.len() > 1 {
+                let (mj, sj, _) = fit_params(ev, &Model::default(), &chosen, &[start], Fold::All);
+                (mj, sj)
+            } else {
+                (m.clone(), sig.clone())
+            };
+            let joint_eval = ev.evaluate(&mj, Fold::All);
+            let (model_new, eval_new) = if ev.rss(&joint_eval, Fold::All).pos
+                + ev.rss(&joint_eval, Fold::All).act
+                <= after.pos + after.act
+            {
+                sigma = chosen.iter().copied().zip(sj).collect();
+                (mj, joint_eval)
+            } else {
+                sigma.push((e, sig.into_iter().next().unwrap_or_default()));
+                (m, cand_eval)
+            };
+            steps.push(Step {
+                effect: e,
+                delta_bic: d,
+                heldout_ratio: ratio,
+                before,
+                after: ev.rss(&eval_new, Fold::All),
+            });
+            model = model_new;
+            base_eval = eval_new;
+            accepted = true;
+            break;
+        }
+        if !accepted {
+            break;
+        }
+    }
+    let final_rss = ev.rss(&base_eval, Fold::All);
+    Selection {
+        model,
+        sigma,
+        steps,
+        candidates,
+        nominal,
+        final_rss,
+        nominal_eval,
+        final_eval: base_eval,
+    }
+}
+
+/// Held-out check: fit the effect on even blocks and score the odd ones, then the other
+/// way round, against the model without it (nuisances fitted the same way).
+fn heldout_ratio(ev: &Evaluator, base: &Model, e: Effect, full_fit: &[f64]) -> f64 {
+    let mut with = 0.0;
+    let mut without = 0.0;
+    for fold in [Fold::Even, Fold::Odd] {
+        let (m, _, _) = fit_params(ev, base, &[e], &[full_fit.to_vec()], fold);
+        let test = fold.other();
+        let c = ev.evaluate(&m, fold);
+        let b = ev.evaluate(base, fold);
+        let (rc, rb) = (ev.rss(&c, test), ev.rss(&b, test));
+        with += ev.chi2(&rc, Stage::Ground) + ev.chi2(&rc, Stage::Actuator);
+        without += ev.chi2(&rb, Stage::Ground) + ev.chi2(&rb, Stage::Actuator);
+    }
+    if without > 0.0 {
+        with / without
+    } else {
+        1.0
+    }
+}
+
+/// Parameter names and values of an effect for this robot.
+pub fn named(robot: &calib_core::Robot, e: Effect, vals: &[f64]) -> Vec<(String, f64)> {
+    e.params(robot)
+        .into_iter()
+        .zip(vals)
+        .map(|(s, v)| (s.name, *v))
+        .collect()
+}
