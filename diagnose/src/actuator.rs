@@ -68,17 +68,26 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
                 inc
             }
             (tau, Some(a)) => {
-                // The lag (if any) shapes the demand; the motor cannot follow faster than a.
+                // The lag (if any) shapes the demand; the motor cannot follow faster than
+                // a. Integrated exactly for a ramp that may reach the demand mid-interval.
                 let mut demand = c;
                 if let Some(tau) = tau {
                     let e = (-dt / tau.max(1e-9)).exp();
                     demand = c + (rate - c) * e;
                 }
-                let step = (demand - rate).clamp(-a * dt, a * dt);
-                let new_rate = rate + step;
-                let inc = 0.5 * (rate + new_rate) * dt;
-                rate = new_rate;
-                inc
+                let gap = demand - rate;
+                let a = a.max(1e-12);
+                let t_reach = gap.abs() / a;
+                if t_reach >= dt {
+                    let new_rate = rate + gap.signum() * a * dt;
+                    let inc = 0.5 * (rate + new_rate) * dt;
+                    rate = new_rate;
+                    inc
+                } else {
+                    let inc = 0.5 * (rate + demand) * t_reach + demand * (dt - t_reach);
+                    rate = demand;
+                    inc
+                }
             }
         };
         motor += inc;

@@ -211,8 +211,9 @@ impl Effect {
             Effect::CoulombFriction => singles(log_grid(0.02, 20.0, 12)),
             Effect::FloorBumps => {
                 let mut g = Vec::new();
-                for s in log_grid(0.01, 0.3, 5) {
-                    for frac in log_grid(0.002, 0.1, 5) {
+                // Crossings make the cost a comb in the spacing: sample it densely.
+                for s in log_grid(0.01, 0.3, 48) {
+                    for frac in log_grid(0.003, 0.1, 4) {
                         g.push(vec![s, s * frac]);
                     }
                 }

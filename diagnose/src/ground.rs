@@ -106,8 +106,11 @@ impl KinCache {
 
 /// Integrates the model over the recording. `angles[i]` is wheel i's angle per row (from
 /// its encoder or from the actuator model); `None` for a wheel nobody measured or
-/// commanded (it then contributes a zero increment, which only happens for undriven
-/// wheels without encoders).
+/// commanded (it is left out of the least squares).
+///
+/// Floor-fixed effects (cables across world x) need the robot's world pose: they take
+/// the measured pose, interpolated between samples, not the model's own dead-reckoned
+/// pose, whose drift is exactly what is being diagnosed.
 pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mut Path) {
     let n = p.rows();
     out.x.clear();
@@ -130,6 +133,22 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
     let mu = model.get(Effect::LongitudinalSlip).map(|v| v[0]);
     let side = model.get(Effect::LateralSlip).map(|v| v[0]);
     let bumps = model.get(Effect::FloorBumps).map(|v| (v[0], v[1]));
+    let per_wheel = mu.is_some() || bumps.is_some();
+    // Effective radii and body-frame rolling directions and positions of the known wheels.
+    let wheels: Vec<(f64, (f64, f64), (f64, f64), bool)> = robot
+        .wheels
+        .iter()
+        .zip(&scales_known)
+        .map(|(w, s)| {
+            let row = w.rolling_row();
+            (
+                w.radius_m * s * w.gamma_rad.cos(),
+                (row[0], row[1]),
+                w.position(),
+                w.driven,
+            )
+        })
+        .collect();
     let mut cache = KinCache::new(&robot, scales_known, eb);
     let mut pose = Pose::new(0.0, 0.0, 0.0);
     out.x.reserve(n);
@@ -139,11 +158,18 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
     out.x.push(0.0);
     out.y.push(0.0);
     out.theta.push(0.0);
-    let mut inc = vec![0.0; known.len()];
-    let mut v_body: Option<f64> = None;
-    let mut travelled = 0.0;
-    let mut crossings_done = 0.0;
-    let mut owed = 0.0;
+    let m = known.len();
+    let mut inc = vec![0.0; m];
+    let mut contact: Option<Vec<f64>> = None;
+    let mut owed = vec![0.0f64; m];
+    let world_x = |k: usize, (bx, by): (f64, f64)| -> f64 {
+        let (x, _, th) = p.pose_at_row[k];
+        x + th.cos() * bx - th.sin() * by
+    };
+    let world_dir = |k: usize, (dx, dy): (f64, f64)| -> f64 {
+        let th = p.pose_at_row[k].2;
+        th.cos() * dx - th.sin() * dy
+    };
     for k in 0..n.saturating_sub(1) {
         let dt = p.t[k + 1] - p.t[k];
         cache.update(p.leg_angles(k), mu.is_some());
@@ -151,54 +177,89 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
             let a = angles[i].expect("known wheels have angles");
             inc[j] = a[k + 1] - a[k];
         }
-        let mut d = match &cache.all {
-            Some(kin) => kin.forward(&inc),
-            None => Twist::zero(),
-        };
-        if let Some(mu) = mu {
-            // Traction limit: the body's forward speed follows what the driven wheels
-            // roll, but cannot change faster than mu * g * (load share on them).
-            let wheel_d = match &cache.driven {
-                Some((kin, idx)) => {
-                    let sub: Vec<f64> = idx
-                        .iter()
-                        .map(|&i| known.iter().position(|&q| q == i).map_or(0.0, |j| inc[j]))
-                        .collect();
+        let mut d = if per_wheel {
+            // Each wheel's travel at its contact: cables take their toll, traction bounds
+            // how fast the contact speed changes; the body takes the least-squares twist.
+            let mut disp: Vec<f64> = (0..m).map(|j| wheels[j].0 * inc[j]).collect();
+            let mut smooth_disp = disp.clone();
+            if mu.is_some() {
+                // The traction limit reacts to speed changes, and encoder quantisation
+                // makes per-sample speeds jitter by a count per sample: read the speed
+                // over three samples instead.
+                let (k1, k2) = (k.saturating_sub(1), (k + 2).min(n - 1));
+                let span = p.t[k2] - p.t[k1];
+                for (j, &i) in known.iter().enumerate() {
+                    let a = angles[i].expect("known wheels have angles");
+                    if span > 0.0 {
+                        smooth_disp[j] = wheels[j].0 * (a[k2] - a[k1]) / span * dt;
+                    }
+                }
+            }
+            for j in 0..m {
+                if owed[j] > 0.0 && disp[j] != 0.0 && wheels[j].3 {
+                    let take = owed[j].min(disp[j].abs());
+                    disp[j] -= take.copysign(disp[j]);
+                    owed[j] -= take;
+                }
+            }
+            if let Some(mu) = mu {
+                let a = (mu * G * p.driven_share[k]).max(1e-12);
+                let c = contact.get_or_insert_with(|| disp.iter().map(|d| d / dt).collect());
+                for j in 0..m {
+                    if !wheels[j].3 {
+                        continue;
+                    }
+                    let want = (smooth_disp[j] - (wheels[j].0 * inc[j] - disp[j])) / dt;
+                    let gap = want - c[j];
+                    let t_reach = gap.abs() / a;
+                    if t_reach >= dt {
+                        let e = c[j] + gap.signum() * a * dt;
+                        disp[j] = 0.5 * (c[j] + e) * dt;
+                        c[j] = e;
+                    } else {
+                        disp[j] = 0.5 * (c[j] + want) * t_reach + want * (dt - t_reach);
+                        c[j] = want;
+                    }
+                }
+            }
+            let ang: Vec<f64> = (0..m).map(|j| disp[j] / wheels[j].0).collect();
+            match (&cache.driven, mu.is_some()) {
+                (Some((kin, idx)), true) => {
+                    let sub: Vec<f64> = idx.iter().map(|&j| ang[j]).collect();
                     kin.forward(&sub)
                 }
-                None => d,
-            };
-            let v_in = wheel_d.vx / dt;
-            let a_max = mu * G * p.driven_share[k];
-            let v = match v_body {
-                None => v_in,
-                Some(v) => v + (v_in - v).clamp(-a_max * dt, a_max * dt),
-            };
-            v_body = Some(v);
-            d = Twist::new(v * dt, wheel_d.vy, wheel_d.omega);
-        }
+                _ => match &cache.all {
+                    Some(kin) => kin.forward(&ang),
+                    None => Twist::zero(),
+                },
+            }
+        } else {
+            match &cache.all {
+                Some(kin) => kin.forward(&inc),
+                None => Twist::zero(),
+            }
+        };
         if let Some(k_side) = side {
             // v_y = -k v_x omega, as a displacement over the interval.
             d.vy += -k_side * d.vx * d.omega / dt;
         }
+        pose = integrate_arc(pose, &d);
         if let Some((spacing, loss)) = bumps {
-            let ds = d.vx.hypot(d.vy);
-            if ds > 0.0 && spacing > 0.0 {
-                travelled += ds;
-                // Crossings at travelled = spacing/2, 3 spacing/2, ...
-                let crossings = (travelled / spacing + 0.5).floor();
-                // Travel lost at a crossing is taken from this and the next samples.
-                owed += (crossings - crossings_done) * loss;
-                crossings_done = crossings;
-                if owed > 0.0 {
-                    let take = owed.min(ds);
-                    owed -= take;
-                    d.vx *= 1.0 - take / ds;
-                    d.vy *= 1.0 - take / ds;
+            // Cables at world x = k * spacing: a driven wheel rolling onto one owes `loss`
+            // of travel along its rolling direction's share of the crossing.
+            let spacing = spacing.max(1e-6);
+            for j in 0..m {
+                if !wheels[j].3 {
+                    continue;
+                }
+                let s0 = (world_x(k, wheels[j].2) / spacing).floor();
+                let s1 = (world_x(k + 1, wheels[j].2) / spacing).floor();
+                let crossed = (s1 - s0).abs();
+                if crossed > 0.0 {
+                    owed[j] += crossed * loss * world_dir(k + 1, wheels[j].1).abs();
                 }
             }
         }
-        pose = integrate_arc(pose, &d);
         out.x.push(pose.x);
         out.y.push(pose.y);
         out.theta.push(pose.theta);

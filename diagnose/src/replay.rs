@@ -56,6 +56,10 @@ pub struct Prepared {
     pub legs: Option<(Vec<f64>, Vec<f64>)>,
     /// Share of the weight on driven wheels per row (1 for robots whose wheels all drive).
     pub driven_share: Vec<f64>,
+    /// Measured pose, lightly smoothed and interpolated to every row (held before the
+    /// first and after the last sample): where the robot is on the floor, for
+    /// floor-fixed effects.
+    pub pose_at_row: Vec<(f64, f64, f64)>,
 }
 
 /// Unwraps a heading series so consecutive samples differ by less than pi.
@@ -152,7 +156,9 @@ impl Prepared {
             None
         };
         let driven_share = driven_share(robot, legs.as_ref(), rec.len());
+        let pose_at_row = interpolate_poses(&rec.t, &poses);
         Prepared {
+            pose_at_row,
             robot: robot.clone(),
             t: rec.t.clone(),
             wheels,
@@ -183,6 +189,50 @@ impl Prepared {
     pub fn has_commands(&self) -> bool {
         self.wheels.iter().any(|w| w.cmd.is_some())
     }
+}
+
+fn interpolate_poses(t: &[f64], ps: &PoseSamples) -> Vec<(f64, f64, f64)> {
+    let n = t.len();
+    if ps.is_empty() {
+        return vec![(0.0, 0.0, 0.0); n];
+    }
+    // Smooth over five samples: vision noise would otherwise make a wheel standing on a
+    // cable line seem to cross it back and forth.
+    let m = ps.len();
+    let avg = |v: &[f64], j: usize| -> f64 {
+        let (a, b) = (j.saturating_sub(2), (j + 3).min(m));
+        v[a..b].iter().sum::<f64>() / (b - a) as f64
+    };
+    let sx: Vec<f64> = (0..m).map(|j| avg(&ps.x, j)).collect();
+    let sy: Vec<f64> = (0..m).map(|j| avg(&ps.y, j)).collect();
+    let sth: Vec<f64> = (0..m).map(|j| avg(&ps.theta, j)).collect();
+    let ps = &PoseSamples {
+        row: ps.row.clone(),
+        x: sx,
+        y: sy,
+        theta: sth,
+    };
+    let mut out = Vec::with_capacity(n);
+    let mut j = 0;
+    for k in 0..n {
+        while j + 1 < ps.len() && ps.row[j + 1] <= k {
+            j += 1;
+        }
+        let (r0, r1) = (ps.row[j], ps.row[(j + 1).min(ps.len() - 1)]);
+        if k <= r0 || r1 <= r0 {
+            out.push((ps.x[j], ps.y[j], ps.theta[j]));
+        } else {
+            let j1 = j + 1;
+            let f = (t[k] - t[r0]) / (t[r1] - t[r0]);
+            let lerp = |a: f64, b: f64| a + (b - a) * f;
+            out.push((
+                lerp(ps.x[j], ps.x[j1]),
+                lerp(ps.y[j], ps.y[j1]),
+                lerp(ps.theta[j], ps.theta[j1]),
+            ));
+        }
+    }
+    out
 }
 
 /// Share of the weight carried by driven wheels. Wheeled-legged: by moment balance from

@@ -126,6 +126,27 @@ fn fit_params(
             best = Some((u, c));
         }
     }
+    // One-parameter threshold effects have piecewise-flat costs: zoom in on the best
+    // grid cell twice before the local optimiser takes over.
+    if flat_specs.len() == 1 && start.len() > 2 {
+        if let Some((bu, bc)) = best.clone() {
+            let grid_u: Vec<f64> = start.iter().map(|s| flat_specs[0].internal(s[0])).collect();
+            let mut half = (grid_u[1] - grid_u[0]).abs();
+            let (mut cu, mut cc) = (bu[0], bc);
+            for _ in 0..2 {
+                let centre = cu;
+                for i in 1..8 {
+                    let u = centre - half + 2.0 * half * i as f64 / 8.0;
+                    let c: f64 = f(&[u]).iter().map(|v| v * v).sum();
+                    if c.is_finite() && c < cc {
+                        (cu, cc) = (u, c);
+                    }
+                }
+                half /= 4.0;
+            }
+            best = Some((vec![cu], cc));
+        }
+    }
     let u0 = best.map(|b| b.0).unwrap_or_else(|| {
         flat_specs
             .iter()
@@ -198,7 +219,8 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             if model.get(e).is_some() || rejected.contains(&e) || !e.applies(robot, has_cmd) {
                 continue;
             }
-            let (m, sig, _) = fit_params(ev, &model, &[e], &e.start_grid(robot), Fold::All);
+            let (m, sig, _) =
+                fit_params(ev, &model, &[e], &e.start_grid(robot), Fold::All);
             let cand_eval = ev.evaluate(&m, Fold::All);
             let k = e.params(robot).len();
             let d = delta_bic(ev, &base_eval, &cand_eval, k, evidence_stage(ev, e));

@@ -26,8 +26,8 @@ pub enum Truth {
     MissedSteps(f64),
     Lag(f64),
     Deadband(f64),
-    /// Out of catalogue: a tilted floor, the body slides downhill (world +y) at this
-    /// fraction of its speed.
+    /// Out of catalogue: a tilted floor, the body drifts downhill (world +y) at this
+    /// speed (m/s) while the wheels turn.
     Tilt(f64),
 }
 
@@ -184,11 +184,23 @@ pub fn generate(cfg: &Config) -> Generated {
     let mut rate = vec![0.0; nw]; // wheel rate after lag / step loss
     let mut motor = vec![0.0; nw];
     let mut wheel = vec![0.0; nw];
-    let (mut x, mut y, mut th) = (0.0f64, 0.0f64, 0.0f64);
-    let mut vbody: Option<f64> = None;
-    let mut travelled = 0.0;
-    let mut owed = 0.0;
-    let mut next_bump = bumps.map_or(f64::INFINITY, |b| b.0 * 0.5);
+    let (mut x, mut y, mut th) = (
+        rng.random_range(-0.5..0.5),
+        rng.random_range(-0.5..0.5),
+        rng.random_range(-3.0..3.0f64),
+    );
+    let mut owed = vec![0.0f64; nw];
+    let mut contact: Option<Vec<f64>> = None;
+    let radii: Vec<f64> = true_robot.wheels.iter().map(|w| w.radius_m).collect();
+    let pos: Vec<(f64, f64)> = true_robot.wheels.iter().map(|w| w.position()).collect();
+    let dirs: Vec<(f64, f64)> = true_robot
+        .wheels
+        .iter()
+        .map(|w| {
+            let r = w.rolling_row();
+            (r[0], r[1])
+        })
+        .collect();
     let mut next_pose = 0.0;
     let mut truth_xy = Vec::new();
     let mut held_cmd = vec![0.0; nw];
@@ -254,35 +266,32 @@ pub fn generate(cfg: &Config) -> Generated {
             wheel_inc[j] = wheel[j] - before;
         }
         let _ = &mut last_cmd;
-        // Ground.
-        let mut d = truth.forward(&wheel_inc);
+        // Ground: per-wheel contact travel (cables take their toll, traction bounds the
+        // contact acceleration), least-squares body twist, side slip, tilt drift.
+        let mut disp: Vec<f64> = (0..nw).map(|j| radii[j] * wheel_inc[j]).collect();
+        for j in 0..nw {
+            if owed[j] > 0.0 && disp[j] != 0.0 {
+                let take = owed[j].min(disp[j].abs());
+                disp[j] -= take.copysign(disp[j]);
+                owed[j] -= take;
+            }
+        }
         if let Some(mu) = mu {
             let a = mu * 9.80665 * share;
-            let want = d.vx / sub;
-            let v = match vbody {
-                None => want,
-                Some(v) => v + (want - v).clamp(-a * sub, a * sub),
-            };
-            vbody = Some(v);
-            d.vx = v * sub;
+            let c = contact.get_or_insert_with(|| disp.iter().map(|d| d / sub).collect());
+            for j in 0..nw {
+                let want = disp[j] / sub;
+                c[j] += (want - c[j]).clamp(-a * sub, a * sub);
+                disp[j] = c[j] * sub;
+            }
         }
+        let ang: Vec<f64> = (0..nw).map(|j| disp[j] / radii[j]).collect();
+        let mut d = truth.forward(&ang);
         if let Some(k) = side {
             d.vy -= k * (d.vx / sub) * (d.omega / sub) * sub;
         }
-        if let Some((spacing, loss)) = bumps {
-            let ds = d.vx.hypot(d.vy);
-            travelled += ds;
-            if travelled >= next_bump {
-                next_bump += spacing;
-                owed += loss;
-            }
-            if owed > 0.0 && ds > 0.0 {
-                let take = owed.min(ds);
-                owed -= take;
-                d.vx *= 1.0 - take / ds;
-                d.vy *= 1.0 - take / ds;
-            }
-        }
+        let moving = wheel_inc.iter().any(|v| *v != 0.0);
+        let before = (x, y, th);
         // Exact arc in the world frame.
         let (s, c) = th.sin_cos();
         let (dx, dy) = if d.omega.abs() > 1e-12 {
@@ -295,8 +304,20 @@ pub fn generate(cfg: &Config) -> Generated {
         x += c * dx - s * dy;
         y += s * dx + c * dy;
         th += d.omega;
-        if let Some(k) = tilt {
-            y += k * dx.hypot(dy);
+        if let (Some(v), true) = (tilt, moving) {
+            y += v * sub;
+        }
+        if let Some((spacing, loss)) = bumps {
+            for j in 0..nw {
+                let (bx, by) = pos[j];
+                let wx0 = before.0 + before.2.cos() * bx - before.2.sin() * by;
+                let wx1 = x + th.cos() * bx - th.sin() * by;
+                let k = ((wx1 / spacing).floor() - (wx0 / spacing).floor()).abs();
+                if k > 0.0 {
+                    let along = (th.cos() * dirs[j].0 - th.sin() * dirs[j].1).abs();
+                    owed[j] += k * loss * along;
+                }
+            }
         }
     }
     let _ = rng.random::<u8>();
