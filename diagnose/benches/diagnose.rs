@@ -34,7 +34,10 @@ fn main() {
         println!(
             "run {run}: {dt:.2} s, verdict {}, findings {:?}, rmse {:.2} -> {:.2} mm",
             r.verdict,
-            r.findings.iter().map(|f| f.effect.as_str()).collect::<Vec<_>>(),
+            r.findings
+                .iter()
+                .map(|f| f.effect.as_str())
+                .collect::<Vec<_>>(),
             r.rmse_nominal_m * 1e3,
             r.rmse_final_m * 1e3
         );

@@ -140,7 +140,11 @@ mod tests {
         c0[0] = 0.0;
         simulate_wheel(&t, &c0, &p, &mut out);
         let ideal = 5.0 * 1.999;
-        assert!((ideal - out[2000] - 0.5).abs() < 0.01, "{}", ideal - out[2000]);
+        assert!(
+            (ideal - out[2000] - 0.5).abs() < 0.01,
+            "{}",
+            ideal - out[2000]
+        );
     }
 
     #[test]

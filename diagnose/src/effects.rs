@@ -156,7 +156,13 @@ impl Effect {
                         .wheels
                         .iter()
                         .map(|w| {
-                            ParamSpec::new(&format!("radius_scale_{}", w.name), Linear, 1.0, 0.8, 1.25)
+                            ParamSpec::new(
+                                &format!("radius_scale_{}", w.name),
+                                Linear,
+                                1.0,
+                                0.8,
+                                1.25,
+                            )
                         })
                         .collect()
                 }
@@ -183,7 +189,8 @@ impl Effect {
     pub fn applies(self, robot: &Robot, has_commands: bool) -> bool {
         match self.stage() {
             Stage::Actuator => {
-                has_commands && (self != Effect::MissedSteps || robot.drive.kind == DriveType::Stepper)
+                has_commands
+                    && (self != Effect::MissedSteps || robot.drive.kind == DriveType::Stepper)
             }
             Stage::Ground => true,
         }

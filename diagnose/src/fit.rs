@@ -161,14 +161,20 @@ mod tests {
                 .collect()
         };
         let r = levenberg_marquardt(&mut f, &[1.0, 0.1], &[0.0, 0.0], &[10.0, 10.0], 100);
-        assert!((r.x[0] - 2.0).abs() < 1e-6 && (r.x[1] - 0.7).abs() < 1e-6, "{:?}", r.x);
+        assert!(
+            (r.x[0] - 2.0).abs() < 1e-6 && (r.x[1] - 0.7).abs() < 1e-6,
+            "{:?}",
+            r.x
+        );
     }
 
     #[test]
     fn uncertainty_of_a_mean() {
         // Residuals x - y_i with unit noise weights: sigma of the mean = 1 / sqrt(n) when
         // the scatter matches the weights.
-        let y: Vec<f64> = (0..100).map(|i| if i % 2 == 0 { 1.0 } else { -1.0 }).collect();
+        let y: Vec<f64> = (0..100)
+            .map(|i| if i % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
         let mut f = |x: &[f64]| -> Vec<f64> { y.iter().map(|v| x[0] - v).collect() };
         let r = levenberg_marquardt(&mut f, &[0.5], &[-10.0], &[10.0], 50);
         assert!(r.x[0].abs() < 1e-6);

@@ -12,6 +12,9 @@ use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::odometry::{integrate_arc, Pose};
 use calib_core::robot::Robot;
 
+/// (effective radius r cos(gamma), rolling direction, position, driven) of a wheel.
+type ContactWheel = (f64, (f64, f64), (f64, f64), bool);
+
 /// Predicted poses, starting at the origin with heading 0.
 #[derive(Debug, Clone, Default)]
 pub struct Path {
@@ -96,7 +99,9 @@ impl KinCache {
                     .filter(|(_, w)| w.driven)
                     .map(|(i, _)| i)
                     .collect();
-                Kinematics::new(&d, &Corrections::None).ok().map(|k| (k, idx))
+                Kinematics::new(&d, &Corrections::None)
+                    .ok()
+                    .map(|k| (k, idx))
             })
         } else {
             None
@@ -135,7 +140,7 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
     let bumps = model.get(Effect::FloorBumps).map(|v| (v[0], v[1]));
     let per_wheel = mu.is_some() || bumps.is_some();
     // Effective radii and body-frame rolling directions and positions of the known wheels.
-    let wheels: Vec<(f64, (f64, f64), (f64, f64), bool)> = robot
+    let wheels: Vec<ContactWheel> = robot
         .wheels
         .iter()
         .zip(&scales_known)

@@ -9,7 +9,12 @@ use std::path::Path;
 type PlotResult = Result<(), Box<dyn std::error::Error>>;
 
 fn bounds(series: &[&[(f64, f64)]]) -> (f64, f64, f64, f64) {
-    let mut b = (f64::INFINITY, f64::NEG_INFINITY, f64::INFINITY, f64::NEG_INFINITY);
+    let mut b = (
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+        f64::INFINITY,
+        f64::NEG_INFINITY,
+    );
     for s in series {
         for &(x, y) in s.iter() {
             if x.is_finite() && y.is_finite() {
@@ -48,12 +53,19 @@ fn path_plot(r: &Report, file: &Path) -> PlotResult {
     let root = SVGBackend::new(file, (720, 720)).into_drawing_area();
     root.fill(&WHITE)?;
     let mut chart = ChartBuilder::on(&root)
-        .caption("Path: measured, nominal model, fitted model", ("sans-serif", 20))
+        .caption(
+            "Path: measured, nominal model, fitted model",
+            ("sans-serif", 20),
+        )
         .margin(10)
         .x_label_area_size(40)
         .y_label_area_size(60)
         .build_cartesian_2d(x0..x1, y0..y1)?;
-    chart.configure_mesh().x_desc("x (m)").y_desc("y (m)").draw()?;
+    chart
+        .configure_mesh()
+        .x_desc("x (m)")
+        .y_desc("y (m)")
+        .draw()?;
     for (data, color, label) in [
         (&p.measured, BLACK, "measured"),
         (&p.nominal, ORANGE, "nominal model"),
@@ -74,7 +86,11 @@ fn path_plot(r: &Report, file: &Path) -> PlotResult {
 }
 
 fn shade_windows<DB: DrawingBackend>(
-    chart: &mut ChartContext<'_, DB, Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>>,
+    chart: &mut ChartContext<
+        '_,
+        DB,
+        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
+    >,
     r: &Report,
     stage: Stage,
     y0: f64,
@@ -88,7 +104,11 @@ where
         .iter()
         .filter(|w| w.stage == stage)
         .map(|w| {
-            let c = if w.explained_by_fit { GREEN.mix(0.15) } else { RED.mix(0.15) };
+            let c = if w.explained_by_fit {
+                GREEN.mix(0.15)
+            } else {
+                RED.mix(0.15)
+            };
             Rectangle::new([(w.t_start_s, y0), (w.t_end_s, y1)], c.filled())
         })
         .collect();
@@ -119,7 +139,11 @@ fn time_plot(
         .x_label_area_size(40)
         .y_label_area_size(70)
         .build_cartesian_2d(x0..x1, y0..y1)?;
-    chart.configure_mesh().x_desc("t (s)").y_desc(ylabel).draw()?;
+    chart
+        .configure_mesh()
+        .x_desc("t (s)")
+        .y_desc(ylabel)
+        .draw()?;
     shade_windows(&mut chart, r, stage, y0, y1)?;
     for (data, (_, color, label)) in pts.iter().zip(series) {
         let color = *color;

@@ -166,7 +166,11 @@ impl fmt::Display for Report {
                 w.axis.as_str(),
                 w.wheel.as_deref().unwrap_or("-"),
                 w.peak_sigma,
-                if w.explained_by_fit { ", explained" } else { "" },
+                if w.explained_by_fit {
+                    ", explained"
+                } else {
+                    ""
+                },
                 w.related_signal
                     .as_deref()
                     .map(|s| format!(", with high {s}"))

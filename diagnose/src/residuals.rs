@@ -15,6 +15,9 @@ use crate::replay::Prepared;
 use std::cell::RefCell;
 use std::rc::Rc;
 
+/// Simulated angle series per wheel (`None` for wheels without commands), shared.
+type WheelAngles = Rc<Vec<Option<Vec<f64>>>>;
+
 /// Which samples take part: all, or alternate time blocks (for held-out validation).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Fold {
@@ -94,7 +97,7 @@ pub struct Evaluator<'a> {
     pub act_rows: Vec<usize>,
     pose_block: Vec<u8>,
     act_block: Vec<u8>,
-    act_cache: RefCell<Option<(Vec<f64>, Rc<Vec<Option<Vec<f64>>>>)>>,
+    act_cache: RefCell<Option<(Vec<f64>, WheelAngles)>>,
     ground_cache: RefCell<Option<(Vec<f64>, Rc<Path>)>>,
 }
 
@@ -170,7 +173,7 @@ impl<'a> Evaluator<'a> {
             .any(|w| w.enc_rad.is_none() && w.cmd.is_some())
     }
 
-    fn actuator_angles(&self, m: &Model) -> Rc<Vec<Option<Vec<f64>>>> {
+    fn actuator_angles(&self, m: &Model) -> WheelAngles {
         let k = key(m, Stage::Actuator, false);
         if let Some((ck, v)) = &*self.act_cache.borrow() {
             if *ck == k {

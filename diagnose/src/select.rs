@@ -24,6 +24,9 @@ pub const RMSE_MIN_GAIN: f64 = 0.03;
 /// Most effects selected.
 pub const MAX_EFFECTS: usize = 3;
 
+/// A fitted candidate: effect, model with it, uncertainties, residuals, BIC change.
+type Tried = (Effect, Model, Vec<Vec<f64>>, Eval, f64);
+
 /// One effect tried in one round.
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
@@ -214,13 +217,12 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
     let mut candidates = Vec::new();
     let mut rejected: Vec<Effect> = Vec::new();
     for round in 0..max_effects {
-        let mut tried: Vec<(Effect, Model, Vec<Vec<f64>>, Eval, f64)> = Vec::new();
+        let mut tried: Vec<Tried> = Vec::new();
         for e in Effect::ALL {
             if model.get(e).is_some() || rejected.contains(&e) || !e.applies(robot, has_cmd) {
                 continue;
             }
-            let (m, sig, _) =
-                fit_params(ev, &model, &[e], &e.start_grid(robot), Fold::All);
+            let (m, sig, _) = fit_params(ev, &model, &[e], &e.start_grid(robot), Fold::All);
             let cand_eval = ev.evaluate(&m, Fold::All);
             let k = e.params(robot).len();
             let d = delta_bic(ev, &base_eval, &cand_eval, k, evidence_stage(ev, e));
@@ -253,7 +255,8 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             let ratio = heldout_ratio(ev, &model, e, m.get(e).unwrap_or(&[]));
             candidates[idx].heldout_ratio = Some(ratio);
             if gain < RMSE_MIN_GAIN {
-                candidates[idx].note = format!("improves the {stage} RMSE by only {:.1} %", gain * 100.0);
+                candidates[idx].note =
+                    format!("improves the {stage} RMSE by only {:.1} %", gain * 100.0);
                 rejected.push(e);
                 continue;
             }

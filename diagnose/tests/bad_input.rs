@@ -14,10 +14,22 @@ fn parse(text: &str) -> Result<Recording, String> {
 #[test]
 fn malformed_recordings_name_file_line_column() {
     let cases = [
-        ("t,enc_left,enc_right,x,y,theta\n0,0,0,0,0,0\n0,1,1,0,0,0\n", "rec.csv:3:1"),
-        ("t,enc_left,enc_right,x,y,theta\n0,0,0,0,0,NaN\n", "rec.csv:2:6"),
-        ("t,enc_left,enc_middle,x,y,theta\n0,0,0,0,0,0\n", "rec.csv:1:3"),
-        ("t,enc_left,enc_right,x,y\n0,0,0,0,0\n", "missing required column 'theta'"),
+        (
+            "t,enc_left,enc_right,x,y,theta\n0,0,0,0,0,0\n0,1,1,0,0,0\n",
+            "rec.csv:3:1",
+        ),
+        (
+            "t,enc_left,enc_right,x,y,theta\n0,0,0,0,0,NaN\n",
+            "rec.csv:2:6",
+        ),
+        (
+            "t,enc_left,enc_middle,x,y,theta\n0,0,0,0,0,0\n",
+            "rec.csv:1:3",
+        ),
+        (
+            "t,enc_left,enc_right,x,y\n0,0,0,0,0\n",
+            "missing required column 'theta'",
+        ),
         ("t,enc_left,enc_right,x,y,theta\n", "empty recording"),
     ];
     for (text, want) in cases {
@@ -45,7 +57,9 @@ fn parsed_oddities_never_panic() {
         // Robot standing still, constant pose: nothing to explain.
         rows(400, |k| format!("{},0,0,7,7,1,2,0.5", k as f64 * 0.02)),
         // Wheels turning, pose constant (lifted robot).
-        rows(400, |k| format!("{},5,5,{},{},0,0,0", k as f64 * 0.02, k * 30, k * 30)),
+        rows(400, |k| {
+            format!("{},5,5,{},{},0,0,0", k as f64 * 0.02, k * 30, k * 30)
+        }),
         // Pose only in one row.
         rows(400, |k| {
             let pose = if k == 10 { "0,0,0" } else { ",," };
@@ -55,11 +69,21 @@ fn parsed_oddities_never_panic() {
         rows(600, |k| {
             let th = (k as f64 * 0.05 + std::f64::consts::PI) % std::f64::consts::TAU
                 - std::f64::consts::PI;
-            format!("{},-4,4,{},{},0,0,{th}", k as f64 * 0.02, -(k as i64) * 10, k * 10)
+            format!(
+                "{},-4,4,{},{},0,0,{th}",
+                k as f64 * 0.02,
+                -(k as i64) * 10,
+                k * 10
+            )
         }),
         // Huge counts and tiny time steps.
         rows(300, |k| {
-            format!("{},1e6,-1e6,{},{},{k},0,0", k as f64 * 1e-6, k as i64 * 1_000_000_000, -(k as i64) * 1_000_000_000)
+            format!(
+                "{},1e6,-1e6,{},{},{k},0,0",
+                k as f64 * 1e-6,
+                k as i64 * 1_000_000_000,
+                -(k as i64) * 1_000_000_000
+            )
         }),
     ];
     for text in texts {

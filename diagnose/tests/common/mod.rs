@@ -21,7 +21,10 @@ pub enum Truth {
     Eb(f64),
     Mu(f64),
     SideSlip(f64),
-    Bumps { spacing: f64, loss: f64 },
+    Bumps {
+        spacing: f64,
+        loss: f64,
+    },
     Backlash(f64),
     MissedSteps(f64),
     Lag(f64),
@@ -160,13 +163,49 @@ pub fn generate(cfg: &Config) -> Generated {
     }
     let truth = Kinematics::<f64>::new(&true_robot, &Corrections::None).unwrap();
     let get = |f: fn(&Truth) -> Option<f64>| cfg.truths.iter().find_map(f);
-    let deadband = get(|t| if let Truth::Deadband(v) = t { Some(*v) } else { None });
-    let lag = get(|t| if let Truth::Lag(v) = t { Some(*v) } else { None });
-    let max_acc = get(|t| if let Truth::MissedSteps(v) = t { Some(*v) } else { None });
-    let backlash = get(|t| if let Truth::Backlash(v) = t { Some(*v) } else { None });
+    let deadband = get(|t| {
+        if let Truth::Deadband(v) = t {
+            Some(*v)
+        } else {
+            None
+        }
+    });
+    let lag = get(|t| {
+        if let Truth::Lag(v) = t {
+            Some(*v)
+        } else {
+            None
+        }
+    });
+    let max_acc = get(|t| {
+        if let Truth::MissedSteps(v) = t {
+            Some(*v)
+        } else {
+            None
+        }
+    });
+    let backlash = get(|t| {
+        if let Truth::Backlash(v) = t {
+            Some(*v)
+        } else {
+            None
+        }
+    });
     let mu = get(|t| if let Truth::Mu(v) = t { Some(*v) } else { None });
-    let side = get(|t| if let Truth::SideSlip(v) = t { Some(*v) } else { None });
-    let tilt = get(|t| if let Truth::Tilt(v) = t { Some(*v) } else { None });
+    let side = get(|t| {
+        if let Truth::SideSlip(v) = t {
+            Some(*v)
+        } else {
+            None
+        }
+    });
+    let tilt = get(|t| {
+        if let Truth::Tilt(v) = t {
+            Some(*v)
+        } else {
+            None
+        }
+    });
     let bumps = cfg.truths.iter().find_map(|t| {
         if let Truth::Bumps { spacing, loss } = t {
             Some((*spacing, *loss))
