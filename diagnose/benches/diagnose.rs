@@ -13,7 +13,7 @@ use std::time::Instant;
 
 fn main() {
     let mut cfg = Config::new(presets::omni4(), 42);
-    cfg.duration_s = 600.0;
+    cfg.duration_s = 599.999; // 600 s at 200 Hz: rows 0 .. 119,999
     cfg.rate_hz = 200.0;
     cfg.pose_rate_hz = 30.0;
     cfg.speed = 0.15;
@@ -32,14 +32,16 @@ fn main() {
         let dt = t0.elapsed().as_secs_f64();
         times.push(dt);
         println!(
-            "run {run}: {dt:.2} s, verdict {}, findings {:?}, rmse {:.2} -> {:.2} mm",
+            "run {run}: {dt:.2} s, verdict {}, findings {:?}, rmse {:.2} -> {:.2} mm, model runs {} ground + {} actuator",
             r.verdict,
             r.findings
                 .iter()
                 .map(|f| f.effect.as_str())
                 .collect::<Vec<_>>(),
             r.rmse_nominal_m * 1e3,
-            r.rmse_final_m * 1e3
+            r.rmse_final_m * 1e3,
+            r.model_runs_ground,
+            r.model_runs_actuator
         );
     }
     times.sort_by(|a, b| a.total_cmp(b));

@@ -218,9 +218,10 @@ impl Effect {
             Effect::CoulombFriction => singles(log_grid(0.02, 20.0, 12)),
             Effect::FloorBumps => {
                 let mut g = Vec::new();
-                // Crossings make the cost a comb in the spacing: sample it densely.
-                for s in log_grid(0.01, 0.3, 48) {
-                    for frac in log_grid(0.003, 0.1, 4) {
+                // Crossings make the cost a comb in the spacing; the travel lost per
+                // metre (loss / spacing) is what the grid must get close to.
+                for s in log_grid(0.01, 0.3, 12) {
+                    for frac in log_grid(0.003, 0.1, 3) {
                         g.push(vec![s, s * frac]);
                     }
                 }

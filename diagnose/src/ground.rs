@@ -9,8 +9,56 @@ use crate::effects::{Effect, Model};
 use crate::replay::{Prepared, G};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
-use calib_core::odometry::{integrate_arc, Pose};
+use calib_core::odometry::Pose;
 use calib_core::robot::Robot;
+
+/// Exact-arc integration (as calib-core's `integrate_arc`) that carries the heading's
+/// cosine and sine from sample to sample instead of calling sin/cos twice per sample:
+/// the arc coefficients sin(d)/d and (1 - cos d)/d also give cos d and sin d.
+struct Heading {
+    c: f64,
+    s: f64,
+    count: u32,
+}
+
+impl Heading {
+    fn new() -> Self {
+        Heading {
+            c: 1.0,
+            s: 0.0,
+            count: 0,
+        }
+    }
+
+    fn advance(&mut self, pose: &mut Pose<f64>, d: &Twist<f64>) {
+        let w = d.omega;
+        let (a, b) = if w.abs() < 0.05 {
+            // Series to w^4: truncation below 1e-11 relative at |w| = 0.05.
+            let w2 = w * w;
+            (
+                1.0 - w2 / 6.0 * (1.0 - w2 / 20.0),
+                w / 2.0 * (1.0 - w2 / 12.0 * (1.0 - w2 / 30.0)),
+            )
+        } else {
+            (w.sin() / w, (1.0 - w.cos()) / w)
+        };
+        let lx = a * d.vx - b * d.vy;
+        let ly = b * d.vx + a * d.vy;
+        pose.x += self.c * lx - self.s * ly;
+        pose.y += self.s * lx + self.c * ly;
+        pose.theta += w;
+        // cos w = 1 - w b, sin w = w a.
+        let (cw, sw) = (1.0 - w * b, w * a);
+        let (c, s) = (self.c * cw - self.s * sw, self.s * cw + self.c * sw);
+        self.count += 1;
+        if self.count % 256 == 0 {
+            let (sn, cn) = pose.theta.sin_cos();
+            (self.c, self.s) = (cn, sn);
+        } else {
+            (self.c, self.s) = (c, s);
+        }
+    }
+}
 
 /// (effective radius r cos(gamma), rolling direction, position, driven) of a wheel.
 type ContactWheel = (f64, (f64, f64), (f64, f64), bool);
@@ -156,6 +204,7 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         .collect();
     let mut cache = KinCache::new(&robot, scales_known, eb);
     let mut pose = Pose::new(0.0, 0.0, 0.0);
+    let mut heading = Heading::new();
     out.x.reserve(n);
     out.y.reserve(n);
     out.theta.reserve(n);
@@ -167,6 +216,9 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
     let mut inc = vec![0.0; m];
     let mut contact: Option<Vec<f64>> = None;
     let mut owed = vec![0.0f64; m];
+    // Scratch buffers, reused every row (this loop is the diagnosis' hot path).
+    let (mut disp_buf, mut smooth_buf, mut ang_buf, mut sub_buf) =
+        (vec![0.0; m], vec![0.0; m], vec![0.0; m], vec![0.0; m]);
     let world_x = |k: usize, (bx, by): (f64, f64)| -> f64 {
         let (x, _, th) = p.pose_at_row[k];
         x + th.cos() * bx - th.sin() * by
@@ -185,8 +237,12 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         let mut d = if per_wheel {
             // Each wheel's travel at its contact: cables take their toll, traction bounds
             // how fast the contact speed changes; the body takes the least-squares twist.
-            let mut disp: Vec<f64> = (0..m).map(|j| wheels[j].0 * inc[j]).collect();
-            let mut smooth_disp = disp.clone();
+            let disp = &mut disp_buf[..m];
+            for j in 0..m {
+                disp[j] = wheels[j].0 * inc[j];
+            }
+            let smooth_disp = &mut smooth_buf[..m];
+            smooth_disp.copy_from_slice(disp);
             if mu.is_some() {
                 // The traction limit reacts to speed changes, and encoder quantisation
                 // makes per-sample speeds jitter by a count per sample: read the speed
@@ -227,14 +283,20 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
                     }
                 }
             }
-            let ang: Vec<f64> = (0..m).map(|j| disp[j] / wheels[j].0).collect();
+            let ang = &mut ang_buf[..m];
+            for j in 0..m {
+                ang[j] = disp[j] / wheels[j].0;
+            }
             match (&cache.driven, mu.is_some()) {
                 (Some((kin, idx)), true) => {
-                    let sub: Vec<f64> = idx.iter().map(|&j| ang[j]).collect();
-                    kin.forward(&sub)
+                    let sub = &mut sub_buf[..idx.len()];
+                    for (o, &j) in sub.iter_mut().zip(idx) {
+                        *o = ang[j];
+                    }
+                    kin.forward(sub)
                 }
                 _ => match &cache.all {
-                    Some(kin) => kin.forward(&ang),
+                    Some(kin) => kin.forward(ang),
                     None => Twist::zero(),
                 },
             }
@@ -248,7 +310,7 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
             // v_y = -k v_x omega, as a displacement over the interval.
             d.vy += -k_side * d.vx * d.omega / dt;
         }
-        pose = integrate_arc(pose, &d);
+        heading.advance(&mut pose, &d);
         if let Some((spacing, loss)) = bumps {
             // Cables at world x = k * spacing: a driven wheel rolling onto one owes `loss`
             // of travel along its rolling direction's share of the crossing.
@@ -269,5 +331,32 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         out.y.push(pose.y);
         out.theta.push(pose.theta);
         out.step.push(d);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calib_core::odometry::integrate_arc;
+
+    #[test]
+    fn carried_heading_matches_integrate_arc() {
+        let mut a = Pose::new(0.0, 0.0, 0.0);
+        let mut b = a;
+        let mut h = Heading::new();
+        for k in 0..5000 {
+            let d = Twist::new(
+                0.002,
+                0.0005 * (k as f64 * 0.01).sin(),
+                0.03 * (k as f64 * 0.003).cos() + 0.06 * ((k % 97) as f64 / 97.0),
+            );
+            a = integrate_arc(a, &d);
+            h.advance(&mut b, &d);
+        }
+        assert!(
+            (a.x - b.x).abs() < 1e-10 && (a.y - b.y).abs() < 1e-10,
+            "{a:?} {b:?}"
+        );
+        assert!((a.theta - b.theta).abs() < 1e-12);
     }
 }

@@ -218,6 +218,8 @@ pub fn diagnose(
         ],
         candidates: sel.candidates.clone(),
         notes,
+        model_runs_ground: ev.runs.get().0,
+        model_runs_actuator: ev.runs.get().1,
         model: sel.model.clone(),
         plot,
     })

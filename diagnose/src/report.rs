@@ -74,6 +74,9 @@ pub struct Report {
     /// Every effect tried, for transparency.
     pub candidates: Vec<Candidate>,
     pub notes: Vec<String>,
+    /// How many times each stage's model was run (cost of the diagnosis).
+    pub model_runs_ground: usize,
+    pub model_runs_actuator: usize,
     #[serde(skip)]
     pub model: Model,
     #[serde(skip)]

@@ -98,6 +98,8 @@ pub struct Evaluator<'a> {
     pose_block: Vec<u8>,
     act_block: Vec<u8>,
     act_cache: RefCell<Option<(Vec<f64>, WheelAngles)>>,
+    /// Model runs so far (ground, actuator), for the report and the benchmark.
+    pub runs: std::cell::Cell<(usize, usize)>,
     ground_cache: RefCell<Option<(Vec<f64>, Rc<Path>)>>,
 }
 
@@ -146,6 +148,7 @@ impl<'a> Evaluator<'a> {
             pose_block,
             act_block,
             act_cache: RefCell::new(None),
+            runs: std::cell::Cell::new((0, 0)),
             ground_cache: RefCell::new(None),
         };
         let nominal = ev.evaluate(&Model::default(), Fold::All);
@@ -180,6 +183,8 @@ impl<'a> Evaluator<'a> {
                 return Rc::clone(v);
             }
         }
+        let (g, a) = self.runs.get();
+        self.runs.set((g, a + 1));
         let params = ActuatorParams::from_model(m);
         let v: Vec<Option<Vec<f64>>> = self
             .p
@@ -219,6 +224,8 @@ impl<'a> Evaluator<'a> {
             .zip(act.iter())
             .map(|(w, a)| w.enc_rad.as_deref().or(a.as_deref()))
             .collect();
+        let (g, a) = self.runs.get();
+        self.runs.set((g + 1, a));
         let mut path = Path::default();
         simulate(self.p, &angles, m, &mut path);
         let path = Rc::new(path);

@@ -134,7 +134,12 @@ fn fit_params(
     if flat_specs.len() == 1 && start.len() > 2 {
         if let Some((bu, bc)) = best.clone() {
             let grid_u: Vec<f64> = start.iter().map(|s| flat_specs[0].internal(s[0])).collect();
-            let mut half = (grid_u[1] - grid_u[0]).abs();
+            let (lo_u, hi_u) = grid_u
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &u| {
+                    (a.min(u), b.max(u))
+                });
+            let mut half = (hi_u - lo_u) / (grid_u.len() - 1) as f64;
             let (mut cu, mut cc) = (bu[0], bc);
             for _ in 0..2 {
                 let centre = cu;
@@ -216,6 +221,7 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
     let mut steps = Vec::new();
     let mut candidates = Vec::new();
     let mut rejected: Vec<Effect> = Vec::new();
+    let mut previous: Vec<(Effect, Vec<f64>)> = Vec::new();
     for round in 0..max_effects {
         let mut tried: Vec<Tried> = Vec::new();
         for e in Effect::ALL {
