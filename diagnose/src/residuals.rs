@@ -126,6 +126,21 @@ fn key(m: &Model, stage: Stage, with_actuator: bool) -> Vec<f64> {
 
 impl<'a> Evaluator<'a> {
     pub fn new(p: &'a Prepared) -> Self {
+        let mut ev = Self::with_noise(
+            p,
+            Noise {
+                pose_sigma_m: 1.0,
+                heading_sigma_rad: 1.0,
+                actuator_sigma_m: 1.0,
+            },
+        );
+        let nominal = ev.evaluate(&Model::default(), Fold::All);
+        ev.noise = estimate_noise(p, &nominal);
+        ev
+    }
+
+    /// An evaluator with given noise levels and empty caches (one per worker thread).
+    pub fn with_noise(p: &'a Prepared, noise: Noise) -> Self {
         let n = p.rows();
         let step = n.div_ceil(MAX_ACT_ROWS).max(1);
         let act_rows: Vec<usize> = (0..n).step_by(step).collect();
@@ -137,23 +152,16 @@ impl<'a> Evaluator<'a> {
         let block = |row: usize| (((p.t[row] - t0) / block_len).floor() as i64 % 2) as u8;
         let pose_block = p.poses.row.iter().map(|&r| block(r)).collect();
         let act_block = act_rows.iter().map(|&r| block(r)).collect();
-        let mut ev = Evaluator {
+        Evaluator {
             p,
-            noise: Noise {
-                pose_sigma_m: 1.0,
-                heading_sigma_rad: 1.0,
-                actuator_sigma_m: 1.0,
-            },
+            noise,
             act_rows,
             pose_block,
             act_block,
             act_cache: RefCell::new(None),
             runs: std::cell::Cell::new((0, 0)),
             ground_cache: RefCell::new(None),
-        };
-        let nominal = ev.evaluate(&Model::default(), Fold::All);
-        ev.noise = estimate_noise(p, &nominal);
-        ev
+        }
     }
 
     /// Wheels compared in the actuator stage.

@@ -224,12 +224,32 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
     let mut previous: Vec<(Effect, Vec<f64>)> = Vec::new();
     for round in 0..max_effects {
         let mut tried: Vec<Tried> = Vec::new();
-        for e in Effect::ALL {
-            if model.get(e).is_some() || rejected.contains(&e) || !e.applies(robot, has_cmd) {
-                continue;
+        // Later rounds start from the previous round's fit plus a thinned grid: the base
+        // model changed only by one effect.
+        let todo: Vec<(Effect, Vec<Vec<f64>>)> = Effect::ALL
+            .into_iter()
+            .filter(|&e| {
+                model.get(e).is_none() && !rejected.contains(&e) && e.applies(robot, has_cmd)
+            })
+            .map(|e| {
+                let grid = e.start_grid(robot);
+                let start = match previous.iter().find(|(x, _)| *x == e) {
+                    Some((_, p)) if grid.len() > 2 => {
+                        let mut s = vec![p.clone()];
+                        s.extend(grid.iter().step_by(3).cloned());
+                        s
+                    }
+                    Some((_, p)) => vec![p.clone()],
+                    None => grid,
+                };
+                (e, start)
+            })
+            .collect();
+        for (e, m, sig, cand_eval) in fit_candidates(ev, &model, &todo) {
+            if let Some(v) = m.get(e) {
+                previous.retain(|(x, _)| *x != e);
+                previous.push((e, v.to_vec()));
             }
-            let (m, sig, _) = fit_params(ev, &model, &[e], &e.start_grid(robot), Fold::All);
-            let cand_eval = ev.evaluate(&m, Fold::All);
             let k = e.params(robot).len();
             let d = delta_bic(ev, &base_eval, &cand_eval, k, evidence_stage(ev, e));
             candidates.push(Candidate {
@@ -319,6 +339,56 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
         nominal_eval,
         final_eval: base_eval,
     }
+}
+
+/// Fits each candidate effect on top of `base`, spread over the machine's cores (each
+/// worker with its own evaluator: the caches are per thread). Results keep `todo`'s order.
+fn fit_candidates(
+    ev: &Evaluator,
+    base: &Model,
+    todo: &[(Effect, Vec<Vec<f64>>)],
+) -> Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .clamp(1, 4)
+        .min(todo.len().max(1));
+    let (p, noise) = (ev.p, ev.noise);
+    let next = AtomicUsize::new(0);
+    let mut results: Vec<(usize, Effect, Model, Vec<Vec<f64>>, Eval)> = Vec::new();
+    let mut runs = ev.runs.get();
+    std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                s.spawn(|| {
+                    let local = Evaluator::with_noise(p, noise);
+                    let mut out = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some((e, start)) = todo.get(i) else {
+                            break;
+                        };
+                        let (m, sig, _) = fit_params(&local, base, &[*e], start, Fold::All);
+                        let ce = local.evaluate(&m, Fold::All);
+                        out.push((i, *e, m, sig, ce));
+                    }
+                    (out, local.runs.get())
+                })
+            })
+            .collect();
+        for w in workers {
+            if let Ok((out, (g, a))) = w.join() {
+                results.extend(out);
+                runs = (runs.0 + g, runs.1 + a);
+            }
+        }
+    });
+    ev.runs.set(runs);
+    results.sort_by_key(|r| r.0);
+    results
+        .into_iter()
+        .map(|(_, e, m, sig, ce)| (e, m, sig, ce))
+        .collect()
 }
 
 /// Held-out check: fit the effect on even blocks and score the odd ones, then the other
