@@ -220,12 +220,13 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
     let (mut disp_buf, mut smooth_buf, mut ang_buf, mut sub_buf) =
         (vec![0.0; m], vec![0.0; m], vec![0.0; m], vec![0.0; m]);
     let world_x = |k: usize, (bx, by): (f64, f64)| -> f64 {
-        let (x, _, th) = p.pose_at_row[k];
-        x + th.cos() * bx - th.sin() * by
+        let x = p.pose_at_row[k].0;
+        let (c, s) = p.heading_cs_at_row[k];
+        x + c * bx - s * by
     };
     let world_dir = |k: usize, (dx, dy): (f64, f64)| -> f64 {
-        let th = p.pose_at_row[k].2;
-        th.cos() * dx - th.sin() * dy
+        let (c, s) = p.heading_cs_at_row[k];
+        c * dx - s * dy
     };
     for k in 0..n.saturating_sub(1) {
         let dt = p.t[k + 1] - p.t[k];

@@ -60,6 +60,8 @@ pub struct Prepared {
     /// first and after the last sample): where the robot is on the floor, for
     /// floor-fixed effects.
     pub pose_at_row: Vec<(f64, f64, f64)>,
+    /// Cosine and sine of that pose's heading.
+    pub heading_cs_at_row: Vec<(f64, f64)>,
 }
 
 /// Unwraps a heading series so consecutive samples differ by less than pi.
@@ -157,8 +159,16 @@ impl Prepared {
         };
         let driven_share = driven_share(robot, legs.as_ref(), rec.len());
         let pose_at_row = interpolate_poses(&rec.t, &poses);
+        let heading_cs_at_row = pose_at_row
+            .iter()
+            .map(|p| {
+                let (s, c) = p.2.sin_cos();
+                (c, s)
+            })
+            .collect();
         Prepared {
             pose_at_row,
+            heading_cs_at_row,
             robot: robot.clone(),
             t: rec.t.clone(),
             wheels,

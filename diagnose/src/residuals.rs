@@ -177,7 +177,7 @@ impl<'a> Evaluator<'a> {
 
     /// True when the ground stage depends on the actuator model (a wheel without encoder
     /// is driven by its commands).
-    fn ground_uses_actuator(&self) -> bool {
+    pub fn ground_uses_actuator(&self) -> bool {
         self.p
             .wheels
             .iter()

@@ -293,25 +293,39 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             }
             candidates[idx].accepted = true;
             // Joint refit of everything chosen so far.
-            let chosen: Vec<Effect> = m.effects.iter().map(|(e, _)| *e).collect();
-            let start: Vec<f64> = m.effects.iter().flat_map(|(_, p)| p.clone()).collect();
-            let (mj, sj) = if chosen.len() > 1 {
-                let (mj, sj, _) = fit_params(ev, &Model::default(), &chosen, &[start], Fold::All);
-                (mj, sj)
+            // Joint refit of the new effect with those it interacts with: the same stage,
+            // or everything when some wheel's motion comes from the actuator model.
+            let coupled: Vec<Effect> = m
+                .effects
+                .iter()
+                .map(|(x, _)| *x)
+                .filter(|x| x.stage() == e.stage() || ev.ground_uses_actuator())
+                .collect();
+            let start: Vec<f64> = coupled
+                .iter()
+                .flat_map(|x| m.get(*x).unwrap_or(&[]).to_vec())
+                .collect();
+            let mut sigma_new = sigma.clone();
+            sigma_new.push((e, sig.into_iter().next().unwrap_or_default()));
+            let (model_new, eval_new) = if coupled.len() > 1 {
+                let (mj, sj, _) = fit_params(ev, &m, &coupled, &[start], Fold::All);
+                let joint_eval = ev.evaluate(&mj, Fold::All);
+                let (rj, ra) = (ev.rss(&joint_eval, Fold::All), after);
+                if ev.chi2(&rj, Stage::Ground) + ev.chi2(&rj, Stage::Actuator)
+                    <= ev.chi2(&ra, Stage::Ground) + ev.chi2(&ra, Stage::Actuator)
+                {
+                    for (x, sx) in coupled.iter().zip(sj) {
+                        sigma_new.retain(|(y, _)| y != x);
+                        sigma_new.push((*x, sx));
+                    }
+                    (mj, joint_eval)
+                } else {
+                    (m, cand_eval)
+                }
             } else {
-                (m.clone(), sig.clone())
-            };
-            let joint_eval = ev.evaluate(&mj, Fold::All);
-            let (model_new, eval_new) = if ev.rss(&joint_eval, Fold::All).pos
-                + ev.rss(&joint_eval, Fold::All).act
-                <= after.pos + after.act
-            {
-                sigma = chosen.iter().copied().zip(sj).collect();
-                (mj, joint_eval)
-            } else {
-                sigma.push((e, sig.into_iter().next().unwrap_or_default()));
                 (m, cand_eval)
             };
+            sigma = sigma_new;
             steps.push(Step {
                 effect: e,
                 delta_bic: d,
