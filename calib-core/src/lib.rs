@@ -24,4 +24,6 @@ pub mod encoder;
 pub mod recording;
 #[cfg(feature = "std")]
 pub mod robot_file;
+#[cfg(feature = "std")]
+pub mod runs_file;
 pub mod stepper;

@@ -1,1 +1,17 @@
+//! The `wheelcal` host console: calibration computations and procedures, reports, the
+//! serial client, the virtual board and the diagnose command. The binary is a thin shell
+//! over these modules so the host tests drive the same code.
 
+pub mod board_cmds;
+pub mod calibration;
+pub mod cli;
+pub mod client;
+pub mod demo;
+pub mod flash;
+pub mod link;
+pub mod output;
+pub mod repl;
+pub mod report;
+pub mod ros2;
+pub mod sim_board;
+pub mod virtual_board;

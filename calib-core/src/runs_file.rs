@@ -1,0 +1,496 @@
+//! Measured end positions of calibration runs (formats.md §3), one CSV row per run.
+//!
+//! The guided procedures append to these files as each run is measured, so a person can
+//! stop and resume; the compute commands read them. Errors name the file, the line and
+//! what to fix, and the semantic checks (both directions present, at least two runs each,
+//! one side length) point at the offending rows.
+
+use crate::motion::{Direction, OmniPath};
+use std::fmt;
+use std::io::Write;
+use std::path::{Path, PathBuf};
+
+/// Which calibration a run belongs to.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum TestKind {
+    Umbmark,
+    Omni,
+}
+
+/// Before or after the factors were applied.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Phase {
+    Before,
+    After,
+}
+
+impl Phase {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Phase::Before => "before",
+            Phase::After => "after",
+        }
+    }
+}
+
+/// One measured run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunRow {
+    /// Line in the file (1 = header); 0 for rows not read from a file.
+    pub line: usize,
+    pub test: TestKind,
+    /// `cw`/`ccw` for UMBmark; a path name such as `4W-1` for omni.
+    pub path: String,
+    pub length_m: f64,
+    pub x_err_m: f64,
+    pub y_err_m: f64,
+    pub theta_err_rad: Option<f64>,
+    pub phase: Phase,
+}
+
+impl RunRow {
+    /// The UMBmark direction, for UMBmark rows.
+    pub fn direction(&self) -> Option<Direction> {
+        match self.path.as_str() {
+            "cw" => Some(Direction::Cw),
+            "ccw" => Some(Direction::Ccw),
+            _ => None,
+        }
+    }
+}
+
+/// A problem with a runs file.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunsError {
+    pub path: PathBuf,
+    pub line: Option<usize>,
+    pub column: Option<String>,
+    pub message: String,
+}
+
+impl fmt::Display for RunsError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        write!(f, "{}", self.path.display())?;
+        if let Some(l) = self.line {
+            write!(f, ":{l}")?;
+        }
+        write!(f, ": ")?;
+        if let Some(c) = &self.column {
+            write!(f, "column '{c}': ")?;
+        }
+        write!(f, "{}", self.message)
+    }
+}
+
+impl std::error::Error for RunsError {}
+
+/// A runs file in memory.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RunsFile {
+    pub path: PathBuf,
+    pub rows: Vec<RunRow>,
+}
+
+/// UMBmark runs of one phase, checked.
+#[derive(Debug, Clone, PartialEq)]
+pub struct UmbmarkRuns {
+    pub side_m: f64,
+    /// (x_err, y_err) per run.
+    pub cw: Vec<(f64, f64)>,
+    pub ccw: Vec<(f64, f64)>,
+}
+
+/// Omni runs of one path and phase.
+#[derive(Debug, Clone, PartialEq)]
+pub struct OmniPathRuns {
+    pub path: String,
+    /// 001's named path, when it is one.
+    pub omni_path: Option<OmniPath>,
+    pub length_m: f64,
+    /// (x_err, y_err, theta_err) per run.
+    pub runs: Vec<(f64, f64, Option<f64>)>,
+}
+
+const HEADER: [&str; 7] = [
+    "test",
+    "path",
+    "length_m",
+    "x_err_m",
+    "y_err_m",
+    "theta_err_rad",
+    "phase",
+];
+
+impl RunsFile {
+    pub fn new(path: &Path) -> Self {
+        RunsFile {
+            path: path.to_path_buf(),
+            rows: Vec::new(),
+        }
+    }
+
+    fn error(&self, line: Option<usize>, column: Option<&str>, message: String) -> RunsError {
+        RunsError {
+            path: self.path.clone(),
+            line,
+            column: column.map(str::to_string),
+            message,
+        }
+    }
+
+    /// Reads a runs file.
+    pub fn load(path: &Path) -> Result<Self, RunsError> {
+        let text = std::fs::read_to_string(path).map_err(|e| RunsError {
+            path: path.to_path_buf(),
+            line: None,
+            column: None,
+            message: format!("cannot read runs file: {e}"),
+        })?;
+        Self::parse(&text, path)
+    }
+
+    /// Parses CSV text; `path` is used in messages.
+    pub fn parse(text: &str, path: &Path) -> Result<Self, RunsError> {
+        let mut file = RunsFile::new(path);
+        let mut reader = csv::ReaderBuilder::new()
+            .trim(csv::Trim::All)
+            .from_reader(text.as_bytes());
+        let headers = reader
+            .headers()
+            .map_err(|e| file.error(Some(1), None, format!("cannot read the header row: {e}")))?
+            .clone();
+        let find = |name: &str| headers.iter().position(|h| h == name);
+        let mut idx = [None; 7];
+        for (i, name) in HEADER.iter().enumerate() {
+            idx[i] = find(name);
+            if i < 5 && idx[i].is_none() {
+                return Err(file.error(
+                    Some(1),
+                    None,
+                    format!("missing column '{name}' (a runs file has test, path, length_m, x_err_m, y_err_m[, theta_err_rad, phase])"),
+                ));
+            }
+        }
+        let mut record = csv::StringRecord::new();
+        loop {
+            let line = reader.position().line() as usize;
+            match reader.read_record(&mut record) {
+                Ok(false) => break,
+                Ok(true) => {}
+                Err(e) => {
+                    return Err(file.error(Some(line), None, format!("malformed CSV row: {e}")))
+                }
+            }
+            let line = record.position().map_or(line, |p| p.line() as usize);
+            if record.iter().all(str::is_empty) {
+                continue;
+            }
+            let cell = |k: usize| idx[k].and_then(|i| record.get(i)).unwrap_or("");
+            let num = |k: usize, required: bool| -> Result<Option<f64>, RunsError> {
+                let c = cell(k);
+                if c.is_empty() {
+                    return if required {
+                        Err(file.error(Some(line), Some(HEADER[k]), "missing value".into()))
+                    } else {
+                        Ok(None)
+                    };
+                }
+                match c.parse::<f64>() {
+                    Ok(v) if v.is_finite() => Ok(Some(v)),
+                    _ => Err(file.error(
+                        Some(line),
+                        Some(HEADER[k]),
+                        format!("not a number: '{c}' (metres or radians, '.' decimal point)"),
+                    )),
+                }
+            };
+            let test = match cell(0) {
+                "umbmark" => TestKind::Umbmark,
+                "omni" => TestKind::Omni,
+                other => {
+                    return Err(file.error(
+                        Some(line),
+                        Some("test"),
+                        format!("unknown test '{other}' (expected umbmark or omni)"),
+                    ))
+                }
+            };
+            let path_name = cell(1).to_string();
+            if test == TestKind::Umbmark && path_name != "cw" && path_name != "ccw" {
+                return Err(file.error(
+                    Some(line),
+                    Some("path"),
+                    format!("unknown UMBmark path '{path_name}' (expected cw or ccw)"),
+                ));
+            }
+            if test == TestKind::Omni && path_name.is_empty() {
+                return Err(file.error(
+                    Some(line),
+                    Some("path"),
+                    "missing path name (e.g. 4W-1)".into(),
+                ));
+            }
+            let length_m = num(2, true)?.unwrap_or(0.0);
+            if length_m <= 0.0 {
+                return Err(file.error(
+                    Some(line),
+                    Some("length_m"),
+                    format!("must be positive, got {length_m}"),
+                ));
+            }
+            let phase = match cell(6) {
+                "" | "before" => Phase::Before,
+                "after" => Phase::After,
+                other => {
+                    return Err(file.error(
+                        Some(line),
+                        Some("phase"),
+                        format!("unknown phase '{other}' (expected before or after)"),
+                    ))
+                }
+            };
+            file.rows.push(RunRow {
+                line,
+                test,
+                path: path_name,
+                length_m,
+                x_err_m: num(3, true)?.unwrap_or(0.0),
+                y_err_m: num(4, true)?.unwrap_or(0.0),
+                theta_err_rad: num(5, false)?,
+                phase,
+            });
+        }
+        Ok(file)
+    }
+
+    /// The UMBmark runs of a phase, checked: both directions, at least two runs each, and
+    /// one side length. `Ok(None)` when the file has no UMBmark rows of that phase.
+    pub fn umbmark(&self, phase: Phase) -> Result<Option<UmbmarkRuns>, RunsError> {
+        let rows: Vec<&RunRow> = self
+            .rows
+            .iter()
+            .filter(|r| r.test == TestKind::Umbmark && r.phase == phase)
+            .collect();
+        if rows.is_empty() {
+            return Ok(None);
+        }
+        let side = rows[0].length_m;
+        if let Some(r) = rows
+            .iter()
+            .find(|r| (r.length_m - side).abs() > 1e-9 * side.max(1.0))
+        {
+            return Err(self.error(
+                Some(r.line),
+                Some("length_m"),
+                format!(
+                    "side {} m disagrees with {} m on line {}: one UMBmark computation needs one square size",
+                    r.length_m, side, rows[0].line
+                ),
+            ));
+        }
+        let pick = |d: &str| {
+            rows.iter()
+                .filter(|r| r.path == d)
+                .map(|r| (r.x_err_m, r.y_err_m))
+                .collect::<Vec<_>>()
+        };
+        let (cw, ccw) = (pick("cw"), pick("ccw"));
+        for (name, runs) in [("cw", &cw), ("ccw", &ccw)] {
+            if runs.len() < 2 {
+                return Err(self.error(
+                    None,
+                    None,
+                    format!(
+                        "{} phase has {} {name} run(s): UMBmark needs at least 2 runs in each direction (cw and ccw); add rows with path = {name}",
+                        phase.as_str(),
+                        runs.len()
+                    ),
+                ));
+            }
+        }
+        Ok(Some(UmbmarkRuns {
+            side_m: side,
+            cw,
+            ccw,
+        }))
+    }
+
+    /// The omni runs of a phase, grouped by path (in first-seen order); each path needs at
+    /// least two runs and one length.
+    pub fn omni(&self, phase: Phase) -> Result<Vec<OmniPathRuns>, RunsError> {
+        let mut out: Vec<(OmniPathRuns, usize)> = Vec::new();
+        for r in self
+            .rows
+            .iter()
+            .filter(|r| r.test == TestKind::Omni && r.phase == phase)
+        {
+            match out.iter_mut().find(|(p, _)| p.path == r.path) {
+                Some((p, first)) => {
+                    if (p.length_m - r.length_m).abs() > 1e-9 * p.length_m.max(1.0) {
+                        return Err(self.error(
+                            Some(r.line),
+                            Some("length_m"),
+                            format!(
+                                "path {} length {} m disagrees with {} m on line {}",
+                                r.path, r.length_m, p.length_m, first
+                            ),
+                        ));
+                    }
+                    p.runs.push((r.x_err_m, r.y_err_m, r.theta_err_rad));
+                }
+                None => out.push((
+                    OmniPathRuns {
+                        path: r.path.clone(),
+                        omni_path: match r.path.as_str() {
+                            "4W-1" => Some(OmniPath::W1),
+                            "4W-2" => Some(OmniPath::W2),
+                            _ => None,
+                        },
+                        length_m: r.length_m,
+                        runs: vec![(r.x_err_m, r.y_err_m, r.theta_err_rad)],
+                    },
+                    r.line,
+                )),
+            }
+        }
+        for (p, _) in &out {
+            if p.runs.len() < 2 {
+                return Err(self.error(
+                    None,
+                    None,
+                    format!(
+                        "path {} has {} {} run(s): need at least 2",
+                        p.path,
+                        p.runs.len(),
+                        phase.as_str()
+                    ),
+                ));
+            }
+        }
+        Ok(out.into_iter().map(|(p, _)| p).collect())
+    }
+
+    /// Appends one run to a runs file on disk, writing the header first if the file is new:
+    /// what the guided procedures call after each measurement, so nothing is lost on a stop.
+    pub fn append(path: &Path, row: &RunRow) -> std::io::Result<()> {
+        let new = !path.exists() || std::fs::metadata(path)?.len() == 0;
+        let mut f = std::fs::OpenOptions::new()
+            .create(true)
+            .append(true)
+            .open(path)?;
+        let mut s = String::new();
+        if new {
+            s.push_str(&HEADER.join(","));
+            s.push('\n');
+        }
+        let test = match row.test {
+            TestKind::Umbmark => "umbmark",
+            TestKind::Omni => "omni",
+        };
+        s.push_str(&format!(
+            "{test},{},{},{},{},{},{}\n",
+            row.path,
+            row.length_m,
+            row.x_err_m,
+            row.y_err_m,
+            row.theta_err_rad.map_or(String::new(), |v| v.to_string()),
+            row.phase.as_str()
+        ));
+        f.write_all(s.as_bytes())?;
+        f.sync_data()
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const GOOD: &str = "test,path,length_m,x_err_m,y_err_m\n\
+        umbmark,cw,4,0.01,0.02\n\
+        umbmark,cw,4,0.012,0.018\n\
+        umbmark,ccw,4,-0.03,0.01\n\
+        umbmark,ccw,4,-0.028,0.012\n";
+
+    #[test]
+    fn reads_umbmark_runs() {
+        let f = RunsFile::parse(GOOD, Path::new("runs.csv")).unwrap();
+        let u = f.umbmark(Phase::Before).unwrap().unwrap();
+        assert_eq!(u.side_m, 4.0);
+        assert_eq!(u.cw, vec![(0.01, 0.02), (0.012, 0.018)]);
+        assert_eq!(u.ccw.len(), 2);
+        assert_eq!(f.umbmark(Phase::After).unwrap(), None);
+    }
+
+    #[test]
+    fn bad_files_say_where_and_what_to_fix() {
+        let p = Path::new("runs.csv");
+        let e = RunsFile::parse(&GOOD.replace("0.012,0.018", "0.012,abc"), p).unwrap_err();
+        assert_eq!(e.to_string(), "runs.csv:3: column 'y_err_m': not a number: 'abc' (metres or radians, '.' decimal point)");
+        let e = RunsFile::parse(
+            &GOOD.replace("umbmark,ccw,4,-0.03", "umbmak,ccw,4,-0.03"),
+            p,
+        )
+        .unwrap_err();
+        assert_eq!(e.line, Some(4));
+        assert!(e.message.contains("unknown test 'umbmak'"));
+        let e = RunsFile::parse(
+            &GOOD.replace("umbmark,ccw,4,-0.03", "umbmark,left,4,-0.03"),
+            p,
+        )
+        .unwrap_err();
+        assert!(e.message.contains("expected cw or ccw"));
+        // One direction only.
+        let one_dir = GOOD.replace("ccw", "cw");
+        let e = RunsFile::parse(&one_dir, p)
+            .unwrap()
+            .umbmark(Phase::Before)
+            .unwrap_err();
+        assert!(e.message.contains("0 ccw run(s)"), "{e}");
+        // One run in a direction.
+        let short: String = GOOD.lines().take(4).collect::<Vec<_>>().join("\n");
+        let e = RunsFile::parse(&short, p)
+            .unwrap()
+            .umbmark(Phase::Before)
+            .unwrap_err();
+        assert!(e.message.contains("1 ccw run(s)"), "{e}");
+        // Lengths that disagree.
+        let e = RunsFile::parse(
+            &GOOD.replace("umbmark,ccw,4,-0.028", "umbmark,ccw,3,-0.028"),
+            p,
+        )
+        .unwrap()
+        .umbmark(Phase::Before)
+        .unwrap_err();
+        assert_eq!((e.line, e.column.as_deref()), (Some(5), Some("length_m")));
+        let e = RunsFile::parse("test,path,length_m,x_err_m\n", p).unwrap_err();
+        assert!(e.message.contains("missing column 'y_err_m'"));
+    }
+
+    #[test]
+    fn append_then_read_back() {
+        let dir = std::env::temp_dir().join(format!("wheelcal-runs-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let p = dir.join("runs.csv");
+        let _ = std::fs::remove_file(&p);
+        for (i, path) in ["4W-1", "4W-1", "4W-2", "4W-2"].iter().enumerate() {
+            let row = RunRow {
+                line: 0,
+                test: TestKind::Omni,
+                path: path.to_string(),
+                length_m: 0.6,
+                x_err_m: -0.05 - i as f64 * 0.001,
+                y_err_m: 0.01,
+                theta_err_rad: None,
+                phase: Phase::Before,
+            };
+            RunsFile::append(&p, &row).unwrap();
+        }
+        let f = RunsFile::load(&p).unwrap();
+        let o = f.omni(Phase::Before).unwrap();
+        assert_eq!(o.len(), 2);
+        assert_eq!(o[1].omni_path, Some(OmniPath::W2));
+        assert!((o[1].runs[1].0 + 0.053).abs() < 1e-12);
+        std::fs::remove_dir_all(&dir).unwrap();
+    }
+}

@@ -1,0 +1,315 @@
+//! The board commands (`info`, `factors`, `drive`, `run`, `status`, `log`, `stop`), as
+//! functions over any [`Client`] so the tests drive them through an in-memory link.
+
+use crate::client::{decode_records, Client, ClientError};
+use anyhow::{bail, Context, Result};
+use calib_core::motion::{Direction, OmniPath};
+use calib_core::protocol::{Info, Mode, ProgramSpec, Record, Status, TrialInfo, Trials};
+use calib_core::recording::Recording;
+use calib_core::robot::{Robot, MAX_WHEELS};
+use calib_core::{Corrections, Twist};
+use serde::Serialize;
+use std::fmt::Write as _;
+use std::io::{Read, Write};
+use std::path::Path;
+use std::time::{Duration, Instant};
+
+/// `wheelcal info`.
+#[derive(Debug, Clone, Serialize)]
+pub struct InfoReport {
+    pub firmware: String,
+    pub protocol_version: u16,
+    pub schema: String,
+    pub robot: String,
+    pub robot_kind: String,
+    pub drive: String,
+    pub wheel_count: u8,
+    pub wheels: Vec<String>,
+    pub uptime_s: f64,
+    pub corrections_at_boot: String,
+    pub params_at_boot: String,
+    pub log_capacity_bytes: u32,
+    pub record_size_bytes: u16,
+}
+
+pub fn info<L: Read + Write>(c: &mut Client<L>) -> Result<InfoReport> {
+    let i: Info = c.info()?;
+    let p = c.params()?;
+    Ok(InfoReport {
+        firmware: i.firmware.to_string(),
+        protocol_version: i.protocol_version,
+        schema: format!("{:08x}", i.schema),
+        robot: p.robot.name.to_string(),
+        robot_kind: i.robot_kind.as_str().into(),
+        drive: format!("{:?}", i.drive).to_lowercase(),
+        wheel_count: i.wheel_count,
+        wheels: p.robot.wheels.iter().map(|w| w.name.to_string()).collect(),
+        uptime_s: i.uptime_ms as f64 / 1000.0,
+        corrections_at_boot: format!("{:?}", i.boot.corrections).to_lowercase(),
+        params_at_boot: format!("{:?}", i.boot.params).to_lowercase(),
+        log_capacity_bytes: i.log_capacity,
+        record_size_bytes: i.record_size,
+    })
+}
+
+impl InfoReport {
+    pub fn human(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "firmware      {} (protocol v{}, schema {})", self.firmware, self.protocol_version, self.schema);
+        let _ = writeln!(s, "robot         {} ({}, {} drive), wheels: {}", self.robot, self.robot_kind, self.drive, self.wheels.join(", "));
+        let _ = writeln!(s, "uptime        {:.1} s", self.uptime_s);
+        let _ = writeln!(s, "at boot       corrections {}, parameters {}", self.corrections_at_boot, self.params_at_boot);
+        let _ = writeln!(s, "trial log     {} KiB, {} bytes per record", self.log_capacity_bytes / 1024, self.record_size_bytes);
+        s
+    }
+}
+
+/// Corrections in the JSON and text forms people read.
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum FactorsView {
+    None,
+    DiffDrive { c_l: f64, c_r: f64, e_b: f64 },
+    Omni { f_lat: Vec<f64>, f_lon: f64 },
+}
+
+impl From<&Corrections> for FactorsView {
+    fn from(c: &Corrections) -> Self {
+        match c {
+            Corrections::None => FactorsView::None,
+            Corrections::DiffDrive { c_l, c_r, e_b } => FactorsView::DiffDrive { c_l: *c_l, c_r: *c_r, e_b: *e_b },
+            Corrections::Omni { f_lat, f_lon } => FactorsView::Omni { f_lat: f_lat.to_vec(), f_lon: *f_lon },
+        }
+    }
+}
+
+impl FactorsView {
+    pub fn human(&self) -> String {
+        match self {
+            FactorsView::None => "no corrections (nominal geometry)\n".into(),
+            FactorsView::DiffDrive { c_l, c_r, e_b } => format!("c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6}\n"),
+            FactorsView::Omni { f_lat, f_lon } => format!(
+                "F_lat = [{}]  F_lon = {f_lon:.6}\n",
+                f_lat.iter().map(|v| format!("{v:.6}")).collect::<Vec<_>>().join(", ")
+            ),
+        }
+    }
+}
+
+/// Builds corrections from the command line's factors.
+pub fn corrections_from_args(c_l: Option<f64>, c_r: Option<f64>, e_b: Option<f64>, f_lat: Option<&[f64]>, f_lon: Option<f64>) -> Result<Corrections> {
+    match (c_l, c_r, e_b, f_lat, f_lon) {
+        (Some(c_l), Some(c_r), Some(e_b), None, None) => Ok(Corrections::DiffDrive { c_l, c_r, e_b }),
+        (None, None, None, Some(f), Some(f_lon)) => {
+            let f_lat = heapless::Vec::from_slice(f).map_err(|_| anyhow::anyhow!("at most {MAX_WHEELS} F_lat factors"))?;
+            Ok(Corrections::Omni { f_lat, f_lon })
+        }
+        _ => bail!("give --c-l, --c-r and --e-b (differential drive) or --f-lat and --f-lon (omni)"),
+    }
+}
+
+/// A one-line status.
+pub fn status_line(s: &Status) -> String {
+    let mode = match s.mode {
+        Mode::Idle => "idle".to_string(),
+        Mode::Drive => "drive".to_string(),
+        Mode::Program { segment, segments } => format!("program {}/{}", segment as u32 + 1, segments),
+    };
+    let mut line = format!(
+        "t {:>8.2} s  {:<12} pose ({:+.4} m, {:+.4} m, {:+.4} rad)  rates [{}]",
+        s.uptime_ms as f64 / 1000.0,
+        mode,
+        s.pose.x,
+        s.pose.y,
+        s.pose.theta,
+        s.wheel_rates.iter().map(|r| format!("{r:+.2}")).collect::<Vec<_>>().join(" ")
+    );
+    if s.estop {
+        line.push_str("  E-STOP");
+    }
+    if let Some(f) = s.fault {
+        let _ = write!(line, "  FAULT {f:?}");
+    }
+    if s.dropped_records > 0 {
+        let _ = write!(line, "  log dropped {} records", s.dropped_records);
+    }
+    line
+}
+
+/// Waits for a program to end, calling `on_status` now and then; returns the last status.
+pub fn wait_program<L: Read + Write>(c: &mut Client<L>, limit: Duration, mut on_status: impl FnMut(&Status)) -> Result<Status> {
+    let t0 = Instant::now();
+    let mut seen_busy = false;
+    loop {
+        let s = c.status()?;
+        on_status(&s);
+        let idle = matches!(s.mode, Mode::Idle);
+        if !idle {
+            seen_busy = true;
+        }
+        // The board starts the program when it answers RunProgram, so idle right after
+        // means it already finished (or was stopped).
+        if idle && (seen_busy || t0.elapsed() > Duration::from_millis(200)) {
+            return Ok(s);
+        }
+        if t0.elapsed() > limit {
+            let _ = c.stop();
+            bail!("the program did not finish within {:.0} s; sent Stop", limit.as_secs_f64());
+        }
+        std::thread::sleep(Duration::from_millis(50));
+    }
+}
+
+/// Starts a UMBmark square.
+pub fn run_umbmark<L: Read + Write>(c: &mut Client<L>, dir: Direction, side_m: f64, log_rate_hz: u16) -> Result<()> {
+    c.run_program(ProgramSpec::Umbmark { side_m, dir }, log_rate_hz).map_err(Into::into)
+}
+
+/// Starts an omni path.
+pub fn run_omni<L: Read + Write>(c: &mut Client<L>, path: OmniPath, length_m: f64, log_rate_hz: u16) -> Result<()> {
+    c.run_program(ProgramSpec::Omni { path, length_m }, log_rate_hz).map_err(Into::into)
+}
+
+/// Drives at a twist for a while, refreshing the command faster than the board's
+/// command timeout, then stops.
+pub fn drive_for<L: Read + Write>(c: &mut Client<L>, twist: Twist<f32>, duration: Duration) -> Result<()> {
+    let t0 = Instant::now();
+    while t0.elapsed() < duration {
+        c.drive(twist, 0)?;
+        std::thread::sleep(Duration::from_millis(100));
+    }
+    c.stop()?;
+    Ok(())
+}
+
+/// `log list` rows.
+#[derive(Debug, Clone, Serialize)]
+pub struct TrialRow {
+    pub trial: u16,
+    pub program: String,
+    pub start_s: f64,
+    pub rate_hz: u16,
+    pub records: u32,
+    pub bytes: u32,
+    pub dropped_records: u32,
+    pub end: String,
+    pub corrections: FactorsView,
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct TrialList {
+    pub trials: Vec<TrialRow>,
+    pub evicted_trials: u32,
+}
+
+pub fn trial_list(t: &Trials) -> TrialList {
+    TrialList {
+        trials: t
+            .trials
+            .iter()
+            .map(|i| TrialRow {
+                trial: i.id,
+                program: format!("{:?}", i.program),
+                start_s: i.start_ms as f64 / 1000.0,
+                rate_hz: i.rate_hz,
+                records: i.records,
+                bytes: i.bytes,
+                dropped_records: i.dropped,
+                end: format!("{:?}", i.end).to_lowercase(),
+                corrections: (&i.corrections).into(),
+            })
+            .collect(),
+        evicted_trials: t.evicted,
+    }
+}
+
+impl TrialList {
+    pub fn human(&self) -> String {
+        let mut s = format!("{:>5} {:<42} {:>8} {:>6} {:>8} {:>8} {:<10}\n", "trial", "program", "start s", "Hz", "records", "dropped", "end");
+        for r in &self.trials {
+            let _ = writeln!(s, "{:>5} {:<42} {:>8.1} {:>6} {:>8} {:>8} {:<10}", r.trial, r.program, r.start_s, r.rate_hz, r.records, r.dropped_records, r.end);
+        }
+        if self.evicted_trials > 0 {
+            let _ = writeln!(s, "({} older trials were evicted to make room)", self.evicted_trials);
+        }
+        s
+    }
+}
+
+/// Converts a trial's records into a recording (formats.md §2): `cmd_` and `enc_`
+/// columns from the board, pose columns blank (the board does not measure its pose), and
+/// the board's odometry as extra `odo_x`, `odo_y`, `odo_theta` columns.
+pub fn records_to_csv(robot: &Robot, info: &TrialInfo, recs: &[Record], out: &mut impl Write) -> Result<()> {
+    let n = info.wheel_count as usize;
+    if n != robot.wheel_count() {
+        bail!("trial {} has {} wheels, the board's robot {}", info.id, n, robot.wheel_count());
+    }
+    let mut rec = Recording::new(robot, true, true);
+    let mut odo = Vec::with_capacity(recs.len());
+    let mut wraps = 0u64;
+    let mut last = 0u32;
+    for r in recs {
+        if r.t_us < last {
+            wraps += 1; // the u32 microsecond clock wraps after 71 minutes
+        }
+        last = r.t_us;
+        let t = (wraps * (1u64 << 32) + r.t_us as u64) as f64 * 1e-6;
+        let cmd: Vec<f64> = r.cmd[..n].iter().map(|&v| v as f64).collect();
+        let enc: Vec<i64> = r.counts[..n].iter().map(|&v| v as i64).collect();
+        rec.push_row(calib_core::recording::Row { t, cmd: Some(&cmd), enc: Some(&enc), pose: None, legs: None });
+        odo.push(r.pose);
+    }
+    // Write the standard columns, then append the odometry columns.
+    let mut buf = Vec::new();
+    rec.write_csv(&mut buf)?;
+    let text = String::from_utf8(buf).context("CSV is UTF-8")?;
+    for (i, line) in text.lines().enumerate() {
+        if i == 0 {
+            writeln!(out, "{line},odo_x,odo_y,odo_theta")?;
+        } else {
+            let p = odo[i - 1];
+            writeln!(out, "{line},{},{},{}", p.x, p.y, p.theta)?;
+        }
+    }
+    Ok(())
+}
+
+/// Pulls a trial and writes it as CSV; `progress(done, total)` per chunk.
+pub fn pull_trial<L: Read + Write>(c: &mut Client<L>, trial: u16, out: &Path, progress: impl FnMut(u64, u64)) -> Result<PulledTrial> {
+    let trials = c.trials()?;
+    let info = trials
+        .trials
+        .iter()
+        .find(|t| t.id == trial)
+        .cloned()
+        .with_context(|| format!("the board has no trial {trial} (see `wheelcal log list`)"))?;
+    let robot = c.params()?.robot;
+    let t0 = Instant::now();
+    let data = c.pull_log(trial, Vec::new(), progress).map_err(|e: ClientError| anyhow::anyhow!("log transfer of trial {trial} failed: {e}"))?;
+    let secs = t0.elapsed().as_secs_f64();
+    let recs = decode_records(&info, &data).map_err(|e| anyhow::anyhow!(e))?;
+    let file = std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let mut w = std::io::BufWriter::new(file);
+    records_to_csv(&robot, &info, &recs, &mut w)?;
+    w.flush()?;
+    Ok(PulledTrial {
+        trial,
+        file: out.display().to_string(),
+        records: recs.len(),
+        dropped_records: info.dropped,
+        bytes: data.len(),
+        seconds: secs,
+        retries: c.stats.retries,
+    })
+}
+
+#[derive(Debug, Clone, Serialize)]
+pub struct PulledTrial {
+    pub trial: u16,
+    pub file: String,
+    pub records: usize,
+    pub dropped_records: u32,
+    pub bytes: usize,
+    pub seconds: f64,
+    pub retries: u32,
+}

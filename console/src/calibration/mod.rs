@@ -1,0 +1,6 @@
+//! Calibration computations on measured runs (formats.md §3), shared by the `compute`
+//! commands, the guided procedures and the demo.
+
+pub mod omni;
+pub mod procedure;
+pub mod umbmark;

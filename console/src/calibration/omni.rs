@@ -1,0 +1,245 @@
+//! `wheelcal omni compute`: 001's lateral (F_lat) and longitudinal (F_lon) factors from
+//! straight-path runs, with the radial error statistics of 001's Table II.
+
+use anyhow::{anyhow, bail, Result};
+use calib_core::motion::OmniPath;
+use calib_core::omni_cal::{self, DrivenWheel, OmniRun, PathRuns};
+use calib_core::robot::{Robot, RobotKind};
+use calib_core::runs_file::{OmniPathRuns, Phase, RunsFile};
+use calib_core::stats;
+use serde::Serialize;
+use std::fmt::Write;
+
+/// Statistics of one path's runs in one phase (001 Table II, Fig. 5).
+#[derive(Debug, Clone, Serialize)]
+pub struct PathStats {
+    pub path: String,
+    pub length_m: f64,
+    pub runs: usize,
+    pub mean_radial_error_m: f64,
+    pub std_dev_radial_m: f64,
+    pub skewness: Option<f64>,
+    pub kurtosis: Option<f64>,
+    /// Radial error of each run.
+    pub radial_errors_m: Vec<f64>,
+}
+
+/// The result of `omni compute`.
+#[derive(Debug, Clone, Serialize)]
+pub struct OmniReport {
+    pub robot: String,
+    pub wheels: Vec<String>,
+    /// Multiplier on each wheel's command that makes the robot go straight.
+    pub f_lat: Vec<f64>,
+    /// Common multiplier that makes it go the full length.
+    pub f_lon: f64,
+    /// 001's eq. 5 per path (with formats.md's sign convention), for comparison.
+    pub f_lon_eq5: Vec<f64>,
+    /// Effective velocity ratio of each wheel (actual / nominal travel); `null` for wheels
+    /// no path drives.
+    pub wheel_ratio: Vec<Option<f64>>,
+    /// Mean radial error of the 'before' runs (001 eq. 7).
+    pub mean_radial_error_m: f64,
+    pub before: Vec<PathStats>,
+    pub after: Vec<PathStats>,
+    pub mean_radial_error_after_m: Option<f64>,
+    /// 001 eq. 8, percent.
+    pub improvement_index_percent: Option<f64>,
+}
+
+/// Direction of a named path in the body frame (radians from body x).
+fn path_direction(p: &OmniPathRuns) -> Result<f64> {
+    match p.omni_path {
+        Some(OmniPath::W1) => Ok(0.0),
+        Some(OmniPath::W2) => Ok(core::f64::consts::FRAC_PI_2),
+        None => bail!("unknown omni path '{}' (expected 4W-1 or 4W-2)", p.path),
+    }
+}
+
+fn path_stats(p: &OmniPathRuns) -> PathStats {
+    let radial: Vec<f64> = p.runs.iter().map(|r| r.0.hypot(r.1)).collect();
+    PathStats {
+        path: p.path.clone(),
+        length_m: p.length_m,
+        runs: p.runs.len(),
+        mean_radial_error_m: stats::mean(&radial).unwrap_or(f64::NAN),
+        std_dev_radial_m: stats::sample_std_dev(&radial).unwrap_or(f64::NAN),
+        skewness: stats::skewness(&radial).ok(),
+        kurtosis: stats::excess_kurtosis(&radial).ok(),
+        radial_errors_m: radial,
+    }
+}
+
+/// Computes F_lat and F_lon from a runs file.
+pub fn compute(robot: &Robot, runs: &RunsFile) -> Result<OmniReport> {
+    if robot.kind != RobotKind::Omni {
+        bail!(
+            "omni calibration needs an omni robot; '{}' is {} (use `wheelcal umbmark compute`)",
+            robot.name,
+            robot.kind.as_str()
+        );
+    }
+    let before = runs.omni(Phase::Before)?;
+    if before.is_empty() {
+        bail!(
+            "{}: no omni 'before' runs (rows with test = omni)",
+            runs.path.display()
+        );
+    }
+    let mut driven_sets: Vec<Vec<DrivenWheel>> = Vec::new();
+    let mut run_sets: Vec<Vec<OmniRun>> = Vec::new();
+    let mut dirs = Vec::new();
+    for p in &before {
+        let dir = path_direction(p).map_err(|e| anyhow!("{}: {e}", runs.path.display()))?;
+        let driven: Vec<DrivenWheel> = robot
+            .wheels
+            .iter()
+            .enumerate()
+            .map(|(i, w)| DrivenWheel::on_straight_path(i, w.rolling_row(), dir, p.length_m))
+            .filter(|d| d.nominal_travel_m.abs() > 1e-9 * p.length_m)
+            .collect();
+        driven_sets.push(driven);
+        run_sets.push(
+            p.runs
+                .iter()
+                .map(|&(x, y, th)| OmniRun {
+                    x_err_m: x,
+                    y_err_m: y,
+                    theta_err_rad: th,
+                })
+                .collect(),
+        );
+        dirs.push(dir);
+    }
+    let paths: Vec<PathRuns<'_>> = before
+        .iter()
+        .enumerate()
+        .map(|(i, p)| PathRuns {
+            length_m: p.length_m,
+            direction_rad: dirs[i],
+            driven: &driven_sets[i],
+            runs: &run_sets[i],
+        })
+        .collect();
+    let cal = omni_cal::calibrate(&paths, robot.wheel_count())
+        .map_err(|e| anyhow!("{}: {e}", runs.path.display()))?;
+    let n = robot.wheel_count();
+    let before_stats: Vec<PathStats> = before.iter().map(path_stats).collect();
+    let after_stats: Vec<PathStats> = runs.omni(Phase::After)?.iter().map(path_stats).collect();
+    let mean_all = |ps: &[PathStats]| {
+        let all: Vec<f64> = ps
+            .iter()
+            .flat_map(|p| p.radial_errors_m.iter().copied())
+            .collect();
+        stats::mean(&all).ok()
+    };
+    let before_mean = mean_all(&before_stats).unwrap_or(cal.mean_radial_error_m);
+    let after_mean = if after_stats.is_empty() {
+        None
+    } else {
+        mean_all(&after_stats)
+    };
+    Ok(OmniReport {
+        robot: robot.name.to_string(),
+        wheels: robot.wheels.iter().map(|w| w.name.to_string()).collect(),
+        f_lat: cal.correction.f_lat[..n].to_vec(),
+        f_lon: cal.correction.f_lon,
+        f_lon_eq5: cal.paths.iter().flatten().map(|p| p.f_lon_eq5).collect(),
+        wheel_ratio: cal.k[..n].to_vec(),
+        mean_radial_error_m: before_mean,
+        before: before_stats,
+        after: after_stats,
+        mean_radial_error_after_m: after_mean,
+        improvement_index_percent: after_mean
+            .and_then(|a| stats::improvement_index_percent(before_mean, a).ok()),
+    })
+}
+
+impl OmniReport {
+    pub fn human(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "Omni calibration (001): robot {}", self.robot);
+        let _ = writeln!(s, "  {:<10} {:>12} {:>10}", "wheel", "ratio k", "F_lat");
+        for (i, w) in self.wheels.iter().enumerate() {
+            let k = self.wheel_ratio[i].map_or("-".to_string(), |k| format!("{k:.5}"));
+            let _ = writeln!(s, "  {:<10} {:>12} {:>10.5}", w, k, self.f_lat[i]);
+        }
+        let _ = writeln!(
+            s,
+            "  F_lon = {:.5} (001 eq. 5 per path: {:?})",
+            self.f_lon,
+            self.f_lon_eq5
+                .iter()
+                .map(|v| (v * 1e5).round() / 1e5)
+                .collect::<Vec<_>>()
+        );
+        let _ = writeln!(
+            s,
+            "  wheel command = F_lon * F_lat[i] * (J twist)_i  (001 eq. 6)"
+        );
+        for (phase, ps) in [("before", &self.before), ("after", &self.after)] {
+            for p in ps.iter() {
+                let _ = writeln!(
+                    s,
+                    "  {phase:<6} {:<5} {} runs, mean radial error {:.2} mm, sd {:.2} mm, skewness {}, kurtosis {}",
+                    p.path,
+                    p.runs,
+                    p.mean_radial_error_m * 1e3,
+                    p.std_dev_radial_m * 1e3,
+                    p.skewness.map_or("-".into(), |v| format!("{v:.3}")),
+                    p.kurtosis.map_or("-".into(), |v| format!("{v:.3}")),
+                );
+            }
+        }
+        if let (Some(a), Some(i)) = (
+            self.mean_radial_error_after_m,
+            self.improvement_index_percent,
+        ) {
+            let _ = writeln!(
+                s,
+                "  mean radial error {:.2} mm -> {:.2} mm: improvement {:.1} % (001 eq. 8)",
+                self.mean_radial_error_m * 1e3,
+                a * 1e3,
+                i
+            );
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calib_core::robot::presets;
+    use std::path::Path;
+
+    #[test]
+    fn short_robot_gets_f_lon_above_one() {
+        // Every run stops 5 % short on 0.6 m with no sideways error: k = 0.95 on every
+        // driven wheel, F_lon = 1/0.95, F_lat = 1.
+        let mut text = String::from("test,path,length_m,x_err_m,y_err_m,theta_err_rad,phase\n");
+        for p in ["4W-1", "4W-2"] {
+            for _ in 0..3 {
+                text.push_str(&format!("omni,{p},0.6,-0.03,0,,\n"));
+            }
+        }
+        text.push_str("omni,4W-1,0.6,-0.003,0,,after\nomni,4W-1,0.6,-0.002,0,,after\n");
+        let runs = RunsFile::parse(&text, Path::new("r.csv")).unwrap();
+        let rep = compute(&presets::omni4(), &runs).unwrap();
+        assert!((rep.f_lon - 1.0 / 0.95).abs() < 1e-9, "{}", rep.f_lon);
+        for f in &rep.f_lat {
+            assert!((f - 1.0).abs() < 1e-9);
+        }
+        assert!((rep.mean_radial_error_m - 0.03).abs() < 1e-12);
+        // after 2.5 mm mean: (30 - 2.5) / 30 = 91.67 %.
+        assert!((rep.improvement_index_percent.unwrap() - 91.666_666).abs() < 1e-3);
+    }
+
+    #[test]
+    fn unknown_path_is_named() {
+        let text = "test,path,length_m,x_err_m,y_err_m\nomni,diag,0.6,0,0\nomni,diag,0.6,0,0\n";
+        let runs = RunsFile::parse(text, Path::new("r.csv")).unwrap();
+        let e = compute(&presets::omni4(), &runs).unwrap_err().to_string();
+        assert!(e.contains("unknown omni path 'diag'"), "{e}");
+    }
+}

@@ -1,0 +1,299 @@
+//! The guided calibration procedures (`umbmark run`, `omni run`): run each trial on the
+//! board, get its measured end position (from a person, or from the virtual board's
+//! truth), append it to the runs file at once, compute, upload and save the factors, run
+//! the after trials, and report.
+//!
+//! Resuming: runs already in the runs file are not run again, so a person can stop (or
+//! lose power) and start the same command later without losing what was measured.
+
+use super::{omni, umbmark};
+use crate::board_cmds;
+use crate::client::Client;
+use crate::virtual_board::TrialTruth;
+use anyhow::{bail, Context, Result};
+use calib_core::motion::{Direction, OmniPath};
+use calib_core::odometry::Pose;
+use calib_core::robot::RobotKind;
+use calib_core::runs_file::{Phase, RunRow, RunsFile, TestKind};
+use calib_core::Corrections;
+use serde::Serialize;
+use std::io::{BufRead, Read, Write};
+use std::path::{Path, PathBuf};
+use std::time::Duration;
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Kind {
+    Umbmark,
+    Omni,
+}
+
+#[derive(Debug, Clone)]
+pub struct Options {
+    pub kind: Kind,
+    pub side_m: f64,
+    pub length_m: f64,
+    pub runs: usize,
+    pub runs_file: PathBuf,
+    /// Read end errors from this virtual-board truth file instead of asking.
+    pub auto_measure: Option<PathBuf>,
+    pub report: Option<PathBuf>,
+    pub after: bool,
+}
+
+/// Where the measured end positions come from.
+pub trait Measure {
+    /// Tells the person what happens next (progress).
+    fn say(&mut self, text: &str);
+    /// Waits until the robot is placed at the start.
+    fn ready(&mut self, what: &str) -> Result<()>;
+    /// The measured end error of `trial` (measured minus odometry, start frame):
+    /// `(x, y, theta)`.
+    fn end_error(&mut self, trial: u16, odometry: Pose<f32>, what: &str) -> Result<(f64, f64, Option<f64>)>;
+}
+
+/// A person at a terminal with a tape measure.
+pub struct Terminal;
+
+fn read_line() -> Result<String> {
+    let mut s = String::new();
+    let n = std::io::stdin().lock().read_line(&mut s)?;
+    if n == 0 {
+        bail!("no more input (stdin closed): the runs measured so far are in the runs file; run the same command again to resume");
+    }
+    Ok(s)
+}
+
+impl Measure for Terminal {
+    fn say(&mut self, text: &str) {
+        eprintln!("{text}");
+    }
+    fn ready(&mut self, what: &str) -> Result<()> {
+        eprint!("{what}: place the robot on the start mark, heading along the first leg, and press Enter ");
+        let _ = std::io::stderr().flush();
+        read_line().map(|_| ())
+    }
+    fn end_error(&mut self, _trial: u16, odo: Pose<f32>, what: &str) -> Result<(f64, f64, Option<f64>)> {
+        loop {
+            eprint!(
+                "{what}: measured end position x y in mm from the start mark (x along the first leg, y to its left; odometry says {:+.1} {:+.1}): ",
+                odo.x * 1e3,
+                odo.y * 1e3
+            );
+            let _ = std::io::stderr().flush();
+            let line = read_line()?;
+            let v: Vec<f64> = line.split([' ', ',', '\t']).filter(|s| !s.is_empty()).filter_map(|s| s.parse().ok()).collect();
+            if v.len() == 2 && v.iter().all(|x| x.is_finite()) {
+                return Ok((v[0] / 1e3 - odo.x as f64, v[1] / 1e3 - odo.y as f64, None));
+            }
+            eprintln!("  please type two numbers in millimetres, e.g. `12.5 -30`");
+        }
+    }
+}
+
+/// The virtual board's truth, read from its truth file.
+pub struct TruthFile {
+    pub file: PathBuf,
+    pub quiet: bool,
+}
+
+impl Measure for TruthFile {
+    fn say(&mut self, text: &str) {
+        if !self.quiet {
+            eprintln!("{text}");
+        }
+    }
+    fn ready(&mut self, _: &str) -> Result<()> {
+        Ok(())
+    }
+    fn end_error(&mut self, trial: u16, _odo: Pose<f32>, _what: &str) -> Result<(f64, f64, Option<f64>)> {
+        for _ in 0..100 {
+            let truths = crate::sim_board::read_truths(&self.file)?;
+            if let Some(t) = truths.iter().rev().find(|t| t.trial == trial) {
+                return Ok((t.x_err_m, t.y_err_m, Some(t.theta_err_rad)));
+            }
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        bail!("--auto-measure: no truth for trial {trial} in {} (is the port a `wheelcal sim-board`?)", self.file.display())
+    }
+}
+
+/// The truth handed over in-process (the demo).
+pub struct TruthChannel {
+    pub rx: std::sync::mpsc::Receiver<TrialTruth>,
+    pub seen: Vec<TrialTruth>,
+    pub progress: Option<indicatif::ProgressBar>,
+}
+
+impl Measure for TruthChannel {
+    fn say(&mut self, text: &str) {
+        if let Some(p) = &self.progress {
+            p.set_message(text.to_string());
+        }
+    }
+    fn ready(&mut self, _: &str) -> Result<()> {
+        Ok(())
+    }
+    fn end_error(&mut self, trial: u16, _odo: Pose<f32>, _what: &str) -> Result<(f64, f64, Option<f64>)> {
+        loop {
+            if let Some(t) = self.seen.iter().find(|t| t.trial == trial) {
+                if let Some(p) = &self.progress {
+                    p.inc(1);
+                }
+                return Ok((t.x_err_m, t.y_err_m, Some(t.theta_err_rad)));
+            }
+            let t = self.rx.recv_timeout(Duration::from_secs(30)).context("the virtual board reported no truth for the trial")?;
+            self.seen.push(t);
+        }
+    }
+}
+
+/// What the procedure found.
+#[derive(Debug, Clone, Serialize)]
+#[serde(untagged)]
+pub enum ProcedureReport {
+    Umbmark(Box<umbmark::UmbmarkReport>),
+    Omni(Box<omni::OmniReport>),
+}
+
+impl ProcedureReport {
+    pub fn human(&self) -> String {
+        match self {
+            ProcedureReport::Umbmark(r) => r.human(),
+            ProcedureReport::Omni(r) => r.human(),
+        }
+    }
+}
+
+/// One trial to run.
+#[derive(Debug, Clone, Copy)]
+enum Trial {
+    Square(Direction),
+    Path(OmniPath),
+}
+
+impl Trial {
+    fn path_name(self) -> &'static str {
+        match self {
+            Trial::Square(d) => d.as_str(),
+            Trial::Path(p) => p.as_str(),
+        }
+    }
+}
+
+/// Runs the procedure on a board.
+pub fn run<L: Read + Write>(c: &mut Client<L>, opts: &Options, m: &mut dyn Measure) -> Result<ProcedureReport> {
+    if opts.runs < 2 {
+        bail!("--runs must be at least 2 (statistics need two runs per direction or path)");
+    }
+    let robot = c.params()?.robot;
+    let (test, trials, length) = match opts.kind {
+        Kind::Umbmark => {
+            if robot.kind != RobotKind::DiffDrive {
+                bail!("the board's robot is {}: UMBmark is for differential drives (use `wheelcal omni run`)", robot.kind.as_str());
+            }
+            (TestKind::Umbmark, vec![Trial::Square(Direction::Cw), Trial::Square(Direction::Ccw)], opts.side_m)
+        }
+        Kind::Omni => {
+            if robot.kind != RobotKind::Omni {
+                bail!("the board's robot is {}: the omni procedure is for omni robots (use `wheelcal umbmark run`)", robot.kind.as_str());
+            }
+            (TestKind::Omni, vec![Trial::Path(OmniPath::W1), Trial::Path(OmniPath::W2)], opts.length_m)
+        }
+    };
+    if !(length.is_finite() && length > 0.0 && length <= 20.0) {
+        bail!("the path length must be within (0, 20] m, got {length}");
+    }
+    let existing = if opts.runs_file.exists() { RunsFile::load(&opts.runs_file)? } else { RunsFile::new(&opts.runs_file) };
+    if existing.rows.iter().any(|r| r.test == test && (r.length_m - length).abs() > 1e-9) {
+        bail!(
+            "{} already holds runs of another length; use a new --runs-file for {} m",
+            opts.runs_file.display(),
+            length
+        );
+    }
+    let have = |phase: Phase, t: Trial| existing.rows.iter().filter(|r| r.test == test && r.phase == phase && r.path == t.path_name()).count();
+
+    // Before: nominal geometry, unless resuming a procedure whose factors are already
+    // computed (then the before runs are complete and only the after runs remain).
+    let before_done = trials.iter().all(|&t| have(Phase::Before, t) >= opts.runs);
+    if !before_done {
+        c.reset_corrections()?;
+        m.say(&format!("before calibration: corrections reset to nominal; {} runs per {}", opts.runs, if test == TestKind::Umbmark { "direction" } else { "path" }));
+        run_phase(c, opts, m, &trials, test, length, Phase::Before, &|t| have(Phase::Before, t))?;
+    }
+    let runs = RunsFile::load(&opts.runs_file)?;
+    let corrections = match opts.kind {
+        Kind::Umbmark => {
+            let r = umbmark::compute(&robot, &runs)?;
+            Corrections::DiffDrive { c_l: r.c_l, c_r: r.c_r, e_b: r.eb }
+        }
+        Kind::Omni => {
+            let r = omni::compute(&robot, &runs)?;
+            Corrections::Omni { f_lat: heapless::Vec::from_slice(&r.f_lat).map_err(|_| anyhow::anyhow!("too many wheels"))?, f_lon: r.f_lon }
+        }
+    };
+    // Validated here too: nothing is uploaded from a computation the board would refuse.
+    corrections.validate(&robot).map_err(|e| anyhow::anyhow!("computed factors are not usable ({e}); nothing was uploaded"))?;
+    c.set_corrections(corrections.clone())?;
+    c.save_corrections()?;
+    m.say(&format!("factors uploaded and saved: {}", board_cmds::FactorsView::from(&corrections).human().trim()));
+    if opts.after {
+        run_phase(c, opts, m, &trials, test, length, Phase::After, &|t| have(Phase::After, t))?;
+    }
+    let runs = RunsFile::load(&opts.runs_file)?;
+    let rep = match opts.kind {
+        Kind::Umbmark => {
+            let r = umbmark::compute(&robot, &runs)?;
+            if let Some(dir) = &opts.report {
+                crate::report::umbmark::write(&r, dir)?;
+            }
+            ProcedureReport::Umbmark(Box::new(r))
+        }
+        Kind::Omni => {
+            let r = omni::compute(&robot, &runs)?;
+            if let Some(dir) = &opts.report {
+                crate::report::omni::write(&r, dir)?;
+            }
+            ProcedureReport::Omni(Box::new(r))
+        }
+    };
+    Ok(rep)
+}
+
+#[allow(clippy::too_many_arguments)]
+fn run_phase<L: Read + Write>(
+    c: &mut Client<L>,
+    opts: &Options,
+    m: &mut dyn Measure,
+    trials: &[Trial],
+    test: TestKind,
+    length: f64,
+    phase: Phase,
+    have: &dyn Fn(Trial) -> usize,
+) -> Result<()> {
+    for &t in trials {
+        for k in have(t)..opts.runs {
+            let what = format!("{} {} run {}/{}", phase.as_str(), t.path_name(), k + 1, opts.runs);
+            m.ready(&what)?;
+            m.say(&format!("{what}: running"));
+            match t {
+                Trial::Square(d) => board_cmds::run_umbmark(c, d, length, 10)?,
+                Trial::Path(p) => board_cmds::run_omni(c, p, length, 10)?,
+            }
+            let end = board_cmds::wait_program(c, Duration::from_secs_f64(120.0 + 60.0 * length), |_| {})?;
+            let trial = c.trials()?.trials.last().map(|t| t.id).context("the board logged no trial")?;
+            let (x, y, th) = m.end_error(trial, end.pose, &what)?;
+            RunsFile::append(
+                &opts.runs_file,
+                &RunRow { line: 0, test, path: t.path_name().into(), length_m: length, x_err_m: x, y_err_m: y, theta_err_rad: th, phase },
+            )
+            .with_context(|| format!("cannot append to {}", opts.runs_file.display()))?;
+        }
+    }
+    Ok(())
+}
+
+/// Removes a runs file (the demo starts clean each time).
+pub fn remove_runs(path: &Path) {
+    let _ = std::fs::remove_file(path);
+}

@@ -1,0 +1,491 @@
+//! The host side of the board protocol (calib_core::protocol): requests with sequence
+//! numbers, retries, the version handshake, and resumable log downloads.
+//!
+//! The client works over any `Read + Write` whose reads time out (a serial port, the
+//! virtual board's pseudo-terminal, or an in-process pipe in tests). A request that gets
+//! no answer, or a Nack for a damaged frame, is resent with the same sequence number;
+//! the board caches its last answer, so a resent request is never acted on twice.
+
+use calib_core::protocol::{
+    self, encode, FrameDecoder, FrameError, Info, Params, ProgramSpec, Record, Rejection, Request,
+    Response, Status, TrialInfo, Trials, MAX_LOG_CHUNK, MAX_WIRE, PROTOCOL_VERSION,
+    SCHEMA_FINGERPRINT,
+};
+use calib_core::{Corrections, Twist};
+use std::fmt;
+use std::io::{self, Read, Write};
+use std::time::{Duration, Instant};
+
+/// Smallest log chunk asked for on a noisy link.
+pub const MIN_CHUNK: usize = 48;
+
+/// A board's answer, owned.
+#[derive(Debug, Clone, PartialEq)]
+pub enum Reply {
+    Hello {
+        protocol_version: u16,
+        schema: u32,
+        firmware: String,
+        compatible: bool,
+    },
+    Ok,
+    Info(Info),
+    Corrections(Corrections),
+    Params(Params),
+    Status(Status),
+    Trials(Trials),
+    LogChunk {
+        trial: u16,
+        offset: u32,
+        total: u32,
+        data: Vec<u8>,
+    },
+    Rejected(Rejection),
+}
+
+/// What went wrong talking to a board.
+#[derive(Debug)]
+pub enum ClientError {
+    /// Nothing intact came back after every retry.
+    NoAnswer {
+        port: String,
+        tries: u32,
+        bad_frames: u32,
+    },
+    /// The board speaks another protocol version or schema.
+    ProtocolMismatch {
+        board_version: u16,
+        board_schema: u32,
+        firmware: String,
+    },
+    /// The board refused the request; nothing changed there.
+    Rejected(Rejection),
+    /// An answer of the wrong kind.
+    Unexpected(String),
+    Io(io::Error),
+}
+
+impl fmt::Display for ClientError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ClientError::NoAnswer { port, tries, bad_frames } => {
+                write!(f, "no answer from {port} after {tries} tries")?;
+                if *bad_frames > 0 {
+                    write!(f, " ({bad_frames} damaged frames: check the baud rate and cable)")
+                } else {
+                    write!(f, " (is the board powered and running wheelcal firmware, and the baud rate right?)")
+                }
+            }
+            ClientError::ProtocolMismatch { board_version, board_schema, firmware } => write!(
+                f,
+                "protocol mismatch: the board ({firmware}) speaks protocol v{board_version} (schema {board_schema:08x}), \
+                 this wheelcal speaks v{PROTOCOL_VERSION} (schema {SCHEMA_FINGERPRINT:08x}): update the firmware or wheelcal so they match"
+            ),
+            ClientError::Rejected(r) => write!(f, "the board refused: {r}"),
+            ClientError::Unexpected(what) => write!(f, "unexpected answer from the board: {what}"),
+            ClientError::Io(e) => write!(f, "serial I/O error: {e}"),
+        }
+    }
+}
+
+impl std::error::Error for ClientError {}
+
+impl From<io::Error> for ClientError {
+    fn from(e: io::Error) -> Self {
+        ClientError::Io(e)
+    }
+}
+
+/// Counters of what crossed the link.
+#[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
+pub struct LinkStats {
+    pub requests: u32,
+    pub retries: u32,
+    pub bad_frames: u32,
+    pub bytes_sent: u64,
+    pub bytes_received: u64,
+}
+
+/// Result of the handshake.
+#[derive(Debug, Clone, PartialEq, serde::Serialize)]
+pub struct Hello {
+    pub firmware: String,
+    pub protocol_version: u16,
+    pub schema: u32,
+}
+
+/// A connection to one board.
+pub struct Client<L: Read + Write> {
+    link: L,
+    port: String,
+    dec: FrameDecoder,
+    seq: u16,
+    /// Attempts per request (first try included).
+    pub tries: u32,
+    /// How long to wait for each attempt's answer.
+    pub timeout: Duration,
+    pub stats: LinkStats,
+    telemetry: std::collections::VecDeque<Status>,
+    pending: std::collections::VecDeque<u8>,
+}
+
+impl<L: Read + Write> Client<L> {
+    /// A client over `link`; `port` names it in messages. Call [`Client::hello`] next.
+    pub fn new(link: L, port: &str) -> Self {
+        Client {
+            link,
+            port: port.to_string(),
+            dec: FrameDecoder::new(),
+            seq: 0,
+            tries: 4,
+            timeout: Duration::from_millis(500),
+            stats: LinkStats::default(),
+            telemetry: Default::default(),
+            pending: Default::default(),
+        }
+    }
+
+    /// The handshake: checks protocol version and schema fingerprint.
+    pub fn hello(&mut self) -> Result<Hello, ClientError> {
+        match self.request(&Request::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            schema: SCHEMA_FINGERPRINT,
+        })? {
+            Reply::Hello {
+                protocol_version,
+                schema,
+                firmware,
+                compatible,
+            } => {
+                if !compatible
+                    || protocol_version != PROTOCOL_VERSION
+                    || schema != SCHEMA_FINGERPRINT
+                {
+                    return Err(ClientError::ProtocolMismatch {
+                        board_version: protocol_version,
+                        board_schema: schema,
+                        firmware,
+                    });
+                }
+                Ok(Hello {
+                    firmware,
+                    protocol_version,
+                    schema,
+                })
+            }
+            other => Err(ClientError::Unexpected(format!("{other:?} to Hello"))),
+        }
+    }
+
+    /// Sends a request and waits for its answer, retrying on silence or damage.
+    pub fn request(&mut self, req: &Request) -> Result<Reply, ClientError> {
+        self.seq = self.seq.wrapping_add(1);
+        let seq = self.seq;
+        let mut wire = [0u8; MAX_WIRE];
+        let frame = encode(seq, req, &mut wire)
+            .map_err(|e| ClientError::Unexpected(format!("request does not fit a frame: {e}")))?;
+        self.stats.requests += 1;
+        for attempt in 0..self.tries.max(1) {
+            if attempt > 0 {
+                self.stats.retries += 1;
+            }
+            self.link.write_all(frame)?;
+            self.link.flush()?;
+            self.stats.bytes_sent += frame.len() as u64;
+            let deadline = Instant::now() + self.timeout;
+            loop {
+                match self.read_frame(deadline)? {
+                    None => break, // timed out: resend
+                    Some(Err(_)) => {
+                        // Most likely our answer, damaged: ask again now rather than
+                        // wait out the timeout (the board answers a repeat from cache).
+                        self.stats.bad_frames += 1;
+                        break;
+                    }
+                    Some(Ok((_, Incoming::Nack))) => break, // the board saw damage: resend
+                    Some(Ok((_, Incoming::Telemetry(s)))) => {
+                        if self.telemetry.len() >= 256 {
+                            self.telemetry.pop_front();
+                        }
+                        self.telemetry.push_back(s);
+                    }
+                    Some(Ok((s, Incoming::Reply(r)))) if s == seq => return Ok(r),
+                    Some(Ok(_)) => {} // a late answer to an earlier request
+                }
+            }
+        }
+        Err(ClientError::NoAnswer {
+            port: self.port.clone(),
+            tries: self.tries,
+            bad_frames: self.stats.bad_frames,
+        })
+    }
+
+    /// Reads bytes until a frame completes or the deadline passes. Bytes read past the
+    /// end of a frame stay in `pending` for the next call.
+    fn read_frame(
+        &mut self,
+        deadline: Instant,
+    ) -> Result<Option<Result<(u16, Incoming), FrameError>>, ClientError> {
+        let mut buf = [0u8; 256];
+        loop {
+            while let Some(b) = self.pending.pop_front() {
+                if let Some(result) = self.dec.push(b) {
+                    return Ok(Some(result.and_then(|f| {
+                        let seq = f.seq;
+                        f.decode::<Response<'_>>()
+                            .map(|r| (seq, Incoming::from(r)))
+                            .map_err(|_| FrameError::Cobs)
+                    })));
+                }
+            }
+            if Instant::now() >= deadline {
+                return Ok(None);
+            }
+            match self.link.read(&mut buf) {
+                Ok(0) => std::thread::sleep(Duration::from_millis(1)),
+                Ok(n) => {
+                    self.stats.bytes_received += n as u64;
+                    self.pending.extend(&buf[..n]);
+                }
+                Err(e)
+                    if matches!(
+                        e.kind(),
+                        io::ErrorKind::TimedOut
+                            | io::ErrorKind::WouldBlock
+                            | io::ErrorKind::Interrupted
+                    ) => {}
+                Err(e) => return Err(e.into()),
+            }
+        }
+    }
+
+    fn expect_ok(&mut self, req: Request) -> Result<(), ClientError> {
+        match self.request(&req)? {
+            Reply::Ok => Ok(()),
+            Reply::Rejected(r) => Err(ClientError::Rejected(r)),
+            other => Err(ClientError::Unexpected(format!("{other:?}"))),
+        }
+    }
+
+    pub fn info(&mut self) -> Result<Info, ClientError> {
+        match self.request(&Request::GetInfo)? {
+            Reply::Info(i) => Ok(i),
+            Reply::Rejected(r) => Err(ClientError::Rejected(r)),
+            other => Err(ClientError::Unexpected(format!("{other:?}"))),
+        }
+    }
+
+    pub fn corrections(&mut self) -> Result<Corrections, ClientError> {
+        match self.request(&Request::GetCorrections)? {
+            Reply::Corrections(c) => Ok(c),
+            Reply::Rejected(r) => Err(ClientError::Rejected(r)),
+            other => Err(ClientError::Unexpected(format!("{other:?}"))),
+        }
+    }
+
+    pub fn set_corrections(&mut self, c: Corrections) -> Result<(), ClientError> {
+        self.expect_ok(Request::SetCorrections(c))
+    }
+
+    pub fn save_corrections(&mut self) -> Result<(), ClientError> {
+        self.expect_ok(Request::SaveCorrections)
+    }
+
+    pub fn reset_corrections(&mut self) -> Result<(), ClientError> {
+        self.expect_ok(Request::ResetCorrections)
+    }
+
+    pub fn params(&mut self) -> Result<Params, ClientError> {
+        match self.request(&Request::GetParams)? {
+            Reply::Params(p) => Ok(p),
+            Reply::Rejected(r) => Err(ClientError::Rejected(r)),
+            other => Err(ClientError::Unexpected(format!("{other:?}"))),
+        }
+    }
+
+    pub fn drive(&mut self, twist: Twist<f32>, timeout_ms: u16) -> Result<(), ClientError> {
+        self.expect_ok(Request::Drive { twist, timeout_ms })
+    }
+
+    pub fn run_program(
+        &mut self,
+        program: ProgramSpec,
+        log_rate_hz: u16,
+    ) -> Result<(), ClientError> {
+        self.expect_ok(Request::RunProgram {
+            program,
+            log_rate_hz,
+        })
+    }
+
+    pub fn stop(&mut self) -> Result<(), ClientError> {
+        self.expect_ok(Request::Stop)
+    }
+
+    pub fn estop(&mut self) -> Result<(), ClientError> {
+        self.expect_ok(Request::EStop)
+    }
+
+    pub fn clear_fault(&mut self) -> Result<(), ClientError> {
+        self.expect_ok(Request::ClearFault)
+    }
+
+    pub fn clear_logs(&mut self) -> Result<(), ClientError> {
+        self.expect_ok(Request::ClearLogs)
+    }
+
+    pub fn set_telemetry(&mut self, period_ms: u16) -> Result<(), ClientError> {
+        self.expect_ok(Request::SetTelemetry { period_ms })
+    }
+
+    pub fn status(&mut self) -> Result<Status, ClientError> {
+        match self.request(&Request::GetStatus)? {
+            Reply::Status(s) => Ok(s),
+            Reply::Rejected(r) => Err(ClientError::Rejected(r)),
+            other => Err(ClientError::Unexpected(format!("{other:?}"))),
+        }
+    }
+
+    /// Waits up to `timeout` for the next unsolicited telemetry frame.
+    pub fn next_telemetry(&mut self, timeout: Duration) -> Result<Option<Status>, ClientError> {
+        if let Some(s) = self.telemetry.pop_front() {
+            return Ok(Some(s));
+        }
+        let deadline = Instant::now() + timeout;
+        while let Some(f) = self.read_frame(deadline)? {
+            match f {
+                Ok((_, Incoming::Telemetry(s))) => return Ok(Some(s)),
+                Err(_) => self.stats.bad_frames += 1,
+                _ => {}
+            }
+        }
+        Ok(None)
+    }
+
+    pub fn trials(&mut self) -> Result<Trials, ClientError> {
+        match self.request(&Request::ListTrials)? {
+            Reply::Trials(t) => Ok(t),
+            Reply::Rejected(r) => Err(ClientError::Rejected(r)),
+            other => Err(ClientError::Unexpected(format!("{other:?}"))),
+        }
+    }
+
+    /// Downloads a trial's record bytes from `offset` (resume by passing what you have),
+    /// calling `progress(done, total)` after each chunk. On a noisy link the chunk size
+    /// halves after a chunk fails every retry (down to [`MIN_CHUNK`]) and grows back after
+    /// clean ones: big chunks are efficient, small ones get through noise.
+    pub fn pull_log(
+        &mut self,
+        trial: u16,
+        mut data: Vec<u8>,
+        mut progress: impl FnMut(u64, u64),
+    ) -> Result<Vec<u8>, ClientError> {
+        let mut chunk = MAX_LOG_CHUNK;
+        let mut clean = 0u32;
+        loop {
+            let offset = data.len() as u32;
+            let reply = match self.request(&Request::ReadLog {
+                trial,
+                offset,
+                max_len: chunk as u16,
+            }) {
+                Err(ClientError::NoAnswer { .. }) if chunk > MIN_CHUNK => {
+                    chunk = (chunk / 2).max(MIN_CHUNK);
+                    clean = 0;
+                    continue;
+                }
+                other => other?,
+            };
+            match reply {
+                Reply::LogChunk {
+                    trial: t,
+                    offset: o,
+                    total,
+                    data: bytes,
+                } => {
+                    if t != trial || o != offset {
+                        return Err(ClientError::Unexpected(format!(
+                            "chunk of trial {t} at {o}, asked trial {trial} at {offset}"
+                        )));
+                    }
+                    data.extend_from_slice(&bytes);
+                    progress(data.len() as u64, total as u64);
+                    if bytes.is_empty() || data.len() as u32 >= total {
+                        return Ok(data);
+                    }
+                    clean += 1;
+                    if clean >= 8 && chunk < MAX_LOG_CHUNK {
+                        chunk = (chunk * 2).min(MAX_LOG_CHUNK);
+                        clean = 0;
+                    }
+                }
+                Reply::Rejected(r) => return Err(ClientError::Rejected(r)),
+                other => return Err(ClientError::Unexpected(format!("{other:?}"))),
+            }
+        }
+    }
+
+    /// Gives the link back (to reconnect or close).
+    pub fn into_link(self) -> L {
+        self.link
+    }
+}
+
+/// A decoded incoming frame.
+enum Incoming {
+    Reply(Reply),
+    Telemetry(Status),
+    Nack,
+}
+
+impl From<Response<'_>> for Incoming {
+    fn from(r: Response<'_>) -> Self {
+        Incoming::Reply(match r {
+            Response::Hello {
+                protocol_version,
+                schema,
+                firmware,
+                compatible,
+            } => Reply::Hello {
+                protocol_version,
+                schema,
+                firmware: firmware.to_string(),
+                compatible,
+            },
+            Response::Ok => Reply::Ok,
+            Response::Info(i) => Reply::Info(i),
+            Response::Corrections(c) => Reply::Corrections(c),
+            Response::Params(p) => Reply::Params(p),
+            Response::Status(s) => Reply::Status(s),
+            Response::Telemetry(s) => return Incoming::Telemetry(s),
+            Response::Trials(t) => Reply::Trials(t),
+            Response::LogChunk(c) => Reply::LogChunk {
+                trial: c.trial,
+                offset: c.offset,
+                total: c.total,
+                data: c.data.0.to_vec(),
+            },
+            Response::Rejected(r) => Reply::Rejected(r),
+            Response::Nack(_) => return Incoming::Nack,
+        })
+    }
+}
+
+/// Decodes a trial's record bytes; errors when the length is not whole records.
+pub fn decode_records(info: &TrialInfo, data: &[u8]) -> Result<Vec<Record>, String> {
+    let n = info.wheel_count as usize;
+    let size = protocol::record_size(n);
+    if size == 0 || data.len() % size != 0 {
+        return Err(format!(
+            "trial {}: {} bytes is not a whole number of {size}-byte records",
+            info.id,
+            data.len()
+        ));
+    }
+    data.chunks_exact(size)
+        .map(|c| {
+            Record::decode(n, c).ok_or_else(|| format!("trial {}: undecodable record", info.id))
+        })
+        .collect()
+}

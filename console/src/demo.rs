@@ -1,0 +1,133 @@
+//! `wheelcal demo`: the UMBmark procedure on a virtual board whose wheel-diameter ratio
+//! and wheelbase error are drawn at random and hidden from the procedure; the truth is
+//! only used at the end, to show how close the calibration came.
+
+use crate::calibration::procedure::{self, Kind, Options, ProcedureReport, TruthChannel};
+use crate::calibration::umbmark::UmbmarkReport;
+use crate::client::Client;
+use crate::link::{memory_pair, Faults};
+use crate::virtual_board::{board_flash, VirtualBoard};
+use anyhow::{bail, Context, Result};
+use calib_core::robot::RobotKind;
+use calib_core::robot_file;
+use rand::{Rng, SeedableRng};
+use serde::Serialize;
+use sim::{SimConfig, SimRobot, Surface};
+use std::fmt::Write as _;
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+use std::time::Instant;
+
+/// Floor roughness of the demo: random travel error of each wheel, metres per sqrt(metre).
+pub const DEMO_ROUGHNESS: f64 = 3e-4;
+
+const MOBOLAB: &str = include_str!("../../robots/mobolab.toml");
+
+#[derive(Debug, Clone, Serialize)]
+pub struct DemoReport {
+    pub robot: String,
+    pub seed: u64,
+    pub side_m: f64,
+    pub runs_per_direction: usize,
+    /// The hidden truth, revealed.
+    pub true_ed: f64,
+    pub true_eb: f64,
+    pub estimated_ed: f64,
+    pub estimated_eb: f64,
+    pub e_max_sys_before_m: f64,
+    pub e_max_sys_after_m: f64,
+    pub improvement: f64,
+    pub seconds: f64,
+    pub umbmark: UmbmarkReport,
+}
+
+impl DemoReport {
+    pub fn human(&self) -> String {
+        let mut s = String::new();
+        let _ = writeln!(s, "wheelcal demo: UMBmark on a virtual {} (seed {}), {} x {} m squares each way, before and after", self.robot, self.seed, self.runs_per_direction, self.side_m);
+        let _ = writeln!(s, "\n  {:<10} {:>16} {:>16} {:>12}", "robot", "E_max,sys before", "E_max,sys after", "improvement");
+        let _ = writeln!(s, "  {:<10} {:>13.2} mm {:>13.2} mm {:>11.1}x", self.robot, self.e_max_sys_before_m * 1e3, self.e_max_sys_after_m * 1e3, self.improvement);
+        let _ = writeln!(s, "\n  hidden truth   E_d = {:.5}  E_b = {:.5}", self.true_ed, self.true_eb);
+        let _ = writeln!(s, "  calibration    E_d = {:.5}  E_b = {:.5}  (exact-model fit)", self.estimated_ed, self.estimated_eb);
+        let _ = writeln!(s, "  closed form    E_d = {:.5}  E_b = {:.5}", self.umbmark.closed_form.ed, self.umbmark.closed_form.eb);
+        let _ = writeln!(s, "\n  finished in {:.1} s", self.seconds);
+        s
+    }
+}
+
+/// Runs the demo. `robot_path` falls back to the built-in MoboLab when it does not exist
+/// and is the default.
+pub fn run(robot_path: &Path, seed: u64, runs: usize, side: f64, report: Option<&Path>, progress: bool) -> Result<DemoReport> {
+    let t0 = Instant::now();
+    let robot = if robot_path.exists() {
+        robot_file::load(robot_path)?
+    } else if robot_path == Path::new("robots/mobolab.toml") {
+        robot_file::parse(MOBOLAB, Path::new("robots/mobolab.toml (built in)"))?
+    } else {
+        bail!("no robot file {}", robot_path.display());
+    };
+    if robot.kind != RobotKind::DiffDrive {
+        bail!("the demo runs UMBmark: it needs a differential drive, {} is {}", robot.name, robot.kind.as_str());
+    }
+    // Hidden errors of the size 000 reports (E_max,sys of 30 to 100 mm on 4 m).
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
+    let sign = |r: &mut rand_chacha::ChaCha8Rng| if r.random_bool(0.5) { 1.0 } else { -1.0 };
+    let true_ed = 1.0 + sign(&mut rng) * rng.random_range(0.002..0.006);
+    let true_eb = 1.0 + sign(&mut rng) * rng.random_range(0.01..0.03);
+    let mut faults = sim::Faults::none(2);
+    // E_d = D_R / D_L with the mean diameter kept.
+    faults.radius_scale = vec![2.0 / (true_ed + 1.0), 2.0 * true_ed / (true_ed + 1.0)];
+    faults.wheelbase_scale = true_eb;
+    faults.travel_noise_m_per_sqrt_m = DEMO_ROUGHNESS;
+    let sim = SimRobot::new(&robot, faults, Surface::flat(), SimConfig { seed, ..SimConfig::default() }).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut board = VirtualBoard::boot(&robot, sim, board_flash(None)?).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (host, mut board_end) = memory_pair(Faults::none(), Faults::none(), seed);
+    let stop = Arc::new(AtomicBool::new(false));
+    let (ttx, trx) = std::sync::mpsc::channel();
+    let s2 = stop.clone();
+    let thread = std::thread::spawn(move || {
+        board.serve(&mut board_end, f64::INFINITY, || s2.load(Ordering::Relaxed), |t| {
+            let _ = ttx.send(*t);
+        });
+    });
+    let dir = std::env::temp_dir().join(format!("wheelcal-demo-{}-{seed}", std::process::id()));
+    std::fs::create_dir_all(&dir)?;
+    let runs_file = dir.join("runs.csv");
+    procedure::remove_runs(&runs_file);
+    let bar = progress.then(|| {
+        let b = indicatif::ProgressBar::new(4 * runs as u64);
+        b.set_style(indicatif::ProgressStyle::with_template("{msg:40} [{bar:30}] {pos}/{len} runs {elapsed}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
+        b
+    });
+    let mut measure = TruthChannel { rx: trx, seen: Vec::new(), progress: bar.clone() };
+    let mut client = Client::new(host, "virtual board");
+    let result = (|| -> Result<ProcedureReport> {
+        client.hello()?;
+        let opts = Options { kind: Kind::Umbmark, side_m: side, length_m: side, runs, runs_file: runs_file.clone(), auto_measure: None, report: report.map(Path::to_path_buf), after: true };
+        procedure::run(&mut client, &opts, &mut measure)
+    })();
+    stop.store(true, Ordering::Relaxed);
+    let _ = thread.join();
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    let ProcedureReport::Umbmark(rep) = result? else { bail!("the procedure returned an omni result") };
+    let after = rep.e_max_sys_after_m.context("the after runs are missing")?;
+    Ok(DemoReport {
+        robot: robot.name.to_string(),
+        seed,
+        side_m: side,
+        runs_per_direction: runs,
+        true_ed,
+        true_eb,
+        estimated_ed: rep.ed,
+        estimated_eb: rep.eb,
+        e_max_sys_before_m: rep.e_max_sys_before_m,
+        e_max_sys_after_m: after,
+        improvement: rep.e_max_sys_before_m / after,
+        seconds: t0.elapsed().as_secs_f64(),
+        umbmark: *rep,
+    })
+}

@@ -1,0 +1,229 @@
+//! Byte links between the console and a board: real serial ports (`serialport`), the
+//! virtual board's pseudo-terminal, and in-memory pipes with fault injection for tests.
+
+use rand::{Rng, SeedableRng};
+use rand_chacha::ChaCha8Rng;
+use std::io::{self, Read, Write};
+use std::sync::mpsc::{channel, Receiver, RecvTimeoutError, Sender};
+use std::time::Duration;
+
+/// Opens a serial port (or a pseudo-terminal) with errors a person can act on.
+pub fn open_serial(port: &str, baud: u32) -> anyhow::Result<Box<dyn serialport::SerialPort>> {
+    let path = std::path::Path::new(port);
+    if !path.exists() {
+        let found: Vec<String> = serialport::available_ports()
+            .map(|v| v.into_iter().map(|p| p.port_name).collect())
+            .unwrap_or_default();
+        let hint = if found.is_empty() {
+            "no serial ports found".to_string()
+        } else {
+            format!("ports found: {}", found.join(", "))
+        };
+        anyhow::bail!("no such port {port} ({hint}; for a virtual board, start `wheelcal sim-board --link PATH`)");
+    }
+    serialport::new(port, baud).timeout(Duration::from_millis(20)).open().map_err(|e| {
+        use serialport::ErrorKind;
+        match e.kind() {
+            ErrorKind::Io(io::ErrorKind::PermissionDenied) => anyhow::anyhow!(
+                "permission denied opening {port}: add yourself to the port's group (usually `sudo usermod -aG dialout $USER`, then log in again)"
+            ),
+            ErrorKind::NoDevice => anyhow::anyhow!("{port} is not available: {e} (unplugged, or in use by another program?)"),
+            _ => anyhow::anyhow!("cannot open {port}: {e}"),
+        }
+    })
+}
+
+/// A board-side stream over a serial port or pseudo-terminal master (non-blocking reads).
+pub struct PortStream<P: Read + Write> {
+    pub port: P,
+}
+
+impl<P: Read + Write> firmware_app::ByteStream for PortStream<P> {
+    fn read(&mut self, buf: &mut [u8]) -> usize {
+        match self.port.read(buf) {
+            Ok(n) => n,
+            // Timeout, or EIO while no client has the terminal open: nothing to read.
+            Err(_) => 0,
+        }
+    }
+    fn write(&mut self, data: &[u8]) {
+        // A write to a terminal nobody reads may fail; the host retries what it misses.
+        let _ = self.port.write_all(data);
+        let _ = self.port.flush();
+    }
+}
+
+/// Faults to inject on one direction of an in-memory link (probabilities per byte).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct Faults {
+    pub drop: f64,
+    pub flip: f64,
+    pub duplicate: f64,
+    /// Probability per write of cutting the rest of that write off.
+    pub truncate: f64,
+}
+
+impl Faults {
+    pub fn none() -> Self {
+        Faults::default()
+    }
+
+    fn active(&self) -> bool {
+        self.drop > 0.0 || self.flip > 0.0 || self.duplicate > 0.0 || self.truncate > 0.0
+    }
+}
+
+/// Counts of what a faulty direction did.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub struct FaultCounts {
+    pub dropped: u64,
+    pub flipped: u64,
+    pub duplicated: u64,
+    pub truncated: u64,
+}
+
+/// The writing half of one direction: applies faults, then sends.
+struct FaultyTx {
+    tx: Sender<Vec<u8>>,
+    faults: Faults,
+    rng: ChaCha8Rng,
+    counts: std::sync::Arc<std::sync::Mutex<FaultCounts>>,
+}
+
+impl FaultyTx {
+    fn send(&mut self, data: &[u8]) {
+        if !self.faults.active() {
+            let _ = self.tx.send(data.to_vec());
+            return;
+        }
+        let mut out = Vec::with_capacity(data.len() + 4);
+        let mut c = FaultCounts::default();
+        for &b in data {
+            if self
+                .rng
+                .random_bool(self.faults.truncate.min(1.0) / data.len().max(1) as f64)
+            {
+                c.truncated += 1;
+                break;
+            }
+            if self.rng.random_bool(self.faults.drop.min(1.0)) {
+                c.dropped += 1;
+                continue;
+            }
+            let b = if self.rng.random_bool(self.faults.flip.min(1.0)) {
+                c.flipped += 1;
+                b ^ (1 << self.rng.random_range(0..8))
+            } else {
+                b
+            };
+            out.push(b);
+            if self.rng.random_bool(self.faults.duplicate.min(1.0)) {
+                c.duplicated += 1;
+                out.push(b);
+            }
+        }
+        if let Ok(mut t) = self.counts.lock() {
+            t.dropped += c.dropped;
+            t.flipped += c.flipped;
+            t.duplicated += c.duplicated;
+            t.truncated += c.truncated;
+        }
+        let _ = self.tx.send(out);
+    }
+}
+
+/// One end of an in-memory duplex link.
+pub struct MemoryEnd {
+    tx: FaultyTx,
+    rx: Receiver<Vec<u8>>,
+    buf: std::collections::VecDeque<u8>,
+    read_timeout: Duration,
+    counts: std::sync::Arc<std::sync::Mutex<FaultCounts>>,
+}
+
+impl MemoryEnd {
+    /// What the faults did to the bytes this end sent.
+    pub fn fault_counts(&self) -> FaultCounts {
+        self.counts.lock().map(|c| *c).unwrap_or_default()
+    }
+}
+
+/// A duplex in-memory link: `(host end, board end)`; `to_board` and `to_host` are the
+/// faults on each direction, seeded for repeatability.
+pub fn memory_pair(to_board: Faults, to_host: Faults, seed: u64) -> (MemoryEnd, MemoryEnd) {
+    let (htx, brx) = channel();
+    let (btx, hrx) = channel();
+    let hc = std::sync::Arc::new(std::sync::Mutex::new(FaultCounts::default()));
+    let bc = std::sync::Arc::new(std::sync::Mutex::new(FaultCounts::default()));
+    let host = MemoryEnd {
+        tx: FaultyTx {
+            tx: htx,
+            faults: to_board,
+            rng: ChaCha8Rng::seed_from_u64(seed),
+            counts: hc.clone(),
+        },
+        rx: hrx,
+        buf: Default::default(),
+        read_timeout: Duration::from_millis(5),
+        counts: hc,
+    };
+    let board = MemoryEnd {
+        tx: FaultyTx {
+            tx: btx,
+            faults: to_host,
+            rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5eed),
+            counts: bc.clone(),
+        },
+        rx: brx,
+        buf: Default::default(),
+        read_timeout: Duration::ZERO,
+        counts: bc,
+    };
+    (host, board)
+}
+
+impl Read for MemoryEnd {
+    fn read(&mut self, out: &mut [u8]) -> io::Result<usize> {
+        if self.buf.is_empty() {
+            let chunk = if self.read_timeout.is_zero() {
+                self.rx
+                    .try_recv()
+                    .map_err(|_| io::Error::from(io::ErrorKind::WouldBlock))
+            } else {
+                self.rx
+                    .recv_timeout(self.read_timeout)
+                    .map_err(|e| match e {
+                        RecvTimeoutError::Timeout => io::Error::from(io::ErrorKind::TimedOut),
+                        RecvTimeoutError::Disconnected => {
+                            io::Error::from(io::ErrorKind::BrokenPipe)
+                        }
+                    })
+            }?;
+            self.buf.extend(chunk);
+        }
+        let n = out.len().min(self.buf.len());
+        for (o, b) in out.iter_mut().zip(self.buf.drain(..n)) {
+            *o = b;
+        }
+        Ok(n)
+    }
+}
+
+impl Write for MemoryEnd {
+    fn write(&mut self, data: &[u8]) -> io::Result<usize> {
+        self.tx.send(data);
+        Ok(data.len())
+    }
+    fn flush(&mut self) -> io::Result<()> {
+        Ok(())
+    }
+}
+
+impl firmware_app::ByteStream for MemoryEnd {
+    fn read(&mut self, buf: &mut [u8]) -> usize {
+        Read::read(self, buf).unwrap_or(0)
+    }
+    fn write(&mut self, data: &[u8]) {
+        self.tx.send(data);
+    }
+}

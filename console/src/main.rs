@@ -1,0 +1,4 @@
+//! `wheelcal`: see `wheelcal --help`.
+fn main() -> std::process::ExitCode {
+    wheelcal::cli::main()
+}

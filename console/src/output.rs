@@ -1,0 +1,52 @@
+//! Output conventions: a human summary by default, or with `--json` exactly one JSON
+//! object on stdout and nothing else there (formats.md §4).
+
+use serde::Serialize;
+
+/// Where results go.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Output {
+    Human,
+    Json,
+}
+
+impl Output {
+    pub fn from_flag(json: bool) -> Self {
+        if json {
+            Output::Json
+        } else {
+            Output::Human
+        }
+    }
+
+    /// Prints a result: JSON as one line, or the human text.
+    pub fn emit<T: Serialize>(
+        self,
+        value: &T,
+        human: impl FnOnce() -> String,
+    ) -> anyhow::Result<()> {
+        match self {
+            Output::Json => println!("{}", serde_json::to_string(value)?),
+            Output::Human => print!("{}", human()),
+        }
+        Ok(())
+    }
+
+    /// Progress and notes go to stderr so stdout stays machine-readable.
+    pub fn note(self, text: &str) {
+        eprintln!("{text}");
+    }
+}
+
+/// A point in metres, serialised as `{x_m, y_m}`.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct PointM {
+    pub x_m: f64,
+    pub y_m: f64,
+}
+
+impl From<(f64, f64)> for PointM {
+    fn from(p: (f64, f64)) -> Self {
+        PointM { x_m: p.0, y_m: p.1 }
+    }
+}

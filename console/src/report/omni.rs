@@ -1,0 +1,113 @@
+//! The omni report: 001's Fig. 5 (radial errors before/after) and Table II.
+
+use super::figures::{BarChart, Series, XyChart};
+use super::{prepare_dir, Page};
+use crate::calibration::omni::OmniReport;
+use anyhow::Result;
+use std::path::{Path, PathBuf};
+
+pub fn write(rep: &OmniReport, dir: &Path) -> Result<PathBuf> {
+    prepare_dir(dir)?;
+    let mut page = Page::new(&format!("Omni calibration: {}", rep.robot));
+    page.paragraph("Lateral (F_lat) and longitudinal (F_lon) corrective factors of 001 from straight-path runs; final wheel rates = F_lon * F_lat * J * twist (001 eq. 6).");
+    page.heading("Factors");
+    let rows: Vec<Vec<String>> = rep
+        .wheels
+        .iter()
+        .enumerate()
+        .map(|(i, w)| {
+            vec![
+                w.clone(),
+                rep.wheel_ratio[i].map_or("-".into(), |k| format!("{k:.5}")),
+                format!("{:.5}", rep.f_lat[i]),
+            ]
+        })
+        .collect();
+    page.table(&["wheel", "effective ratio k", "F_lat"], &rows);
+    page.paragraph(&format!("F_lon = {:.5}", rep.f_lon));
+    page.heading("Radial errors (001 Table II)");
+    let mut rows = Vec::new();
+    for (phase, ps) in [("before", &rep.before), ("after", &rep.after)] {
+        for p in ps {
+            rows.push(vec![
+                phase.to_string(),
+                p.path.clone(),
+                p.runs.to_string(),
+                format!("{:.2}", p.mean_radial_error_m * 1e3),
+                format!("{:.2}", p.std_dev_radial_m * 1e3),
+                p.skewness.map_or("-".into(), |v| format!("{v:.3}")),
+                p.kurtosis.map_or("-".into(), |v| format!("{v:.3}")),
+            ]);
+        }
+    }
+    page.table(
+        &[
+            "phase",
+            "path",
+            "runs",
+            "mean mm",
+            "sd mm",
+            "skewness",
+            "excess kurtosis",
+        ],
+        &rows,
+    );
+    if let Some(i) = rep.improvement_index_percent {
+        page.paragraph(&format!("Improvement index (001 eq. 8): {i:.1} %"));
+    }
+    let mut series = Vec::new();
+    for (k, (phase, ps)) in [("before", &rep.before), ("after", &rep.after)]
+        .into_iter()
+        .enumerate()
+    {
+        for (j, p) in ps.iter().enumerate() {
+            let pts = p
+                .radial_errors_m
+                .iter()
+                .enumerate()
+                .map(|(i, e)| ((i + 1) as f64, e * 1e3))
+                .collect();
+            series.push(Series::line(&format!("{} {phase}", p.path), pts, k * 2 + j));
+        }
+    }
+    page.figure(
+        &XyChart {
+            title: "Radial error per run (001 Fig. 5)".into(),
+            x_label: "run".into(),
+            y_label: "radial error (mm)".into(),
+            series,
+            equal_axes: false,
+            bands: vec![],
+        },
+        dir,
+        "radial_errors",
+        "Radial end error of each run, before and after calibration.",
+    )?;
+    let cats: Vec<String> = rep.before.iter().map(|p| p.path.clone()).collect();
+    let mean_of = |ps: &Vec<crate::calibration::omni::PathStats>, path: &str| {
+        ps.iter()
+            .find(|p| p.path == path)
+            .map_or(0.0, |p| p.mean_radial_error_m * 1e3)
+    };
+    page.figure(
+        &BarChart {
+            title: "Mean radial error".into(),
+            y_label: "mm".into(),
+            categories: cats.clone(),
+            series: vec![
+                (
+                    "before".into(),
+                    cats.iter().map(|c| mean_of(&rep.before, c)).collect(),
+                ),
+                (
+                    "after".into(),
+                    cats.iter().map(|c| mean_of(&rep.after, c)).collect(),
+                ),
+            ],
+        },
+        dir,
+        "mean_radial",
+        "Mean radial error per path before and after.",
+    )?;
+    page.write(dir)
+}

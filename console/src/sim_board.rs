@@ -1,0 +1,110 @@
+//! `wheelcal sim-board`: the virtual board on a pseudo-terminal.
+
+use crate::link::PortStream;
+use crate::virtual_board::{board_flash, TrialTruth, VirtualBoard};
+use anyhow::{Context, Result};
+use calib_core::robot_file;
+use sim::{Effect, SimConfig, SimRobot, Surface};
+use std::io::Write;
+use std::path::{Path, PathBuf};
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::Arc;
+
+/// What `sim-board` needs.
+#[derive(Debug, Clone)]
+pub struct SimBoardOptions {
+    pub robot: PathBuf,
+    pub link: Option<PathBuf>,
+    pub seed: u64,
+    /// Simulated seconds per wall-clock second; infinite = flat out while a program runs.
+    pub speed: f64,
+    /// Hidden faults, in the catalogue's `ID=name:value,...` form.
+    pub effects: Vec<String>,
+    /// Floor roughness (non-systematic error), metres of travel noise per sqrt(metre).
+    pub roughness: f64,
+    pub flash: Option<PathBuf>,
+    pub truth: Option<PathBuf>,
+}
+
+/// Where a running virtual board can be reached.
+#[derive(Debug, Clone, serde::Serialize)]
+pub struct SimBoardReady {
+    pub pty: String,
+    pub link: Option<String>,
+    pub truth_file: String,
+    pub robot: String,
+    pub seed: u64,
+}
+
+/// The truth file that goes with a port (the link path, or the PTY path).
+pub fn truth_file_for(port: &Path) -> PathBuf {
+    let mut s = port.as_os_str().to_owned();
+    s.push(".truth.jsonl");
+    PathBuf::from(s)
+}
+
+/// Reads the true end errors recorded by a virtual board, in trial order.
+pub fn read_truths(file: &Path) -> Result<Vec<TrialTruth>> {
+    let text = match std::fs::read_to_string(file) {
+        Ok(t) => t,
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
+        Err(e) => return Err(e).with_context(|| format!("cannot read {}", file.display())),
+    };
+    text.lines()
+        .enumerate()
+        .filter(|(_, l)| !l.trim().is_empty())
+        .map(|(i, l)| serde_json::from_str(l).with_context(|| format!("{}:{}: not a truth record", file.display(), i + 1)))
+        .collect()
+}
+
+/// Builds the simulated robot for the options.
+pub fn build_sim(opts: &SimBoardOptions) -> Result<(calib_core::Robot, SimRobot)> {
+    let robot = robot_file::load(&opts.robot)?;
+    let effects = opts
+        .effects
+        .iter()
+        .map(|e| Effect::parse(e).map_err(|err| anyhow::anyhow!("--effect {e}: {err}")))
+        .collect::<Result<Vec<_>>>()?;
+    let (mut faults, surface) = sim::Faults::from_effects(&robot, &effects, Surface::flat()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    faults.travel_noise_m_per_sqrt_m = opts.roughness;
+    let cfg = SimConfig { seed: opts.seed, ..SimConfig::default() };
+    let sim = SimRobot::new(&robot, faults, surface, cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
+    Ok((robot, sim))
+}
+
+/// Runs the board until `stop` is set; `ready` is called once the PTY exists.
+pub fn run(opts: &SimBoardOptions, stop: Arc<AtomicBool>, ready: impl FnOnce(&SimBoardReady)) -> Result<()> {
+    let (robot, sim) = build_sim(opts)?;
+    let flash = board_flash(opts.flash.clone()).context("cannot open the virtual board's flash file")?;
+    let mut board = VirtualBoard::boot(&robot, sim, flash).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (mut master, slave) = serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
+    use serialport::SerialPort;
+    master.set_timeout(std::time::Duration::ZERO)?;
+    let pty = slave.name().context("pseudo-terminal without a name")?;
+    if let Some(link) = &opts.link {
+        let _ = std::fs::remove_file(link);
+        std::os::unix::fs::symlink(&pty, link).with_context(|| format!("cannot create the link {}", link.display()))?;
+    }
+    let truth_file = opts.truth.clone().unwrap_or_else(|| truth_file_for(opts.link.as_deref().unwrap_or(Path::new(&pty))));
+    // Start each session with an empty truth file: trial numbers restart too.
+    std::fs::write(&truth_file, "").with_context(|| format!("cannot write {}", truth_file.display()))?;
+    ready(&SimBoardReady {
+        pty: pty.clone(),
+        link: opts.link.as_ref().map(|l| l.display().to_string()),
+        truth_file: truth_file.display().to_string(),
+        robot: robot.name.to_string(),
+        seed: opts.seed,
+    });
+    let mut stream = PortStream { port: master };
+    let tf = truth_file.clone();
+    board.serve(&mut stream, opts.speed, || stop.load(Ordering::Relaxed), |t| {
+        if let Ok(mut f) = std::fs::OpenOptions::new().append(true).open(&tf) {
+            let _ = writeln!(f, "{}", serde_json::to_string(t).unwrap_or_default());
+        }
+    });
+    drop(slave);
+    if let Some(link) = &opts.link {
+        let _ = std::fs::remove_file(link);
+    }
+    Ok(())
+}

@@ -1,0 +1,321 @@
+//! The virtual board: the firmware's own application (`firmware-app`: control tick,
+//! programs, trial log, safety, request handler, flash store) running against the
+//! simulator instead of registers, served over a byte stream (a pseudo-terminal for
+//! `wheelcal sim-board`, an in-memory pipe in tests).
+//!
+//! Time is simulated: the board ticks at 1 kHz of simulated time, paced against the wall
+//! clock by `speed` (1 = real time). It also knows the truth: at the end of each trial it
+//! records where the simulated robot really is relative to where it started, which
+//! `--auto-measure` uses in place of a person with a tape measure.
+
+use crate::flash::RamFlash;
+use calib_core::encoder::CounterWidth;
+use calib_core::odometry::Pose;
+use calib_core::protocol::{BootReport, Mode, Params, Stored};
+use calib_core::robot::{DriveType, Robot};
+use calib_core::Corrections;
+use firmware_app::{
+    App, ByteStream, EncoderSource, PersistItem, Server, Store, WheelDriver, TICK_HZ,
+};
+use serde::{Deserialize, Serialize};
+use sim::{SimRobot, WheelInput};
+use std::time::{Duration, Instant};
+
+/// Trial-log RAM of the virtual board: room for 100 000 records of a 4-wheel robot.
+pub const LOG_BYTES: usize = 6 * 1024 * 1024;
+/// Flash pages for the store.
+const FLASH_PAGES: usize = 4;
+const DT_US: u64 = 1_000_000 / TICK_HZ as u64;
+
+/// The simulated hardware: the robot, and the inputs the application last set.
+pub struct SimHardware {
+    pub sim: SimRobot,
+    inputs: Vec<WheelInput>,
+    stepper: bool,
+}
+
+impl SimHardware {
+    pub fn new(sim: SimRobot) -> Self {
+        let n = sim.wheel_count();
+        let stepper = sim.nominal().drive.kind == DriveType::Stepper;
+        let off = if stepper {
+            WheelInput::Steps(0)
+        } else {
+            WheelInput::Duty(0.0)
+        };
+        SimHardware {
+            sim,
+            inputs: vec![off; n],
+            stepper,
+        }
+    }
+
+    /// One tick of the application against this hardware, then one tick of physics.
+    fn tick<const N: usize>(&mut self, app: &mut App<N>, now_us: u64) {
+        app.tick(
+            now_us,
+            &mut Encoders(&self.sim),
+            &mut Motors {
+                inputs: &mut self.inputs,
+                stepper: self.stepper,
+            },
+        );
+        // The inputs have the robot's wheel count, so stepping cannot fail.
+        let _ = self.sim.step(DT_US as f64 * 1e-6, &self.inputs);
+    }
+}
+
+/// The quadrature counters: the simulator's 16-bit encoder registers.
+struct Encoders<'a>(&'a SimRobot);
+
+impl EncoderSource for Encoders<'_> {
+    fn width(&self) -> CounterWidth {
+        CounterWidth::Bits16
+    }
+    fn raw(&mut self, wheel: usize) -> u32 {
+        self.0.encoder_raw(wheel) as u32
+    }
+}
+
+/// The motor outputs: H-bridge duty or step counts, held until the next tick.
+struct Motors<'a> {
+    inputs: &'a mut Vec<WheelInput>,
+    stepper: bool,
+}
+
+impl WheelDriver for Motors<'_> {
+    fn set_duty(&mut self, wheel: usize, duty: f32) {
+        if let Some(i) = self.inputs.get_mut(wheel) {
+            *i = WheelInput::Duty(duty as f64);
+        }
+    }
+    fn set_steps(&mut self, wheel: usize, _steps_per_s: f32, steps: i32) {
+        if let Some(i) = self.inputs.get_mut(wheel) {
+            *i = WheelInput::Steps(steps);
+        }
+    }
+    fn stop_all(&mut self) {
+        let off = if self.stepper {
+            WheelInput::Steps(0)
+        } else {
+            WheelInput::Duty(0.0)
+        };
+        self.inputs.iter_mut().for_each(|i| *i = off);
+    }
+}
+
+/// Where a trial really ended, relative to its start, against the board's odometry.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+pub struct TrialTruth {
+    pub trial: u16,
+    /// True end pose in the start frame (x along the start heading).
+    pub true_x_m: f64,
+    pub true_y_m: f64,
+    pub true_theta_rad: f64,
+    /// The board's odometry at the end, same frame.
+    pub odo_x_m: f64,
+    pub odo_y_m: f64,
+    pub odo_theta_rad: f64,
+    /// formats.md §3: measured minus odometry.
+    pub x_err_m: f64,
+    pub y_err_m: f64,
+    pub theta_err_rad: f64,
+}
+
+/// The board: application, server, store and simulated hardware.
+pub struct VirtualBoard {
+    pub app: Box<App<LOG_BYTES>>,
+    server: Server,
+    store: Store<RamFlash>,
+    pub hw: SimHardware,
+    now_us: u64,
+    running_trial: Option<(u16, Pose<f64>)>,
+    truths: Vec<TrialTruth>,
+}
+
+/// Something went wrong setting the board up.
+#[derive(Debug)]
+pub struct BoardError(pub String);
+
+impl std::fmt::Display for BoardError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+impl std::error::Error for BoardError {}
+
+impl VirtualBoard {
+    /// Boots a board for `robot` simulated by `sim`, with `flash` as its persistent store.
+    /// A fresh flash boots with the robot file's geometry (as if it had been configured
+    /// and saved once); stored values win over it, as on a real board.
+    pub fn boot(robot: &Robot, sim: SimRobot, flash: RamFlash) -> Result<Self, BoardError> {
+        let range = 0..flash.len() as u32;
+        let mut store =
+            Store::new(flash, range).map_err(|e| BoardError(format!("flash store: {e:?}")))?;
+        let loaded = embassy_futures::block_on(store.load());
+        let mut params = loaded.params.clone();
+        let mut boot = loaded.boot;
+        if loaded.boot.params != Stored::Loaded {
+            params = board_params(robot);
+            boot = BootReport {
+                params: loaded.boot.params,
+                ..boot
+            };
+        }
+        let corrections = loaded.corrections.clone();
+        // Big arrays: build on the heap.
+        let app = boxed_app(params, corrections, boot);
+        Ok(VirtualBoard {
+            app,
+            server: Server::new(),
+            store,
+            hw: SimHardware::new(sim),
+            now_us: 0,
+            running_trial: None,
+            truths: Vec::new(),
+        })
+    }
+
+    /// Simulated time, microseconds.
+    pub fn now_us(&self) -> u64 {
+        self.now_us
+    }
+
+    /// True when a motion program is under way (the pacing loop may run it flat out).
+    pub fn busy(&self) -> bool {
+        !matches!(self.app.status().mode, Mode::Idle)
+    }
+
+    /// Serves whatever the stream has, then runs one control tick.
+    pub fn step<S: ByteStream>(&mut self, stream: &mut S) {
+        self.serve_bytes(stream);
+        if let Some(frame) = self.server.telemetry(&mut self.app) {
+            stream.write(frame);
+        }
+        let before = self.app.status().trial;
+        self.hw.tick(&mut self.app, self.now_us);
+        self.now_us += DT_US;
+        self.track_truth(before);
+    }
+
+    /// Answers the requests waiting in `stream` (saving to flash when asked).
+    fn serve_bytes<S: ByteStream>(&mut self, stream: &mut S) {
+        let store = &mut self.store;
+        self.server
+            .poll(&mut self.app, stream, self.now_us, |item: &PersistItem| {
+                embassy_futures::block_on(store.save(item)).is_ok()
+            });
+    }
+
+    fn track_truth(&mut self, before: Option<u16>) {
+        let status = self.app.status();
+        let idle = matches!(status.mode, Mode::Idle);
+        match (self.running_trial, status.trial) {
+            (None, Some(id)) if before != Some(id) || !idle => {
+                // Odometry restarts at zero when a program starts: remember the true start.
+                self.running_trial = Some((id, self.hw.sim.true_pose()));
+            }
+            (Some((id, start)), _) if idle => {
+                let end = self.hw.sim.true_pose();
+                let (s, c) = start.theta.sin_cos();
+                let (dx, dy) = (end.x - start.x, end.y - start.y);
+                let odo = self.app.pose();
+                let t = TrialTruth {
+                    trial: id,
+                    true_x_m: c * dx + s * dy,
+                    true_y_m: -s * dx + c * dy,
+                    true_theta_rad: end.theta - start.theta,
+                    odo_x_m: odo.x as f64,
+                    odo_y_m: odo.y as f64,
+                    odo_theta_rad: odo.theta as f64,
+                    x_err_m: 0.0,
+                    y_err_m: 0.0,
+                    theta_err_rad: 0.0,
+                };
+                let t = TrialTruth {
+                    x_err_m: t.true_x_m - t.odo_x_m,
+                    y_err_m: t.true_y_m - t.odo_y_m,
+                    theta_err_rad: t.true_theta_rad - t.odo_theta_rad,
+                    ..t
+                };
+                self.truths.push(t);
+                self.running_trial = None;
+            }
+            _ => {}
+        }
+    }
+
+    /// Truth of the trials that ended so far.
+    pub fn truths(&self) -> &[TrialTruth] {
+        &self.truths
+    }
+
+    /// Serves `stream` until `stop` returns true, pacing simulated time at `speed` times
+    /// real time (`f64::INFINITY`: as fast as possible while a program runs, real time
+    /// while idle). `on_truth` is called for each trial that ends.
+    pub fn serve<S: ByteStream>(
+        &mut self,
+        stream: &mut S,
+        speed: f64,
+        mut stop: impl FnMut() -> bool,
+        mut on_truth: impl FnMut(&TrialTruth),
+    ) {
+        let start = Instant::now();
+        let mut sim_us_at_start = self.now_us;
+        let mut wall_ref = start;
+        let mut reported = self.truths.len();
+        while !stop() {
+            let flat_out = speed.is_infinite() && self.busy();
+            if flat_out {
+                for _ in 0..200 {
+                    self.step(stream);
+                }
+                wall_ref = Instant::now();
+                sim_us_at_start = self.now_us;
+            } else {
+                let pace = if speed.is_finite() { speed } else { 1.0 };
+                let due_us =
+                    sim_us_at_start + (wall_ref.elapsed().as_secs_f64() * pace * 1e6) as u64;
+                let mut n = 0;
+                while self.now_us < due_us && n < 5000 {
+                    self.step(stream);
+                    n += 1;
+                }
+                if n == 0 {
+                    // Still answer requests promptly while waiting for the next tick.
+                    self.serve_bytes(stream);
+                    std::thread::sleep(Duration::from_micros(300));
+                }
+            }
+            while reported < self.truths.len() {
+                on_truth(&self.truths[reported]);
+                reported += 1;
+            }
+        }
+    }
+}
+
+fn boxed_app(params: Params, corrections: Corrections, boot: BootReport) -> Box<App<LOG_BYTES>> {
+    // App<6 MiB> built on a thread with a stack large enough to hold it before boxing.
+    std::thread::Builder::new()
+        .stack_size(64 * 1024 * 1024)
+        .spawn(move || Box::new(App::<LOG_BYTES>::new(params, corrections, boot, 0)))
+        .expect("spawn")
+        .join()
+        .expect("board construction does not panic")
+}
+
+/// The board's parameters for a robot file: firmware defaults with this geometry.
+pub fn board_params(robot: &Robot) -> Params {
+    let mut p = firmware_app::defaults::params();
+    p.robot = robot.clone();
+    p
+}
+
+/// A RAM flash for a board (or mirrored to `file`).
+pub fn board_flash(file: Option<std::path::PathBuf>) -> std::io::Result<RamFlash> {
+    match file {
+        Some(f) => RamFlash::with_file(FLASH_PAGES, f),
+        None => Ok(RamFlash::new(FLASH_PAGES)),
+    }
+}

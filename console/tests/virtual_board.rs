@@ -1,0 +1,205 @@
+//! End to end through the console library: a virtual board (the firmware's application
+//! on the simulator) behind an in-memory link, with and without injected faults.
+
+use calib_core::motion::Direction;
+use calib_core::protocol::{Mode, ProgramSpec, Rejection, TrialEnd};
+use calib_core::robot_file;
+use calib_core::Corrections;
+use sim::{Faults as SimFaults, SimConfig, SimRobot, Surface};
+use std::path::Path;
+use std::sync::atomic::{AtomicBool, Ordering};
+use std::sync::{mpsc, Arc};
+use std::time::{Duration, Instant};
+use wheelcal::client::{decode_records, Client, ClientError};
+use wheelcal::link::{memory_pair, Faults, MemoryEnd};
+use wheelcal::virtual_board::{board_flash, TrialTruth, VirtualBoard};
+
+struct Running {
+    client: Client<MemoryEnd>,
+    stop: Arc<AtomicBool>,
+    truths: mpsc::Receiver<TrialTruth>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl Drop for Running {
+    fn drop(&mut self) {
+        self.stop.store(true, Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}
+
+fn start(
+    robot_file_name: &str,
+    faults: SimFaults,
+    to_board: Faults,
+    to_host: Faults,
+    seed: u64,
+) -> Running {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../robots")
+        .join(robot_file_name);
+    let robot = robot_file::load(&path).unwrap();
+    let cfg = SimConfig {
+        seed,
+        ..SimConfig::default()
+    };
+    let sim = SimRobot::new(&robot, faults, Surface::flat(), cfg).unwrap();
+    let mut board = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
+    let (host, mut board_end) = memory_pair(to_board, to_host, seed);
+    let stop = Arc::new(AtomicBool::new(false));
+    let (ttx, trx) = mpsc::channel();
+    let s2 = stop.clone();
+    let thread = std::thread::spawn(move || {
+        board.serve(
+            &mut board_end,
+            f64::INFINITY,
+            || s2.load(Ordering::Relaxed),
+            |t| {
+                let _ = ttx.send(*t);
+            },
+        )
+    });
+    let mut client = Client::new(host, "memory");
+    client.timeout = Duration::from_millis(60);
+    client.tries = 8;
+    Running {
+        client,
+        stop,
+        truths: trx,
+        thread: Some(thread),
+    }
+}
+
+fn wait_idle(c: &mut Client<MemoryEnd>, limit: Duration) {
+    let t0 = Instant::now();
+    loop {
+        let s = c.status().unwrap();
+        if matches!(s.mode, Mode::Idle) && t0.elapsed() > Duration::from_millis(50) {
+            return;
+        }
+        assert!(t0.elapsed() < limit, "program did not finish in {limit:?}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+#[test]
+fn info_factors_program_and_log() {
+    let mut faults = SimFaults::none(2);
+    faults.radius_scale = vec![1.0, 1.004];
+    faults.wheelbase_scale = 1.03;
+    let mut b = start("mobolab.toml", faults, Faults::none(), Faults::none(), 7);
+    let c = &mut b.client;
+    let hello = c.hello().unwrap();
+    assert!(hello.firmware.starts_with("wheelcal-fw"));
+    let info = c.info().unwrap();
+    assert_eq!(info.wheel_count, 2);
+
+    // A rejected value leaves the stored ones untouched.
+    let good = Corrections::DiffDrive {
+        c_l: 1.002,
+        c_r: 0.998,
+        e_b: 1.03,
+    };
+    c.set_corrections(good.clone()).unwrap();
+    c.save_corrections().unwrap();
+    let bad = Corrections::DiffDrive {
+        c_l: 2.5,
+        c_r: 0.998,
+        e_b: 1.03,
+    };
+    match c.set_corrections(bad) {
+        Err(ClientError::Rejected(Rejection::InvalidCorrections(why))) => {
+            assert!(why.contains("c_l"), "{why}")
+        }
+        other => panic!("expected a rejection, got {other:?}"),
+    }
+    assert_eq!(c.corrections().unwrap(), good);
+    c.reset_corrections().unwrap();
+    assert_eq!(c.corrections().unwrap(), Corrections::None);
+
+    // A 1 m UMBmark square, logged at 50 Hz.
+    c.run_program(
+        ProgramSpec::Umbmark {
+            side_m: 1.0,
+            dir: Direction::Ccw,
+        },
+        50,
+    )
+    .unwrap();
+    wait_idle(c, Duration::from_secs(120));
+    let truth = b.truths.recv_timeout(Duration::from_secs(5)).unwrap();
+    let c = &mut b.client;
+    let trials = c.trials().unwrap();
+    let t = trials.trials.last().unwrap().clone();
+    assert_eq!(t.end, TrialEnd::Completed);
+    assert_eq!(t.dropped, 0);
+    let data = c.pull_log(t.id, Vec::new(), |_, _| {}).unwrap();
+    assert_eq!(data.len() as u32, t.bytes);
+    let recs = decode_records(&t, &data).unwrap();
+    assert_eq!(recs.len() as u32, t.records);
+    // The program's duration at 50 Hz: four 1 m legs and four 90 deg turns.
+    let last = recs.last().unwrap();
+    // The log's last odometry pose is the board's odometry at the end (f32 rounding).
+    assert!(
+        (last.pose.x as f64 - truth.odo_x_m).abs() < 2e-3,
+        "{} vs {}",
+        last.pose.x,
+        truth.odo_x_m
+    );
+    assert!((last.pose.y as f64 - truth.odo_y_m).abs() < 2e-3);
+    // Odometry closes the commanded square; the simulated robot, with a 3 % wider
+    // wheelbase, under-rotates each turn by ~pi/2 * 0.03/1.03 = 0.046 rad: the truth
+    // differs from odometry by centimetres (first order: 2 L alpha = 9 cm per axis).
+    assert!(
+        truth.odo_x_m.abs() < 0.02 && truth.odo_y_m.abs() < 0.02,
+        "{truth:?}"
+    );
+    let err = truth.x_err_m.hypot(truth.y_err_m);
+    assert!(err > 0.05 && err < 0.25, "{truth:?}");
+    assert_eq!(c.stats.retries, 0);
+}
+
+#[test]
+fn faulty_link_never_corrupts_and_transfers_or_fails_clearly() {
+    // 0.2 % of bytes dropped, 0.2 % flipped, 0.2 % duplicated each way, and a 2 % chance
+    // per write of truncation.
+    let f = Faults {
+        drop: 0.002,
+        flip: 0.002,
+        duplicate: 0.002,
+        truncate: 0.02,
+    };
+    let mut b = start("omni4.toml", SimFaults::none(4), f, f, 11);
+    let c = &mut b.client;
+    c.hello().unwrap();
+    // Corrections survive the noisy link exactly (CRC-checked frames only are acted on).
+    let f_lat = heapless::Vec::from_slice(&[1.01, 0.99, 1.0, 1.02]).unwrap();
+    let good = Corrections::Omni { f_lat, f_lon: 1.05 };
+    for _ in 0..20 {
+        c.set_corrections(good.clone()).unwrap();
+        assert_eq!(c.corrections().unwrap(), good);
+    }
+    c.run_program(
+        ProgramSpec::Omni {
+            path: calib_core::motion::OmniPath::W1,
+            length_m: 0.3,
+        },
+        200,
+    )
+    .unwrap();
+    wait_idle(c, Duration::from_secs(120));
+    let t = c.trials().unwrap().trials.last().unwrap().clone();
+    let data = c.pull_log(t.id, Vec::new(), |_, _| {}).unwrap();
+    // Either complete and correct (every chunk CRC-checked, offsets matched)...
+    assert_eq!(data.len() as u32, t.bytes);
+    let recs = decode_records(&t, &data).unwrap();
+    assert_eq!(recs.len() as u32, t.records);
+    // ... and monotonic time with no gap: no record silently lost (200 Hz = 5000 us).
+    for w in recs.windows(2) {
+        assert_eq!(w[1].t_us - w[0].t_us, 5000);
+    }
+    eprintln!("link stats: {:?}", c.stats);
+    assert!(c.stats.retries > 0, "the faults should have forced retries");
+}

@@ -1,0 +1,701 @@
+//! The application state: the 1 kHz control tick and the request handler.
+//!
+//! One struct owns everything the tick and the handler share, so the glue only needs one
+//! lock around it. The handler validates every request completely before changing
+//! anything: a rejected request leaves the state as it was (a test compares the whole
+//! state before and after).
+
+use crate::log::TrialLog;
+use crate::wheel::WheelState;
+use crate::{defaults, EncoderSource, WheelDriver, FIRMWARE_VERSION};
+use calib_core::kinematics::Kinematics;
+use calib_core::motion::{Program, ProgramRunner, Setpoint};
+use calib_core::odometry::{Odometry, Pose};
+use calib_core::protocol::{
+    record_size, BootReport, Fault, Info, LogChunk, Mode, Params, ProgramKind, ProgramSpec, Record,
+    Rejection, Request, Response, Status, StopReason, TrialEnd, MAX_LOG_CHUNK, PROTOCOL_VERSION,
+    SCHEMA_FINGERPRINT,
+};
+use calib_core::robot::{DriveType, MAX_WHEELS};
+use calib_core::{Corrections, Twist};
+use heapless::String;
+
+/// Control tick rate.
+pub const TICK_HZ: u32 = 1000;
+const DT: f32 = 1.0 / TICK_HZ as f32;
+
+/// What the host asked to be written to flash.
+#[derive(Debug, Clone, PartialEq)]
+pub enum PersistItem {
+    Corrections(Corrections),
+    Params(Params),
+}
+
+/// The handler's verdict: answer now, or persist first and answer with
+/// [`App::persisted`] once the (async) flash write is done.
+#[derive(Debug)]
+pub enum Handled<'a> {
+    Reply(Response<'a>),
+    Persist(PersistItem),
+}
+
+/// What the motion state asks of this tick.
+enum Act {
+    Slew(Twist<f32>),
+    Set(Twist<f32>),
+    Wheel(usize, f32),
+    Timeout,
+    Done,
+}
+
+fn reply(r: Response<'_>) -> Result<Handled<'_>, Rejection> {
+    Ok(Handled::Reply(r))
+}
+
+#[derive(Debug, Clone)]
+enum Motion {
+    Idle,
+    /// Host-driven twist, stopped when `deadline_us` passes without a new command.
+    Drive {
+        target: Twist<f32>,
+        deadline_us: u64,
+    },
+    /// The runner and its segment count.
+    Program(ProgramRunner, u8),
+}
+
+/// Everything the board knows and does, minus the registers. `LOG` is the trial-log ring
+/// size in bytes.
+pub struct App<const LOG: usize> {
+    params: Params,
+    corrections: Corrections,
+    boot: BootReport,
+    kin: Kinematics<f32>,
+    n: usize,
+    dc: bool,
+    /// None without encoders (open-loop steppers: odometry from the steps emitted).
+    rad_per_count: Option<f32>,
+    steps_per_rad: f32,
+    wheels: [WheelState; MAX_WHEELS],
+    odo: Odometry<f32>,
+    motion: Motion,
+    /// Body twist commanded this tick (slew-limited in drive and stop).
+    twist: Twist<f32>,
+    estop: bool,
+    fault: Option<Fault>,
+    stop: StopReason,
+    log: TrialLog<LOG>,
+    decimation: u32,
+    ticks: u64,
+    trial_start_us: u64,
+    boot_us: u64,
+    now_us: u64,
+    telemetry_us: u64,
+    next_telemetry_us: u64,
+    /// Result of the last Hello: false makes every other request a mismatch.
+    peer_compatible: Option<bool>,
+    bad_frames: u32,
+}
+
+fn kinematics(params: &Params, c: &Corrections) -> Option<Kinematics<f32>> {
+    Kinematics::new(&params.robot, c).ok()
+}
+
+impl<const LOG: usize> App<LOG> {
+    /// An application with validated `params` and `corrections` (as [`crate::Store::load`]
+    /// returns them). Anything inconsistent falls back to the defaults, never panics.
+    pub fn new(params: Params, corrections: Corrections, boot: BootReport, now_us: u64) -> Self {
+        let (params, corrections, kin) = match kinematics(&params, &corrections) {
+            Some(k) if params.validate().is_ok() && corrections.validate(&params.robot).is_ok() => {
+                (params, corrections, k)
+            }
+            _ => {
+                let p = defaults::params();
+                // The defaults are a fixed, valid differential drive (tested).
+                let k = kinematics(&p, &Corrections::None).expect("default geometry is valid");
+                (p, Corrections::None, k)
+            }
+        };
+        let mut app = App {
+            wheels: core::array::from_fn(|_| WheelState::new(params.gains, 1.0)),
+            params,
+            corrections,
+            boot,
+            kin,
+            n: 0,
+            dc: true,
+            rad_per_count: None,
+            steps_per_rad: 1.0,
+            odo: Odometry::default(),
+            motion: Motion::Idle,
+            twist: Twist::zero(),
+            estop: false,
+            fault: None,
+            stop: StopReason::None,
+            log: TrialLog::new(),
+            decimation: 10,
+            ticks: 0,
+            trial_start_us: 0,
+            boot_us: now_us,
+            now_us,
+            telemetry_us: 0,
+            next_telemetry_us: 0,
+            peer_compatible: None,
+            bad_frames: 0,
+        };
+        app.configure();
+        app
+    }
+
+    /// Derives the per-wheel state from params (after boot or SetParams).
+    fn configure(&mut self) {
+        let p = &self.params;
+        self.n = p.robot.wheel_count().min(MAX_WHEELS);
+        self.dc = p.robot.drive.kind == DriveType::Dc;
+        self.rad_per_count = p.robot.drive.rad_per_count().map(|r| r as f32);
+        let spr = p.robot.drive.steps_per_wheel_rad();
+        self.steps_per_rad = spr as f32;
+        let gains = p.gains;
+        // Keep the encoder extenders (they track the hardware); reset the rest.
+        for w in self.wheels.iter_mut() {
+            w.pi = calib_core::control::PiController::new(gains);
+            w.steps = calib_core::stepper::StepAccumulator::new(spr);
+            w.halt();
+        }
+    }
+
+    pub fn params(&self) -> &Params {
+        &self.params
+    }
+
+    pub fn corrections(&self) -> &Corrections {
+        &self.corrections
+    }
+
+    pub fn pose(&self) -> Pose<f32> {
+        self.odo.pose()
+    }
+
+    pub fn log(&self) -> &TrialLog<LOG> {
+        &self.log
+    }
+
+    /// Commanded wheel rates (rad/s).
+    pub fn wheel_cmds(&self) -> impl Iterator<Item = f32> + '_ {
+        self.wheels[..self.n].iter().map(|w| w.cmd)
+    }
+
+    /// A damaged frame arrived (counted for the status).
+    pub fn note_bad_frame(&mut self) {
+        self.bad_frames = self.bad_frames.saturating_add(1);
+    }
+
+    fn moving(&self) -> bool {
+        !matches!(self.motion, Motion::Idle)
+            || self.twist != Twist::zero()
+            || self.wheels[..self.n].iter().any(|w| w.cmd != 0.0)
+    }
+
+    fn uptime_ms(&self) -> u64 {
+        self.now_us.saturating_sub(self.boot_us) / 1000
+    }
+
+    /// Cuts the motors: E-stop, fault, command timeout.
+    fn cut(&mut self, reason: StopReason, end: TrialEnd) {
+        self.motion = Motion::Idle;
+        self.twist = Twist::zero();
+        for w in self.wheels.iter_mut() {
+            w.halt();
+        }
+        self.stop = reason;
+        self.log.finish(end);
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Control tick
+    // -----------------------------------------------------------------------------------
+
+    /// One control period: read the encoders, update odometry, run the program or drive
+    /// command, drive the wheels, log. Call at [`TICK_HZ`].
+    pub fn tick(&mut self, now_us: u64, enc: &mut impl EncoderSource, drv: &mut impl WheelDriver) {
+        self.now_us = now_us;
+        self.ticks = self.ticks.wrapping_add(1);
+        let n = self.n;
+        let width = enc.width();
+
+        // Encoders: wrap extension, rates, jump/stall monitor.
+        let mut dphi = [0f32; MAX_WHEELS];
+        let mut fault = None;
+        for (i, w) in self.wheels[..n].iter_mut().enumerate() {
+            let delta = w.read(width, enc.raw(i));
+            if let Some(rpc) = self.rad_per_count {
+                w.update_rate(rpc, DT);
+                dphi[i] = delta as f32 * rpc;
+                if fault.is_none() {
+                    fault = w.monitor(i, delta, &self.params.safety);
+                }
+            }
+        }
+        if let Some(f) = fault {
+            if self.fault.is_none() {
+                self.fault = Some(f);
+                self.cut(StopReason::Fault, TrialEnd::Fault);
+            }
+        }
+
+        // Setpoint.
+        let mut single: Option<(usize, f32)> = None;
+        let mut cut_now = self.estop || self.fault.is_some();
+        if cut_now {
+            self.twist = Twist::zero();
+        } else {
+            let act = match &mut self.motion {
+                Motion::Idle => Act::Slew(Twist::zero()),
+                Motion::Drive {
+                    target,
+                    deadline_us,
+                } => {
+                    if now_us >= *deadline_us {
+                        Act::Timeout
+                    } else {
+                        Act::Slew(*target)
+                    }
+                }
+                Motion::Program(runner, _) => match runner.setpoint(DT as f64) {
+                    Some(Setpoint::Body(t)) => {
+                        Act::Set(Twist::new(t.vx as f32, t.vy as f32, t.omega as f32))
+                    }
+                    Some(Setpoint::Wheel { index, rate }) => {
+                        Act::Wheel(index as usize, rate as f32)
+                    }
+                    None => Act::Done,
+                },
+            };
+            match act {
+                Act::Slew(target) => self.twist = self.slew(self.twist, target),
+                Act::Set(t) => self.twist = t,
+                Act::Wheel(i, rate) => {
+                    self.twist = Twist::zero();
+                    single = Some((i, rate));
+                }
+                Act::Timeout => {
+                    self.cut(StopReason::CommandTimeout, TrialEnd::CommandTimeout);
+                    cut_now = true;
+                }
+                Act::Done => {
+                    self.motion = Motion::Idle;
+                    self.twist = Twist::zero();
+                    self.stop = StopReason::ProgramDone;
+                    self.log.finish(TrialEnd::Completed);
+                }
+            }
+        }
+
+        // Wheel commands and outputs.
+        if cut_now {
+            drv.stop_all();
+        } else {
+            let mut cmd = [0f32; MAX_WHEELS];
+            match single {
+                Some((i, rate)) if i < n => cmd[i] = rate,
+                Some(_) => {}
+                None => self.kin.inverse_into(&self.twist, &mut cmd[..n]),
+            }
+            let standing = self.twist == Twist::zero();
+            for (i, w) in self.wheels[..n].iter_mut().enumerate() {
+                w.cmd = cmd[i];
+                if self.dc {
+                    let duty = if w.cmd == 0.0 && standing {
+                        // Standing: no integrator creep, no hum.
+                        w.pi.reset();
+                        0.0
+                    } else {
+                        w.pi.update(w.cmd, w.rate, DT)
+                    };
+                    drv.set_duty(i, duty);
+                } else {
+                    let steps = w.steps.advance(w.cmd, DT);
+                    drv.set_steps(i, w.steps.step_rate_hz(w.cmd), steps);
+                    if self.rad_per_count.is_none() {
+                        dphi[i] = steps as f32 / self.steps_per_rad;
+                    }
+                }
+            }
+        }
+
+        // Odometry with the corrected geometry.
+        let d = self.kin.forward(&dphi[..n]);
+        self.odo.update(&d);
+
+        // Trial log.
+        if self.log.recording().is_some() && self.ticks % self.decimation as u64 == 0 {
+            let mut rec = Record {
+                t_us: now_us.wrapping_sub(self.trial_start_us) as u32,
+                pose: self.odo.pose(),
+                ..Record::default()
+            };
+            for (i, w) in self.wheels[..n].iter().enumerate() {
+                rec.counts[i] = (w.position() - w.origin) as i32;
+                rec.cmd[i] = w.cmd;
+            }
+            let mut buf = [0u8; record_size(MAX_WHEELS)];
+            if let Some(len) = rec.encode(n, &mut buf) {
+                self.log.append(&buf[..len]);
+            }
+        }
+    }
+
+    /// Moves `cur` towards `target` within the acceleration limits.
+    fn slew(&self, cur: Twist<f32>, target: Twist<f32>) -> Twist<f32> {
+        let l = &self.params.limits;
+        let (a, al) = ((l.a_max as f32) * DT, (l.alpha_max as f32) * DT);
+        let step = |c: f32, t: f32, m: f32| c + (t - c).clamp(-m, m);
+        Twist::new(
+            step(cur.vx, target.vx, a),
+            step(cur.vy, target.vy, a),
+            step(cur.omega, target.omega, al),
+        )
+    }
+
+    // -----------------------------------------------------------------------------------
+    // Requests
+    // -----------------------------------------------------------------------------------
+
+    /// The live status (what GetStatus and telemetry report).
+    pub fn status(&self) -> Status {
+        Status {
+            uptime_ms: self.uptime_ms(),
+            mode: match &self.motion {
+                Motion::Idle => Mode::Idle,
+                Motion::Drive { .. } => Mode::Drive,
+                Motion::Program(r, count) => Mode::Program {
+                    segment: r.segment_index().min(255) as u8,
+                    segments: *count,
+                },
+            },
+            stop: self.stop,
+            estop: self.estop,
+            fault: self.fault,
+            pose: self.odo.pose(),
+            wheel_rates: self.wheels[..self.n].iter().map(|w| w.rate).collect(),
+            wheel_cmds: self.wheels[..self.n].iter().map(|w| w.cmd).collect(),
+            trial: self.log.recording(),
+            log_free: self.log.free() as u32,
+            dropped_records: self.log.dropped_total(),
+            evicted_trials: self.log.evicted_total(),
+            bad_frames: self.bad_frames,
+        }
+    }
+
+    fn info(&self) -> Info {
+        Info {
+            firmware: firmware(),
+            protocol_version: PROTOCOL_VERSION,
+            schema: SCHEMA_FINGERPRINT,
+            robot_kind: self.params.robot.kind,
+            drive: self.params.robot.drive.kind,
+            wheel_count: self.n as u8,
+            uptime_ms: self.uptime_ms(),
+            boot: self.boot,
+            log_capacity: LOG as u32,
+            record_size: record_size(self.n) as u16,
+        }
+    }
+
+    /// Refuses motion while E-stopped or faulted.
+    fn motion_allowed(&self) -> Result<(), Rejection> {
+        if self.estop {
+            return Err(Rejection::EStopped);
+        }
+        if let Some(f) = self.fault {
+            return Err(Rejection::Faulted(f));
+        }
+        Ok(())
+    }
+
+    /// Decides a request: validates completely, then acts, then answers.
+    pub fn handle(&mut self, req: Request, now_us: u64) -> Handled<'_> {
+        self.now_us = self.now_us.max(now_us);
+        match self.handle_inner(req) {
+            Ok(h) => h,
+            Err(r) => Handled::Reply(Response::Rejected(r)),
+        }
+    }
+
+    fn handle_inner(&mut self, req: Request) -> Result<Handled<'_>, Rejection> {
+        if self.peer_compatible == Some(false) && !matches!(req, Request::Hello { .. }) {
+            return Err(Rejection::ProtocolMismatch {
+                board_version: PROTOCOL_VERSION,
+                board_schema: SCHEMA_FINGERPRINT,
+            });
+        }
+        match req {
+            Request::Hello {
+                protocol_version,
+                schema,
+            } => {
+                let ok = protocol_version == PROTOCOL_VERSION && schema == SCHEMA_FINGERPRINT;
+                self.peer_compatible = Some(ok);
+                reply(Response::Hello {
+                    protocol_version: PROTOCOL_VERSION,
+                    schema: SCHEMA_FINGERPRINT,
+                    firmware: firmware(),
+                    compatible: ok,
+                })
+            }
+            Request::GetInfo => reply(Response::Info(self.info())),
+            Request::GetCorrections => reply(Response::Corrections(self.corrections.clone())),
+            Request::SetCorrections(c) => {
+                self.set_corrections(c)?;
+                reply(Response::Ok)
+            }
+            Request::SaveCorrections => Ok(Handled::Persist(PersistItem::Corrections(
+                self.corrections.clone(),
+            ))),
+            Request::ResetCorrections => {
+                self.set_corrections(Corrections::None)?;
+                reply(Response::Ok)
+            }
+            Request::GetParams => reply(Response::Params(self.params.clone())),
+            Request::SetParams(p) => {
+                self.set_params(p)?;
+                reply(Response::Ok)
+            }
+            Request::SaveParams => Ok(Handled::Persist(PersistItem::Params(self.params.clone()))),
+            Request::ResetParams => {
+                self.set_params(defaults::params())?;
+                reply(Response::Ok)
+            }
+            Request::Drive { twist, timeout_ms } => {
+                self.motion_allowed()?;
+                if matches!(self.motion, Motion::Program(..)) {
+                    return Err(Rejection::Busy);
+                }
+                let target = self.checked_twist(twist)?;
+                let max = self.params.safety.command_timeout_ms;
+                let t = if timeout_ms == 0 {
+                    max
+                } else {
+                    timeout_ms.min(max)
+                };
+                self.motion = Motion::Drive {
+                    target,
+                    deadline_us: self.now_us + t as u64 * 1000,
+                };
+                reply(Response::Ok)
+            }
+            Request::RunProgram {
+                program,
+                log_rate_hz,
+            } => {
+                self.start_program(program, log_rate_hz)?;
+                reply(Response::Ok)
+            }
+            Request::Stop => {
+                // Controlled: the idle slew ramps the twist down at the limits.
+                if matches!(self.motion, Motion::Program(..)) {
+                    self.log.finish(TrialEnd::Stopped);
+                }
+                if !matches!(self.motion, Motion::Idle) {
+                    self.stop = StopReason::Request;
+                }
+                self.motion = Motion::Idle;
+                reply(Response::Ok)
+            }
+            Request::EStop => {
+                self.estop = true;
+                self.cut(StopReason::EStop, TrialEnd::EStop);
+                reply(Response::Ok)
+            }
+            Request::ClearFault => {
+                self.estop = false;
+                self.fault = None;
+                for w in self.wheels.iter_mut() {
+                    w.halt();
+                }
+                reply(Response::Ok)
+            }
+            Request::GetStatus => reply(Response::Status(self.status())),
+            Request::SetTelemetry { period_ms } => {
+                self.telemetry_us = if period_ms == 0 {
+                    0
+                } else {
+                    period_ms.max(10) as u64 * 1000
+                };
+                self.next_telemetry_us = self.now_us;
+                reply(Response::Ok)
+            }
+            Request::ListTrials => reply(Response::Trials(self.log.list())),
+            Request::ReadLog {
+                trial,
+                offset,
+                max_len,
+            } => {
+                let (data, total) =
+                    self.log
+                        .read(trial, offset, max_len.min(MAX_LOG_CHUNK as u16))?;
+                reply(Response::LogChunk(LogChunk {
+                    trial,
+                    offset,
+                    total,
+                    data: calib_core::protocol::Bytes(data),
+                }))
+            }
+            Request::ClearLogs => {
+                if self.log.recording().is_some() {
+                    return Err(Rejection::Busy);
+                }
+                self.log.clear();
+                reply(Response::Ok)
+            }
+        }
+    }
+
+    fn checked_twist(&self, t: Twist<f32>) -> Result<Twist<f32>, Rejection> {
+        let l = &self.params.limits;
+        let ok = |v: f32, max: f64| v.is_finite() && (v.abs() as f64) <= max;
+        if ok(t.vx, l.v_max) && ok(t.vy, l.v_max) && ok(t.omega, l.omega_max) {
+            Ok(t)
+        } else {
+            Err(Rejection::InvalidProgram(calib_core::protocol::reason(
+                &format_args!(
+                    "twist ({}, {}, {}) must be finite and within v_max {} m/s, omega_max {} rad/s",
+                    t.vx, t.vy, t.omega, l.v_max, l.omega_max
+                ),
+            )))
+        }
+    }
+
+    fn set_corrections(&mut self, c: Corrections) -> Result<(), Rejection> {
+        if self.moving() {
+            return Err(Rejection::Busy);
+        }
+        c.validate(&self.params.robot)
+            .map_err(|e| Rejection::corrections(&e))?;
+        let kin = kinematics(&self.params, &c).ok_or_else(|| {
+            Rejection::InvalidCorrections(calib_core::protocol::reason(
+                &"the corrected geometry is singular",
+            ))
+        })?;
+        self.kin = kin;
+        self.corrections = c;
+        Ok(())
+    }
+
+    fn set_params(&mut self, p: Params) -> Result<(), Rejection> {
+        if self.moving() {
+            return Err(Rejection::Busy);
+        }
+        p.validate()
+            .map_err(|e| Rejection::InvalidParams(calib_core::protocol::reason(&e)))?;
+        if let Err(e) = self.corrections.validate(&p.robot) {
+            return Err(Rejection::InvalidParams(calib_core::protocol::reason(
+                &format_args!(
+                    "the active corrections do not fit this robot ({e}): reset them first"
+                ),
+            )));
+        }
+        let kin = kinematics(&p, &self.corrections).ok_or_else(|| {
+            Rejection::InvalidParams(calib_core::protocol::reason(&"singular geometry"))
+        })?;
+        self.kin = kin;
+        self.params = p;
+        self.configure();
+        Ok(())
+    }
+
+    fn start_program(&mut self, spec: ProgramSpec, log_rate_hz: u16) -> Result<(), Rejection> {
+        self.motion_allowed()?;
+        if self.moving() {
+            return Err(Rejection::Busy);
+        }
+        spec.validate(self.n, self.params.robot.kind)
+            .map_err(Rejection::InvalidProgram)?;
+        let program = match &spec {
+            ProgramSpec::Umbmark { side_m, dir } => Program::umbmark_square(*side_m, *dir),
+            ProgramSpec::Omni { path, length_m } => Program::omni_path(*path, *length_m),
+            ProgramSpec::Custom(segs) => Program {
+                segments: segs.clone(),
+            },
+        };
+        // Odometry restarts at the origin: a trial's pose is relative to where it began.
+        self.odo = Odometry::default();
+        let count = program.segments.len() as u8;
+        self.motion = Motion::Program(program.runner(self.params.limits), count);
+        self.stop = StopReason::None;
+        if log_rate_hz > 0 {
+            self.decimation = (TICK_HZ / (log_rate_hz as u32).min(TICK_HZ)).max(1);
+            self.trial_start_us = self.now_us;
+            for w in self.wheels.iter_mut() {
+                w.origin = w.position();
+            }
+            self.log.start(
+                spec_kind(&spec),
+                self.uptime_ms(),
+                (TICK_HZ / self.decimation) as u16,
+                self.n as u8,
+                record_size(self.n) as u16,
+                &self.corrections,
+            );
+        }
+        Ok(())
+    }
+
+    /// The answer to a [`Handled::Persist`] once the flash write finished.
+    pub fn persisted(&mut self, ok: bool) -> Response<'static> {
+        if ok {
+            Response::Ok
+        } else {
+            Response::Rejected(Rejection::Storage)
+        }
+    }
+
+    /// A telemetry status when one is due (call after each tick or byte batch).
+    pub fn telemetry_due(&mut self) -> Option<Status> {
+        if self.telemetry_us == 0 || self.now_us < self.next_telemetry_us {
+            return None;
+        }
+        self.next_telemetry_us = self.now_us + self.telemetry_us;
+        Some(self.status())
+    }
+
+    /// A digest of the state a request may change, for tests that check a rejected request
+    /// changed nothing.
+    pub fn snapshot(&self) -> impl PartialEq + core::fmt::Debug {
+        (
+            self.params.clone(),
+            self.corrections.clone(),
+            self.status(),
+            self.log.list(),
+            self.estop,
+            self.peer_compatible,
+            self.telemetry_us,
+            format_motion(&self.motion),
+        )
+    }
+}
+
+fn format_motion(m: &Motion) -> (u8, Twist<f32>, u64, usize) {
+    match m {
+        Motion::Idle => (0, Twist::zero(), 0, 0),
+        Motion::Drive {
+            target,
+            deadline_us,
+        } => (1, *target, *deadline_us, 0),
+        Motion::Program(r, _) => (2, Twist::zero(), 0, r.segment_index()),
+    }
+}
+
+fn spec_kind(s: &ProgramSpec) -> ProgramKind {
+    s.kind()
+}
+
+fn firmware() -> String<{ calib_core::protocol::FIRMWARE_LEN }> {
+    let mut s = String::new();
+    for c in FIRMWARE_VERSION.chars() {
+        if s.push(c).is_err() {
+            break;
+        }
+    }
+    s
+}

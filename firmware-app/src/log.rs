@@ -1,0 +1,291 @@
+//! The trial log: packed records ([`calib_core::protocol::Record`]) of each trial in a RAM
+//! byte ring, with a header per trial kept in a small table.
+//!
+//! # When the ring fills
+//! Trials are contiguous in the ring, oldest first. A record that does not fit first
+//! evicts the oldest *finished* trials, one whole trial at a time (counted in
+//! `evicted_trials`; the host sees the trial disappear from the list). When only the
+//! running trial is left, the ring never overwrites that trial's beginning: new records
+//! are dropped and counted in the trial's header (`dropped`) and in the status
+//! (`dropped_records`), so a host always knows the trial's end is missing. Starting a trial
+//! when the header table is full evicts the oldest trial the same way.
+//!
+//! Byte offsets are relative to the trial's start and never move while the trial is kept,
+//! so a download can resume at any offset.
+
+use calib_core::protocol::{
+    ProgramKind, Rejection, TrialEnd, TrialInfo, Trials, MAX_LOG_CHUNK, MAX_TRIALS,
+};
+use calib_core::Corrections;
+use heapless::Deque;
+
+#[derive(Debug, Clone)]
+struct Entry {
+    info: TrialInfo,
+    /// Absolute ring position of the first byte.
+    start: u64,
+}
+
+/// A ring of `N` bytes holding up to [`MAX_TRIALS`] trials.
+pub struct TrialLog<const N: usize> {
+    buf: [u8; N],
+    /// Absolute position of the oldest byte kept.
+    head: u64,
+    /// Absolute position one past the newest byte.
+    tail: u64,
+    trials: Deque<Entry, MAX_TRIALS>,
+    recording: bool,
+    next_id: u16,
+    dropped_total: u32,
+    evicted_total: u32,
+}
+
+impl<const N: usize> Default for TrialLog<N> {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl<const N: usize> TrialLog<N> {
+    pub const fn new() -> Self {
+        TrialLog {
+            buf: [0; N],
+            head: 0,
+            tail: 0,
+            trials: Deque::new(),
+            recording: false,
+            next_id: 1,
+            dropped_total: 0,
+            evicted_total: 0,
+        }
+    }
+
+    pub const fn capacity(&self) -> usize {
+        N
+    }
+
+    pub fn free(&self) -> usize {
+        N - (self.tail - self.head) as usize
+    }
+
+    /// Records dropped since boot because the running trial filled the ring.
+    pub fn dropped_total(&self) -> u32 {
+        self.dropped_total
+    }
+
+    /// Trials evicted since boot to make room.
+    pub fn evicted_total(&self) -> u32 {
+        self.evicted_total
+    }
+
+    /// Id of the trial being recorded.
+    pub fn recording(&self) -> Option<u16> {
+        if self.recording {
+            self.trials.back().map(|e| e.info.id)
+        } else {
+            None
+        }
+    }
+
+    fn evict_oldest(&mut self) {
+        if self.trials.pop_front().is_some() {
+            self.evicted_total = self.evicted_total.saturating_add(1);
+            self.head = self.trials.front().map_or(self.tail, |e| e.start);
+        }
+    }
+
+    /// Starts a new trial (finishing a running one as stopped); returns its id.
+    pub fn start(
+        &mut self,
+        program: ProgramKind,
+        start_ms: u64,
+        rate_hz: u16,
+        wheel_count: u8,
+        record_size: u16,
+        corrections: &Corrections,
+    ) -> u16 {
+        if self.recording {
+            self.finish(TrialEnd::Stopped);
+        }
+        if self.trials.is_full() {
+            self.evict_oldest();
+        }
+        let id = self.next_id;
+        self.next_id = self.next_id.wrapping_add(1).max(1);
+        let info = TrialInfo {
+            id,
+            program,
+            start_ms,
+            rate_hz,
+            wheel_count,
+            record_size,
+            records: 0,
+            bytes: 0,
+            dropped: 0,
+            end: TrialEnd::Running,
+            corrections: corrections.clone(),
+        };
+        // Capacity was made above.
+        let _ = self.trials.push_back(Entry {
+            info,
+            start: self.tail,
+        });
+        self.recording = true;
+        id
+    }
+
+    /// Appends one record to the running trial; false if none runs or it was dropped.
+    pub fn append(&mut self, rec: &[u8]) -> bool {
+        if !self.recording {
+            return false;
+        }
+        while self.free() < rec.len() && self.trials.len() > 1 {
+            self.evict_oldest();
+        }
+        let fits = self.free() >= rec.len();
+        let Some(active) = self.trials.back_mut() else {
+            return false;
+        };
+        if !fits {
+            active.info.dropped = active.info.dropped.saturating_add(1);
+            self.dropped_total = self.dropped_total.saturating_add(1);
+            return false;
+        }
+        active.info.records += 1;
+        active.info.bytes += rec.len() as u32;
+        let at = (self.tail % N as u64) as usize;
+        let first = rec.len().min(N - at);
+        self.buf[at..at + first].copy_from_slice(&rec[..first]);
+        self.buf[..rec.len() - first].copy_from_slice(&rec[first..]);
+        self.tail += rec.len() as u64;
+        true
+    }
+
+    /// Ends the running trial.
+    pub fn finish(&mut self, end: TrialEnd) {
+        if self.recording {
+            if let Some(e) = self.trials.back_mut() {
+                e.info.end = end;
+            }
+            self.recording = false;
+        }
+    }
+
+    /// Forgets every trial (not while one is recording: the caller checks).
+    pub fn clear(&mut self) {
+        self.trials.clear();
+        self.head = self.tail;
+        self.recording = false;
+    }
+
+    pub fn list(&self) -> Trials {
+        Trials {
+            trials: self.trials.iter().map(|e| e.info.clone()).collect(),
+            evicted: self.evicted_total,
+        }
+    }
+
+    pub fn info(&self, id: u16) -> Option<&TrialInfo> {
+        self.trials
+            .iter()
+            .find(|e| e.info.id == id)
+            .map(|e| &e.info)
+    }
+
+    /// Up to `max_len` bytes (and at most [`MAX_LOG_CHUNK`]) of trial `id` from `offset`,
+    /// contiguous in RAM: a chunk that would cross the ring's end stops there and the host
+    /// asks again from where it got to. Returns the bytes and the trial's length.
+    pub fn read(&self, id: u16, offset: u32, max_len: u16) -> Result<(&[u8], u32), Rejection> {
+        let e = self
+            .trials
+            .iter()
+            .find(|e| e.info.id == id)
+            .ok_or(Rejection::NoSuchTrial)?;
+        let total = e.info.bytes;
+        if offset > total {
+            return Err(Rejection::BadOffset { total });
+        }
+        let want = (total - offset)
+            .min(max_len as u32)
+            .min(MAX_LOG_CHUNK as u32) as usize;
+        let at = ((e.start + offset as u64) % N as u64) as usize;
+        let len = want.min(N - at);
+        Ok((&self.buf[at..at + len], total))
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn start(log: &mut TrialLog<100>) -> u16 {
+        log.start(ProgramKind::Drive, 0, 100, 2, 10, &Corrections::None)
+    }
+
+    fn pull(log: &TrialLog<100>, id: u16) -> Vec<u8> {
+        let mut out = Vec::new();
+        loop {
+            let (b, total) = log.read(id, out.len() as u32, 7).unwrap();
+            out.extend_from_slice(b);
+            if out.len() as u32 == total {
+                return out;
+            }
+            assert!(!b.is_empty());
+        }
+    }
+
+    #[test]
+    fn full_ring_evicts_finished_trials_then_drops_and_counts() {
+        let mut log = TrialLog::<100>::new();
+        let a = start(&mut log);
+        for i in 0..6u8 {
+            assert!(log.append(&[i; 10]));
+        }
+        log.finish(TrialEnd::Completed);
+        let b = start(&mut log);
+        // 60 bytes used by a: b's 5th record needs a's space, so a is evicted whole.
+        for i in 0..10u8 {
+            assert!(log.append(&[100 + i; 10]), "record {i}");
+        }
+        assert!(log.info(a).is_none());
+        assert_eq!(log.evicted_total(), 1);
+        // b now fills the ring alone: further records are dropped, counted, never silent.
+        assert!(!log.append(&[0xEE; 10]));
+        assert!(!log.append(&[0xEE; 10]));
+        let info = log.info(b).unwrap().clone();
+        assert_eq!((info.records, info.bytes, info.dropped), (10, 100, 2));
+        assert_eq!(log.dropped_total(), 2);
+        // The ring wrapped: reads stop at the end and resume, content intact and in order.
+        let got = pull(&log, b);
+        let want: Vec<u8> = (0..10u8).flat_map(|i| [100 + i; 10]).collect();
+        assert_eq!(got, want);
+    }
+
+    #[test]
+    fn bad_reads_are_rejected() {
+        let mut log = TrialLog::<100>::new();
+        let a = start(&mut log);
+        log.append(&[1; 10]);
+        assert_eq!(log.read(a + 1, 0, 10), Err(Rejection::NoSuchTrial));
+        assert_eq!(log.read(a, 11, 10), Err(Rejection::BadOffset { total: 10 }));
+        assert_eq!(log.read(a, 10, 10).unwrap().0.len(), 0);
+        log.finish(TrialEnd::Stopped);
+        assert_eq!(log.list().trials[0].end, TrialEnd::Stopped);
+    }
+
+    #[test]
+    fn header_table_full_evicts_oldest() {
+        let mut log = TrialLog::<100>::new();
+        for _ in 0..MAX_TRIALS + 2 {
+            start(&mut log);
+            log.append(&[0; 5]);
+        }
+        let ids: Vec<u16> = log.list().trials.iter().map(|t| t.id).collect();
+        assert_eq!(ids, (3..=MAX_TRIALS as u16 + 2).collect::<Vec<_>>());
+        assert_eq!(log.evicted_total(), 2);
+        // Every finished trial was ended as stopped by the next start.
+        assert!(log.list().trials[..MAX_TRIALS - 1]
+            .iter()
+            .all(|t| t.end == TrialEnd::Stopped));
+    }
+}

@@ -1,0 +1,143 @@
+//! Persistence of corrections and robot parameters in flash through `sequential-storage`'s
+//! map, generic over any async `NorFlash` (the STM32's sectors 10-11 on the board,
+//! sequential-storage's mock flash in tests).
+//!
+//! sequential-storage writes a new item before it invalidates the old one and repairs an
+//! interrupted write on the next access, so a power cut during a save leaves either the old
+//! or the new value (tested by cutting the power at every flash operation of a save). On
+//! top of that each value carries a format byte and its own CRC-32 and is validated again
+//! at boot (finite, in range, fits the robot): anything else is reported and replaced by
+//! the defaults, never used.
+
+use crate::app::PersistItem;
+use crate::defaults;
+use calib_core::protocol::{BootReport, Params, Stored};
+use calib_core::Corrections;
+use core::ops::Range;
+use embedded_storage_async::nor_flash::NorFlash;
+use sequential_storage::cache::{Cache, Uncached};
+use sequential_storage::map::{MapConfig, MapStorage};
+
+const KEY_CORRECTIONS: u8 = 1;
+const KEY_PARAMS: u8 = 2;
+/// Bumped when the stored layout changes; older values are then reported invalid.
+const FORMAT: u8 = 1;
+/// Largest stored value (params with eight wheels are ~600 bytes) plus key and alignment.
+const BUF: usize = 1024;
+const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
+
+/// Why the store could not be used.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StoreError {
+    /// The flash range does not suit the flash (alignment, fewer than two pages).
+    Config,
+    /// Reading, writing or erasing failed, or the flash is full or corrupted.
+    Flash,
+    /// The value does not fit the buffer.
+    TooBig,
+}
+
+/// What boot found: values to run with and how they were obtained.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Loaded {
+    pub params: Params,
+    pub corrections: Corrections,
+    pub boot: BootReport,
+}
+
+type Map<F> = MapStorage<u8, F, Cache<Uncached, Uncached, Uncached, u8>>;
+
+/// The persisted settings of one board.
+pub struct Store<F: NorFlash> {
+    map: Map<F>,
+    buf: [u8; BUF],
+}
+
+impl<F: NorFlash> Store<F> {
+    /// A store on `range` (byte offsets within `flash`, whole erase pages, at least two).
+    pub fn new(flash: F, range: Range<u32>) -> Result<Self, StoreError> {
+        let config = MapConfig::try_new(range).map_err(|_| StoreError::Config)?;
+        Ok(Store {
+            map: MapStorage::new(flash, config, Cache::new_uncached()),
+            buf: [0; BUF],
+        })
+    }
+
+    /// Gives the flash back (tests reboot a board on the same flash).
+    pub fn into_flash(self) -> F {
+        self.map.destroy().0
+    }
+
+    async fn fetch(&mut self, key: u8) -> Result<Option<&[u8]>, StoreError> {
+        match self.map.fetch_item::<&[u8]>(&mut self.buf, &key).await {
+            Ok(v) => Ok(v),
+            Err(_) => Err(StoreError::Flash),
+        }
+    }
+
+    /// Reads and validates both items; anything unusable becomes the defaults, and the
+    /// report says which.
+    pub async fn load(&mut self) -> Loaded {
+        let (params, params_state) = match self.fetch(KEY_PARAMS).await {
+            Ok(None) => (defaults::params(), Stored::Missing),
+            Err(_) => (defaults::params(), Stored::StorageError),
+            Ok(Some(b)) => match unpack::<Params>(b).filter(|p| p.validate().is_ok()) {
+                Some(p) => (p, Stored::Loaded),
+                None => (defaults::params(), Stored::Invalid),
+            },
+        };
+        let (corrections, corr_state) = match self.fetch(KEY_CORRECTIONS).await {
+            Ok(None) => (Corrections::None, Stored::Missing),
+            Err(_) => (Corrections::None, Stored::StorageError),
+            Ok(Some(b)) => {
+                match unpack::<Corrections>(b).filter(|c| c.validate(&params.robot).is_ok()) {
+                    Some(c) => (c, Stored::Loaded),
+                    None => (Corrections::None, Stored::Invalid),
+                }
+            }
+        };
+        Loaded {
+            params,
+            corrections,
+            boot: BootReport {
+                corrections: corr_state,
+                params: params_state,
+            },
+        }
+    }
+
+    /// Writes one item (power-fail safe: old or new survives).
+    pub async fn save(&mut self, item: &PersistItem) -> Result<(), StoreError> {
+        let mut value = [0u8; BUF - 8];
+        let (key, len) = match item {
+            PersistItem::Corrections(c) => (KEY_CORRECTIONS, pack(c, &mut value)?),
+            PersistItem::Params(p) => (KEY_PARAMS, pack(p, &mut value)?),
+        };
+        self.map
+            .store_item(&mut self.buf, &key, &&value[..len])
+            .await
+            .map_err(|_| StoreError::Flash)
+    }
+}
+
+/// `FORMAT | postcard | crc32(FORMAT | postcard)`.
+fn pack<T: serde::Serialize>(v: &T, out: &mut [u8]) -> Result<usize, StoreError> {
+    let body = out.len().checked_sub(4).ok_or(StoreError::TooBig)?;
+    out[0] = FORMAT;
+    let n = 1 + postcard::to_slice(v, &mut out[1..body])
+        .map_err(|_| StoreError::TooBig)?
+        .len();
+    let crc = CRC32.checksum(&out[..n]);
+    out[n..n + 4].copy_from_slice(&crc.to_le_bytes());
+    Ok(n + 4)
+}
+
+fn unpack<'a, T: serde::Deserialize<'a>>(b: &'a [u8]) -> Option<T> {
+    let n = b.len().checked_sub(4)?;
+    let (data, crc) = b.split_at(n);
+    if data.first() != Some(&FORMAT) || CRC32.checksum(data).to_le_bytes() != crc {
+        return None;
+    }
+    postcard::from_bytes(&data[1..]).ok()
+}

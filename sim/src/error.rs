@@ -1,0 +1,78 @@
+//! One error type for everything the simulator refuses: user input never panics.
+
+use crate::effects::EffectError;
+use std::fmt;
+
+/// Why a simulation could not be built or run.
+#[derive(Debug)]
+pub enum SimError {
+    /// A bad `--effect` string or parameter.
+    Effect(EffectError),
+    /// A configuration value out of range: which one and why.
+    Config {
+        field: &'static str,
+        message: String,
+    },
+    /// The effect does not apply to this robot (e.g. missed steps on a DC drive).
+    NotApplicable {
+        effect: &'static str,
+        reason: String,
+    },
+    /// The driven wheels (with the faults applied) cannot determine the body motion.
+    SingularGeometry,
+    /// `step` got a different number of inputs than the robot has wheels.
+    InputCount { expected: usize, got: usize },
+    /// A robot description built by the simulator failed calib-core's validation.
+    Robot(calib_core::robot::RobotError),
+    /// Writing a recording failed.
+    Io {
+        path: std::path::PathBuf,
+        error: std::io::Error,
+    },
+}
+
+impl fmt::Display for SimError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            SimError::Effect(e) => write!(f, "{e}"),
+            SimError::Config { field, message } => write!(f, "{field}: {message}"),
+            SimError::NotApplicable { effect, reason } => {
+                write!(f, "effect {effect} does not apply: {reason}")
+            }
+            SimError::SingularGeometry => write!(
+                f,
+                "the driven wheels cannot determine the body motion (rank < 3)"
+            ),
+            SimError::InputCount { expected, got } => {
+                write!(f, "expected {expected} wheel inputs, got {got}")
+            }
+            SimError::Robot(e) => write!(f, "robot: {e}"),
+            SimError::Io { path, error } => write!(f, "{}: {error}", path.display()),
+        }
+    }
+}
+
+impl std::error::Error for SimError {}
+
+impl From<EffectError> for SimError {
+    fn from(e: EffectError) -> Self {
+        SimError::Effect(e)
+    }
+}
+
+/// Checks a configuration number is finite and within `[lo, hi]`.
+pub(crate) fn check_range(field: &'static str, v: f64, lo: f64, hi: f64) -> Result<(), SimError> {
+    if !v.is_finite() {
+        return Err(SimError::Config {
+            field,
+            message: format!("must be a finite number, got {v}"),
+        });
+    }
+    if v < lo || v > hi {
+        return Err(SimError::Config {
+            field,
+            message: format!("must be within [{lo}, {hi}], got {v}"),
+        });
+    }
+    Ok(())
+}

@@ -1,0 +1,118 @@
+//! Floor features in world coordinates: cable strips (001), low-friction patches, a tilted
+//! floor.
+//!
+//! They are properties of the floor, not of the robot, so the same robot driven over a
+//! different part of the floor meets them at different times: that is what makes them
+//! locatable by position in a recording.
+
+/// Parallel cables (001: 5 mm cables every 30 mm) that each cost a wheel `loss_m` of
+/// travel when it rolls over one.
+///
+/// The cables are the lines `n . p = offset_m + k * spacing_m` for every integer k, with
+/// `n` the unit normal at `normal_rad` from world x: with the default normal 0 they are the
+/// lines x = k * spacing_m across the whole floor.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CableStrip {
+    pub spacing_m: f64,
+    pub loss_m: f64,
+    pub normal_rad: f64,
+    pub offset_m: f64,
+    /// Cables only where `start_m <= n . p <= end_m` (a strip); infinite by default.
+    pub start_m: f64,
+    pub end_m: f64,
+}
+
+impl CableStrip {
+    /// Cables across the whole floor, perpendicular to world x.
+    pub fn new(spacing_m: f64, loss_m: f64) -> Self {
+        CableStrip {
+            spacing_m,
+            loss_m,
+            normal_rad: 0.0,
+            offset_m: 0.0,
+            start_m: f64::NEG_INFINITY,
+            end_m: f64::INFINITY,
+        }
+    }
+
+    /// Unit normal of the cables.
+    pub fn normal(&self) -> (f64, f64) {
+        (self.normal_rad.cos(), self.normal_rad.sin())
+    }
+
+    /// Number of cables crossed between the normal coordinates `s0` and `s1`.
+    pub fn crossings(&self, s0: f64, s1: f64) -> u32 {
+        let (a, b) = (s0.min(s1).max(self.start_m), s0.max(s1).min(self.end_m));
+        if a >= b {
+            return 0;
+        }
+        // Cable k sits at offset + k * spacing; count k with a < pos <= b.
+        let ka = ((a - self.offset_m) / self.spacing_m).floor();
+        let kb = ((b - self.offset_m) / self.spacing_m).floor();
+        (kb - ka).max(0.0) as u32
+    }
+}
+
+/// An axis-aligned rectangle of the floor where friction is `mu_scale` times the rest.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Patch {
+    pub x_min: f64,
+    pub x_max: f64,
+    pub y_min: f64,
+    pub y_max: f64,
+    pub mu_scale: f64,
+}
+
+/// A floor tilted so the robot drifts downhill while it moves: a constant world-frame
+/// drift velocity. Outside the diagnose catalogue on purpose (its "unexplained" control).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Tilt {
+    pub drift_m_s: f64,
+    /// Downhill direction from world x.
+    pub direction_rad: f64,
+}
+
+/// The floor the robot drives on: flat unless features are added.
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct Surface {
+    pub cables: Option<CableStrip>,
+    pub patches: Vec<Patch>,
+    pub tilt: Option<Tilt>,
+}
+
+impl Surface {
+    /// A flat, uniform floor.
+    pub fn flat() -> Self {
+        Surface::default()
+    }
+
+    /// Friction multiplier at a world point (patches may overlap: the lowest wins).
+    pub fn mu_scale_at(&self, x: f64, y: f64) -> f64 {
+        let mut s: f64 = 1.0;
+        for p in &self.patches {
+            if x >= p.x_min && x <= p.x_max && y >= p.y_min && y <= p.y_max {
+                s = s.min(p.mu_scale);
+            }
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn counts_cables_between_positions() {
+        let c = CableStrip::new(0.03, 0.001);
+        assert_eq!(c.crossings(0.001, 0.029), 0);
+        assert_eq!(c.crossings(0.029, 0.031), 1);
+        assert_eq!(c.crossings(0.031, 0.029), 1);
+        // 1 m of travel from just past a cable crosses 33 cables (at 0.03 .. 0.99).
+        assert_eq!(c.crossings(0.001, 1.001), 33);
+        let mut s = c;
+        s.start_m = 0.5;
+        s.end_m = 0.7;
+        assert_eq!(s.crossings(0.0, 1.0), 7); // 0.51 .. 0.69
+    }
+}
