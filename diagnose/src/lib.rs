@@ -1,1 +1,257 @@
-//! Diagnose: placeholder.
+//! Diagnose: finds where a model of the robot and a recording of it part, names the
+//! physics the model left out, fits it and shows the fit improve.
+//!
+//! 1. Replay (`replay`, `actuator`, `ground`): the recording runs through the nominal
+//!    model in two stages, commands -> wheel motion (against the encoders) and wheel motion
+//!    -> body motion (against the measured poses); nuisances (start pose, encoder offsets)
+//!    are solved for every evaluation (`residuals`).
+//! 2. Locate (`windows`): windows where the residual leaves the noise band, by stage,
+//!    body axis and wheel, with what the robot was doing there.
+//! 3. Name (`effects`, `fit`, `select`): each catalogue effect is fitted as an augmentation
+//!    of the model; greedy forward selection by information criterion and held-out error.
+//! 4. Show (`report`, `plots`): RMSE before and after, parameters with uncertainty, plots.
+//!
+//! The entry point is [`diagnose`]; the console's `wheelcal diagnose` is a thin wrapper.
+
+pub mod actuator;
+pub mod effects;
+pub mod fit;
+pub mod ground;
+pub mod plots;
+pub mod replay;
+pub mod report;
+pub mod residuals;
+pub mod select;
+pub mod windows;
+
+pub use effects::{Effect, Model, Stage};
+pub use report::{write_robot, Finding, Report};
+pub use windows::{Axis, Window};
+
+use calib_core::recording::Recording;
+use calib_core::robot::Robot;
+use residuals::Evaluator;
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// Verdict when no effect is needed.
+pub const VERDICT_NONE: &str = "none";
+/// Verdict when the data leave the noise band and no catalogue effect explains it.
+pub const VERDICT_UNEXPLAINED: &str = "unexplained";
+/// A stage "leaves the noise" when its chi-square per residual exceeds this.
+pub const MISMATCH_CHI2: f64 = 2.0;
+/// Findings must explain at least this fraction of the excess residual to be the verdict.
+pub const MIN_EXPLAINED: f64 = 0.5;
+
+/// Tuning of a diagnosis.
+#[derive(Debug, Clone)]
+pub struct Options {
+    /// Most effects to combine.
+    pub max_effects: usize,
+}
+
+impl Default for Options {
+    fn default() -> Self {
+        Options {
+            max_effects: select::MAX_EFFECTS,
+        }
+    }
+}
+
+/// Why a recording cannot be diagnosed (it parsed, but holds too little to compare).
+#[derive(Debug, Clone, PartialEq)]
+pub enum DiagnoseError {
+    /// Too few rows or pose samples to estimate noise and fit anything.
+    NotEnoughData(String),
+    /// The robot's kinematics cannot be built.
+    Geometry(String),
+}
+
+impl fmt::Display for DiagnoseError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            DiagnoseError::NotEnoughData(s) => write!(f, "not enough data to diagnose: {s}"),
+            DiagnoseError::Geometry(s) => write!(f, "robot geometry: {s}"),
+        }
+    }
+}
+
+impl std::error::Error for DiagnoseError {}
+
+/// Least pose samples for the ground stage to say anything (start pose takes 3 numbers).
+pub const MIN_POSE_SAMPLES: usize = 8;
+
+/// Diagnoses a recording of `robot`.
+pub fn diagnose(
+    robot: &Robot,
+    recording: &Recording,
+    options: &Options,
+) -> Result<Report, DiagnoseError> {
+    if recording.len() < 3 {
+        return Err(DiagnoseError::NotEnoughData(format!(
+            "{} rows (need at least 3)",
+            recording.len()
+        )));
+    }
+    if recording.wheels.len() != robot.wheels.len() {
+        return Err(DiagnoseError::Geometry(format!(
+            "the recording has {} wheels, the robot {}",
+            recording.wheels.len(),
+            robot.wheels.len()
+        )));
+    }
+    if calib_core::Kinematics::<f64>::new(robot, &calib_core::Corrections::None).is_err() {
+        return Err(DiagnoseError::Geometry(
+            "the wheels cannot resolve the body twist".into(),
+        ));
+    }
+    let prepared = replay::Prepared::new(robot, recording);
+    let mut notes = recording.notes.clone();
+    if prepared.poses.len() < MIN_POSE_SAMPLES && !prepared.has_actuator_stage() {
+        return Err(DiagnoseError::NotEnoughData(format!(
+            "{} pose samples and no wheel with both a command and an encoder (need {} pose samples or an actuator stage)",
+            prepared.poses.len(),
+            MIN_POSE_SAMPLES
+        )));
+    }
+    if prepared.wheels.iter().all(|w| w.enc_rad.is_none()) {
+        notes.push("no encoders: the ground stage is driven by the commands".into());
+    }
+    if !prepared.has_commands() {
+        notes.push("no commands: actuator effects cannot be tested".into());
+    }
+    let ev = Evaluator::new(&prepared);
+    let sel = select::select(&ev, options.max_effects);
+    let sig = windows::signals(&ev);
+    let windows = windows::locate(&ev, &sel.nominal_eval, &sel.final_eval, &sig);
+
+    // Findings, best first (selection order).
+    let mut findings = Vec::new();
+    for st in &sel.steps {
+        let e = st.effect;
+        let vals = sel.model.get(e).unwrap_or(&[]);
+        let sig_vals = sel
+            .sigma
+            .iter()
+            .find(|(x, _)| *x == e)
+            .map(|(_, s)| s.clone())
+            .unwrap_or_default();
+        let names = select::named(robot, e, vals);
+        let mut parameters = BTreeMap::new();
+        let mut uncertainties = BTreeMap::new();
+        for (j, (n, v)) in names.into_iter().enumerate() {
+            parameters.insert(n.clone(), v);
+            let s = sig_vals.get(j).copied().filter(|s| s.is_finite());
+            uncertainties.insert(n, s);
+        }
+        let stage = select::evidence_stage(&ev, e);
+        let (b, a) = match stage {
+            Stage::Ground => (st.before.ground_rmse(), st.after.ground_rmse()),
+            Stage::Actuator => (st.before.actuator_rmse(), st.after.actuator_rmse()),
+        };
+        findings.push(Finding {
+            effect: e.id().to_string(),
+            stage: e.stage(),
+            parameters,
+            uncertainties,
+            rmse_before_m: b,
+            rmse_after_m: a,
+            delta_bic: st.delta_bic,
+            heldout_ratio: st.heldout_ratio,
+        });
+    }
+
+    // Verdict: how much of the residual beyond the noise is explained, per stage.
+    let mut fractions = Vec::new();
+    let mut mismatch = false;
+    for s in [Stage::Ground, Stage::Actuator] {
+        let n = match s {
+            Stage::Ground => 3 * sel.nominal.n_pose,
+            Stage::Actuator => sel.nominal.n_act,
+        } as f64;
+        if n < 1.0 {
+            continue;
+        }
+        let c0 = ev.chi2(&sel.nominal, s) / n;
+        let c1 = ev.chi2(&sel.final_rss, s) / n;
+        if c0 > MISMATCH_CHI2 {
+            mismatch = true;
+            fractions.push((1.0 - (c1 - 1.0).max(0.0) / (c0 - 1.0)).clamp(0.0, 1.0));
+        }
+    }
+    let explained_fraction = if fractions.is_empty() {
+        1.0
+    } else {
+        fractions.iter().sum::<f64>() / fractions.len() as f64
+    };
+    let verdict = match findings.first() {
+        None if mismatch => VERDICT_UNEXPLAINED.to_string(),
+        None => VERDICT_NONE.to_string(),
+        Some(_) if mismatch && explained_fraction < MIN_EXPLAINED => {
+            VERDICT_UNEXPLAINED.to_string()
+        }
+        Some(f) => f.effect.clone(),
+    };
+
+    let plot = plot_data(&ev, &sel);
+    let n_act = sel.nominal.n_act;
+    Ok(Report {
+        robot: robot.name.to_string(),
+        rows: prepared.rows(),
+        pose_samples: prepared.poses.len(),
+        duration_s: prepared.t.last().unwrap_or(&0.0) - prepared.t.first().unwrap_or(&0.0),
+        verdict,
+        findings,
+        windows,
+        rmse_nominal_m: sel.nominal.ground_rmse(),
+        rmse_final_m: sel.final_rss.ground_rmse(),
+        heading_rmse_nominal_rad: (sel.nominal.heading / sel.nominal.n_pose.max(1) as f64).sqrt(),
+        heading_rmse_final_rad: (sel.final_rss.heading / sel.final_rss.n_pose.max(1) as f64).sqrt(),
+        actuator_rmse_nominal_m: (n_act > 0).then(|| sel.nominal.actuator_rmse()),
+        actuator_rmse_final_m: (n_act > 0).then(|| sel.final_rss.actuator_rmse()),
+        noise: ev.noise,
+        explained_fraction,
+        start_pose: [
+            sel.final_eval.start.0,
+            sel.final_eval.start.1,
+            sel.final_eval.start.2,
+        ],
+        candidates: sel.candidates.clone(),
+        notes,
+        model_runs_ground: ev.runs.get().0,
+        model_runs_actuator: ev.runs.get().1,
+        model: sel.model.clone(),
+        plot,
+    })
+}
+
+fn plot_data(ev: &Evaluator, sel: &select::Selection) -> report::PlotData {
+    let p = ev.p;
+    let ps = &p.poses;
+    let (n, f) = (&sel.nominal_eval, &sel.final_eval);
+    let pts = |e: &residuals::Eval| -> Vec<(f64, f64)> {
+        (0..ps.len())
+            .map(|k| (ps.x[k] - e.ex[k], ps.y[k] - e.ey[k]))
+            .collect()
+    };
+    let norm = |e: &residuals::Eval| -> Vec<f64> {
+        e.ex.iter().zip(&e.ey).map(|(x, y)| x.hypot(*y)).collect()
+    };
+    report::PlotData {
+        pose_t: ps.row.iter().map(|&r| p.t[r]).collect(),
+        measured: (0..ps.len()).map(|k| (ps.x[k], ps.y[k])).collect(),
+        nominal: pts(n),
+        fitted: pts(f),
+        err_nominal: norm(n),
+        err_fitted: norm(f),
+        heading_nominal: n.eth.clone(),
+        heading_fitted: f.eth.clone(),
+        act_t: ev.act_rows.iter().map(|&r| p.t[r]).collect(),
+        act: n
+            .act
+            .iter()
+            .zip(&f.act)
+            .map(|((i, a), (_, b))| (p.wheels[*i].name.clone(), a.clone(), b.clone()))
+            .collect(),
+    }
+}

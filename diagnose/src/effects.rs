@@ -1,0 +1,303 @@
+//! The catalogue of physics a plain kinematic model leaves out, each as an augmentation of
+//! the nominal model with the catalogue's parameter names.
+//!
+//! Parameters are fitted in an internal coordinate (log for quantities that must stay
+//! positive) so the optimiser cannot leave the physical domain; `value` converts back.
+
+use calib_core::robot::{DriveType, Robot, RobotKind};
+use serde::Serialize;
+use std::fmt;
+
+/// Which model stage an effect acts on.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Stage {
+    /// Commands -> wheel motion (compared with encoders).
+    Actuator,
+    /// Wheel motion -> body motion (compared with measured poses).
+    Ground,
+}
+
+impl Stage {
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Stage::Actuator => "actuator",
+            Stage::Ground => "ground",
+        }
+    }
+}
+
+impl fmt::Display for Stage {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+/// A catalogue effect.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, PartialOrd, Ord)]
+#[serde(rename_all = "snake_case")]
+pub enum Effect {
+    WheelDiameterMismatch,
+    WheelbaseError,
+    LongitudinalSlip,
+    LateralSlip,
+    FloorBumps,
+    Backlash,
+    MissedSteps,
+    MotorLag,
+    CoulombFriction,
+}
+
+/// How a parameter is mapped to the optimiser's coordinate.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum Scale {
+    /// Fitted as is.
+    Linear,
+    /// Fitted as ln(value): stays positive, steps are relative.
+    Log,
+}
+
+/// One fitted parameter's description.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ParamSpec {
+    pub name: String,
+    pub scale: Scale,
+    /// Value meaning "no effect" (or, for thresholds, a value beyond any data).
+    pub null: f64,
+    /// Plausible range, used for the starting grid and as bounds.
+    pub min: f64,
+    pub max: f64,
+}
+
+impl ParamSpec {
+    fn new(name: &str, scale: Scale, null: f64, min: f64, max: f64) -> Self {
+        ParamSpec {
+            name: name.into(),
+            scale,
+            null,
+            min,
+            max,
+        }
+    }
+
+    /// Value -> optimiser coordinate.
+    pub fn internal(&self, v: f64) -> f64 {
+        match self.scale {
+            Scale::Linear => v,
+            Scale::Log => v.max(1e-300).ln(),
+        }
+    }
+
+    /// Optimiser coordinate -> value.
+    pub fn value(&self, u: f64) -> f64 {
+        match self.scale {
+            Scale::Linear => u,
+            Scale::Log => u.exp(),
+        }
+    }
+
+    /// Bounds in the optimiser coordinate.
+    pub fn bounds(&self) -> (f64, f64) {
+        (self.internal(self.min), self.internal(self.max))
+    }
+}
+
+impl Effect {
+    pub const ALL: [Effect; 9] = [
+        Effect::WheelDiameterMismatch,
+        Effect::WheelbaseError,
+        Effect::LongitudinalSlip,
+        Effect::LateralSlip,
+        Effect::FloorBumps,
+        Effect::Backlash,
+        Effect::MissedSteps,
+        Effect::MotorLag,
+        Effect::CoulombFriction,
+    ];
+
+    /// The catalogue id.
+    pub fn id(self) -> &'static str {
+        match self {
+            Effect::WheelDiameterMismatch => "wheel_diameter_mismatch",
+            Effect::WheelbaseError => "wheelbase_error",
+            Effect::LongitudinalSlip => "longitudinal_slip",
+            Effect::LateralSlip => "lateral_slip",
+            Effect::FloorBumps => "floor_bumps",
+            Effect::Backlash => "backlash",
+            Effect::MissedSteps => "missed_steps",
+            Effect::MotorLag => "motor_lag",
+            Effect::CoulombFriction => "coulomb_friction",
+        }
+    }
+
+    /// Parses a catalogue id.
+    pub fn from_id(id: &str) -> Option<Effect> {
+        Effect::ALL.into_iter().find(|e| e.id() == id)
+    }
+
+    pub fn stage(self) -> Stage {
+        match self {
+            Effect::Backlash | Effect::MissedSteps | Effect::MotorLag | Effect::CoulombFriction => {
+                Stage::Actuator
+            }
+            _ => Stage::Ground,
+        }
+    }
+
+    /// The parameters fitted for this robot, catalogue names first.
+    pub fn params(self, robot: &Robot) -> Vec<ParamSpec> {
+        use Scale::*;
+        match self {
+            Effect::WheelDiameterMismatch => {
+                if robot.kind == RobotKind::DiffDrive {
+                    vec![ParamSpec::new("ed", Linear, 1.0, 0.8, 1.25)]
+                } else {
+                    robot
+                        .wheels
+                        .iter()
+                        .map(|w| {
+                            ParamSpec::new(
+                                &format!("radius_scale_{}", w.name),
+                                Linear,
+                                1.0,
+                                0.8,
+                                1.25,
+                            )
+                        })
+                        .collect()
+                }
+            }
+            Effect::WheelbaseError => vec![ParamSpec::new("eb", Linear, 1.0, 0.7, 1.4)],
+            Effect::LongitudinalSlip => vec![ParamSpec::new("mu", Log, 1e3, 0.01, 5.0)],
+            Effect::LateralSlip => vec![ParamSpec::new("side_slip_s", Linear, 0.0, -2.0, 2.0)],
+            Effect::FloorBumps => vec![
+                ParamSpec::new("spacing_m", Log, 0.03, 0.005, 1.0),
+                ParamSpec::new("loss_m", Log, 1e-9, 1e-6, 0.05),
+            ],
+            Effect::Backlash => vec![ParamSpec::new("backlash_rad", Log, 1e-9, 1e-4, 1.0)],
+            Effect::MissedSteps => {
+                vec![ParamSpec::new("max_accel_rad_s2", Log, 1e9, 0.1, 1e4)]
+            }
+            Effect::MotorLag => vec![ParamSpec::new("tau_s", Log, 1e-9, 1e-4, 5.0)],
+            Effect::CoulombFriction => {
+                vec![ParamSpec::new("deadband_rad_s", Log, 1e-9, 1e-3, 50.0)]
+            }
+        }
+    }
+
+    /// Whether the effect can act on this robot and recording at all.
+    pub fn applies(self, robot: &Robot, has_commands: bool) -> bool {
+        match self.stage() {
+            Stage::Actuator => {
+                has_commands
+                    && (self != Effect::MissedSteps || robot.drive.kind == DriveType::Stepper)
+            }
+            Stage::Ground => true,
+        }
+    }
+
+    /// Grid of starting points (values) for the parameters, or `None` to start at the
+    /// null value: threshold effects have flat cost on one side, so a local optimiser
+    /// started in the flat part never moves.
+    pub fn start_grid(self, robot: &Robot) -> Vec<Vec<f64>> {
+        let log_grid = |lo: f64, hi: f64, n: usize| -> Vec<f64> {
+            (0..n)
+                .map(|i| (lo.ln() + (hi / lo).ln() * i as f64 / (n - 1) as f64).exp())
+                .collect()
+        };
+        let singles = |v: Vec<f64>| v.into_iter().map(|x| vec![x]).collect();
+        let n = self.params(robot).len();
+        match self {
+            Effect::WheelDiameterMismatch => vec![vec![1.0; n]],
+            Effect::WheelbaseError => vec![vec![1.0]],
+            Effect::LateralSlip => vec![vec![0.0]],
+            Effect::LongitudinalSlip => singles(log_grid(0.02, 3.0, 12)),
+            Effect::Backlash => singles(log_grid(0.002, 0.5, 10)),
+            Effect::MissedSteps => singles(log_grid(1.0, 3000.0, 12)),
+            Effect::MotorLag => singles(log_grid(0.003, 1.0, 10)),
+            Effect::CoulombFriction => singles(log_grid(0.02, 20.0, 12)),
+            Effect::FloorBumps => {
+                let mut g = Vec::new();
+                // Crossings make the cost a comb in the spacing; the travel lost per
+                // metre (loss / spacing) is what the grid must get close to.
+                for s in log_grid(0.01, 0.3, 12) {
+                    for frac in log_grid(0.003, 0.1, 3) {
+                        g.push(vec![s, s * frac]);
+                    }
+                }
+                g
+            }
+        }
+    }
+}
+
+impl fmt::Display for Effect {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.id())
+    }
+}
+
+/// A model: the nominal kinematics plus some effects with parameter values.
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Model {
+    pub effects: Vec<(Effect, Vec<f64>)>,
+}
+
+impl Model {
+    pub fn get(&self, e: Effect) -> Option<&[f64]> {
+        self.effects
+            .iter()
+            .find(|(x, _)| *x == e)
+            .map(|(_, p)| p.as_slice())
+    }
+
+    pub fn with(&self, e: Effect, params: Vec<f64>) -> Model {
+        let mut m = self.clone();
+        if let Some(slot) = m.effects.iter_mut().find(|(x, _)| *x == e) {
+            slot.1 = params;
+        } else {
+            m.effects.push((e, params));
+        }
+        m
+    }
+
+    pub fn has_stage(&self, s: Stage) -> bool {
+        self.effects.iter().any(|(e, _)| e.stage() == s)
+    }
+
+    /// Per-wheel radius multipliers and the wheelbase multiplier of the geometry effects.
+    pub fn geometry(&self, robot: &Robot) -> (Vec<f64>, f64) {
+        let n = robot.wheels.len();
+        let mut scales = vec![1.0; n];
+        if let Some(p) = self.get(Effect::WheelDiameterMismatch) {
+            if robot.kind == RobotKind::DiffDrive && p.len() == 1 {
+                // Borenstein: ed = D_right / D_left with the mean diameter kept.
+                let ed = p[0];
+                for (i, w) in robot.wheels.iter().enumerate() {
+                    scales[i] = if w.position().1 >= 0.0 {
+                        2.0 / (ed + 1.0)
+                    } else {
+                        2.0 * ed / (ed + 1.0)
+                    };
+                }
+            } else {
+                for (s, v) in scales.iter_mut().zip(p) {
+                    *s = *v;
+                }
+            }
+        }
+        let eb = self.get(Effect::WheelbaseError).map_or(1.0, |p| p[0]);
+        (scales, eb)
+    }
+
+    /// The robot with the fitted geometry applied (radii, wheel distances).
+    pub fn apply_geometry(&self, robot: &Robot) -> Robot {
+        let (scales, eb) = self.geometry(robot);
+        let mut out = robot.clone();
+        for (w, s) in out.wheels.iter_mut().zip(scales) {
+            w.radius_m *= s;
+            w.l_m *= eb;
+        }
+        out
+    }
+}

@@ -1,0 +1,183 @@
+//! Levenberg-Marquardt on a handful of parameters with a finite-difference Jacobian.
+//!
+//! The models are simulations (thresholds, clamps, integrations), so analytic Jacobians
+//! would be long and fragile; with at most a few parameters, p + 1 model runs per
+//! iteration are affordable. Bounds are enforced by clamping.
+
+use nalgebra::{DMatrix, DVector};
+
+/// Outcome of a fit.
+#[derive(Debug, Clone)]
+pub struct FitResult {
+    /// Parameters in the optimiser's coordinates.
+    pub x: Vec<f64>,
+    /// Sum of squared (noise-weighted) residuals at `x`.
+    pub cost: f64,
+    /// One standard deviation per parameter (optimiser coordinates) from
+    /// s^2 (J^T J)^-1, with s^2 the reduced chi-square so over-noise residuals widen it;
+    /// infinite where the data do not constrain the parameter.
+    pub sigma: Vec<f64>,
+    pub evaluations: usize,
+}
+
+/// Minimises the sum of squares of `f(x)` from `x0` within `[lo, hi]`.
+pub fn levenberg_marquardt(
+    f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
+    x0: &[f64],
+    lo: &[f64],
+    hi: &[f64],
+    max_iter: usize,
+) -> FitResult {
+    let p = x0.len();
+    let clamp = |x: &mut [f64]| {
+        for i in 0..x.len() {
+            x[i] = x[i].clamp(lo[i], hi[i]);
+        }
+    };
+    let mut x = x0.to_vec();
+    clamp(&mut x);
+    let mut r = f(&x);
+    let mut evaluations = 1;
+    let mut cost = sumsq(&r);
+    let mut lambda = 1e-3;
+    let mut jac = DMatrix::<f64>::zeros(r.len(), p);
+    for _ in 0..max_iter {
+        jacobian(f, &x, &r, lo, hi, &mut jac);
+        evaluations += p;
+        let jt = jac.transpose();
+        let jtj = &jt * &jac;
+        let g = &jt * DVector::from_column_slice(&r);
+        let mut improved = false;
+        for _ in 0..8 {
+            let mut a = jtj.clone();
+            for i in 0..p {
+                a[(i, i)] += lambda * jtj[(i, i)].max(1e-12);
+            }
+            let Some(step) = a.lu().solve(&(-&g)) else {
+                lambda *= 10.0;
+                continue;
+            };
+            let mut xn: Vec<f64> = x.iter().zip(step.iter()).map(|(a, b)| a + b).collect();
+            clamp(&mut xn);
+            let rn = f(&xn);
+            evaluations += 1;
+            let cn = sumsq(&rn);
+            if cn.is_finite() && cn < cost {
+                let rel = (cost - cn) / cost.max(1e-300);
+                x = xn;
+                r = rn;
+                cost = cn;
+                lambda = (lambda * 0.3).max(1e-9);
+                improved = true;
+                if rel < 1e-7 {
+                    improved = false; // converged
+                }
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    jacobian(f, &x, &r, lo, hi, &mut jac);
+    evaluations += p;
+    let sigma = covariance_sigma(&jac, cost, r.len());
+    FitResult {
+        x,
+        cost,
+        sigma,
+        evaluations,
+    }
+}
+
+fn sumsq(r: &[f64]) -> f64 {
+    r.iter().map(|v| v * v).sum()
+}
+
+/// Forward differences, stepping inward at a bound.
+fn jacobian(
+    f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
+    x: &[f64],
+    r: &[f64],
+    lo: &[f64],
+    hi: &[f64],
+    jac: &mut DMatrix<f64>,
+) {
+    let m = r.len();
+    if jac.nrows() != m {
+        *jac = DMatrix::zeros(m, x.len());
+    }
+    for j in 0..x.len() {
+        let mut h = 1e-4 * x[j].abs().max(1e-2);
+        if x[j] + h > hi[j] {
+            h = -h;
+        }
+        let mut xp = x.to_vec();
+        xp[j] += h;
+        let _ = lo;
+        let rp = f(&xp);
+        for i in 0..m {
+            jac[(i, j)] = (rp.get(i).copied().unwrap_or(0.0) - r[i]) / h;
+        }
+    }
+}
+
+/// sqrt(diag(s^2 (J^T J)^-1)), s^2 = cost / (m - p) (at least 1: never claim better than
+/// the noise model).
+pub fn covariance_sigma(jac: &DMatrix<f64>, cost: f64, m: usize) -> Vec<f64> {
+    let p = jac.ncols();
+    let dof = m.saturating_sub(p).max(1) as f64;
+    let s2 = (cost / dof).max(1.0);
+    let jtj = jac.transpose() * jac;
+    match jtj.clone().try_inverse() {
+        Some(inv) => (0..p)
+            .map(|i| {
+                let v = inv[(i, i)] * s2;
+                if v.is_finite() && v >= 0.0 && jtj[(i, i)] > 1e-18 {
+                    v.sqrt()
+                } else {
+                    f64::INFINITY
+                }
+            })
+            .collect(),
+        None => vec![f64::INFINITY; p],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn fits_an_exponential() {
+        // y = 2 exp(-0.7 t) sampled without noise: LM finds (2, 0.7).
+        let t: Vec<f64> = (0..50).map(|i| i as f64 * 0.1).collect();
+        let y: Vec<f64> = t.iter().map(|t| 2.0 * (-0.7 * t).exp()).collect();
+        let mut f = |x: &[f64]| -> Vec<f64> {
+            t.iter()
+                .zip(&y)
+                .map(|(t, y)| x[0] * (-x[1] * t).exp() - y)
+                .collect()
+        };
+        let r = levenberg_marquardt(&mut f, &[1.0, 0.1], &[0.0, 0.0], &[10.0, 10.0], 100);
+        assert!(
+            (r.x[0] - 2.0).abs() < 1e-6 && (r.x[1] - 0.7).abs() < 1e-6,
+            "{:?}",
+            r.x
+        );
+    }
+
+    #[test]
+    fn uncertainty_of_a_mean() {
+        // Residuals x - y_i with unit noise weights: sigma of the mean = 1 / sqrt(n) when
+        // the scatter matches the weights.
+        let y: Vec<f64> = (0..100)
+            .map(|i| if i % 2 == 0 { 1.0 } else { -1.0 })
+            .collect();
+        let mut f = |x: &[f64]| -> Vec<f64> { y.iter().map(|v| x[0] - v).collect() };
+        let r = levenberg_marquardt(&mut f, &[0.5], &[-10.0], &[10.0], 50);
+        assert!(r.x[0].abs() < 1e-6);
+        assert!((r.sigma[0] - 0.1).abs() < 0.002, "{}", r.sigma[0]);
+    }
+}

@@ -1,0 +1,363 @@
+//! Ground stage: wheel angles -> body motion, with the fitted geometry and the ground
+//! effects (traction limit, side slip, floor bumps) applied to each sample's body
+//! displacement before it is integrated as an exact arc.
+//!
+//! The nominal model is what the firmware's odometry does: least-squares forward
+//! kinematics of all wheels, integrated per sample.
+
+use crate::effects::{Effect, Model};
+use crate::replay::{Prepared, G};
+use calib_core::correction::Corrections;
+use calib_core::kinematics::{Kinematics, Twist};
+use calib_core::odometry::Pose;
+use calib_core::robot::Robot;
+
+/// Exact-arc integration (as calib-core's `integrate_arc`) that carries the heading's
+/// cosine and sine from sample to sample instead of calling sin/cos twice per sample:
+/// the arc coefficients sin(d)/d and (1 - cos d)/d also give cos d and sin d.
+struct Heading {
+    c: f64,
+    s: f64,
+    count: u32,
+}
+
+impl Heading {
+    fn new() -> Self {
+        Heading {
+            c: 1.0,
+            s: 0.0,
+            count: 0,
+        }
+    }
+
+    fn advance(&mut self, pose: &mut Pose<f64>, d: &Twist<f64>) {
+        let w = d.omega;
+        let (a, b) = if w.abs() < 0.05 {
+            // Series to w^4: truncation below 1e-11 relative at |w| = 0.05.
+            let w2 = w * w;
+            (
+                1.0 - w2 / 6.0 * (1.0 - w2 / 20.0),
+                w / 2.0 * (1.0 - w2 / 12.0 * (1.0 - w2 / 30.0)),
+            )
+        } else {
+            (w.sin() / w, (1.0 - w.cos()) / w)
+        };
+        let lx = a * d.vx - b * d.vy;
+        let ly = b * d.vx + a * d.vy;
+        pose.x += self.c * lx - self.s * ly;
+        pose.y += self.s * lx + self.c * ly;
+        pose.theta += w;
+        // cos w = 1 - w b, sin w = w a.
+        let (cw, sw) = (1.0 - w * b, w * a);
+        let (c, s) = (self.c * cw - self.s * sw, self.s * cw + self.c * sw);
+        self.count += 1;
+        if self.count % 256 == 0 {
+            let (sn, cn) = pose.theta.sin_cos();
+            (self.c, self.s) = (cn, sn);
+        } else {
+            (self.c, self.s) = (c, s);
+        }
+    }
+}
+
+/// (effective radius r cos(gamma), rolling direction, position, driven) of a wheel.
+type ContactWheel = (f64, (f64, f64), (f64, f64), bool);
+
+/// Predicted poses, starting at the origin with heading 0.
+#[derive(Debug, Clone, Default)]
+pub struct Path {
+    /// At every row.
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    pub theta: Vec<f64>,
+    /// Body displacement over each interval (row k to k+1), body frame.
+    pub step: Vec<Twist<f64>>,
+}
+
+/// The robot with radius and wheelbase multipliers and (wheeled-legged) the wheel
+/// contacts moved along x by the leg angles. The wheel plane direction alpha + beta is
+/// kept, so each wheel still rolls the way it did.
+pub fn geometry_at(base: &Robot, scales: &[f64], eb: f64, legs: Option<(f64, f64)>) -> Robot {
+    let mut r = base.clone();
+    for (i, w) in r.wheels.iter_mut().enumerate() {
+        w.radius_m *= scales.get(i).copied().unwrap_or(1.0);
+        w.l_m *= eb;
+    }
+    if let (Some((lf, lr)), Some(geom)) = (legs, base.legs) {
+        let (xf, xr) = geom.wheel_x(lf, lr);
+        for w in r.wheels.iter_mut() {
+            let (x0, y) = w.position();
+            let x = if x0 > 0.0 { xf } else { xr };
+            let plane = w.alpha_rad + w.beta_rad;
+            w.alpha_rad = y.atan2(x);
+            w.l_m = x.hypot(y);
+            w.beta_rad = plane - w.alpha_rad;
+        }
+    }
+    r
+}
+
+/// Only the driven wheels (what a traction-limited model reads its wheel speed from).
+fn driven_only(r: &Robot) -> Option<Robot> {
+    let mut d = r.clone();
+    d.wheels.retain(|w| w.driven);
+    (d.wheels.len() >= 2 && d.wheels.len() < r.wheels.len()).then_some(d)
+}
+
+/// Forward kinematics that follows the leg angles, rebuilt only when they move.
+struct KinCache {
+    base: Robot,
+    scales: Vec<f64>,
+    eb: f64,
+    legs: Option<(f64, f64)>,
+    all: Option<Kinematics<f64>>,
+    driven: Option<(Kinematics<f64>, Vec<usize>)>,
+}
+
+impl KinCache {
+    fn new(base: &Robot, scales: Vec<f64>, eb: f64) -> Self {
+        KinCache {
+            base: base.clone(),
+            scales,
+            eb,
+            legs: None,
+            all: None,
+            driven: None,
+        }
+    }
+
+    fn update(&mut self, legs: Option<(f64, f64)>, want_driven: bool) {
+        let stale = match (self.legs, legs) {
+            (Some(a), Some(b)) => (a.0 - b.0).abs() > 1e-4 || (a.1 - b.1).abs() > 1e-4,
+            (None, None) => self.all.is_none(),
+            _ => true,
+        };
+        if !stale {
+            return;
+        }
+        self.legs = legs;
+        let g = geometry_at(&self.base, &self.scales, self.eb, legs);
+        self.all = Kinematics::new(&g, &Corrections::None).ok();
+        self.driven = if want_driven {
+            driven_only(&g).and_then(|d| {
+                let idx = g
+                    .wheels
+                    .iter()
+                    .enumerate()
+                    .filter(|(_, w)| w.driven)
+                    .map(|(i, _)| i)
+                    .collect();
+                Kinematics::new(&d, &Corrections::None)
+                    .ok()
+                    .map(|k| (k, idx))
+            })
+        } else {
+            None
+        };
+    }
+}
+
+/// Integrates the model over the recording. `angles[i]` is wheel i's angle per row (from
+/// its encoder or from the actuator model); `None` for a wheel nobody measured or
+/// commanded (it is left out of the least squares).
+///
+/// Floor-fixed effects (cables across world x) need the robot's world pose: they take
+/// the measured pose, interpolated between samples, not the model's own dead-reckoned
+/// pose, whose drift is exactly what is being diagnosed.
+pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mut Path) {
+    let n = p.rows();
+    out.x.clear();
+    out.y.clear();
+    out.theta.clear();
+    out.step.clear();
+    let (scales, eb) = model.geometry(&p.robot);
+    // Wheels without any angle series must not vote in the least squares.
+    let mut robot = p.robot.clone();
+    let known: Vec<usize> = (0..angles.len()).filter(|&i| angles[i].is_some()).collect();
+    let mut scales_known = scales.clone();
+    if known.len() < robot.wheels.len() {
+        let keep: Vec<_> = known.iter().map(|&i| robot.wheels[i].clone()).collect();
+        robot.wheels.clear();
+        for w in keep {
+            let _ = robot.wheels.push(w);
+        }
+        scales_known = known.iter().map(|&i| scales[i]).collect();
+    }
+    let mu = model.get(Effect::LongitudinalSlip).map(|v| v[0]);
+    let side = model.get(Effect::LateralSlip).map(|v| v[0]);
+    let bumps = model.get(Effect::FloorBumps).map(|v| (v[0], v[1]));
+    let per_wheel = mu.is_some() || bumps.is_some();
+    // Effective radii and body-frame rolling directions and positions of the known wheels.
+    let wheels: Vec<ContactWheel> = robot
+        .wheels
+        .iter()
+        .zip(&scales_known)
+        .map(|(w, s)| {
+            let row = w.rolling_row();
+            (
+                w.radius_m * s * w.gamma_rad.cos(),
+                (row[0], row[1]),
+                w.position(),
+                w.driven,
+            )
+        })
+        .collect();
+    let mut cache = KinCache::new(&robot, scales_known, eb);
+    let mut pose = Pose::new(0.0, 0.0, 0.0);
+    let mut heading = Heading::new();
+    out.x.reserve(n);
+    out.y.reserve(n);
+    out.theta.reserve(n);
+    out.step.reserve(n);
+    out.x.push(0.0);
+    out.y.push(0.0);
+    out.theta.push(0.0);
+    let m = known.len();
+    let mut inc = vec![0.0; m];
+    let mut contact: Option<Vec<f64>> = None;
+    let mut owed = vec![0.0f64; m];
+    // Scratch buffers, reused every row (this loop is the diagnosis' hot path).
+    let (mut disp_buf, mut smooth_buf, mut ang_buf, mut sub_buf) =
+        (vec![0.0; m], vec![0.0; m], vec![0.0; m], vec![0.0; m]);
+    let world_x = |k: usize, (bx, by): (f64, f64)| -> f64 {
+        let x = p.pose_at_row[k].0;
+        let (c, s) = p.heading_cs_at_row[k];
+        x + c * bx - s * by
+    };
+    let world_dir = |k: usize, (dx, dy): (f64, f64)| -> f64 {
+        let (c, s) = p.heading_cs_at_row[k];
+        c * dx - s * dy
+    };
+    for k in 0..n.saturating_sub(1) {
+        let dt = p.t[k + 1] - p.t[k];
+        cache.update(p.leg_angles(k), mu.is_some());
+        for (j, &i) in known.iter().enumerate() {
+            let a = angles[i].expect("known wheels have angles");
+            inc[j] = a[k + 1] - a[k];
+        }
+        let mut d = if per_wheel {
+            // Each wheel's travel at its contact: cables take their toll, traction bounds
+            // how fast the contact speed changes; the body takes the least-squares twist.
+            let disp = &mut disp_buf[..m];
+            for j in 0..m {
+                disp[j] = wheels[j].0 * inc[j];
+            }
+            let smooth_disp = &mut smooth_buf[..m];
+            smooth_disp.copy_from_slice(disp);
+            if mu.is_some() {
+                // The traction limit reacts to speed changes, and encoder quantisation
+                // makes per-sample speeds jitter by a count per sample: read the speed
+                // over three samples instead.
+                let (k1, k2) = (k.saturating_sub(1), (k + 2).min(n - 1));
+                let span = p.t[k2] - p.t[k1];
+                for (j, &i) in known.iter().enumerate() {
+                    let a = angles[i].expect("known wheels have angles");
+                    if span > 0.0 {
+                        smooth_disp[j] = wheels[j].0 * (a[k2] - a[k1]) / span * dt;
+                    }
+                }
+            }
+            for j in 0..m {
+                if owed[j] > 0.0 && disp[j] != 0.0 && wheels[j].3 {
+                    let take = owed[j].min(disp[j].abs());
+                    disp[j] -= take.copysign(disp[j]);
+                    owed[j] -= take;
+                }
+            }
+            if let Some(mu) = mu {
+                let a = (mu * G * p.driven_share[k]).max(1e-12);
+                let c = contact.get_or_insert_with(|| disp.iter().map(|d| d / dt).collect());
+                for j in 0..m {
+                    if !wheels[j].3 {
+                        continue;
+                    }
+                    let want = (smooth_disp[j] - (wheels[j].0 * inc[j] - disp[j])) / dt;
+                    let gap = want - c[j];
+                    let t_reach = gap.abs() / a;
+                    if t_reach >= dt {
+                        let e = c[j] + gap.signum() * a * dt;
+                        disp[j] = 0.5 * (c[j] + e) * dt;
+                        c[j] = e;
+                    } else {
+                        disp[j] = 0.5 * (c[j] + want) * t_reach + want * (dt - t_reach);
+                        c[j] = want;
+                    }
+                }
+            }
+            let ang = &mut ang_buf[..m];
+            for j in 0..m {
+                ang[j] = disp[j] / wheels[j].0;
+            }
+            match (&cache.driven, mu.is_some()) {
+                (Some((kin, idx)), true) => {
+                    let sub = &mut sub_buf[..idx.len()];
+                    for (o, &j) in sub.iter_mut().zip(idx) {
+                        *o = ang[j];
+                    }
+                    kin.forward(sub)
+                }
+                _ => match &cache.all {
+                    Some(kin) => kin.forward(ang),
+                    None => Twist::zero(),
+                },
+            }
+        } else {
+            match &cache.all {
+                Some(kin) => kin.forward(&inc),
+                None => Twist::zero(),
+            }
+        };
+        if let Some(k_side) = side {
+            // v_y = -k v_x omega, as a displacement over the interval.
+            d.vy += -k_side * d.vx * d.omega / dt;
+        }
+        heading.advance(&mut pose, &d);
+        if let Some((spacing, loss)) = bumps {
+            // Cables at world x = k * spacing: a driven wheel rolling onto one owes `loss`
+            // of travel along its rolling direction's share of the crossing.
+            let spacing = spacing.max(1e-6);
+            for j in 0..m {
+                if !wheels[j].3 {
+                    continue;
+                }
+                let s0 = (world_x(k, wheels[j].2) / spacing).floor();
+                let s1 = (world_x(k + 1, wheels[j].2) / spacing).floor();
+                let crossed = (s1 - s0).abs();
+                if crossed > 0.0 {
+                    owed[j] += crossed * loss * world_dir(k + 1, wheels[j].1).abs();
+                }
+            }
+        }
+        out.x.push(pose.x);
+        out.y.push(pose.y);
+        out.theta.push(pose.theta);
+        out.step.push(d);
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calib_core::odometry::integrate_arc;
+
+    #[test]
+    fn carried_heading_matches_integrate_arc() {
+        let mut a = Pose::new(0.0, 0.0, 0.0);
+        let mut b = a;
+        let mut h = Heading::new();
+        for k in 0..5000 {
+            let d = Twist::new(
+                0.002,
+                0.0005 * (k as f64 * 0.01).sin(),
+                0.03 * (k as f64 * 0.003).cos() + 0.06 * ((k % 97) as f64 / 97.0),
+            );
+            a = integrate_arc(a, &d);
+            h.advance(&mut b, &d);
+        }
+        assert!(
+            (a.x - b.x).abs() < 1e-10 && (a.y - b.y).abs() < 1e-10,
+            "{a:?} {b:?}"
+        );
+        assert!((a.theta - b.theta).abs() < 1e-12);
+    }
+}

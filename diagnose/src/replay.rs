@@ -1,0 +1,296 @@
+//! Turns a parsed recording into the dense series the models replay: wheel angles from
+//! encoder counts, commands held over each sample interval, pose samples with the heading
+//! unwrapped, leg angles and the normal-load share on the driven wheels.
+//!
+//! Blank cells are filled by holding the last value (a blank means "not measured at this
+//! instant", formats.md §2), so every series has one value per row.
+
+use calib_core::recording::Recording;
+use calib_core::robot::{Robot, RobotKind};
+use std::f64::consts::{PI, TAU};
+
+/// Standard gravity, m/s^2, for the traction limit mu * g.
+pub const G: f64 = 9.80665;
+
+/// One wheel's measured series.
+#[derive(Debug, Clone)]
+pub struct WheelData {
+    pub name: String,
+    pub radius_m: f64,
+    pub driven: bool,
+    /// Encoder angle in rad relative to the first count, one per row.
+    pub enc_rad: Option<Vec<f64>>,
+    /// Commanded rate in rad/s, held from its row to the next.
+    pub cmd: Option<Vec<f64>>,
+    /// Radians per encoder count (quantisation step), when encoders exist.
+    pub rad_per_count: f64,
+}
+
+/// Measured poses (rows with x, y and theta), heading unwrapped.
+#[derive(Debug, Clone, Default)]
+pub struct PoseSamples {
+    pub row: Vec<usize>,
+    pub x: Vec<f64>,
+    pub y: Vec<f64>,
+    pub theta: Vec<f64>,
+}
+
+impl PoseSamples {
+    pub fn len(&self) -> usize {
+        self.row.len()
+    }
+
+    pub fn is_empty(&self) -> bool {
+        self.row.is_empty()
+    }
+}
+
+/// A recording in the form the models need.
+#[derive(Debug, Clone)]
+pub struct Prepared {
+    pub robot: Robot,
+    pub t: Vec<f64>,
+    pub wheels: Vec<WheelData>,
+    pub poses: PoseSamples,
+    /// Leg angles per row (wheeled-legged robots).
+    pub legs: Option<(Vec<f64>, Vec<f64>)>,
+    /// Share of the weight on driven wheels per row (1 for robots whose wheels all drive).
+    pub driven_share: Vec<f64>,
+    /// Measured pose, lightly smoothed and interpolated to every row (held before the
+    /// first and after the last sample): where the robot is on the floor, for
+    /// floor-fixed effects.
+    pub pose_at_row: Vec<(f64, f64, f64)>,
+    /// Cosine and sine of that pose's heading.
+    pub heading_cs_at_row: Vec<(f64, f64)>,
+}
+
+/// Unwraps a heading series so consecutive samples differ by less than pi.
+pub fn unwrap_angles(theta: &mut [f64]) {
+    let mut offset = 0.0;
+    for i in 1..theta.len() {
+        let raw_prev = theta[i - 1] - offset;
+        let d = theta[i] - raw_prev;
+        if d > PI {
+            offset -= TAU * ((d + PI) / TAU).floor();
+        } else if d < -PI {
+            offset += TAU * ((-d + PI) / TAU).floor();
+        }
+        theta[i] += offset;
+    }
+}
+
+fn fill<T: Copy>(cells: &[Option<T>], default: T) -> Option<Vec<T>> {
+    let first = cells.iter().find_map(|c| *c)?;
+    let mut last = first;
+    let _ = default;
+    Some(
+        cells
+            .iter()
+            .map(|c| {
+                if let Some(v) = c {
+                    last = *v;
+                }
+                last
+            })
+            .collect(),
+    )
+}
+
+impl Prepared {
+    /// Builds the dense series. Never fails on a recording calib-core accepted.
+    pub fn new(robot: &Robot, rec: &Recording) -> Prepared {
+        let rad_per_count = robot.drive.rad_per_count().unwrap_or(0.0);
+        let wheels = robot
+            .wheels
+            .iter()
+            .enumerate()
+            .map(|(i, w)| {
+                let series = rec.wheels.get(i);
+                let enc_rad = if rad_per_count > 0.0 {
+                    series
+                        .and_then(|s| s.enc.as_ref())
+                        .and_then(|e| fill(e, 0))
+                        .map(|counts| {
+                            let c0 = counts[0];
+                            counts
+                                .iter()
+                                .map(|c| (c - c0) as f64 * rad_per_count)
+                                .collect()
+                        })
+                } else {
+                    None
+                };
+                let cmd = series
+                    .and_then(|s| s.cmd.as_ref())
+                    .and_then(|c| fill(c, 0.0));
+                WheelData {
+                    name: w.name.to_string(),
+                    radius_m: w.radius_m,
+                    driven: w.driven,
+                    enc_rad,
+                    cmd,
+                    rad_per_count,
+                }
+            })
+            .collect();
+        let mut poses = PoseSamples::default();
+        for (i, x, y, th) in rec.pose_rows() {
+            poses.row.push(i);
+            poses.x.push(x);
+            poses.y.push(y);
+            poses.theta.push(th);
+        }
+        unwrap_angles(&mut poses.theta);
+        let legs = if robot.kind == RobotKind::WheeledLegged {
+            let half_pi = std::f64::consts::FRAC_PI_2;
+            let f = rec
+                .leg_front
+                .as_ref()
+                .and_then(|v| fill(v, half_pi))
+                .unwrap_or_else(|| vec![half_pi; rec.len()]);
+            let r = rec
+                .leg_rear
+                .as_ref()
+                .and_then(|v| fill(v, half_pi))
+                .unwrap_or_else(|| vec![half_pi; rec.len()]);
+            Some((f, r))
+        } else {
+            None
+        };
+        let driven_share = driven_share(robot, legs.as_ref(), rec.len());
+        let pose_at_row = interpolate_poses(&rec.t, &poses);
+        let heading_cs_at_row = pose_at_row
+            .iter()
+            .map(|p| {
+                let (s, c) = p.2.sin_cos();
+                (c, s)
+            })
+            .collect();
+        Prepared {
+            pose_at_row,
+            heading_cs_at_row,
+            robot: robot.clone(),
+            t: rec.t.clone(),
+            wheels,
+            poses,
+            legs,
+            driven_share,
+        }
+    }
+
+    pub fn rows(&self) -> usize {
+        self.t.len()
+    }
+
+    /// Wheel positions (x, y) in the body frame at row `k` (legs move wheeled-legged
+    /// contacts along x).
+    pub fn leg_angles(&self, k: usize) -> Option<(f64, f64)> {
+        self.legs.as_ref().map(|(f, r)| (f[k], r[k]))
+    }
+
+    /// True when at least one wheel has both a command and an encoder.
+    pub fn has_actuator_stage(&self) -> bool {
+        self.wheels
+            .iter()
+            .any(|w| w.cmd.is_some() && w.enc_rad.is_some())
+    }
+
+    /// True when some wheel has a command (actuator effects can act on something).
+    pub fn has_commands(&self) -> bool {
+        self.wheels.iter().any(|w| w.cmd.is_some())
+    }
+}
+
+fn interpolate_poses(t: &[f64], ps: &PoseSamples) -> Vec<(f64, f64, f64)> {
+    let n = t.len();
+    if ps.is_empty() {
+        return vec![(0.0, 0.0, 0.0); n];
+    }
+    // Smooth over five samples: vision noise would otherwise make a wheel standing on a
+    // cable line seem to cross it back and forth.
+    let m = ps.len();
+    let avg = |v: &[f64], j: usize| -> f64 {
+        let (a, b) = (j.saturating_sub(2), (j + 3).min(m));
+        v[a..b].iter().sum::<f64>() / (b - a) as f64
+    };
+    let sx: Vec<f64> = (0..m).map(|j| avg(&ps.x, j)).collect();
+    let sy: Vec<f64> = (0..m).map(|j| avg(&ps.y, j)).collect();
+    let sth: Vec<f64> = (0..m).map(|j| avg(&ps.theta, j)).collect();
+    let ps = &PoseSamples {
+        row: ps.row.clone(),
+        x: sx,
+        y: sy,
+        theta: sth,
+    };
+    let mut out = Vec::with_capacity(n);
+    let mut j = 0;
+    for k in 0..n {
+        while j + 1 < ps.len() && ps.row[j + 1] <= k {
+            j += 1;
+        }
+        let (r0, r1) = (ps.row[j], ps.row[(j + 1).min(ps.len() - 1)]);
+        if k <= r0 || r1 <= r0 {
+            out.push((ps.x[j], ps.y[j], ps.theta[j]));
+        } else {
+            let j1 = j + 1;
+            let f = (t[k] - t[r0]) / (t[r1] - t[r0]);
+            let lerp = |a: f64, b: f64| a + (b - a) * f;
+            out.push((
+                lerp(ps.x[j], ps.x[j1]),
+                lerp(ps.y[j], ps.y[j1]),
+                lerp(ps.theta[j], ps.theta[j1]),
+            ));
+        }
+    }
+    out
+}
+
+/// Share of the weight carried by driven wheels. Wheeled-legged: by moment balance from
+/// the leg angles (front pair driven); otherwise each wheel carries an equal share.
+fn driven_share(robot: &Robot, legs: Option<&(Vec<f64>, Vec<f64>)>, n: usize) -> Vec<f64> {
+    let driven = robot.wheels.iter().filter(|w| w.driven).count();
+    let equal = driven as f64 / robot.wheels.len().max(1) as f64;
+    match (legs, &robot.legs) {
+        (Some((f, r)), Some(geom)) => {
+            // Which pair is driven: the wheels ahead of the origin or behind it.
+            let front_driven = robot
+                .wheels
+                .iter()
+                .filter(|w| w.position().0 > 0.0)
+                .any(|w| w.driven);
+            let rear_driven = robot
+                .wheels
+                .iter()
+                .filter(|w| w.position().0 <= 0.0)
+                .any(|w| w.driven);
+            (0..n)
+                .map(|k| {
+                    let front = geom.front_load_share(f[k], r[k]).unwrap_or(0.5);
+                    match (front_driven, rear_driven) {
+                        (true, true) => 1.0,
+                        (true, false) => front,
+                        (false, true) => 1.0 - front,
+                        (false, false) => 0.0,
+                    }
+                })
+                .collect()
+        }
+        _ => vec![equal; n],
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn unwrap_handles_wrapped_and_multi_turn() {
+        let mut th = vec![3.0, -3.0, -2.0, 3.1, -3.1];
+        unwrap_angles(&mut th);
+        assert!((th[1] - (TAU - 3.0)).abs() < 1e-12);
+        assert!((th[2] - (TAU - 2.0)).abs() < 1e-12);
+        // -2 -> 3.1 is a step of 5.1 > pi: taken as -1.18.
+        assert!((th[3] - (3.1)).abs() < 1e-12);
+        assert!((th[4] - (TAU - 3.1)).abs() < 1e-12);
+    }
+}

@@ -1,0 +1,191 @@
+//! The diagnosis as data: serialised for `--json` (formats.md §4 field names), printed
+//! as a human summary, and applied to a robot file for `--write-robot`.
+
+use crate::effects::{Model, Stage};
+use crate::residuals::Noise;
+use crate::select::Candidate;
+use crate::windows::Window;
+use calib_core::robot::Robot;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt;
+use std::path::Path;
+
+/// One named effect with its fitted parameters.
+#[derive(Debug, Clone, Serialize)]
+pub struct Finding {
+    /// Catalogue id.
+    pub effect: String,
+    pub stage: Stage,
+    pub parameters: BTreeMap<String, f64>,
+    /// One standard deviation per parameter (from the Jacobian); `null` when the data
+    /// do not constrain it.
+    pub uncertainties: BTreeMap<String, Option<f64>>,
+    /// RMSE of the effect's stage before and after adding it (ground: position error;
+    /// actuator: wheel-surface error, encoder angle times radius).
+    pub rmse_before_m: f64,
+    pub rmse_after_m: f64,
+    /// Information-criterion change when added (negative favours the effect).
+    pub delta_bic: f64,
+    /// Held-out sum of squares with the effect over without it.
+    pub heldout_ratio: f64,
+}
+
+/// Series kept for plots (not serialised).
+#[derive(Debug, Clone, Default)]
+pub struct PlotData {
+    pub pose_t: Vec<f64>,
+    pub measured: Vec<(f64, f64)>,
+    pub nominal: Vec<(f64, f64)>,
+    pub fitted: Vec<(f64, f64)>,
+    pub err_nominal: Vec<f64>,
+    pub err_fitted: Vec<f64>,
+    pub heading_nominal: Vec<f64>,
+    pub heading_fitted: Vec<f64>,
+    pub act_t: Vec<f64>,
+    /// (wheel name, nominal error, fitted error) in m.
+    pub act: Vec<(String, Vec<f64>, Vec<f64>)>,
+}
+
+/// The whole diagnosis.
+#[derive(Debug, Clone, Serialize)]
+pub struct Report {
+    pub robot: String,
+    pub rows: usize,
+    pub pose_samples: usize,
+    pub duration_s: f64,
+    /// A catalogue id, `none` or `unexplained`.
+    pub verdict: String,
+    pub findings: Vec<Finding>,
+    pub windows: Vec<Window>,
+    /// Ground-stage position RMSE of the nominal and the final model, m.
+    pub rmse_nominal_m: f64,
+    pub rmse_final_m: f64,
+    pub heading_rmse_nominal_rad: f64,
+    pub heading_rmse_final_rad: f64,
+    /// Actuator-stage RMSE (when commands and encoders exist), m at the wheel surface.
+    pub actuator_rmse_nominal_m: Option<f64>,
+    pub actuator_rmse_final_m: Option<f64>,
+    pub noise: Noise,
+    /// Fraction of the residual beyond the noise that the findings explain (0..1).
+    pub explained_fraction: f64,
+    /// Estimated start pose (x, y, theta) of the final model.
+    pub start_pose: [f64; 3],
+    /// Every effect tried, for transparency.
+    pub candidates: Vec<Candidate>,
+    pub notes: Vec<String>,
+    /// How many times each stage's model was run (cost of the diagnosis).
+    pub model_runs_ground: usize,
+    pub model_runs_actuator: usize,
+    #[serde(skip)]
+    pub model: Model,
+    #[serde(skip)]
+    pub plot: PlotData,
+}
+
+impl Report {
+    /// The JSON object for `--json`.
+    pub fn to_json(&self) -> String {
+        serde_json::to_string_pretty(self).unwrap_or_else(|e| format!("{{\"error\":\"{e}\"}}"))
+    }
+
+    /// The robot with the fitted geometry (radii, wheel distances) applied.
+    pub fn fitted_robot(&self, robot: &Robot) -> Robot {
+        self.model.apply_geometry(robot)
+    }
+}
+
+/// Writes `robot` with the report's fitted geometry applied as formats.md §1 TOML.
+pub fn write_robot(robot: &Robot, report: &Report, out: &Path) -> std::io::Result<()> {
+    let fitted = report.fitted_robot(robot);
+    let mut text = format!(
+        "# {} with geometry fitted by wheelcal diagnose (verdict: {})\n",
+        robot.name, report.verdict
+    );
+    text.push_str(&calib_core::robot_file::to_toml(&fitted));
+    std::fs::write(out, text)
+}
+
+fn fmt_param(v: f64, s: Option<f64>) -> String {
+    match s {
+        Some(s) if s.is_finite() => format!("{v:.6} ± {s:.2e}"),
+        _ => format!("{v:.6} (unconstrained)"),
+    }
+}
+
+impl fmt::Display for Report {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "diagnose {}: {} rows, {} pose samples, {:.1} s",
+            self.robot, self.rows, self.pose_samples, self.duration_s
+        )?;
+        writeln!(f, "verdict: {}", self.verdict)?;
+        writeln!(
+            f,
+            "ground RMSE: {:.2} mm nominal -> {:.2} mm fitted (noise {:.2} mm, {:.4} rad)",
+            self.rmse_nominal_m * 1e3,
+            self.rmse_final_m * 1e3,
+            self.noise.pose_sigma_m * 1e3,
+            self.noise.heading_sigma_rad
+        )?;
+        if let (Some(a), Some(b)) = (self.actuator_rmse_nominal_m, self.actuator_rmse_final_m) {
+            writeln!(
+                f,
+                "actuator RMSE: {:.3} mm nominal -> {:.3} mm fitted (noise {:.3} mm)",
+                a * 1e3,
+                b * 1e3,
+                self.noise.actuator_sigma_m * 1e3
+            )?;
+        }
+        if self.findings.is_empty() {
+            writeln!(f, "findings: none")?;
+        }
+        for (i, x) in self.findings.iter().enumerate() {
+            writeln!(
+                f,
+                "{}. {} ({} stage): RMSE {:.3} -> {:.3} mm, dBIC {:.0}, held-out ratio {:.3}",
+                i + 1,
+                x.effect,
+                x.stage,
+                x.rmse_before_m * 1e3,
+                x.rmse_after_m * 1e3,
+                x.delta_bic,
+                x.heldout_ratio
+            )?;
+            for (name, v) in &x.parameters {
+                let s = x.uncertainties.get(name).copied().flatten();
+                writeln!(f, "     {name} = {}", fmt_param(*v, s))?;
+            }
+        }
+        writeln!(f, "windows: {}", self.windows.len())?;
+        for w in self.windows.iter().take(20) {
+            writeln!(
+                f,
+                "  {:8.2} .. {:8.2} s  {:8} {:12} {:12} {:5.1} sigma{}{}",
+                w.t_start_s,
+                w.t_end_s,
+                w.stage.as_str(),
+                w.axis.as_str(),
+                w.wheel.as_deref().unwrap_or("-"),
+                w.peak_sigma,
+                if w.explained_by_fit {
+                    ", explained"
+                } else {
+                    ""
+                },
+                w.related_signal
+                    .as_deref()
+                    .map(|s| format!(", with high {s}"))
+                    .unwrap_or_default()
+            )?;
+        }
+        if self.windows.len() > 20 {
+            writeln!(f, "  ... {} more", self.windows.len() - 20)?;
+        }
+        for n in &self.notes {
+            writeln!(f, "note: {n}")?;
+        }
+        Ok(())
+    }
+}

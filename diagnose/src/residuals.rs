@@ -1,0 +1,456 @@
+//! Residuals of a model against the recording, in both stages, with the nuisance
+//! parameters solved in closed form for every evaluation (variable projection):
+//! - ground: the start pose (x0, y0, theta0) that best lays the predicted path onto the
+//!   measured poses, because the first pose sample is as noisy as the others;
+//! - actuator: each encoder's offset (encoders start anywhere, and backlash leaves the
+//!   wheel anywhere inside its play).
+//!
+//! The noise of each stage is estimated from the data (robust spread of residual
+//! increments), so residuals can be weighed against each other and against the noise.
+
+use crate::actuator::{simulate_wheel, ActuatorParams};
+use crate::effects::{Effect, Model, Stage};
+use crate::ground::{simulate, Path};
+use crate::replay::Prepared;
+use std::cell::RefCell;
+use std::rc::Rc;
+
+/// Simulated angle series per wheel (`None` for wheels without commands), shared.
+type WheelAngles = Rc<Vec<Option<Vec<f64>>>>;
+
+/// Which samples take part: all, or alternate time blocks (for held-out validation).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Fold {
+    All,
+    Even,
+    Odd,
+}
+
+impl Fold {
+    fn contains(self, block: u8) -> bool {
+        match self {
+            Fold::All => true,
+            Fold::Even => block == 0,
+            Fold::Odd => block == 1,
+        }
+    }
+
+    pub fn other(self) -> Fold {
+        match self {
+            Fold::All => Fold::All,
+            Fold::Even => Fold::Odd,
+            Fold::Odd => Fold::Even,
+        }
+    }
+}
+
+/// Noise levels (one standard deviation) estimated from the nominal residuals.
+#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
+pub struct Noise {
+    pub pose_sigma_m: f64,
+    pub heading_sigma_rad: f64,
+    /// Wheel-surface noise of the actuator stage (encoder angle times radius).
+    pub actuator_sigma_m: f64,
+}
+
+/// The result of evaluating one model.
+#[derive(Debug, Clone, Default)]
+pub struct Eval {
+    /// Position and heading error (measured - predicted) per pose sample.
+    pub ex: Vec<f64>,
+    pub ey: Vec<f64>,
+    pub eth: Vec<f64>,
+    /// Fitted start pose.
+    pub start: (f64, f64, f64),
+    /// Per actuator-compared wheel: (wheel index, error in m per compared row).
+    pub act: Vec<(usize, Vec<f64>)>,
+}
+
+/// Sums of squares per stage over a fold.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct StageRss {
+    /// Sum of ex^2 + ey^2 (m^2) and the number of pose samples.
+    pub pos: f64,
+    pub heading: f64,
+    pub n_pose: usize,
+    /// Sum of actuator errors squared (m^2) and their number.
+    pub act: f64,
+    pub n_act: usize,
+}
+
+impl StageRss {
+    pub fn ground_rmse(&self) -> f64 {
+        (self.pos / self.n_pose.max(1) as f64).sqrt()
+    }
+
+    pub fn actuator_rmse(&self) -> f64 {
+        (self.act / self.n_act.max(1) as f64).sqrt()
+    }
+}
+
+/// Evaluates models against one prepared recording, caching each stage's simulation.
+pub struct Evaluator<'a> {
+    pub p: &'a Prepared,
+    pub noise: Noise,
+    /// Rows compared in the actuator stage (decimated: the residual is an integrated
+    /// angle, so neighbouring rows add little information but cost time).
+    pub act_rows: Vec<usize>,
+    pose_block: Vec<u8>,
+    act_block: Vec<u8>,
+    act_cache: RefCell<Option<(Vec<f64>, WheelAngles)>>,
+    /// Model runs so far (ground, actuator), for the report and the benchmark.
+    pub runs: std::cell::Cell<(usize, usize)>,
+    ground_cache: RefCell<Option<(Vec<f64>, Rc<Path>)>>,
+}
+
+/// Most rows per wheel compared in the actuator stage.
+const MAX_ACT_ROWS: usize = 6000;
+/// Number of alternating time blocks for held-out validation.
+const BLOCKS: f64 = 10.0;
+
+fn key(m: &Model, stage: Stage, with_actuator: bool) -> Vec<f64> {
+    let mut k = Vec::new();
+    for e in Effect::ALL {
+        if e.stage() == stage || (with_actuator && e.stage() == Stage::Actuator) {
+            match m.get(e) {
+                Some(p) => {
+                    k.push(e as u8 as f64);
+                    k.extend_from_slice(p);
+                }
+                None => k.push(-1.0),
+            }
+        }
+    }
+    k
+}
+
+impl<'a> Evaluator<'a> {
+    pub fn new(p: &'a Prepared) -> Self {
+        let mut ev = Self::with_noise(
+            p,
+            Noise {
+                pose_sigma_m: 1.0,
+                heading_sigma_rad: 1.0,
+                actuator_sigma_m: 1.0,
+            },
+        );
+        let nominal = ev.evaluate(&Model::default(), Fold::All);
+        ev.noise = estimate_noise(p, &nominal);
+        ev
+    }
+
+    /// An evaluator with given noise levels and empty caches (one per worker thread).
+    pub fn with_noise(p: &'a Prepared, noise: Noise) -> Self {
+        let n = p.rows();
+        let step = n.div_ceil(MAX_ACT_ROWS).max(1);
+        let act_rows: Vec<usize> = (0..n).step_by(step).collect();
+        let (t0, t1) = (
+            p.t.first().copied().unwrap_or(0.0),
+            p.t.last().copied().unwrap_or(0.0),
+        );
+        let block_len = ((t1 - t0) / BLOCKS).max(1e-9);
+        let block = |row: usize| (((p.t[row] - t0) / block_len).floor() as i64 % 2) as u8;
+        let pose_block = p.poses.row.iter().map(|&r| block(r)).collect();
+        let act_block = act_rows.iter().map(|&r| block(r)).collect();
+        Evaluator {
+            p,
+            noise,
+            act_rows,
+            pose_block,
+            act_block,
+            act_cache: RefCell::new(None),
+            runs: std::cell::Cell::new((0, 0)),
+            ground_cache: RefCell::new(None),
+        }
+    }
+
+    /// Wheels compared in the actuator stage.
+    pub fn actuator_wheels(&self) -> Vec<usize> {
+        self.p
+            .wheels
+            .iter()
+            .enumerate()
+            .filter(|(_, w)| w.cmd.is_some() && w.enc_rad.is_some())
+            .map(|(i, _)| i)
+            .collect()
+    }
+
+    /// True when the ground stage depends on the actuator model (a wheel without encoder
+    /// is driven by its commands).
+    pub fn ground_uses_actuator(&self) -> bool {
+        self.p
+            .wheels
+            .iter()
+            .any(|w| w.enc_rad.is_none() && w.cmd.is_some())
+    }
+
+    fn actuator_angles(&self, m: &Model) -> WheelAngles {
+        let k = key(m, Stage::Actuator, false);
+        if let Some((ck, v)) = &*self.act_cache.borrow() {
+            if *ck == k {
+                return Rc::clone(v);
+            }
+        }
+        let (g, a) = self.runs.get();
+        self.runs.set((g, a + 1));
+        let params = ActuatorParams::from_model(m);
+        let v: Vec<Option<Vec<f64>>> = self
+            .p
+            .wheels
+            .iter()
+            .map(|w| {
+                w.cmd.as_ref().map(|c| {
+                    let mut out = Vec::new();
+                    simulate_wheel(&self.p.t, c, &params, &mut out);
+                    out
+                })
+            })
+            .collect();
+        let v = Rc::new(v);
+        *self.act_cache.borrow_mut() = Some((k, Rc::clone(&v)));
+        v
+    }
+
+    /// The predicted path of a model (origin start).
+    pub fn path(&self, m: &Model) -> Rc<Path> {
+        let uses_act = self.ground_uses_actuator();
+        let k = key(m, Stage::Ground, uses_act);
+        if let Some((ck, path)) = &*self.ground_cache.borrow() {
+            if *ck == k {
+                return Rc::clone(path);
+            }
+        }
+        let act = if uses_act {
+            self.actuator_angles(m)
+        } else {
+            Rc::new(vec![None; self.p.wheels.len()])
+        };
+        let angles: Vec<Option<&[f64]>> = self
+            .p
+            .wheels
+            .iter()
+            .zip(act.iter())
+            .map(|(w, a)| w.enc_rad.as_deref().or(a.as_deref()))
+            .collect();
+        let (g, a) = self.runs.get();
+        self.runs.set((g + 1, a));
+        let mut path = Path::default();
+        simulate(self.p, &angles, m, &mut path);
+        let path = Rc::new(path);
+        *self.ground_cache.borrow_mut() = Some((k, Rc::clone(&path)));
+        path
+    }
+
+    /// Residuals of a model with the nuisance parameters fitted on `fit`.
+    pub fn evaluate(&self, m: &Model, fit: Fold) -> Eval {
+        let path = self.path(m);
+        let mut ev = Eval::default();
+        self.ground_residuals(&path, fit, &mut ev);
+        let wheels = self.actuator_wheels();
+        if !wheels.is_empty() {
+            let sim = self.actuator_angles(m);
+            for i in wheels {
+                let (Some(enc), Some(model)) = (&self.p.wheels[i].enc_rad, &sim[i]) else {
+                    continue;
+                };
+                let r = self.p.wheels[i].radius_m;
+                let mut e: Vec<f64> = self
+                    .act_rows
+                    .iter()
+                    .map(|&k| (enc[k] - model[k]) * r)
+                    .collect();
+                let (mut s, mut c) = (0.0, 0usize);
+                for (j, v) in e.iter().enumerate() {
+                    if fit.contains(self.act_block[j]) {
+                        s += v;
+                        c += 1;
+                    }
+                }
+                let off = if c > 0 { s / c as f64 } else { 0.0 };
+                e.iter_mut().for_each(|v| *v -= off);
+                ev.act.push((i, e));
+            }
+        }
+        ev
+    }
+
+    fn ground_residuals(&self, path: &Path, fit: Fold, ev: &mut Eval) {
+        let ps = &self.p.poses;
+        let n = ps.len();
+        let px: Vec<f64> = ps.row.iter().map(|&r| path.x[r]).collect();
+        let py: Vec<f64> = ps.row.iter().map(|&r| path.y[r]).collect();
+        let pth: Vec<f64> = ps.row.iter().map(|&r| path.theta[r]).collect();
+        let use_k = |k: usize| fit.contains(self.pose_block[k]);
+        let wp = 1.0 / self.noise.pose_sigma_m.powi(2);
+        let wt = 1.0 / self.noise.heading_sigma_rad.powi(2);
+        // Centroids over the fit samples.
+        let (mut cpx, mut cpy, mut cmx, mut cmy, mut dth, mut cnt) = (0.0, 0.0, 0.0, 0.0, 0.0, 0.0);
+        for k in (0..n).filter(|&k| use_k(k)) {
+            cpx += px[k];
+            cpy += py[k];
+            cmx += ps.x[k];
+            cmy += ps.y[k];
+            dth += ps.theta[k] - pth[k];
+            cnt += 1.0;
+        }
+        let th0 = if cnt > 0.0 {
+            cpx /= cnt;
+            cpy /= cnt;
+            cmx /= cnt;
+            cmy /= cnt;
+            dth /= cnt;
+            let (mut sdot, mut scross) = (0.0, 0.0);
+            for k in (0..n).filter(|&k| use_k(k)) {
+                let (ax, ay) = (px[k] - cpx, py[k] - cpy);
+                let (bx, by) = (ps.x[k] - cmx, ps.y[k] - cmy);
+                sdot += ax * bx + ay * by;
+                scross += ax * by - ay * bx;
+            }
+            // Minimise -2 wp (sdot cos + scross sin) + wt sum (th0 - dth_k)^2 by Newton
+            // from the heading offset; a handful of steps converge.
+            let mut th = dth;
+            for _ in 0..8 {
+                let (s, c) = th.sin_cos();
+                let g = 2.0 * wp * (sdot * s - scross * c) + 2.0 * wt * cnt * (th - dth);
+                let h = 2.0 * wp * (sdot * c + scross * s) + 2.0 * wt * cnt;
+                if h <= 0.0 || !h.is_finite() {
+                    break;
+                }
+                let step = (g / h).clamp(-0.5, 0.5);
+                th -= step;
+                if step.abs() < 1e-12 {
+                    break;
+                }
+            }
+            th
+        } else {
+            0.0
+        };
+        let (s, c) = th0.sin_cos();
+        let (x0, y0) = (cmx - (c * cpx - s * cpy), cmy - (s * cpx + c * cpy));
+        ev.start = (x0, y0, th0);
+        ev.ex.clear();
+        ev.ey.clear();
+        ev.eth.clear();
+        for k in 0..n {
+            let wx = x0 + c * px[k] - s * py[k];
+            let wy = y0 + s * px[k] + c * py[k];
+            ev.ex.push(ps.x[k] - wx);
+            ev.ey.push(ps.y[k] - wy);
+            ev.eth.push(ps.theta[k] - (pth[k] + th0));
+        }
+    }
+
+    /// Sums of squares over a fold.
+    pub fn rss(&self, ev: &Eval, fold: Fold) -> StageRss {
+        let mut r = StageRss::default();
+        for k in 0..ev.ex.len() {
+            if fold.contains(self.pose_block[k]) {
+                r.pos += ev.ex[k].powi(2) + ev.ey[k].powi(2);
+                r.heading += ev.eth[k].powi(2);
+                r.n_pose += 1;
+            }
+        }
+        for (_, e) in &ev.act {
+            for (j, v) in e.iter().enumerate() {
+                if fold.contains(self.act_block[j]) {
+                    r.act += v * v;
+                    r.n_act += 1;
+                }
+            }
+        }
+        r
+    }
+
+    /// Noise-weighted residual vector over a fold (what the optimiser minimises).
+    pub fn weighted(&self, ev: &Eval, fold: Fold, out: &mut Vec<f64>) {
+        out.clear();
+        let (sp, st, sa) = (
+            self.noise.pose_sigma_m,
+            self.noise.heading_sigma_rad,
+            self.noise.actuator_sigma_m,
+        );
+        for k in 0..ev.ex.len() {
+            if fold.contains(self.pose_block[k]) {
+                out.push(ev.ex[k] / sp);
+                out.push(ev.ey[k] / sp);
+                out.push(ev.eth[k] / st);
+            }
+        }
+        for (_, e) in &ev.act {
+            for (j, v) in e.iter().enumerate() {
+                if fold.contains(self.act_block[j]) {
+                    out.push(v / sa);
+                }
+            }
+        }
+    }
+
+    /// Chi-square of one stage over a fold (noise-weighted sum of squares).
+    pub fn chi2(&self, rss: &StageRss, stage: Stage) -> f64 {
+        match stage {
+            Stage::Ground => {
+                rss.pos / self.noise.pose_sigma_m.powi(2)
+                    + rss.heading / self.noise.heading_sigma_rad.powi(2)
+            }
+            Stage::Actuator => rss.act / self.noise.actuator_sigma_m.powi(2),
+        }
+    }
+
+    /// Lag-1 autocorrelation of a stage's residuals: near 0 for white noise, near 1 for
+    /// drift a model has not explained. Used to discount the sample count.
+    pub fn autocorrelation(&self, ev: &Eval, stage: Stage) -> f64 {
+        let series: Vec<&[f64]> = match stage {
+            Stage::Ground => vec![&ev.ex, &ev.ey, &ev.eth],
+            Stage::Actuator => ev.act.iter().map(|(_, e)| e.as_slice()).collect(),
+        };
+        let (mut num, mut den) = (0.0, 0.0);
+        for s in series {
+            for w in s.windows(2) {
+                num += w[0] * w[1];
+                den += w[0] * w[0];
+            }
+        }
+        if den > 0.0 {
+            (num / den).clamp(0.0, 0.999)
+        } else {
+            0.0
+        }
+    }
+}
+
+/// Robust standard deviation: 1.4826 * median absolute deviation from the median.
+pub fn robust_sigma(v: &mut [f64]) -> f64 {
+    if v.is_empty() {
+        return 0.0;
+    }
+    v.sort_by(|a, b| a.total_cmp(b));
+    let med = v[v.len() / 2];
+    let mut dev: Vec<f64> = v.iter().map(|x| (x - med).abs()).collect();
+    dev.sort_by(|a, b| a.total_cmp(b));
+    1.4826 * dev[dev.len() / 2]
+}
+
+/// Noise from the increments of the nominal residual between consecutive samples: white
+/// measurement noise of sigma gives increments of sigma * sqrt(2), while model drift
+/// changes little from one sample to the next.
+fn estimate_noise(p: &Prepared, nominal: &Eval) -> Noise {
+    let diffs = |v: &[f64]| -> Vec<f64> { v.windows(2).map(|w| w[1] - w[0]).collect() };
+    let mut pos = diffs(&nominal.ex);
+    pos.extend(diffs(&nominal.ey));
+    let pose_sigma_m = (robust_sigma(&mut pos) / 2f64.sqrt()).max(1e-5);
+    let heading_sigma_rad = (robust_sigma(&mut diffs(&nominal.eth)) / 2f64.sqrt()).max(1e-5);
+    let mut act = Vec::new();
+    let mut quant: f64 = 1e-7;
+    for (i, e) in &nominal.act {
+        act.extend(diffs(e));
+        let w = &p.wheels[*i];
+        quant = quant.max(w.rad_per_count * w.radius_m / 12f64.sqrt());
+    }
+    let actuator_sigma_m = (robust_sigma(&mut act) / 2f64.sqrt()).max(quant);
+    Noise {
+        pose_sigma_m,
+        heading_sigma_rad,
+        actuator_sigma_m,
+    }
+}

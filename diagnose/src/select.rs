@@ -1,0 +1,436 @@
+//! Greedy forward selection of catalogue effects.
+//!
+//! Each round fits every remaining effect on top of the model so far, takes the one with
+//! the best information criterion, and keeps it only if it also predicts held-out data
+//! (fit on alternate time blocks, validated on the others) and improves the fit by a
+//! practically visible amount. The chosen effects are then refitted jointly.
+//!
+//! The BIC's sample count is discounted by the residuals' lag-1 autocorrelation: odometry
+//! residuals drift, and counting every sample of a drift as independent evidence would
+//! let any effect that bends the drift a little look significant.
+
+use crate::effects::{Effect, Model, ParamSpec, Stage};
+use crate::fit::levenberg_marquardt;
+use crate::residuals::{Eval, Evaluator, Fold, StageRss};
+use serde::Serialize;
+
+/// Accept an effect only if the BIC drops by more than this ("very strong" evidence on
+/// Kass and Raftery's scale).
+pub const BIC_THRESHOLD: f64 = -10.0;
+/// Held-out sum of squares must drop by at least this fraction.
+pub const HELDOUT_MIN_GAIN: f64 = 0.02;
+/// The effect's stage RMSE must drop by at least this fraction.
+pub const RMSE_MIN_GAIN: f64 = 0.03;
+/// Most effects selected.
+pub const MAX_EFFECTS: usize = 3;
+
+/// A fitted candidate: effect, model with it, uncertainties, residuals, BIC change.
+type Tried = (Effect, Model, Vec<Vec<f64>>, Eval, f64);
+
+/// One effect tried in one round.
+#[derive(Debug, Clone, Serialize)]
+pub struct Candidate {
+    pub round: usize,
+    pub effect: Effect,
+    pub parameters: Vec<(String, f64)>,
+    pub delta_bic: f64,
+    /// Held-out sum of squares with the effect over without it (only computed for the
+    /// round's best candidate).
+    pub heldout_ratio: Option<f64>,
+    pub accepted: bool,
+    pub note: String,
+}
+
+/// An accepted effect, in the order chosen.
+#[derive(Debug, Clone)]
+pub struct Step {
+    pub effect: Effect,
+    pub delta_bic: f64,
+    pub heldout_ratio: f64,
+    pub before: StageRss,
+    pub after: StageRss,
+}
+
+/// The result of selection.
+#[derive(Debug, Clone)]
+pub struct Selection {
+    pub model: Model,
+    /// 1-sigma uncertainty per effect parameter (value units), same order as `model`.
+    pub sigma: Vec<(Effect, Vec<f64>)>,
+    pub steps: Vec<Step>,
+    pub candidates: Vec<Candidate>,
+    pub nominal: StageRss,
+    pub final_rss: StageRss,
+    pub nominal_eval: Eval,
+    pub final_eval: Eval,
+}
+
+/// Which stage's data speak for an effect.
+pub fn evidence_stage(ev: &Evaluator, e: Effect) -> Stage {
+    if e.stage() == Stage::Actuator && !ev.actuator_wheels().is_empty() {
+        Stage::Actuator
+    } else {
+        Stage::Ground
+    }
+}
+
+fn stage_rmse(r: &StageRss, s: Stage) -> f64 {
+    match s {
+        Stage::Ground => r.ground_rmse(),
+        Stage::Actuator => r.actuator_rmse(),
+    }
+}
+
+/// Fits the parameters of `effects` (all others fixed as in `base`) on a fold.
+/// Returns the model and the 1-sigma uncertainties in value units.
+fn fit_params(
+    ev: &Evaluator,
+    base: &Model,
+    effects: &[Effect],
+    start: &[Vec<f64>],
+    fold: Fold,
+) -> (Model, Vec<Vec<f64>>, f64) {
+    let robot = &ev.p.robot;
+    let specs: Vec<Vec<ParamSpec>> = effects.iter().map(|e| e.params(robot)).collect();
+    let build = |u: &[f64]| -> Model {
+        let mut m = base.clone();
+        let mut i = 0;
+        for (e, sp) in effects.iter().zip(&specs) {
+            let vals = sp
+                .iter()
+                .map(|s| {
+                    i += 1;
+                    s.value(u[i - 1])
+                })
+                .collect();
+            m = m.with(*e, vals);
+        }
+        m
+    };
+    let mut buf = Vec::new();
+    let mut f = |u: &[f64]| -> Vec<f64> {
+        let m = build(u);
+        let e = ev.evaluate(&m, fold);
+        ev.weighted(&e, fold, &mut buf);
+        buf.clone()
+    };
+    let flat_specs: Vec<&ParamSpec> = specs.iter().flatten().collect();
+    let (lo, hi): (Vec<f64>, Vec<f64>) = flat_specs.iter().map(|s| s.bounds()).unzip();
+    // Starting grid (only for a single effect; joint refits start from the current values).
+    let mut best: Option<(Vec<f64>, f64)> = None;
+    for s in start {
+        let u: Vec<f64> = flat_specs
+            .iter()
+            .zip(s)
+            .map(|(sp, v)| sp.internal(*v))
+            .collect();
+        let c: f64 = f(&u).iter().map(|v| v * v).sum();
+        if c.is_finite() && best.as_ref().is_none_or(|b| c < b.1) {
+            best = Some((u, c));
+        }
+    }
+    // One-parameter threshold effects have piecewise-flat costs: zoom in on the best
+    // grid cell twice before the local optimiser takes over.
+    if flat_specs.len() == 1 && start.len() > 2 {
+        if let Some((bu, bc)) = best.clone() {
+            let grid_u: Vec<f64> = start.iter().map(|s| flat_specs[0].internal(s[0])).collect();
+            let (lo_u, hi_u) = grid_u
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), &u| {
+                    (a.min(u), b.max(u))
+                });
+            let mut half = (hi_u - lo_u) / (grid_u.len() - 1) as f64;
+            let (mut cu, mut cc) = (bu[0], bc);
+            for _ in 0..2 {
+                let centre = cu;
+                for i in 1..8 {
+                    let u = centre - half + 2.0 * half * i as f64 / 8.0;
+                    let c: f64 = f(&[u]).iter().map(|v| v * v).sum();
+                    if c.is_finite() && c < cc {
+                        (cu, cc) = (u, c);
+                    }
+                }
+                half /= 4.0;
+            }
+            best = Some((vec![cu], cc));
+        }
+    }
+    let u0 = best.map(|b| b.0).unwrap_or_else(|| {
+        flat_specs
+            .iter()
+            .map(|s| s.internal(s.null.clamp(s.min, s.max)))
+            .collect()
+    });
+    let r = levenberg_marquardt(&mut f, &u0, &lo, &hi, 20);
+    let model = build(&r.x);
+    let mut sig = Vec::new();
+    let mut i = 0;
+    for sp in &specs {
+        sig.push(
+            sp.iter()
+                .map(|s| {
+                    let v = s.value(r.x[i]);
+                    let su = r.sigma[i];
+                    i += 1;
+                    match s.scale {
+                        crate::effects::Scale::Linear => su,
+                        crate::effects::Scale::Log => v * su,
+                    }
+                })
+                .collect(),
+        );
+    }
+    (model, sig, r.cost)
+}
+
+/// Discounted BIC change of `cand` against `base` (negative favours `cand`).
+fn delta_bic(ev: &Evaluator, base: &Eval, cand: &Eval, k: usize, stage: Stage) -> f64 {
+    let (rb, rc) = (ev.rss(base, Fold::All), ev.rss(cand, Fold::All));
+    let mut total = 0.0;
+    let mut n_penalty = 1.0;
+    for s in [Stage::Ground, Stage::Actuator] {
+        let n = match s {
+            Stage::Ground => 3 * rc.n_pose,
+            Stage::Actuator => rc.n_act,
+        } as f64;
+        let (c0, c1) = (ev.chi2(&rb, s), ev.chi2(&rc, s));
+        if n < 1.0 || c0 <= 0.0 || c1 <= 0.0 {
+            continue;
+        }
+        let rho = ev.autocorrelation(cand, s);
+        let n_eff = (n * (1.0 - rho) / (1.0 + rho)).max(1.0);
+        if (c1 - c0).abs() > 1e-12 * c0 {
+            total += n_eff * (c1 / c0).ln();
+        }
+        if s == stage {
+            n_penalty = n_eff.max(2.0);
+        }
+    }
+    total + k as f64 * n_penalty.ln()
+}
+
+/// Runs the selection.
+pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
+    let robot = &ev.p.robot;
+    let has_cmd = ev.p.has_commands();
+    let mut model = Model::default();
+    let mut sigma: Vec<(Effect, Vec<f64>)> = Vec::new();
+    let nominal_eval = ev.evaluate(&model, Fold::All);
+    let nominal = ev.rss(&nominal_eval, Fold::All);
+    let mut base_eval = nominal_eval.clone();
+    let mut steps = Vec::new();
+    let mut candidates = Vec::new();
+    let mut rejected: Vec<Effect> = Vec::new();
+    let mut previous: Vec<(Effect, Vec<f64>)> = Vec::new();
+    for round in 0..max_effects {
+        let mut tried: Vec<Tried> = Vec::new();
+        // Later rounds start from the previous round's fit plus a thinned grid: the base
+        // model changed only by one effect.
+        let todo: Vec<(Effect, Vec<Vec<f64>>)> = Effect::ALL
+            .into_iter()
+            .filter(|&e| {
+                model.get(e).is_none() && !rejected.contains(&e) && e.applies(robot, has_cmd)
+            })
+            .map(|e| {
+                let grid = e.start_grid(robot);
+                let start = match previous.iter().find(|(x, _)| *x == e) {
+                    Some((_, p)) if grid.len() > 2 => {
+                        let mut s = vec![p.clone()];
+                        s.extend(grid.iter().step_by(3).cloned());
+                        s
+                    }
+                    Some((_, p)) => vec![p.clone()],
+                    None => grid,
+                };
+                (e, start)
+            })
+            .collect();
+        for (e, m, sig, cand_eval) in fit_candidates(ev, &model, &todo) {
+            if let Some(v) = m.get(e) {
+                previous.retain(|(x, _)| *x != e);
+                previous.push((e, v.to_vec()));
+            }
+            let k = e.params(robot).len();
+            let d = delta_bic(ev, &base_eval, &cand_eval, k, evidence_stage(ev, e));
+            candidates.push(Candidate {
+                round,
+                effect: e,
+                parameters: named(robot, e, m.get(e).unwrap_or(&[])),
+                delta_bic: d,
+                heldout_ratio: None,
+                accepted: false,
+                note: String::new(),
+            });
+            tried.push((e, m, sig, cand_eval, d));
+        }
+        tried.sort_by(|a, b| a.4.total_cmp(&b.4));
+        let mut accepted = false;
+        for (e, m, sig, cand_eval, d) in tried.into_iter().take(3) {
+            let idx = candidates
+                .iter()
+                .rposition(|c| c.round == round && c.effect == e)
+                .expect("recorded above");
+            if d > BIC_THRESHOLD {
+                candidates[idx].note = "BIC does not favour it".into();
+                break;
+            }
+            let stage = evidence_stage(ev, e);
+            let before = ev.rss(&base_eval, Fold::All);
+            let after = ev.rss(&cand_eval, Fold::All);
+            let gain = 1.0 - stage_rmse(&after, stage) / stage_rmse(&before, stage).max(1e-300);
+            let ratio = heldout_ratio(ev, &model, e, m.get(e).unwrap_or(&[]));
+            candidates[idx].heldout_ratio = Some(ratio);
+            if gain < RMSE_MIN_GAIN {
+                candidates[idx].note =
+                    format!("improves the {stage} RMSE by only {:.1} %", gain * 100.0);
+                rejected.push(e);
+                continue;
+            }
+            if ratio > 1.0 - HELDOUT_MIN_GAIN {
+                candidates[idx].note = "does not predict held-out data".into();
+                rejected.push(e);
+                continue;
+            }
+            candidates[idx].accepted = true;
+            // Joint refit of everything chosen so far.
+            // Joint refit of the new effect with those it interacts with: the same stage,
+            // or everything when some wheel's motion comes from the actuator model.
+            let coupled: Vec<Effect> = m
+                .effects
+                .iter()
+                .map(|(x, _)| *x)
+                .filter(|x| x.stage() == e.stage() || ev.ground_uses_actuator())
+                .collect();
+            let start: Vec<f64> = coupled
+                .iter()
+                .flat_map(|x| m.get(*x).unwrap_or(&[]).to_vec())
+                .collect();
+            let mut sigma_new = sigma.clone();
+            sigma_new.push((e, sig.into_iter().next().unwrap_or_default()));
+            let (model_new, eval_new) = if coupled.len() > 1 {
+                let (mj, sj, _) = fit_params(ev, &m, &coupled, &[start], Fold::All);
+                let joint_eval = ev.evaluate(&mj, Fold::All);
+                let (rj, ra) = (ev.rss(&joint_eval, Fold::All), after);
+                if ev.chi2(&rj, Stage::Ground) + ev.chi2(&rj, Stage::Actuator)
+                    <= ev.chi2(&ra, Stage::Ground) + ev.chi2(&ra, Stage::Actuator)
+                {
+                    for (x, sx) in coupled.iter().zip(sj) {
+                        sigma_new.retain(|(y, _)| y != x);
+                        sigma_new.push((*x, sx));
+                    }
+                    (mj, joint_eval)
+                } else {
+                    (m, cand_eval)
+                }
+            } else {
+                (m, cand_eval)
+            };
+            sigma = sigma_new;
+            steps.push(Step {
+                effect: e,
+                delta_bic: d,
+                heldout_ratio: ratio,
+                before,
+                after: ev.rss(&eval_new, Fold::All),
+            });
+            model = model_new;
+            base_eval = eval_new;
+            accepted = true;
+            break;
+        }
+        if !accepted {
+            break;
+        }
+    }
+    let final_rss = ev.rss(&base_eval, Fold::All);
+    Selection {
+        model,
+        sigma,
+        steps,
+        candidates,
+        nominal,
+        final_rss,
+        nominal_eval,
+        final_eval: base_eval,
+    }
+}
+
+/// Fits each candidate effect on top of `base`, spread over the machine's cores (each
+/// worker with its own evaluator: the caches are per thread). Results keep `todo`'s order.
+fn fit_candidates(
+    ev: &Evaluator,
+    base: &Model,
+    todo: &[(Effect, Vec<Vec<f64>>)],
+) -> Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> {
+    use std::sync::atomic::{AtomicUsize, Ordering};
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .clamp(1, 4)
+        .min(todo.len().max(1));
+    let (p, noise) = (ev.p, ev.noise);
+    let next = AtomicUsize::new(0);
+    let mut results: Vec<(usize, Effect, Model, Vec<Vec<f64>>, Eval)> = Vec::new();
+    let mut runs = ev.runs.get();
+    std::thread::scope(|s| {
+        let workers: Vec<_> = (0..threads)
+            .map(|_| {
+                s.spawn(|| {
+                    let local = Evaluator::with_noise(p, noise);
+                    let mut out = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, Ordering::Relaxed);
+                        let Some((e, start)) = todo.get(i) else {
+                            break;
+                        };
+                        let (m, sig, _) = fit_params(&local, base, &[*e], start, Fold::All);
+                        let ce = local.evaluate(&m, Fold::All);
+                        out.push((i, *e, m, sig, ce));
+                    }
+                    (out, local.runs.get())
+                })
+            })
+            .collect();
+        for w in workers {
+            if let Ok((out, (g, a))) = w.join() {
+                results.extend(out);
+                runs = (runs.0 + g, runs.1 + a);
+            }
+        }
+    });
+    ev.runs.set(runs);
+    results.sort_by_key(|r| r.0);
+    results
+        .into_iter()
+        .map(|(_, e, m, sig, ce)| (e, m, sig, ce))
+        .collect()
+}
+
+/// Held-out check: fit the effect on even blocks and score the odd ones, then the other
+/// way round, against the model without it (nuisances fitted the same way).
+fn heldout_ratio(ev: &Evaluator, base: &Model, e: Effect, full_fit: &[f64]) -> f64 {
+    let mut with = 0.0;
+    let mut without = 0.0;
+    for fold in [Fold::Even, Fold::Odd] {
+        let (m, _, _) = fit_params(ev, base, &[e], &[full_fit.to_vec()], fold);
+        let test = fold.other();
+        let c = ev.evaluate(&m, fold);
+        let b = ev.evaluate(base, fold);
+        let (rc, rb) = (ev.rss(&c, test), ev.rss(&b, test));
+        with += ev.chi2(&rc, Stage::Ground) + ev.chi2(&rc, Stage::Actuator);
+        without += ev.chi2(&rb, Stage::Ground) + ev.chi2(&rb, Stage::Actuator);
+    }
+    if without > 0.0 {
+        with / without
+    } else {
+        1.0
+    }
+}
+
+/// Parameter names and values of an effect for this robot.
+pub fn named(robot: &calib_core::Robot, e: Effect, vals: &[f64]) -> Vec<(String, f64)> {
+    e.params(robot)
+        .into_iter()
+        .zip(vals)
+        .map(|(s, v)| (s.name, *v))
+        .collect()
+}
