@@ -78,6 +78,65 @@ pub enum Command {
     SimBoard(SimBoardArgs),
     /// The whole UMBmark procedure on a virtual board with hidden errors, before and after.
     Demo(DemoArgs),
+    /// Where a simulation and a recording part: locate, name the physics left out, fit it.
+    Diagnose(DiagnoseArgs),
+    /// Simulator tools.
+    #[command(subcommand)]
+    Sim(SimCmd),
+}
+
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// Robot description (formats.md §1).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// Recording (formats.md §2).
+    #[arg(long)]
+    pub recording: PathBuf,
+    /// Write an HTML report with plots into this directory.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Write the robot description with the fitted geometry applied.
+    #[arg(long)]
+    pub write_robot: Option<PathBuf>,
+    /// Most effects to combine in one explanation.
+    #[arg(long, default_value_t = 2)]
+    pub max_effects: usize,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum SimCmd {
+    /// Write a simulated recording with effects hidden in it (recording.csv, robot.toml,
+    /// truth.csv, effects.txt).
+    Record(SimRecordArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct SimRecordArgs {
+    /// Robot description (formats.md §1).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// An effect to hide, `ID` or `ID=name:value,...` (catalogue ids of `diagnose`, or
+    /// `tilted_floor`); repeatable.
+    #[arg(long)]
+    pub effect: Vec<String>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Length of the random trajectory, seconds.
+    #[arg(long, default_value_t = 60.0)]
+    pub duration: f64,
+    /// Drive a UMBmark square of this side (metres) instead of a random trajectory.
+    #[arg(long)]
+    pub umbmark_side: Option<f64>,
+    /// Rows per second.
+    #[arg(long, default_value_t = 200.0)]
+    pub rate: f64,
+    /// Camera pose noise, metres (standard deviation).
+    #[arg(long)]
+    pub vision_noise: Option<f64>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -635,6 +694,61 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 use std::io::Write;
                 let _ = std::io::stdout().flush();
             })
+        }
+        Command::Diagnose(a) => {
+            let robot = robot_file::load(&a.robot)?;
+            let rec = calib_core::recording::Recording::load(&a.recording, &robot)?;
+            for n in &rec.notes {
+                out.note(&format!("{}: {n}", a.recording.display()));
+            }
+            let opts = diagnose::Options { max_effects: a.max_effects.clamp(1, 4), ..Default::default() };
+            let rep = diagnose::diagnose(&robot, &rec, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", a.recording.display()))?;
+            if let Some(dir) = &a.report {
+                if !report::font_available() {
+                    bail!("plots need the DejaVu Sans font: apt-get install fonts-dejavu-core");
+                }
+                diagnose::plots::write_report_dir(&rep, dir).with_context(|| format!("cannot write the report into {}", dir.display()))?;
+                out.note(&format!("report: {}", dir.join("index.html").display()));
+            }
+            if let Some(p) = &a.write_robot {
+                diagnose::write_robot(&robot, &rep, p).with_context(|| format!("cannot write {}", p.display()))?;
+                out.note(&format!("fitted robot: {}", p.display()));
+            }
+            out.emit(&rep, || rep.to_string())
+        }
+        Command::Sim(SimCmd::Record(a)) => {
+            let robot = robot_file::load(&a.robot)?;
+            let effects = a
+                .effect
+                .iter()
+                .map(|e| sim::Effect::parse(e).map_err(|err| anyhow::anyhow!("--effect {e}: {err}")))
+                .collect::<Result<Vec<_>>>()?;
+            if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 7200.0) {
+                bail!("--duration must be within (0, 7200] seconds");
+            }
+            let motion = match a.umbmark_side {
+                Some(side) => sim::record::Motion::Program {
+                    program: Box::new(calib_core::motion::Program::umbmark_square(side, Direction::Ccw)),
+                    limits: Default::default(),
+                },
+                None => sim::record::Motion::Random(sim::record::RandomMotion { duration_s: a.duration, ..Default::default() }),
+            };
+            let mut cfg = sim::record::RecordConfig { row_rate_hz: a.rate, ..Default::default() };
+            cfg.sim.seed = a.seed;
+            if let Some(n) = a.vision_noise {
+                cfg.sim.vision.sigma_xy_m = n;
+            }
+            let rec = sim::record::record(&robot, &effects, sim::Surface::flat(), &motion, &cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
+            rec.write_dir(&a.out).map_err(|e| anyhow::anyhow!("{e}"))?;
+            #[derive(serde::Serialize)]
+            struct Written {
+                out: String,
+                rows: usize,
+                effects: Vec<String>,
+                seed: u64,
+            }
+            let w = Written { out: a.out.display().to_string(), rows: rec.recording.len(), effects: effects.iter().map(|e| e.to_string()).collect(), seed: a.seed };
+            out.emit(&w, || format!("wrote {} rows to {} (effects: {})\n", w.rows, w.out, if w.effects.is_empty() { "none".into() } else { w.effects.join(" ") }))
         }
         Command::Demo(a) => {
             let rep = demo::run(
