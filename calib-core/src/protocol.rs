@@ -793,6 +793,25 @@ pub fn encode<'o, T: Serialize + ?Sized>(
     Ok(&out[..=n])
 }
 
+/// Frames an already serialised body (fuzzers and tests send arbitrary bodies this way).
+pub fn encode_body<'o>(seq: u16, body: &[u8], out: &'o mut [u8]) -> Result<&'o [u8], FrameError> {
+    encode(seq, &RawBody(body), out)
+}
+
+/// Serialises as its bytes verbatim (postcard's tuple of u8 adds no length prefix).
+struct RawBody<'a>(&'a [u8]);
+
+impl Serialize for RawBody<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeTuple;
+        let mut t = s.serialize_tuple(self.0.len())?;
+        for b in self.0 {
+            t.serialize_element(b)?;
+        }
+        t.end()
+    }
+}
+
 /// COBS-encodes `buf[off..off+len]` into `buf[0..]`; returns the encoded length.
 fn cobs_encode_in_place(buf: &mut [u8], off: usize, len: usize) -> usize {
     let mut code_at = 0;

@@ -244,7 +244,7 @@ fn stalled_encoder_faults_within_100ms() {
     }
     let ms = (cut_at.expect("fault cut the motors") - frozen_at) / 1000;
     println!("stall cut after {ms} ms");
-    assert!(ms <= 100 && ms >= 50, "{ms}");
+    assert!((50..=100).contains(&ms), "{ms}");
     let s = b.app.status();
     assert_eq!(s.fault, Some(Fault::Stall { wheel: 1 }));
     // Latched: driving is refused until the fault is cleared.
