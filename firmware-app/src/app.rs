@@ -64,9 +64,9 @@ enum Motion {
     Program(ProgramRunner, u8),
 }
 
-/// Everything the board knows and does, minus the registers. `LOG` is the trial-log ring
-/// size in bytes.
-pub struct App<const LOG: usize> {
+/// Everything the board knows and does, minus the registers. The trial log lives in a
+/// buffer the caller provides (`'a`).
+pub struct App<'a> {
     params: Params,
     corrections: Corrections,
     boot: BootReport,
@@ -84,7 +84,7 @@ pub struct App<const LOG: usize> {
     estop: bool,
     fault: Option<Fault>,
     stop: StopReason,
-    log: TrialLog<LOG>,
+    log: TrialLog<'a>,
     decimation: u32,
     ticks: u64,
     trial_start_us: u64,
@@ -101,10 +101,16 @@ fn kinematics(params: &Params, c: &Corrections) -> Option<Kinematics<f32>> {
     Kinematics::new(&params.robot, c).ok()
 }
 
-impl<const LOG: usize> App<LOG> {
+impl<'a> App<'a> {
     /// An application with validated `params` and `corrections` (as [`crate::Store::load`]
     /// returns them). Anything inconsistent falls back to the defaults, never panics.
-    pub fn new(params: Params, corrections: Corrections, boot: BootReport, now_us: u64) -> Self {
+    pub fn new(
+        params: Params,
+        corrections: Corrections,
+        boot: BootReport,
+        log_buf: &'a mut [u8],
+        now_us: u64,
+    ) -> Self {
         let (params, corrections, kin) = match kinematics(&params, &corrections) {
             Some(k) if params.validate().is_ok() && corrections.validate(&params.robot).is_ok() => {
                 (params, corrections, k)
@@ -132,7 +138,7 @@ impl<const LOG: usize> App<LOG> {
             estop: false,
             fault: None,
             stop: StopReason::None,
-            log: TrialLog::new(),
+            log: TrialLog::new(log_buf),
             decimation: 10,
             ticks: 0,
             trial_start_us: 0,
@@ -176,7 +182,7 @@ impl<const LOG: usize> App<LOG> {
         self.odo.pose()
     }
 
-    pub fn log(&self) -> &TrialLog<LOG> {
+    pub fn log(&self) -> &TrialLog<'a> {
         &self.log
     }
 
@@ -397,7 +403,7 @@ impl<const LOG: usize> App<LOG> {
             wheel_count: self.n as u8,
             uptime_ms: self.uptime_ms(),
             boot: self.boot,
-            log_capacity: LOG as u32,
+            log_capacity: self.log.capacity() as u32,
             record_size: record_size(self.n) as u16,
         }
     }

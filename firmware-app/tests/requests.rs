@@ -455,3 +455,39 @@ proptest! {
         }
     }
 }
+
+/// A trial longer than the log keeps its beginning and reports every dropped record, in
+/// the trial's header and in the status: nothing is lost silently.
+#[test]
+fn a_full_log_reports_dropped_records() {
+    let mut b = bench();
+    let mut l = Link::new();
+    // 1 kHz records of 32 bytes for a ~19 s square: ~600 KB into a 16 KiB log.
+    l.call(
+        &mut b,
+        &Request::RunProgram {
+            program: ProgramSpec::Umbmark {
+                side_m: 0.5,
+                dir: Direction::Cw,
+            },
+            log_rate_hz: 1000,
+        },
+    );
+    let mut ticks = 0u32;
+    while b.app.status().trial.is_some() {
+        b.tick();
+        ticks += 1;
+    }
+    let t = b.app.log().list().trials[0].clone();
+    let s = b.app.status();
+    println!(
+        "{ticks} ticks: {} records kept, {} dropped",
+        t.records, t.dropped
+    );
+    assert_eq!(t.records as usize, LOG / record_size(2));
+    // Every tick of the trial is either kept or counted as dropped (the last tick ends
+    // the trial before logging).
+    assert_eq!(t.records + t.dropped, ticks - 1);
+    assert_eq!(s.dropped_records, t.dropped);
+    assert_eq!(t.end, TrialEnd::Completed);
+}
