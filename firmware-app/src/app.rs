@@ -455,9 +455,15 @@ impl<'a> App<'a> {
                 self.set_corrections(c)?;
                 reply(Response::Ok)
             }
-            Request::SaveCorrections => Ok(Handled::Persist(PersistItem::Corrections(
-                self.corrections.clone(),
-            ))),
+            Request::SaveCorrections => {
+                // A flash erase stalls the CPU: only with the motors stopped.
+                if self.moving() {
+                    return Err(Rejection::Busy);
+                }
+                Ok(Handled::Persist(PersistItem::Corrections(
+                    self.corrections.clone(),
+                )))
+            }
             Request::ResetCorrections => {
                 self.set_corrections(Corrections::None)?;
                 reply(Response::Ok)
@@ -467,7 +473,12 @@ impl<'a> App<'a> {
                 self.set_params(p)?;
                 reply(Response::Ok)
             }
-            Request::SaveParams => Ok(Handled::Persist(PersistItem::Params(self.params.clone()))),
+            Request::SaveParams => {
+                if self.moving() {
+                    return Err(Rejection::Busy);
+                }
+                Ok(Handled::Persist(PersistItem::Params(self.params.clone())))
+            }
             Request::ResetParams => {
                 self.set_params(defaults::params())?;
                 reply(Response::Ok)

@@ -74,6 +74,17 @@ impl Server {
         &self.out[..self.out_len]
     }
 
+    /// The first `len` bytes of the last answer (what [`Step::Send`] pointed to), for glue
+    /// that cannot hold that borrow across its lock.
+    pub fn last_frame(&self, len: usize) -> &[u8] {
+        &self.out[..len.min(self.out_len)]
+    }
+
+    /// The first `len` bytes of the last telemetry frame.
+    pub fn last_telemetry(&self, len: usize) -> &[u8] {
+        &self.tele[..len.min(TELEMETRY_WIRE)]
+    }
+
     /// Feeds one received byte.
     pub fn push(&mut self, byte: u8, app: &mut App<'_>, now_us: u64) -> Step<'_> {
         let (seq, key, req) = match self.dec.push(byte) {
