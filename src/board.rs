@@ -30,7 +30,10 @@ use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::InterruptExt;
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals::Ocm;
-use embassy_stm32::peripherals::{IWDG, TIM1, TIM3, TIM4, TIM5, TIM8};
+use embassy_stm32::peripherals::{
+    IWDG, PA0, PA1, PA10, PA11, PA6, PA7, PA8, PA9, PB6, PB7, PC6, PC7, TIM1, TIM3, TIM4, TIM5,
+    TIM8,
+};
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::{RoundTo, Timer};
 use embassy_stm32::timer::qei::{Config as QeiConfig, Qei};
@@ -74,6 +77,17 @@ pub fn config() -> embassy_stm32::Config {
     c
 }
 
+/// A timer and the two pins of its encoder.
+pub type QeiPins<T, A, B> = (Peri<'static, T>, Peri<'static, A>, Peri<'static, B>);
+
+/// TIM1's four output pins, kept alive (dropping them would release the pins).
+type Tim1Pins = (
+    PwmPin<'static, TIM1, embassy_stm32::timer::Ch1>,
+    PwmPin<'static, TIM1, embassy_stm32::timer::Ch2>,
+    PwmPin<'static, TIM1, embassy_stm32::timer::Ch3>,
+    PwmPin<'static, TIM1, embassy_stm32::timer::Ch4>,
+);
+
 /// The four quadrature counters.
 pub struct Encoders {
     pub e0: Qei<'static, TIM3>,
@@ -83,19 +97,12 @@ pub struct Encoders {
 }
 
 impl Encoders {
+    /// Each argument is a timer and its channel 1 and 2 pins.
     pub fn new(
-        t3: Peri<'static, TIM3>,
-        a3: Peri<'static, embassy_stm32::peripherals::PA6>,
-        b3: Peri<'static, embassy_stm32::peripherals::PA7>,
-        t4: Peri<'static, TIM4>,
-        a4: Peri<'static, embassy_stm32::peripherals::PB6>,
-        b4: Peri<'static, embassy_stm32::peripherals::PB7>,
-        t5: Peri<'static, TIM5>,
-        a5: Peri<'static, embassy_stm32::peripherals::PA0>,
-        b5: Peri<'static, embassy_stm32::peripherals::PA1>,
-        t8: Peri<'static, TIM8>,
-        a8: Peri<'static, embassy_stm32::peripherals::PC6>,
-        b8: Peri<'static, embassy_stm32::peripherals::PC7>,
+        (t3, a3, b3): QeiPins<TIM3, PA6, PA7>,
+        (t4, a4, b4): QeiPins<TIM4, PB6, PB7>,
+        (t5, a5, b5): QeiPins<TIM5, PA0, PA1>,
+        (t8, a8, b8): QeiPins<TIM8, PC6, PC7>,
     ) -> Self {
         let c = QeiConfig::default();
         Encoders {
@@ -144,25 +151,19 @@ fn tim1() -> pac::timer::TimGp16 {
 /// Motor outputs: TIM1 channels (PWM or STEP), direction lines and the enable line.
 pub struct Motors {
     timer: Timer<'static, TIM1>,
-    _pins: (
-        PwmPin<'static, TIM1, embassy_stm32::timer::Ch1>,
-        PwmPin<'static, TIM1, embassy_stm32::timer::Ch2>,
-        PwmPin<'static, TIM1, embassy_stm32::timer::Ch3>,
-        PwmPin<'static, TIM1, embassy_stm32::timer::Ch4>,
-    ),
+    _pins: Tim1Pins,
     dir: [Output<'static>; 4],
     enable: Output<'static>,
     mode: Option<DriveType>,
 }
 
 impl Motors {
-    #[allow(clippy::too_many_arguments)]
     pub fn new(
         tim: Peri<'static, TIM1>,
-        ch1: Peri<'static, embassy_stm32::peripherals::PA8>,
-        ch2: Peri<'static, embassy_stm32::peripherals::PA9>,
-        ch3: Peri<'static, embassy_stm32::peripherals::PA10>,
-        ch4: Peri<'static, embassy_stm32::peripherals::PA11>,
+        ch1: Peri<'static, PA8>,
+        ch2: Peri<'static, PA9>,
+        ch3: Peri<'static, PA10>,
+        ch4: Peri<'static, PA11>,
         dir: [Output<'static>; 4],
         enable: Output<'static>,
     ) -> Self {
@@ -275,8 +276,8 @@ impl WheelDriver for Motors {
     fn stop_all(&mut self) {
         self.enable.set_low();
         let r = tim1();
-        for ch in 0..4 {
-            HALF_PERIOD[ch].store(0, Ordering::Relaxed);
+        for (ch, half) in HALF_PERIOD.iter().enumerate() {
+            half.store(0, Ordering::Relaxed);
             r.ccr(ch).write(|w| w.set_ccr(0));
             if self.mode == Some(DriveType::Stepper) {
                 r.dier().modify(|w| w.set_ccie(ch, false));
@@ -293,7 +294,7 @@ impl WheelDriver for Motors {
 fn TIM1_CC() {
     let r = tim1();
     let sr = r.sr().read();
-    for ch in 0..4 {
+    for (ch, half) in HALF_PERIOD.iter().enumerate() {
         if !sr.ccif(ch) {
             continue;
         }
@@ -301,7 +302,7 @@ fn TIM1_CC() {
             w.0 = !0;
             w.set_ccif(ch, false);
         });
-        let half = HALF_PERIOD[ch].load(Ordering::Relaxed);
+        let half = half.load(Ordering::Relaxed);
         if half == 0 {
             r.dier().modify(|w| w.set_ccie(ch, false));
             r.ccmr_output(ch / 2)

@@ -76,12 +76,21 @@ async fn main(spawner: Spawner) {
     // NOLOAD CCM RAM, so it is cleared here.
     let log: &'static mut [u8; LOG_BYTES] = unsafe { &mut *core::ptr::addr_of_mut!(LOG_BUF) };
     log.fill(0);
-    let app = App::new(loaded.params, loaded.corrections, loaded.boot, log, now_us());
+    let app = App::new(
+        loaded.params,
+        loaded.corrections,
+        loaded.boot,
+        log,
+        now_us(),
+    );
     let kind = app.params().robot.drive.kind;
     APP.lock(|a| a.replace(Some(app)));
 
     let encoders = board::Encoders::new(
-        p.TIM3, p.PA6, p.PA7, p.TIM4, p.PB6, p.PB7, p.TIM5, p.PA0, p.PA1, p.TIM8, p.PC6, p.PC7,
+        (p.TIM3, p.PA6, p.PA7),
+        (p.TIM4, p.PB6, p.PB7),
+        (p.TIM5, p.PA0, p.PA1),
+        (p.TIM8, p.PC6, p.PC7),
     );
     let dir = [
         board::output(p.PB12),
@@ -89,7 +98,15 @@ async fn main(spawner: Spawner) {
         board::output(p.PB14),
         board::output(p.PB15),
     ];
-    let mut motors = board::Motors::new(p.TIM1, p.PA8, p.PA9, p.PA10, p.PA11, dir, board::output(p.PB2));
+    let mut motors = board::Motors::new(
+        p.TIM1,
+        p.PA8,
+        p.PA9,
+        p.PA10,
+        p.PA11,
+        dir,
+        board::output(p.PB2),
+    );
     motors.set_mode(kind);
 
     let mut uart_config = UartConfig::default();
@@ -103,9 +120,8 @@ async fn main(spawner: Spawner) {
             &mut *core::ptr::addr_of_mut!(RX_BUF),
         )
     };
-    let uart = unwrap!(
-        BufferedUart::new(p.USART2, p.PA3, p.PA2, tx_buf, rx_buf, Irqs, uart_config).ok()
-    );
+    let uart =
+        unwrap!(BufferedUart::new(p.USART2, p.PA3, p.PA2, tx_buf, rx_buf, Irqs, uart_config).ok());
 
     WATCHDOG.lock(|w| w.replace(Some(board::Watchdog::start(p.IWDG))));
 

@@ -12,9 +12,9 @@ use calib_core::kinematics::Kinematics;
 use calib_core::motion::{Program, ProgramRunner, Setpoint};
 use calib_core::odometry::{Odometry, Pose};
 use calib_core::protocol::{
-    record_size, BootReport, Fault, Info, LogChunk, Mode, Params, ProgramKind, ProgramSpec, Record,
-    Rejection, Request, Response, Status, StopReason, TrialEnd, MAX_LOG_CHUNK, PROTOCOL_VERSION,
-    SCHEMA_FINGERPRINT,
+    record_size, BootReport, CorrectionText, Fault, Info, LogChunk, Mode, Num, Params, ProgramKind,
+    ProgramSpec, Record, Rejection, Request, Response, Status, StopReason, TrialEnd, MAX_LOG_CHUNK,
+    PROTOCOL_VERSION, SCHEMA_FINGERPRINT,
 };
 use calib_core::robot::{DriveType, MAX_WHEELS};
 use calib_core::{Corrections, Twist};
@@ -577,7 +577,11 @@ impl<'a> App<'a> {
             Err(Rejection::InvalidProgram(calib_core::protocol::reason(
                 &format_args!(
                     "twist ({}, {}, {}) must be finite and within v_max {} m/s, omega_max {} rad/s",
-                    t.vx, t.vy, t.omega, l.v_max, l.omega_max
+                    Num(t.vx as f64),
+                    Num(t.vy as f64),
+                    Num(t.omega as f64),
+                    Num(l.v_max),
+                    Num(l.omega_max)
                 ),
             )))
         }
@@ -608,7 +612,8 @@ impl<'a> App<'a> {
         if let Err(e) = self.corrections.validate(&p.robot) {
             return Err(Rejection::InvalidParams(calib_core::protocol::reason(
                 &format_args!(
-                    "the active corrections do not fit this robot ({e}): reset them first"
+                    "the active corrections do not fit this robot ({}): reset them first",
+                    CorrectionText(&e)
                 ),
             )));
         }
