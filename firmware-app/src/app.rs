@@ -39,7 +39,22 @@ pub enum Handled<'a> {
     Persist(PersistItem),
 }
 
+/// Ticks per trajectory sample: the program's f64 profile (software floating point on the
+/// Cortex-M4F, ~4000 instructions per evaluation) is sampled every 10 ms as the *average*
+/// twist over those 10 ms, which the 1 kHz wheel loops then follow. Displacements stay
+/// exact (each block commands exactly the profile's distance over it); only the speed
+/// profile becomes a 100 Hz staircase, far faster than the robot's mechanics.
+pub const TRAJECTORY_DIVIDER: u32 = 10;
+
+/// A trajectory sample and the ticks it still applies to.
+#[derive(Debug, Clone, Copy)]
+struct Block {
+    act: Act,
+    ticks_left: u32,
+}
+
 /// What the motion state asks of this tick.
+#[derive(Debug, Clone, Copy)]
 enum Act {
     Slew(Twist<f32>),
     Set(Twist<f32>),
@@ -60,8 +75,8 @@ enum Motion {
         target: Twist<f32>,
         deadline_us: u64,
     },
-    /// The runner and its segment count.
-    Program(ProgramRunner, u8),
+    /// The runner, its segment count, and the current trajectory block.
+    Program(ProgramRunner, u8, Block),
 }
 
 /// Everything the board knows and does, minus the registers. The trial log lives in a
@@ -236,7 +251,8 @@ impl<'a> App<'a> {
             let delta = w.read(width, enc.raw(i));
             if let Some(rpc) = self.rad_per_count {
                 w.update_rate(rpc, DT);
-                dphi[i] = delta as f32 * rpc;
+                // Deltas are at most half the counter range: i32 (cheaper than i64 -> f32).
+                dphi[i] = delta as i32 as f32 * rpc;
                 if fault.is_none() {
                     fault = w.monitor(i, delta, &self.params.safety);
                 }
@@ -267,15 +283,23 @@ impl<'a> App<'a> {
                         Act::Slew(*target)
                     }
                 }
-                Motion::Program(runner, _) => match runner.setpoint(DT as f64) {
-                    Some(Setpoint::Body(t)) => {
-                        Act::Set(Twist::new(t.vx as f32, t.vy as f32, t.omega as f32))
+                Motion::Program(runner, _, block) => {
+                    if block.ticks_left == 0 {
+                        let dt = TRAJECTORY_DIVIDER as f64 / TICK_HZ as f64;
+                        block.act = match runner.setpoint(dt) {
+                            Some(Setpoint::Body(t)) => {
+                                Act::Set(Twist::new(t.vx as f32, t.vy as f32, t.omega as f32))
+                            }
+                            Some(Setpoint::Wheel { index, rate }) => {
+                                Act::Wheel(index as usize, rate as f32)
+                            }
+                            None => Act::Done,
+                        };
+                        block.ticks_left = TRAJECTORY_DIVIDER;
                     }
-                    Some(Setpoint::Wheel { index, rate }) => {
-                        Act::Wheel(index as usize, rate as f32)
-                    }
-                    None => Act::Done,
-                },
+                    block.ticks_left -= 1;
+                    block.act
+                }
             };
             match act {
                 Act::Slew(target) => self.twist = self.slew(self.twist, target),
@@ -374,7 +398,7 @@ impl<'a> App<'a> {
             mode: match &self.motion {
                 Motion::Idle => Mode::Idle,
                 Motion::Drive { .. } => Mode::Drive,
-                Motion::Program(r, count) => Mode::Program {
+                Motion::Program(r, count, _) => Mode::Program {
                     segment: r.segment_index().min(255) as u8,
                     segments: *count,
                 },
@@ -643,7 +667,11 @@ impl<'a> App<'a> {
         // Odometry restarts at the origin: a trial's pose is relative to where it began.
         self.odo = Odometry::default();
         let count = program.segments.len() as u8;
-        self.motion = Motion::Program(program.runner(self.params.limits), count);
+        let block = Block {
+            act: Act::Done,
+            ticks_left: 0,
+        };
+        self.motion = Motion::Program(program.runner(self.params.limits), count, block);
         self.stop = StopReason::None;
         if log_rate_hz > 0 {
             self.decimation = (TICK_HZ / (log_rate_hz as u32).min(TICK_HZ)).max(1);
@@ -709,7 +737,7 @@ fn format_motion(m: &Motion) -> (u8, Twist<f32>, u64, usize) {
             target,
             deadline_us,
         } => (1, *target, *deadline_us, 0),
-        Motion::Program(r, _) => (2, Twist::zero(), 0, r.segment_index()),
+        Motion::Program(r, _, _) => (2, Twist::zero(), 0, r.segment_index()),
     }
 }
 
