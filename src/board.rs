@@ -332,9 +332,17 @@ impl Watchdog {
             .write(|w| w.set_key(pac::iwdg::vals::Key::RESET));
     }
 
-    /// Changes the timeout of the running watchdog (and pets it).
+    /// Changes the timeout of the running watchdog (and pets it). The prescaler and
+    /// reload registers ignore writes while a previous update is still being carried into
+    /// the watchdog's clock domain, so wait for that first (a few LSI periods).
     pub fn set_timeout(&mut self, us: u32) {
         self.pet();
+        for _ in 0..1_000_000 {
+            let sr = pac::IWDG.sr().read();
+            if !sr.pvu() && !sr.rvu() {
+                break;
+            }
+        }
         let _ = IndependentWatchdog::new(self.iwdg.reborrow(), us);
         self.pet();
     }

@@ -491,3 +491,41 @@ fn a_full_log_reports_dropped_records() {
     assert_eq!(s.dropped_records, t.dropped);
     assert_eq!(t.end, TrialEnd::Completed);
 }
+
+/// Telemetry frames arrive at the requested period, carry the live status, and stop when
+/// asked.
+#[test]
+fn telemetry_streams_at_the_requested_period() {
+    let mut b = bench();
+    let mut l = Link::new();
+    l.call(&mut b, &Request::SetTelemetry { period_ms: 100 });
+    l.call(
+        &mut b,
+        &Request::Drive {
+            twist: Twist::new(0.1, 0.0, 0.0),
+            timeout_ms: 0,
+        },
+    );
+    let mut frames = Vec::new();
+    for _ in 0..1000 {
+        b.tick();
+        if let Some(f) = l.server.telemetry(&mut b.app) {
+            frames.push((b.now(), f.to_vec()));
+        }
+    }
+    // Every 100 ms over 1 s, the first right away: 10 frames.
+    assert_eq!(frames.len(), 10);
+    for w in frames.windows(2) {
+        assert_eq!(w[1].0 - w[0].0, 100_000);
+    }
+    let (_, mut last) = frames.pop().unwrap();
+    let (_, r) = decode(&mut last);
+    let Response::Telemetry(s) = r else {
+        panic!("{r:?}")
+    };
+    // The drive command timed out after 250 ms: the status says so.
+    assert_eq!(s.stop, calib_core::protocol::StopReason::CommandTimeout);
+    l.call(&mut b, &Request::SetTelemetry { period_ms: 0 });
+    b.run_ms(300);
+    assert!(l.server.telemetry(&mut b.app).is_none());
+}
