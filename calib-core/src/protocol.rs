@@ -17,6 +17,21 @@
 //! the rest. After a Hello that did not match, the board rejects every other request with
 //! [`Rejection::ProtocolMismatch`].
 //!
+//! # Using it from a host
+//! - Send [`Request::Hello`] first; stop with the board's versions if `compatible` is false.
+//! - Give every new request a new sequence number (wrapping). A board answers a repeated
+//!   (sequence number, body) pair from its cache without acting again, so resending after
+//!   a lost answer is safe; [`Response::Nack`] means the board saw a damaged frame: resend.
+//! - Frames whose sequence number does not match the request outstanding are stale or
+//!   telemetry ([`Response::Telemetry`]); skip them.
+//! - Logs: [`Request::ListTrials`], then [`Request::ReadLog`] from offset 0 with
+//!   `max_len` = [`MAX_LOG_CHUNK`], each next offset = offset + data length, until the
+//!   offset reaches `total` of a finished trial. Split the bytes into [`Record`]s of
+//!   [`record_size`]`(wheel_count)` bytes. A chunk may be shorter than asked (the ring's
+//!   end); that is not the end of the trial.
+//! - Saves ([`Request::SaveCorrections`], [`Request::SaveParams`]) answer only after the
+//!   flash write: allow a few seconds (a sector erase takes up to 2 s).
+//!
 //! # Why not postcard-rpc
 //! postcard-rpc (typed endpoints over a COBS serial transport) was considered. Its server
 //! side is built around async dispatch tasks and its host client around tokio, while the
