@@ -188,3 +188,69 @@ fn corrupted_flash_is_reported() {
     );
     assert!(outcomes[1] + outcomes[2] > 0);
 }
+
+/// The byte-stream path the virtual board uses: SetCorrections then SaveCorrections through
+/// `Server::poll`, the save done by the async store under `block_on`; after a "reboot" the
+/// board boots with the saved factors.
+#[test]
+fn save_through_the_server_survives_a_reboot() {
+    use calib_core::protocol::{decode_frame, encode, Request, Response, MAX_WIRE};
+    use calib_core::protocol::{BootReport, Stored};
+    use firmware_app::{App, ByteStream, Server};
+    use std::collections::VecDeque;
+
+    #[derive(Default)]
+    struct Pipe {
+        to_board: VecDeque<u8>,
+        from_board: Vec<u8>,
+    }
+    impl ByteStream for Pipe {
+        fn read(&mut self, buf: &mut [u8]) -> usize {
+            let n = buf.len().min(self.to_board.len());
+            for b in buf.iter_mut().take(n) {
+                *b = self.to_board.pop_front().unwrap();
+            }
+            n
+        }
+        fn write(&mut self, data: &[u8]) {
+            self.from_board.extend_from_slice(data);
+        }
+    }
+
+    let mut s = store(fresh());
+    let loaded = block_on(s.load());
+    let mut log = vec![0u8; 1024];
+    let mut app = App::new(loaded.params, loaded.corrections, loaded.boot, &mut log, 0);
+    let mut server = Server::new();
+    let mut pipe = Pipe::default();
+    let mut out = [0u8; MAX_WIRE];
+    for (seq, req) in [
+        (1, Request::SetCorrections(diff(1.03))),
+        (2, Request::SaveCorrections),
+    ] {
+        pipe.to_board
+            .extend(encode(seq, &req, &mut out).unwrap().iter().copied());
+    }
+    server.poll(&mut app, &mut pipe, 0, |item| {
+        block_on(s.save(item)).is_ok()
+    });
+    let mut answers = pipe
+        .from_board
+        .split_mut(|&b| b == 0)
+        .filter(|f| !f.is_empty());
+    for want_seq in [1, 2] {
+        let f = decode_frame(answers.next().expect("an answer")).unwrap();
+        assert_eq!(f.seq, want_seq);
+        assert_eq!(f.decode::<Response>().unwrap(), Response::Ok);
+    }
+    let mut s = store(s.into_flash());
+    let l = block_on(s.load());
+    assert_eq!(l.corrections, diff(1.03));
+    assert_eq!(
+        l.boot,
+        BootReport {
+            corrections: Stored::Loaded,
+            params: Stored::Missing
+        }
+    );
+}
