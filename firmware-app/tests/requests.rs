@@ -529,3 +529,45 @@ fn telemetry_streams_at_the_requested_period() {
     b.run_ms(300);
     assert!(l.server.telemetry(&mut b.app).is_none());
 }
+
+proptest! {
+    #![proptest_config(ProptestConfig::with_cases(48))]
+
+    /// A stream of factor updates with bytes flipped, dropped and duplicated at random:
+    /// whatever the board ends up with is one of the values actually sent (or the start),
+    /// never a corrupted one, and nothing panics.
+    #[test]
+    fn corrupted_streams_are_never_acted_upon(
+        damage in proptest::collection::vec((0usize..4, any::<prop::sample::Index>(), 1u8..=255), 0..40),
+    ) {
+        let mut b = bench();
+        let mut l = Link::new();
+        let sent: Vec<f64> = (0..30).map(|i| 0.9 + 0.01 * i as f64).collect();
+        let mut stream = Vec::new();
+        for (i, c_l) in sent.iter().enumerate() {
+            let mut out = [0u8; MAX_WIRE];
+            let req = Request::SetCorrections(Corrections::DiffDrive { c_l: *c_l, c_r: 1.0, e_b: 1.0 });
+            stream.extend_from_slice(encode(i as u16, &req, &mut out).unwrap());
+        }
+        for (kind, at, x) in damage {
+            let i = at.index(stream.len());
+            match kind {
+                0 => stream[i] ^= x,
+                1 => { stream.remove(i); }
+                2 => { let v = stream[i]; stream.insert(i, v); }
+                _ => stream.truncate(stream.len().max(1) - 1),
+            }
+            if stream.is_empty() { break; }
+        }
+        let mut seen = vec![Corrections::None];
+        for chunk in stream.chunks(7) {
+            l.raw(&mut b, chunk);
+            let c = b.app.corrections().clone();
+            if !seen.contains(&c) {
+                let ok = matches!(c, Corrections::DiffDrive { c_l, c_r, e_b } if sent.contains(&c_l) && c_r == 1.0 && e_b == 1.0);
+                prop_assert!(ok, "acted on a corrupted request: {:?}", c);
+                seen.push(c);
+            }
+        }
+    }
+}
