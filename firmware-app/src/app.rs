@@ -126,15 +126,21 @@ impl<'a> App<'a> {
         log_buf: &'a mut [u8],
         now_us: u64,
     ) -> Self {
-        let (params, corrections, kin) = match kinematics(&params, &corrections) {
-            Some(k) if params.validate().is_ok() && corrections.validate(&params.robot).is_ok() => {
-                (params, corrections, k)
-            }
+        // Invalid parameters fall back to the defaults (and drop the corrections, which
+        // were made for them); invalid corrections alone fall back to none.
+        let params =
+            if params.validate().is_ok() && kinematics(&params, &Corrections::None).is_some() {
+                params
+            } else {
+                defaults::params()
+            };
+        let (corrections, kin) = match kinematics(&params, &corrections) {
+            Some(k) if corrections.validate(&params.robot).is_ok() => (corrections, k),
             _ => {
-                let p = defaults::params();
-                // The defaults are a fixed, valid differential drive (tested).
-                let k = kinematics(&p, &Corrections::None).expect("default geometry is valid");
-                (p, Corrections::None, k)
+                // Validated geometry always has nominal kinematics (Robot::new checks the
+                // rank; the defaults are tested).
+                let k = kinematics(&params, &Corrections::None).expect("validated geometry");
+                (Corrections::None, k)
             }
         };
         let mut app = App {

@@ -571,3 +571,30 @@ proptest! {
         }
     }
 }
+
+/// Whatever a caller hands `App::new`, the board runs with something valid: invalid
+/// corrections become none, invalid parameters become the defaults.
+#[test]
+fn app_new_never_runs_with_invalid_settings() {
+    let mut log = vec![0u8; 64];
+    let bad_c = Corrections::DiffDrive {
+        c_l: 5.0,
+        c_r: 1.0,
+        e_b: 1.0,
+    };
+    let mut p = defaults::params();
+    p.gains.kp = 0.07;
+    let app = firmware_app::App::new(p.clone(), bad_c.clone(), boot(), &mut log, 0);
+    assert_eq!((app.params(), app.corrections()), (&p, &Corrections::None));
+    let mut bad_p = p.clone();
+    bad_p.limits.v_max = f64::NAN;
+    let good_c = Corrections::DiffDrive {
+        c_l: 1.01,
+        c_r: 1.0,
+        e_b: 1.0,
+    };
+    let app = firmware_app::App::new(bad_p, good_c.clone(), boot(), &mut log, 0);
+    assert_eq!(app.params(), &defaults::params());
+    // The factors still fit the default differential drive.
+    assert_eq!(app.corrections(), &good_c);
+}
