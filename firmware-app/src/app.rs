@@ -126,8 +126,8 @@ impl<'a> App<'a> {
         log_buf: &'a mut [u8],
         now_us: u64,
     ) -> Self {
-        // Invalid parameters fall back to the defaults (and drop the corrections, which
-        // were made for them); invalid corrections alone fall back to none.
+        // Invalid parameters fall back to the defaults; corrections are kept only if they
+        // fit the robot that results, else none.
         let params =
             if params.validate().is_ok() && kinematics(&params, &Corrections::None).is_some() {
                 params
