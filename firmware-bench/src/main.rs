@@ -37,7 +37,9 @@ impl EncoderSource for Enc {
         CounterWidth::Bits16
     }
     fn raw(&mut self, wheel: usize) -> u32 {
-        self.counts.get(wheel).map_or(0, |c| *c as i32 as u32 & 0xFFFF)
+        self.counts
+            .get(wheel)
+            .map_or(0, |c| *c as i32 as u32 & 0xFFFF)
     }
 }
 
@@ -156,11 +158,15 @@ fn main() -> ! {
         app.log().list().trials.first().map_or(0, |t| t.records)
     );
     debug::exit(debug::EXIT_SUCCESS);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
 
 #[panic_handler]
 fn panic(_: &PanicInfo) -> ! {
     debug::exit(debug::EXIT_FAILURE);
-    loop {}
+    loop {
+        cortex_m::asm::wfi();
+    }
 }
