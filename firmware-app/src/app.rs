@@ -12,8 +12,8 @@ use calib_core::kinematics::Kinematics;
 use calib_core::motion::{Program, ProgramRunner, Setpoint};
 use calib_core::odometry::{Odometry, Pose};
 use calib_core::protocol::{
-    record_size, BootReport, CorrectionText, Fault, Info, LogChunk, Mode, Num, Params, ProgramKind,
-    ProgramSpec, Record, Rejection, Request, Response, Status, StopReason, TrialEnd, MAX_LOG_CHUNK,
+    record_size, BootReport, CorrectionText, Fault, Info, LogChunk, Mode, Num, Params, ProgramSpec,
+    Record, Rejection, Request, Response, Status, StopReason, TrialEnd, MAX_LOG_CHUNK,
     PROTOCOL_VERSION, SCHEMA_FINGERPRINT,
 };
 use calib_core::robot::{DriveType, MAX_WHEELS};
@@ -40,7 +40,7 @@ pub enum Handled<'a> {
 }
 
 /// Ticks per trajectory sample: the program's f64 profile (software floating point on the
-/// Cortex-M4F, ~4000 instructions per evaluation) is sampled every 10 ms as the *average*
+/// Cortex-M4F, ~2700 instructions per evaluation) is sampled every 10 ms as the *average*
 /// twist over those 10 ms, which the 1 kHz wheel loops then follow. Displacements stay
 /// exact (each block commands exactly the profile's distance over it); only the speed
 /// profile becomes a 100 Hz staircase, far faster than the robot's mechanics.
@@ -696,7 +696,7 @@ impl<'a> App<'a> {
                 w.origin = w.position();
             }
             self.log.start(
-                spec_kind(&spec),
+                spec.kind(),
                 self.uptime_ms(),
                 (TICK_HZ / self.decimation) as u16,
                 self.n as u8,
@@ -755,10 +755,6 @@ fn format_motion(m: &Motion) -> (u8, Twist<f32>, u64, usize) {
         } => (1, *target, *deadline_us, 0),
         Motion::Program(r, _, _) => (2, Twist::zero(), 0, r.segment_index()),
     }
-}
-
-fn spec_kind(s: &ProgramSpec) -> ProgramKind {
-    s.kind()
 }
 
 fn firmware() -> String<{ calib_core::protocol::FIRMWARE_LEN }> {
