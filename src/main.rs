@@ -5,7 +5,9 @@
 //! Tasks:
 //! - `control` (interrupt executor, high priority): the 1 kHz tick and the watchdog;
 //! - `serial` (thread executor): bytes from USART2 through the request handler, answers
-//!   and telemetry back, settings saves to flash.
+//!   and telemetry back;
+//! - `storage` (thread executor): settings saves to flash sectors 10-11, asked for by
+//!   `serial` (the handler answers a save only once it is written).
 //!
 //! Both share the application through a critical-section mutex; the serial side holds it
 //! only while one byte is handled (a full answer is encoded then, ~1 KiB at most).
@@ -27,9 +29,11 @@ use embassy_stm32::usart::{BufferedUart, Config as UartConfig};
 use embassy_stm32::{bind_interrupts, flash, usart};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
+use embassy_sync::channel::Channel;
+use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant, Ticker, Timer};
 use embedded_io_async::{Read, Write};
-use firmware_app::{App, Server, Step, Store};
+use firmware_app::{App, PersistItem, Server, Step, Store};
 use {defmt_rtt as _, panic_probe as _};
 
 bind_interrupts!(struct Irqs {
@@ -47,6 +51,10 @@ static APP: Shared<App<'static>> = Mutex::new(RefCell::new(None));
 static WATCHDOG: Shared<board::Watchdog> = Mutex::new(RefCell::new(None));
 
 static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
+
+/// Saves asked for by the request handler, and whether each worked.
+static SAVE: Channel<CriticalSectionRawMutex, PersistItem, 1> = Channel::new();
+static SAVED: Signal<CriticalSectionRawMutex, bool> = Signal::new();
 
 #[interrupt]
 unsafe fn UART4() {
@@ -128,7 +136,8 @@ async fn main(spawner: Spawner) {
     interrupt::UART4.set_priority(Priority::P6);
     let high = EXECUTOR_HIGH.start(interrupt::UART4);
     high.spawn(unwrap!(control(encoders, motors)));
-    spawner.spawn(unwrap!(serial(uart, flash_store)));
+    spawner.spawn(unwrap!(storage(flash_store)));
+    spawner.spawn(unwrap!(serial(uart)));
 }
 
 /// The 1 kHz control tick; pets the watchdog after each tick.
@@ -159,7 +168,7 @@ fn with_app<R>(f: impl FnOnce(&mut App<'static>) -> R) -> Option<R> {
 
 /// The protocol link: request handler, telemetry, settings saves.
 #[embassy_executor::task]
-async fn serial(mut uart: BufferedUart<'static>, mut store: Store<Flash<'static, Async>>) {
+async fn serial(mut uart: BufferedUart<'static>) {
     let mut server = Server::new();
     let mut buf = [0u8; 64];
     loop {
@@ -185,23 +194,8 @@ async fn serial(mut uart: BufferedUart<'static>, mut store: Store<Flash<'static,
                     let _ = uart.write_all(server.last_frame(len)).await;
                 }
                 Some(Err((seq, item))) => {
-                    // Saves only happen with the motors stopped (the handler refuses them
-                    // while moving); the erase stalls the CPU, so the watchdog is given
-                    // time for it.
-                    WATCHDOG.lock(|w| {
-                        if let Some(w) = w.borrow_mut().as_mut() {
-                            w.set_timeout(board::WATCHDOG_SAVE_US);
-                        }
-                    });
-                    let ok = store.save(&item).await.is_ok();
-                    WATCHDOG.lock(|w| {
-                        if let Some(w) = w.borrow_mut().as_mut() {
-                            w.set_timeout(board::WATCHDOG_US);
-                        }
-                    });
-                    if !ok {
-                        warn!("settings save failed");
-                    }
+                    SAVE.send(item).await;
+                    let ok = SAVED.wait().await;
                     let r = with_app(|app| app.persisted(ok));
                     if let Some(r) = r {
                         let _ = uart.write_all(server.reply(seq, &r)).await;
@@ -216,5 +210,30 @@ async fn serial(mut uart: BufferedUart<'static>, mut store: Store<Flash<'static,
         if let Some(len) = tele {
             let _ = uart.write_all(server.last_telemetry(len)).await;
         }
+    }
+}
+
+/// Writes settings to flash. Saves only happen with the motors stopped (the handler
+/// refuses them while moving); a sector erase stalls the CPU for up to seconds, so the
+/// watchdog is given time for it and set back afterwards.
+#[embassy_executor::task]
+async fn storage(mut store: Store<Flash<'static, Async>>) {
+    loop {
+        let item = SAVE.receive().await;
+        WATCHDOG.lock(|w| {
+            if let Some(w) = w.borrow_mut().as_mut() {
+                w.set_timeout(board::WATCHDOG_SAVE_US);
+            }
+        });
+        let ok = store.save(&item).await.is_ok();
+        WATCHDOG.lock(|w| {
+            if let Some(w) = w.borrow_mut().as_mut() {
+                w.set_timeout(board::WATCHDOG_US);
+            }
+        });
+        if !ok {
+            warn!("settings save failed");
+        }
+        SAVED.signal(ok);
     }
 }
