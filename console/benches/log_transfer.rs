@@ -17,13 +17,28 @@ use wheelcal::link::{memory_pair, Faults};
 use wheelcal::virtual_board::{board_flash, VirtualBoard};
 
 fn main() {
-    let robot = robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/omni4.toml")).unwrap();
-    let sim = sim::SimRobot::new(&robot, sim::Faults::none(4), sim::Surface::flat(), sim::SimConfig::default()).unwrap();
+    let robot =
+        robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/omni4.toml"))
+            .unwrap();
+    let sim = sim::SimRobot::new(
+        &robot,
+        sim::Faults::none(4),
+        sim::Surface::flat(),
+        sim::SimConfig::default(),
+    )
+    .unwrap();
     let mut board = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
     let (host, mut end) = memory_pair(Faults::none(), Faults::none(), 1);
     let stop = Arc::new(AtomicBool::new(false));
     let s2 = stop.clone();
-    let t = std::thread::spawn(move || board.serve(&mut end, f64::INFINITY, || s2.load(Ordering::Relaxed), |_| {}));
+    let t = std::thread::spawn(move || {
+        board.serve(
+            &mut end,
+            f64::INFINITY,
+            || s2.load(Ordering::Relaxed),
+            |_| {},
+        )
+    });
     let mut c = Client::new(host, "memory");
     c.timeout = Duration::from_secs(2);
     c.hello().unwrap();
@@ -47,11 +62,38 @@ fn main() {
     stop.store(true, Ordering::Relaxed);
     t.join().unwrap();
 
-    println!("records            {} ({} bytes each, {} bytes)", recs.len(), info.record_size, data.len());
-    println!("wire, board->host  {rx} bytes: payload efficiency {:.1} %", 100.0 * data.len() as f64 / rx as f64);
-    println!("wire, both ways    {} bytes: payload efficiency {:.1} %", rx + tx, 100.0 * data.len() as f64 / (rx + tx) as f64);
-    println!("at 115200 baud     {:.1} s (10 bits per byte on the UART)", rx as f64 * 10.0 / 115_200.0);
-    println!("pull (in memory)   {:.3} s, {:.1} MB/s", pull.as_secs_f64(), data.len() as f64 / pull.as_secs_f64() / 1e6);
-    println!("decode             {:.2} ms, {:.1} M records/s", decode.as_secs_f64() * 1e3, recs.len() as f64 / decode.as_secs_f64() / 1e6);
-    println!("export CSV         {:.1} ms ({} bytes)", export.as_secs_f64() * 1e3, csv.len());
+    println!(
+        "records            {} ({} bytes each, {} bytes)",
+        recs.len(),
+        info.record_size,
+        data.len()
+    );
+    println!(
+        "wire, board->host  {rx} bytes: payload efficiency {:.1} %",
+        100.0 * data.len() as f64 / rx as f64
+    );
+    println!(
+        "wire, both ways    {} bytes: payload efficiency {:.1} %",
+        rx + tx,
+        100.0 * data.len() as f64 / (rx + tx) as f64
+    );
+    println!(
+        "at 115200 baud     {:.1} s (10 bits per byte on the UART)",
+        rx as f64 * 10.0 / 115_200.0
+    );
+    println!(
+        "pull (in memory)   {:.3} s, {:.1} MB/s",
+        pull.as_secs_f64(),
+        data.len() as f64 / pull.as_secs_f64() / 1e6
+    );
+    println!(
+        "decode             {:.2} ms, {:.1} M records/s",
+        decode.as_secs_f64() * 1e3,
+        recs.len() as f64 / decode.as_secs_f64() / 1e6
+    );
+    println!(
+        "export CSV         {:.1} ms ({} bytes)",
+        export.as_secs_f64() * 1e3,
+        csv.len()
+    );
 }

@@ -701,17 +701,23 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             for n in &rec.notes {
                 out.note(&format!("{}: {n}", a.recording.display()));
             }
-            let opts = diagnose::Options { max_effects: a.max_effects.clamp(1, 4), ..Default::default() };
-            let rep = diagnose::diagnose(&robot, &rec, &opts).map_err(|e| anyhow::anyhow!("{}: {e}", a.recording.display()))?;
+            let opts = diagnose::Options {
+                max_effects: a.max_effects.clamp(1, 4),
+                ..Default::default()
+            };
+            let rep = diagnose::diagnose(&robot, &rec, &opts)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", a.recording.display()))?;
             if let Some(dir) = &a.report {
                 if !report::font_available() {
                     bail!("plots need the DejaVu Sans font: apt-get install fonts-dejavu-core");
                 }
-                diagnose::plots::write_report_dir(&rep, dir).with_context(|| format!("cannot write the report into {}", dir.display()))?;
+                diagnose::plots::write_report_dir(&rep, dir)
+                    .with_context(|| format!("cannot write the report into {}", dir.display()))?;
                 out.note(&format!("report: {}", dir.join("index.html").display()));
             }
             if let Some(p) = &a.write_robot {
-                diagnose::write_robot(&robot, &rep, p).with_context(|| format!("cannot write {}", p.display()))?;
+                diagnose::write_robot(&robot, &rep, p)
+                    .with_context(|| format!("cannot write {}", p.display()))?;
                 out.note(&format!("fitted robot: {}", p.display()));
             }
             out.emit(&rep, || rep.to_string())
@@ -721,24 +727,36 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             let effects = a
                 .effect
                 .iter()
-                .map(|e| sim::Effect::parse(e).map_err(|err| anyhow::anyhow!("--effect {e}: {err}")))
+                .map(|e| {
+                    sim::Effect::parse(e).map_err(|err| anyhow::anyhow!("--effect {e}: {err}"))
+                })
                 .collect::<Result<Vec<_>>>()?;
             if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 7200.0) {
                 bail!("--duration must be within (0, 7200] seconds");
             }
             let motion = match a.umbmark_side {
                 Some(side) => sim::record::Motion::Program {
-                    program: Box::new(calib_core::motion::Program::umbmark_square(side, Direction::Ccw)),
+                    program: Box::new(calib_core::motion::Program::umbmark_square(
+                        side,
+                        Direction::Ccw,
+                    )),
                     limits: Default::default(),
                 },
-                None => sim::record::Motion::Random(sim::record::RandomMotion { duration_s: a.duration, ..Default::default() }),
+                None => sim::record::Motion::Random(sim::record::RandomMotion {
+                    duration_s: a.duration,
+                    ..Default::default()
+                }),
             };
-            let mut cfg = sim::record::RecordConfig { row_rate_hz: a.rate, ..Default::default() };
+            let mut cfg = sim::record::RecordConfig {
+                row_rate_hz: a.rate,
+                ..Default::default()
+            };
             cfg.sim.seed = a.seed;
             if let Some(n) = a.vision_noise {
                 cfg.sim.vision.sigma_xy_m = n;
             }
-            let rec = sim::record::record(&robot, &effects, sim::Surface::flat(), &motion, &cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
+            let rec = sim::record::record(&robot, &effects, sim::Surface::flat(), &motion, &cfg)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
             rec.write_dir(&a.out).map_err(|e| anyhow::anyhow!("{e}"))?;
             #[derive(serde::Serialize)]
             struct Written {
@@ -747,8 +765,24 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 effects: Vec<String>,
                 seed: u64,
             }
-            let w = Written { out: a.out.display().to_string(), rows: rec.recording.len(), effects: effects.iter().map(|e| e.to_string()).collect(), seed: a.seed };
-            out.emit(&w, || format!("wrote {} rows to {} (effects: {})\n", w.rows, w.out, if w.effects.is_empty() { "none".into() } else { w.effects.join(" ") }))
+            let w = Written {
+                out: a.out.display().to_string(),
+                rows: rec.recording.len(),
+                effects: effects.iter().map(|e| e.to_string()).collect(),
+                seed: a.seed,
+            };
+            out.emit(&w, || {
+                format!(
+                    "wrote {} rows to {} (effects: {})\n",
+                    w.rows,
+                    w.out,
+                    if w.effects.is_empty() {
+                        "none".into()
+                    } else {
+                        w.effects.join(" ")
+                    }
+                )
+            })
         }
         Command::Demo(a) => {
             let rep = demo::run(
