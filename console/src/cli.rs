@@ -649,13 +649,13 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Umbmark(UmbmarkCmd::Run(a)) => {
             let port = ctx.port.clone().unwrap_or_default();
             let opts = procedure_options(&a, &port, procedure::Kind::Umbmark);
-            let rep = procedure::run(ctx.client()?, &opts, &mut procedure::Terminal)?;
+            let rep = procedure::run(ctx.client()?, &opts, measure_for(&opts).as_mut())?;
             out.emit(&rep, || rep.human())
         }
         Command::Omni(OmniCmd::Run(a)) => {
             let port = ctx.port.clone().unwrap_or_default();
             let opts = procedure_options(&a, &port, procedure::Kind::Omni);
-            let rep = procedure::run(ctx.client()?, &opts, &mut procedure::Terminal)?;
+            let rep = procedure::run(ctx.client()?, &opts, measure_for(&opts).as_mut())?;
             out.emit(&rep, || rep.human())
         }
         Command::SimBoard(a) => {
@@ -795,6 +795,17 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             )?;
             out.emit(&rep, || rep.human())
         }
+    }
+}
+
+/// A person with a tape measure, or the virtual board's truth with --auto-measure.
+fn measure_for(opts: &procedure::Options) -> Box<dyn procedure::Measure> {
+    match &opts.auto_measure {
+        Some(file) => Box::new(procedure::TruthFile {
+            file: file.clone(),
+            quiet: false,
+        }),
+        None => Box::new(procedure::Terminal),
     }
 }
 
