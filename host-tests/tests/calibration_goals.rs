@@ -151,9 +151,7 @@ fn a_failed_computation_uploads_nothing() {
         file: runs.with_extension("truth"),
         quiet: true,
     };
-    let err = procedure::run(c, &opts, &mut m)
-        .unwrap_err()
-        .to_string();
+    let err = procedure::run(c, &opts, &mut m).unwrap_err().to_string();
     assert!(
         err.contains("runs.csv") || err.contains("not usable"),
         "{err}"
