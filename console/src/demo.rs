@@ -156,13 +156,39 @@ pub fn umbmark_on_virtual_board(
         },
     )
     .map_err(|e| anyhow::anyhow!("{e}"))?;
+    match procedure_on_virtual_board(
+        robot,
+        sim,
+        Kind::Umbmark,
+        runs,
+        side,
+        report,
+        after_runs,
+        progress,
+    )? {
+        ProcedureReport::Umbmark(rep) => Ok(*rep),
+        ProcedureReport::Omni(_) => bail!("the procedure returned an omni result"),
+    }
+}
+
+/// Runs a guided procedure, auto-measured, on a virtual board around `sim`: `length` is
+/// the square's side (UMBmark) or the path length (omni).
+#[allow(clippy::too_many_arguments)]
+pub fn procedure_on_virtual_board(
+    robot: &calib_core::Robot,
+    sim: SimRobot,
+    kind: Kind,
+    runs: usize,
+    length: f64,
+    report: Option<&Path>,
+    after_runs: usize,
+    progress: bool,
+) -> Result<ProcedureReport> {
+    let seed = RUN_ID.fetch_add(1, Ordering::Relaxed);
     let mut board = InProcessBoard::start(robot, sim, Faults::none(), Faults::none(), seed)
         .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let dir = std::env::temp_dir().join(format!(
-        "wheelcal-demo-{}-{seed}-{}",
-        std::process::id(),
-        RUN_ID.fetch_add(1, Ordering::Relaxed)
-    ));
+    let dir =
+        std::env::temp_dir().join(format!("wheelcal-procedure-{}-{seed}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let bar = progress.then(|| {
         let b = indicatif::ProgressBar::new((2 * runs + 2 * after_runs) as u64);
@@ -180,9 +206,9 @@ pub fn umbmark_on_virtual_board(
         progress: bar.clone(),
     };
     let opts = Options {
-        kind: Kind::Umbmark,
-        side_m: side,
-        length_m: side,
+        kind,
+        side_m: length,
+        length_m: length,
         runs,
         after_runs,
         runs_file: dir.join("runs.csv"),
@@ -199,10 +225,7 @@ pub fn umbmark_on_virtual_board(
         b.finish_and_clear();
     }
     let _ = std::fs::remove_dir_all(&dir);
-    match result? {
-        ProcedureReport::Umbmark(rep) => Ok(*rep),
-        ProcedureReport::Omni(_) => bail!("the procedure returned an omni result"),
-    }
+    result
 }
 
 static RUN_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);

@@ -102,6 +102,12 @@ impl WheelDriver for Motors<'_> {
         };
         self.inputs.iter_mut().for_each(|i| *i = off);
     }
+    /// Motor off: the simulated wheel rolls with the ground.
+    fn release(&mut self, wheel: usize) {
+        if let Some(i) = self.inputs.get_mut(wheel) {
+            *i = WheelInput::Free;
+        }
+    }
 }
 
 /// Where a trial really ended, relative to its start, against the board's odometry.

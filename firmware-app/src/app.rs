@@ -348,9 +348,20 @@ impl<'a> App<'a> {
                 None => self.kin.inverse_into(&self.twist, &mut cmd[..n]),
             }
             let standing = self.twist == Twist::zero();
+            // On an omni robot a wheel the motion does not use is switched off rather than
+            // held at zero (001 turns the actuators of the wheels a path does not use
+            // off): held, it would fight the rollers of the others and hide a rotation
+            // the calibration must see.
+            let omni = self.params.robot.kind == calib_core::robot::RobotKind::Omni;
             for (i, w) in self.wheels[..n].iter_mut().enumerate() {
                 w.cmd = cmd[i];
                 if self.dc {
+                    // (below 1e-4 rad/s: the Jacobian's sin(180 deg) is 1e-16, not 0)
+                    if w.cmd.abs() < 1e-4 && omni && !standing {
+                        w.pi.reset();
+                        drv.release(i);
+                        continue;
+                    }
                     let duty = if w.cmd == 0.0 && standing {
                         // Standing: no integrator creep, no hum.
                         w.pi.reset();

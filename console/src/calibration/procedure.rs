@@ -48,12 +48,15 @@ pub trait Measure {
     fn say(&mut self, text: &str);
     /// Waits until the robot is placed at the start.
     fn ready(&mut self, what: &str) -> Result<()>;
-    /// The measured end error of `trial` (measured minus odometry, start frame):
-    /// `(x, y, theta)`.
+    /// The measured end error of `trial`, measured minus odometry, in the path frame (x
+    /// along the first leg or the path, y to its left): `(x, y, theta)`. `odometry` is
+    /// the board's end pose in that frame; `direction_rad` is the path's direction in the
+    /// robot's start frame (0 for a UMBmark square, pi/2 for 4W-2).
     fn end_error(
         &mut self,
         trial: u16,
         odometry: Pose<f32>,
+        direction_rad: f64,
         what: &str,
     ) -> Result<(f64, f64, Option<f64>)>;
 }
@@ -83,6 +86,7 @@ impl Measure for Terminal {
         &mut self,
         _trial: u16,
         odo: Pose<f32>,
+        _direction_rad: f64,
         what: &str,
     ) -> Result<(f64, f64, Option<f64>)> {
         loop {
@@ -106,6 +110,23 @@ impl Measure for Terminal {
     }
 }
 
+/// A virtual board's truth (true end pose in the start frame, x along the start heading)
+/// turned into the path frame, minus the reference end pose (same frame).
+fn truth_error(
+    t: &TrialTruth,
+    direction_rad: f64,
+    reference: Pose<f32>,
+) -> (f64, f64, Option<f64>) {
+    let (s, c) = direction_rad.sin_cos();
+    let x = c * t.true_x_m + s * t.true_y_m;
+    let y = -s * t.true_x_m + c * t.true_y_m;
+    (
+        x - reference.x as f64,
+        y - reference.y as f64,
+        Some(t.true_theta_rad - reference.theta as f64),
+    )
+}
+
 /// The virtual board's truth, read from its truth file.
 pub struct TruthFile {
     pub file: PathBuf,
@@ -124,13 +145,14 @@ impl Measure for TruthFile {
     fn end_error(
         &mut self,
         trial: u16,
-        _odo: Pose<f32>,
+        odo: Pose<f32>,
+        direction_rad: f64,
         _what: &str,
     ) -> Result<(f64, f64, Option<f64>)> {
         for _ in 0..100 {
             let truths = crate::sim_board::read_truths(&self.file)?;
             if let Some(t) = truths.iter().rev().find(|t| t.trial == trial) {
-                return Ok((t.x_err_m, t.y_err_m, Some(t.theta_err_rad)));
+                return Ok(truth_error(t, direction_rad, odo));
             }
             std::thread::sleep(Duration::from_millis(20));
         }
@@ -157,7 +179,8 @@ impl Measure for TruthChannel<'_> {
     fn end_error(
         &mut self,
         trial: u16,
-        _odo: Pose<f32>,
+        odo: Pose<f32>,
+        direction_rad: f64,
         _what: &str,
     ) -> Result<(f64, f64, Option<f64>)> {
         loop {
@@ -165,7 +188,7 @@ impl Measure for TruthChannel<'_> {
                 if let Some(p) = &self.progress {
                     p.inc(1);
                 }
-                return Ok((t.x_err_m, t.y_err_m, Some(t.theta_err_rad)));
+                return Ok(truth_error(t, direction_rad, odo));
             }
             let t = self
                 .rx
@@ -394,7 +417,27 @@ fn run_phase<L: Read + Write>(
                 .last()
                 .map(|t| t.id)
                 .context("the board logged no trial")?;
-            let (x, y, th) = m.end_error(trial, end.pose, &what)?;
+            // The board's odometry in the path frame (x along the first leg or the path).
+            let d = match t {
+                Trial::Square(_) => 0.0,
+                Trial::Path(p) => {
+                    let (ux, uy) = p.direction();
+                    uy.atan2(ux)
+                }
+            };
+            // UMBmark measures against the board's odometry (Borenstein). 001's omni method
+            // corrects the wheel commands and measures against the commanded end point:
+            // on a redundant robot the odometry partly follows a deviation (the unused,
+            // free-rolling wheels' encoders see it), which would hide half of it.
+            let reference = match t {
+                Trial::Square(_) => {
+                    let (sd, cd) = (d as f32).sin_cos();
+                    let o = end.pose;
+                    Pose::new(cd * o.x + sd * o.y, -sd * o.x + cd * o.y, o.theta)
+                }
+                Trial::Path(_) => Pose::new(length as f32, 0.0, 0.0),
+            };
+            let (x, y, th) = m.end_error(trial, reference, d, &what)?;
             RunsFile::append(
                 runs_file,
                 &RunRow {
