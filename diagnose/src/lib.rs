@@ -161,8 +161,10 @@ pub fn diagnose(
         });
     }
 
-    // Verdict: how much of the residual beyond the noise is explained, per stage.
-    let mut fractions = Vec::new();
+    // Verdict: how much of the residual beyond the noise is explained. The actuator
+    // stage's noise is floored at half an encoder count, below which a mismatch is not
+    // physical (a control tick's delay between command and count).
+    let (mut excess0, mut excess1) = (0.0, 0.0);
     let mut mismatch = false;
     for s in [Stage::Ground, Stage::Actuator] {
         let n = match s {
@@ -172,17 +174,23 @@ pub fn diagnose(
         if n < 1.0 {
             continue;
         }
-        let c0 = ev.chi2(&sel.nominal, s) / n;
-        let c1 = ev.chi2(&sel.final_rss, s) / n;
+        let mut scale = 1.0;
+        if s == Stage::Actuator {
+            let floor = 0.5 * ev.actuator_quantum_m();
+            scale = (ev.noise.actuator_sigma_m / floor.max(ev.noise.actuator_sigma_m)).powi(2);
+        }
+        let c0 = ev.chi2(&sel.nominal, s) / n * scale;
+        let c1 = ev.chi2(&sel.final_rss, s) / n * scale;
         if c0 > MISMATCH_CHI2 {
             mismatch = true;
-            fractions.push((1.0 - (c1 - 1.0).max(0.0) / (c0 - 1.0)).clamp(0.0, 1.0));
+            excess0 += c0 - 1.0;
+            excess1 += (c1 - 1.0).max(0.0);
         }
     }
-    let explained_fraction = if fractions.is_empty() {
-        1.0
+    let explained_fraction = if excess0 > 0.0 {
+        (1.0 - excess1 / excess0).clamp(0.0, 1.0)
     } else {
-        fractions.iter().sum::<f64>() / fractions.len() as f64
+        1.0
     };
     let verdict = match findings.first() {
         None if mismatch => VERDICT_UNEXPLAINED.to_string(),

@@ -15,6 +15,13 @@ use crate::replay::Prepared;
 use std::cell::RefCell;
 use std::rc::Rc;
 
+/// What a worker thread needs to rebuild an equivalent evaluator.
+#[derive(Debug, Clone, Copy)]
+pub struct ForkSpec {
+    pub noise: Noise,
+    pub linear_commands: bool,
+}
+
 /// Simulated angle series per wheel (`None` for wheels without commands), shared.
 type WheelAngles = Rc<Vec<Option<Vec<f64>>>>;
 
@@ -98,10 +105,16 @@ pub struct Evaluator<'a> {
     pose_block: Vec<u8>,
     act_block: Vec<u8>,
     act_cache: RefCell<Option<(Vec<f64>, WheelAngles)>>,
+    /// Commands read as linear between rows (decided on the nominal model).
+    pub linear_commands: std::cell::Cell<bool>,
     /// Model runs so far (ground, actuator), for the report and the benchmark.
     pub runs: std::cell::Cell<(usize, usize)>,
     ground_cache: RefCell<Option<(Vec<f64>, Rc<Path>)>>,
 }
+
+/// Cap of the lag-1 autocorrelation used to discount the sample count: a residual that
+/// still drifts after a fit counts as at least n / 200 independent samples.
+const MAX_AUTOCORRELATION: f64 = 0.99;
 
 /// Most rows per wheel compared in the actuator stage.
 const MAX_ACT_ROWS: usize = 6000;
@@ -134,12 +147,55 @@ impl<'a> Evaluator<'a> {
                 actuator_sigma_m: 1.0,
             },
         );
-        let nominal = ev.evaluate(&Model::default(), Fold::All);
+        let mut nominal = ev.evaluate(&Model::default(), Fold::All);
+        // A log slower than the control loop samples commands that changed in between:
+        // read them as linear between rows if that fits the encoders better.
+        // A lag shifts the encoders the way holding a command does, so the two readings
+        // are compared each with its best first-order lag.
+        if !nominal.act.is_empty() {
+            let best_with_lag = |ev: &Evaluator| -> f64 {
+                let mut best = ev
+                    .rss(&ev.evaluate(&Model::default(), Fold::All), Fold::All)
+                    .act;
+                for i in 0..16 {
+                    let tau = 1e-4 * (3000f64).powf(i as f64 / 15.0);
+                    let m = Model::default().with(Effect::MotorLag, vec![tau]);
+                    best = best.min(ev.rss(&ev.evaluate(&m, Fold::All), Fold::All).act);
+                }
+                best
+            };
+            let held = best_with_lag(&ev);
+            ev.linear_commands.set(true);
+            *ev.act_cache.borrow_mut() = None;
+            *ev.ground_cache.borrow_mut() = None;
+            if best_with_lag(&ev) < held {
+                nominal = ev.evaluate(&Model::default(), Fold::All);
+            } else {
+                ev.linear_commands.set(false);
+                *ev.act_cache.borrow_mut() = None;
+                *ev.ground_cache.borrow_mut() = None;
+            }
+        }
         ev.noise = estimate_noise(p, &nominal);
         ev
     }
 
-    /// An evaluator with given noise levels and empty caches (one per worker thread).
+    /// A worker's copy: same noise and command reading, empty caches.
+    pub fn fork(&self) -> ForkSpec {
+        ForkSpec {
+            noise: self.noise,
+            linear_commands: self.linear_commands.get(),
+        }
+    }
+
+    /// An evaluator built from a [`ForkSpec`] (in a worker thread).
+    pub fn from_fork(p: &'a Prepared, f: ForkSpec) -> Self {
+        let ev = Self::with_noise(p, f.noise);
+        ev.linear_commands.set(f.linear_commands);
+        ev
+    }
+
+    /// An evaluator with given noise levels and empty caches.
     pub fn with_noise(p: &'a Prepared, noise: Noise) -> Self {
         let n = p.rows();
         let step = n.div_ceil(MAX_ACT_ROWS).max(1);
@@ -160,8 +216,17 @@ impl<'a> Evaluator<'a> {
             act_block,
             act_cache: RefCell::new(None),
             runs: std::cell::Cell::new((0, 0)),
+            linear_commands: std::cell::Cell::new(false),
             ground_cache: RefCell::new(None),
         }
+    }
+
+    /// Wheel-surface travel of one encoder count (largest over the compared wheels).
+    pub fn actuator_quantum_m(&self) -> f64 {
+        self.actuator_wheels()
+            .iter()
+            .map(|&i| self.p.wheels[i].rad_per_count * self.p.wheels[i].radius_m)
+            .fold(0.0, f64::max)
     }
 
     /// Wheels compared in the actuator stage.
@@ -193,7 +258,14 @@ impl<'a> Evaluator<'a> {
         }
         let (g, a) = self.runs.get();
         self.runs.set((g, a + 1));
-        let params = ActuatorParams::from_model(m);
+        let mut params = ActuatorParams::from_model(m);
+        params.linear = self.linear_commands.get();
+        let d = &self.p.robot.drive;
+        if d.kind == calib_core::robot::DriveType::Stepper && d.steps_per_rev > 0 {
+            // Four full steps, in wheel radians.
+            params.step_cycle_rad =
+                Some(4.0 * std::f64::consts::TAU / (d.steps_per_rev as f64 * d.gear_ratio));
+        }
         let v: Vec<Option<Vec<f64>>> = self
             .p
             .wheels
@@ -412,7 +484,7 @@ impl<'a> Evaluator<'a> {
             }
         }
         if den > 0.0 {
-            (num / den).clamp(0.0, 0.999)
+            (num / den).clamp(0.0, MAX_AUTOCORRELATION)
         } else {
             0.0
         }

@@ -280,6 +280,19 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             let gain = 1.0 - stage_rmse(&after, stage) / stage_rmse(&before, stage).max(1e-300);
             let ratio = heldout_ratio(ev, &model, e, m.get(e).unwrap_or(&[]));
             candidates[idx].heldout_ratio = Some(ratio);
+            // Below an encoder count the actuator stage cannot tell a physical effect from
+            // the simulation or logging of the command (a control tick's delay).
+            let quantum = ev.actuator_quantum_m();
+            if stage == Stage::Actuator
+                && stage_rmse(&before, stage) - stage_rmse(&after, stage) < 0.5 * quantum
+            {
+                candidates[idx].note = format!(
+                    "improves the actuator RMSE by less than half an encoder count ({:.3} mm)",
+                    0.5 * quantum * 1e3
+                );
+                rejected.push(e);
+                continue;
+            }
             if gain < RMSE_MIN_GAIN {
                 candidates[idx].note =
                     format!("improves the {stage} RMSE by only {:.1} %", gain * 100.0);
@@ -367,7 +380,7 @@ fn fit_candidates(
         .map_or(1, |n| n.get())
         .clamp(1, 4)
         .min(todo.len().max(1));
-    let (p, noise) = (ev.p, ev.noise);
+    let (p, spec) = (ev.p, ev.fork());
     let next = AtomicUsize::new(0);
     let mut results: Vec<(usize, Effect, Model, Vec<Vec<f64>>, Eval)> = Vec::new();
     let mut runs = ev.runs.get();
@@ -375,7 +388,7 @@ fn fit_candidates(
         let workers: Vec<_> = (0..threads)
             .map(|_| {
                 s.spawn(|| {
-                    let local = Evaluator::with_noise(p, noise);
+                    let local = Evaluator::from_fork(p, spec);
                     let mut out = Vec::new();
                     loop {
                         let i = next.fetch_add(1, Ordering::Relaxed);
