@@ -161,9 +161,7 @@ pub fn diagnose(
         });
     }
 
-    // Verdict: how much of the residual beyond the noise is explained. The actuator
-    // stage's noise is floored at half an encoder count, below which a mismatch is not
-    // physical (a control tick's delay between command and count).
+    // Verdict: how much of the residual beyond the noise is explained.
     let (mut excess0, mut excess1) = (0.0, 0.0);
     let mut mismatch = false;
     for s in [Stage::Ground, Stage::Actuator] {
@@ -174,13 +172,24 @@ pub fn diagnose(
         if n < 1.0 {
             continue;
         }
-        let mut scale = 1.0;
-        if s == Stage::Actuator {
-            let floor = 0.5 * ev.actuator_quantum_m();
-            scale = (ev.noise.actuator_sigma_m / floor.max(ev.noise.actuator_sigma_m)).powi(2);
-        }
-        let c0 = ev.chi2(&sel.nominal, s) / n * scale;
-        let c1 = ev.chi2(&sel.final_rss, s) / n * scale;
+        // Chi-square per residual against the noise. The actuator stage starts from its
+        // timing floor (the nominal model with the best sub-quarter-row delay, see
+        // `act_floor_rss`): what such a delay explains is logging, not physics.
+        // Below one encoder count of RMS, a mismatch is not resolvable: the actuator
+        // noise used here is at least a count / sqrt(2), so MISMATCH_CHI2 = 2 means one
+        // count.
+        let act_sigma2 = ev
+            .noise
+            .actuator_sigma_m
+            .max(ev.actuator_quantum_m() / 2f64.sqrt())
+            .powi(2);
+        let (c0, c1) = match s {
+            Stage::Ground => (ev.chi2(&sel.nominal, s) / n, ev.chi2(&sel.final_rss, s) / n),
+            Stage::Actuator => {
+                let c0 = ev.act_floor_rss.get().min(sel.nominal.act) / act_sigma2 / n;
+                (c0, (sel.final_rss.act / act_sigma2 / n).min(c0))
+            }
+        };
         if c0 > MISMATCH_CHI2 {
             mismatch = true;
             excess0 += c0 - 1.0;

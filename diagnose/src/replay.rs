@@ -188,6 +188,16 @@ impl Prepared {
         self.legs.as_ref().map(|(f, r)| (f[k], r[k]))
     }
 
+    /// Median row interval, s.
+    pub fn row_dt_s(&self) -> f64 {
+        let mut d: Vec<f64> = self.t.windows(2).map(|w| w[1] - w[0]).collect();
+        if d.is_empty() {
+            return 0.0;
+        }
+        d.sort_by(|a, b| a.total_cmp(b));
+        d[d.len() / 2]
+    }
+
     /// True when at least one wheel has both a command and an encoder.
     pub fn has_actuator_stage(&self) -> bool {
         self.wheels

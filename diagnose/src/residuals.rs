@@ -105,6 +105,10 @@ pub struct Evaluator<'a> {
     pose_block: Vec<u8>,
     act_block: Vec<u8>,
     act_cache: RefCell<Option<(Vec<f64>, WheelAngles)>>,
+    /// Actuator sum of squares (m^2) of the nominal model with the best lag shorter than
+    /// a quarter row: timing below that is a logging convention (where in its cycle each
+    /// column is sampled), the floor against which actuator mismatch is judged.
+    pub act_floor_rss: std::cell::Cell<f64>,
     /// Commands read as linear between rows (decided on the nominal model).
     pub linear_commands: std::cell::Cell<bool>,
     /// Model runs so far (ground, actuator), for the report and the benchmark.
@@ -153,25 +157,56 @@ impl<'a> Evaluator<'a> {
         // A lag shifts the encoders the way holding a command does, so the two readings
         // are compared each with its best first-order lag.
         if !nominal.act.is_empty() {
-            let best_with_lag = |ev: &Evaluator| -> f64 {
-                let mut best = ev
+            // (best RSS with any lag, best RSS with a sub-quarter-row lag)
+            let quarter_row = 0.25 * p.row_dt_s();
+            let best_with_lag = |ev: &Evaluator| -> (f64, f64) {
+                let base = ev
                     .rss(&ev.evaluate(&Model::default(), Fold::All), Fold::All)
                     .act;
+                let (mut best, mut floor) = (base, base);
+                let rss_at = |u: f64| -> f64 {
+                    let m = Model::default().with(Effect::MotorLag, vec![u.exp()]);
+                    ev.rss(&ev.evaluate(&m, Fold::All), Fold::All).act
+                };
+                // Log grid from 0.1 ms to 0.3 s, then two zooms around the best point.
+                let (lo, hi) = (1e-4f64.ln(), 0.3f64.ln());
+                let step = (hi - lo) / 15.0;
+                let mut best_u = lo;
                 for i in 0..16 {
-                    let tau = 1e-4 * (3000f64).powf(i as f64 / 15.0);
-                    let m = Model::default().with(Effect::MotorLag, vec![tau]);
-                    best = best.min(ev.rss(&ev.evaluate(&m, Fold::All), Fold::All).act);
+                    let u = lo + step * i as f64;
+                    let r = rss_at(u);
+                    if r < best {
+                        (best, best_u) = (r, u);
+                    }
+                    if u.exp() <= quarter_row {
+                        floor = floor.min(r);
+                    }
                 }
-                best
+                let mut half = step;
+                for _ in 0..2 {
+                    let centre = best_u;
+                    for j in 1..8 {
+                        let u = centre - half + 2.0 * half * j as f64 / 8.0;
+                        let r = rss_at(u);
+                        if r < best {
+                            (best, best_u) = (r, u);
+                        }
+                    }
+                    half /= 4.0;
+                }
+                (best, floor)
             };
             let held = best_with_lag(&ev);
             ev.linear_commands.set(true);
             *ev.act_cache.borrow_mut() = None;
             *ev.ground_cache.borrow_mut() = None;
-            if best_with_lag(&ev) < held {
+            let linear = best_with_lag(&ev);
+            if linear.0 < held.0 {
                 nominal = ev.evaluate(&Model::default(), Fold::All);
+                ev.act_floor_rss.set(linear.1);
             } else {
                 ev.linear_commands.set(false);
+                ev.act_floor_rss.set(held.1);
                 *ev.act_cache.borrow_mut() = None;
                 *ev.ground_cache.borrow_mut() = None;
             }
@@ -217,6 +252,7 @@ impl<'a> Evaluator<'a> {
             act_cache: RefCell::new(None),
             runs: std::cell::Cell::new((0, 0)),
             linear_commands: std::cell::Cell::new(false),
+            act_floor_rss: std::cell::Cell::new(0.0),
             ground_cache: RefCell::new(None),
         }
     }
@@ -250,7 +286,8 @@ impl<'a> Evaluator<'a> {
     }
 
     fn actuator_angles(&self, m: &Model) -> WheelAngles {
-        let k = key(m, Stage::Actuator, false);
+        let mut k = key(m, Stage::Actuator, false);
+        k.push(if self.linear_commands.get() { 1.0 } else { 0.0 });
         if let Some((ck, v)) = &*self.act_cache.borrow() {
             if *ck == k {
                 return Rc::clone(v);
@@ -286,7 +323,8 @@ impl<'a> Evaluator<'a> {
     /// The predicted path of a model (origin start).
     pub fn path(&self, m: &Model) -> Rc<Path> {
         let uses_act = self.ground_uses_actuator();
-        let k = key(m, Stage::Ground, uses_act);
+        let mut k = key(m, Stage::Ground, uses_act);
+        k.push(if self.linear_commands.get() { 1.0 } else { 0.0 });
         if let Some((ck, path)) = &*self.ground_cache.borrow() {
             if *ck == k {
                 return Rc::clone(path);

@@ -293,6 +293,12 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
                 rejected.push(e);
                 continue;
             }
+            if e == Effect::MotorLag && m.get(e).is_some_and(|p| p[0] < 0.25 * ev.p.row_dt_s()) {
+                candidates[idx].note =
+                    "a lag under a quarter row is a logging convention, not physics".into();
+                rejected.push(e);
+                continue;
+            }
             if gain < RMSE_MIN_GAIN {
                 candidates[idx].note =
                     format!("improves the {stage} RMSE by only {:.1} %", gain * 100.0);
