@@ -51,7 +51,7 @@ impl Heading {
         let (cw, sw) = (1.0 - w * b, w * a);
         let (c, s) = (self.c * cw - self.s * sw, self.s * cw + self.c * sw);
         self.count += 1;
-        if self.count % 256 == 0 {
+        if self.count & 255 == 0 {
             let (sn, cn) = pose.theta.sin_cos();
             (self.c, self.s) = (cn, sn);
         } else {
@@ -290,11 +290,18 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
             }
             match (&cache.driven, mu.is_some()) {
                 (Some((kin, idx)), true) => {
+                    // Undriven wheels roll with the body, so the body follows the
+                    // (traction-limited) driven wheels; its sideways motion, which the
+                    // driven pair alone barely constrains, stays what all wheels say.
                     let sub = &mut sub_buf[..idx.len()];
                     for (o, &j) in sub.iter_mut().zip(idx) {
                         *o = ang[j];
                     }
-                    kin.forward(sub)
+                    let mut t = kin.forward(sub);
+                    if let Some(all) = &cache.all {
+                        t.vy = all.forward(&inc).vy;
+                    }
+                    t
                 }
                 _ => match &cache.all {
                     Some(kin) => kin.forward(ang),

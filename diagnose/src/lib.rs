@@ -42,6 +42,10 @@ pub const VERDICT_UNEXPLAINED: &str = "unexplained";
 pub const MISMATCH_CHI2: f64 = 2.0;
 /// Findings must explain at least this fraction of the excess residual to be the verdict.
 pub const MIN_EXPLAINED: f64 = 0.5;
+/// ... and at least `WELL_EXPLAINED` of it when the final chi-square per residual is
+/// still above `RESIDUAL_CHI2` (residual RMS above ~3 noise sigmas).
+pub const WELL_EXPLAINED: f64 = 0.95;
+pub const RESIDUAL_CHI2: f64 = 10.0;
 
 /// Tuning of a diagnosis.
 #[derive(Debug, Clone)]
@@ -163,6 +167,7 @@ pub fn diagnose(
 
     // Verdict: how much of the residual beyond the noise is explained.
     let (mut excess0, mut excess1) = (0.0, 0.0);
+    let mut worst_final: f64 = 0.0;
     let mut mismatch = false;
     for s in [Stage::Ground, Stage::Actuator] {
         let n = match s {
@@ -175,13 +180,13 @@ pub fn diagnose(
         // Chi-square per residual against the noise. The actuator stage starts from its
         // timing floor (the nominal model with the best sub-quarter-row delay, see
         // `act_floor_rss`): what such a delay explains is logging, not physics.
-        // Below one encoder count of RMS, a mismatch is not resolvable: the actuator
-        // noise used here is at least a count / sqrt(2), so MISMATCH_CHI2 = 2 means one
-        // count.
+        // Below two encoder counts of RMS, an actuator mismatch is not resolved from the
+        // way commands and counts are sampled within a row: the actuator noise used here
+        // is at least sqrt(2) counts, so MISMATCH_CHI2 = 2 means two counts.
         let act_sigma2 = ev
             .noise
             .actuator_sigma_m
-            .max(ev.actuator_quantum_m() / 2f64.sqrt())
+            .max(ev.actuator_quantum_m() * 2f64.sqrt())
             .powi(2);
         let (c0, c1) = match s {
             Stage::Ground => (ev.chi2(&sel.nominal, s) / n, ev.chi2(&sel.final_rss, s) / n),
@@ -194,6 +199,7 @@ pub fn diagnose(
             mismatch = true;
             excess0 += c0 - 1.0;
             excess1 += (c1 - 1.0).max(0.0);
+            worst_final = worst_final.max(c1);
         }
     }
     let explained_fraction = if excess0 > 0.0 {
@@ -205,6 +211,14 @@ pub fn diagnose(
         None if mismatch => VERDICT_UNEXPLAINED.to_string(),
         None => VERDICT_NONE.to_string(),
         Some(_) if mismatch && explained_fraction < MIN_EXPLAINED => {
+            VERDICT_UNEXPLAINED.to_string()
+        }
+        // A fit that leaves the residual far outside the noise must explain nearly all
+        // of it to be the answer: an effect can bend an out-of-catalogue drift a long way
+        // with implausible parameters.
+        Some(_)
+            if mismatch && worst_final > RESIDUAL_CHI2 && explained_fraction < WELL_EXPLAINED =>
+        {
             VERDICT_UNEXPLAINED.to_string()
         }
         Some(f) => f.effect.clone(),

@@ -24,7 +24,8 @@ pub const RMSE_MIN_GAIN: f64 = 0.03;
 /// Most effects selected.
 pub const MAX_EFFECTS: usize = 3;
 
-/// A fitted candidate: effect, model with it, uncertainties, residuals, BIC change.
+/// A fitted candidate: effect, model with it, uncertainties, residuals, BIC change (0
+/// until computed).
 type Tried = (Effect, Model, Vec<Vec<f64>>, Eval, f64);
 
 /// One effect tried in one round.
@@ -245,7 +246,7 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
                 (e, start)
             })
             .collect();
-        for (e, m, sig, cand_eval) in fit_candidates(ev, &model, &todo) {
+        for (e, m, sig, cand_eval, _) in fit_candidates(ev, &model, &todo) {
             if let Some(v) = m.get(e) {
                 previous.retain(|(x, _)| *x != e);
                 previous.push((e, v.to_vec()));
@@ -376,11 +377,7 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
 
 /// Fits each candidate effect on top of `base`, spread over the machine's cores (each
 /// worker with its own evaluator: the caches are per thread). Results keep `todo`'s order.
-fn fit_candidates(
-    ev: &Evaluator,
-    base: &Model,
-    todo: &[(Effect, Vec<Vec<f64>>)],
-) -> Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> {
+fn fit_candidates(ev: &Evaluator, base: &Model, todo: &[(Effect, Vec<Vec<f64>>)]) -> Vec<Tried> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
@@ -388,7 +385,7 @@ fn fit_candidates(
         .min(todo.len().max(1));
     let (p, spec) = (ev.p, ev.fork());
     let next = AtomicUsize::new(0);
-    let mut results: Vec<(usize, Effect, Model, Vec<Vec<f64>>, Eval)> = Vec::new();
+    let mut results: Vec<(usize, Tried)> = Vec::new();
     let mut runs = ev.runs.get();
     std::thread::scope(|s| {
         let workers: Vec<_> = (0..threads)
@@ -403,7 +400,7 @@ fn fit_candidates(
                         };
                         let (m, sig, _) = fit_params(&local, base, &[*e], start, Fold::All);
                         let ce = local.evaluate(&m, Fold::All);
-                        out.push((i, *e, m, sig, ce));
+                        out.push((i, (*e, m, sig, ce, 0.0)));
                     }
                     (out, local.runs.get())
                 })
@@ -418,10 +415,7 @@ fn fit_candidates(
     });
     ev.runs.set(runs);
     results.sort_by_key(|r| r.0);
-    results
-        .into_iter()
-        .map(|(_, e, m, sig, ce)| (e, m, sig, ce))
-        .collect()
+    results.into_iter().map(|(_, t)| t).collect()
 }
 
 /// Held-out check: fit the effect on even blocks and score the odd ones, then the other

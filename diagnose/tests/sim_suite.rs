@@ -12,7 +12,7 @@ use calib_core::robot::{presets, Drive, Robot};
 use diagnose::{diagnose, Options};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
-use sim::{record, Effect, Motion, RandomMotion, RecordConfig, Surface};
+use sim::{record, Effect, LegMotion, Motion, RandomMotion, RecordConfig, Surface};
 use std::path::Path;
 
 fn robot_file(name: &str) -> Robot {
@@ -40,6 +40,8 @@ struct Case {
     also: Vec<&'static str>,
     params: Vec<ParamCheck>,
     a_max: f64,
+    /// Leg angles over the run (wheeled-legged robot).
+    legs: Option<LegMotion>,
 }
 
 fn cases() -> Vec<Case> {
@@ -62,6 +64,7 @@ fn cases() -> Vec<Case> {
             also,
             params,
             a_max: 0.5,
+            legs: None,
         });
     };
     // Noise-only controls.
@@ -264,6 +267,27 @@ fn cases() -> Vec<Case> {
             ("wheelbase_error", "eb", 0.97, 0.004, false),
         ],
     );
+    // 002's wheeled-legged robot: front pair driven, rear pair free (their encoders see
+    // the ground), legs sweeping so the load on the driven wheels changes; the traction
+    // limit follows the leg angles by moment balance.
+    for mu in [0.06, 0.1] {
+        add(
+            format!("wlr_mu_{mu}"),
+            robot_file("wlr"),
+            vec![format!("longitudinal_slip=mu:{mu}")],
+            "longitudinal_slip",
+            vec![],
+            vec![("longitudinal_slip", "mu", mu, 0.15, true)],
+        );
+    }
+    add(
+        "noise_wlr".into(),
+        robot_file("wlr"),
+        vec![],
+        "none",
+        vec![],
+        vec![],
+    );
     // Out of the catalogue: a tilted floor (constant world drift while moving).
     add(
         "tilted_floor_diff".into(),
@@ -281,6 +305,16 @@ fn cases() -> Vec<Case> {
         vec![],
         vec![],
     );
+    // The legged runs: harder accelerations (slip must act) and legs sweeping between
+    // 35 and 140 deg.
+    for c in out.iter_mut().filter(|c| c.name.contains("wlr")) {
+        c.a_max = 1.0;
+        c.legs = Some(LegMotion::Random {
+            min: 0.6,
+            max: 2.4,
+            period_s: 4.0,
+        });
+    }
     out
 }
 
@@ -301,6 +335,9 @@ fn simulate(case: &Case) -> calib_core::recording::Recording {
     let mut cfg = RecordConfig::default();
     cfg.sim.seed = case.seed;
     cfg.row_rate_hz = 50.0;
+    if let Some(l) = case.legs {
+        cfg.legs = l;
+    }
     let motion = Motion::Random(RandomMotion {
         duration_s: 40.0,
         v_max_m_s: 0.3,
@@ -462,75 +499,6 @@ fn explain_case() {
                 x.heldout_ratio,
                 x.parameters,
                 x.note
-            );
-        }
-    }
-}
-
-#[test]
-#[ignore]
-fn scan_missed() {
-    use diagnose::residuals::{Evaluator, Fold};
-    let c = cases()
-        .into_iter()
-        .find(|c| c.name.starts_with("missed_17"))
-        .unwrap();
-    let rec = simulate(&c);
-    let p = diagnose::replay::Prepared::new(&c.robot, &rec);
-    let ev = Evaluator::new(&p);
-    println!("linear {}", ev.linear_commands.get());
-    for a in [5.0, 10.0, 15.0, 17.18, 20.0, 30.0, 100.0, 1000.0] {
-        let m = diagnose::Model::default().with(diagnose::Effect::MissedSteps, vec![a]);
-        let e = ev.evaluate(&m, Fold::All);
-        println!(
-            "a {a}: actuator rmse {:.3} mm",
-            ev.rss(&e, Fold::All).actuator_rmse() * 1e3
-        );
-    }
-}
-
-#[test]
-#[ignore]
-fn scan_case() {
-    use diagnose::residuals::{Evaluator, Fold};
-    let filter = std::env::var("DIAG_CASE").unwrap_or_default();
-    let c = cases()
-        .into_iter()
-        .find(|c| c.name.contains(filter.as_str()))
-        .unwrap();
-    let rec = simulate(&c);
-    let p = diagnose::replay::Prepared::new(&c.robot, &rec);
-    let ev = Evaluator::new(&p);
-    println!(
-        "linear {} noise {:?} floor rmse {:.4} mm n_act {}",
-        ev.linear_commands.get(),
-        ev.noise,
-        (ev.act_floor_rss.get()
-            / ev.rss(
-                &ev.evaluate(&diagnose::Model::default(), Fold::All),
-                Fold::All
-            )
-            .n_act as f64)
-            .sqrt()
-            * 1e3,
-        ev.rss(
-            &ev.evaluate(&diagnose::Model::default(), Fold::All),
-            Fold::All
-        )
-        .n_act
-    );
-    for tau in [0.0, 0.0005, 0.001, 0.005, 0.01, 0.05, 0.07, 0.08, 0.09] {
-        for lin in [false, true] {
-            ev.linear_commands.set(lin);
-            let m = if tau > 0.0 {
-                diagnose::Model::default().with(diagnose::Effect::MotorLag, vec![tau])
-            } else {
-                diagnose::Model::default().with(diagnose::Effect::Backlash, vec![1e-9])
-            };
-            let e = ev.evaluate(&m, Fold::All);
-            println!(
-                "tau {tau} linear {lin}: actuator rmse {:.4} mm",
-                ev.rss(&e, Fold::All).actuator_rmse() * 1e3
             );
         }
     }
