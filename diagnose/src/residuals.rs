@@ -155,7 +155,7 @@ impl<'a> Evaluator<'a> {
         // A log slower than the control loop samples commands that changed in between:
         // read them as linear between rows if that fits the encoders better.
         // A lag shifts the encoders the way holding a command does, so the two readings
-        // are compared each with its best first-order lag.
+        // are compared each with its best first-order lag (or dead band).
         if !nominal.act.is_empty() {
             // (best RSS with any lag, best RSS with a sub-quarter-row lag)
             let quarter_row = 0.25 * p.row_dt_s();
@@ -193,6 +193,13 @@ impl<'a> Evaluator<'a> {
                         }
                     }
                     half /= 4.0;
+                }
+                // A dead band also changes how commands and counts line up: give each
+                // reading its best dead band too.
+                for i in 0..16 {
+                    let d = 0.02 * (1000f64).powf(i as f64 / 15.0);
+                    let m = Model::default().with(Effect::CoulombFriction, vec![d]);
+                    best = best.min(ev.rss(&ev.evaluate(&m, Fold::All), Fold::All).act);
                 }
                 (best, floor)
             };

@@ -131,7 +131,7 @@ fn fit_params(
         }
     }
     // One-parameter threshold effects have piecewise-flat costs: zoom in on the best
-    // grid cell twice before the local optimiser takes over.
+    // grid cell four times before the local optimiser takes over.
     if flat_specs.len() == 1 && start.len() > 2 {
         if let Some((bu, bc)) = best.clone() {
             let grid_u: Vec<f64> = start.iter().map(|s| flat_specs[0].internal(s[0])).collect();
@@ -142,7 +142,7 @@ fn fit_params(
                 });
             let mut half = (hi_u - lo_u) / (grid_u.len() - 1) as f64;
             let (mut cu, mut cc) = (bu[0], bc);
-            for _ in 0..2 {
+            for _ in 0..4 {
                 let centre = cu;
                 for i in 1..8 {
                     let u = centre - half + 2.0 * half * i as f64 / 8.0;
@@ -151,7 +151,7 @@ fn fit_params(
                         (cu, cc) = (u, c);
                     }
                 }
-                half /= 4.0;
+                half /= 3.0;
             }
             best = Some((vec![cu], cc));
         }
@@ -235,12 +235,11 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             .map(|e| {
                 let grid = e.start_grid(robot);
                 let start = match previous.iter().find(|(x, _)| *x == e) {
-                    Some((_, p)) if grid.len() > 2 => {
+                    Some((_, p)) => {
                         let mut s = vec![p.clone()];
                         s.extend(grid.iter().step_by(3).cloned());
                         s
                     }
-                    Some((_, p)) => vec![p.clone()],
                     None => grid,
                 };
                 (e, start)
@@ -384,6 +383,7 @@ fn fit_candidates(ev: &Evaluator, base: &Model, todo: &[(Effect, Vec<Vec<f64>>)]
         .clamp(1, 4)
         .min(todo.len().max(1));
     let (p, spec) = (ev.p, ev.fork());
+    let uses_act = ev.ground_uses_actuator();
     let next = AtomicUsize::new(0);
     let mut results: Vec<(usize, Tried)> = Vec::new();
     let mut runs = ev.runs.get();
@@ -398,7 +398,33 @@ fn fit_candidates(ev: &Evaluator, base: &Model, todo: &[(Effect, Vec<Vec<f64>>)]
                         let Some((e, start)) = todo.get(i) else {
                             break;
                         };
-                        let (m, sig, _) = fit_params(&local, base, &[*e], start, Fold::All);
+                        // Refit the chosen effects the candidate interacts with alongside
+                        // it: a greedy fit with them frozen would let the first effect keep
+                        // what belongs to the second.
+                        let coupled: Vec<Effect> = base
+                            .effects
+                            .iter()
+                            .map(|(x, _)| *x)
+                            .filter(|x| x.stage() == e.stage() || uses_act)
+                            .collect();
+                        let (m, sig) = if coupled.is_empty() {
+                            let (m, sig, _) = fit_params(&local, base, &[*e], start, Fold::All);
+                            (m, sig)
+                        } else {
+                            let fixed: Vec<f64> = coupled
+                                .iter()
+                                .flat_map(|x| base.get(*x).unwrap_or(&[]).to_vec())
+                                .collect();
+                            let starts: Vec<Vec<f64>> = start
+                                .iter()
+                                .map(|s| fixed.iter().chain(s).copied().collect())
+                                .collect();
+                            let mut all = coupled.clone();
+                            all.push(*e);
+                            let (m, mut sig, _) =
+                                fit_params(&local, base, &all, &starts, Fold::All);
+                            (m, vec![sig.pop().unwrap_or_default()])
+                        };
                         let ce = local.evaluate(&m, Fold::All);
                         out.push((i, (*e, m, sig, ce, 0.0)));
                     }

@@ -433,3 +433,26 @@ fn thirty_concealed_recordings() {
         .collect();
     assert!(failed.is_empty(), "failed: {failed:?}");
 }
+
+/// Prints one case's full report and every candidate tried (for tuning).
+#[test]
+#[ignore]
+fn explain_case() {
+    let filter = std::env::var("DIAG_CASE").unwrap_or_default();
+    for c in cases().iter().filter(|c| c.name.contains(filter.as_str())) {
+        let g = generate(&c.cfg);
+        let r = diagnose(&c.cfg.robot, &g.recording, &Options::default()).unwrap();
+        println!("== {}\n{r}", c.name);
+        for x in &r.candidates {
+            println!(
+                "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
+                x.round,
+                x.effect.id(),
+                x.delta_bic,
+                x.heldout_ratio,
+                x.parameters,
+                x.note
+            );
+        }
+    }
+}
