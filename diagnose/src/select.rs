@@ -245,7 +245,7 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
                 (e, start)
             })
             .collect();
-        for (e, m, sig, cand_eval, _) in fit_candidates(ev, &model, &todo) {
+        for (e, m, sig, cand_eval, _) in fit_candidates(ev, &model, &base_eval, &todo) {
             if let Some(v) = m.get(e) {
                 previous.retain(|(x, _)| *x != e);
                 previous.push((e, v.to_vec()));
@@ -376,7 +376,12 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
 
 /// Fits each candidate effect on top of `base`, spread over the machine's cores (each
 /// worker with its own evaluator: the caches are per thread). Results keep `todo`'s order.
-fn fit_candidates(ev: &Evaluator, base: &Model, todo: &[(Effect, Vec<Vec<f64>>)]) -> Vec<Tried> {
+fn fit_candidates(
+    ev: &Evaluator,
+    base: &Model,
+    base_eval: &Eval,
+    todo: &[(Effect, Vec<Vec<f64>>)],
+) -> Vec<Tried> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
@@ -407,18 +412,23 @@ fn fit_candidates(ev: &Evaluator, base: &Model, todo: &[(Effect, Vec<Vec<f64>>)]
                             .map(|(x, _)| *x)
                             .filter(|x| x.stage() == e.stage() || uses_act)
                             .collect();
-                        let (m, sig) = if coupled.is_empty() {
-                            let (m, sig, _) = fit_params(&local, base, &[*e], start, Fold::All);
+                        let (m, sig, _) = fit_params(&local, base, &[*e], start, Fold::All);
+                        let frozen = local.evaluate(&m, Fold::All);
+                        let k = e.params(&local.p.robot).len();
+                        let d =
+                            delta_bic(&local, base_eval, &frozen, k, evidence_stage(&local, *e));
+                        // Only a candidate the data already lean towards is worth the joint
+                        // refit (it costs several model runs per iteration).
+                        let (m, sig) = if coupled.is_empty() || d > 0.0 {
                             (m, sig)
                         } else {
                             let fixed: Vec<f64> = coupled
                                 .iter()
                                 .flat_map(|x| base.get(*x).unwrap_or(&[]).to_vec())
                                 .collect();
-                            let starts: Vec<Vec<f64>> = start
-                                .iter()
-                                .map(|s| fixed.iter().chain(s).copied().collect())
-                                .collect();
+                            let cand = m.get(*e).unwrap_or(&[]).to_vec();
+                            let starts: Vec<Vec<f64>> =
+                                vec![fixed.iter().chain(&cand).copied().collect()];
                             let mut all = coupled.clone();
                             all.push(*e);
                             let (m, mut sig, _) =
