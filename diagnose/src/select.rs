@@ -223,14 +223,37 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
     let mut candidates = Vec::new();
     let mut rejected: Vec<Effect> = Vec::new();
     let mut previous: Vec<(Effect, Vec<f64>)> = Vec::new();
+    let mut last_fits: Vec<(Effect, Model, Vec<Vec<f64>>)> = Vec::new();
+    let mut last_added: Option<Effect> = None;
     for round in 0..max_effects {
         let mut tried: Vec<Tried> = Vec::new();
         // Later rounds start from the previous round's fit plus a thinned grid: the base
         // model changed only by one effect.
+        // A candidate of the other stage than the effect just added keeps its fit when the
+        // stages are independent (every wheel with commands also has an encoder): only
+        // the added effect's parameters change under it.
+        let mut reused: Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> = Vec::new();
+        if let (Some(added), false) = (last_added, ev.ground_uses_actuator()) {
+            for (e, m_prev, sig_prev) in &last_fits {
+                if e.stage() != added.stage() && model.get(*e).is_none() && !rejected.contains(e) {
+                    let mut m = m_prev.clone();
+                    for (x, p) in &model.effects {
+                        if x.stage() == added.stage() {
+                            m = m.with(*x, p.clone());
+                        }
+                    }
+                    let ce = ev.evaluate(&m, Fold::All);
+                    reused.push((*e, m, sig_prev.clone(), ce));
+                }
+            }
+        }
         let todo: Vec<(Effect, Vec<Vec<f64>>)> = Effect::ALL
             .into_iter()
             .filter(|&e| {
-                model.get(e).is_none() && !rejected.contains(&e) && e.applies(robot, has_cmd)
+                model.get(e).is_none()
+                    && !rejected.contains(&e)
+                    && e.applies(robot, has_cmd)
+                    && !reused.iter().any(|r| r.0 == e)
             })
             .map(|e| {
                 let grid = e.start_grid(robot);
@@ -245,7 +268,16 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
                 (e, start)
             })
             .collect();
-        for (e, m, sig, cand_eval, _) in fit_candidates(ev, &model, &base_eval, &todo) {
+        let mut fitted: Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> = reused;
+        for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &todo) {
+            fitted.push((e, m, sig, ce));
+        }
+        fitted.sort_by_key(|f| f.0);
+        last_fits = fitted
+            .iter()
+            .map(|(e, m, sig, _)| (*e, m.clone(), sig.clone()))
+            .collect();
+        for (e, m, sig, cand_eval) in fitted {
             if let Some(v) = m.get(e) {
                 previous.retain(|(x, _)| *x != e);
                 previous.push((e, v.to_vec()));
@@ -354,6 +386,7 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             });
             model = model_new;
             base_eval = eval_new;
+            last_added = Some(e);
             accepted = true;
             break;
         }
