@@ -490,6 +490,10 @@ fn explain_case() {
         let rec = simulate(c);
         let r = diagnose(&c.robot, &rec, &Options::default()).unwrap();
         println!("== {} {:?}\n{r}", c.name, c.effects);
+        if let Ok(dir) = std::env::var("DIAG_REPORT_DIR") {
+            let dir = std::path::PathBuf::from(dir).join(&c.name);
+            diagnose::plots::write_report_dir(&r, &dir).unwrap();
+        }
         for x in &r.candidates {
             println!(
                 "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
