@@ -66,7 +66,11 @@ fn json_has_the_issue_fields_and_write_robot_applies_the_fit() {
         "report.json",
     ] {
         let p = dir.join("report").join(f);
-        assert!(std::fs::metadata(&p).unwrap().len() > 200, "{}", p.display());
+        assert!(
+            std::fs::metadata(&p).unwrap().len() > 200,
+            "{}",
+            p.display()
+        );
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
