@@ -54,9 +54,12 @@ impl PiController {
         if !pushing_out {
             self.integral += g.ki * err * dt;
             // Never let the integrator alone exceed the output range.
-            self.integral = self.integral.clamp(-g.out_max, g.out_max);
+            // max/min rather than clamp: clamp's panic path costs ~6 KiB of flash on the board.
+            self.integral = self.integral.max(-g.out_max).min(g.out_max);
         }
-        (ff + g.kp * err + self.integral).clamp(-g.out_max, g.out_max)
+        (ff + g.kp * err + self.integral)
+            .max(-g.out_max)
+            .min(g.out_max)
     }
 
     pub fn integral(&self) -> f32 {

@@ -17,6 +17,21 @@
 //! the rest. After a Hello that did not match, the board rejects every other request with
 //! [`Rejection::ProtocolMismatch`].
 //!
+//! # Using it from a host
+//! - Send [`Request::Hello`] first; stop with the board's versions if `compatible` is false.
+//! - Give every new request a new sequence number (wrapping). A board answers a repeated
+//!   (sequence number, body) pair from its cache without acting again, so resending after
+//!   a lost answer is safe; [`Response::Nack`] means the board saw a damaged frame: resend.
+//! - Frames whose sequence number does not match the request outstanding are stale or
+//!   telemetry ([`Response::Telemetry`]); skip them.
+//! - Logs: [`Request::ListTrials`], then [`Request::ReadLog`] from offset 0 with
+//!   `max_len` = [`MAX_LOG_CHUNK`], each next offset = offset + data length, until the
+//!   offset reaches `total` of a finished trial. Split the bytes into [`Record`]s of
+//!   [`record_size`]`(wheel_count)` bytes. A chunk may be shorter than asked (the ring's
+//!   end); that is not the end of the trial.
+//! - Saves ([`Request::SaveCorrections`], [`Request::SaveParams`]) answer only after the
+//!   flash write: allow a few seconds (a sector erase takes up to 2 s).
+//!
 //! # Why not postcard-rpc
 //! postcard-rpc (typed endpoints over a COBS serial transport) was considered. Its server
 //! side is built around async dispatch tasks and its host client around tokio, while the
@@ -121,6 +136,113 @@ pub fn reason(v: &dyn fmt::Display) -> Reason {
     let mut r = Reason::new();
     let _ = write!(Cut(&mut r), "{v}");
     r
+}
+
+/// A number written with up to six decimals without core's float formatting, which costs
+/// ~10 KiB of flash on the board (rejection reasons are built there).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Num(pub f64);
+
+impl fmt::Display for Num {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let v = self.0;
+        if v.is_nan() {
+            return f.write_str("NaN");
+        }
+        let sign = if v < 0.0 { "-" } else { "" };
+        let a = libm::fabs(v);
+        if a > 1e12 {
+            return write!(f, "{sign}{}", if a.is_infinite() { "inf" } else { ">1e12" });
+        }
+        let scaled = libm::round(a * 1e6) as u64;
+        let (int, mut frac) = (scaled / 1_000_000, scaled % 1_000_000);
+        write!(f, "{sign}{int}")?;
+        if frac != 0 {
+            let mut digits = 6;
+            while frac % 10 == 0 {
+                frac /= 10;
+                digits -= 1;
+            }
+            write!(f, ".{frac:0digits$}")?;
+        }
+        Ok(())
+    }
+}
+
+/// Why corrections were refused, in words (calib-core's own `Display` formats floats
+/// with core's formatter; this one does not).
+pub struct CorrectionText<'a>(pub &'a CorrectionError);
+
+impl fmt::Display for CorrectionText<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let at = |f: &mut fmt::Formatter<'_>, name: &str, index: &Option<usize>| match index {
+            Some(i) => write!(f, "{name}[{i}]"),
+            None => f.write_str(name),
+        };
+        match self.0 {
+            CorrectionError::NotFinite { name, index } => {
+                at(f, name, index)?;
+                f.write_str(" must be a finite number")
+            }
+            CorrectionError::OutOfRange { name, index, value } => {
+                at(f, name, index)?;
+                write!(
+                    f,
+                    " = {} is outside [{}, {}]",
+                    Num(*value),
+                    Num(crate::correction::FACTOR_MIN),
+                    Num(crate::correction::FACTOR_MAX)
+                )
+            }
+            CorrectionError::WrongWheelCount { expected, got } => {
+                write!(f, "f_lat needs one factor per wheel: {expected}, got {got}")
+            }
+            CorrectionError::WrongKind { robot } => write!(
+                f,
+                "these factors do not fit a {} robot (diff_drive takes c_l, c_r, e_b; omni takes f_lat, f_lon)",
+                robot.as_str()
+            ),
+        }
+    }
+}
+
+/// A robot description error in words, without float formatting.
+pub struct RobotText<'a>(pub &'a RobotError);
+
+impl fmt::Display for RobotText<'_> {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        use crate::robot::Problem;
+        let e = self.0;
+        if let Some((i, name)) = &e.wheel {
+            write!(f, "wheel {} ('{}'): ", i + 1, name.as_str())?;
+        }
+        write!(f, "{}: ", e.field.key())?;
+        match e.problem {
+            Problem::NotFinite => f.write_str("must be a finite number"),
+            Problem::NotPositive(v) => write!(f, "must be positive, got {}", Num(v)),
+            Problem::Negative(v) => write!(f, "must not be negative, got {}", Num(v)),
+            Problem::RollerParallelToAxle => {
+                f.write_str("cos(gamma) = 0: rollers parallel to the axle")
+            }
+            Problem::DuplicateName => f.write_str("duplicate wheel name"),
+            Problem::BadName => f.write_str("must be 1 to 16 characters of [a-z0-9_]"),
+            Problem::TooFewWheels(n) => write!(f, "need at least 2 wheels, got {n}"),
+            Problem::TooManyWheels(n) => write!(f, "at most {MAX_WHEELS} wheels, got {n}"),
+            Problem::SingularJacobian => f.write_str("the wheels cannot resolve (vx, vy, omega)"),
+            Problem::LegsMismatch => f.write_str("[legs] only and always for wheeled_legged"),
+            Problem::WrongWheelCount {
+                kind,
+                expected,
+                got,
+            } => {
+                write!(
+                    f,
+                    "kind {} needs {expected} wheels, got {got}",
+                    kind.as_str()
+                )
+            }
+        }
+    }
 }
 
 // ---------------------------------------------------------------------------------------
@@ -298,13 +420,19 @@ pub enum ParamsError {
 impl fmt::Display for ParamsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ParamsError::Robot(e) => write!(f, "robot: {e}"),
+            ParamsError::Robot(e) => write!(f, "robot: {}", RobotText(e)),
             ParamsError::Setting {
                 name,
                 min,
                 max,
                 value,
-            } => write!(f, "{name} = {value} is outside [{min}, {max}]"),
+            } => write!(
+                f,
+                "{name} = {} is outside [{}, {}]",
+                Num(*value),
+                Num(*min),
+                Num(*max)
+            ),
         }
     }
 }
@@ -384,7 +512,9 @@ impl ProgramSpec {
                 Ok(())
             } else {
                 Err(reason(&format_args!(
-                    "{what} = {v} must be finite and |{what}| <= {max}"
+                    "{what} = {} must be finite and |{what}| <= {}",
+                    Num(v),
+                    Num(max)
                 )))
             }
         };
@@ -617,7 +747,7 @@ pub enum Rejection {
 
 impl Rejection {
     pub fn corrections(e: &CorrectionError) -> Self {
-        Rejection::InvalidCorrections(reason(e))
+        Rejection::InvalidCorrections(reason(&CorrectionText(e)))
     }
 }
 
@@ -791,6 +921,25 @@ pub fn encode<'o, T: Serialize + ?Sized>(
     let n = cobs_encode_in_place(out, off, crc_at + CRC_LEN);
     out[n] = 0;
     Ok(&out[..=n])
+}
+
+/// Frames an already serialised body (fuzzers and tests send arbitrary bodies this way).
+pub fn encode_body<'o>(seq: u16, body: &[u8], out: &'o mut [u8]) -> Result<&'o [u8], FrameError> {
+    encode(seq, &RawBody(body), out)
+}
+
+/// Serialises as its bytes verbatim (postcard's tuple of u8 adds no length prefix).
+struct RawBody<'a>(&'a [u8]);
+
+impl Serialize for RawBody<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeTuple;
+        let mut t = s.serialize_tuple(self.0.len())?;
+        for b in self.0 {
+            t.serialize_element(b)?;
+        }
+        t.end()
+    }
 }
 
 /// COBS-encodes `buf[off..off+len]` into `buf[0..]`; returns the encoded length.

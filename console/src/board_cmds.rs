@@ -55,11 +55,31 @@ pub fn info<L: Read + Write>(c: &mut Client<L>) -> Result<InfoReport> {
 impl InfoReport {
     pub fn human(&self) -> String {
         let mut s = String::new();
-        let _ = writeln!(s, "firmware      {} (protocol v{}, schema {})", self.firmware, self.protocol_version, self.schema);
-        let _ = writeln!(s, "robot         {} ({}, {} drive), wheels: {}", self.robot, self.robot_kind, self.drive, self.wheels.join(", "));
+        let _ = writeln!(
+            s,
+            "firmware      {} (protocol v{}, schema {})",
+            self.firmware, self.protocol_version, self.schema
+        );
+        let _ = writeln!(
+            s,
+            "robot         {} ({}, {} drive), wheels: {}",
+            self.robot,
+            self.robot_kind,
+            self.drive,
+            self.wheels.join(", ")
+        );
         let _ = writeln!(s, "uptime        {:.1} s", self.uptime_s);
-        let _ = writeln!(s, "at boot       corrections {}, parameters {}", self.corrections_at_boot, self.params_at_boot);
-        let _ = writeln!(s, "trial log     {} KiB, {} bytes per record", self.log_capacity_bytes / 1024, self.record_size_bytes);
+        let _ = writeln!(
+            s,
+            "at boot       corrections {}, parameters {}",
+            self.corrections_at_boot, self.params_at_boot
+        );
+        let _ = writeln!(
+            s,
+            "trial log     {} KiB, {} bytes per record",
+            self.log_capacity_bytes / 1024,
+            self.record_size_bytes
+        );
         s
     }
 }
@@ -77,8 +97,15 @@ impl From<&Corrections> for FactorsView {
     fn from(c: &Corrections) -> Self {
         match c {
             Corrections::None => FactorsView::None,
-            Corrections::DiffDrive { c_l, c_r, e_b } => FactorsView::DiffDrive { c_l: *c_l, c_r: *c_r, e_b: *e_b },
-            Corrections::Omni { f_lat, f_lon } => FactorsView::Omni { f_lat: f_lat.to_vec(), f_lon: *f_lon },
+            Corrections::DiffDrive { c_l, c_r, e_b } => FactorsView::DiffDrive {
+                c_l: *c_l,
+                c_r: *c_r,
+                e_b: *e_b,
+            },
+            Corrections::Omni { f_lat, f_lon } => FactorsView::Omni {
+                f_lat: f_lat.to_vec(),
+                f_lon: *f_lon,
+            },
         }
     }
 }
@@ -87,24 +114,41 @@ impl FactorsView {
     pub fn human(&self) -> String {
         match self {
             FactorsView::None => "no corrections (nominal geometry)\n".into(),
-            FactorsView::DiffDrive { c_l, c_r, e_b } => format!("c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6}\n"),
+            FactorsView::DiffDrive { c_l, c_r, e_b } => {
+                format!("c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6}\n")
+            }
             FactorsView::Omni { f_lat, f_lon } => format!(
                 "F_lat = [{}]  F_lon = {f_lon:.6}\n",
-                f_lat.iter().map(|v| format!("{v:.6}")).collect::<Vec<_>>().join(", ")
+                f_lat
+                    .iter()
+                    .map(|v| format!("{v:.6}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ),
         }
     }
 }
 
 /// Builds corrections from the command line's factors.
-pub fn corrections_from_args(c_l: Option<f64>, c_r: Option<f64>, e_b: Option<f64>, f_lat: Option<&[f64]>, f_lon: Option<f64>) -> Result<Corrections> {
+pub fn corrections_from_args(
+    c_l: Option<f64>,
+    c_r: Option<f64>,
+    e_b: Option<f64>,
+    f_lat: Option<&[f64]>,
+    f_lon: Option<f64>,
+) -> Result<Corrections> {
     match (c_l, c_r, e_b, f_lat, f_lon) {
-        (Some(c_l), Some(c_r), Some(e_b), None, None) => Ok(Corrections::DiffDrive { c_l, c_r, e_b }),
+        (Some(c_l), Some(c_r), Some(e_b), None, None) => {
+            Ok(Corrections::DiffDrive { c_l, c_r, e_b })
+        }
         (None, None, None, Some(f), Some(f_lon)) => {
-            let f_lat = heapless::Vec::from_slice(f).map_err(|_| anyhow::anyhow!("at most {MAX_WHEELS} F_lat factors"))?;
+            let f_lat = heapless::Vec::from_slice(f)
+                .map_err(|_| anyhow::anyhow!("at most {MAX_WHEELS} F_lat factors"))?;
             Ok(Corrections::Omni { f_lat, f_lon })
         }
-        _ => bail!("give --c-l, --c-r and --e-b (differential drive) or --f-lat and --f-lon (omni)"),
+        _ => {
+            bail!("give --c-l, --c-r and --e-b (differential drive) or --f-lat and --f-lon (omni)")
+        }
     }
 }
 
@@ -113,7 +157,9 @@ pub fn status_line(s: &Status) -> String {
     let mode = match s.mode {
         Mode::Idle => "idle".to_string(),
         Mode::Drive => "drive".to_string(),
-        Mode::Program { segment, segments } => format!("program {}/{}", segment as u32 + 1, segments),
+        Mode::Program { segment, segments } => {
+            format!("program {}/{}", segment as u32 + 1, segments)
+        }
     };
     let mut line = format!(
         "t {:>8.2} s  {:<12} pose ({:+.4} m, {:+.4} m, {:+.4} rad)  rates [{}]",
@@ -122,7 +168,11 @@ pub fn status_line(s: &Status) -> String {
         s.pose.x,
         s.pose.y,
         s.pose.theta,
-        s.wheel_rates.iter().map(|r| format!("{r:+.2}")).collect::<Vec<_>>().join(" ")
+        s.wheel_rates
+            .iter()
+            .map(|r| format!("{r:+.2}"))
+            .collect::<Vec<_>>()
+            .join(" ")
     );
     if s.estop {
         line.push_str("  E-STOP");
@@ -137,7 +187,11 @@ pub fn status_line(s: &Status) -> String {
 }
 
 /// Waits for a program to end, calling `on_status` now and then; returns the last status.
-pub fn wait_program<L: Read + Write>(c: &mut Client<L>, limit: Duration, mut on_status: impl FnMut(&Status)) -> Result<Status> {
+pub fn wait_program<L: Read + Write>(
+    c: &mut Client<L>,
+    limit: Duration,
+    mut on_status: impl FnMut(&Status),
+) -> Result<Status> {
     let t0 = Instant::now();
     let mut seen_busy = false;
     loop {
@@ -154,25 +208,44 @@ pub fn wait_program<L: Read + Write>(c: &mut Client<L>, limit: Duration, mut on_
         }
         if t0.elapsed() > limit {
             let _ = c.stop();
-            bail!("the program did not finish within {:.0} s; sent Stop", limit.as_secs_f64());
+            bail!(
+                "the program did not finish within {:.0} s; sent Stop",
+                limit.as_secs_f64()
+            );
         }
         std::thread::sleep(Duration::from_millis(50));
     }
 }
 
 /// Starts a UMBmark square.
-pub fn run_umbmark<L: Read + Write>(c: &mut Client<L>, dir: Direction, side_m: f64, log_rate_hz: u16) -> Result<()> {
-    c.run_program(ProgramSpec::Umbmark { side_m, dir }, log_rate_hz).map_err(Into::into)
+pub fn run_umbmark<L: Read + Write>(
+    c: &mut Client<L>,
+    dir: Direction,
+    side_m: f64,
+    log_rate_hz: u16,
+) -> Result<()> {
+    c.run_program(ProgramSpec::Umbmark { side_m, dir }, log_rate_hz)
+        .map_err(Into::into)
 }
 
 /// Starts an omni path.
-pub fn run_omni<L: Read + Write>(c: &mut Client<L>, path: OmniPath, length_m: f64, log_rate_hz: u16) -> Result<()> {
-    c.run_program(ProgramSpec::Omni { path, length_m }, log_rate_hz).map_err(Into::into)
+pub fn run_omni<L: Read + Write>(
+    c: &mut Client<L>,
+    path: OmniPath,
+    length_m: f64,
+    log_rate_hz: u16,
+) -> Result<()> {
+    c.run_program(ProgramSpec::Omni { path, length_m }, log_rate_hz)
+        .map_err(Into::into)
 }
 
 /// Drives at a twist for a while, refreshing the command faster than the board's
 /// command timeout, then stops.
-pub fn drive_for<L: Read + Write>(c: &mut Client<L>, twist: Twist<f32>, duration: Duration) -> Result<()> {
+pub fn drive_for<L: Read + Write>(
+    c: &mut Client<L>,
+    twist: Twist<f32>,
+    duration: Duration,
+) -> Result<()> {
     let t0 = Instant::now();
     while t0.elapsed() < duration {
         c.drive(twist, 0)?;
@@ -225,12 +298,23 @@ pub fn trial_list(t: &Trials) -> TrialList {
 
 impl TrialList {
     pub fn human(&self) -> String {
-        let mut s = format!("{:>5} {:<42} {:>8} {:>6} {:>8} {:>8} {:<10}\n", "trial", "program", "start s", "Hz", "records", "dropped", "end");
+        let mut s = format!(
+            "{:>5} {:<42} {:>8} {:>6} {:>8} {:>8} {:<10}\n",
+            "trial", "program", "start s", "Hz", "records", "dropped", "end"
+        );
         for r in &self.trials {
-            let _ = writeln!(s, "{:>5} {:<42} {:>8.1} {:>6} {:>8} {:>8} {:<10}", r.trial, r.program, r.start_s, r.rate_hz, r.records, r.dropped_records, r.end);
+            let _ = writeln!(
+                s,
+                "{:>5} {:<42} {:>8.1} {:>6} {:>8} {:>8} {:<10}",
+                r.trial, r.program, r.start_s, r.rate_hz, r.records, r.dropped_records, r.end
+            );
         }
         if self.evicted_trials > 0 {
-            let _ = writeln!(s, "({} older trials were evicted to make room)", self.evicted_trials);
+            let _ = writeln!(
+                s,
+                "({} older trials were evicted to make room)",
+                self.evicted_trials
+            );
         }
         s
     }
@@ -239,10 +323,20 @@ impl TrialList {
 /// Converts a trial's records into a recording (formats.md §2): `cmd_` and `enc_`
 /// columns from the board, pose columns blank (the board does not measure its pose), and
 /// the board's odometry as extra `odo_x`, `odo_y`, `odo_theta` columns.
-pub fn records_to_csv(robot: &Robot, info: &TrialInfo, recs: &[Record], out: &mut impl Write) -> Result<()> {
+pub fn records_to_csv(
+    robot: &Robot,
+    info: &TrialInfo,
+    recs: &[Record],
+    out: &mut impl Write,
+) -> Result<()> {
     let n = info.wheel_count as usize;
     if n != robot.wheel_count() {
-        bail!("trial {} has {} wheels, the board's robot {}", info.id, n, robot.wheel_count());
+        bail!(
+            "trial {} has {} wheels, the board's robot {}",
+            info.id,
+            n,
+            robot.wheel_count()
+        );
     }
     let mut rec = Recording::new(robot, true, true);
     let mut odo = Vec::with_capacity(recs.len());
@@ -256,7 +350,13 @@ pub fn records_to_csv(robot: &Robot, info: &TrialInfo, recs: &[Record], out: &mu
         let t = (wraps * (1u64 << 32) + r.t_us as u64) as f64 * 1e-6;
         let cmd: Vec<f64> = r.cmd[..n].iter().map(|&v| v as f64).collect();
         let enc: Vec<i64> = r.counts[..n].iter().map(|&v| v as i64).collect();
-        rec.push_row(calib_core::recording::Row { t, cmd: Some(&cmd), enc: Some(&enc), pose: None, legs: None });
+        rec.push_row(calib_core::recording::Row {
+            t,
+            cmd: Some(&cmd),
+            enc: Some(&enc),
+            pose: None,
+            legs: None,
+        });
         odo.push(r.pose);
     }
     // Write the standard columns, then append the odometry columns.
@@ -275,7 +375,12 @@ pub fn records_to_csv(robot: &Robot, info: &TrialInfo, recs: &[Record], out: &mu
 }
 
 /// Pulls a trial and writes it as CSV; `progress(done, total)` per chunk.
-pub fn pull_trial<L: Read + Write>(c: &mut Client<L>, trial: u16, out: &Path, progress: impl FnMut(u64, u64)) -> Result<PulledTrial> {
+pub fn pull_trial<L: Read + Write>(
+    c: &mut Client<L>,
+    trial: u16,
+    out: &Path,
+    progress: impl FnMut(u64, u64),
+) -> Result<PulledTrial> {
     let trials = c.trials()?;
     let info = trials
         .trials
@@ -285,10 +390,13 @@ pub fn pull_trial<L: Read + Write>(c: &mut Client<L>, trial: u16, out: &Path, pr
         .with_context(|| format!("the board has no trial {trial} (see `wheelcal log list`)"))?;
     let robot = c.params()?.robot;
     let t0 = Instant::now();
-    let data = c.pull_log(trial, Vec::new(), progress).map_err(|e: ClientError| anyhow::anyhow!("log transfer of trial {trial} failed: {e}"))?;
+    let data = c
+        .pull_log(trial, Vec::new(), progress)
+        .map_err(|e: ClientError| anyhow::anyhow!("log transfer of trial {trial} failed: {e}"))?;
     let secs = t0.elapsed().as_secs_f64();
     let recs = decode_records(&info, &data).map_err(|e| anyhow::anyhow!(e))?;
-    let file = std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
+    let file =
+        std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
     let mut w = std::io::BufWriter::new(file);
     records_to_csv(&robot, &info, &recs, &mut w)?;
     w.flush()?;

@@ -78,6 +78,65 @@ pub enum Command {
     SimBoard(SimBoardArgs),
     /// The whole UMBmark procedure on a virtual board with hidden errors, before and after.
     Demo(DemoArgs),
+    /// Where a simulation and a recording part: locate, name the physics left out, fit it.
+    Diagnose(DiagnoseArgs),
+    /// Simulator tools.
+    #[command(subcommand)]
+    Sim(SimCmd),
+}
+
+#[derive(Debug, Args)]
+pub struct DiagnoseArgs {
+    /// Robot description (formats.md §1).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// Recording (formats.md §2).
+    #[arg(long)]
+    pub recording: PathBuf,
+    /// Write an HTML report with plots into this directory.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Write the robot description with the fitted geometry applied.
+    #[arg(long)]
+    pub write_robot: Option<PathBuf>,
+    /// Most effects to combine in one explanation.
+    #[arg(long, default_value_t = 2)]
+    pub max_effects: usize,
+}
+
+#[derive(Debug, Subcommand)]
+pub enum SimCmd {
+    /// Write a simulated recording with effects hidden in it (recording.csv, robot.toml,
+    /// truth.csv, effects.txt).
+    Record(SimRecordArgs),
+}
+
+#[derive(Debug, Args)]
+pub struct SimRecordArgs {
+    /// Robot description (formats.md §1).
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// An effect to hide, `ID` or `ID=name:value,...` (catalogue ids of `diagnose`, or
+    /// `tilted_floor`); repeatable.
+    #[arg(long)]
+    pub effect: Vec<String>,
+    #[arg(long, default_value_t = 1)]
+    pub seed: u64,
+    /// Output directory.
+    #[arg(long)]
+    pub out: PathBuf,
+    /// Length of the random trajectory, seconds.
+    #[arg(long, default_value_t = 60.0)]
+    pub duration: f64,
+    /// Drive a UMBmark square of this side (metres) instead of a random trajectory.
+    #[arg(long)]
+    pub umbmark_side: Option<f64>,
+    /// Rows per second.
+    #[arg(long, default_value_t = 200.0)]
+    pub rate: f64,
+    /// Camera pose noise, metres (standard deviation).
+    #[arg(long)]
+    pub vision_noise: Option<f64>,
 }
 
 #[derive(Debug, Subcommand)]
@@ -265,6 +324,9 @@ pub struct ProcedureArgs {
     /// Runs per direction (UMBmark) or per path (omni).
     #[arg(long, default_value_t = 5)]
     pub runs: usize,
+    /// Runs per direction or path after calibration (default: --runs).
+    #[arg(long)]
+    pub after_runs: Option<usize>,
     /// Measured runs are appended here as they are entered, so a stopped procedure
     /// resumes where it was.
     #[arg(long, default_value = "runs.csv")]
@@ -329,7 +391,11 @@ pub struct DemoArgs {
 /// Entry point of the binary: runs the command, prints errors to stderr.
 pub fn main() -> ExitCode {
     let cli = Cli::parse();
-    let mut ctx = Ctx { port: cli.port.clone(), baud: cli.baud, client: None };
+    let mut ctx = Ctx {
+        port: cli.port.clone(),
+        baud: cli.baud,
+        client: None,
+    };
     match run(cli, &mut ctx) {
         Ok(()) => ExitCode::SUCCESS,
         Err(e) => {
@@ -351,7 +417,10 @@ pub struct Ctx {
 impl Ctx {
     fn client(&mut self) -> Result<&mut PortClient> {
         if self.client.is_none() {
-            let port = self.port.clone().context("this command talks to a board: give --port DEV (or set WHEELCAL_PORT)")?;
+            let port = self
+                .port
+                .clone()
+                .context("this command talks to a board: give --port DEV (or set WHEELCAL_PORT)")?;
             let link = link::open_serial(&port, self.baud)?;
             let mut c = Client::new(link, &port);
             c.hello()?;
@@ -374,11 +443,22 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             out.emit(&f, || f.human())
         }
         Command::Factors(FactorsCmd::Set(a)) => {
-            let c = board_cmds::corrections_from_args(a.c_l, a.c_r, a.e_b, a.f_lat.as_deref(), a.f_lon)?;
+            let c = board_cmds::corrections_from_args(
+                a.c_l,
+                a.c_r,
+                a.e_b,
+                a.f_lat.as_deref(),
+                a.f_lon,
+            )?;
             let client = ctx.client()?;
             client.set_corrections(c)?;
             let f = FactorsView::from(&client.corrections()?);
-            out.emit(&f, || format!("set (not yet saved: `wheelcal factors save`): {}", f.human()))
+            out.emit(&f, || {
+                format!(
+                    "set (not yet saved: `wheelcal factors save`): {}",
+                    f.human()
+                )
+            })
         }
         Command::Factors(FactorsCmd::Save) => {
             let client = ctx.client()?;
@@ -390,7 +470,9 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             let client = ctx.client()?;
             client.reset_corrections()?;
             let f = FactorsView::from(&client.corrections()?);
-            out.emit(&f, || "corrections reset to nominal (not yet saved: `wheelcal factors save`)\n".into())
+            out.emit(&f, || {
+                "corrections reset to nominal (not yet saved: `wheelcal factors save`)\n".into()
+            })
         }
         Command::Factors(FactorsCmd::Export(a)) => {
             let f = match (&a.from, a.c_l, a.c_r, a.e_b) {
@@ -403,7 +485,8 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 _ => bail!("give --from RESULT.json, all of --c-l, --c-r, --e-b, or --port to read the board"),
             };
             let yaml = ros2::diff_drive_yaml(&f, &a.controller);
-            std::fs::write(&a.ros2, &yaml).with_context(|| format!("cannot write {}", a.ros2.display()))?;
+            std::fs::write(&a.ros2, &yaml)
+                .with_context(|| format!("cannot write {}", a.ros2.display()))?;
             #[derive(serde::Serialize)]
             struct Exported<'a> {
                 ros2_file: &'a std::path::Path,
@@ -411,7 +494,12 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 c_r: f64,
                 e_b: f64,
             }
-            let e = Exported { ros2_file: &a.ros2, c_l: f.c_l, c_r: f.c_r, e_b: f.e_b };
+            let e = Exported {
+                ros2_file: &a.ros2,
+                c_l: f.c_l,
+                c_r: f.c_r,
+                e_b: f.e_b,
+            };
             out.emit(&e, || format!("wrote {}\n{yaml}", a.ros2.display()))
         }
         Command::Drive(a) => {
@@ -419,18 +507,32 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 bail!("--duration must be within (0, 600] seconds");
             }
             let client = ctx.client()?;
-            board_cmds::drive_for(client, Twist::new(a.vx, a.vy, a.omega), Duration::from_secs_f64(a.duration))?;
+            board_cmds::drive_for(
+                client,
+                Twist::new(a.vx, a.vy, a.omega),
+                Duration::from_secs_f64(a.duration),
+            )?;
             let s = client.status()?;
             out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))
         }
         Command::Run(cmd) => {
             let client = ctx.client()?;
             let (no_wait, limit) = match cmd {
-                RunCmd::Umbmark { dir, side, log_rate, no_wait } => {
+                RunCmd::Umbmark {
+                    dir,
+                    side,
+                    log_rate,
+                    no_wait,
+                } => {
                     board_cmds::run_umbmark(client, dir.into(), side, log_rate)?;
                     (no_wait, Duration::from_secs_f64(60.0 + side * 60.0))
                 }
-                RunCmd::Omni { path, length, log_rate, no_wait } => {
+                RunCmd::Omni {
+                    path,
+                    length,
+                    log_rate,
+                    no_wait,
+                } => {
                     board_cmds::run_omni(client, path.into(), length, log_rate)?;
                     (no_wait, Duration::from_secs_f64(60.0 + length * 60.0))
                 }
@@ -476,8 +578,10 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             let client = ctx.client()?;
             let bar = indicatif::ProgressBar::new(0);
             bar.set_style(
-                indicatif::ProgressStyle::with_template("{msg} [{bar:40}] {bytes}/{total_bytes} {bytes_per_sec}")
-                    .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+                indicatif::ProgressStyle::with_template(
+                    "{msg} [{bar:40}] {bytes}/{total_bytes} {bytes_per_sec}",
+                )
+                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
             );
             bar.set_message(format!("trial {trial}"));
             let r = board_cmds::pull_trial(client, trial, &file, |done, total| {
@@ -501,7 +605,9 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         }
         Command::Log(LogCmd::Clear) => {
             ctx.client()?.clear_logs()?;
-            out.emit(&serde_json::json!({"cleared": true}), || "trial logs cleared\n".into())
+            out.emit(&serde_json::json!({"cleared": true}), || {
+                "trial logs cleared\n".into()
+            })
         }
         Command::Stop => {
             ctx.client()?.stop()?;
@@ -509,11 +615,15 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         }
         Command::Estop => {
             ctx.client()?.estop()?;
-            out.emit(&serde_json::json!({"estop": true}), || "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into())
+            out.emit(&serde_json::json!({"estop": true}), || {
+                "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into()
+            })
         }
         Command::ClearFault => {
             ctx.client()?.clear_fault()?;
-            out.emit(&serde_json::json!({"cleared": true}), || "fault and E-stop cleared\n".into())
+            out.emit(&serde_json::json!({"cleared": true}), || {
+                "fault and E-stop cleared\n".into()
+            })
         }
         Command::Console => crate::repl::run(ctx, cli.json),
         Command::Umbmark(UmbmarkCmd::Compute(a)) => {
@@ -539,19 +649,23 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Umbmark(UmbmarkCmd::Run(a)) => {
             let port = ctx.port.clone().unwrap_or_default();
             let opts = procedure_options(&a, &port, procedure::Kind::Umbmark);
-            let rep = procedure::run(ctx.client()?, &opts, &mut procedure::Terminal)?;
+            let rep = procedure::run(ctx.client()?, &opts, measure_for(&opts).as_mut())?;
             out.emit(&rep, || rep.human())
         }
         Command::Omni(OmniCmd::Run(a)) => {
             let port = ctx.port.clone().unwrap_or_default();
             let opts = procedure_options(&a, &port, procedure::Kind::Omni);
-            let rep = procedure::run(ctx.client()?, &opts, &mut procedure::Terminal)?;
+            let rep = procedure::run(ctx.client()?, &opts, measure_for(&opts).as_mut())?;
             out.emit(&rep, || rep.human())
         }
         Command::SimBoard(a) => {
             let speed = match a.speed.as_str() {
                 "max" | "inf" => f64::INFINITY,
-                s => s.parse::<f64>().ok().filter(|v| *v > 0.0 && v.is_finite()).context("--speed takes a positive number or `max`")?,
+                s => s
+                    .parse::<f64>()
+                    .ok()
+                    .filter(|v| *v > 0.0 && v.is_finite())
+                    .context("--speed takes a positive number or `max`")?,
             };
             let opts = SimBoardOptions {
                 robot: a.robot,
@@ -581,10 +695,117 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 let _ = std::io::stdout().flush();
             })
         }
+        Command::Diagnose(a) => {
+            let robot = robot_file::load(&a.robot)?;
+            let rec = calib_core::recording::Recording::load(&a.recording, &robot)?;
+            for n in &rec.notes {
+                out.note(&format!("{}: {n}", a.recording.display()));
+            }
+            let opts = diagnose::Options {
+                max_effects: a.max_effects.clamp(1, 4),
+                ..Default::default()
+            };
+            let rep = diagnose::diagnose(&robot, &rec, &opts)
+                .map_err(|e| anyhow::anyhow!("{}: {e}", a.recording.display()))?;
+            if let Some(dir) = &a.report {
+                if !report::font_available() {
+                    bail!("plots need the DejaVu Sans font: apt-get install fonts-dejavu-core");
+                }
+                diagnose::plots::write_report_dir(&rep, dir)
+                    .with_context(|| format!("cannot write the report into {}", dir.display()))?;
+                out.note(&format!("report: {}", dir.join("index.html").display()));
+            }
+            if let Some(p) = &a.write_robot {
+                diagnose::write_robot(&robot, &rep, p)
+                    .with_context(|| format!("cannot write {}", p.display()))?;
+                out.note(&format!("fitted robot: {}", p.display()));
+            }
+            out.emit(&rep, || rep.to_string())
+        }
+        Command::Sim(SimCmd::Record(a)) => {
+            let robot = robot_file::load(&a.robot)?;
+            let effects = a
+                .effect
+                .iter()
+                .map(|e| {
+                    sim::Effect::parse(e).map_err(|err| anyhow::anyhow!("--effect {e}: {err}"))
+                })
+                .collect::<Result<Vec<_>>>()?;
+            if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 7200.0) {
+                bail!("--duration must be within (0, 7200] seconds");
+            }
+            let motion = match a.umbmark_side {
+                Some(side) => sim::record::Motion::Program {
+                    program: Box::new(calib_core::motion::Program::umbmark_square(
+                        side,
+                        Direction::Ccw,
+                    )),
+                    limits: Default::default(),
+                },
+                None => sim::record::Motion::Random(sim::record::RandomMotion {
+                    duration_s: a.duration,
+                    ..Default::default()
+                }),
+            };
+            let mut cfg = sim::record::RecordConfig {
+                row_rate_hz: a.rate,
+                ..Default::default()
+            };
+            cfg.sim.seed = a.seed;
+            if let Some(n) = a.vision_noise {
+                cfg.sim.vision.sigma_xy_m = n;
+            }
+            let rec = sim::record::record(&robot, &effects, sim::Surface::flat(), &motion, &cfg)
+                .map_err(|e| anyhow::anyhow!("{e}"))?;
+            rec.write_dir(&a.out).map_err(|e| anyhow::anyhow!("{e}"))?;
+            #[derive(serde::Serialize)]
+            struct Written {
+                out: String,
+                rows: usize,
+                effects: Vec<String>,
+                seed: u64,
+            }
+            let w = Written {
+                out: a.out.display().to_string(),
+                rows: rec.recording.len(),
+                effects: effects.iter().map(|e| e.to_string()).collect(),
+                seed: a.seed,
+            };
+            out.emit(&w, || {
+                format!(
+                    "wrote {} rows to {} (effects: {})\n",
+                    w.rows,
+                    w.out,
+                    if w.effects.is_empty() {
+                        "none".into()
+                    } else {
+                        w.effects.join(" ")
+                    }
+                )
+            })
+        }
         Command::Demo(a) => {
-            let rep = demo::run(&a.robot, a.seed, a.runs, a.side, a.report.as_deref(), out == Output::Human)?;
+            let rep = demo::run(
+                &a.robot,
+                a.seed,
+                a.runs,
+                a.side,
+                a.report.as_deref(),
+                out == Output::Human,
+            )?;
             out.emit(&rep, || rep.human())
         }
+    }
+}
+
+/// A person with a tape measure, or the virtual board's truth with --auto-measure.
+fn measure_for(opts: &procedure::Options) -> Box<dyn procedure::Measure> {
+    match &opts.auto_measure {
+        Some(file) => Box::new(procedure::TruthFile {
+            file: file.clone(),
+            quiet: false,
+        }),
+        None => Box::new(procedure::Terminal),
     }
 }
 
@@ -594,8 +815,13 @@ fn procedure_options(a: &ProcedureArgs, port: &str, kind: procedure::Kind) -> pr
         side_m: a.side,
         length_m: a.length,
         runs: a.runs,
+        after_runs: a.after_runs.unwrap_or(a.runs),
         runs_file: a.runs_file.clone(),
-        auto_measure: a.auto_measure.then(|| a.truth.clone().unwrap_or_else(|| sim_board::truth_file_for(std::path::Path::new(port)))),
+        auto_measure: a.auto_measure.then(|| {
+            a.truth
+                .clone()
+                .unwrap_or_else(|| sim_board::truth_file_for(std::path::Path::new(port)))
+        }),
         report: a.report.clone(),
         after: !a.no_after,
     }

@@ -46,11 +46,34 @@ impl DemoReport {
     pub fn human(&self) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "wheelcal demo: UMBmark on a virtual {} (seed {}), {} x {} m squares each way, before and after", self.robot, self.seed, self.runs_per_direction, self.side_m);
-        let _ = writeln!(s, "\n  {:<10} {:>16} {:>16} {:>12}", "robot", "E_max,sys before", "E_max,sys after", "improvement");
-        let _ = writeln!(s, "  {:<10} {:>13.2} mm {:>13.2} mm {:>11.1}x", self.robot, self.e_max_sys_before_m * 1e3, self.e_max_sys_after_m * 1e3, self.improvement);
-        let _ = writeln!(s, "\n  hidden truth   E_d = {:.5}  E_b = {:.5}", self.true_ed, self.true_eb);
-        let _ = writeln!(s, "  calibration    E_d = {:.5}  E_b = {:.5}  (exact-model fit)", self.estimated_ed, self.estimated_eb);
-        let _ = writeln!(s, "  closed form    E_d = {:.5}  E_b = {:.5}", self.umbmark.closed_form.ed, self.umbmark.closed_form.eb);
+        let _ = writeln!(
+            s,
+            "\n  {:<10} {:>16} {:>16} {:>12}",
+            "robot", "E_max,sys before", "E_max,sys after", "improvement"
+        );
+        let _ = writeln!(
+            s,
+            "  {:<10} {:>13.2} mm {:>13.2} mm {:>11.1}x",
+            self.robot,
+            self.e_max_sys_before_m * 1e3,
+            self.e_max_sys_after_m * 1e3,
+            self.improvement
+        );
+        let _ = writeln!(
+            s,
+            "\n  hidden truth   E_d = {:.5}  E_b = {:.5}",
+            self.true_ed, self.true_eb
+        );
+        let _ = writeln!(
+            s,
+            "  calibration    E_d = {:.5}  E_b = {:.5}  (exact-model fit)",
+            self.estimated_ed, self.estimated_eb
+        );
+        let _ = writeln!(
+            s,
+            "  closed form    E_d = {:.5}  E_b = {:.5}",
+            self.umbmark.closed_form.ed, self.umbmark.closed_form.eb
+        );
         let _ = writeln!(s, "\n  finished in {:.1} s", self.seconds);
         s
     }
@@ -58,7 +81,14 @@ impl DemoReport {
 
 /// Runs the demo. `robot_path` falls back to the built-in MoboLab when it does not exist
 /// and is the default.
-pub fn run(robot_path: &Path, seed: u64, runs: usize, side: f64, report: Option<&Path>, progress: bool) -> Result<DemoReport> {
+pub fn run(
+    robot_path: &Path,
+    seed: u64,
+    runs: usize,
+    side: f64,
+    report: Option<&Path>,
+    progress: bool,
+) -> Result<DemoReport> {
     let t0 = Instant::now();
     let robot = if robot_path.exists() {
         robot_file::load(robot_path)?
@@ -68,7 +98,11 @@ pub fn run(robot_path: &Path, seed: u64, runs: usize, side: f64, report: Option<
         bail!("no robot file {}", robot_path.display());
     };
     if robot.kind != RobotKind::DiffDrive {
-        bail!("the demo runs UMBmark: it needs a differential drive, {} is {}", robot.name, robot.kind.as_str());
+        bail!(
+            "the demo runs UMBmark: it needs a differential drive, {} is {}",
+            robot.name,
+            robot.kind.as_str()
+        );
     }
     // Hidden errors of the size 000 reports (E_max,sys of 30 to 100 mm on 4 m).
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
@@ -80,41 +114,10 @@ pub fn run(robot_path: &Path, seed: u64, runs: usize, side: f64, report: Option<
     faults.radius_scale = vec![2.0 / (true_ed + 1.0), 2.0 * true_ed / (true_ed + 1.0)];
     faults.wheelbase_scale = true_eb;
     faults.travel_noise_m_per_sqrt_m = DEMO_ROUGHNESS;
-    let sim = SimRobot::new(&robot, faults, Surface::flat(), SimConfig { seed, ..SimConfig::default() }).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut board = VirtualBoard::boot(&robot, sim, board_flash(None)?).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let (host, mut board_end) = memory_pair(Faults::none(), Faults::none(), seed);
-    let stop = Arc::new(AtomicBool::new(false));
-    let (ttx, trx) = std::sync::mpsc::channel();
-    let s2 = stop.clone();
-    let thread = std::thread::spawn(move || {
-        board.serve(&mut board_end, f64::INFINITY, || s2.load(Ordering::Relaxed), |t| {
-            let _ = ttx.send(*t);
-        });
-    });
-    let dir = std::env::temp_dir().join(format!("wheelcal-demo-{}-{seed}", std::process::id()));
-    std::fs::create_dir_all(&dir)?;
-    let runs_file = dir.join("runs.csv");
-    procedure::remove_runs(&runs_file);
-    let bar = progress.then(|| {
-        let b = indicatif::ProgressBar::new(4 * runs as u64);
-        b.set_style(indicatif::ProgressStyle::with_template("{msg:40} [{bar:30}] {pos}/{len} runs {elapsed}").unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()));
-        b
-    });
-    let mut measure = TruthChannel { rx: trx, seen: Vec::new(), progress: bar.clone() };
-    let mut client = Client::new(host, "virtual board");
-    let result = (|| -> Result<ProcedureReport> {
-        client.hello()?;
-        let opts = Options { kind: Kind::Umbmark, side_m: side, length_m: side, runs, runs_file: runs_file.clone(), auto_measure: None, report: report.map(Path::to_path_buf), after: true };
-        procedure::run(&mut client, &opts, &mut measure)
-    })();
-    stop.store(true, Ordering::Relaxed);
-    let _ = thread.join();
-    if let Some(b) = bar {
-        b.finish_and_clear();
-    }
-    let _ = std::fs::remove_dir_all(&dir);
-    let ProcedureReport::Umbmark(rep) = result? else { bail!("the procedure returned an omni result") };
-    let after = rep.e_max_sys_after_m.context("the after runs are missing")?;
+    let rep = umbmark_on_virtual_board(&robot, faults, seed, runs, side, report, runs, progress)?;
+    let after = rep
+        .e_max_sys_after_m
+        .context("the after runs are missing")?;
     Ok(DemoReport {
         robot: robot.name.to_string(),
         seed,
@@ -128,6 +131,98 @@ pub fn run(robot_path: &Path, seed: u64, runs: usize, side: f64, report: Option<
         e_max_sys_after_m: after,
         improvement: rep.e_max_sys_before_m / after,
         seconds: t0.elapsed().as_secs_f64(),
-        umbmark: *rep,
+        umbmark: rep,
     })
 }
+
+/// Runs the UMBmark procedure (auto-measured) on a virtual board simulating `robot` with
+/// `faults`, with `after_runs` runs per direction after calibration (0: none).
+#[allow(clippy::too_many_arguments)]
+pub fn umbmark_on_virtual_board(
+    robot: &calib_core::Robot,
+    faults: sim::Faults,
+    seed: u64,
+    runs: usize,
+    side: f64,
+    report: Option<&Path>,
+    after_runs: usize,
+    progress: bool,
+) -> Result<UmbmarkReport> {
+    let after = after_runs > 0;
+    let sim = SimRobot::new(
+        robot,
+        faults,
+        Surface::flat(),
+        SimConfig {
+            seed,
+            ..SimConfig::default()
+        },
+    )
+    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut board =
+        VirtualBoard::boot(robot, sim, board_flash(None)?).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (host, mut board_end) = memory_pair(Faults::none(), Faults::none(), seed);
+    let stop = Arc::new(AtomicBool::new(false));
+    let (ttx, trx) = std::sync::mpsc::channel();
+    let s2 = stop.clone();
+    let thread = std::thread::spawn(move || {
+        board.serve(
+            &mut board_end,
+            f64::INFINITY,
+            || s2.load(Ordering::Relaxed),
+            |t| {
+                let _ = ttx.send(*t);
+            },
+        );
+    });
+    let dir = std::env::temp_dir().join(format!(
+        "wheelcal-demo-{}-{seed}-{}",
+        std::process::id(),
+        RUN_ID.fetch_add(1, Ordering::Relaxed)
+    ));
+    std::fs::create_dir_all(&dir)?;
+    let runs_file = dir.join("runs.csv");
+    let bar = progress.then(|| {
+        let b = indicatif::ProgressBar::new((2 * runs + 2 * after_runs) as u64);
+        b.set_style(
+            indicatif::ProgressStyle::with_template(
+                "{msg:40} [{bar:30}] {pos}/{len} runs {elapsed}",
+            )
+            .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
+        );
+        b
+    });
+    let mut measure = TruthChannel {
+        rx: trx,
+        seen: Vec::new(),
+        progress: bar.clone(),
+    };
+    let mut client = Client::new(host, "virtual board");
+    let result = (|| -> Result<ProcedureReport> {
+        client.hello()?;
+        let opts = Options {
+            kind: Kind::Umbmark,
+            side_m: side,
+            length_m: side,
+            runs,
+            after_runs,
+            runs_file: runs_file.clone(),
+            auto_measure: None,
+            report: report.map(Path::to_path_buf),
+            after,
+        };
+        procedure::run(&mut client, &opts, &mut measure)
+    })();
+    stop.store(true, Ordering::Relaxed);
+    let _ = thread.join();
+    if let Some(b) = bar {
+        b.finish_and_clear();
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+    match result? {
+        ProcedureReport::Umbmark(rep) => Ok(*rep),
+        ProcedureReport::Omni(_) => bail!("the procedure returned an omni result"),
+    }
+}
+
+static RUN_ID: std::sync::atomic::AtomicU64 = std::sync::atomic::AtomicU64::new(0);

@@ -25,11 +25,17 @@ impl Output {
         value: &T,
         human: impl FnOnce() -> String,
     ) -> anyhow::Result<()> {
-        match self {
-            Output::Json => println!("{}", serde_json::to_string(value)?),
-            Output::Human => print!("{}", human()),
+        let text = match self {
+            Output::Json => format!("{}\n", serde_json::to_string(value)?),
+            Output::Human => human(),
+        };
+        use std::io::Write;
+        let mut out = std::io::stdout().lock();
+        match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
+            // A reader that went away (`| head`) is not an error of ours.
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
+            r => r.map_err(Into::into),
         }
-        Ok(())
     }
 
     /// Progress and notes go to stderr so stdout stays machine-readable.

@@ -26,10 +26,19 @@ impl Completion {
             .get_subcommands()
             .filter(|c| !matches!(c.get_name(), "console" | "sim-board" | "demo"))
             .map(|c| {
-                let mut follow: Vec<String> = c.get_subcommands().map(|s| s.get_name().to_string()).collect();
-                follow.extend(c.get_arguments().filter_map(|a| a.get_long().map(|l| format!("--{l}"))));
+                let mut follow: Vec<String> = c
+                    .get_subcommands()
+                    .map(|s| s.get_name().to_string())
+                    .collect();
+                follow.extend(
+                    c.get_arguments()
+                        .filter_map(|a| a.get_long().map(|l| format!("--{l}"))),
+                );
                 for s in c.get_subcommands() {
-                    follow.extend(s.get_arguments().filter_map(|a| a.get_long().map(|l| format!("--{l}"))));
+                    follow.extend(
+                        s.get_arguments()
+                            .filter_map(|a| a.get_long().map(|l| format!("--{l}"))),
+                    );
                 }
                 (c.get_name().to_string(), follow)
             })
@@ -40,20 +49,36 @@ impl Completion {
 
 impl Completer for Completion {
     type Candidate = Pair;
-    fn complete(&self, line: &str, pos: usize, _: &rustyline::Context<'_>) -> rustyline::Result<(usize, Vec<Pair>)> {
+    fn complete(
+        &self,
+        line: &str,
+        pos: usize,
+        _: &rustyline::Context<'_>,
+    ) -> rustyline::Result<(usize, Vec<Pair>)> {
         let head = &line[..pos];
         let start = head.rfind(' ').map_or(0, |i| i + 1);
         let word = &head[start..];
         let first = head.split_whitespace().next().unwrap_or("");
         let pool: Vec<String> = if start == 0 {
-            self.words.iter().map(|(w, _)| w.clone()).chain(["help".to_string(), "quit".to_string()]).collect()
+            self.words
+                .iter()
+                .map(|(w, _)| w.clone())
+                .chain(["help".to_string(), "quit".to_string()])
+                .collect()
         } else {
-            self.words.iter().find(|(w, _)| w == first).map(|(_, f)| f.clone()).unwrap_or_default()
+            self.words
+                .iter()
+                .find(|(w, _)| w == first)
+                .map(|(_, f)| f.clone())
+                .unwrap_or_default()
         };
         let mut out: Vec<Pair> = pool
             .into_iter()
             .filter(|w| w.starts_with(word))
-            .map(|w| Pair { display: w.clone(), replacement: w })
+            .map(|w| Pair {
+                display: w.clone(),
+                replacement: w,
+            })
             .collect();
         out.dedup_by(|a, b| a.display == b.display);
         Ok((start, out))
@@ -71,7 +96,8 @@ impl Helper for Completion {}
 pub fn run(ctx: &mut Ctx, json: bool) -> Result<()> {
     let mut rl: Editor<Completion, rustyline::history::DefaultHistory> = Editor::new()?;
     rl.set_helper(Some(Completion::new()));
-    let history = std::env::var_os("HOME").map(|h| std::path::PathBuf::from(h).join(".wheelcal_history"));
+    let history =
+        std::env::var_os("HOME").map(|h| std::path::PathBuf::from(h).join(".wheelcal_history"));
     if let Some(h) = &history {
         let _ = rl.load_history(h);
     }

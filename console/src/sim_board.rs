@@ -53,7 +53,10 @@ pub fn read_truths(file: &Path) -> Result<Vec<TrialTruth>> {
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
-        .map(|(i, l)| serde_json::from_str(l).with_context(|| format!("{}:{}: not a truth record", file.display(), i + 1)))
+        .map(|(i, l)| {
+            serde_json::from_str(l)
+                .with_context(|| format!("{}:{}: not a truth record", file.display(), i + 1))
+        })
         .collect()
 }
 
@@ -65,29 +68,44 @@ pub fn build_sim(opts: &SimBoardOptions) -> Result<(calib_core::Robot, SimRobot)
         .iter()
         .map(|e| Effect::parse(e).map_err(|err| anyhow::anyhow!("--effect {e}: {err}")))
         .collect::<Result<Vec<_>>>()?;
-    let (mut faults, surface) = sim::Faults::from_effects(&robot, &effects, Surface::flat()).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (mut faults, surface) = sim::Faults::from_effects(&robot, &effects, Surface::flat())
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     faults.travel_noise_m_per_sqrt_m = opts.roughness;
-    let cfg = SimConfig { seed: opts.seed, ..SimConfig::default() };
+    let cfg = SimConfig {
+        seed: opts.seed,
+        ..SimConfig::default()
+    };
     let sim = SimRobot::new(&robot, faults, surface, cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
     Ok((robot, sim))
 }
 
 /// Runs the board until `stop` is set; `ready` is called once the PTY exists.
-pub fn run(opts: &SimBoardOptions, stop: Arc<AtomicBool>, ready: impl FnOnce(&SimBoardReady)) -> Result<()> {
+pub fn run(
+    opts: &SimBoardOptions,
+    stop: Arc<AtomicBool>,
+    ready: impl FnOnce(&SimBoardReady),
+) -> Result<()> {
     let (robot, sim) = build_sim(opts)?;
-    let flash = board_flash(opts.flash.clone()).context("cannot open the virtual board's flash file")?;
+    let flash =
+        board_flash(opts.flash.clone()).context("cannot open the virtual board's flash file")?;
     let mut board = VirtualBoard::boot(&robot, sim, flash).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let (mut master, slave) = serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
+    let (mut master, slave) =
+        serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
     use serialport::SerialPort;
     master.set_timeout(std::time::Duration::ZERO)?;
     let pty = slave.name().context("pseudo-terminal without a name")?;
     if let Some(link) = &opts.link {
         let _ = std::fs::remove_file(link);
-        std::os::unix::fs::symlink(&pty, link).with_context(|| format!("cannot create the link {}", link.display()))?;
+        std::os::unix::fs::symlink(&pty, link)
+            .with_context(|| format!("cannot create the link {}", link.display()))?;
     }
-    let truth_file = opts.truth.clone().unwrap_or_else(|| truth_file_for(opts.link.as_deref().unwrap_or(Path::new(&pty))));
+    let truth_file = opts
+        .truth
+        .clone()
+        .unwrap_or_else(|| truth_file_for(opts.link.as_deref().unwrap_or(Path::new(&pty))));
     // Start each session with an empty truth file: trial numbers restart too.
-    std::fs::write(&truth_file, "").with_context(|| format!("cannot write {}", truth_file.display()))?;
+    std::fs::write(&truth_file, "")
+        .with_context(|| format!("cannot write {}", truth_file.display()))?;
     ready(&SimBoardReady {
         pty: pty.clone(),
         link: opts.link.as_ref().map(|l| l.display().to_string()),
@@ -97,11 +115,16 @@ pub fn run(opts: &SimBoardOptions, stop: Arc<AtomicBool>, ready: impl FnOnce(&Si
     });
     let mut stream = PortStream { port: master };
     let tf = truth_file.clone();
-    board.serve(&mut stream, opts.speed, || stop.load(Ordering::Relaxed), |t| {
-        if let Ok(mut f) = std::fs::OpenOptions::new().append(true).open(&tf) {
-            let _ = writeln!(f, "{}", serde_json::to_string(t).unwrap_or_default());
-        }
-    });
+    board.serve(
+        &mut stream,
+        opts.speed,
+        || stop.load(Ordering::Relaxed),
+        |t| {
+            if let Ok(mut f) = std::fs::OpenOptions::new().append(true).open(&tf) {
+                let _ = writeln!(f, "{}", serde_json::to_string(t).unwrap_or_default());
+            }
+        },
+    );
     drop(slave);
     if let Some(link) = &opts.link {
         let _ = std::fs::remove_file(link);

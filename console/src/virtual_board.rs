@@ -22,7 +22,7 @@ use sim::{SimRobot, WheelInput};
 use std::time::{Duration, Instant};
 
 /// Trial-log RAM of the virtual board: room for 100 000 records of a 4-wheel robot.
-pub const LOG_BYTES: usize = 6 * 1024 * 1024;
+pub const LOG_BYTES: usize = 5 * 1024 * 1024;
 /// Flash pages for the store.
 const FLASH_PAGES: usize = 4;
 const DT_US: u64 = 1_000_000 / TICK_HZ as u64;
@@ -51,7 +51,7 @@ impl SimHardware {
     }
 
     /// One tick of the application against this hardware, then one tick of physics.
-    fn tick<const N: usize>(&mut self, app: &mut App<N>, now_us: u64) {
+    fn tick(&mut self, app: &mut App<'_>, now_us: u64) {
         app.tick(
             now_us,
             &mut Encoders(&self.sim),
@@ -124,7 +124,7 @@ pub struct TrialTruth {
 
 /// The board: application, server, store and simulated hardware.
 pub struct VirtualBoard {
-    pub app: Box<App<LOG_BYTES>>,
+    pub app: App<'static>,
     server: Server,
     store: Store<RamFlash>,
     pub hw: SimHardware,
@@ -163,8 +163,7 @@ impl VirtualBoard {
             };
         }
         let corrections = loaded.corrections.clone();
-        // Big arrays: build on the heap.
-        let app = boxed_app(params, corrections, boot);
+        let app = new_app(params, corrections, boot);
         Ok(VirtualBoard {
             app,
             server: Server::new(),
@@ -295,14 +294,12 @@ impl VirtualBoard {
     }
 }
 
-fn boxed_app(params: Params, corrections: Corrections, boot: BootReport) -> Box<App<LOG_BYTES>> {
-    // App<6 MiB> built on a thread with a stack large enough to hold it before boxing.
-    std::thread::Builder::new()
-        .stack_size(64 * 1024 * 1024)
-        .spawn(move || Box::new(App::<LOG_BYTES>::new(params, corrections, boot, 0)))
-        .expect("spawn")
-        .join()
-        .expect("board construction does not panic")
+/// An application with its own trial-log RAM. The buffer is leaked on purpose: the
+/// application borrows it for `'static` as the firmware borrows its static CCM array, and
+/// a virtual board lives as long as its process (tests leak a few boards' worth).
+fn new_app(params: Params, corrections: Corrections, boot: BootReport) -> App<'static> {
+    let log: &'static mut [u8] = Box::leak(vec![0u8; LOG_BYTES].into_boxed_slice());
+    App::new(params, corrections, boot, log, 0)
 }
 
 /// The board's parameters for a robot file: firmware defaults with this geometry.

@@ -12,9 +12,9 @@ use calib_core::kinematics::Kinematics;
 use calib_core::motion::{Program, ProgramRunner, Setpoint};
 use calib_core::odometry::{Odometry, Pose};
 use calib_core::protocol::{
-    record_size, BootReport, Fault, Info, LogChunk, Mode, Params, ProgramKind, ProgramSpec, Record,
-    Rejection, Request, Response, Status, StopReason, TrialEnd, MAX_LOG_CHUNK, PROTOCOL_VERSION,
-    SCHEMA_FINGERPRINT,
+    record_size, BootReport, CorrectionText, Fault, Info, LogChunk, Mode, Num, Params, ProgramSpec,
+    Record, Rejection, Request, Response, Status, StopReason, TrialEnd, MAX_LOG_CHUNK,
+    PROTOCOL_VERSION, SCHEMA_FINGERPRINT,
 };
 use calib_core::robot::{DriveType, MAX_WHEELS};
 use calib_core::{Corrections, Twist};
@@ -39,7 +39,22 @@ pub enum Handled<'a> {
     Persist(PersistItem),
 }
 
+/// Ticks per trajectory sample: the program's f64 profile (software floating point on the
+/// Cortex-M4F, ~2700 instructions per evaluation) is sampled every 10 ms as the *average*
+/// twist over those 10 ms, which the 1 kHz wheel loops then follow. Displacements stay
+/// exact (each block commands exactly the profile's distance over it); only the speed
+/// profile becomes a 100 Hz staircase, far faster than the robot's mechanics.
+pub const TRAJECTORY_DIVIDER: u32 = 10;
+
+/// A trajectory sample and the ticks it still applies to.
+#[derive(Debug, Clone, Copy)]
+struct Block {
+    act: Act,
+    ticks_left: u32,
+}
+
 /// What the motion state asks of this tick.
+#[derive(Debug, Clone, Copy)]
 enum Act {
     Slew(Twist<f32>),
     Set(Twist<f32>),
@@ -60,13 +75,13 @@ enum Motion {
         target: Twist<f32>,
         deadline_us: u64,
     },
-    /// The runner and its segment count.
-    Program(ProgramRunner, u8),
+    /// The runner, its segment count, and the current trajectory block.
+    Program(ProgramRunner, u8, Block),
 }
 
-/// Everything the board knows and does, minus the registers. `LOG` is the trial-log ring
-/// size in bytes.
-pub struct App<const LOG: usize> {
+/// Everything the board knows and does, minus the registers. The trial log lives in a
+/// buffer the caller provides (`'a`).
+pub struct App<'a> {
     params: Params,
     corrections: Corrections,
     boot: BootReport,
@@ -84,7 +99,7 @@ pub struct App<const LOG: usize> {
     estop: bool,
     fault: Option<Fault>,
     stop: StopReason,
-    log: TrialLog<LOG>,
+    log: TrialLog<'a>,
     decimation: u32,
     ticks: u64,
     trial_start_us: u64,
@@ -101,19 +116,31 @@ fn kinematics(params: &Params, c: &Corrections) -> Option<Kinematics<f32>> {
     Kinematics::new(&params.robot, c).ok()
 }
 
-impl<const LOG: usize> App<LOG> {
+impl<'a> App<'a> {
     /// An application with validated `params` and `corrections` (as [`crate::Store::load`]
     /// returns them). Anything inconsistent falls back to the defaults, never panics.
-    pub fn new(params: Params, corrections: Corrections, boot: BootReport, now_us: u64) -> Self {
-        let (params, corrections, kin) = match kinematics(&params, &corrections) {
-            Some(k) if params.validate().is_ok() && corrections.validate(&params.robot).is_ok() => {
-                (params, corrections, k)
-            }
+    pub fn new(
+        params: Params,
+        corrections: Corrections,
+        boot: BootReport,
+        log_buf: &'a mut [u8],
+        now_us: u64,
+    ) -> Self {
+        // Invalid parameters fall back to the defaults; corrections are kept only if they
+        // fit the robot that results, else none.
+        let params =
+            if params.validate().is_ok() && kinematics(&params, &Corrections::None).is_some() {
+                params
+            } else {
+                defaults::params()
+            };
+        let (corrections, kin) = match kinematics(&params, &corrections) {
+            Some(k) if corrections.validate(&params.robot).is_ok() => (corrections, k),
             _ => {
-                let p = defaults::params();
-                // The defaults are a fixed, valid differential drive (tested).
-                let k = kinematics(&p, &Corrections::None).expect("default geometry is valid");
-                (p, Corrections::None, k)
+                // Validated geometry always has nominal kinematics (Robot::new checks the
+                // rank; the defaults are tested).
+                let k = kinematics(&params, &Corrections::None).expect("validated geometry");
+                (Corrections::None, k)
             }
         };
         let mut app = App {
@@ -132,7 +159,7 @@ impl<const LOG: usize> App<LOG> {
             estop: false,
             fault: None,
             stop: StopReason::None,
-            log: TrialLog::new(),
+            log: TrialLog::new(log_buf),
             decimation: 10,
             ticks: 0,
             trial_start_us: 0,
@@ -176,7 +203,7 @@ impl<const LOG: usize> App<LOG> {
         self.odo.pose()
     }
 
-    pub fn log(&self) -> &TrialLog<LOG> {
+    pub fn log(&self) -> &TrialLog<'a> {
         &self.log
     }
 
@@ -215,6 +242,16 @@ impl<const LOG: usize> App<LOG> {
     // Control tick
     // -----------------------------------------------------------------------------------
 
+    /// [`Self::tick`] at the time `clock` reads.
+    pub fn tick_at(
+        &mut self,
+        clock: &impl crate::Clock,
+        enc: &mut impl EncoderSource,
+        drv: &mut impl WheelDriver,
+    ) {
+        self.tick(clock.now_us(), enc, drv);
+    }
+
     /// One control period: read the encoders, update odometry, run the program or drive
     /// command, drive the wheels, log. Call at [`TICK_HZ`].
     pub fn tick(&mut self, now_us: u64, enc: &mut impl EncoderSource, drv: &mut impl WheelDriver) {
@@ -230,7 +267,8 @@ impl<const LOG: usize> App<LOG> {
             let delta = w.read(width, enc.raw(i));
             if let Some(rpc) = self.rad_per_count {
                 w.update_rate(rpc, DT);
-                dphi[i] = delta as f32 * rpc;
+                // Deltas are at most half the counter range: i32 (cheaper than i64 -> f32).
+                dphi[i] = delta as i32 as f32 * rpc;
                 if fault.is_none() {
                     fault = w.monitor(i, delta, &self.params.safety);
                 }
@@ -261,15 +299,23 @@ impl<const LOG: usize> App<LOG> {
                         Act::Slew(*target)
                     }
                 }
-                Motion::Program(runner, _) => match runner.setpoint(DT as f64) {
-                    Some(Setpoint::Body(t)) => {
-                        Act::Set(Twist::new(t.vx as f32, t.vy as f32, t.omega as f32))
+                Motion::Program(runner, _, block) => {
+                    if block.ticks_left == 0 {
+                        let dt = TRAJECTORY_DIVIDER as f64 / TICK_HZ as f64;
+                        block.act = match runner.setpoint(dt) {
+                            Some(Setpoint::Body(t)) => {
+                                Act::Set(Twist::new(t.vx as f32, t.vy as f32, t.omega as f32))
+                            }
+                            Some(Setpoint::Wheel { index, rate }) => {
+                                Act::Wheel(index as usize, rate as f32)
+                            }
+                            None => Act::Done,
+                        };
+                        block.ticks_left = TRAJECTORY_DIVIDER;
                     }
-                    Some(Setpoint::Wheel { index, rate }) => {
-                        Act::Wheel(index as usize, rate as f32)
-                    }
-                    None => Act::Done,
-                },
+                    block.ticks_left -= 1;
+                    block.act
+                }
             };
             match act {
                 Act::Slew(target) => self.twist = self.slew(self.twist, target),
@@ -328,7 +374,7 @@ impl<const LOG: usize> App<LOG> {
         self.odo.update(&d);
 
         // Trial log.
-        if self.log.recording().is_some() && self.ticks % self.decimation as u64 == 0 {
+        if self.log.recording().is_some() && self.ticks.is_multiple_of(self.decimation as u64) {
             let mut rec = Record {
                 t_us: now_us.wrapping_sub(self.trial_start_us) as u32,
                 pose: self.odo.pose(),
@@ -368,7 +414,7 @@ impl<const LOG: usize> App<LOG> {
             mode: match &self.motion {
                 Motion::Idle => Mode::Idle,
                 Motion::Drive { .. } => Mode::Drive,
-                Motion::Program(r, count) => Mode::Program {
+                Motion::Program(r, count, _) => Mode::Program {
                     segment: r.segment_index().min(255) as u8,
                     segments: *count,
                 },
@@ -397,7 +443,7 @@ impl<const LOG: usize> App<LOG> {
             wheel_count: self.n as u8,
             uptime_ms: self.uptime_ms(),
             boot: self.boot,
-            log_capacity: LOG as u32,
+            log_capacity: self.log.capacity() as u32,
             record_size: record_size(self.n) as u16,
         }
     }
@@ -449,9 +495,15 @@ impl<const LOG: usize> App<LOG> {
                 self.set_corrections(c)?;
                 reply(Response::Ok)
             }
-            Request::SaveCorrections => Ok(Handled::Persist(PersistItem::Corrections(
-                self.corrections.clone(),
-            ))),
+            Request::SaveCorrections => {
+                // A flash erase stalls the CPU: only with the motors stopped.
+                if self.moving() {
+                    return Err(Rejection::Busy);
+                }
+                Ok(Handled::Persist(PersistItem::Corrections(
+                    self.corrections.clone(),
+                )))
+            }
             Request::ResetCorrections => {
                 self.set_corrections(Corrections::None)?;
                 reply(Response::Ok)
@@ -461,7 +513,12 @@ impl<const LOG: usize> App<LOG> {
                 self.set_params(p)?;
                 reply(Response::Ok)
             }
-            Request::SaveParams => Ok(Handled::Persist(PersistItem::Params(self.params.clone()))),
+            Request::SaveParams => {
+                if self.moving() {
+                    return Err(Rejection::Busy);
+                }
+                Ok(Handled::Persist(PersistItem::Params(self.params.clone())))
+            }
             Request::ResetParams => {
                 self.set_params(defaults::params())?;
                 reply(Response::Ok)
@@ -560,7 +617,11 @@ impl<const LOG: usize> App<LOG> {
             Err(Rejection::InvalidProgram(calib_core::protocol::reason(
                 &format_args!(
                     "twist ({}, {}, {}) must be finite and within v_max {} m/s, omega_max {} rad/s",
-                    t.vx, t.vy, t.omega, l.v_max, l.omega_max
+                    Num(t.vx as f64),
+                    Num(t.vy as f64),
+                    Num(t.omega as f64),
+                    Num(l.v_max),
+                    Num(l.omega_max)
                 ),
             )))
         }
@@ -591,7 +652,8 @@ impl<const LOG: usize> App<LOG> {
         if let Err(e) = self.corrections.validate(&p.robot) {
             return Err(Rejection::InvalidParams(calib_core::protocol::reason(
                 &format_args!(
-                    "the active corrections do not fit this robot ({e}): reset them first"
+                    "the active corrections do not fit this robot ({}): reset them first",
+                    CorrectionText(&e)
                 ),
             )));
         }
@@ -621,7 +683,11 @@ impl<const LOG: usize> App<LOG> {
         // Odometry restarts at the origin: a trial's pose is relative to where it began.
         self.odo = Odometry::default();
         let count = program.segments.len() as u8;
-        self.motion = Motion::Program(program.runner(self.params.limits), count);
+        let block = Block {
+            act: Act::Done,
+            ticks_left: 0,
+        };
+        self.motion = Motion::Program(program.runner(self.params.limits), count, block);
         self.stop = StopReason::None;
         if log_rate_hz > 0 {
             self.decimation = (TICK_HZ / (log_rate_hz as u32).min(TICK_HZ)).max(1);
@@ -630,7 +696,7 @@ impl<const LOG: usize> App<LOG> {
                 w.origin = w.position();
             }
             self.log.start(
-                spec_kind(&spec),
+                spec.kind(),
                 self.uptime_ms(),
                 (TICK_HZ / self.decimation) as u16,
                 self.n as u8,
@@ -660,12 +726,17 @@ impl<const LOG: usize> App<LOG> {
     }
 
     /// A digest of the state a request may change, for tests that check a rejected request
-    /// changed nothing.
+    /// changed nothing (the clock and the damaged-frame counter are left out).
     pub fn snapshot(&self) -> impl PartialEq + core::fmt::Debug {
+        let status = Status {
+            uptime_ms: 0,
+            bad_frames: 0,
+            ..self.status()
+        };
         (
             self.params.clone(),
             self.corrections.clone(),
-            self.status(),
+            status,
             self.log.list(),
             self.estop,
             self.peer_compatible,
@@ -682,12 +753,8 @@ fn format_motion(m: &Motion) -> (u8, Twist<f32>, u64, usize) {
             target,
             deadline_us,
         } => (1, *target, *deadline_us, 0),
-        Motion::Program(r, _) => (2, Twist::zero(), 0, r.segment_index()),
+        Motion::Program(r, _, _) => (2, Twist::zero(), 0, r.segment_index()),
     }
-}
-
-fn spec_kind(s: &ProgramSpec) -> ProgramKind {
-    s.kind()
 }
 
 fn firmware() -> String<{ calib_core::protocol::FIRMWARE_LEN }> {

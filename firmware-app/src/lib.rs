@@ -7,6 +7,9 @@
 //! asks them to through a [`Store`] on any `NorFlash`. Nothing here blocks, allocates or
 //! panics on input.
 #![cfg_attr(not(test), no_std)]
+// Requests, replies and motion states are moved a few times per request, never per tick,
+// and there is no allocator to box them.
+#![allow(clippy::large_enum_variant)]
 
 pub mod app;
 pub mod defaults;

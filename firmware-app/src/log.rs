@@ -26,9 +26,10 @@ struct Entry {
     start: u64,
 }
 
-/// A ring of `N` bytes holding up to [`MAX_TRIALS`] trials.
-pub struct TrialLog<const N: usize> {
-    buf: [u8; N],
+/// A ring over a caller's buffer (on the board: 64 KiB of CCM RAM) holding up to
+/// [`MAX_TRIALS`] trials.
+pub struct TrialLog<'a> {
+    buf: &'a mut [u8],
     /// Absolute position of the oldest byte kept.
     head: u64,
     /// Absolute position one past the newest byte.
@@ -40,16 +41,11 @@ pub struct TrialLog<const N: usize> {
     evicted_total: u32,
 }
 
-impl<const N: usize> Default for TrialLog<N> {
-    fn default() -> Self {
-        Self::new()
-    }
-}
-
-impl<const N: usize> TrialLog<N> {
-    pub const fn new() -> Self {
+impl<'a> TrialLog<'a> {
+    /// A log over `buf` (its contents are ignored).
+    pub fn new(buf: &'a mut [u8]) -> Self {
         TrialLog {
-            buf: [0; N],
+            buf,
             head: 0,
             tail: 0,
             trials: Deque::new(),
@@ -60,12 +56,12 @@ impl<const N: usize> TrialLog<N> {
         }
     }
 
-    pub const fn capacity(&self) -> usize {
-        N
+    pub fn capacity(&self) -> usize {
+        self.buf.len()
     }
 
     pub fn free(&self) -> usize {
-        N - (self.tail - self.head) as usize
+        self.buf.len() - (self.tail - self.head) as usize
     }
 
     /// Records dropped since boot because the running trial filled the ring.
@@ -153,8 +149,9 @@ impl<const N: usize> TrialLog<N> {
         }
         active.info.records += 1;
         active.info.bytes += rec.len() as u32;
-        let at = (self.tail % N as u64) as usize;
-        let first = rec.len().min(N - at);
+        let cap = self.buf.len();
+        let at = (self.tail % cap as u64) as usize;
+        let first = rec.len().min(cap - at);
         self.buf[at..at + first].copy_from_slice(&rec[..first]);
         self.buf[..rec.len() - first].copy_from_slice(&rec[first..]);
         self.tail += rec.len() as u64;
@@ -208,8 +205,12 @@ impl<const N: usize> TrialLog<N> {
         let want = (total - offset)
             .min(max_len as u32)
             .min(MAX_LOG_CHUNK as u32) as usize;
-        let at = ((e.start + offset as u64) % N as u64) as usize;
-        let len = want.min(N - at);
+        let cap = self.buf.len() as u64;
+        if cap == 0 {
+            return Ok((&[], total));
+        }
+        let at = ((e.start + offset as u64) % cap) as usize;
+        let len = want.min(cap as usize - at);
         Ok((&self.buf[at..at + len], total))
     }
 }
@@ -218,11 +219,11 @@ impl<const N: usize> TrialLog<N> {
 mod tests {
     use super::*;
 
-    fn start(log: &mut TrialLog<100>) -> u16 {
+    fn start(log: &mut TrialLog<'_>) -> u16 {
         log.start(ProgramKind::Drive, 0, 100, 2, 10, &Corrections::None)
     }
 
-    fn pull(log: &TrialLog<100>, id: u16) -> Vec<u8> {
+    fn pull(log: &TrialLog<'_>, id: u16) -> Vec<u8> {
         let mut out = Vec::new();
         loop {
             let (b, total) = log.read(id, out.len() as u32, 7).unwrap();
@@ -236,7 +237,8 @@ mod tests {
 
     #[test]
     fn full_ring_evicts_finished_trials_then_drops_and_counts() {
-        let mut log = TrialLog::<100>::new();
+        let mut buf = [0u8; 100];
+        let mut log = TrialLog::new(&mut buf);
         let a = start(&mut log);
         for i in 0..6u8 {
             assert!(log.append(&[i; 10]));
@@ -263,7 +265,8 @@ mod tests {
 
     #[test]
     fn bad_reads_are_rejected() {
-        let mut log = TrialLog::<100>::new();
+        let mut buf = [0u8; 100];
+        let mut log = TrialLog::new(&mut buf);
         let a = start(&mut log);
         log.append(&[1; 10]);
         assert_eq!(log.read(a + 1, 0, 10), Err(Rejection::NoSuchTrial));
@@ -275,7 +278,8 @@ mod tests {
 
     #[test]
     fn header_table_full_evicts_oldest() {
-        let mut log = TrialLog::<100>::new();
+        let mut buf = [0u8; 100];
+        let mut log = TrialLog::new(&mut buf);
         for _ in 0..MAX_TRIALS + 2 {
             start(&mut log);
             log.append(&[0; 5]);

@@ -74,8 +74,19 @@ impl Server {
         &self.out[..self.out_len]
     }
 
+    /// The first `len` bytes of the last answer (what [`Step::Send`] pointed to), for glue
+    /// that cannot hold that borrow across its lock.
+    pub fn last_frame(&self, len: usize) -> &[u8] {
+        &self.out[..len.min(self.out_len)]
+    }
+
+    /// The first `len` bytes of the last telemetry frame.
+    pub fn last_telemetry(&self, len: usize) -> &[u8] {
+        &self.tele[..len.min(TELEMETRY_WIRE)]
+    }
+
     /// Feeds one received byte.
-    pub fn push<const N: usize>(&mut self, byte: u8, app: &mut App<N>, now_us: u64) -> Step<'_> {
+    pub fn push(&mut self, byte: u8, app: &mut App<'_>, now_us: u64) -> Step<'_> {
         let (seq, key, req) = match self.dec.push(byte) {
             None => return Step::Idle,
             Some(Err(e)) => {
@@ -112,7 +123,7 @@ impl Server {
     }
 
     /// A telemetry frame when one is due.
-    pub fn telemetry<const N: usize>(&mut self, app: &mut App<N>) -> Option<&[u8]> {
+    pub fn telemetry(&mut self, app: &mut App<'_>) -> Option<&[u8]> {
         let s = app.telemetry_due()?;
         self.tele_seq = self.tele_seq.wrapping_add(1);
         encode(self.tele_seq, &Response::Telemetry(s), &mut self.tele).ok()
@@ -121,9 +132,9 @@ impl Server {
     /// Serves a non-blocking stream: reads what is there, answers, sends telemetry.
     /// `persist` writes an item to flash synchronously (the host runs the async store with
     /// a `block_on`) and returns whether it worked.
-    pub fn poll<const N: usize, S: ByteStream>(
+    pub fn poll<S: ByteStream>(
         &mut self,
-        app: &mut App<N>,
+        app: &mut App<'_>,
         stream: &mut S,
         now_us: u64,
         mut persist: impl FnMut(&PersistItem) -> bool,

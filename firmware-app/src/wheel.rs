@@ -75,7 +75,9 @@ impl WheelState {
 
     /// Rate over the window in rad/s.
     pub fn update_rate(&mut self, rad_per_count: f32, dt: f32) {
-        self.rate = self.rate_counts as f32 * rad_per_count / (RATE_WINDOW as f32 * dt);
+        // Through i32: an i64 -> f32 conversion is a library call on the M4F.
+        let counts = self.rate_counts.clamp(i32::MIN as i64, i32::MAX as i64) as i32;
+        self.rate = counts as f32 * rad_per_count / (RATE_WINDOW as f32 * dt);
     }
 
     /// Checks this tick's movement against the safety limits.

@@ -109,7 +109,8 @@ fn umbmark_run(
     ));
     let prog = Program::umbmark_square(side, Direction::Cw);
     let predicted = predicted_end(&prog, &params, &used, &true_robot);
-    let ms = (prog.duration(&params.limits) * 1000.0) as u64 + 50;
+    // Each segment may end up to one 10 ms trajectory block late.
+    let ms = (prog.duration(&params.limits) * 1000.0) as u64 + 8 * 10 + 50;
     b.run_ms(ms);
     assert_eq!(b.app.status().mode, Mode::Idle);
     (predicted, b.pose, b.app.pose())
@@ -244,7 +245,7 @@ fn stalled_encoder_faults_within_100ms() {
     }
     let ms = (cut_at.expect("fault cut the motors") - frozen_at) / 1000;
     println!("stall cut after {ms} ms");
-    assert!(ms <= 100 && ms >= 50, "{ms}");
+    assert!((50..=100).contains(&ms), "{ms}");
     let s = b.app.status();
     assert_eq!(s.fault, Some(Fault::Stall { wheel: 1 }));
     // Latched: driving is refused until the fault is cleared.
@@ -316,4 +317,77 @@ fn estop_cuts_and_latches() {
             calib_core::protocol::Rejection::EStopped
         ))
     ));
+}
+
+/// 001's omni corrections, applied through the corrected Jacobian to commands and odometry
+/// alike: a robot whose wheels really have the corrected radii translates by (0.4, 0.3) m
+/// and turns 6 rad where it was told to, and its odometry agrees.
+#[test]
+fn omni_corrections_drive_the_true_robot_along_the_path() {
+    let params = calib_core::protocol::Params {
+        robot: presets::omni4(),
+        ..defaults::params()
+    };
+    let c = Corrections::Omni {
+        f_lat: heapless::Vec::from_slice(&[1.02, 0.98, 1.01, 0.99]).unwrap(),
+        f_lon: 0.97,
+    };
+    let truth = c.apply_to(&params.robot);
+    let mut b = Bench::new(params, c, &truth);
+    let segs = [
+        Segment::Translate {
+            dx_m: 0.4,
+            dy_m: 0.3,
+        },
+        Segment::Turn { angle_rad: 6.0 },
+    ];
+    ok(b.app.handle(
+        Request::RunProgram {
+            program: ProgramSpec::Custom(heapless::Vec::from_slice(&segs).unwrap()),
+            log_rate_hz: 0,
+        },
+        0,
+    ));
+    b.run_ms(10_000);
+    assert_eq!(b.app.status().mode, Mode::Idle);
+    let (p, o) = (b.pose, b.app.pose());
+    println!(
+        "true ({:.5}, {:.5}, {:.5}) odometry ({:.5}, {:.5}, {:.5})",
+        p.x, p.y, p.theta, o.x, o.y, o.theta
+    );
+    // The DC loops track rates, not positions: the wheels' different lags during the
+    // ramps leave the body ~0.5 mm and ~1.5 mrad off (measured 0.6 mm); 2 mm and 5 mrad
+    // bound that, against 4 % (16 mm) that uncorrected commands would miss by.
+    assert!(
+        (p.x - 0.4).abs() < 2e-3 && (p.y - 0.3).abs() < 2e-3,
+        "{p:?}"
+    );
+    assert!((p.theta - 6.0).abs() < 5e-3, "{p:?}");
+    assert!((o.x as f64 - p.x).abs() < 1e-3 && (o.y as f64 - p.y).abs() < 1e-3);
+}
+
+/// A single-wheel segment turns that wheel by its angle and holds the other.
+#[test]
+fn single_wheel_segment_turns_one_wheel() {
+    let params = defaults::params();
+    let robot = params.robot.clone();
+    let mut b = Bench::new(params, Corrections::None, &robot);
+    let segs = [Segment::SingleWheel {
+        wheel: 1,
+        angle_rad: 10.0,
+    }];
+    ok(b.app.handle(
+        Request::RunProgram {
+            program: ProgramSpec::Custom(heapless::Vec::from_slice(&segs).unwrap()),
+            log_rate_hz: 0,
+        },
+        0,
+    ));
+    b.run_ms(6000);
+    assert_eq!(b.app.status().mode, Mode::Idle);
+    println!("wheel angles {:.4} {:.4}", b.enc.angle[0], b.enc.angle[1]);
+    // Rate control again: the lag through the ramps leaves the angle a little off
+    // (measured 0.012 rad, 0.1 %); 0.05 rad bounds it. The held wheel does not move at all.
+    assert!((b.enc.angle[1] - 10.0).abs() < 0.05, "{}", b.enc.angle[1]);
+    assert_eq!(b.enc.angle[0], 0.0);
 }

@@ -33,6 +33,8 @@ pub struct Options {
     pub side_m: f64,
     pub length_m: f64,
     pub runs: usize,
+    /// Runs per direction or path after calibration (usually `runs`).
+    pub after_runs: usize,
     pub runs_file: PathBuf,
     /// Read end errors from this virtual-board truth file instead of asking.
     pub auto_measure: Option<PathBuf>,
@@ -48,7 +50,12 @@ pub trait Measure {
     fn ready(&mut self, what: &str) -> Result<()>;
     /// The measured end error of `trial` (measured minus odometry, start frame):
     /// `(x, y, theta)`.
-    fn end_error(&mut self, trial: u16, odometry: Pose<f32>, what: &str) -> Result<(f64, f64, Option<f64>)>;
+    fn end_error(
+        &mut self,
+        trial: u16,
+        odometry: Pose<f32>,
+        what: &str,
+    ) -> Result<(f64, f64, Option<f64>)>;
 }
 
 /// A person at a terminal with a tape measure.
@@ -72,7 +79,12 @@ impl Measure for Terminal {
         let _ = std::io::stderr().flush();
         read_line().map(|_| ())
     }
-    fn end_error(&mut self, _trial: u16, odo: Pose<f32>, what: &str) -> Result<(f64, f64, Option<f64>)> {
+    fn end_error(
+        &mut self,
+        _trial: u16,
+        odo: Pose<f32>,
+        what: &str,
+    ) -> Result<(f64, f64, Option<f64>)> {
         loop {
             eprint!(
                 "{what}: measured end position x y in mm from the start mark (x along the first leg, y to its left; odometry says {:+.1} {:+.1}): ",
@@ -81,7 +93,11 @@ impl Measure for Terminal {
             );
             let _ = std::io::stderr().flush();
             let line = read_line()?;
-            let v: Vec<f64> = line.split([' ', ',', '\t']).filter(|s| !s.is_empty()).filter_map(|s| s.parse().ok()).collect();
+            let v: Vec<f64> = line
+                .split([' ', ',', '\t'])
+                .filter(|s| !s.is_empty())
+                .filter_map(|s| s.parse().ok())
+                .collect();
             if v.len() == 2 && v.iter().all(|x| x.is_finite()) {
                 return Ok((v[0] / 1e3 - odo.x as f64, v[1] / 1e3 - odo.y as f64, None));
             }
@@ -105,7 +121,12 @@ impl Measure for TruthFile {
     fn ready(&mut self, _: &str) -> Result<()> {
         Ok(())
     }
-    fn end_error(&mut self, trial: u16, _odo: Pose<f32>, _what: &str) -> Result<(f64, f64, Option<f64>)> {
+    fn end_error(
+        &mut self,
+        trial: u16,
+        _odo: Pose<f32>,
+        _what: &str,
+    ) -> Result<(f64, f64, Option<f64>)> {
         for _ in 0..100 {
             let truths = crate::sim_board::read_truths(&self.file)?;
             if let Some(t) = truths.iter().rev().find(|t| t.trial == trial) {
@@ -133,7 +154,12 @@ impl Measure for TruthChannel {
     fn ready(&mut self, _: &str) -> Result<()> {
         Ok(())
     }
-    fn end_error(&mut self, trial: u16, _odo: Pose<f32>, _what: &str) -> Result<(f64, f64, Option<f64>)> {
+    fn end_error(
+        &mut self,
+        trial: u16,
+        _odo: Pose<f32>,
+        _what: &str,
+    ) -> Result<(f64, f64, Option<f64>)> {
         loop {
             if let Some(t) = self.seen.iter().find(|t| t.trial == trial) {
                 if let Some(p) = &self.progress {
@@ -141,7 +167,10 @@ impl Measure for TruthChannel {
                 }
                 return Ok((t.x_err_m, t.y_err_m, Some(t.theta_err_rad)));
             }
-            let t = self.rx.recv_timeout(Duration::from_secs(30)).context("the virtual board reported no truth for the trial")?;
+            let t = self
+                .rx
+                .recv_timeout(Duration::from_secs(30))
+                .context("the virtual board reported no truth for the trial")?;
             self.seen.push(t);
         }
     }
@@ -181,7 +210,11 @@ impl Trial {
 }
 
 /// Runs the procedure on a board.
-pub fn run<L: Read + Write>(c: &mut Client<L>, opts: &Options, m: &mut dyn Measure) -> Result<ProcedureReport> {
+pub fn run<L: Read + Write>(
+    c: &mut Client<L>,
+    opts: &Options,
+    m: &mut dyn Measure,
+) -> Result<ProcedureReport> {
     if opts.runs < 2 {
         bail!("--runs must be at least 2 (statistics need two runs per direction or path)");
     }
@@ -191,54 +224,117 @@ pub fn run<L: Read + Write>(c: &mut Client<L>, opts: &Options, m: &mut dyn Measu
             if robot.kind != RobotKind::DiffDrive {
                 bail!("the board's robot is {}: UMBmark is for differential drives (use `wheelcal omni run`)", robot.kind.as_str());
             }
-            (TestKind::Umbmark, vec![Trial::Square(Direction::Cw), Trial::Square(Direction::Ccw)], opts.side_m)
+            (
+                TestKind::Umbmark,
+                vec![Trial::Square(Direction::Cw), Trial::Square(Direction::Ccw)],
+                opts.side_m,
+            )
         }
         Kind::Omni => {
             if robot.kind != RobotKind::Omni {
                 bail!("the board's robot is {}: the omni procedure is for omni robots (use `wheelcal umbmark run`)", robot.kind.as_str());
             }
-            (TestKind::Omni, vec![Trial::Path(OmniPath::W1), Trial::Path(OmniPath::W2)], opts.length_m)
+            (
+                TestKind::Omni,
+                vec![Trial::Path(OmniPath::W1), Trial::Path(OmniPath::W2)],
+                opts.length_m,
+            )
         }
     };
     if !(length.is_finite() && length > 0.0 && length <= 20.0) {
         bail!("the path length must be within (0, 20] m, got {length}");
     }
-    let existing = if opts.runs_file.exists() { RunsFile::load(&opts.runs_file)? } else { RunsFile::new(&opts.runs_file) };
-    if existing.rows.iter().any(|r| r.test == test && (r.length_m - length).abs() > 1e-9) {
+    let existing = if opts.runs_file.exists() {
+        RunsFile::load(&opts.runs_file)?
+    } else {
+        RunsFile::new(&opts.runs_file)
+    };
+    if existing
+        .rows
+        .iter()
+        .any(|r| r.test == test && (r.length_m - length).abs() > 1e-9)
+    {
         bail!(
             "{} already holds runs of another length; use a new --runs-file for {} m",
             opts.runs_file.display(),
             length
         );
     }
-    let have = |phase: Phase, t: Trial| existing.rows.iter().filter(|r| r.test == test && r.phase == phase && r.path == t.path_name()).count();
+    let have = |phase: Phase, t: Trial| {
+        existing
+            .rows
+            .iter()
+            .filter(|r| r.test == test && r.phase == phase && r.path == t.path_name())
+            .count()
+    };
 
     // Before: nominal geometry, unless resuming a procedure whose factors are already
     // computed (then the before runs are complete and only the after runs remain).
     let before_done = trials.iter().all(|&t| have(Phase::Before, t) >= opts.runs);
     if !before_done {
         c.reset_corrections()?;
-        m.say(&format!("before calibration: corrections reset to nominal; {} runs per {}", opts.runs, if test == TestKind::Umbmark { "direction" } else { "path" }));
-        run_phase(c, opts, m, &trials, test, length, Phase::Before, &|t| have(Phase::Before, t))?;
+        m.say(&format!(
+            "before calibration: corrections reset to nominal; {} runs per {}",
+            opts.runs,
+            if test == TestKind::Umbmark {
+                "direction"
+            } else {
+                "path"
+            }
+        ));
+        run_phase(
+            c,
+            opts.runs,
+            &opts.runs_file,
+            m,
+            &trials,
+            test,
+            length,
+            Phase::Before,
+            &|t| have(Phase::Before, t),
+        )?;
     }
     let runs = RunsFile::load(&opts.runs_file)?;
     let corrections = match opts.kind {
         Kind::Umbmark => {
             let r = umbmark::compute(&robot, &runs)?;
-            Corrections::DiffDrive { c_l: r.c_l, c_r: r.c_r, e_b: r.eb }
+            Corrections::DiffDrive {
+                c_l: r.c_l,
+                c_r: r.c_r,
+                e_b: r.eb,
+            }
         }
         Kind::Omni => {
             let r = omni::compute(&robot, &runs)?;
-            Corrections::Omni { f_lat: heapless::Vec::from_slice(&r.f_lat).map_err(|_| anyhow::anyhow!("too many wheels"))?, f_lon: r.f_lon }
+            Corrections::Omni {
+                f_lat: heapless::Vec::from_slice(&r.f_lat)
+                    .map_err(|_| anyhow::anyhow!("too many wheels"))?,
+                f_lon: r.f_lon,
+            }
         }
     };
     // Validated here too: nothing is uploaded from a computation the board would refuse.
-    corrections.validate(&robot).map_err(|e| anyhow::anyhow!("computed factors are not usable ({e}); nothing was uploaded"))?;
+    corrections.validate(&robot).map_err(|e| {
+        anyhow::anyhow!("computed factors are not usable ({e}); nothing was uploaded")
+    })?;
     c.set_corrections(corrections.clone())?;
     c.save_corrections()?;
-    m.say(&format!("factors uploaded and saved: {}", board_cmds::FactorsView::from(&corrections).human().trim()));
+    m.say(&format!(
+        "factors uploaded and saved: {}",
+        board_cmds::FactorsView::from(&corrections).human().trim()
+    ));
     if opts.after {
-        run_phase(c, opts, m, &trials, test, length, Phase::After, &|t| have(Phase::After, t))?;
+        run_phase(
+            c,
+            opts.after_runs,
+            &opts.runs_file,
+            m,
+            &trials,
+            test,
+            length,
+            Phase::After,
+            &|t| have(Phase::After, t),
+        )?;
     }
     let runs = RunsFile::load(&opts.runs_file)?;
     let rep = match opts.kind {
@@ -263,7 +359,8 @@ pub fn run<L: Read + Write>(c: &mut Client<L>, opts: &Options, m: &mut dyn Measu
 #[allow(clippy::too_many_arguments)]
 fn run_phase<L: Read + Write>(
     c: &mut Client<L>,
-    opts: &Options,
+    runs: usize,
+    runs_file: &Path,
     m: &mut dyn Measure,
     trials: &[Trial],
     test: TestKind,
@@ -272,22 +369,46 @@ fn run_phase<L: Read + Write>(
     have: &dyn Fn(Trial) -> usize,
 ) -> Result<()> {
     for &t in trials {
-        for k in have(t)..opts.runs {
-            let what = format!("{} {} run {}/{}", phase.as_str(), t.path_name(), k + 1, opts.runs);
+        for k in have(t)..runs {
+            let what = format!(
+                "{} {} run {}/{}",
+                phase.as_str(),
+                t.path_name(),
+                k + 1,
+                runs
+            );
             m.ready(&what)?;
             m.say(&format!("{what}: running"));
             match t {
                 Trial::Square(d) => board_cmds::run_umbmark(c, d, length, 10)?,
                 Trial::Path(p) => board_cmds::run_omni(c, p, length, 10)?,
             }
-            let end = board_cmds::wait_program(c, Duration::from_secs_f64(120.0 + 60.0 * length), |_| {})?;
-            let trial = c.trials()?.trials.last().map(|t| t.id).context("the board logged no trial")?;
+            let end = board_cmds::wait_program(
+                c,
+                Duration::from_secs_f64(120.0 + 60.0 * length),
+                |_| {},
+            )?;
+            let trial = c
+                .trials()?
+                .trials
+                .last()
+                .map(|t| t.id)
+                .context("the board logged no trial")?;
             let (x, y, th) = m.end_error(trial, end.pose, &what)?;
             RunsFile::append(
-                &opts.runs_file,
-                &RunRow { line: 0, test, path: t.path_name().into(), length_m: length, x_err_m: x, y_err_m: y, theta_err_rad: th, phase },
+                runs_file,
+                &RunRow {
+                    line: 0,
+                    test,
+                    path: t.path_name().into(),
+                    length_m: length,
+                    x_err_m: x,
+                    y_err_m: y,
+                    theta_err_rad: th,
+                    phase,
+                },
             )
-            .with_context(|| format!("cannot append to {}", opts.runs_file.display()))?;
+            .with_context(|| format!("cannot append to {}", runs_file.display()))?;
         }
     }
     Ok(())

@@ -21,8 +21,9 @@ const FONT_PATHS: [&str; 3] = [
     "/usr/share/fonts/dejavu/DejaVuSans.ttf",
 ];
 
-/// Registers a font for the plots once; false when none is installed.
-fn font_available() -> bool {
+/// Registers a font for the plots once (diagnose's plots use it too); false when none is
+/// installed.
+pub fn font_available() -> bool {
     static FONT: OnceLock<bool> = OnceLock::new();
     *FONT.get_or_init(|| {
         for p in FONT_PATHS {

@@ -69,7 +69,7 @@ impl WheelDriver for Motors {
 }
 
 pub struct Bench {
-    pub app: App<LOG>,
+    pub app: App<'static>,
     pub enc: Encoders,
     pub mot: Motors,
     pub omega: [f64; MAX_WHEELS],
@@ -98,7 +98,7 @@ impl Bench {
         Bench {
             dc: params.robot.drive.kind == DriveType::Dc,
             steps_per_rad: params.robot.drive.steps_per_wheel_rad(),
-            app: App::new(params, corrections, boot(), 0),
+            app: App::new(params, corrections, boot(), vec![0u8; LOG].leak(), 0),
             enc: Encoders {
                 angle: [0.0; MAX_WHEELS],
                 rad_per_count: rpc,

@@ -1,0 +1,256 @@
+//! Persistence on sequential-storage's mock flash: power cuts at every step of a save, and
+//! boot-time validation.
+
+use calib_core::protocol::{Params, Stored};
+use calib_core::robot::presets;
+use calib_core::Corrections;
+use embassy_futures::block_on;
+use firmware_app::{defaults, PersistItem, Store};
+use sequential_storage::mock_flash::{MockFlashBase, WriteCountCheck};
+
+/// 4 pages of 1 KiB with 4-byte words, like a small slice of the STM32's flash.
+type Flash = MockFlashBase<4, 4, 256>;
+
+fn store(flash: Flash) -> Store<Flash> {
+    Store::new(flash, Flash::FULL_FLASH_RANGE).unwrap()
+}
+
+fn diff(c_l: f64) -> Corrections {
+    Corrections::DiffDrive {
+        c_l,
+        c_r: 0.99,
+        e_b: 1.02,
+    }
+}
+
+fn fresh() -> Flash {
+    Flash::new(WriteCountCheck::Twice, None, true)
+}
+
+#[test]
+fn fresh_flash_boots_with_defaults_and_says_so() {
+    let mut s = store(fresh());
+    let l = block_on(s.load());
+    assert_eq!(l.params, defaults::params());
+    assert_eq!(l.corrections, Corrections::None);
+    assert_eq!(
+        (l.boot.params, l.boot.corrections),
+        (Stored::Missing, Stored::Missing)
+    );
+}
+
+#[test]
+fn saved_values_survive_a_reboot() {
+    let mut s = store(fresh());
+    block_on(s.save(&PersistItem::Corrections(diff(1.01)))).unwrap();
+    let mut p = defaults::params();
+    p.gains.kp = 0.07;
+    block_on(s.save(&PersistItem::Params(p.clone()))).unwrap();
+    let mut s = store(s.into_flash());
+    let l = block_on(s.load());
+    assert_eq!((l.params, l.corrections), (p, diff(1.01)));
+    assert_eq!(
+        (l.boot.params, l.boot.corrections),
+        (Stored::Loaded, Stored::Loaded)
+    );
+}
+
+/// The power fails after k flash operations of a save, for every k until the save
+/// completes; each time the board reboots on what the flash holds. It must find the old
+/// or the new factors, never anything else. Saves are repeated so the map also has to
+/// erase and migrate pages while being cut.
+#[test]
+fn a_power_cut_at_every_step_of_a_save_leaves_old_or_new() {
+    let mut flash = fresh();
+    let mut old = diff(1.0);
+    block_on(store(flash.clone()).save(&PersistItem::Corrections(old.clone()))).unwrap();
+    {
+        let mut s = store(flash);
+        block_on(s.save(&PersistItem::Corrections(old.clone()))).unwrap();
+        flash = s.into_flash();
+    }
+    let mut cuts = 0;
+    let mut saw_old = 0;
+    let mut saw_new = 0;
+    for round in 0..12 {
+        let new = diff(1.0 + 0.01 * (round + 1) as f64);
+        let mut k = 0u32;
+        loop {
+            let mut f = flash.clone();
+            f.bytes_until_shutoff = Some(k);
+            let mut s = store(f);
+            let res = block_on(s.save(&PersistItem::Corrections(new.clone())));
+            let mut f = s.into_flash();
+            f.bytes_until_shutoff = None;
+            // Reboot on whatever the flash holds now.
+            let mut s = store(f);
+            let l = block_on(s.load());
+            assert_eq!(l.boot.corrections, Stored::Loaded, "round {round}, cut {k}");
+            if res.is_ok() {
+                assert_eq!(l.corrections, new);
+                flash = s.into_flash();
+                break;
+            }
+            cuts += 1;
+            if l.corrections == old {
+                saw_old += 1;
+            } else if l.corrections == new {
+                saw_new += 1;
+            } else {
+                panic!("round {round}, cut {k}: garbage {:?}", l.corrections);
+            }
+            k += 1;
+        }
+        old = new;
+    }
+    println!("{cuts} power cuts: {saw_old} kept the old factors, {saw_new} had the new");
+    assert!(cuts > 100 && saw_old > 0);
+}
+
+/// Values that were stored but are no longer acceptable are reported and replaced.
+#[test]
+fn invalid_stored_values_become_defaults_and_are_reported() {
+    let mut s = store(fresh());
+    // The store writes what it is given; the request handler validates before saving, so
+    // an out-of-range value can only come from an older firmware or a bug: it must not be
+    // used.
+    block_on(s.save(&PersistItem::Corrections(diff(5.0)))).unwrap();
+    let l = block_on(s.load());
+    assert_eq!(l.corrections, Corrections::None);
+    assert_eq!(l.boot.corrections, Stored::Invalid);
+
+    // Factors that do not fit the stored robot (differential factors on an omni robot).
+    block_on(s.save(&PersistItem::Corrections(diff(1.01)))).unwrap();
+    let omni = Params {
+        robot: presets::omni4(),
+        ..defaults::params()
+    };
+    block_on(s.save(&PersistItem::Params(omni.clone()))).unwrap();
+    let l = block_on(s.load());
+    assert_eq!(l.params, omni);
+    assert_eq!(
+        (l.boot.params, l.boot.corrections),
+        (Stored::Loaded, Stored::Invalid)
+    );
+
+    // Parameters out of range.
+    let mut bad = defaults::params();
+    bad.gains.kp = f32::NAN;
+    block_on(s.save(&PersistItem::Params(bad))).unwrap();
+    let l = block_on(s.load());
+    assert_eq!(l.params, defaults::params());
+    assert_eq!(l.boot.params, Stored::Invalid);
+}
+
+/// Bits flipped in flash are caught (sequential-storage's item CRC or ours) and reported,
+/// never used.
+#[test]
+fn corrupted_flash_is_reported() {
+    let mut s = store(fresh());
+    block_on(s.save(&PersistItem::Corrections(diff(1.01)))).unwrap();
+    let f = s.into_flash();
+    // Flip a bit in every written byte of the first page's item area, one at a time.
+    let written: Vec<usize> = f
+        .as_bytes()
+        .iter()
+        .enumerate()
+        .take(1024)
+        .filter(|(_, b)| **b != 0xFF)
+        .map(|(i, _)| i)
+        .collect();
+    let mut outcomes = [0usize; 3];
+    for &i in &written {
+        let mut g = f.clone();
+        g.as_bytes_mut()[i] ^= 0x10;
+        let mut s = store(g);
+        let l = block_on(s.load());
+        match (l.boot.corrections, &l.corrections) {
+            (Stored::Loaded, c) => {
+                assert_eq!(*c, diff(1.01), "byte {i}: a changed value was used");
+                outcomes[0] += 1;
+            }
+            (_, c) => {
+                assert_eq!(*c, Corrections::None);
+                outcomes[if l.boot.corrections == Stored::Invalid {
+                    1
+                } else {
+                    2
+                }] += 1;
+            }
+        }
+    }
+    println!(
+        "{} bytes flipped: {} harmless, {} invalid, {} missing/storage error",
+        written.len(),
+        outcomes[0],
+        outcomes[1],
+        outcomes[2]
+    );
+    assert!(outcomes[1] + outcomes[2] > 0);
+}
+
+/// The byte-stream path the virtual board uses: SetCorrections then SaveCorrections through
+/// `Server::poll`, the save done by the async store under `block_on`; after a "reboot" the
+/// board boots with the saved factors.
+#[test]
+fn save_through_the_server_survives_a_reboot() {
+    use calib_core::protocol::{decode_frame, encode, Request, Response, MAX_WIRE};
+    use calib_core::protocol::{BootReport, Stored};
+    use firmware_app::{App, ByteStream, Server};
+    use std::collections::VecDeque;
+
+    #[derive(Default)]
+    struct Pipe {
+        to_board: VecDeque<u8>,
+        from_board: Vec<u8>,
+    }
+    impl ByteStream for Pipe {
+        fn read(&mut self, buf: &mut [u8]) -> usize {
+            let n = buf.len().min(self.to_board.len());
+            for b in buf.iter_mut().take(n) {
+                *b = self.to_board.pop_front().unwrap();
+            }
+            n
+        }
+        fn write(&mut self, data: &[u8]) {
+            self.from_board.extend_from_slice(data);
+        }
+    }
+
+    let mut s = store(fresh());
+    let loaded = block_on(s.load());
+    let mut log = vec![0u8; 1024];
+    let mut app = App::new(loaded.params, loaded.corrections, loaded.boot, &mut log, 0);
+    let mut server = Server::new();
+    let mut pipe = Pipe::default();
+    let mut out = [0u8; MAX_WIRE];
+    for (seq, req) in [
+        (1, Request::SetCorrections(diff(1.03))),
+        (2, Request::SaveCorrections),
+    ] {
+        pipe.to_board
+            .extend(encode(seq, &req, &mut out).unwrap().iter().copied());
+    }
+    server.poll(&mut app, &mut pipe, 0, |item| {
+        block_on(s.save(item)).is_ok()
+    });
+    let mut answers = pipe
+        .from_board
+        .split_mut(|&b| b == 0)
+        .filter(|f| !f.is_empty());
+    for want_seq in [1, 2] {
+        let f = decode_frame(answers.next().expect("an answer")).unwrap();
+        assert_eq!(f.seq, want_seq);
+        assert_eq!(f.decode::<Response>().unwrap(), Response::Ok);
+    }
+    let mut s = store(s.into_flash());
+    let l = block_on(s.load());
+    assert_eq!(l.corrections, diff(1.03));
+    assert_eq!(
+        l.boot,
+        BootReport {
+            corrections: Stored::Loaded,
+            params: Stored::Missing
+        }
+    );
+}

@@ -1,0 +1,172 @@
+//! Counts the instructions of firmware-app's control tick for four DC wheels on a
+//! Cortex-M4F (QEMU mps2-an386, semihosting); `run.sh` builds, runs and counts.
+//!
+//! The robot is 001's four-wheel omni robot (DC drive, 480-ppr encoders) with omni
+//! corrections, driving a 0.5 m translate and then a 6 rad turn in place, logging a trial at
+//! 100 Hz: the tick reads four encoders, extends them, estimates rates, samples the
+//! program's f64 trapezoid (every tenth tick), inverse and forward kinematics, odometry,
+//! four PI loops and (every tenth tick) a log record. Markers: `bench_mark(1)`, N ticks
+//! while translating, `bench_mark(2)`, N plant-only steps, `bench_mark(3)`; later
+//! `bench_mark(4)`, N ticks while turning (odometry's exact arc then needs two more
+//! sines), `bench_mark(5)`. Per tick = (ticks - plant) / N for each phase.
+#![no_std]
+#![no_main]
+
+use calib_core::encoder::CounterWidth;
+use calib_core::motion::Segment;
+use calib_core::protocol::{BootReport, Params, ProgramSpec, Request, Stored};
+use calib_core::robot::presets;
+use calib_core::Corrections;
+use core::panic::PanicInfo;
+use cortex_m_rt::entry;
+use cortex_m_semihosting::{debug, hprintln};
+use firmware_app::{defaults, App, EncoderSource, WheelDriver};
+
+/// Ticks counted.
+pub const N: u32 = 1000;
+const WARMUP: u32 = 1000;
+
+/// Wheel angles of a first-order DC plant, in encoder counts.
+#[derive(Clone)]
+struct Enc {
+    counts: [f32; 4],
+}
+
+impl EncoderSource for Enc {
+    fn width(&self) -> CounterWidth {
+        CounterWidth::Bits16
+    }
+    fn raw(&mut self, wheel: usize) -> u32 {
+        self.counts
+            .get(wheel)
+            .map_or(0, |c| *c as i32 as u32 & 0xFFFF)
+    }
+}
+
+#[derive(Clone)]
+struct Drv {
+    duty: [f32; 4],
+    omega: [f32; 4],
+}
+
+impl WheelDriver for Drv {
+    fn set_duty(&mut self, wheel: usize, duty: f32) {
+        if let Some(d) = self.duty.get_mut(wheel) {
+            *d = duty;
+        }
+    }
+    fn set_steps(&mut self, _: usize, _: f32, _: i32) {}
+    fn stop_all(&mut self) {
+        self.duty = [0.0; 4];
+    }
+}
+
+/// One millisecond of the plant: 20 rad/s at full duty, 50 ms time constant.
+#[inline(never)]
+fn plant(enc: &mut Enc, drv: &mut Drv) {
+    const COUNTS_PER_RAD: f32 = 1920.0 / core::f32::consts::TAU;
+    for i in 0..4 {
+        drv.omega[i] += 0.02 * (20.0 * drv.duty[i] - drv.omega[i]);
+        enc.counts[i] += drv.omega[i] * 1e-3 * COUNTS_PER_RAD;
+    }
+}
+
+/// A marker whose address the counting script looks for.
+#[no_mangle]
+#[inline(never)]
+pub extern "C" fn bench_mark(id: u32) {
+    core::hint::black_box(id);
+}
+
+#[entry]
+fn main() -> ! {
+    static mut LOG: [u8; 16 * 1024] = [0; 16 * 1024];
+    let params = Params {
+        robot: presets::omni4(),
+        ..defaults::params()
+    };
+    let corrections = Corrections::Omni {
+        f_lat: heapless::Vec::from_slice(&[1.02, 0.98, 1.01, 0.99]).unwrap_or_default(),
+        f_lon: 0.97,
+    };
+    let boot = BootReport {
+        corrections: Stored::Loaded,
+        params: Stored::Loaded,
+    };
+    let mut app = App::new(params, corrections, boot, LOG, 0);
+    let segments = [
+        Segment::Translate {
+            dx_m: 0.4,
+            dy_m: 0.3,
+        },
+        Segment::Turn { angle_rad: 6.0 },
+    ];
+    let program = ProgramSpec::Custom(heapless::Vec::from_slice(&segments).unwrap_or_default());
+    let _ = app.handle(
+        Request::RunProgram {
+            program,
+            log_rate_hz: 100,
+        },
+        0,
+    );
+    let mut enc = Enc { counts: [0.0; 4] };
+    let mut drv = Drv {
+        duty: [0.0; 4],
+        omega: [0.0; 4],
+    };
+    let mut t = 0u64;
+    for _ in 0..WARMUP {
+        t += 1000;
+        app.tick(t, &mut enc, &mut drv);
+        plant(&mut enc, &mut drv);
+    }
+    bench_mark(1);
+    for _ in 0..N {
+        t += 1000;
+        app.tick(t, &mut enc, &mut drv);
+        plant(&mut enc, &mut drv);
+    }
+    bench_mark(2);
+    // The plant alone, on a copy: the application's world is not disturbed.
+    let (mut e2, mut d2) = (enc.clone(), drv.clone());
+    for _ in 0..N {
+        plant(&mut e2, &mut d2);
+    }
+    core::hint::black_box((&e2, &d2));
+    bench_mark(3);
+    // Into the turn: the translate ends after 2.67 s, the turn cruises from 3.2 s.
+    for _ in 0..1300 {
+        t += 1000;
+        app.tick(t, &mut enc, &mut drv);
+        plant(&mut enc, &mut drv);
+    }
+    bench_mark(4);
+    for _ in 0..N {
+        t += 1000;
+        app.tick(t, &mut enc, &mut drv);
+        plant(&mut enc, &mut drv);
+    }
+    bench_mark(5);
+    let s = app.status();
+    hprintln!(
+        "ticks {} fault {} pose ({} mm, {} mm, {} mrad) records {}",
+        N,
+        s.fault.is_some(),
+        (s.pose.x * 1000.0) as i32,
+        (s.pose.y * 1000.0) as i32,
+        (s.pose.theta * 1000.0) as i32,
+        app.log().list().trials.first().map_or(0, |t| t.records)
+    );
+    debug::exit(debug::EXIT_SUCCESS);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
+
+#[panic_handler]
+fn panic(_: &PanicInfo) -> ! {
+    debug::exit(debug::EXIT_FAILURE);
+    loop {
+        cortex_m::asm::wfi();
+    }
+}
