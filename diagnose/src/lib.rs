@@ -3,8 +3,10 @@
 //!
 //! 1. Replay (`replay`, `actuator`, `ground`): the recording runs through the nominal
 //!    model in two stages, commands -> wheel motion (against the encoders) and wheel motion
-//!    -> body motion (against the measured poses); nuisances (start pose, encoder offsets)
-//!    are solved for every evaluation (`residuals`).
+//!    -> body motion (against the measured poses, and against the encoders of free-spinning
+//!    wheels, which roll with the body); nuisances (start pose, encoder offsets) are solved
+//!    for every evaluation (`residuals`). Whether logged commands are held values or
+//!    samples of a faster loop is decided on the data.
 //! 2. Locate (`windows`): windows where the residual leaves the noise band, by stage,
 //!    body axis and wheel, with what the robot was doing there.
 //! 3. Name (`effects`, `fit`, `select`): each catalogue effect is fitted as an augmentation
@@ -171,7 +173,7 @@ pub fn diagnose(
     let mut mismatch = false;
     for s in [Stage::Ground, Stage::Actuator] {
         let n = match s {
-            Stage::Ground => 3 * sel.nominal.n_pose,
+            Stage::Ground => 3 * sel.nominal.n_pose + sel.nominal.n_free,
             Stage::Actuator => sel.nominal.n_act,
         } as f64;
         if n < 1.0 {

@@ -58,6 +58,8 @@ pub struct Noise {
     pub heading_sigma_rad: f64,
     /// Wheel-surface noise of the actuator stage (encoder angle times radius).
     pub actuator_sigma_m: f64,
+    /// Wheel-surface noise of free wheels' encoders against the body motion.
+    pub free_wheel_sigma_m: f64,
 }
 
 /// The result of evaluating one model.
@@ -71,6 +73,9 @@ pub struct Eval {
     pub start: (f64, f64, f64),
     /// Per actuator-compared wheel: (wheel index, error in m per compared row).
     pub act: Vec<(usize, Vec<f64>)>,
+    /// Per free (undriven) wheel with an encoder: (wheel index, encoder minus predicted
+    /// rolling, m at the wheel surface, per compared row). Ground-stage evidence.
+    pub free: Vec<(usize, Vec<f64>)>,
 }
 
 /// Sums of squares per stage over a fold.
@@ -83,6 +88,9 @@ pub struct StageRss {
     /// Sum of actuator errors squared (m^2) and their number.
     pub act: f64,
     pub n_act: usize,
+    /// Sum of free-wheel errors squared (m^2) and their number (ground stage).
+    pub free: f64,
+    pub n_free: usize,
 }
 
 impl StageRss {
@@ -149,6 +157,7 @@ impl<'a> Evaluator<'a> {
                 pose_sigma_m: 1.0,
                 heading_sigma_rad: 1.0,
                 actuator_sigma_m: 1.0,
+                free_wheel_sigma_m: 1.0,
             },
         );
         let mut nominal = ev.evaluate(&Model::default(), Fold::All);
@@ -363,6 +372,27 @@ impl<'a> Evaluator<'a> {
         let path = self.path(m);
         let mut ev = Eval::default();
         self.ground_residuals(&path, fit, &mut ev);
+        for (i, pred) in &path.free {
+            let Some(enc) = &self.p.wheels[*i].enc_rad else {
+                continue;
+            };
+            let r = self.p.wheels[*i].radius_m;
+            let mut e: Vec<f64> = self
+                .act_rows
+                .iter()
+                .map(|&k| (enc[k] - pred[k]) * r)
+                .collect();
+            let (mut s, mut c) = (0.0, 0usize);
+            for (j, v) in e.iter().enumerate() {
+                if fit.contains(self.act_block[j]) {
+                    s += v;
+                    c += 1;
+                }
+            }
+            let off = if c > 0 { s / c as f64 } else { 0.0 };
+            e.iter_mut().for_each(|v| *v -= off);
+            ev.free.push((*i, e));
+        }
         let wheels = self.actuator_wheels();
         if !wheels.is_empty() {
             let sim = self.actuator_angles(m);
@@ -476,6 +506,14 @@ impl<'a> Evaluator<'a> {
                 }
             }
         }
+        for (_, e) in &ev.free {
+            for (j, v) in e.iter().enumerate() {
+                if fold.contains(self.act_block[j]) {
+                    r.free += v * v;
+                    r.n_free += 1;
+                }
+            }
+        }
         r
     }
 
@@ -501,6 +539,14 @@ impl<'a> Evaluator<'a> {
                 }
             }
         }
+        let sf = self.noise.free_wheel_sigma_m;
+        for (_, e) in &ev.free {
+            for (j, v) in e.iter().enumerate() {
+                if fold.contains(self.act_block[j]) {
+                    out.push(v / sf);
+                }
+            }
+        }
     }
 
     /// Chi-square of one stage over a fold (noise-weighted sum of squares).
@@ -509,6 +555,7 @@ impl<'a> Evaluator<'a> {
             Stage::Ground => {
                 rss.pos / self.noise.pose_sigma_m.powi(2)
                     + rss.heading / self.noise.heading_sigma_rad.powi(2)
+                    + rss.free / self.noise.free_wheel_sigma_m.powi(2)
             }
             Stage::Actuator => rss.act / self.noise.actuator_sigma_m.powi(2),
         }
@@ -518,7 +565,11 @@ impl<'a> Evaluator<'a> {
     /// drift a model has not explained. Used to discount the sample count.
     pub fn autocorrelation(&self, ev: &Eval, stage: Stage) -> f64 {
         let series: Vec<&[f64]> = match stage {
-            Stage::Ground => vec![&ev.ex, &ev.ey, &ev.eth],
+            Stage::Ground => {
+                let mut v: Vec<&[f64]> = vec![&ev.ex, &ev.ey, &ev.eth];
+                v.extend(ev.free.iter().map(|(_, e)| e.as_slice()));
+                v
+            }
             Stage::Actuator => ev.act.iter().map(|(_, e)| e.as_slice()).collect(),
         };
         let (mut num, mut den) = (0.0, 0.0);
@@ -565,9 +616,18 @@ fn estimate_noise(p: &Prepared, nominal: &Eval) -> Noise {
         quant = quant.max(w.rad_per_count * w.radius_m / 12f64.sqrt());
     }
     let actuator_sigma_m = (robust_sigma(&mut act) / 2f64.sqrt()).max(quant);
+    let mut free = Vec::new();
+    let mut free_quant: f64 = 1e-7;
+    for (i, e) in &nominal.free {
+        free.extend(diffs(e));
+        let w = &p.wheels[*i];
+        free_quant = free_quant.max(w.rad_per_count * w.radius_m / 12f64.sqrt());
+    }
+    let free_wheel_sigma_m = (robust_sigma(&mut free) / 2f64.sqrt()).max(free_quant);
     Noise {
         pose_sigma_m,
         heading_sigma_rad,
         actuator_sigma_m,
+        free_wheel_sigma_m,
     }
 }

@@ -191,7 +191,7 @@ fn delta_bic(ev: &Evaluator, base: &Eval, cand: &Eval, k: usize, stage: Stage) -
     let mut n_penalty = 1.0;
     for s in [Stage::Ground, Stage::Actuator] {
         let n = match s {
-            Stage::Ground => 3 * rc.n_pose,
+            Stage::Ground => 3 * rc.n_pose + rc.n_free,
             Stage::Actuator => rc.n_act,
         } as f64;
         let (c0, c1) = (ev.chi2(&rb, s), ev.chi2(&rc, s));
