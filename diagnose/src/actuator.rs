@@ -158,7 +158,8 @@ impl Rotor {
     /// Advances over one row interval with the command going linearly from c0 to c1;
     /// returns the rotor's movement.
     fn advance(&mut self, c0: f64, c1: f64, dt: f64, tau: Option<f64>, a: f64, cycle: f64) -> f64 {
-        let n = (dt / STEPPER_SUBSTEP_S).ceil().max(1.0) as usize;
+        // At most 1000 sub-steps per row: a gap in a log must not stall the replay.
+        let n = (dt / STEPPER_SUBSTEP_S).ceil().clamp(1.0, 1000.0) as usize;
         let h = dt / n as f64;
         let before = self.pos;
         for i in 0..n {
