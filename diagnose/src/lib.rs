@@ -158,6 +158,7 @@ pub fn diagnose(
         findings.push(Finding {
             effect: e.id().to_string(),
             stage: e.stage(),
+            rmse_stage: stage,
             parameters,
             uncertainties,
             rmse_before_m: b,
