@@ -8,13 +8,11 @@ use calib_core::motion::Segment;
 use calib_core::protocol::ProgramSpec;
 use calib_core::robot_file;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
 use std::time::{Duration, Instant};
 use wheelcal::board_cmds::records_to_csv;
-use wheelcal::client::{decode_records, Client};
-use wheelcal::link::{memory_pair, Faults};
-use wheelcal::virtual_board::{board_flash, VirtualBoard};
+use wheelcal::client::decode_records;
+use wheelcal::link::Faults;
+use wheelcal::virtual_board::InProcessBoard;
 
 fn main() {
     let robot =
@@ -27,25 +25,14 @@ fn main() {
         sim::SimConfig::default(),
     )
     .unwrap();
-    let mut board = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
-    let (host, mut end) = memory_pair(Faults::none(), Faults::none(), 1);
-    let stop = Arc::new(AtomicBool::new(false));
-    let s2 = stop.clone();
-    let t = std::thread::spawn(move || {
-        board.serve(
-            &mut end,
-            f64::INFINITY,
-            || s2.load(Ordering::Relaxed),
-            |_| {},
-        )
-    });
-    let mut c = Client::new(host, "memory");
+    let mut board = InProcessBoard::start(&robot, sim, Faults::none(), Faults::none(), 1).unwrap();
+    let c = &mut board.client;
     c.timeout = Duration::from_secs(2);
     c.hello().unwrap();
     // 100 s standing still, logged at 1 kHz: 100 000 records of 4 wheels (48 bytes each).
     let program = heapless::Vec::from_slice(&[Segment::Pause { duration_s: 100.0 }]).unwrap();
     c.run_program(ProgramSpec::Custom(program), 1000).unwrap();
-    wheelcal::board_cmds::wait_program(&mut c, Duration::from_secs(600), |_| {}).unwrap();
+    wheelcal::board_cmds::wait_program(c, Duration::from_secs(600), |_| {}).unwrap();
     let info = c.trials().unwrap().trials.last().unwrap().clone();
     let (rx0, tx0) = (c.stats.bytes_received, c.stats.bytes_sent);
     let t0 = Instant::now();
@@ -59,8 +46,6 @@ fn main() {
     let mut csv = Vec::with_capacity(16 << 20);
     records_to_csv(&robot, &info, &recs, &mut csv).unwrap();
     let export = t2.elapsed();
-    stop.store(true, Ordering::Relaxed);
-    t.join().unwrap();
 
     println!(
         "records            {} ({} bytes each, {} bytes)",

@@ -4,9 +4,8 @@
 
 use crate::calibration::procedure::{self, Kind, Options, ProcedureReport, TruthChannel};
 use crate::calibration::umbmark::UmbmarkReport;
-use crate::client::Client;
-use crate::link::{memory_pair, Faults};
-use crate::virtual_board::{board_flash, VirtualBoard};
+use crate::link::Faults;
+use crate::virtual_board::InProcessBoard;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::RobotKind;
 use calib_core::robot_file;
@@ -15,8 +14,7 @@ use serde::Serialize;
 use sim::{SimConfig, SimRobot, Surface};
 use std::fmt::Write as _;
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
+use std::sync::atomic::Ordering;
 use std::time::Instant;
 
 /// Floor roughness of the demo: random travel error of each wheel, metres per sqrt(metre).
@@ -148,7 +146,6 @@ pub fn umbmark_on_virtual_board(
     after_runs: usize,
     progress: bool,
 ) -> Result<UmbmarkReport> {
-    let after = after_runs > 0;
     let sim = SimRobot::new(
         robot,
         faults,
@@ -159,29 +156,14 @@ pub fn umbmark_on_virtual_board(
         },
     )
     .map_err(|e| anyhow::anyhow!("{e}"))?;
-    let mut board =
-        VirtualBoard::boot(robot, sim, board_flash(None)?).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let (host, mut board_end) = memory_pair(Faults::none(), Faults::none(), seed);
-    let stop = Arc::new(AtomicBool::new(false));
-    let (ttx, trx) = std::sync::mpsc::channel();
-    let s2 = stop.clone();
-    let thread = std::thread::spawn(move || {
-        board.serve(
-            &mut board_end,
-            f64::INFINITY,
-            || s2.load(Ordering::Relaxed),
-            |t| {
-                let _ = ttx.send(*t);
-            },
-        );
-    });
+    let mut board = InProcessBoard::start(robot, sim, Faults::none(), Faults::none(), seed)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
     let dir = std::env::temp_dir().join(format!(
         "wheelcal-demo-{}-{seed}-{}",
         std::process::id(),
         RUN_ID.fetch_add(1, Ordering::Relaxed)
     ));
     std::fs::create_dir_all(&dir)?;
-    let runs_file = dir.join("runs.csv");
     let bar = progress.then(|| {
         let b = indicatif::ProgressBar::new((2 * runs + 2 * after_runs) as u64);
         b.set_style(
@@ -193,28 +175,26 @@ pub fn umbmark_on_virtual_board(
         b
     });
     let mut measure = TruthChannel {
-        rx: trx,
+        rx: &board.truths,
         seen: Vec::new(),
         progress: bar.clone(),
     };
-    let mut client = Client::new(host, "virtual board");
-    let result = (|| -> Result<ProcedureReport> {
-        client.hello()?;
-        let opts = Options {
-            kind: Kind::Umbmark,
-            side_m: side,
-            length_m: side,
-            runs,
-            after_runs,
-            runs_file: runs_file.clone(),
-            auto_measure: None,
-            report: report.map(Path::to_path_buf),
-            after,
-        };
-        procedure::run(&mut client, &opts, &mut measure)
-    })();
-    stop.store(true, Ordering::Relaxed);
-    let _ = thread.join();
+    let opts = Options {
+        kind: Kind::Umbmark,
+        side_m: side,
+        length_m: side,
+        runs,
+        after_runs,
+        runs_file: dir.join("runs.csv"),
+        auto_measure: None,
+        report: report.map(Path::to_path_buf),
+        after: after_runs > 0,
+    };
+    let client = &mut board.client;
+    let result = client
+        .hello()
+        .map_err(anyhow::Error::from)
+        .and_then(|_| procedure::run(client, &opts, &mut measure));
     if let Some(b) = bar {
         b.finish_and_clear();
     }

@@ -316,3 +316,59 @@ pub fn board_flash(file: Option<std::path::PathBuf>) -> std::io::Result<RamFlash
         None => Ok(RamFlash::new(FLASH_PAGES)),
     }
 }
+
+/// A virtual board serving an in-memory link on its own thread, with a client on the
+/// other end: what the demo, the benches and the end-to-end tests run. Dropping it stops
+/// the board.
+pub struct InProcessBoard {
+    pub client: crate::client::Client<crate::link::MemoryEnd>,
+    /// The truth of each trial as it ends.
+    pub truths: std::sync::mpsc::Receiver<TrialTruth>,
+    stop: std::sync::Arc<std::sync::atomic::AtomicBool>,
+    thread: Option<std::thread::JoinHandle<()>>,
+}
+
+impl InProcessBoard {
+    /// Boots a board for `robot` on `sim` (fresh flash) and connects a client through a
+    /// link with the given faults per direction; not yet handshaken.
+    pub fn start(
+        robot: &Robot,
+        sim: SimRobot,
+        to_board: crate::link::Faults,
+        to_host: crate::link::Faults,
+        seed: u64,
+    ) -> Result<Self, BoardError> {
+        use std::sync::atomic::Ordering;
+        let flash = board_flash(None).map_err(|e| BoardError(e.to_string()))?;
+        let mut board = VirtualBoard::boot(robot, sim, flash)?;
+        let (host, mut end) = crate::link::memory_pair(to_board, to_host, seed);
+        let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));
+        let (tx, truths) = std::sync::mpsc::channel();
+        let s2 = stop.clone();
+        let thread = std::thread::spawn(move || {
+            board.serve(
+                &mut end,
+                f64::INFINITY,
+                || s2.load(Ordering::Relaxed),
+                |t| {
+                    let _ = tx.send(*t);
+                },
+            )
+        });
+        Ok(InProcessBoard {
+            client: crate::client::Client::new(host, "virtual board"),
+            truths,
+            stop,
+            thread: Some(thread),
+        })
+    }
+}
+
+impl Drop for InProcessBoard {
+    fn drop(&mut self) {
+        self.stop.store(true, std::sync::atomic::Ordering::Relaxed);
+        if let Some(t) = self.thread.take() {
+            let _ = t.join();
+        }
+    }
+}

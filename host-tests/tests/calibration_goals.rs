@@ -108,12 +108,9 @@ fn temp_runs(name: &str) -> PathBuf {
 
 #[test]
 fn a_failed_computation_uploads_nothing() {
-    use std::sync::atomic::{AtomicBool, Ordering};
-    use std::sync::Arc;
     use wheelcal::calibration::procedure::{self, Kind, Options, TruthFile};
-    use wheelcal::client::Client;
-    use wheelcal::link::{memory_pair, Faults};
-    use wheelcal::virtual_board::{board_flash, VirtualBoard};
+    use wheelcal::link::Faults;
+    use wheelcal::virtual_board::InProcessBoard;
 
     let r = robot("mobolab.toml");
     let sim = sim::SimRobot::new(
@@ -123,19 +120,8 @@ fn a_failed_computation_uploads_nothing() {
         sim::SimConfig::default(),
     )
     .unwrap();
-    let mut board = VirtualBoard::boot(&r, sim, board_flash(None).unwrap()).unwrap();
-    let (host, mut end) = memory_pair(Faults::none(), Faults::none(), 1);
-    let stop = Arc::new(AtomicBool::new(false));
-    let s2 = stop.clone();
-    let t = std::thread::spawn(move || {
-        board.serve(
-            &mut end,
-            f64::INFINITY,
-            || s2.load(Ordering::Relaxed),
-            |_| {},
-        )
-    });
-    let mut c = Client::new(host, "memory");
+    let mut board = InProcessBoard::start(&r, sim, Faults::none(), Faults::none(), 1).unwrap();
+    let c = &mut board.client;
     c.hello().unwrap();
     let before = calib_core::Corrections::DiffDrive {
         c_l: 1.001,
@@ -165,9 +151,7 @@ fn a_failed_computation_uploads_nothing() {
         file: runs.with_extension("truth"),
         quiet: true,
     };
-    let err = procedure::run(&mut c, &opts, &mut m)
-        .unwrap_err()
-        .to_string();
+    let err = procedure::run(c, &opts, &mut m).unwrap_err().to_string();
     assert!(
         err.contains("runs.csv") || err.contains("not usable"),
         "{err}"
@@ -179,23 +163,18 @@ fn a_failed_computation_uploads_nothing() {
     );
     // The runs file is untouched: still the 6 rows written above.
     assert_eq!(RunsFile::load(&runs).unwrap().rows.len(), 6);
-    stop.store(true, Ordering::Relaxed);
-    t.join().unwrap();
 }
 
 #[test]
 fn a_stopped_procedure_resumes_without_losing_runs() {
     use calib_core::odometry::Pose;
-    use std::sync::atomic::{AtomicBool, Ordering};
-    use std::sync::Arc;
     use wheelcal::calibration::procedure::{self, Kind, Measure, Options, TruthChannel};
-    use wheelcal::client::Client;
-    use wheelcal::link::{memory_pair, Faults};
-    use wheelcal::virtual_board::{board_flash, VirtualBoard};
+    use wheelcal::link::Faults;
+    use wheelcal::virtual_board::InProcessBoard;
 
     /// Measures `left` runs, then the person walks away (stdin closed).
-    struct Quits<'a>(&'a mut TruthChannel, usize);
-    impl Measure for Quits<'_> {
+    struct Quits<'a, 'b>(&'a mut TruthChannel<'b>, usize);
+    impl Measure for Quits<'_, '_> {
         fn say(&mut self, _: &str) {}
         fn ready(&mut self, _: &str) -> anyhow::Result<()> {
             Ok(())
@@ -222,22 +201,8 @@ fn a_stopped_procedure_resumes_without_losing_runs() {
         sim::SimConfig::default(),
     )
     .unwrap();
-    let mut board = VirtualBoard::boot(&r, sim, board_flash(None).unwrap()).unwrap();
-    let (host, mut end) = memory_pair(Faults::none(), Faults::none(), 2);
-    let stop = Arc::new(AtomicBool::new(false));
-    let (ttx, trx) = std::sync::mpsc::channel();
-    let s2 = stop.clone();
-    let t = std::thread::spawn(move || {
-        board.serve(
-            &mut end,
-            f64::INFINITY,
-            || s2.load(Ordering::Relaxed),
-            |t| {
-                let _ = ttx.send(*t);
-            },
-        )
-    });
-    let mut c = Client::new(host, "memory");
+    let mut board = InProcessBoard::start(&r, sim, Faults::none(), Faults::none(), 2).unwrap();
+    let c = &mut board.client;
     c.hello().unwrap();
     let runs = temp_runs("resume");
     let _ = std::fs::remove_file(&runs);
@@ -253,16 +218,16 @@ fn a_stopped_procedure_resumes_without_losing_runs() {
         after: true,
     };
     let mut truth = TruthChannel {
-        rx: trx,
+        rx: &board.truths,
         seen: Vec::new(),
         progress: None,
     };
     // Stop after 4 measured runs: 3 cw and 1 ccw are kept.
-    assert!(procedure::run(&mut c, &opts, &mut Quits(&mut truth, 4)).is_err());
+    assert!(procedure::run(c, &opts, &mut Quits(&mut truth, 4)).is_err());
     let kept = RunsFile::load(&runs).unwrap();
     assert_eq!(kept.rows.len(), 4);
     // Resume: only the missing 2 ccw before-runs and the 6 after-runs are run.
-    let rep = procedure::run(&mut c, &opts, &mut truth).unwrap();
+    let rep = procedure::run(c, &opts, &mut truth).unwrap();
     let all = RunsFile::load(&runs).unwrap();
     assert_eq!(all.rows.len(), 12);
     assert_eq!(
@@ -271,6 +236,4 @@ fn a_stopped_procedure_resumes_without_losing_runs() {
     );
     assert_eq!(&all.rows[..4], &kept.rows[..4]);
     assert!(matches!(rep, procedure::ProcedureReport::Umbmark(ref u) if u.after.is_some()));
-    stop.store(true, Ordering::Relaxed);
-    t.join().unwrap();
 }

@@ -7,28 +7,10 @@ use calib_core::robot_file;
 use calib_core::Corrections;
 use sim::{Faults as SimFaults, SimConfig, SimRobot, Surface};
 use std::path::Path;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::{mpsc, Arc};
 use std::time::{Duration, Instant};
 use wheelcal::client::{decode_records, Client, ClientError};
-use wheelcal::link::{memory_pair, Faults, MemoryEnd};
-use wheelcal::virtual_board::{board_flash, TrialTruth, VirtualBoard};
-
-struct Running {
-    client: Client<MemoryEnd>,
-    stop: Arc<AtomicBool>,
-    truths: mpsc::Receiver<TrialTruth>,
-    thread: Option<std::thread::JoinHandle<()>>,
-}
-
-impl Drop for Running {
-    fn drop(&mut self) {
-        self.stop.store(true, Ordering::Relaxed);
-        if let Some(t) = self.thread.take() {
-            let _ = t.join();
-        }
-    }
-}
+use wheelcal::link::{Faults, MemoryEnd};
+use wheelcal::virtual_board::InProcessBoard;
 
 fn start(
     robot_file_name: &str,
@@ -36,7 +18,7 @@ fn start(
     to_board: Faults,
     to_host: Faults,
     seed: u64,
-) -> Running {
+) -> InProcessBoard {
     let path = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../robots")
         .join(robot_file_name);
@@ -46,30 +28,10 @@ fn start(
         ..SimConfig::default()
     };
     let sim = SimRobot::new(&robot, faults, Surface::flat(), cfg).unwrap();
-    let mut board = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
-    let (host, mut board_end) = memory_pair(to_board, to_host, seed);
-    let stop = Arc::new(AtomicBool::new(false));
-    let (ttx, trx) = mpsc::channel();
-    let s2 = stop.clone();
-    let thread = std::thread::spawn(move || {
-        board.serve(
-            &mut board_end,
-            f64::INFINITY,
-            || s2.load(Ordering::Relaxed),
-            |t| {
-                let _ = ttx.send(*t);
-            },
-        )
-    });
-    let mut client = Client::new(host, "memory");
-    client.timeout = Duration::from_millis(60);
-    client.tries = 8;
-    Running {
-        client,
-        stop,
-        truths: trx,
-        thread: Some(thread),
-    }
+    let mut board = InProcessBoard::start(&robot, sim, to_board, to_host, seed).unwrap();
+    board.client.timeout = Duration::from_millis(60);
+    board.client.tries = 8;
+    board
 }
 
 fn wait_idle(c: &mut Client<MemoryEnd>, limit: Duration) {

@@ -139,13 +139,13 @@ impl Measure for TruthFile {
 }
 
 /// The truth handed over in-process (the demo).
-pub struct TruthChannel {
-    pub rx: std::sync::mpsc::Receiver<TrialTruth>,
+pub struct TruthChannel<'a> {
+    pub rx: &'a std::sync::mpsc::Receiver<TrialTruth>,
     pub seen: Vec<TrialTruth>,
     pub progress: Option<indicatif::ProgressBar>,
 }
 
-impl Measure for TruthChannel {
+impl Measure for TruthChannel<'_> {
     fn say(&mut self, text: &str) {
         if let Some(p) = &self.progress {
             p.set_message(text.to_string());
