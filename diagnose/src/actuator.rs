@@ -13,6 +13,12 @@ pub struct ActuatorParams {
     pub tau_s: Option<f64>,
     pub max_accel_rad_s2: Option<f64>,
     pub backlash_rad: Option<f64>,
+    /// Stepper drives: wheel angle of one electrical cycle (four full steps), the unit in
+    /// which a rotor that lost synchronism drops steps. `None`: a plain rate limit.
+    pub step_cycle_rad: Option<f64>,
+    /// Read commands as samples of a signal that varies linearly between rows (the
+    /// controller ran faster than the log) instead of values held until the next row.
+    pub linear: bool,
 }
 
 impl ActuatorParams {
@@ -22,6 +28,8 @@ impl ActuatorParams {
             tau_s: m.get(Effect::MotorLag).map(|p| p[0]),
             max_accel_rad_s2: m.get(Effect::MissedSteps).map(|p| p[0]),
             backlash_rad: m.get(Effect::Backlash).map(|p| p[0]),
+            linear: false,
+            step_cycle_rad: None,
         }
     }
 }
@@ -44,18 +52,29 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
         cmd[0]
     };
     let mut last_tau_dt = (f64::NAN, 0.0);
+    let mut stepper = Rotor::default();
     for k in 0..n - 1 {
         let dt = t[k + 1] - t[k];
-        let mut c = cmd[k];
+        let (c0, c1) = if p.linear {
+            (cmd[k], cmd[k + 1])
+        } else {
+            (cmd[k], cmd[k])
+        };
+        // Value held over the interval by the dynamic effects (midpoint of a ramp).
+        let mut c = 0.5 * (c0 + c1);
         if let Some(d) = p.deadband_rad_s {
             if c.abs() < d {
                 c = 0.0;
             }
         }
         let inc = match (p.tau_s, p.max_accel_rad_s2) {
-            (None, None) => c * dt,
+            (None, None) => match p.deadband_rad_s {
+                Some(d) if c0 != c1 => ramp_outside_deadband(c0, c1, d) * dt,
+                _ => c * dt,
+            },
             (Some(tau), None) => {
-                // Exact solution of rate' = (c - rate) / tau over the interval.
+                // Exact solution of rate' = (c(t) - rate) / tau for a command varying
+                // linearly over the interval (held: slope 0).
                 let e = if last_tau_dt.0 == dt {
                     last_tau_dt.1
                 } else {
@@ -63,9 +82,20 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
                     last_tau_dt = (dt, e);
                     e
                 };
-                let inc = c * dt + (rate - c) * tau * (1.0 - e);
-                rate = c + (rate - c) * e;
+                let dead = |v: f64| match p.deadband_rad_s {
+                    Some(d) if v.abs() < d => 0.0,
+                    _ => v,
+                };
+                let (a0, a1) = (dead(c0), dead(c1));
+                let slope = (a1 - a0) / dt;
+                let k0 = rate - a0 + slope * tau;
+                let inc = a0 * dt + 0.5 * slope * dt * dt - slope * tau * dt + k0 * tau * (1.0 - e);
+                rate = a1 - slope * tau + k0 * e;
                 inc
+            }
+            (tau, Some(a)) if p.step_cycle_rad.is_some() => {
+                let cycle = p.step_cycle_rad.unwrap_or(1.0);
+                stepper.advance(c0, c1, dt, tau, a, cycle)
             }
             (tau, Some(a)) => {
                 // The lag (if any) shapes the demand; the motor cannot follow faster than
@@ -106,12 +136,89 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
     }
 }
 
+/// Time constant with which a stepper's field pulls the rotor onto the commanded
+/// position (stiff compared with the motion, soft compared with a 1 ms sub-step).
+const STEPPER_SYNC_S: f64 = 0.005;
+/// Sub-step of the stepper rotor model (its pull is too stiff for a log's row interval).
+const STEPPER_SUBSTEP_S: f64 = 1e-3;
+
+/// A stepper rotor with pull-out: it follows the commanded position with acceleration
+/// bounded by `a`; once more than half an electrical cycle behind (or ahead) it has
+/// slipped and re-locks a whole cycle (four full steps) away: those steps are lost.
+#[derive(Debug, Clone, Copy, Default)]
+struct Rotor {
+    commanded: f64,
+    lost: f64,
+    pos: f64,
+    rate: f64,
+    lag_rate: f64,
+}
+
+impl Rotor {
+    /// Advances over one row interval with the command going linearly from c0 to c1;
+    /// returns the rotor's movement.
+    fn advance(&mut self, c0: f64, c1: f64, dt: f64, tau: Option<f64>, a: f64, cycle: f64) -> f64 {
+        // At most 1000 sub-steps per row: a gap in a log must not stall the replay.
+        let n = (dt / STEPPER_SUBSTEP_S).ceil().clamp(1.0, 1000.0) as usize;
+        let h = dt / n as f64;
+        let before = self.pos;
+        for i in 0..n {
+            let mut c = c0 + (c1 - c0) * (i as f64 + 0.5) / n as f64;
+            if let Some(tau) = tau {
+                self.lag_rate += (c - self.lag_rate) * (1.0 - (-h / tau.max(1e-9)).exp());
+                c = self.lag_rate;
+            }
+            let e = self.commanded - self.lost - self.pos;
+            self.commanded += c * h;
+            let pull = (e.abs() / STEPPER_SYNC_S).min((2.0 * a * e.abs()).sqrt());
+            let want = c + pull.copysign(e);
+            self.rate += (want - self.rate).clamp(-a * h, a * h);
+            self.pos += self.rate * h;
+            let e = self.commanded - self.lost - self.pos;
+            if e.abs() > 0.5 * cycle {
+                self.lost += cycle * (e / cycle).round();
+            }
+        }
+        self.pos - before
+    }
+}
+
+/// Mean over a unit interval of c(s) = c0 + (c1 - c0) s where |c(s)| >= d (zero inside
+/// the dead band): the exact travel of a linearly varying command with Coulomb friction.
+fn ramp_outside_deadband(c0: f64, c1: f64, d: f64) -> f64 {
+    // Integrate c over the parts of [0, 1] where c >= d and where c <= -d.
+    let slope = c1 - c0;
+    let part = |lo_val: f64, sign: f64| -> f64 {
+        // s range where sign * c(s) >= lo_val.
+        let (a, b) = if slope * sign > 0.0 {
+            (((lo_val * sign - c0) / slope).clamp(0.0, 1.0), 1.0)
+        } else {
+            (0.0, ((lo_val * sign - c0) / slope).clamp(0.0, 1.0))
+        };
+        if b <= a {
+            return 0.0;
+        }
+        c0 * (b - a) + 0.5 * slope * (b * b - a * a)
+    };
+    part(d, 1.0) + part(d, -1.0)
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
 
     fn times(n: usize, dt: f64) -> Vec<f64> {
         (0..n).map(|k| k as f64 * dt).collect()
+    }
+
+    #[test]
+    fn ramp_through_deadband() {
+        // c from -1 to 3 with d = 1: only s in [0.5, 1] counts (c from 1 to 3): mean 1.0.
+        assert!((ramp_outside_deadband(-1.0, 3.0, 1.0) - 1.0).abs() < 1e-12);
+        // Entirely inside: nothing; entirely outside: the plain mean.
+        assert!(ramp_outside_deadband(-0.5, 0.5, 1.0).abs() < 1e-12);
+        assert!((ramp_outside_deadband(2.0, 4.0, 1.0) - 3.0).abs() < 1e-12);
+        assert!((ramp_outside_deadband(-2.0, -4.0, 1.0) + 3.0).abs() < 1e-12);
     }
 
     #[test]

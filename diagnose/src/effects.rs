@@ -213,7 +213,8 @@ impl Effect {
             Effect::LateralSlip => vec![vec![0.0]],
             Effect::LongitudinalSlip => singles(log_grid(0.02, 3.0, 12)),
             Effect::Backlash => singles(log_grid(0.002, 0.5, 10)),
-            Effect::MissedSteps => singles(log_grid(1.0, 3000.0, 12)),
+            // Losses start abruptly below the true limit: a fine grid.
+            Effect::MissedSteps => singles(log_grid(1.0, 3000.0, 64)),
             Effect::MotorLag => singles(log_grid(0.003, 1.0, 10)),
             Effect::CoulombFriction => singles(log_grid(0.02, 20.0, 12)),
             Effect::FloorBumps => {

@@ -42,7 +42,7 @@ pub fn levenberg_marquardt(
     let mut lambda = 1e-3;
     let mut jac = DMatrix::<f64>::zeros(r.len(), p);
     for _ in 0..max_iter {
-        jacobian(f, &x, &r, lo, hi, &mut jac);
+        jacobian(f, &x, &r, hi, &mut jac);
         evaluations += p;
         let jt = jac.transpose();
         let jtj = &jt * &jac;
@@ -80,7 +80,7 @@ pub fn levenberg_marquardt(
             break;
         }
     }
-    jacobian(f, &x, &r, lo, hi, &mut jac);
+    jacobian(f, &x, &r, hi, &mut jac);
     evaluations += p;
     let sigma = covariance_sigma(&jac, cost, r.len());
     FitResult {
@@ -95,12 +95,11 @@ fn sumsq(r: &[f64]) -> f64 {
     r.iter().map(|v| v * v).sum()
 }
 
-/// Forward differences, stepping inward at a bound.
+/// Forward differences, stepping backwards at the upper bound.
 fn jacobian(
     f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
     x: &[f64],
     r: &[f64],
-    lo: &[f64],
     hi: &[f64],
     jac: &mut DMatrix<f64>,
 ) {
@@ -115,7 +114,6 @@ fn jacobian(
         }
         let mut xp = x.to_vec();
         xp[j] += h;
-        let _ = lo;
         let rp = f(&xp);
         for i in 0..m {
             jac[(i, j)] = (rp.get(i).copied().unwrap_or(0.0) - r[i]) / h;

@@ -51,7 +51,7 @@ impl Heading {
         let (cw, sw) = (1.0 - w * b, w * a);
         let (c, s) = (self.c * cw - self.s * sw, self.s * cw + self.c * sw);
         self.count += 1;
-        if self.count % 256 == 0 {
+        if self.count & 255 == 0 {
             let (sn, cn) = pose.theta.sin_cos();
             (self.c, self.s) = (cn, sn);
         } else {
@@ -72,6 +72,9 @@ pub struct Path {
     pub theta: Vec<f64>,
     /// Body displacement over each interval (row k to k+1), body frame.
     pub step: Vec<Twist<f64>>,
+    /// Undriven wheels with encoders: (wheel index, predicted angle per row). They roll
+    /// with the body, so the model predicts what their encoders must read.
+    pub free: Vec<(usize, Vec<f64>)>,
 }
 
 /// The robot with radius and wheelbase multipliers and (wheeled-legged) the wheel
@@ -170,7 +173,28 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
     out.y.clear();
     out.theta.clear();
     out.step.clear();
+    out.free.clear();
     let (scales, eb) = model.geometry(&p.robot);
+    // (index, rolling row / effective radius) of the free wheels the recording measured.
+    let free: Vec<(usize, [f64; 3])> = p
+        .robot
+        .wheels
+        .iter()
+        .enumerate()
+        .filter(|(i, w)| !w.driven && p.wheels[*i].enc_rad.is_some())
+        .map(|(i, w)| {
+            let row = w.rolling_row();
+            let r = w.radius_m * scales[i] * w.gamma_rad.cos();
+            let l = eb;
+            (i, [row[0] / r, row[1] / r, row[2] * l / r])
+        })
+        .collect();
+    let mut free_angle = vec![0.0; free.len()];
+    for (i, _) in &free {
+        let mut v = Vec::with_capacity(p.rows());
+        v.push(0.0);
+        out.free.push((*i, v));
+    }
     // Wheels without any angle series must not vote in the least squares.
     let mut robot = p.robot.clone();
     let known: Vec<usize> = (0..angles.len()).filter(|&i| angles[i].is_some()).collect();
@@ -290,11 +314,18 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
             }
             match (&cache.driven, mu.is_some()) {
                 (Some((kin, idx)), true) => {
+                    // Undriven wheels roll with the body, so the body follows the
+                    // (traction-limited) driven wheels; its sideways motion, which the
+                    // driven pair alone barely constrains, stays what all wheels say.
                     let sub = &mut sub_buf[..idx.len()];
                     for (o, &j) in sub.iter_mut().zip(idx) {
                         *o = ang[j];
                     }
-                    kin.forward(sub)
+                    let mut t = kin.forward(sub);
+                    if let Some(all) = &cache.all {
+                        t.vy = all.forward(&inc).vy;
+                    }
+                    t
                 }
                 _ => match &cache.all {
                     Some(kin) => kin.forward(ang),
@@ -332,6 +363,13 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         out.y.push(pose.y);
         out.theta.push(pose.theta);
         out.step.push(d);
+        for ((_, g), (a, (_, series))) in free
+            .iter()
+            .zip(free_angle.iter_mut().zip(out.free.iter_mut()))
+        {
+            *a += g[0] * d.vx + g[1] * d.vy + g[2] * d.omega;
+            series.push(*a);
+        }
     }
 }
 

@@ -79,10 +79,11 @@ pub fn unwrap_angles(theta: &mut [f64]) {
     }
 }
 
-fn fill<T: Copy>(cells: &[Option<T>], default: T) -> Option<Vec<T>> {
+/// Holds the last measured value over blank cells (and the first one before it);
+/// `None` when the column has no value at all.
+fn fill<T: Copy>(cells: &[Option<T>]) -> Option<Vec<T>> {
     let first = cells.iter().find_map(|c| *c)?;
     let mut last = first;
-    let _ = default;
     Some(
         cells
             .iter()
@@ -109,7 +110,7 @@ impl Prepared {
                 let enc_rad = if rad_per_count > 0.0 {
                     series
                         .and_then(|s| s.enc.as_ref())
-                        .and_then(|e| fill(e, 0))
+                        .and_then(|e| fill(e))
                         .map(|counts| {
                             let c0 = counts[0];
                             counts
@@ -120,9 +121,7 @@ impl Prepared {
                 } else {
                     None
                 };
-                let cmd = series
-                    .and_then(|s| s.cmd.as_ref())
-                    .and_then(|c| fill(c, 0.0));
+                let cmd = series.and_then(|s| s.cmd.as_ref()).and_then(|c| fill(c));
                 WheelData {
                     name: w.name.to_string(),
                     radius_m: w.radius_m,
@@ -146,12 +145,12 @@ impl Prepared {
             let f = rec
                 .leg_front
                 .as_ref()
-                .and_then(|v| fill(v, half_pi))
+                .and_then(|v| fill(v))
                 .unwrap_or_else(|| vec![half_pi; rec.len()]);
             let r = rec
                 .leg_rear
                 .as_ref()
-                .and_then(|v| fill(v, half_pi))
+                .and_then(|v| fill(v))
                 .unwrap_or_else(|| vec![half_pi; rec.len()]);
             Some((f, r))
         } else {
@@ -186,6 +185,16 @@ impl Prepared {
     /// contacts along x).
     pub fn leg_angles(&self, k: usize) -> Option<(f64, f64)> {
         self.legs.as_ref().map(|(f, r)| (f[k], r[k]))
+    }
+
+    /// Median row interval, s.
+    pub fn row_dt_s(&self) -> f64 {
+        let mut d: Vec<f64> = self.t.windows(2).map(|w| w[1] - w[0]).collect();
+        if d.is_empty() {
+            return 0.0;
+        }
+        d.sort_by(|a, b| a.total_cmp(b));
+        d[d.len() / 2]
     }
 
     /// True when at least one wheel has both a command and an encoder.

@@ -21,7 +21,10 @@ pub struct Finding {
     /// One standard deviation per parameter (from the Jacobian); `null` when the data
     /// do not constrain it.
     pub uncertainties: BTreeMap<String, Option<f64>>,
-    /// RMSE of the effect's stage before and after adding it (ground: position error;
+    /// The stage whose data the RMSEs below are measured on: the effect's own stage, or
+    /// the ground stage for an actuator effect on wheels without encoders.
+    pub rmse_stage: Stage,
+    /// RMSE of `rmse_stage` before and after adding it (ground: position error;
     /// actuator: wheel-surface error, encoder angle times radius).
     pub rmse_before_m: f64,
     pub rmse_after_m: f64,

@@ -15,6 +15,13 @@ use crate::replay::Prepared;
 use std::cell::RefCell;
 use std::rc::Rc;
 
+/// What a worker thread needs to rebuild an equivalent evaluator.
+#[derive(Debug, Clone, Copy)]
+pub struct ForkSpec {
+    pub noise: Noise,
+    pub linear_commands: bool,
+}
+
 /// Simulated angle series per wheel (`None` for wheels without commands), shared.
 type WheelAngles = Rc<Vec<Option<Vec<f64>>>>;
 
@@ -51,6 +58,8 @@ pub struct Noise {
     pub heading_sigma_rad: f64,
     /// Wheel-surface noise of the actuator stage (encoder angle times radius).
     pub actuator_sigma_m: f64,
+    /// Wheel-surface noise of free wheels' encoders against the body motion.
+    pub free_wheel_sigma_m: f64,
 }
 
 /// The result of evaluating one model.
@@ -64,6 +73,9 @@ pub struct Eval {
     pub start: (f64, f64, f64),
     /// Per actuator-compared wheel: (wheel index, error in m per compared row).
     pub act: Vec<(usize, Vec<f64>)>,
+    /// Per free (undriven) wheel with an encoder: (wheel index, encoder minus predicted
+    /// rolling, m at the wheel surface, per compared row). Ground-stage evidence.
+    pub free: Vec<(usize, Vec<f64>)>,
 }
 
 /// Sums of squares per stage over a fold.
@@ -76,6 +88,9 @@ pub struct StageRss {
     /// Sum of actuator errors squared (m^2) and their number.
     pub act: f64,
     pub n_act: usize,
+    /// Sum of free-wheel errors squared (m^2) and their number (ground stage).
+    pub free: f64,
+    pub n_free: usize,
 }
 
 impl StageRss {
@@ -98,10 +113,20 @@ pub struct Evaluator<'a> {
     pose_block: Vec<u8>,
     act_block: Vec<u8>,
     act_cache: RefCell<Option<(Vec<f64>, WheelAngles)>>,
+    /// Actuator sum of squares (m^2) of the nominal model with the best lag shorter than
+    /// a quarter row: timing below that is a logging convention (where in its cycle each
+    /// column is sampled), the floor against which actuator mismatch is judged.
+    pub act_floor_rss: std::cell::Cell<f64>,
+    /// Commands read as linear between rows (decided on the nominal model).
+    pub linear_commands: std::cell::Cell<bool>,
     /// Model runs so far (ground, actuator), for the report and the benchmark.
     pub runs: std::cell::Cell<(usize, usize)>,
     ground_cache: RefCell<Option<(Vec<f64>, Rc<Path>)>>,
 }
+
+/// Cap of the lag-1 autocorrelation used to discount the sample count: a residual that
+/// still drifts after a fit counts as at least n / 200 independent samples.
+const MAX_AUTOCORRELATION: f64 = 0.99;
 
 /// Most rows per wheel compared in the actuator stage.
 const MAX_ACT_ROWS: usize = 6000;
@@ -132,14 +157,96 @@ impl<'a> Evaluator<'a> {
                 pose_sigma_m: 1.0,
                 heading_sigma_rad: 1.0,
                 actuator_sigma_m: 1.0,
+                free_wheel_sigma_m: 1.0,
             },
         );
-        let nominal = ev.evaluate(&Model::default(), Fold::All);
+        let mut nominal = ev.evaluate(&Model::default(), Fold::All);
+        // A log slower than the control loop samples commands that changed in between:
+        // read them as linear between rows if that fits the encoders better.
+        // A lag shifts the encoders the way holding a command does, so the two readings
+        // are compared each with its best first-order lag (or dead band).
+        if !nominal.act.is_empty() {
+            // (best RSS with any lag, best RSS with a sub-quarter-row lag)
+            let quarter_row = 0.25 * p.row_dt_s();
+            let best_with_lag = |ev: &Evaluator| -> (f64, f64) {
+                let base = ev
+                    .rss(&ev.evaluate(&Model::default(), Fold::All), Fold::All)
+                    .act;
+                let (mut best, mut floor) = (base, base);
+                let rss_at = |u: f64| -> f64 {
+                    let m = Model::default().with(Effect::MotorLag, vec![u.exp()]);
+                    ev.rss(&ev.evaluate(&m, Fold::All), Fold::All).act
+                };
+                // Log grid from 0.1 ms to 0.3 s, then two zooms around the best point.
+                let (lo, hi) = (1e-4f64.ln(), 0.3f64.ln());
+                let step = (hi - lo) / 15.0;
+                let mut best_u = lo;
+                for i in 0..16 {
+                    let u = lo + step * i as f64;
+                    let r = rss_at(u);
+                    if r < best {
+                        (best, best_u) = (r, u);
+                    }
+                    if u.exp() <= quarter_row {
+                        floor = floor.min(r);
+                    }
+                }
+                let mut half = step;
+                for _ in 0..2 {
+                    let centre = best_u;
+                    for j in 1..8 {
+                        let u = centre - half + 2.0 * half * j as f64 / 8.0;
+                        let r = rss_at(u);
+                        if r < best {
+                            (best, best_u) = (r, u);
+                        }
+                    }
+                    half /= 4.0;
+                }
+                // A dead band also changes how commands and counts line up: give each
+                // reading its best dead band too.
+                for i in 0..16 {
+                    let d = 0.02 * (1000f64).powf(i as f64 / 15.0);
+                    let m = Model::default().with(Effect::CoulombFriction, vec![d]);
+                    best = best.min(ev.rss(&ev.evaluate(&m, Fold::All), Fold::All).act);
+                }
+                (best, floor)
+            };
+            let held = best_with_lag(&ev);
+            ev.linear_commands.set(true);
+            *ev.act_cache.borrow_mut() = None;
+            *ev.ground_cache.borrow_mut() = None;
+            let linear = best_with_lag(&ev);
+            if linear.0 < held.0 {
+                nominal = ev.evaluate(&Model::default(), Fold::All);
+                ev.act_floor_rss.set(linear.1);
+            } else {
+                ev.linear_commands.set(false);
+                ev.act_floor_rss.set(held.1);
+                *ev.act_cache.borrow_mut() = None;
+                *ev.ground_cache.borrow_mut() = None;
+            }
+        }
         ev.noise = estimate_noise(p, &nominal);
         ev
     }
 
-    /// An evaluator with given noise levels and empty caches (one per worker thread).
+    /// A worker's copy: same noise and command reading, empty caches.
+    pub fn fork(&self) -> ForkSpec {
+        ForkSpec {
+            noise: self.noise,
+            linear_commands: self.linear_commands.get(),
+        }
+    }
+
+    /// An evaluator built from a [`ForkSpec`] (in a worker thread).
+    pub fn from_fork(p: &'a Prepared, f: ForkSpec) -> Self {
+        let ev = Self::with_noise(p, f.noise);
+        ev.linear_commands.set(f.linear_commands);
+        ev
+    }
+
+    /// An evaluator with given noise levels and empty caches.
     pub fn with_noise(p: &'a Prepared, noise: Noise) -> Self {
         let n = p.rows();
         let step = n.div_ceil(MAX_ACT_ROWS).max(1);
@@ -160,8 +267,18 @@ impl<'a> Evaluator<'a> {
             act_block,
             act_cache: RefCell::new(None),
             runs: std::cell::Cell::new((0, 0)),
+            linear_commands: std::cell::Cell::new(false),
+            act_floor_rss: std::cell::Cell::new(0.0),
             ground_cache: RefCell::new(None),
         }
+    }
+
+    /// Wheel-surface travel of one encoder count (largest over the compared wheels).
+    pub fn actuator_quantum_m(&self) -> f64 {
+        self.actuator_wheels()
+            .iter()
+            .map(|&i| self.p.wheels[i].rad_per_count * self.p.wheels[i].radius_m)
+            .fold(0.0, f64::max)
     }
 
     /// Wheels compared in the actuator stage.
@@ -185,7 +302,8 @@ impl<'a> Evaluator<'a> {
     }
 
     fn actuator_angles(&self, m: &Model) -> WheelAngles {
-        let k = key(m, Stage::Actuator, false);
+        let mut k = key(m, Stage::Actuator, false);
+        k.push(if self.linear_commands.get() { 1.0 } else { 0.0 });
         if let Some((ck, v)) = &*self.act_cache.borrow() {
             if *ck == k {
                 return Rc::clone(v);
@@ -193,7 +311,14 @@ impl<'a> Evaluator<'a> {
         }
         let (g, a) = self.runs.get();
         self.runs.set((g, a + 1));
-        let params = ActuatorParams::from_model(m);
+        let mut params = ActuatorParams::from_model(m);
+        params.linear = self.linear_commands.get();
+        let d = &self.p.robot.drive;
+        if d.kind == calib_core::robot::DriveType::Stepper && d.steps_per_rev > 0 {
+            // Four full steps, in wheel radians.
+            params.step_cycle_rad =
+                Some(4.0 * std::f64::consts::TAU / (d.steps_per_rev as f64 * d.gear_ratio));
+        }
         let v: Vec<Option<Vec<f64>>> = self
             .p
             .wheels
@@ -214,7 +339,8 @@ impl<'a> Evaluator<'a> {
     /// The predicted path of a model (origin start).
     pub fn path(&self, m: &Model) -> Rc<Path> {
         let uses_act = self.ground_uses_actuator();
-        let k = key(m, Stage::Ground, uses_act);
+        let mut k = key(m, Stage::Ground, uses_act);
+        k.push(if self.linear_commands.get() { 1.0 } else { 0.0 });
         if let Some((ck, path)) = &*self.ground_cache.borrow() {
             if *ck == k {
                 return Rc::clone(path);
@@ -246,6 +372,27 @@ impl<'a> Evaluator<'a> {
         let path = self.path(m);
         let mut ev = Eval::default();
         self.ground_residuals(&path, fit, &mut ev);
+        for (i, pred) in &path.free {
+            let Some(enc) = &self.p.wheels[*i].enc_rad else {
+                continue;
+            };
+            let r = self.p.wheels[*i].radius_m;
+            let mut e: Vec<f64> = self
+                .act_rows
+                .iter()
+                .map(|&k| (enc[k] - pred[k]) * r)
+                .collect();
+            let (mut s, mut c) = (0.0, 0usize);
+            for (j, v) in e.iter().enumerate() {
+                if fit.contains(self.act_block[j]) {
+                    s += v;
+                    c += 1;
+                }
+            }
+            let off = if c > 0 { s / c as f64 } else { 0.0 };
+            e.iter_mut().for_each(|v| *v -= off);
+            ev.free.push((*i, e));
+        }
         let wheels = self.actuator_wheels();
         if !wheels.is_empty() {
             let sim = self.actuator_angles(m);
@@ -359,6 +506,14 @@ impl<'a> Evaluator<'a> {
                 }
             }
         }
+        for (_, e) in &ev.free {
+            for (j, v) in e.iter().enumerate() {
+                if fold.contains(self.act_block[j]) {
+                    r.free += v * v;
+                    r.n_free += 1;
+                }
+            }
+        }
         r
     }
 
@@ -384,6 +539,14 @@ impl<'a> Evaluator<'a> {
                 }
             }
         }
+        let sf = self.noise.free_wheel_sigma_m;
+        for (_, e) in &ev.free {
+            for (j, v) in e.iter().enumerate() {
+                if fold.contains(self.act_block[j]) {
+                    out.push(v / sf);
+                }
+            }
+        }
     }
 
     /// Chi-square of one stage over a fold (noise-weighted sum of squares).
@@ -392,6 +555,7 @@ impl<'a> Evaluator<'a> {
             Stage::Ground => {
                 rss.pos / self.noise.pose_sigma_m.powi(2)
                     + rss.heading / self.noise.heading_sigma_rad.powi(2)
+                    + rss.free / self.noise.free_wheel_sigma_m.powi(2)
             }
             Stage::Actuator => rss.act / self.noise.actuator_sigma_m.powi(2),
         }
@@ -401,7 +565,11 @@ impl<'a> Evaluator<'a> {
     /// drift a model has not explained. Used to discount the sample count.
     pub fn autocorrelation(&self, ev: &Eval, stage: Stage) -> f64 {
         let series: Vec<&[f64]> = match stage {
-            Stage::Ground => vec![&ev.ex, &ev.ey, &ev.eth],
+            Stage::Ground => {
+                let mut v: Vec<&[f64]> = vec![&ev.ex, &ev.ey, &ev.eth];
+                v.extend(ev.free.iter().map(|(_, e)| e.as_slice()));
+                v
+            }
             Stage::Actuator => ev.act.iter().map(|(_, e)| e.as_slice()).collect(),
         };
         let (mut num, mut den) = (0.0, 0.0);
@@ -412,7 +580,7 @@ impl<'a> Evaluator<'a> {
             }
         }
         if den > 0.0 {
-            (num / den).clamp(0.0, 0.999)
+            (num / den).clamp(0.0, MAX_AUTOCORRELATION)
         } else {
             0.0
         }
@@ -448,9 +616,18 @@ fn estimate_noise(p: &Prepared, nominal: &Eval) -> Noise {
         quant = quant.max(w.rad_per_count * w.radius_m / 12f64.sqrt());
     }
     let actuator_sigma_m = (robust_sigma(&mut act) / 2f64.sqrt()).max(quant);
+    let mut free = Vec::new();
+    let mut free_quant: f64 = 1e-7;
+    for (i, e) in &nominal.free {
+        free.extend(diffs(e));
+        let w = &p.wheels[*i];
+        free_quant = free_quant.max(w.rad_per_count * w.radius_m / 12f64.sqrt());
+    }
+    let free_wheel_sigma_m = (robust_sigma(&mut free) / 2f64.sqrt()).max(free_quant);
     Noise {
         pose_sigma_m,
         heading_sigma_rad,
         actuator_sigma_m,
+        free_wheel_sigma_m,
     }
 }

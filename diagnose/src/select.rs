@@ -24,7 +24,8 @@ pub const RMSE_MIN_GAIN: f64 = 0.03;
 /// Most effects selected.
 pub const MAX_EFFECTS: usize = 3;
 
-/// A fitted candidate: effect, model with it, uncertainties, residuals, BIC change.
+/// A fitted candidate: effect, model with it, uncertainties, residuals, BIC change (0
+/// until computed).
 type Tried = (Effect, Model, Vec<Vec<f64>>, Eval, f64);
 
 /// One effect tried in one round.
@@ -130,7 +131,7 @@ fn fit_params(
         }
     }
     // One-parameter threshold effects have piecewise-flat costs: zoom in on the best
-    // grid cell twice before the local optimiser takes over.
+    // grid cell four times before the local optimiser takes over.
     if flat_specs.len() == 1 && start.len() > 2 {
         if let Some((bu, bc)) = best.clone() {
             let grid_u: Vec<f64> = start.iter().map(|s| flat_specs[0].internal(s[0])).collect();
@@ -141,7 +142,7 @@ fn fit_params(
                 });
             let mut half = (hi_u - lo_u) / (grid_u.len() - 1) as f64;
             let (mut cu, mut cc) = (bu[0], bc);
-            for _ in 0..2 {
+            for _ in 0..4 {
                 let centre = cu;
                 for i in 1..8 {
                     let u = centre - half + 2.0 * half * i as f64 / 8.0;
@@ -150,7 +151,7 @@ fn fit_params(
                         (cu, cc) = (u, c);
                     }
                 }
-                half /= 4.0;
+                half /= 3.0;
             }
             best = Some((vec![cu], cc));
         }
@@ -190,7 +191,7 @@ fn delta_bic(ev: &Evaluator, base: &Eval, cand: &Eval, k: usize, stage: Stage) -
     let mut n_penalty = 1.0;
     for s in [Stage::Ground, Stage::Actuator] {
         let n = match s {
-            Stage::Ground => 3 * rc.n_pose,
+            Stage::Ground => 3 * rc.n_pose + rc.n_free,
             Stage::Actuator => rc.n_act,
         } as f64;
         let (c0, c1) = (ev.chi2(&rb, s), ev.chi2(&rc, s));
@@ -222,30 +223,61 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
     let mut candidates = Vec::new();
     let mut rejected: Vec<Effect> = Vec::new();
     let mut previous: Vec<(Effect, Vec<f64>)> = Vec::new();
+    let mut last_fits: Vec<(Effect, Model, Vec<Vec<f64>>)> = Vec::new();
+    let mut last_added: Option<Effect> = None;
     for round in 0..max_effects {
         let mut tried: Vec<Tried> = Vec::new();
         // Later rounds start from the previous round's fit plus a thinned grid: the base
         // model changed only by one effect.
+        // A candidate of the other stage than the effect just added keeps its fit when the
+        // stages are independent (every wheel with commands also has an encoder): only
+        // the added effect's parameters change under it.
+        let mut reused: Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> = Vec::new();
+        if let (Some(added), false) = (last_added, ev.ground_uses_actuator()) {
+            for (e, m_prev, sig_prev) in &last_fits {
+                if e.stage() != added.stage() && model.get(*e).is_none() && !rejected.contains(e) {
+                    let mut m = m_prev.clone();
+                    for (x, p) in &model.effects {
+                        if x.stage() == added.stage() {
+                            m = m.with(*x, p.clone());
+                        }
+                    }
+                    let ce = ev.evaluate(&m, Fold::All);
+                    reused.push((*e, m, sig_prev.clone(), ce));
+                }
+            }
+        }
         let todo: Vec<(Effect, Vec<Vec<f64>>)> = Effect::ALL
             .into_iter()
             .filter(|&e| {
-                model.get(e).is_none() && !rejected.contains(&e) && e.applies(robot, has_cmd)
+                model.get(e).is_none()
+                    && !rejected.contains(&e)
+                    && e.applies(robot, has_cmd)
+                    && !reused.iter().any(|r| r.0 == e)
             })
             .map(|e| {
                 let grid = e.start_grid(robot);
                 let start = match previous.iter().find(|(x, _)| *x == e) {
-                    Some((_, p)) if grid.len() > 2 => {
+                    Some((_, p)) => {
                         let mut s = vec![p.clone()];
                         s.extend(grid.iter().step_by(3).cloned());
                         s
                     }
-                    Some((_, p)) => vec![p.clone()],
                     None => grid,
                 };
                 (e, start)
             })
             .collect();
-        for (e, m, sig, cand_eval) in fit_candidates(ev, &model, &todo) {
+        let mut fitted: Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> = reused;
+        for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &todo) {
+            fitted.push((e, m, sig, ce));
+        }
+        fitted.sort_by_key(|f| f.0);
+        last_fits = fitted
+            .iter()
+            .map(|(e, m, sig, _)| (*e, m.clone(), sig.clone()))
+            .collect();
+        for (e, m, sig, cand_eval) in fitted {
             if let Some(v) = m.get(e) {
                 previous.retain(|(x, _)| *x != e);
                 previous.push((e, v.to_vec()));
@@ -280,6 +312,25 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             let gain = 1.0 - stage_rmse(&after, stage) / stage_rmse(&before, stage).max(1e-300);
             let ratio = heldout_ratio(ev, &model, e, m.get(e).unwrap_or(&[]));
             candidates[idx].heldout_ratio = Some(ratio);
+            // Below an encoder count the actuator stage cannot tell a physical effect from
+            // the simulation or logging of the command (a control tick's delay).
+            let quantum = ev.actuator_quantum_m();
+            if stage == Stage::Actuator
+                && stage_rmse(&before, stage) - stage_rmse(&after, stage) < 0.5 * quantum
+            {
+                candidates[idx].note = format!(
+                    "improves the actuator RMSE by less than half an encoder count ({:.3} mm)",
+                    0.5 * quantum * 1e3
+                );
+                rejected.push(e);
+                continue;
+            }
+            if e == Effect::MotorLag && m.get(e).is_some_and(|p| p[0] < 0.25 * ev.p.row_dt_s()) {
+                candidates[idx].note =
+                    "a lag under a quarter row is a logging convention, not physics".into();
+                rejected.push(e);
+                continue;
+            }
             if gain < RMSE_MIN_GAIN {
                 candidates[idx].note =
                     format!("improves the {stage} RMSE by only {:.1} %", gain * 100.0);
@@ -335,6 +386,7 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             });
             model = model_new;
             base_eval = eval_new;
+            last_added = Some(e);
             accepted = true;
             break;
         }
@@ -360,31 +412,64 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
 fn fit_candidates(
     ev: &Evaluator,
     base: &Model,
+    base_eval: &Eval,
     todo: &[(Effect, Vec<Vec<f64>>)],
-) -> Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> {
+) -> Vec<Tried> {
     use std::sync::atomic::{AtomicUsize, Ordering};
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .clamp(1, 4)
         .min(todo.len().max(1));
-    let (p, noise) = (ev.p, ev.noise);
+    let (p, spec) = (ev.p, ev.fork());
+    let uses_act = ev.ground_uses_actuator();
     let next = AtomicUsize::new(0);
-    let mut results: Vec<(usize, Effect, Model, Vec<Vec<f64>>, Eval)> = Vec::new();
+    let mut results: Vec<(usize, Tried)> = Vec::new();
     let mut runs = ev.runs.get();
     std::thread::scope(|s| {
         let workers: Vec<_> = (0..threads)
             .map(|_| {
                 s.spawn(|| {
-                    let local = Evaluator::with_noise(p, noise);
+                    let local = Evaluator::from_fork(p, spec);
                     let mut out = Vec::new();
                     loop {
                         let i = next.fetch_add(1, Ordering::Relaxed);
                         let Some((e, start)) = todo.get(i) else {
                             break;
                         };
+                        // Refit the chosen effects the candidate interacts with alongside
+                        // it: a greedy fit with them frozen would let the first effect keep
+                        // what belongs to the second.
+                        let coupled: Vec<Effect> = base
+                            .effects
+                            .iter()
+                            .map(|(x, _)| *x)
+                            .filter(|x| x.stage() == e.stage() || uses_act)
+                            .collect();
                         let (m, sig, _) = fit_params(&local, base, &[*e], start, Fold::All);
+                        let frozen = local.evaluate(&m, Fold::All);
+                        let k = e.params(&local.p.robot).len();
+                        let d =
+                            delta_bic(&local, base_eval, &frozen, k, evidence_stage(&local, *e));
+                        // Only a candidate the data already lean towards is worth the joint
+                        // refit (it costs several model runs per iteration).
+                        let (m, sig) = if coupled.is_empty() || d > 0.0 {
+                            (m, sig)
+                        } else {
+                            let fixed: Vec<f64> = coupled
+                                .iter()
+                                .flat_map(|x| base.get(*x).unwrap_or(&[]).to_vec())
+                                .collect();
+                            let cand = m.get(*e).unwrap_or(&[]).to_vec();
+                            let starts: Vec<Vec<f64>> =
+                                vec![fixed.iter().chain(&cand).copied().collect()];
+                            let mut all = coupled.clone();
+                            all.push(*e);
+                            let (m, mut sig, _) =
+                                fit_params(&local, base, &all, &starts, Fold::All);
+                            (m, vec![sig.pop().unwrap_or_default()])
+                        };
                         let ce = local.evaluate(&m, Fold::All);
-                        out.push((i, *e, m, sig, ce));
+                        out.push((i, (*e, m, sig, ce, 0.0)));
                     }
                     (out, local.runs.get())
                 })
@@ -399,10 +484,7 @@ fn fit_candidates(
     });
     ev.runs.set(runs);
     results.sort_by_key(|r| r.0);
-    results
-        .into_iter()
-        .map(|(_, e, m, sig, ce)| (e, m, sig, ce))
-        .collect()
+    results.into_iter().map(|(_, t)| t).collect()
 }
 
 /// Held-out check: fit the effect on even blocks and score the odd ones, then the other

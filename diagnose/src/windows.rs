@@ -156,7 +156,7 @@ pub fn signals(ev: &Evaluator) -> Signals {
 }
 
 /// Intervals (row indices into the sample series) where |increment over lag| > band.
-fn flagged(times: &[f64], series: &[f64], sigma: f64, lag: usize) -> Vec<(usize, usize, f64)> {
+fn flagged(series: &[f64], sigma: f64, lag: usize) -> Vec<(usize, usize, f64)> {
     let mut out: Vec<(usize, usize, f64)> = Vec::new();
     if series.len() <= lag || sigma <= 0.0 {
         return out;
@@ -175,7 +175,6 @@ fn flagged(times: &[f64], series: &[f64], sigma: f64, lag: usize) -> Vec<(usize,
             }
         }
     }
-    let _ = times;
     out
 }
 
@@ -220,8 +219,8 @@ pub fn locate(ev: &Evaluator, nominal: &Eval, fitted: &Eval, sig: &Signals) -> V
             (Axis::Lateral, &lat0, &lat1, sp),
             (Axis::Heading, &nominal.eth, &fitted.eth, sh),
         ] {
-            let after = flagged(&pose_t, s1, sigma, lag);
-            for (a, b, z) in flagged(&pose_t, s0, sigma, lag) {
+            let after = flagged(s1, sigma, lag);
+            for (a, b, z) in flagged(s0, sigma, lag) {
                 let (ra, rb) = (p.poses.row[a], p.poses.row[b]);
                 let explained = !after.iter().any(|&(c, d, _)| c <= b && d >= a);
                 let wheel = ground_wheel(ev, nominal, a, b, axis);
@@ -245,8 +244,8 @@ pub fn locate(ev: &Evaluator, nominal: &Eval, fitted: &Eval, sig: &Signals) -> V
     if act_t.len() >= 3 {
         let lag = lag_samples(&act_t).min(act_t.len() - 1);
         for ((i, e0), (_, e1)) in nominal.act.iter().zip(&fitted.act) {
-            let after = flagged(&act_t, e1, ev.noise.actuator_sigma_m, lag);
-            for (a, b, z) in flagged(&act_t, e0, ev.noise.actuator_sigma_m, lag) {
+            let after = flagged(e1, ev.noise.actuator_sigma_m, lag);
+            for (a, b, z) in flagged(e0, ev.noise.actuator_sigma_m, lag) {
                 let (ra, rb) = (ev.act_rows[a], ev.act_rows[b]);
                 let explained = !after.iter().any(|&(c, d, _)| c <= b && d >= a);
                 let (signals, related) = describe(sig, ra, rb);

@@ -76,6 +76,11 @@ fn parsed_oddities_never_panic() {
                 k * 10
             )
         }),
+        // A long gap in the log (the stepper model sub-steps each row: must stay bounded).
+        rows(300, |k| {
+            let t = k as f64 * 0.02 + if k > 150 { 3600.0 } else { 0.0 };
+            format!("{t},3,3,{},{},{},0,0", k * 12, k * 12, k as f64 * 0.003)
+        }),
         // Huge counts and tiny time steps.
         rows(300, |k| {
             format!(

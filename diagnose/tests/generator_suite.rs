@@ -1,7 +1,9 @@
-//! The proof on concealed data: diagnose runs on generated recordings with known effects
-//! (every catalogue effect, random parameters and trajectories, pairs of effects,
-//! noise-only controls and an out-of-catalogue tilted floor) and must name them, fit
-//! their parameters within tolerance and improve the fit. Prints the confusion matrix.
+//! Cross-check against a second, in-test generator (`common`, written before the `sim`
+//! crate landed: held commands, 1 kHz Euler physics, its own traction, cable and tilt
+//! models): the same verdict, parameter and improvement checks as `sim_suite.rs` on 30
+//! recordings. Missed steps are left out: this generator loses steps as a plain rate
+//! limit, while diagnose models the stepper's pull-out (cycles of four full steps) as the
+//! simulator does.
 
 mod common;
 
@@ -193,19 +195,6 @@ fn cases() -> Vec<Case> {
             "backlash",
             vec![],
             vec![("backlash", "backlash_rad", b, 0.1, true)],
-            next_seed(),
-        );
-    }
-    // Missed steps (stepper).
-    for _ in 0..2 {
-        let a = rng.random_range(15.0..30.0);
-        add(
-            format!("missed_{a:.1}"),
-            stepper_diff(),
-            vec![Truth::MissedSteps(a)],
-            "missed_steps",
-            vec![],
-            vec![("missed_steps", "max_accel_rad_s2", a, 0.1, true)],
             next_seed(),
         );
     }
@@ -445,149 +434,25 @@ fn thirty_concealed_recordings() {
     assert!(failed.is_empty(), "failed: {failed:?}");
 }
 
+/// Prints one case's full report and every candidate tried (for tuning).
 #[test]
 #[ignore]
-fn debug_one_case() {
+fn explain_case() {
     let filter = std::env::var("DIAG_CASE").unwrap_or_default();
     for c in cases().iter().filter(|c| c.name.contains(filter.as_str())) {
         let g = generate(&c.cfg);
         let r = diagnose(&c.cfg.robot, &g.recording, &Options::default()).unwrap();
         println!("== {}\n{r}", c.name);
-        for cand in &r.candidates {
+        for x in &r.candidates {
             println!(
-                "  cand r{} {:24} dbic {:10.1} heldout {:?} {:?} {}",
-                cand.round,
-                cand.effect.id(),
-                cand.delta_bic,
-                cand.heldout_ratio,
-                cand.parameters,
-                cand.note
+                "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
+                x.round,
+                x.effect.id(),
+                x.delta_bic,
+                x.heldout_ratio,
+                x.parameters,
+                x.note
             );
         }
     }
-}
-
-#[test]
-#[ignore]
-fn debug_truth_cost() {
-    use diagnose::residuals::{Evaluator, Fold};
-    let filter = std::env::var("DIAG_CASE").unwrap_or_default();
-    for c in cases().iter().filter(|c| c.name.contains(filter.as_str())) {
-        let g = generate(&c.cfg);
-        let p = diagnose::replay::Prepared::new(&c.cfg.robot, &g.recording);
-        let ev = Evaluator::new(&p);
-        let mut m = diagnose::Model::default();
-        for t in &c.cfg.truths {
-            if let Truth::Bumps { spacing, loss } = t {
-                m = m.with(diagnose::Effect::FloorBumps, vec![*spacing, *loss]);
-            }
-            if let Truth::Mu(mu) = t {
-                m = m.with(diagnose::Effect::LongitudinalSlip, vec![*mu]);
-            }
-        }
-        let e = ev.evaluate(&m, Fold::All);
-        let r = ev.rss(&e, Fold::All);
-        println!(
-            "{}: truth model rmse {:.2} mm",
-            c.name,
-            r.ground_rmse() * 1e3
-        );
-    }
-}
-
-#[test]
-#[ignore]
-fn debug_bumps_noise() {
-    use diagnose::residuals::{Evaluator, Fold};
-    for (noise, rate) in [(0.0f64, 50.0f64), (0.002, 50.0), (0.0, 1000.0)] {
-        let mut cfg = Config::new(presets::omni4(), 7);
-        cfg.truths = vec![Truth::Bumps {
-            spacing: 0.043,
-            loss: 0.00127,
-        }];
-        cfg.pose_noise_m = noise.max(1e-7);
-        cfg.heading_noise_rad = (noise * 2.0).max(1e-7);
-        cfg.rate_hz = rate;
-        cfg.pose_rate_hz = rate.min(100.0);
-        let g = generate(&cfg);
-        let p = diagnose::replay::Prepared::new(&cfg.robot, &g.recording);
-        let ev = Evaluator::new(&p);
-        for m in [
-            diagnose::Model::default(),
-            diagnose::Model::default().with(diagnose::Effect::FloorBumps, vec![0.043, 0.00127]),
-        ] {
-            let e = ev.evaluate(&m, Fold::All);
-            println!(
-                "noise {noise} rate {rate}: rmse {:.2} mm",
-                ev.rss(&e, Fold::All).ground_rmse() * 1e3
-            );
-        }
-    }
-}
-
-#[test]
-#[ignore]
-fn debug_bumps_path() {
-    use diagnose::residuals::{Evaluator, Fold};
-    let mut cfg = Config::new(presets::omni4(), 7);
-    cfg.truths = vec![Truth::Bumps {
-        spacing: 0.043,
-        loss: 0.00127,
-    }];
-    cfg.pose_noise_m = 1e-7;
-    cfg.heading_noise_rad = 1e-7;
-    cfg.rate_hz = 1000.0;
-    cfg.pose_rate_hz = 1000.0;
-    let g = generate(&cfg);
-    let p = diagnose::replay::Prepared::new(&cfg.robot, &g.recording);
-    let ev = Evaluator::new(&p);
-    let m = diagnose::Model::default().with(diagnose::Effect::FloorBumps, vec![0.043, 0.00127]);
-    let e = ev.evaluate(&m, Fold::All);
-    for k in (0..e.ex.len()).step_by(2000) {
-        println!(
-            "t {:.1} ex {:.4} ey {:.4} eth {:.4} meas th {:.3}",
-            p.t[p.poses.row[k]], e.ex[k], e.ey[k], e.eth[k], p.poses.theta[k]
-        );
-    }
-}
-
-#[test]
-#[ignore]
-fn debug_bumps_count() {
-    let mut cfg = Config::new(presets::omni4(), 7);
-    cfg.truths = vec![Truth::Bumps {
-        spacing: 0.043,
-        loss: 0.00127,
-    }];
-    cfg.pose_noise_m = 1e-7;
-    cfg.heading_noise_rad = 1e-7;
-    cfg.rate_hz = 1000.0;
-    cfg.pose_rate_hz = 1000.0;
-    let g = generate(&cfg);
-    let p = diagnose::replay::Prepared::new(&cfg.robot, &g.recording);
-    let mut total = vec![0.0; 4];
-    for k in 0..p.rows() - 1 {
-        for (j, w) in cfg.robot.wheels.iter().enumerate() {
-            let (bx, by) = w.position();
-            let r = w.rolling_row();
-            let wx = |q: (f64, f64, f64)| q.0 + q.2.cos() * bx - q.2.sin() * by;
-            let (a, b) = (p.pose_at_row[k], p.pose_at_row[k + 1]);
-            let n = ((wx(b) / 0.043).floor() - (wx(a) / 0.043).floor()).abs();
-            total[j] += n * 0.00127 * (b.2.cos() * r[0] - b.2.sin() * r[1]).abs();
-        }
-    }
-    println!("owed per wheel from poses: {total:?}");
-    let e0: Vec<i64> = g
-        .recording
-        .wheels
-        .iter()
-        .map(|w| w.enc.as_ref().unwrap()[0].unwrap())
-        .collect();
-    let e1: Vec<i64> = g
-        .recording
-        .wheels
-        .iter()
-        .map(|w| *w.enc.as_ref().unwrap().last().unwrap().as_ref().unwrap())
-        .collect();
-    println!("enc {e0:?} -> {e1:?}");
 }
