@@ -100,7 +100,7 @@ pub struct DiagnoseArgs {
     #[arg(long)]
     pub write_robot: Option<PathBuf>,
     /// Most effects to combine in one explanation.
-    #[arg(long, default_value_t = 2)]
+    #[arg(long, default_value_t = 3)]
     pub max_effects: usize,
 }
 
@@ -703,7 +703,6 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             }
             let opts = diagnose::Options {
                 max_effects: a.max_effects.clamp(1, 4),
-                ..Default::default()
             };
             let rep = diagnose::diagnose(&robot, &rec, &opts)
                 .map_err(|e| anyhow::anyhow!("{}: {e}", a.recording.display()))?;

@@ -19,7 +19,9 @@ use std::time::{Duration, Instant};
 /// Smallest log chunk asked for on a noisy link.
 pub const MIN_CHUNK: usize = 48;
 
-/// A board's answer, owned.
+/// A board's answer, owned. Variants differ in size (an `Info` is large); replies are
+/// short-lived values, so they are not boxed.
+#[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Reply {
     Hello {
@@ -223,10 +225,7 @@ impl<L: Read + Write> Client<L> {
 
     /// Reads bytes until a frame completes or the deadline passes. Bytes read past the
     /// end of a frame stay in `pending` for the next call.
-    fn read_frame(
-        &mut self,
-        deadline: Instant,
-    ) -> Result<Option<Result<(u16, Incoming), FrameError>>, ClientError> {
+    fn read_frame(&mut self, deadline: Instant) -> Result<Option<FrameResult>, ClientError> {
         let mut buf = [0u8; 256];
         loop {
             while let Some(b) = self.pending.pop_front() {
@@ -432,7 +431,11 @@ impl<L: Read + Write> Client<L> {
     }
 }
 
+/// A complete frame: its sequence number and content, or why it was damaged.
+type FrameResult = Result<(u16, Incoming), FrameError>;
+
 /// A decoded incoming frame.
+#[allow(clippy::large_enum_variant)]
 enum Incoming {
     Reply(Reply),
     Telemetry(Status),
@@ -476,7 +479,7 @@ impl From<Response<'_>> for Incoming {
 pub fn decode_records(info: &TrialInfo, data: &[u8]) -> Result<Vec<Record>, String> {
     let n = info.wheel_count as usize;
     let size = protocol::record_size(n);
-    if size == 0 || data.len() % size != 0 {
+    if size == 0 || !data.len().is_multiple_of(size) {
         return Err(format!(
             "trial {}: {} bytes is not a whole number of {size}-byte records",
             info.id,

@@ -98,7 +98,7 @@ impl NorFlash for RamFlash {
 
     async fn erase(&mut self, from: u32, to: u32) -> Result<(), FlashError> {
         let (f, t) = (from as usize, to as usize);
-        if f % PAGE != 0 || t % PAGE != 0 {
+        if !f.is_multiple_of(PAGE) || !t.is_multiple_of(PAGE) {
             return Err(FlashError::NotAligned);
         }
         self.data
@@ -111,7 +111,7 @@ impl NorFlash for RamFlash {
 
     async fn write(&mut self, offset: u32, bytes: &[u8]) -> Result<(), FlashError> {
         let o = offset as usize;
-        if o % Self::WRITE_SIZE != 0 || bytes.len() % Self::WRITE_SIZE != 0 {
+        if !o.is_multiple_of(Self::WRITE_SIZE) || !bytes.len().is_multiple_of(Self::WRITE_SIZE) {
             return Err(FlashError::NotAligned);
         }
         let dst = self

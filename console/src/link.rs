@@ -40,11 +40,8 @@ pub struct PortStream<P: Read + Write> {
 
 impl<P: Read + Write> firmware_app::ByteStream for PortStream<P> {
     fn read(&mut self, buf: &mut [u8]) -> usize {
-        match self.port.read(buf) {
-            Ok(n) => n,
-            // Timeout, or EIO while no client has the terminal open: nothing to read.
-            Err(_) => 0,
-        }
+        // Timeout, or EIO while no client has the terminal open: nothing to read.
+        self.port.read(buf).unwrap_or_default()
     }
     fn write(&mut self, data: &[u8]) {
         // A write to a terminal nobody reads may fail; the host retries what it misses.

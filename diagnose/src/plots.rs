@@ -162,7 +162,37 @@ fn time_plot(
 }
 
 /// Writes the plots and index.html into `dir` (created if needed).
+/// Where the plots' font is looked for (Debian's fonts-dejavu-core and its usual
+/// relatives).
+pub const FONT_PATHS: [&str; 3] = [
+    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
+    "/usr/share/fonts/TTF/DejaVuSans.ttf",
+    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
+];
+
+/// Registers DejaVu Sans as plotters' "sans-serif" once; false when no font is found.
+/// Text layout needs a TrueType font (plotters' `ab_glyph` backend), for SVG too; every
+/// report of the workspace (diagnose's and the console's) goes through this.
+pub fn register_font() -> bool {
+    static FONT: std::sync::OnceLock<bool> = std::sync::OnceLock::new();
+    *FONT.get_or_init(|| {
+        FONT_PATHS.iter().any(|p| match std::fs::read(p) {
+            Ok(bytes) => {
+                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
+                plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok()
+            }
+            Err(_) => false,
+        })
+    })
+}
+
 pub fn write_report_dir(r: &Report, dir: &Path) -> std::io::Result<()> {
+    if !register_font() {
+        return Err(std::io::Error::other(format!(
+            "plots need the DejaVu Sans font (looked in {}): apt-get install fonts-dejavu-core",
+            FONT_PATHS.join(", ")
+        )));
+    }
     std::fs::create_dir_all(dir)?;
     let err = |e: Box<dyn std::error::Error>| std::io::Error::other(e.to_string());
     let p = &r.plot;

@@ -13,29 +13,11 @@ use anyhow::{Context, Result};
 use figures::Figure;
 use plotters::prelude::*;
 use std::path::{Path, PathBuf};
-use std::sync::OnceLock;
 
-const FONT_PATHS: [&str; 3] = [
-    "/usr/share/fonts/truetype/dejavu/DejaVuSans.ttf",
-    "/usr/share/fonts/TTF/DejaVuSans.ttf",
-    "/usr/share/fonts/dejavu/DejaVuSans.ttf",
-];
-
-/// Registers a font for the plots once (diagnose's plots use it too); false when none is
+/// Registers the plots' font once (shared with diagnose's plots); false when none is
 /// installed.
 pub fn font_available() -> bool {
-    static FONT: OnceLock<bool> = OnceLock::new();
-    *FONT.get_or_init(|| {
-        for p in FONT_PATHS {
-            if let Ok(bytes) = std::fs::read(p) {
-                let bytes: &'static [u8] = Box::leak(bytes.into_boxed_slice());
-                if plotters::style::register_font("sans-serif", FontStyle::Normal, bytes).is_ok() {
-                    return true;
-                }
-            }
-        }
-        false
-    })
+    diagnose::plots::register_font()
 }
 
 /// Renders a figure as `<name>.svg` and (font permitting) `<name>.png` in `dir`.
@@ -43,7 +25,7 @@ pub fn save_figure(fig: &dyn Figure, dir: &Path, name: &str) -> Result<PathBuf> 
     if !font_available() {
         anyhow::bail!(
             "plots need the DejaVu Sans font (looked in {}): apt-get install fonts-dejavu-core",
-            FONT_PATHS.join(", ")
+            diagnose::plots::FONT_PATHS.join(", ")
         );
     }
     let (w, h) = fig.size();
