@@ -311,6 +311,10 @@ pub struct ComputeArgs {
     /// Write an HTML report with SVG and PNG plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Omni second pass: the `--json` result of the first pass (its f_lat and f_lon were
+    /// in force during these runs); the result is their composition (001).
+    #[arg(long)]
+    pub previous: Option<PathBuf>,
 }
 
 #[derive(Debug, Args)]
@@ -342,6 +346,10 @@ pub struct ProcedureArgs {
     /// Skip the runs after calibration.
     #[arg(long)]
     pub no_after: bool,
+    /// 001's second pass: measure with the board's current factors and compose the
+    /// secondary factors with them (use a new --runs-file).
+    #[arg(long)]
+    pub second_pass: bool,
 }
 
 #[derive(Debug, Args)]
@@ -629,6 +637,9 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Umbmark(UmbmarkCmd::Compute(a)) => {
             let robot = robot_file::load(&a.robot)?;
             let runs = RunsFile::load(&a.runs)?;
+            if a.previous.is_some() {
+                bail!("--previous is for `omni compute`; a UMBmark second pass composes on the board (`umbmark run --second-pass`)");
+            }
             let rep = umbmark::compute(&robot, &runs)?;
             if let Some(dir) = &a.report {
                 let index = report::umbmark::write(&rep, dir)?;
@@ -639,7 +650,10 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Omni(OmniCmd::Compute(a)) => {
             let robot = robot_file::load(&a.robot)?;
             let runs = RunsFile::load(&a.runs)?;
-            let rep = omni::compute(&robot, &runs)?;
+            let mut rep = omni::compute(&robot, &runs)?;
+            if let Some(p) = &a.previous {
+                rep = omni::compose_with(rep, &omni::factors_from_json(p)?)?;
+            }
             if let Some(dir) = &a.report {
                 let index = report::omni::write(&rep, dir)?;
                 out.note(&format!("report: {}", index.display()));
@@ -823,5 +837,6 @@ fn procedure_options(a: &ProcedureArgs, port: &str, kind: procedure::Kind) -> pr
         }),
         report: a.report.clone(),
         after: !a.no_after,
+        second_pass: a.second_pass,
     }
 }

@@ -215,6 +215,7 @@ pub fn procedure_on_virtual_board(
         auto_measure: None,
         report: report.map(Path::to_path_buf),
         after: after_runs > 0,
+        second_pass: false,
     };
     let client = &mut board.client;
     let result = client

@@ -146,6 +146,7 @@ fn a_failed_computation_uploads_nothing() {
         auto_measure: None,
         report: None,
         after: true,
+        second_pass: false,
     };
     let mut m = TruthFile {
         file: runs.with_extension("truth"),
@@ -217,6 +218,7 @@ fn a_stopped_procedure_resumes_without_losing_runs() {
         auto_measure: None,
         report: None,
         after: true,
+        second_pass: false,
     };
     let mut truth = TruthChannel {
         rx: &board.truths,
@@ -280,4 +282,81 @@ fn omni_procedure_over_cables_improves_at_least_80_percent() {
         o.f_lon
     );
     assert!(imp >= 80.0, "improvement {imp:.1} %");
+}
+
+#[test]
+fn omni_second_pass_composes_with_the_first_factors() {
+    // The board already runs with a first pass that corrected about half of each wheel's
+    // error; the second pass measures with it in force and composes. The final multiplier
+    // of every wheel must be 1 / radius_scale (what makes it deliver its nominal travel).
+    use calib_core::Corrections;
+    use wheelcal::calibration::procedure::{self, Kind, Options, TruthChannel};
+    use wheelcal::link::Faults;
+    use wheelcal::virtual_board::InProcessBoard;
+
+    let scales = [1.03, 0.99, 1.01, 0.98];
+    let r = robot("omni4.toml");
+    let effect = format!(
+        "wheel_diameter_mismatch=radius_scale_w1:{},radius_scale_w2:{},radius_scale_w3:{},radius_scale_w4:{}",
+        scales[0], scales[1], scales[2], scales[3]
+    );
+    let (faults, surface) = sim::Faults::from_effects(
+        &r,
+        &[sim::Effect::parse(&effect).unwrap()],
+        sim::Surface::flat(),
+    )
+    .unwrap();
+    let s = sim::SimRobot::new(
+        &r,
+        faults,
+        surface,
+        sim::SimConfig {
+            seed: 5,
+            ..Default::default()
+        },
+    )
+    .unwrap();
+    let mut board = InProcessBoard::start(&r, s, Faults::none(), Faults::none(), 5).unwrap();
+    let c = &mut board.client;
+    c.hello().unwrap();
+    let first: Vec<f64> = scales.iter().map(|k: &f64| 1.0 / k.sqrt()).collect();
+    c.set_corrections(Corrections::Omni {
+        f_lat: heapless::Vec::from_slice(&first).unwrap(),
+        f_lon: 1.0,
+    })
+    .unwrap();
+    let runs = temp_runs("second-pass");
+    let _ = std::fs::remove_file(&runs);
+    let _ = std::fs::remove_file(runs.with_extension("csv.previous.json"));
+    let opts = Options {
+        kind: Kind::Omni,
+        side_m: 0.6,
+        length_m: 0.6,
+        runs: 4,
+        after_runs: 0,
+        runs_file: runs,
+        auto_measure: None,
+        report: None,
+        after: false,
+        second_pass: true,
+    };
+    let mut truth = TruthChannel {
+        rx: &board.truths,
+        seen: Vec::new(),
+        progress: None,
+    };
+    procedure::run(c, &opts, &mut truth).unwrap();
+    let Corrections::Omni { f_lat, f_lon } = c.corrections().unwrap() else {
+        panic!("omni factors expected")
+    };
+    for (i, k) in scales.iter().enumerate() {
+        let m = f_lon * f_lat[i];
+        // 0.2 %: what 4 noise-free runs per path leave (encoder and step quantisation).
+        assert!(
+            (m * k - 1.0).abs() < 2e-3,
+            "wheel {}: multiplier {m:.5}, want {:.5}",
+            i + 1,
+            1.0 / k
+        );
+    }
 }

@@ -45,6 +45,62 @@ pub struct OmniReport {
     pub mean_radial_error_after_m: Option<f64>,
     /// 001 eq. 8, percent.
     pub improvement_index_percent: Option<f64>,
+    /// Second pass: the factors in force while these runs were measured, and the
+    /// secondary factors the runs give; `f_lat`/`f_lon` above are then their composition.
+    pub previous: Option<OmniFactors>,
+    pub secondary: Option<OmniFactors>,
+}
+
+/// A pair of omni factors.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct OmniFactors {
+    pub f_lat: Vec<f64>,
+    pub f_lon: f64,
+}
+
+/// A second pass (001): runs measured with `previous` factors in force give secondary
+/// factors; the board then needs their product.
+pub fn compose_with(mut rep: OmniReport, previous: &OmniFactors) -> Result<OmniReport> {
+    if previous.f_lat.len() != rep.f_lat.len() {
+        bail!(
+            "previous F_lat has {} factors, the robot {} wheels",
+            previous.f_lat.len(),
+            rep.f_lat.len()
+        );
+    }
+    let secondary = OmniFactors {
+        f_lat: rep.f_lat.clone(),
+        f_lon: rep.f_lon,
+    };
+    rep.f_lat = previous
+        .f_lat
+        .iter()
+        .zip(&secondary.f_lat)
+        .map(|(a, b)| a * b)
+        .collect();
+    rep.f_lon = previous.f_lon * secondary.f_lon;
+    rep.previous = Some(previous.clone());
+    rep.secondary = Some(secondary);
+    Ok(rep)
+}
+
+/// Reads `f_lat` and `f_lon` from a `--json` result of `omni compute` or `factors get`.
+pub fn factors_from_json(path: &std::path::Path) -> Result<OmniFactors> {
+    use anyhow::Context;
+    let text =
+        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+    let f_lat = v
+        .get("f_lat")
+        .and_then(|a| a.as_array())
+        .and_then(|a| a.iter().map(|x| x.as_f64()).collect::<Option<Vec<f64>>>())
+        .with_context(|| format!("{}: no numeric array f_lat", path.display()))?;
+    let f_lon = v
+        .get("f_lon")
+        .and_then(|x| x.as_f64())
+        .with_context(|| format!("{}: no number f_lon", path.display()))?;
+    Ok(OmniFactors { f_lat, f_lon })
 }
 
 /// Direction of a named path in the body frame (radians from body x).
@@ -152,6 +208,8 @@ pub fn compute(robot: &Robot, runs: &RunsFile) -> Result<OmniReport> {
         mean_radial_error_after_m: after_mean,
         improvement_index_percent: after_mean
             .and_then(|a| stats::improvement_index_percent(before_mean, a).ok()),
+        previous: None,
+        secondary: None,
     })
 }
 
@@ -177,6 +235,13 @@ impl OmniReport {
             s,
             "  wheel command = F_lon * F_lat[i] * (J twist)_i  (001 eq. 6)"
         );
+        if let (Some(p), Some(q)) = (&self.previous, &self.secondary) {
+            let _ = writeln!(
+                s,
+                "  second pass: previous F_lat {:?} F_lon {:.5} x secondary F_lat {:?} F_lon {:.5}",
+                p.f_lat, p.f_lon, q.f_lat, q.f_lon
+            );
+        }
         for (phase, ps) in [("before", &self.before), ("after", &self.after)] {
             for p in ps.iter() {
                 let _ = writeln!(

@@ -40,6 +40,50 @@ pub struct Options {
     pub auto_measure: Option<PathBuf>,
     pub report: Option<PathBuf>,
     pub after: bool,
+    /// 001's second pass: measure with the board's current factors in force and compose
+    /// the secondary factors with them (the factors are remembered beside the runs file,
+    /// so a resumed second pass composes with the same ones).
+    pub second_pass: bool,
+}
+
+/// Where a second pass remembers the factors it started from.
+fn previous_file(runs_file: &Path) -> PathBuf {
+    let mut s = runs_file.as_os_str().to_owned();
+    s.push(".previous.json");
+    PathBuf::from(s)
+}
+
+/// Factors of a second pass composed with the first: every multiplier multiplies (the
+/// secondary runs measure what is left with the first factors applied).
+pub fn compose(previous: &Corrections, secondary: &Corrections) -> Result<Corrections> {
+    Ok(match (previous, secondary) {
+        (Corrections::None, s) => s.clone(),
+        (
+            Corrections::DiffDrive { c_l, c_r, e_b },
+            Corrections::DiffDrive {
+                c_l: l2,
+                c_r: r2,
+                e_b: b2,
+            },
+        ) => Corrections::DiffDrive {
+            c_l: c_l * l2,
+            c_r: c_r * r2,
+            e_b: e_b * b2,
+        },
+        (
+            Corrections::Omni { f_lat, f_lon },
+            Corrections::Omni {
+                f_lat: l2,
+                f_lon: o2,
+            },
+        ) if f_lat.len() == l2.len() => Corrections::Omni {
+            f_lat: f_lat.iter().zip(l2).map(|(a, b)| a * b).collect(),
+            f_lon: f_lon * o2,
+        },
+        (p, s) => {
+            bail!("cannot compose {p:?} with {s:?}: the board's factors do not fit this procedure")
+        }
+    })
 }
 
 /// Where the measured end positions come from.
@@ -294,10 +338,34 @@ pub fn run<L: Read + Write>(
     // Before: nominal geometry, unless resuming a procedure whose factors are already
     // computed (then the before runs are complete and only the after runs remain).
     let before_done = trials.iter().all(|&t| have(Phase::Before, t) >= opts.runs);
+    let previous = if opts.second_pass {
+        let file = previous_file(&opts.runs_file);
+        let p: Corrections = match std::fs::read_to_string(&file) {
+            Ok(text) => serde_json::from_str(&text)
+                .with_context(|| format!("{}: not a factors record", file.display()))?,
+            Err(_) => {
+                let p = c.corrections()?;
+                std::fs::write(&file, serde_json::to_string(&p)?)
+                    .with_context(|| format!("cannot write {}", file.display()))?;
+                p
+            }
+        };
+        Some(p)
+    } else {
+        None
+    };
     if !before_done {
-        c.reset_corrections()?;
+        if let Some(p) = &previous {
+            c.set_corrections(p.clone())?;
+            m.say(&format!(
+                "second pass: measuring with {}",
+                board_cmds::FactorsView::from(p).human().trim()
+            ));
+        } else {
+            c.reset_corrections()?;
+        }
         m.say(&format!(
-            "before calibration: corrections reset to nominal; {} runs per {}",
+            "before calibration: {} runs per {}",
             opts.runs,
             if test == TestKind::Umbmark {
                 "direction"
@@ -336,6 +404,10 @@ pub fn run<L: Read + Write>(
             }
         }
     };
+    let corrections = match &previous {
+        Some(p) => compose(p, &corrections)?,
+        None => corrections,
+    };
     // Validated here too: nothing is uploaded from a computation the board would refuse.
     corrections.validate(&robot).map_err(|e| {
         anyhow::anyhow!("computed factors are not usable ({e}); nothing was uploaded")
@@ -369,7 +441,16 @@ pub fn run<L: Read + Write>(
             ProcedureReport::Umbmark(Box::new(r))
         }
         Kind::Omni => {
-            let r = omni::compute(&robot, &runs)?;
+            let mut r = omni::compute(&robot, &runs)?;
+            if let Some(Corrections::Omni { f_lat, f_lon }) = &previous {
+                r = omni::compose_with(
+                    r,
+                    &omni::OmniFactors {
+                        f_lat: f_lat.to_vec(),
+                        f_lon: *f_lon,
+                    },
+                )?;
+            }
             if let Some(dir) = &opts.report {
                 crate::report::omni::write(&r, dir)?;
             }
