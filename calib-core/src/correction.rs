@@ -158,6 +158,39 @@ impl Corrections {
         }
     }
 
+    /// A second calibration pass (001): runs measured with `self` in force give
+    /// `secondary`, which measures only what `self` left; every multiplier of the two
+    /// multiplies. `None` for factors of different kinds or wheel counts.
+    pub fn compose(&self, secondary: &Corrections) -> Option<Corrections> {
+        match (self, secondary) {
+            (Corrections::None, s) => Some(s.clone()),
+            (p, Corrections::None) => Some(p.clone()),
+            (
+                Corrections::DiffDrive { c_l, c_r, e_b },
+                Corrections::DiffDrive {
+                    c_l: l2,
+                    c_r: r2,
+                    e_b: b2,
+                },
+            ) => Some(Corrections::DiffDrive {
+                c_l: c_l * l2,
+                c_r: c_r * r2,
+                e_b: e_b * b2,
+            }),
+            (
+                Corrections::Omni { f_lat, f_lon },
+                Corrections::Omni {
+                    f_lat: l2,
+                    f_lon: o2,
+                },
+            ) if f_lat.len() == l2.len() => Some(Corrections::Omni {
+                f_lat: f_lat.iter().zip(l2).map(|(a, b)| a * b).collect(),
+                f_lon: f_lon * o2,
+            }),
+            _ => None,
+        }
+    }
+
     /// The robot with the corrected geometry: what calibration says it really is.
     pub fn apply_to(&self, robot: &Robot) -> Robot {
         let mut out = robot.clone();
@@ -222,6 +255,39 @@ mod tests {
                 got: 3
             })
         );
+    }
+
+    #[test]
+    fn second_pass_multiplies() {
+        let first = Corrections::DiffDrive {
+            c_l: 1.01,
+            c_r: 0.99,
+            e_b: 1.02,
+        };
+        let second = Corrections::DiffDrive {
+            c_l: 1.001,
+            c_r: 0.998,
+            e_b: 0.995,
+        };
+        let Some(Corrections::DiffDrive { c_l, c_r, e_b }) = first.compose(&second) else {
+            panic!()
+        };
+        assert!(
+            (c_l - 1.01 * 1.001).abs() < 1e-15
+                && (c_r - 0.99 * 0.998).abs() < 1e-15
+                && (e_b - 1.02 * 0.995).abs() < 1e-15
+        );
+        let omni = |f: &[f64], lon: f64| Corrections::Omni {
+            f_lat: Vec::from_slice(f).unwrap(),
+            f_lon: lon,
+        };
+        let c = omni(&[1.1, 0.9, 1.0, 1.0], 1.05)
+            .compose(&omni(&[0.95, 1.05, 1.0, 1.02], 0.98))
+            .unwrap();
+        assert_eq!(c, omni(&[1.1 * 0.95, 0.9 * 1.05, 1.0, 1.02], 1.05 * 0.98));
+        assert_eq!(Corrections::None.compose(&first), Some(first.clone()));
+        assert_eq!(first.compose(&omni(&[1.0; 4], 1.0)), None);
+        assert_eq!(omni(&[1.0; 3], 1.0).compose(&omni(&[1.0; 4], 1.0)), None);
     }
 
     #[test]

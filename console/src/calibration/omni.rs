@@ -7,6 +7,7 @@ use calib_core::omni_cal::{self, DrivenWheel, OmniRun, PathRuns};
 use calib_core::robot::{Robot, RobotKind};
 use calib_core::runs_file::{OmniPathRuns, Phase, RunsFile};
 use calib_core::stats;
+use calib_core::Corrections;
 use serde::Serialize;
 use std::fmt::Write;
 
@@ -59,33 +60,53 @@ pub struct OmniFactors {
 }
 
 /// A second pass (001): runs measured with `previous` factors in force give secondary
-/// factors; the board then needs their product.
-pub fn compose_with(mut rep: OmniReport, previous: &OmniFactors) -> Result<OmniReport> {
-    if previous.f_lat.len() != rep.f_lat.len() {
-        bail!(
-            "previous F_lat has {} factors, the robot {} wheels",
-            previous.f_lat.len(),
-            rep.f_lat.len()
-        );
-    }
-    let secondary = OmniFactors {
-        f_lat: rep.f_lat.clone(),
+/// factors; the board then needs their composition ([`Corrections::compose`]).
+pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniReport> {
+    let Corrections::Omni {
+        f_lat: p_lat,
+        f_lon: p_lon,
+    } = previous
+    else {
+        bail!("the previous factors are not omni factors: {previous:?}");
+    };
+    let secondary = Corrections::Omni {
+        f_lat: heapless::Vec::from_slice(&rep.f_lat)
+            .map_err(|_| anyhow::anyhow!("too many wheels"))?,
         f_lon: rep.f_lon,
     };
-    rep.f_lat = previous
-        .f_lat
-        .iter()
-        .zip(&secondary.f_lat)
-        .map(|(a, b)| a * b)
-        .collect();
-    rep.f_lon = previous.f_lon * secondary.f_lon;
-    rep.previous = Some(previous.clone());
-    rep.secondary = Some(secondary);
+    let Some(Corrections::Omni { f_lat, f_lon }) = previous.compose(&secondary) else {
+        bail!(
+            "previous F_lat has {} factors, the robot {} wheels",
+            p_lat.len(),
+            rep.f_lat.len()
+        );
+    };
+    rep.previous = Some(OmniFactors {
+        f_lat: p_lat.to_vec(),
+        f_lon: *p_lon,
+    });
+    rep.secondary = Some(OmniFactors {
+        f_lat: rep.f_lat.clone(),
+        f_lon: rep.f_lon,
+    });
+    rep.f_lat = f_lat.to_vec();
+    rep.f_lon = f_lon;
     Ok(rep)
 }
 
-/// Reads `f_lat` and `f_lon` from a `--json` result of `omni compute` or `factors get`.
-pub fn factors_from_json(path: &std::path::Path) -> Result<OmniFactors> {
+/// Reads the previous pass's factors (`f_lat`, `f_lon`) from a `--json` result of
+/// `omni compute` or `factors get`.
+pub fn factors_from_json(path: &std::path::Path) -> Result<Corrections> {
+    let f = omni_factors_from_json(path)?;
+    let f_lat = heapless::Vec::from_slice(&f.f_lat)
+        .map_err(|_| anyhow::anyhow!("{}: too many f_lat factors", path.display()))?;
+    Ok(Corrections::Omni {
+        f_lat,
+        f_lon: f.f_lon,
+    })
+}
+
+fn omni_factors_from_json(path: &std::path::Path) -> Result<OmniFactors> {
     use anyhow::Context;
     let text =
         std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
@@ -298,6 +319,36 @@ mod tests {
         assert!((rep.mean_radial_error_m - 0.03).abs() < 1e-12);
         // after 2.5 mm mean: (30 - 2.5) / 30 = 91.67 %.
         assert!((rep.improvement_index_percent.unwrap() - 91.666_666).abs() < 1e-3);
+    }
+
+    #[test]
+    fn second_pass_report_composes() {
+        // Secondary runs stopping 2 % short: secondary F_lon = 1/0.98; the first pass had
+        // F_lat [1.02, 1, 0.98, 1], F_lon 1.01; the report's factors are the products.
+        let mut text = String::from("test,path,length_m,x_err_m,y_err_m,theta_err_rad,phase\n");
+        for p in ["4W-1", "4W-2"] {
+            for _ in 0..2 {
+                text.push_str(&format!("omni,{p},0.5,-0.01,0,,\n"));
+            }
+        }
+        let runs = RunsFile::parse(&text, Path::new("r.csv")).unwrap();
+        let rep = compute(&presets::omni4(), &runs).unwrap();
+        let first = Corrections::Omni {
+            f_lat: heapless::Vec::from_slice(&[1.02, 1.0, 0.98, 1.0]).unwrap(),
+            f_lon: 1.01,
+        };
+        let rep = compose_with(rep, &first).unwrap();
+        assert!((rep.f_lon - 1.01 / 0.98).abs() < 1e-9, "{}", rep.f_lon);
+        for (got, want) in rep.f_lat.iter().zip([1.02, 1.0, 0.98, 1.0]) {
+            assert!((got - want).abs() < 1e-9);
+        }
+        assert!((rep.secondary.as_ref().unwrap().f_lon - 1.0 / 0.98).abs() < 1e-9);
+        let diff = Corrections::DiffDrive {
+            c_l: 1.0,
+            c_r: 1.0,
+            e_b: 1.0,
+        };
+        assert!(compose_with(rep, &diff).is_err());
     }
 
     #[test]

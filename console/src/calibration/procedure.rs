@@ -53,45 +53,14 @@ fn previous_file(runs_file: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
-/// Factors of a second pass composed with the first: every multiplier multiplies (the
-/// secondary runs measure what is left with the first factors applied).
-pub fn compose(previous: &Corrections, secondary: &Corrections) -> Result<Corrections> {
-    Ok(match (previous, secondary) {
-        (Corrections::None, s) => s.clone(),
-        (
-            Corrections::DiffDrive { c_l, c_r, e_b },
-            Corrections::DiffDrive {
-                c_l: l2,
-                c_r: r2,
-                e_b: b2,
-            },
-        ) => Corrections::DiffDrive {
-            c_l: c_l * l2,
-            c_r: c_r * r2,
-            e_b: e_b * b2,
-        },
-        (
-            Corrections::Omni { f_lat, f_lon },
-            Corrections::Omni {
-                f_lat: l2,
-                f_lon: o2,
-            },
-        ) if f_lat.len() == l2.len() => Corrections::Omni {
-            f_lat: f_lat.iter().zip(l2).map(|(a, b)| a * b).collect(),
-            f_lon: f_lon * o2,
-        },
-        (p, s) => {
-            bail!("cannot compose {p:?} with {s:?}: the board's factors do not fit this procedure")
-        }
-    })
-}
-
 /// Where the measured end positions come from.
 pub trait Measure {
     /// Tells the person what happens next (progress).
     fn say(&mut self, text: &str);
-    /// Waits until the robot is placed at the start.
-    fn ready(&mut self, what: &str) -> Result<()>;
+    /// Waits until the robot is placed at the start (nothing to wait for by default).
+    fn ready(&mut self, _what: &str) -> Result<()> {
+        Ok(())
+    }
     /// The measured end error of `trial`, measured minus odometry, in the path frame (x
     /// along the first leg or the path, y to its left): `(x, y, theta)`. `odometry` is
     /// the board's end pose in that frame; `direction_rad` is the path's direction in the
@@ -183,9 +152,6 @@ impl Measure for TruthFile {
             eprintln!("{text}");
         }
     }
-    fn ready(&mut self, _: &str) -> Result<()> {
-        Ok(())
-    }
     fn end_error(
         &mut self,
         trial: u16,
@@ -216,9 +182,6 @@ impl Measure for TruthChannel<'_> {
         if let Some(p) = &self.progress {
             p.set_message(text.to_string());
         }
-    }
-    fn ready(&mut self, _: &str) -> Result<()> {
-        Ok(())
     }
     fn end_error(
         &mut self,
@@ -405,7 +368,9 @@ pub fn run<L: Read + Write>(
         }
     };
     let corrections = match &previous {
-        Some(p) => compose(p, &corrections)?,
+        Some(p) => p.compose(&corrections).with_context(|| {
+            format!("cannot compose the board's factors {p:?} with {corrections:?}: they do not fit this procedure")
+        })?,
         None => corrections,
     };
     // Validated here too: nothing is uploaded from a computation the board would refuse.
@@ -442,14 +407,8 @@ pub fn run<L: Read + Write>(
         }
         Kind::Omni => {
             let mut r = omni::compute(&robot, &runs)?;
-            if let Some(Corrections::Omni { f_lat, f_lon }) = &previous {
-                r = omni::compose_with(
-                    r,
-                    &omni::OmniFactors {
-                        f_lat: f_lat.to_vec(),
-                        f_lon: *f_lon,
-                    },
-                )?;
+            if let Some(p @ Corrections::Omni { .. }) = &previous {
+                r = omni::compose_with(r, p)?;
             }
             if let Some(dir) = &opts.report {
                 crate::report::omni::write(&r, dir)?;
