@@ -78,8 +78,7 @@ impl fmt::Display for CorrectionError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for CorrectionError {}
+impl core::error::Error for CorrectionError {}
 
 fn check(name: &'static str, index: Option<usize>, v: f64) -> Result<(), CorrectionError> {
     if !v.is_finite() {

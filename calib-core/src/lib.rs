@@ -2,7 +2,11 @@
 //!
 //! Everything here is pure computation: no registers, no allocator, no I/O. The firmware
 //! runs it at 1 kHz in f32; the host runs the same code in f64 against the simulator.
-#![cfg_attr(not(feature = "std"), no_std)]
+#![no_std]
+
+#[cfg(test)]
+#[macro_use]
+extern crate std;
 
 pub mod correction;
 pub mod kinematics;
@@ -20,10 +24,4 @@ pub mod odometry;
 pub use odometry::{Odometry, Pose};
 pub mod control;
 pub mod encoder;
-#[cfg(feature = "std")]
-pub mod recording;
-#[cfg(feature = "std")]
-pub mod robot_file;
-#[cfg(feature = "std")]
-pub mod runs_file;
 pub mod stepper;

@@ -277,8 +277,7 @@ impl fmt::Display for OmniCalError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for OmniCalError {}
+impl core::error::Error for OmniCalError {}
 
 /// sin(u)/u, accurate near 0.
 fn sinc(u: f64) -> f64 {

@@ -292,8 +292,7 @@ impl fmt::Display for RobotError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for RobotError {}
+impl core::error::Error for RobotError {}
 
 impl RobotError {
     fn robot(field: Field, problem: Problem) -> Self {

@@ -37,8 +37,7 @@ impl fmt::Display for StatsError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for StatsError {}
+impl core::error::Error for StatsError {}
 
 fn check_finite(v: f64) -> Result<f64, StatsError> {
     if v.is_finite() {

@@ -110,8 +110,7 @@ impl fmt::Display for UmbmarkError {
     }
 }
 
-#[cfg(feature = "std")]
-impl std::error::Error for UmbmarkError {}
+impl core::error::Error for UmbmarkError {}
 
 /// Result of a UMBmark evaluation. Lengths in metres, angles in radians.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]

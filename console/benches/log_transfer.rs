@@ -6,7 +6,7 @@
 
 use calib_core::motion::Segment;
 use calib_core::protocol::ProgramSpec;
-use calib_core::robot_file;
+use formats::robot_file;
 use std::path::Path;
 use std::time::{Duration, Instant};
 use wheelcal::board_cmds::records_to_csv;

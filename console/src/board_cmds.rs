@@ -5,9 +5,9 @@ use crate::client::{decode_records, Client, ClientError};
 use anyhow::{bail, Context, Result};
 use calib_core::motion::{Direction, OmniPath};
 use calib_core::protocol::{Info, Mode, ProgramSpec, Record, Status, TrialInfo, Trials};
-use calib_core::recording::Recording;
 use calib_core::robot::{Robot, MAX_WHEELS};
 use calib_core::{Corrections, Twist};
+use formats::recording::Recording;
 use serde::Serialize;
 use std::fmt::Write as _;
 use std::io::{Read, Write};
@@ -350,7 +350,7 @@ pub fn records_to_csv(
         let t = (wraps * (1u64 << 32) + r.t_us as u64) as f64 * 1e-6;
         let cmd: Vec<f64> = r.cmd[..n].iter().map(|&v| v as f64).collect();
         let enc: Vec<i64> = r.counts[..n].iter().map(|&v| v as i64).collect();
-        rec.push_row(calib_core::recording::Row {
+        rec.push_row(formats::recording::Row {
             t,
             cmd: Some(&cmd),
             enc: Some(&enc),

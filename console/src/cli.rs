@@ -9,10 +9,10 @@ use crate::sim_board::{self, SimBoardOptions};
 use crate::{demo, link, report, ros2};
 use anyhow::{bail, Context, Result};
 use calib_core::motion::{Direction, OmniPath};
-use calib_core::robot_file;
-use calib_core::runs_file::RunsFile;
 use calib_core::Twist;
 use clap::{Args, Parser, Subcommand, ValueEnum};
+use formats::robot_file;
+use formats::runs_file::RunsFile;
 use std::path::PathBuf;
 use std::process::ExitCode;
 use std::sync::atomic::{AtomicBool, Ordering};
@@ -711,7 +711,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         }
         Command::Diagnose(a) => {
             let robot = robot_file::load(&a.robot)?;
-            let rec = calib_core::recording::Recording::load(&a.recording, &robot)?;
+            let rec = formats::recording::Recording::load(&a.recording, &robot)?;
             for n in &rec.notes {
                 out.note(&format!("{}: {n}", a.recording.display()));
             }

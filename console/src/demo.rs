@@ -8,7 +8,7 @@ use crate::link::Faults;
 use crate::virtual_board::InProcessBoard;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::RobotKind;
-use calib_core::robot_file;
+use formats::robot_file;
 use rand::{Rng, SeedableRng};
 use serde::Serialize;
 use sim::{SimConfig, SimRobot, Surface};

@@ -3,7 +3,7 @@
 use crate::link::PortStream;
 use crate::virtual_board::{board_flash, TrialTruth, VirtualBoard};
 use anyhow::{Context, Result};
-use calib_core::robot_file;
+use formats::robot_file;
 use sim::{Effect, SimConfig, SimRobot, Surface};
 use std::io::Write;
 use std::path::{Path, PathBuf};

@@ -30,8 +30,8 @@ pub use effects::{Effect, Model, Stage};
 pub use report::{write_robot, Finding, Report};
 pub use windows::{Axis, Window};
 
-use calib_core::recording::Recording;
 use calib_core::robot::Robot;
+use formats::recording::Recording;
 use residuals::Evaluator;
 use std::collections::BTreeMap;
 use std::fmt;

@@ -5,8 +5,8 @@
 //! Blank cells are filled by holding the last value (a blank means "not measured at this
 //! instant", formats.md §2), so every series has one value per row.
 
-use calib_core::recording::Recording;
 use calib_core::robot::{Robot, RobotKind};
+use formats::recording::Recording;
 use std::f64::consts::{PI, TAU};
 
 /// Standard gravity, m/s^2, for the traction limit mu * g.

@@ -105,7 +105,7 @@ pub fn write_robot(robot: &Robot, report: &Report, out: &Path) -> std::io::Resul
         "# {} with geometry fitted by wheelcal diagnose (verdict: {})\n",
         robot.name, report.verdict
     );
-    text.push_str(&calib_core::robot_file::to_toml(&fitted));
+    text.push_str(&formats::robot_file::to_toml(&fitted));
     std::fs::write(out, text)
 }
 

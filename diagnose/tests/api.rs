@@ -5,7 +5,7 @@ use calib_core::robot::{presets, Drive};
 use diagnose::{diagnose, plots, write_robot, Options};
 use sim::{record, Effect, Motion, RandomMotion, RecordConfig, Surface};
 
-fn ed_recording() -> (calib_core::Robot, calib_core::recording::Recording) {
+fn ed_recording() -> (calib_core::Robot, formats::recording::Recording) {
     let robot = presets::diff_drive("dc_diff", 0.05, 0.40, Drive::default());
     let mut cfg = RecordConfig::default();
     cfg.sim.seed = 5;
@@ -50,7 +50,7 @@ fn json_has_the_issue_fields_and_write_robot_applies_the_fit() {
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("fitted.toml");
     write_robot(&robot, &r, &out).unwrap();
-    let fitted = calib_core::robot_file::load(&out).unwrap();
+    let fitted = formats::robot_file::load(&out).unwrap();
     let (rl, rr) = (fitted.wheels[0].radius_m, fitted.wheels[1].radius_m);
     assert!((rr / rl - ed).abs() < 1e-9);
     assert!(((rl + rr) / 2.0 - 0.05).abs() < 1e-9);

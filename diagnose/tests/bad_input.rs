@@ -2,9 +2,9 @@
 //! column; anything that parsed is diagnosed without panicking (a clear error or a
 //! verdict).
 
-use calib_core::recording::Recording;
 use calib_core::robot::presets;
 use diagnose::{diagnose, DiagnoseError, Options};
+use formats::recording::Recording;
 use std::path::Path;
 
 fn parse(text: &str) -> Result<Recording, String> {

@@ -3,8 +3,8 @@
 //! absent. The fit must improve the ground RMSE substantially: the README says these
 //! robots have real systematic errors (25 mm end error, 3.6 % over-rotation).
 
-use calib_core::recording::Recording;
 use diagnose::{diagnose, Options};
+use formats::recording::Recording;
 use std::path::PathBuf;
 
 fn run(folder: &str) -> Option<diagnose::Report> {
@@ -15,7 +15,7 @@ fn run(folder: &str) -> Option<diagnose::Report> {
         eprintln!("skipping: {} is absent", dir.display());
         return None;
     }
-    let robot = calib_core::robot_file::load(&dir.join("robot.toml")).expect("robot file");
+    let robot = formats::robot_file::load(&dir.join("robot.toml")).expect("robot file");
     let rec = Recording::load(&dir.join("recording.csv"), &robot).expect("recording");
     let r = diagnose(&robot, &rec, &Options::default()).expect("diagnosable");
     println!("{r}");

@@ -19,7 +19,7 @@ fn robot_file(name: &str) -> Robot {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../robots")
         .join(format!("{name}.toml"));
-    calib_core::robot_file::load(&p).unwrap()
+    formats::robot_file::load(&p).unwrap()
 }
 
 /// A DC differential drive (mobolab's geometry without the stepper).
@@ -326,7 +326,7 @@ struct Outcome {
     detail: String,
 }
 
-fn simulate(case: &Case) -> calib_core::recording::Recording {
+fn simulate(case: &Case) -> formats::recording::Recording {
     let effects: Vec<Effect> = case
         .effects
         .iter()

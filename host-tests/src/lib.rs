@@ -16,7 +16,7 @@ pub fn robot(name: &str) -> Robot {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../robots")
         .join(format!("{name}.toml"));
-    match calib_core::robot_file::load(&p) {
+    match formats::robot_file::load(&p) {
         Ok(r) => r,
         Err(e) => panic!("{e}"),
     }

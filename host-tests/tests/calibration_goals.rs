@@ -3,8 +3,8 @@
 //! the non-systematic floor; the procedure resumes without losing runs; a failed
 //! computation uploads nothing.
 
-use calib_core::robot_file;
-use calib_core::runs_file::{Phase, RunsFile};
+use formats::robot_file;
+use formats::runs_file::{Phase, RunsFile};
 use std::path::{Path, PathBuf};
 use wheelcal::demo::{umbmark_on_virtual_board, DEMO_ROUGHNESS};
 

@@ -5,9 +5,9 @@
 use calib_core::kinematics::Twist;
 use calib_core::motion::{Direction, OmniPath};
 use calib_core::protocol::{Mode, ProgramSpec, Request, StopReason};
-use calib_core::robot_file;
 use calib_core::Corrections;
 use firmware_app::{ByteStream, Handled};
+use formats::robot_file;
 use sim::{SimConfig, SimRobot, Surface};
 use std::path::Path;
 use wheelcal::virtual_board::{board_flash, VirtualBoard};

@@ -3,8 +3,8 @@
 
 use calib_core::motion::Direction;
 use calib_core::protocol::{Mode, ProgramSpec, Rejection, TrialEnd};
-use calib_core::robot_file;
 use calib_core::Corrections;
+use formats::robot_file;
 use sim::{Faults as SimFaults, SimConfig, SimRobot, Surface};
 use std::path::Path;
 use std::time::{Duration, Instant};

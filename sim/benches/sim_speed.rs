@@ -47,7 +47,7 @@ fn run_10s(robot: &calib_core::Robot, effects: &[Effect]) -> f64 {
 }
 
 fn bench(c: &mut Criterion) {
-    let robot = calib_core::robot_file::load(
+    let robot = formats::robot_file::load(
         &Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/omni4.toml"),
     )
     .expect("robots/omni4.toml");

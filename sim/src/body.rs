@@ -247,7 +247,7 @@ mod tests {
         let text =
             std::fs::read_to_string(concat!(env!("CARGO_MANIFEST_DIR"), "/../robots/wlr.toml"))
                 .unwrap();
-        let wlr = calib_core::robot_file::parse(&text, std::path::Path::new("wlr.toml")).unwrap();
+        let wlr = formats::robot_file::parse(&text, std::path::Path::new("wlr.toml")).unwrap();
         let v = std::f64::consts::FRAC_PI_2;
         let same = place_legs(&wlr, v, v);
         for (a, b) in same.wheels.iter().zip(&wlr.wheels) {

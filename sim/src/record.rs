@@ -17,8 +17,8 @@ use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::motion::{ProfileLimits, Program, Setpoint};
 use calib_core::odometry::Pose;
-use calib_core::recording::{Recording, Row};
 use calib_core::robot::{Robot, RobotKind};
+use formats::recording::{Recording, Row};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use std::path::Path;
@@ -497,7 +497,7 @@ impl SimRecording {
         let p = dir.join("recording.csv");
         self.recording.save(&p).map_err(io(&p))?;
         let p = dir.join("robot.toml");
-        std::fs::write(&p, calib_core::robot_file::to_toml(&self.robot)).map_err(io(&p))?;
+        std::fs::write(&p, formats::robot_file::to_toml(&self.robot)).map_err(io(&p))?;
         let p = dir.join("truth.csv");
         let mut s = String::from("t,x,y,theta,vx,vy,omega\n");
         for r in &self.truth {

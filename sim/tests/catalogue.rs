@@ -13,7 +13,7 @@ fn robot(name: &str) -> Robot {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../robots")
         .join(format!("{name}.toml"));
-    calib_core::robot_file::load(&p).unwrap()
+    formats::robot_file::load(&p).unwrap()
 }
 
 fn run(r: &Robot, effects: &[Effect]) -> sim::SimRecording {

@@ -17,7 +17,7 @@ fn robot(name: &str) -> Robot {
     let p = Path::new(env!("CARGO_MANIFEST_DIR"))
         .join("../robots")
         .join(format!("{name}.toml"));
-    calib_core::robot_file::load(&p).unwrap()
+    formats::robot_file::load(&p).unwrap()
 }
 
 fn quiet() -> SimConfig {
@@ -402,9 +402,9 @@ fn recordings_are_deterministic_per_seed() {
     // The robot moved and the written directory reads back through calib-core.
     let dir = std::env::temp_dir().join(format!("sim-record-test-{}", std::process::id()));
     rec.write_dir(&dir).unwrap();
-    let robot_back = calib_core::robot_file::load(&dir.join("robot.toml")).unwrap();
+    let robot_back = formats::robot_file::load(&dir.join("robot.toml")).unwrap();
     let back =
-        calib_core::recording::Recording::load(&dir.join("recording.csv"), &robot_back).unwrap();
+        formats::recording::Recording::load(&dir.join("recording.csv"), &robot_back).unwrap();
     assert_eq!(back.len(), rec.recording.len());
     let _ = std::fs::remove_dir_all(&dir);
 }
@@ -462,7 +462,7 @@ fn wheeled_legged_recordings_carry_leg_angles() {
     // The directory reads back through calib-core with the legs and the blank commands.
     let dir = std::env::temp_dir().join(format!("sim-wlr-test-{}", std::process::id()));
     rec.write_dir(&dir).unwrap();
-    let back = calib_core::recording::Recording::load(&dir.join("recording.csv"), &r).unwrap();
+    let back = formats::recording::Recording::load(&dir.join("recording.csv"), &r).unwrap();
     assert_eq!(back.len(), rec.recording.len());
     assert!(back.leg_rear.is_some() && back.wheels[3].cmd.is_none());
     let _ = std::fs::remove_dir_all(&dir);
@@ -508,7 +508,7 @@ fn bad_input_is_an_error_not_a_panic() {
     )
     .unwrap()
     .replacen("radius_m = 0.05", "radius_m = -0.05", 1);
-    let e = calib_core::robot_file::parse(&text, Path::new("bad.toml"))
+    let e = formats::robot_file::parse(&text, Path::new("bad.toml"))
         .unwrap_err()
         .to_string();
     assert!(e.contains("bad.toml") && e.contains("radius_m"), "{e}");

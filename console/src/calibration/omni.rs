@@ -5,9 +5,9 @@ use anyhow::{anyhow, bail, Result};
 use calib_core::motion::OmniPath;
 use calib_core::omni_cal::{self, DrivenWheel, OmniRun, PathRuns};
 use calib_core::robot::{Robot, RobotKind};
-use calib_core::runs_file::{OmniPathRuns, Phase, RunsFile};
 use calib_core::stats;
 use calib_core::Corrections;
+use formats::runs_file::{OmniPathRuns, Phase, RunsFile};
 use serde::Serialize;
 use std::fmt::Write;
 

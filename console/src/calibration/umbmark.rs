@@ -4,9 +4,9 @@
 use crate::output::PointM;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::{Robot, RobotKind};
-use calib_core::runs_file::{Phase, RunsFile, UmbmarkRuns};
 use calib_core::stats;
 use calib_core::umbmark::{self, Run, UmbmarkResult};
+use formats::runs_file::{Phase, RunsFile, UmbmarkRuns};
 use serde::Serialize;
 use std::fmt::Write;
 

@@ -5,8 +5,8 @@
 
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
-use calib_core::recording::{Recording, Row};
 use calib_core::robot::{Robot, RobotKind};
+use formats::recording::{Recording, Row};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};

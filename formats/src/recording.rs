@@ -6,7 +6,7 @@
 //! log export. Every error names the file, the line and the column, because people make
 //! these files with their own measuring setups.
 
-use crate::robot::{Robot, RobotKind};
+use calib_core::robot::{Robot, RobotKind};
 use std::fmt;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -472,7 +472,7 @@ pub struct Row<'a> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::robot::presets;
+    use calib_core::robot::presets;
 
     fn sample() -> &'static str {
         "t,cmd_left,cmd_right,enc_left,enc_right,x,y,theta,extra\n\

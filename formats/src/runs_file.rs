@@ -5,7 +5,7 @@
 //! what to fix, and the semantic checks (both directions present, at least two runs each,
 //! one side length) point at the offending rows.
 
-use crate::motion::{Direction, OmniPath};
+use calib_core::motion::{Direction, OmniPath};
 use std::fmt;
 use std::io::Write;
 use std::path::{Path, PathBuf};

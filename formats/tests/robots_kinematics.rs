@@ -2,7 +2,8 @@
 
 use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::robot::{Robot, RobotKind};
-use calib_core::{robot_file, Corrections};
+use calib_core::Corrections;
+use formats::robot_file;
 use proptest::prelude::*;
 use std::path::PathBuf;
 

@@ -4,7 +4,7 @@
 //! by hand, so "wheel 2 ('right'): radius_m must be positive, got -0.05" at the right line
 //! is the whole point.
 
-use crate::robot::{
+use calib_core::robot::{
     Drive, DriveType, Legs, Problem, Robot, RobotError, RobotKind, Wheel, WheelName,
 };
 use serde::Deserialize;
@@ -157,7 +157,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Robot, RobotFileError> {
         encoder_counts_per_rev: d
             .encoder_counts_per_rev
             .as_ref()
-            .map_or(crate::robot::DEFAULT_COUNTS_PER_REV, |v| *v.get_ref()),
+            .map_or(calib_core::robot::DEFAULT_COUNTS_PER_REV, |v| *v.get_ref()),
     };
     let mut wheels = Vec::new();
     for (i, w) in file.wheels.get_ref().iter().enumerate() {
@@ -206,7 +206,7 @@ pub fn parse(text: &str, path: &Path) -> Result<Robot, RobotFileError> {
 
 /// Where in the file the field a validation error names was written.
 fn span_of(file: &RobotFile, e: &RobotError) -> Option<core::ops::Range<usize>> {
-    use crate::robot::Field::*;
+    use calib_core::robot::Field::*;
     if let Some((i, _)) = &e.wheel {
         let w = file.wheels.get_ref().get(*i)?;
         let wf = w.get_ref();

@@ -1,0 +1,233 @@
+//! Framing: COBS(seq | postcard body | CRC-32) with a resynchronising decoder.
+
+#[allow(unused_imports)]
+use super::*;
+
+/// Why a frame was not accepted.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum FrameError {
+    /// Not valid COBS (a code byte points past the frame's end).
+    Cobs,
+    /// Shorter than a sequence number and a CRC.
+    TooShort,
+    /// Longer than [`MAX_WIRE`] (or the caller's buffer when encoding).
+    TooLong,
+    /// Checksum mismatch: damaged in transit.
+    Crc,
+}
+
+impl fmt::Display for FrameError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(match self {
+            FrameError::Cobs => "bad COBS encoding",
+            FrameError::TooShort => "frame too short",
+            FrameError::TooLong => "frame too long",
+            FrameError::Crc => "CRC mismatch",
+        })
+    }
+}
+
+/// An intact frame: its sequence number and postcard body.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct Frame<'a> {
+    pub seq: u16,
+    pub body: &'a [u8],
+}
+
+impl<'a> Frame<'a> {
+    /// Decodes the body as `T`.
+    pub fn decode<T: Deserialize<'a>>(&self) -> Result<T, postcard::Error> {
+        postcard::from_bytes(self.body)
+    }
+}
+
+/// Most bytes COBS adds to `n` bytes (one per 254, plus the first code byte).
+const fn cobs_overhead(n: usize) -> usize {
+    n / 254 + 1
+}
+
+/// Encodes `msg` as a complete frame (delimiter included) into `out`, returning the wire
+/// bytes. `out` of [`MAX_WIRE`] bytes fits any message of this protocol.
+pub fn encode<'o, T: Serialize + ?Sized>(
+    seq: u16,
+    msg: &T,
+    out: &'o mut [u8],
+) -> Result<&'o [u8], FrameError> {
+    // The raw frame is written at an offset and COBS-encoded in place towards the start:
+    // the encoder's output index never overtakes its input index when the input starts at
+    // least `overhead` bytes in.
+    let cap = out.len().min(MAX_WIRE);
+    let raw_max = MAX_PAYLOAD.min(cap.saturating_sub(cobs_overhead(cap) + 1));
+    let off = cobs_overhead(raw_max);
+    if raw_max < SEQ_LEN + CRC_LEN {
+        return Err(FrameError::TooLong);
+    }
+    let raw = &mut out[off..off + raw_max];
+    raw[..SEQ_LEN].copy_from_slice(&seq.to_le_bytes());
+    let body_len = postcard::to_slice(msg, &mut raw[SEQ_LEN..raw_max - CRC_LEN])
+        .map_err(|_| FrameError::TooLong)?
+        .len();
+    let crc_at = SEQ_LEN + body_len;
+    let crc = CRC32.checksum(&raw[..crc_at]);
+    raw[crc_at..crc_at + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
+    let n = cobs_encode_in_place(out, off, crc_at + CRC_LEN);
+    out[n] = 0;
+    Ok(&out[..=n])
+}
+
+/// Frames an already serialised body (fuzzers and tests send arbitrary bodies this way).
+pub fn encode_body<'o>(seq: u16, body: &[u8], out: &'o mut [u8]) -> Result<&'o [u8], FrameError> {
+    encode(seq, &RawBody(body), out)
+}
+
+/// Serialises as its bytes verbatim (postcard's tuple of u8 adds no length prefix).
+struct RawBody<'a>(&'a [u8]);
+
+impl Serialize for RawBody<'_> {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeTuple;
+        let mut t = s.serialize_tuple(self.0.len())?;
+        for b in self.0 {
+            t.serialize_element(b)?;
+        }
+        t.end()
+    }
+}
+
+/// COBS-encodes `buf[off..off+len]` into `buf[0..]`; returns the encoded length.
+fn cobs_encode_in_place(buf: &mut [u8], off: usize, len: usize) -> usize {
+    let mut code_at = 0;
+    let mut w = 1;
+    let mut code = 1u8;
+    for i in off..off + len {
+        let b = buf[i];
+        if b == 0 {
+            buf[code_at] = code;
+            code_at = w;
+            w += 1;
+            code = 1;
+        } else {
+            buf[w] = b;
+            w += 1;
+            code += 1;
+            if code == 0xFF {
+                buf[code_at] = code;
+                code_at = w;
+                w += 1;
+                code = 1;
+            }
+        }
+    }
+    buf[code_at] = code;
+    w
+}
+
+/// Decodes COBS in place; returns the decoded length.
+fn cobs_decode_in_place(buf: &mut [u8]) -> Result<usize, FrameError> {
+    let (mut r, mut w) = (0, 0);
+    while r < buf.len() {
+        let code = buf[r] as usize;
+        if code == 0 || r + code > buf.len() {
+            return Err(FrameError::Cobs);
+        }
+        r += 1;
+        for _ in 1..code {
+            buf[w] = buf[r];
+            w += 1;
+            r += 1;
+        }
+        if code != 0xFF && r < buf.len() {
+            buf[w] = 0;
+            w += 1;
+        }
+    }
+    Ok(w)
+}
+
+/// Splits a byte stream into frames: bounded memory ([`MAX_WIRE`] bytes), never panics,
+/// resynchronises at the next 0x00 after garbage or an oversized frame.
+#[derive(Debug, Clone)]
+pub struct FrameDecoder {
+    buf: [u8; MAX_WIRE],
+    len: usize,
+    overflow: bool,
+}
+
+impl Default for FrameDecoder {
+    fn default() -> Self {
+        Self::new()
+    }
+}
+
+impl FrameDecoder {
+    pub const fn new() -> Self {
+        FrameDecoder {
+            buf: [0; MAX_WIRE],
+            len: 0,
+            overflow: false,
+        }
+    }
+
+    /// Forgets a partial frame.
+    pub fn reset(&mut self) {
+        self.len = 0;
+        self.overflow = false;
+    }
+
+    /// Feeds one byte; at a delimiter returns the frame that ended (or why it was bad).
+    /// Empty frames (repeated delimiters) are skipped silently.
+    pub fn push(&mut self, byte: u8) -> Option<Result<Frame<'_>, FrameError>> {
+        if byte != 0 {
+            if self.len < self.buf.len() {
+                self.buf[self.len] = byte;
+                self.len += 1;
+            } else {
+                self.overflow = true;
+            }
+            return None;
+        }
+        let (len, overflow) = (self.len, self.overflow);
+        self.reset();
+        if overflow {
+            return Some(Err(FrameError::TooLong));
+        }
+        if len == 0 {
+            return None;
+        }
+        Some(parse_raw(&mut self.buf[..len]))
+    }
+}
+
+/// Checks a COBS-decoded frame and splits it.
+fn parse_raw(enc: &mut [u8]) -> Result<Frame<'_>, FrameError> {
+    let n = cobs_decode_in_place(enc)?;
+    if n < SEQ_LEN + CRC_LEN {
+        return Err(FrameError::TooShort);
+    }
+    if n > MAX_PAYLOAD {
+        return Err(FrameError::TooLong);
+    }
+    let raw = &enc[..n];
+    let (data, crc) = raw.split_at(n - CRC_LEN);
+    let want = u32::from_le_bytes([crc[0], crc[1], crc[2], crc[3]]);
+    if CRC32.checksum(data) != want {
+        return Err(FrameError::Crc);
+    }
+    Ok(Frame {
+        seq: u16::from_le_bytes([data[0], data[1]]),
+        body: &data[SEQ_LEN..],
+    })
+}
+
+/// Decodes one complete wire frame (with or without its trailing delimiter), in place.
+pub fn decode_frame(wire: &mut [u8]) -> Result<Frame<'_>, FrameError> {
+    let end = wire.iter().position(|&b| b == 0).unwrap_or(wire.len());
+    if end == 0 {
+        return Err(FrameError::TooShort);
+    }
+    if end > MAX_WIRE {
+        return Err(FrameError::TooLong);
+    }
+    parse_raw(&mut wire[..end])
+}

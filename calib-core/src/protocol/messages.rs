@@ -1,0 +1,245 @@
+//! Requests, responses and the state a board reports.
+
+#[allow(unused_imports)]
+use super::*;
+
+// Messages
+// ---------------------------------------------------------------------------------------
+
+/// What the host asks of a board.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Request {
+    /// Variant 0, frozen: the handshake.
+    Hello {
+        protocol_version: u16,
+        schema: u32,
+    },
+    GetInfo,
+    GetCorrections,
+    /// Makes these the active corrections (validated; not persisted until saved).
+    SetCorrections(Corrections),
+    /// Persists the active corrections.
+    SaveCorrections,
+    /// Active corrections back to none (persist with SaveCorrections).
+    ResetCorrections,
+    GetParams,
+    /// Replaces robot geometry, gains, limits and safety settings (validated; idle only).
+    SetParams(Params),
+    SaveParams,
+    /// Active parameters back to the firmware's defaults (idle only).
+    ResetParams,
+    /// Drive at a body twist until the next Drive, or stop after `timeout_ms` (0 = the
+    /// configured command timeout; longer values are capped by it).
+    Drive {
+        twist: Twist<f32>,
+        timeout_ms: u16,
+    },
+    /// Run a motion program, logging a trial at `log_rate_hz` (0 = no log).
+    RunProgram {
+        program: ProgramSpec,
+        log_rate_hz: u16,
+    },
+    /// Controlled stop (ramps to zero through the controllers).
+    Stop,
+    /// Immediate motor cut-off, latched until ClearFault.
+    EStop,
+    /// Clears a latched E-stop or fault.
+    ClearFault,
+    GetStatus,
+    /// Unsolicited status frames every `period_ms` (0 = off).
+    SetTelemetry {
+        period_ms: u16,
+    },
+    ListTrials,
+    /// Bytes `offset..offset+max_len` of a trial's records (resumable: ask again from the
+    /// offset reached).
+    ReadLog {
+        trial: u16,
+        offset: u32,
+        max_len: u16,
+    },
+    ClearLogs,
+}
+
+/// A board's answer (or unsolicited telemetry).
+// Messages are built once per frame and never moved in bulk; no_std has no Box.
+#[allow(clippy::large_enum_variant)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Response<'a> {
+    /// Variant 0, frozen: the handshake answer; `compatible` is false on a mismatch.
+    Hello {
+        protocol_version: u16,
+        schema: u32,
+        firmware: String<FIRMWARE_LEN>,
+        compatible: bool,
+    },
+    Ok,
+    Info(Info),
+    Corrections(Corrections),
+    Params(Params),
+    Status(Status),
+    /// Unsolicited, every telemetry period.
+    Telemetry(Status),
+    Trials(Trials),
+    #[serde(borrow)]
+    LogChunk(LogChunk<'a>),
+    /// The request was refused and nothing changed.
+    Rejected(Rejection),
+    /// A frame arrived damaged (sequence number unknown): resend the last request.
+    Nack(FrameError),
+}
+
+/// Everything a board reports about itself.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Info {
+    pub firmware: String<FIRMWARE_LEN>,
+    pub protocol_version: u16,
+    pub schema: u32,
+    pub robot_kind: RobotKind,
+    pub drive: DriveType,
+    pub wheel_count: u8,
+    pub uptime_ms: u64,
+    pub boot: BootReport,
+    /// Bytes of trial-log RAM.
+    pub log_capacity: u32,
+    /// Bytes per log record for this robot.
+    pub record_size: u16,
+}
+
+/// What the board found in flash at boot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub struct BootReport {
+    pub corrections: Stored,
+    pub params: Stored,
+}
+
+/// State of one persisted item at boot.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Stored {
+    /// Read, CRC and ranges good: in use.
+    Loaded,
+    /// Never saved: defaults in use.
+    Missing,
+    /// Present but failed CRC, decoding or validation: defaults in use.
+    Invalid,
+    /// The flash could not be read: defaults in use.
+    StorageError,
+}
+
+/// Live state of a board.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub struct Status {
+    pub uptime_ms: u64,
+    pub mode: Mode,
+    /// Why the motors last stopped.
+    pub stop: StopReason,
+    /// E-stop latched.
+    pub estop: bool,
+    /// Latched fault.
+    pub fault: Option<Fault>,
+    /// Odometry pose since the last program start (or boot).
+    pub pose: Pose<f32>,
+    /// Measured wheel rates, rad/s.
+    pub wheel_rates: Vec<f32, MAX_WHEELS>,
+    /// Commanded wheel rates, rad/s (corrections applied).
+    pub wheel_cmds: Vec<f32, MAX_WHEELS>,
+    /// Trial being recorded.
+    pub trial: Option<u16>,
+    /// Free bytes of the log ring.
+    pub log_free: u32,
+    /// Records dropped since boot because the log was full (see `firmware-app`'s log).
+    pub dropped_records: u32,
+    /// Trials evicted since boot to make room.
+    pub evicted_trials: u32,
+    /// Damaged frames received since boot.
+    pub bad_frames: u32,
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Mode {
+    Idle,
+    Drive,
+    Program { segment: u8, segments: u8 },
+}
+
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum StopReason {
+    None,
+    Request,
+    EStop,
+    CommandTimeout,
+    Fault,
+    ProgramDone,
+}
+
+/// A detected hardware fault (latched, motors off).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum Fault {
+    /// Commanded but the encoder did not move.
+    Stall { wheel: u8 },
+    /// The encoder moved implausibly far in one tick.
+    CounterJump { wheel: u8, delta: i32 },
+}
+
+/// Why a request was refused; the board's state is unchanged.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum Rejection {
+    ProtocolMismatch {
+        board_version: u16,
+        board_schema: u32,
+    },
+    InvalidCorrections(Reason),
+    InvalidParams(Reason),
+    InvalidProgram(Reason),
+    /// Not while a program or drive is under way.
+    Busy,
+    /// E-stop latched: send ClearFault first.
+    EStopped,
+    /// A fault is latched: send ClearFault first.
+    Faulted(Fault),
+    NoSuchTrial,
+    /// The offset is past the trial's end.
+    BadOffset {
+        total: u32,
+    },
+    /// Flash write or read failed; the stored values are unchanged.
+    Storage,
+    /// The frame was intact but its body is not a request this firmware knows.
+    Undecodable,
+}
+
+impl Rejection {
+    pub fn corrections(e: &CorrectionError) -> Self {
+        Rejection::InvalidCorrections(reason(&CorrectionText(e)))
+    }
+}
+
+impl fmt::Display for Rejection {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Rejection::ProtocolMismatch {
+                board_version,
+                board_schema,
+            } => write!(
+                f,
+                "protocol mismatch: board speaks v{board_version} (schema {board_schema:08x}), host v{PROTOCOL_VERSION} (schema {SCHEMA_FINGERPRINT:08x})"
+            ),
+            Rejection::InvalidCorrections(r) => write!(f, "invalid corrections: {r}"),
+            Rejection::InvalidParams(r) => write!(f, "invalid parameters: {r}"),
+            Rejection::InvalidProgram(r) => write!(f, "invalid program: {r}"),
+            Rejection::Busy => write!(f, "busy: stop the robot first"),
+            Rejection::EStopped => write!(f, "E-stop latched: clear it first"),
+            Rejection::Faulted(x) => write!(f, "fault latched ({x:?}): clear it first"),
+            Rejection::NoSuchTrial => write!(f, "no such trial"),
+            Rejection::BadOffset { total } => write!(f, "offset past the end ({total} bytes)"),
+            Rejection::Storage => write!(f, "flash storage failed; stored values unchanged"),
+            Rejection::Undecodable => write!(f, "request not understood by this firmware"),
+        }
+    }
+}
+
+// ---------------------------------------------------------------------------------------
