@@ -8,6 +8,7 @@
 //! exactly; Swedish wheels do not have one.
 
 use crate::correction::Corrections;
+use crate::linalg::{det3, inverse3};
 use crate::robot::{Robot, MAX_WHEELS};
 use num_traits::Float;
 
@@ -109,39 +110,12 @@ fn normal_matrix(
     (m, rolling, n)
 }
 
-fn det3(m: &[[f64; 3]; 3]) -> f64 {
-    m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
-        - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
-        + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
-}
-
 /// Determinant of the normal matrix and a scale to compare it against (product of its
 /// diagonal), for the rank check in [`Robot::new`].
 pub(crate) fn normal_matrix_determinant(robot: &Robot, corr: &Corrections) -> Option<(f64, f64)> {
     let (m, _, _) = normal_matrix(robot, corr);
     let scale = m[0][0] * m[1][1] * m[2][2];
     (scale.is_finite() && scale > 0.0).then(|| (det3(&m), scale))
-}
-
-fn inverse3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
-    let d = det3(m);
-    if !d.is_finite() || d.abs() < 1e-300 {
-        return None;
-    }
-    let c =
-        |r0: usize, c0: usize, r1: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
-    let adj = [
-        [c(1, 1, 2, 2), -c(0, 1, 2, 2), c(0, 1, 1, 2)],
-        [-c(1, 0, 2, 2), c(0, 0, 2, 2), -c(0, 0, 1, 2)],
-        [c(1, 0, 2, 1), -c(0, 0, 2, 1), c(0, 0, 1, 1)],
-    ];
-    let mut out = [[0.0; 3]; 3];
-    for a in 0..3 {
-        for b in 0..3 {
-            out[a][b] = adj[a][b] / d;
-        }
-    }
-    Some(out)
 }
 
 /// The robot's geometry cannot resolve the body twist.
@@ -152,10 +126,6 @@ impl<T: Float> Kinematics<T> {
     /// Kinematics of `robot` with `corr` applied (use [`Corrections::None`] for nominal).
     pub fn new(robot: &Robot, corr: &Corrections) -> Result<Self, SingularGeometry> {
         let (m, rolling, n) = normal_matrix(robot, corr);
-        let scale = m[0][0] * m[1][1] * m[2][2];
-        if scale.is_nan() || scale <= 0.0 || det3(&m).abs() <= 1e-9 * scale {
-            return Err(SingularGeometry);
-        }
         let inv = inverse3(&m).ok_or(SingularGeometry)?;
         let cast = |v: f64| T::from(v).unwrap_or_else(T::zero);
         let mut jacobian = [[T::zero(); 3]; MAX_WHEELS];

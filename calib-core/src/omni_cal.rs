@@ -14,6 +14,7 @@
 //! Error convention (formats.md sec. 3): measured minus odometry, in the start frame with
 //! x along the commanded direction of the path and y to its left.
 
+use crate::linalg::sinc;
 use crate::stats;
 use core::f64::consts::PI;
 use core::fmt;
@@ -278,16 +279,6 @@ impl fmt::Display for OmniCalError {
 }
 
 impl core::error::Error for OmniCalError {}
-
-/// sin(u)/u, accurate near 0.
-fn sinc(u: f64) -> f64 {
-    if libm::fabs(u) < 1e-4 {
-        let u2 = u * u;
-        1.0 - u2 / 6.0 + u2 * u2 / 120.0
-    } else {
-        libm::sin(u) / u
-    }
-}
 
 fn wrap_pi(a: f64) -> f64 {
     let mut w = libm::remainder(a, 2.0 * PI);

@@ -14,6 +14,7 @@
 //! [`exact_fit`] fits E_d and E_b to the exact forward model [`square_end_error`], which
 //! matters once E_b is off by a few percent.
 
+use crate::linalg::sinc;
 use crate::stats;
 use core::f64::consts::{FRAC_PI_2, PI};
 use core::fmt;
@@ -324,16 +325,6 @@ fn closed_form_params(
         None
     };
     Ok((ed, eb, alpha, beta, radius))
-}
-
-/// sin(u)/u, accurate near 0.
-fn sinc(u: f64) -> f64 {
-    if libm::fabs(u) < 1e-4 {
-        let u2 = u * u;
-        1.0 - u2 / 6.0 + u2 * u2 / 120.0
-    } else {
-        libm::sin(u) / u
-    }
 }
 
 /// Pose (x, y, heading) advanced along an exact constant-curvature arc of length `ds`
