@@ -58,9 +58,9 @@ mod tests {
     fn inverse_times_matrix_is_identity() {
         let m = [[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 2.0]];
         let inv = inverse3(&m).expect("well conditioned");
-        for i in 0..3 {
+        for (i, row) in m.iter().enumerate() {
             for j in 0..3 {
-                let p: f64 = (0..3).map(|k| m[i][k] * inv[k][j]).sum();
+                let p: f64 = (0..3).map(|k| row[k] * inv[k][j]).sum();
                 let want = if i == j { 1.0 } else { 0.0 };
                 assert!((p - want).abs() < 1e-14, "({i},{j}) = {p}");
             }
