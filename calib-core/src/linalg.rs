@@ -59,8 +59,8 @@ mod tests {
         let m = [[4.0, 1.0, 0.5], [1.0, 3.0, 0.2], [0.5, 0.2, 2.0]];
         let inv = inverse3(&m).expect("well conditioned");
         for (i, row) in m.iter().enumerate() {
-            for j in 0..3 {
-                let p: f64 = (0..3).map(|k| row[k] * inv[k][j]).sum();
+            for (j, want_col) in [0usize, 1, 2].into_iter().enumerate() {
+                let p: f64 = (0..3).map(|k| row[k] * inv[k][want_col]).sum();
                 let want = if i == j { 1.0 } else { 0.0 };
                 assert!((p - want).abs() < 1e-14, "({i},{j}) = {p}");
             }
