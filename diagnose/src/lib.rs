@@ -16,6 +16,7 @@
 //! The entry point is [`diagnose`]; the console's `wheelcal diagnose` is a thin wrapper.
 
 pub mod actuator;
+pub mod calibrate;
 pub mod effects;
 pub mod fit;
 pub mod ground;
