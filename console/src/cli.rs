@@ -80,6 +80,8 @@ pub enum Command {
     Demo(DemoArgs),
     /// Where a simulation and a recording part: locate, name the physics left out, fit it.
     Diagnose(DiagnoseArgs),
+    /// The robot's geometry fitted to whole trajectories with motion-capture ground truth.
+    Calibrate(crate::calibrate_cmd::CalibrateArgs),
     /// Simulator tools.
     #[command(subcommand)]
     Sim(SimCmd),
@@ -709,6 +711,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 let _ = std::io::stdout().flush();
             })
         }
+        Command::Calibrate(a) => crate::calibrate_cmd::run(&a, out),
         Command::Diagnose(a) => {
             let robot = robot_file::load(&a.robot)?;
             let rec = formats::recording::Recording::load(&a.recording, &robot)?;
