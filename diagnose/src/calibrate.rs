@@ -700,6 +700,18 @@ pub struct Heldout {
     pub name: String,
     pub rmse_before_m: f64,
     pub rmse_after_m: f64,
+    /// With its start pose and clocks fitted (geometry as given): what the geometry
+    /// explains without the start heading's noise, which dead reckoning carries to the end.
+    pub aligned_before_m: f64,
+    pub aligned_after_m: f64,
+}
+
+/// Fit RMSE of `s` with the geometry fixed, only its start pose and clocks fitted.
+fn aligned_rmse(robot: &Robot, specs: &[ParamSpec], geom: &[f64], s: &Series) -> f64 {
+    let one = [s.clone()];
+    let p = Problem::new(robot, specs, &one);
+    let r = solve(&p, geom, &nuisance_start(&one), false);
+    position_rmse(&p.residuals(geom, &r.nuis, false))
 }
 
 /// Two parameters (or a parameter and the rest) the data do not separate.
@@ -739,6 +751,8 @@ pub struct Calibration {
     pub leave_one_out: Vec<Heldout>,
     pub leave_one_out_mean_before_m: Option<f64>,
     pub leave_one_out_mean_after_m: Option<f64>,
+    pub leave_one_out_aligned_before_m: Option<f64>,
+    pub leave_one_out_aligned_after_m: Option<f64>,
     /// Correlations between the geometry parameters (params order).
     pub correlations: Vec<Vec<f64>>,
     /// Pairs the data do not separate, by name (the JSON shape).
@@ -950,6 +964,8 @@ pub fn calibrate(
     let heldout = held.as_ref().map(|h| Heldout {
         name: h.name.clone(),
         rmse_before_m: dead_reckoning_rmse(robot, h).unwrap_or(f64::NAN),
+        aligned_before_m: aligned_rmse(robot, &specs, &nominal, h),
+        aligned_after_m: aligned_rmse(robot, &specs, &fitted.geom, h),
         rmse_after_m: dead_reckoning_rmse(&fitted_robot, h).unwrap_or(f64::NAN),
     });
 
@@ -978,6 +994,8 @@ pub fn calibrate(
                 name: series[i].name.clone(),
                 rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
                 rmse_after_m: dead_reckoning_rmse(&r, &series[i]).unwrap_or(f64::NAN),
+                aligned_before_m: per_recording[i].rmse_before_m,
+                aligned_after_m: aligned_rmse(robot, &specs, &f.geom, &series[i]),
             });
         }
     }
@@ -1080,6 +1098,8 @@ pub fn calibrate(
         heldout,
         leave_one_out_mean_before_m: mean(&|h| h.rmse_before_m),
         leave_one_out_mean_after_m: mean(&|h| h.rmse_after_m),
+        leave_one_out_aligned_before_m: mean(&|h| h.aligned_before_m),
+        leave_one_out_aligned_after_m: mean(&|h| h.aligned_after_m),
         leave_one_out,
         correlations: corr,
         not_separable: insep.iter().map(|i| i.params.clone()).collect(),
@@ -1245,31 +1265,41 @@ impl fmt::Display for Calibration {
         if let Some(h) = &self.heldout {
             writeln!(
                 f,
-                "held out {}: {} -> {} (dead reckoning, nominal -> fitted)",
+                "held out {}: {} -> {} (dead reckoning, nominal -> fitted); {} -> {} with its start pose and clocks fitted",
                 h.name,
                 mm(h.rmse_before_m),
-                mm(h.rmse_after_m)
+                mm(h.rmse_after_m),
+                mm(h.aligned_before_m),
+                mm(h.aligned_after_m)
             )?;
         }
         if !self.leave_one_out.is_empty() {
-            writeln!(
-                f,
-                "leave one out (fit on the rest, dead-reckon the one left out):"
-            )?;
+            writeln!(f, "leave one out (fit on the rest; the one left out dead-reckoned, and aligned: start pose and clocks fitted):")?;
             for h in &self.leave_one_out {
                 writeln!(
                     f,
-                    "  {:<24} {} -> {}",
+                    "  {:<24} {} -> {}   aligned {} -> {}",
                     h.name,
                     mm(h.rmse_before_m),
-                    mm(h.rmse_after_m)
+                    mm(h.rmse_after_m),
+                    mm(h.aligned_before_m),
+                    mm(h.aligned_after_m)
                 )?;
             }
-            if let (Some(a), Some(b)) = (
+            if let (Some(a), Some(b), Some(c), Some(d)) = (
                 self.leave_one_out_mean_before_m,
                 self.leave_one_out_mean_after_m,
+                self.leave_one_out_aligned_before_m,
+                self.leave_one_out_aligned_after_m,
             ) {
-                writeln!(f, "  mean                     {} -> {}", mm(a), mm(b))?;
+                writeln!(
+                    f,
+                    "  mean                     {} -> {}   aligned {} -> {}",
+                    mm(a),
+                    mm(b),
+                    mm(c),
+                    mm(d)
+                )?;
             }
         }
         if self.inseparable.is_empty() {
