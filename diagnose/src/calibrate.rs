@@ -832,7 +832,9 @@ pub fn calibrate(
     let before_res = p.residuals(&nominal, &before.nuis, false);
     let mut runs = before.evaluations;
 
-    // Joint fit.
+    // Joint fit, the prior weighed by the nominal residuals first (directions the data
+    // do not constrain must not wander off while the fit starts).
+    p.prior_scale = noise_scale(&p, &before);
     let mut fitted = solve(&p, &nominal, &before.nuis, true);
     runs += fitted.evaluations;
     // Weigh the plausibility prior against the data's real information (MAP), and refit.
@@ -840,7 +842,7 @@ pub fn calibrate(
     fitted = solve(&p, &fitted.geom, &fitted.nuis, true);
     runs += fitted.evaluations;
     let g = specs.len();
-    let (mut cov, mut inflation) = covariance(&p, &fitted);
+    let (mut cov, inflation) = covariance(&p, &fitted);
     let mut corr = correlations(&cov, g);
     // Not separable pairs: fit only the combination the data fix.
     let mut insep = Vec::new();
@@ -852,20 +854,25 @@ pub fn calibrate(
                 (fitted.geom[a] - specs[a].nominal).abs(),
                 (fitted.geom[b] - specs[b].nominal).abs(),
             );
-            let weak = c.abs() > 0.5 && (sa > da.max(1e-12) || sb > db.max(1e-12));
+            // "Uncertainty larger than the value" counts only when the uncertainty is material
+            // against the plausible range: a parameter fitted 0 ± 0.0002 is known, not lost.
+            let (ra, rb) = (
+                0.1 * (specs[a].plausible.1 - specs[a].nominal),
+                0.1 * (specs[b].plausible.1 - specs[b].nominal),
+            );
+            let weak = c.abs() > 0.5 && (sa > da.max(ra) || sb > db.max(rb));
             if c.abs() > CORR_LIMIT || weak {
                 // Well-determined direction of the 2x2 block: the eigenvector with the
                 // smaller variance.
                 let blk =
                     nalgebra::Matrix2::new(cov[(a, a)], cov[(a, b)], cov[(a, b)], cov[(b, b)]);
                 let e = SymmetricEigen::new(blk);
-                let (i_small, i_big) = if e.eigenvalues[0] < e.eigenvalues[1] {
-                    (0, 1)
+                let i_small = if e.eigenvalues[0] < e.eigenvalues[1] {
+                    0
                 } else {
-                    (1, 0)
+                    1
                 };
                 let good = e.eigenvectors.column(i_small);
-                let bad = e.eigenvectors.column(i_big);
                 let sgn = if good[0] < 0.0 { -1.0 } else { 1.0 };
                 insep.push(Inseparable {
                     params: [specs[a].name.clone(), specs[b].name.clone()],
@@ -873,23 +880,8 @@ pub fn calibrate(
                     identifiable: [sgn * good[0], sgn * good[1]],
                     advice: advice(&specs[a], &specs[b]),
                 });
-                if c.abs() <= CORR_LIMIT {
-                    continue;
-                }
-                // Pin the weak direction at nominal.
-                let mut w = vec![0.0; g];
-                w[a] = bad[0];
-                w[b] = bad[1];
-                let target = bad[0] * specs[a].nominal + bad[1] * specs[b].nominal;
-                p.priors.push((w, target, 1e-7));
             }
         }
-    }
-    if !insep.is_empty() {
-        fitted = solve(&p, &fitted.geom, &fitted.nuis, true);
-        runs += fitted.evaluations;
-        (cov, inflation) = covariance(&p, &fitted);
-        corr = correlations(&cov, g);
     }
     notes.push(format!(
         "uncertainties count the residuals' autocorrelation (variance x{inflation:.0})"
@@ -1140,8 +1132,10 @@ fn autocorrelation_inflation(p: &Problem, s: &Solved) -> f64 {
     ((1.0 + rho) / (1.0 - rho)).min(m as f64 / 10.0).max(1.0)
 }
 
-/// Covariance of [geometry, nuisance] from the data Jacobian and the prior, scaled by the
-/// residual variance and the autocorrelation inflation (returned).
+/// Covariance of [geometry, nuisance] from what the data tell (the plausibility prior
+/// enters only as a ridge 1000 ranges wide, so a direction the data do not constrain
+/// shows as one), scaled by the residual variance and the autocorrelation inflation
+/// (returned).
 fn covariance(p: &Problem, s: &Solved) -> (DMatrix<f64>, f64) {
     let m = s.jac.nrows();
     let np = s.jac.ncols();
@@ -1150,11 +1144,10 @@ fn covariance(p: &Problem, s: &Solved) -> (DMatrix<f64>, f64) {
     let dof = m.saturating_sub(np).max(1) as f64;
     let s2 = (s.data_cost / dof).max(1e-12);
     let inflation = autocorrelation_inflation(p, s);
-    // Prior information on the geometry block, in the units of J^T J / (s2 inflation).
     for (w, _, sigma) in &p.priors {
         for a in 0..g {
             for b in 0..g {
-                info[(a, b)] += w[a] * w[b] / (sigma * sigma) * p.prior_scale.powi(2);
+                info[(a, b)] += w[a] * w[b] / (sigma * sigma) * 1e-6 * s2 * inflation;
             }
         }
     }

@@ -8,13 +8,10 @@ use formats::recording::Recording;
 use std::path::PathBuf;
 
 fn run(folder: &str) -> Option<diagnose::Report> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/real")
-        .join(folder);
-    if !dir.exists() {
-        eprintln!("skipping: {} is absent", dir.display());
+    let Some(dir) = real_dir().map(|d| d.join(folder)) else {
+        eprintln!("skipping: shared/real is absent");
         return None;
-    }
+    };
     let robot = formats::robot_file::load(&dir.join("robot.toml")).expect("robot file");
     let rec = Recording::load(&dir.join("recording.csv"), &robot).expect("recording");
     let r = diagnose(&robot, &rec, &Options::default()).expect("diagnosable");
