@@ -176,3 +176,26 @@ fn omni3_geometry_is_plausible() {
     let r = &c.per_recording[0];
     assert!(r.dead_reckoning_after_m < 0.5 * r.dead_reckoning_before_m);
 }
+
+#[test]
+fn six_squares_diagnosed_jointly() {
+    let Some((robot, recs)) = load_runs(&SQUARES) else {
+        return;
+    };
+    let r = diagnose::multi::diagnose_many(&robot, &recs, &Options::default()).unwrap();
+    println!("{r}");
+    assert_eq!(r.recordings.len(), 6);
+    assert!(r.joint_rmse_shared_geometry_m < 0.5 * r.joint_rmse_nominal_m);
+    // A single square cannot separate ed from eb, so no square alone is evidence for
+    // either; the table says which recordings carry each remaining finding.
+    for rr in &r.recordings {
+        assert!(
+            !rr.geometry_evidence.iter().any(|g| g == "ed" || g == "eb"),
+            "{}",
+            rr.name
+        );
+        for f in &rr.findings {
+            assert!(r.carried_by[&f.effect].contains(&rr.name));
+        }
+    }
+}
