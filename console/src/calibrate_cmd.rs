@@ -71,6 +71,50 @@ pub fn recording_files(p: &Path) -> Result<Vec<PathBuf>> {
     Ok(v)
 }
 
+/// Every recording file named by `paths` (see [`recording_files`]).
+pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut v = Vec::new();
+    for p in paths {
+        v.extend(recording_files(p)?);
+    }
+    Ok(v)
+}
+
+/// `wheelcal diagnose` with several recordings: shared geometry, per-recording nuisance,
+/// each recording diagnosed against the shared geometry.
+pub fn diagnose_many(a: &crate::cli::DiagnoseArgs, files: &[PathBuf], out: Output) -> Result<()> {
+    let robot = robot_file::load(&a.robot)?;
+    let recs = files
+        .iter()
+        .map(|f| load(f, &robot, &a.robot))
+        .collect::<Result<Vec<_>>>()?;
+    let opts = diagnose::Options {
+        max_effects: a.max_effects.clamp(1, 4),
+    };
+    let rep = diagnose::multi::diagnose_many(&robot, &recs, &opts).map_err(|e| {
+        let file = e
+            .recording
+            .as_ref()
+            .and_then(|n| recs.iter().position(|(r, _)| r == n))
+            .map(|i| files[i].display().to_string());
+        match file {
+            Some(f) => anyhow::anyhow!("{f}: {}", e.message),
+            None => anyhow::anyhow!("{e}"),
+        }
+    })?;
+    if a.report.is_some() {
+        out.note(
+            "--report with several recordings: see calibrate --report (plots are per recording)",
+        );
+    }
+    if let Some(p) = &a.write_robot {
+        std::fs::write(p, rep.geometry.robot_toml())
+            .with_context(|| format!("cannot write {}", p.display()))?;
+        out.note(&format!("fitted robot: {}", p.display()));
+    }
+    out.emit(&rep, || rep.to_string())
+}
+
 /// A short name: the run folder for `.../run/recording.csv`, else the file name.
 fn short_name(f: &Path) -> String {
     let file = f
