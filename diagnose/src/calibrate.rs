@@ -1304,7 +1304,7 @@ impl fmt::Display for Calibration {
         for i in &self.inseparable {
             writeln!(
                 f,
-                "not separable: {} and {} (correlation {:+.3}); fitted only {:.3}*{} {:+.3}*{}; to separate them: {}",
+                "not separable: {} and {} (correlation {:+.3}); the data fix only {:.3}*{} {:+.3}*{}, the rest rests on the plausibility prior; to separate them: {}",
                 i.params[0], i.params[1], i.correlation, i.identifiable[0], i.params[0], i.identifiable[1], i.params[1], i.advice
             )?;
         }
