@@ -692,6 +692,10 @@ pub struct PerRecording {
     pub dead_reckoning_before_m: f64,
     pub dead_reckoning_after_m: f64,
     pub nuisance: Nuisance,
+    /// One standard deviation of `time_offset_s` and `clock_ratio` (autocorrelation
+    /// counted).
+    pub time_offset_sigma_s: f64,
+    pub clock_ratio_sigma: f64,
 }
 
 /// RMSE on a recording the fit did not see (dead reckoning from its first pose).
@@ -950,6 +954,8 @@ pub fn calibrate(
             dead_reckoning_before_m: dead_reckoning_rmse(robot, s).unwrap_or(f64::NAN),
             dead_reckoning_after_m: dead_reckoning_rmse(&fitted_robot, s).unwrap_or(f64::NAN),
             nuisance: Nuisance::from(&fitted.nuis[i * NUIS..(i + 1) * NUIS]),
+            time_offset_sigma_s: cov[(g + i * NUIS + 3, g + i * NUIS + 3)].max(0.0).sqrt(),
+            clock_ratio_sigma: cov[(g + i * NUIS + 4, g + i * NUIS + 4)].max(0.0).sqrt(),
         });
         offs.0 = offs.1;
     }

@@ -114,6 +114,9 @@ pub fn diagnose(
             "the wheels cannot resolve the body twist".into(),
         ));
     }
+    // Recording artefacts first: found, reported apart and removed before the physics.
+    let stage = recording_stage::analyse(robot, recording);
+    let recording = &stage.corrected;
     let prepared = replay::Prepared::new(robot, recording);
     let mut notes = recording.notes.clone();
     if prepared.poses.len() < MIN_POSE_SAMPLES && !prepared.has_actuator_stage() {
@@ -259,6 +262,7 @@ pub fn diagnose(
         model_runs_actuator: ev.runs.get().1,
         model: sel.model.clone(),
         plot,
+        recording_artefacts: stage.artefacts,
     })
 }
 

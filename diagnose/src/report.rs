@@ -84,6 +84,9 @@ pub struct Report {
     pub model: Model,
     #[serde(skip)]
     pub plot: PlotData,
+    /// The recording stage: logging artefacts (not physics), removed before the physics
+    /// was judged.
+    pub recording_artefacts: Vec<crate::recording_stage::Artefact>,
 }
 
 impl Report {
@@ -124,6 +127,15 @@ impl fmt::Display for Report {
             self.robot, self.rows, self.pose_samples, self.duration_s
         )?;
         writeln!(f, "verdict: {}", self.verdict)?;
+        if !self.recording_artefacts.is_empty() {
+            writeln!(
+                f,
+                "recording artefacts (how the run was logged, not physics):"
+            )?;
+            for a in &self.recording_artefacts {
+                writeln!(f, "  {a}")?;
+            }
+        }
         writeln!(
             f,
             "ground RMSE: {:.2} mm nominal -> {:.2} mm fitted (noise {:.2} mm, {:.4} rad)",
