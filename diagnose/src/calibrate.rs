@@ -92,11 +92,11 @@ fn spec(
 }
 
 /// Tyre radius: within a few per cent of nominal (wear, pressure, load).
-pub const RADIUS_RANGE: f64 = 0.03;
+pub const RADIUS_RANGE: f64 = 0.05;
 /// Left/right diameter ratio.
-pub const ED_RANGE: f64 = 0.02;
+pub const ED_RANGE: f64 = 0.03;
 /// Wheelbase and wheel distances: the contact patch moves across a tyre's width.
-pub const BASE_RANGE: f64 = 0.05;
+pub const BASE_RANGE: f64 = 0.08;
 /// Mounting angle, rad (3 degrees).
 pub const ALPHA_RANGE: f64 = 3.0 * std::f64::consts::PI / 180.0;
 

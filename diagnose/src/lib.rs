@@ -21,6 +21,7 @@ pub mod effects;
 pub mod fit;
 pub mod ground;
 pub mod multi;
+pub mod plausibility;
 pub mod plots;
 pub mod recording_stage;
 pub mod replay;
@@ -233,6 +234,18 @@ pub fn diagnose(
         Some(f) => f.effect.clone(),
     };
 
+    // A finding outside its physical range is listed, never the verdict.
+    let implausible = plausibility::check(&findings);
+    let verdict = if implausible.iter().any(|i| i.effect == verdict) {
+        findings
+            .iter()
+            .map(|f| f.effect.as_str())
+            .find(|e| *e != verdict && !implausible.iter().any(|i| i.effect == *e))
+            .unwrap_or(VERDICT_UNEXPLAINED)
+            .to_string()
+    } else {
+        verdict
+    };
     let plot = plot_data(&ev, &sel);
     let n_act = sel.nominal.n_act;
     Ok(Report {
@@ -263,6 +276,7 @@ pub fn diagnose(
         model: sel.model.clone(),
         plot,
         recording_artefacts: stage.artefacts,
+        implausible,
     })
 }
 

@@ -87,6 +87,8 @@ pub struct Report {
     /// The recording stage: logging artefacts (not physics), removed before the physics
     /// was judged.
     pub recording_artefacts: Vec<crate::recording_stage::Artefact>,
+    /// Findings whose parameters leave their physical range (never the verdict).
+    pub implausible: Vec<crate::plausibility::Implausible>,
 }
 
 impl Report {
@@ -127,6 +129,13 @@ impl fmt::Display for Report {
             self.robot, self.rows, self.pose_samples, self.duration_s
         )?;
         writeln!(f, "verdict: {}", self.verdict)?;
+        for i in &self.implausible {
+            writeln!(
+                f,
+                "implausible: {} {} = {:.5} outside {:.4}..{:.4}, most likely stands in for {}",
+                i.effect, i.parameter, i.value, i.plausible.0, i.plausible.1, i.stands_for
+            )?;
+        }
         if !self.recording_artefacts.is_empty() {
             writeln!(
                 f,

@@ -58,6 +58,13 @@ fn omni3_square_fit_improves() {
         r.rmse_nominal_m,
         r.rmse_final_m
     );
+    // w3 17 % larger is no tyre: listed implausible (it stands in for the wheel angles
+    // a radius-only fit lacks), never the verdict.
+    assert!(r
+        .implausible
+        .iter()
+        .any(|i| i.parameter == "radius_scale_w3"));
+    assert_ne!(r.verdict, "wheel_diameter_mismatch");
 }
 
 // ---- calibrate: the six squares jointly (issue 10) ----
