@@ -150,7 +150,7 @@ fn sample_glitches(rec: &mut Recording) -> Option<Artefact> {
     let has_enc = rec.wheels.iter().any(|w| w.enc.is_some());
     let mut dup = vec![false; n];
     if has_enc {
-        for k in 2..n - 1 {
+        for (k, d) in dup.iter_mut().enumerate().take(n - 1).skip(2) {
             let (e0, e1, e2, e3) = (enc(k - 2), enc(k - 1), enc(k), enc(k + 1));
             let moving = |a: &[Option<i64>], b: &[Option<i64>]| {
                 a.iter()
@@ -165,7 +165,7 @@ fn sample_glitches(rec: &mut Recording) -> Option<Artefact> {
                 _ => false,
             };
             if e2 == e1 && same_pose && moving(&e0, &e1) && moving(&e2, &e3) {
-                dup[k] = true;
+                *d = true;
                 a.duplicated_at_s.push(rec.t[k]);
             }
         }
