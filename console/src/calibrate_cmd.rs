@@ -250,3 +250,94 @@ fn write_report(cal: &Calibration, dir: &Path) -> Result<()> {
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DIFF: &str = "name = \"d\"\nkind = \"diff_drive\"\n[drive]\ntype = \"dc\"\ngear_ratio = 1.0\nencoder_counts_per_rev = 1000\n[[wheels]]\nname = \"left\"\nradius_m = 0.04\nalpha_deg = 90.0\nl_m = 0.1\nbeta_deg = 0.0\n[[wheels]]\nname = \"right\"\nradius_m = 0.04\nalpha_deg = -90.0\nl_m = 0.1\nbeta_deg = 180.0\n";
+
+    fn dir(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("calcmd-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn args(robot: &Path, rec: &Path) -> CalibrateArgs {
+        CalibrateArgs {
+            robot: robot.to_path_buf(),
+            recording: vec![rec.to_path_buf()],
+            holdout: None,
+            write_robot: None,
+            report: None,
+            no_cross_validation: true,
+            marker_offset: false,
+        }
+    }
+
+    #[test]
+    fn no_ground_truth_names_the_file() {
+        let d = dir("nogt");
+        std::fs::write(d.join("robot.toml"), DIFF).unwrap();
+        // Pose columns blank but for a start-frame sample or five: no usable ground truth.
+        let mut csv = String::from("t,enc_left,enc_right,x,y,theta\n");
+        for k in 0..50 {
+            let pose = if k < 5 { "0,0,0" } else { ",," };
+            csv.push_str(&format!(
+                "{},{},{},{pose}\n",
+                k as f64 * 0.05,
+                k * 10,
+                k * 11
+            ));
+        }
+        std::fs::write(d.join("recording.csv"), csv).unwrap();
+        let e = run(&args(&d.join("robot.toml"), &d), Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(
+            text.contains(&d.join("recording.csv").display().to_string()),
+            "{text}"
+        );
+        assert!(text.contains("motion capture"), "{text}");
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn another_robots_recording_names_both_files() {
+        let d = dir("other");
+        let run_dir = d.join("run");
+        std::fs::create_dir_all(&run_dir).unwrap();
+        std::fs::write(d.join("robot.toml"), DIFF).unwrap();
+        std::fs::write(
+            run_dir.join("robot.toml"),
+            DIFF.replace("\"d\"", "\"other\""),
+        )
+        .unwrap();
+        std::fs::write(
+            run_dir.join("recording.csv"),
+            "t,enc_left,enc_right\n0,0,0\n",
+        )
+        .unwrap();
+        let e = run(&args(&d.join("robot.toml"), &run_dir), Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(
+            text.contains("recording.csv") && text.contains("'other'"),
+            "{text}"
+        );
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn different_wheel_names_name_the_file() {
+        let d = dir("wheels");
+        std::fs::write(d.join("robot.toml"), DIFF).unwrap();
+        std::fs::write(
+            d.join("recording.csv"),
+            "t,enc_w1,enc_w2,x,y,theta\n0,0,0,0,0,0\n",
+        )
+        .unwrap();
+        let e = run(&args(&d.join("robot.toml"), &d), Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(text.contains("recording.csv"), "{text}");
+        std::fs::remove_dir_all(&d).ok();
+    }
+}
