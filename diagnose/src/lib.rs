@@ -234,6 +234,31 @@ pub fn diagnose(
         Some(f) => f.effect.clone(),
     };
 
+    // Geometry this recording cannot separate (from the whole-geometry fit of the
+    // recording stage), said next to any finding that names one side of it.
+    let (not_separable, separation_advice) = stage
+        .geometry
+        .as_ref()
+        .map(|c| {
+            (
+                c.not_separable.clone(),
+                c.inseparable
+                    .iter()
+                    .map(|i| format!("{} / {}: {}", i.params[0], i.params[1], i.advice))
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .unwrap_or_default();
+    if let Some(f) = findings.iter().find(|f| {
+        f.parameters
+            .keys()
+            .any(|p| not_separable.iter().any(|pair| pair.contains(p)))
+    }) {
+        notes.push(format!(
+            "{} is one of several geometry explanations this recording cannot tell apart (not_separable)",
+            f.effect
+        ));
+    }
     // A finding outside its physical range is listed, never the verdict.
     let implausible = plausibility::check(&findings);
     let verdict = if implausible.iter().any(|i| i.effect == verdict) {
@@ -277,6 +302,8 @@ pub fn diagnose(
         plot,
         recording_artefacts: stage.artefacts,
         implausible,
+        not_separable,
+        separation_advice,
     })
 }
 

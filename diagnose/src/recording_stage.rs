@@ -99,6 +99,9 @@ impl fmt::Display for Artefact {
 pub struct RecordingStage {
     pub artefacts: Vec<Artefact>,
     pub corrected: Recording,
+    /// The whole-geometry fit the clocks came from (its identifiability tells which
+    /// geometry effects this recording cannot separate).
+    pub geometry: Option<crate::calibrate::Calibration>,
 }
 
 /// Runs the recording stage on `rec` of `robot`.
@@ -111,10 +114,12 @@ pub fn analyse(robot: &Robot, rec: &Recording) -> RecordingStage {
     if let Some(a) = counts_per_rev(robot, &mut cur) {
         artefacts.push(a);
     }
-    artefacts.extend(clocks(robot, &mut cur));
+    let (clock_artefacts, geometry) = clocks(robot, &mut cur);
+    artefacts.extend(clock_artefacts);
     RecordingStage {
         artefacts,
         corrected: cur,
+        geometry,
     }
 }
 
@@ -288,10 +293,13 @@ fn counts_per_rev(robot: &Robot, rec: &mut Recording) -> Option<Artefact> {
 }
 
 /// Time offset and clock ratio of the poses against the encoders.
-fn clocks(robot: &Robot, rec: &mut Recording) -> Vec<Artefact> {
+fn clocks(
+    robot: &Robot,
+    rec: &mut Recording,
+) -> (Vec<Artefact>, Option<crate::calibrate::Calibration>) {
     let recs = [("recording".to_string(), rec.clone())];
     let Ok(cal) = calibrate(robot, &recs, None, &CalOptions::default()) else {
-        return vec![];
+        return (vec![], None);
     };
     let p = &cal.per_recording[0];
     let nu = p.nuisance;
@@ -328,7 +336,7 @@ fn clocks(robot: &Robot, rec: &mut Recording) -> Vec<Artefact> {
     if !out.is_empty() {
         *rec = on_encoder_clock(rec, &applied);
     }
-    out
+    (out, Some(cal))
 }
 
 /// The recording with its pose columns moved onto the encoders' clock: the pose written

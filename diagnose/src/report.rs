@@ -89,6 +89,9 @@ pub struct Report {
     pub recording_artefacts: Vec<crate::recording_stage::Artefact>,
     /// Findings whose parameters leave their physical range (never the verdict).
     pub implausible: Vec<crate::plausibility::Implausible>,
+    /// Geometry parameter pairs this recording cannot separate, and what would.
+    pub not_separable: Vec<[String; 2]>,
+    pub separation_advice: Vec<String>,
 }
 
 impl Report {
@@ -129,6 +132,9 @@ impl fmt::Display for Report {
             self.robot, self.rows, self.pose_samples, self.duration_s
         )?;
         writeln!(f, "verdict: {}", self.verdict)?;
+        for a in &self.separation_advice {
+            writeln!(f, "not separable: {a}")?;
+        }
         for i in &self.implausible {
             writeln!(
                 f,

@@ -214,3 +214,18 @@ fn six_squares_diagnosed_jointly() {
         }
     }
 }
+
+#[test]
+fn one_square_says_ed_and_eb_are_not_separable() {
+    let Some(r) = run("diff-square-run-04") else {
+        return;
+    };
+    assert!(
+        r.not_separable
+            .iter()
+            .any(|p| p.contains(&"ed".to_string()) && p.contains(&"eb".to_string())),
+        "{:?}",
+        r.not_separable
+    );
+    assert!(r.separation_advice.iter().any(|a| a.contains("other way")));
+}
