@@ -80,6 +80,8 @@ pub enum Command {
     Demo(DemoArgs),
     /// Where a simulation and a recording part: locate, name the physics left out, fit it.
     Diagnose(DiagnoseArgs),
+    /// The robot's geometry fitted to whole trajectories with motion-capture ground truth.
+    Calibrate(crate::calibrate_cmd::CalibrateArgs),
     /// Simulator tools.
     #[command(subcommand)]
     Sim(SimCmd),
@@ -90,9 +92,10 @@ pub struct DiagnoseArgs {
     /// Robot description (formats.md §1).
     #[arg(long)]
     pub robot: PathBuf,
-    /// Recording (formats.md §2).
-    #[arg(long)]
-    pub recording: PathBuf,
+    /// Recording (formats.md §2): a CSV file or a run folder; repeatable, or a directory
+    /// of run folders: several recordings are diagnosed jointly (shared geometry).
+    #[arg(long, required = true)]
+    pub recording: Vec<PathBuf>,
     /// Write an HTML report with plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
@@ -709,17 +712,23 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 let _ = std::io::stdout().flush();
             })
         }
+        Command::Calibrate(a) => crate::calibrate_cmd::run(&a, out),
         Command::Diagnose(a) => {
+            let files = crate::calibrate_cmd::expand(&a.recording)?;
+            if files.len() > 1 {
+                return crate::calibrate_cmd::diagnose_many(&a, &files, out);
+            }
+            let recording = &files[0];
             let robot = robot_file::load(&a.robot)?;
-            let rec = formats::recording::Recording::load(&a.recording, &robot)?;
+            let rec = formats::recording::Recording::load(recording, &robot)?;
             for n in &rec.notes {
-                out.note(&format!("{}: {n}", a.recording.display()));
+                out.note(&format!("{}: {n}", recording.display()));
             }
             let opts = diagnose::Options {
                 max_effects: a.max_effects.clamp(1, 4),
             };
             let rep = diagnose::diagnose(&robot, &rec, &opts)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", a.recording.display()))?;
+                .map_err(|e| anyhow::anyhow!("{}: {e}", recording.display()))?;
             if let Some(dir) = &a.report {
                 if !report::font_available() {
                     bail!("plots need the DejaVu Sans font: apt-get install fonts-dejavu-core");

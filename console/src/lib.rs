@@ -3,6 +3,7 @@
 //! over these modules so the host tests drive the same code.
 
 pub mod board_cmds;
+pub mod calibrate_cmd;
 pub mod calibration;
 pub mod cli;
 pub mod client;

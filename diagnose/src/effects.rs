@@ -46,6 +46,10 @@ pub enum Effect {
     MissedSteps,
     MotorLag,
     CoulombFriction,
+    /// Differential drive: mean actual / nominal wheel diameter (a wrong nominal
+    /// diameter, worn tyres, a gear ratio off by a little). With `ed` and `eb`, D_L, D_R
+    /// and b are all free.
+    WheelScale,
 }
 
 /// How a parameter is mapped to the optimiser's coordinate.
@@ -103,7 +107,7 @@ impl ParamSpec {
 }
 
 impl Effect {
-    pub const ALL: [Effect; 9] = [
+    pub const ALL: [Effect; 10] = [
         Effect::WheelDiameterMismatch,
         Effect::WheelbaseError,
         Effect::LongitudinalSlip,
@@ -113,6 +117,7 @@ impl Effect {
         Effect::MissedSteps,
         Effect::MotorLag,
         Effect::CoulombFriction,
+        Effect::WheelScale,
     ];
 
     /// The catalogue id.
@@ -127,6 +132,7 @@ impl Effect {
             Effect::MissedSteps => "missed_steps",
             Effect::MotorLag => "motor_lag",
             Effect::CoulombFriction => "coulomb_friction",
+            Effect::WheelScale => "wheel_scale",
         }
     }
 
@@ -168,6 +174,7 @@ impl Effect {
                 }
             }
             Effect::WheelbaseError => vec![ParamSpec::new("eb", Linear, 1.0, 0.7, 1.4)],
+            Effect::WheelScale => vec![ParamSpec::new("scale", Linear, 1.0, 0.8, 1.25)],
             Effect::LongitudinalSlip => vec![ParamSpec::new("mu", Log, 1e3, 0.01, 5.0)],
             Effect::LateralSlip => vec![ParamSpec::new("side_slip_s", Linear, 0.0, -2.0, 2.0)],
             Effect::FloorBumps => vec![
@@ -192,7 +199,8 @@ impl Effect {
                 has_commands
                     && (self != Effect::MissedSteps || robot.drive.kind == DriveType::Stepper)
             }
-            Stage::Ground => true,
+            // Omni robots' per-wheel radius scales already hold a common scale.
+            Stage::Ground => self != Effect::WheelScale || robot.kind == RobotKind::DiffDrive,
         }
     }
 
@@ -210,6 +218,7 @@ impl Effect {
         match self {
             Effect::WheelDiameterMismatch => vec![vec![1.0; n]],
             Effect::WheelbaseError => vec![vec![1.0]],
+            Effect::WheelScale => vec![vec![1.0]],
             Effect::LateralSlip => vec![vec![0.0]],
             Effect::LongitudinalSlip => singles(log_grid(0.02, 3.0, 12)),
             Effect::Backlash => singles(log_grid(0.002, 0.5, 10)),
@@ -286,6 +295,9 @@ impl Model {
                     *s = *v;
                 }
             }
+        }
+        if let Some(p) = self.get(Effect::WheelScale) {
+            scales.iter_mut().for_each(|s| *s *= p[0]);
         }
         let eb = self.get(Effect::WheelbaseError).map_or(1.0, |p| p[0]);
         (scales, eb)

@@ -28,6 +28,18 @@ pub fn levenberg_marquardt(
     hi: &[f64],
     max_iter: usize,
 ) -> FitResult {
+    levenberg_marquardt_jacobian(f, x0, lo, hi, max_iter).0
+}
+
+/// As [`levenberg_marquardt`], also returning the Jacobian at the solution (for
+/// identifiability: correlations and unconstrained directions).
+pub fn levenberg_marquardt_jacobian(
+    f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
+    x0: &[f64],
+    lo: &[f64],
+    hi: &[f64],
+    max_iter: usize,
+) -> (FitResult, DMatrix<f64>) {
     let p = x0.len();
     let clamp = |x: &mut [f64]| {
         for i in 0..x.len() {
@@ -83,12 +95,15 @@ pub fn levenberg_marquardt(
     jacobian(f, &x, &r, hi, &mut jac);
     evaluations += p;
     let sigma = covariance_sigma(&jac, cost, r.len());
-    FitResult {
-        x,
-        cost,
-        sigma,
-        evaluations,
-    }
+    (
+        FitResult {
+            x,
+            cost,
+            sigma,
+            evaluations,
+        },
+        jac,
+    )
 }
 
 fn sumsq(r: &[f64]) -> f64 {

@@ -16,10 +16,14 @@
 //! The entry point is [`diagnose`]; the console's `wheelcal diagnose` is a thin wrapper.
 
 pub mod actuator;
+pub mod calibrate;
 pub mod effects;
 pub mod fit;
 pub mod ground;
+pub mod multi;
+pub mod plausibility;
 pub mod plots;
+pub mod recording_stage;
 pub mod replay;
 pub mod report;
 pub mod residuals;
@@ -111,6 +115,9 @@ pub fn diagnose(
             "the wheels cannot resolve the body twist".into(),
         ));
     }
+    // Recording artefacts first: found, reported apart and removed before the physics.
+    let stage = recording_stage::analyse(robot, recording);
+    let recording = &stage.corrected;
     let prepared = replay::Prepared::new(robot, recording);
     let mut notes = recording.notes.clone();
     if prepared.poses.len() < MIN_POSE_SAMPLES && !prepared.has_actuator_stage() {
@@ -227,6 +234,43 @@ pub fn diagnose(
         Some(f) => f.effect.clone(),
     };
 
+    // Geometry this recording cannot separate (from the whole-geometry fit of the
+    // recording stage), said next to any finding that names one side of it.
+    let (not_separable, separation_advice) = stage
+        .geometry
+        .as_ref()
+        .map(|c| {
+            (
+                c.not_separable.clone(),
+                c.inseparable
+                    .iter()
+                    .map(|i| format!("{} / {}: {}", i.params[0], i.params[1], i.advice))
+                    .collect::<Vec<_>>(),
+            )
+        })
+        .unwrap_or_default();
+    if let Some(f) = findings.iter().find(|f| {
+        f.parameters
+            .keys()
+            .any(|p| not_separable.iter().any(|pair| pair.contains(p)))
+    }) {
+        notes.push(format!(
+            "{} is one of several geometry explanations this recording cannot tell apart (not_separable)",
+            f.effect
+        ));
+    }
+    // A finding outside its physical range is listed, never the verdict.
+    let implausible = plausibility::check(&findings);
+    let verdict = if implausible.iter().any(|i| i.effect == verdict) {
+        findings
+            .iter()
+            .map(|f| f.effect.as_str())
+            .find(|e| *e != verdict && !implausible.iter().any(|i| i.effect == *e))
+            .unwrap_or(VERDICT_UNEXPLAINED)
+            .to_string()
+    } else {
+        verdict
+    };
     let plot = plot_data(&ev, &sel);
     let n_act = sel.nominal.n_act;
     Ok(Report {
@@ -256,6 +300,10 @@ pub fn diagnose(
         model_runs_actuator: ev.runs.get().1,
         model: sel.model.clone(),
         plot,
+        recording_artefacts: stage.artefacts,
+        implausible,
+        not_separable,
+        separation_advice,
     })
 }
 

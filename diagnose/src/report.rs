@@ -84,6 +84,14 @@ pub struct Report {
     pub model: Model,
     #[serde(skip)]
     pub plot: PlotData,
+    /// The recording stage: logging artefacts (not physics), removed before the physics
+    /// was judged.
+    pub recording_artefacts: Vec<crate::recording_stage::Artefact>,
+    /// Findings whose parameters leave their physical range (never the verdict).
+    pub implausible: Vec<crate::plausibility::Implausible>,
+    /// Geometry parameter pairs this recording cannot separate, and what would.
+    pub not_separable: Vec<[String; 2]>,
+    pub separation_advice: Vec<String>,
 }
 
 impl Report {
@@ -124,6 +132,25 @@ impl fmt::Display for Report {
             self.robot, self.rows, self.pose_samples, self.duration_s
         )?;
         writeln!(f, "verdict: {}", self.verdict)?;
+        for a in &self.separation_advice {
+            writeln!(f, "not separable: {a}")?;
+        }
+        for i in &self.implausible {
+            writeln!(
+                f,
+                "implausible: {} {} = {:.5} outside {:.4}..{:.4}, most likely stands in for {}",
+                i.effect, i.parameter, i.value, i.plausible.0, i.plausible.1, i.stands_for
+            )?;
+        }
+        if !self.recording_artefacts.is_empty() {
+            writeln!(
+                f,
+                "recording artefacts (how the run was logged, not physics):"
+            )?;
+            for a in &self.recording_artefacts {
+                writeln!(f, "  {a}")?;
+            }
+        }
         writeln!(
             f,
             "ground RMSE: {:.2} mm nominal -> {:.2} mm fitted (noise {:.2} mm, {:.4} rad)",

@@ -8,13 +8,10 @@ use formats::recording::Recording;
 use std::path::PathBuf;
 
 fn run(folder: &str) -> Option<diagnose::Report> {
-    let dir = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .join("../../shared/real")
-        .join(folder);
-    if !dir.exists() {
-        eprintln!("skipping: {} is absent", dir.display());
+    let Some(dir) = real_dir().map(|d| d.join(folder)) else {
+        eprintln!("skipping: shared/real is absent");
         return None;
-    }
+    };
     let robot = formats::robot_file::load(&dir.join("robot.toml")).expect("robot file");
     let rec = Recording::load(&dir.join("recording.csv"), &robot).expect("recording");
     let r = diagnose(&robot, &rec, &Options::default()).expect("diagnosable");
@@ -32,13 +29,21 @@ fn diff_square_fit_improves() {
     };
     assert!(!r.findings.is_empty(), "a systematic error is found");
     // Motion capture is sub-millimetre, so what is left after the fit is unmodelled
-    // motion; the geometric fit must still remove at least half of the RMSE.
+    // motion; the fit must still explain at least the share of the excess residual the
+    // verdict rule asks of any finding (MIN_EXPLAINED).
     assert!(
-        r.rmse_final_m < 0.5 * r.rmse_nominal_m,
-        "{} -> {}",
+        r.explained_fraction >= diagnose::MIN_EXPLAINED,
+        "{} -> {}: {}",
         r.rmse_nominal_m,
-        r.rmse_final_m
+        r.rmse_final_m,
+        r.explained_fraction
     );
+    // The recording stage finds the one-row misalignment of poses and encoders (the
+    // ground truth was resampled onto the odometry cycle) and reports it apart.
+    assert!(r
+        .recording_artefacts
+        .iter()
+        .all(|a| a.id == "time_offset" || a.id == "clock_rate"));
 }
 
 #[test]
@@ -53,4 +58,174 @@ fn omni3_square_fit_improves() {
         r.rmse_nominal_m,
         r.rmse_final_m
     );
+    // w3 17 % larger is no tyre: listed implausible (it stands in for the wheel angles
+    // a radius-only fit lacks), never the verdict.
+    assert!(r
+        .implausible
+        .iter()
+        .any(|i| i.parameter == "radius_scale_w3"));
+    assert_ne!(r.verdict, "wheel_diameter_mismatch");
+}
+
+// ---- calibrate: the six squares jointly (issue 10) ----
+
+use diagnose::calibrate::{calibrate, CalOptions, Calibration};
+
+/// The real-data folder, wherever the checkout sits beside `shared/`.
+fn real_dir() -> Option<PathBuf> {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .map(|a| a.join("shared/real"))
+        .find(|d| d.exists())
+}
+
+fn load_runs(folders: &[&str]) -> Option<(calib_core::robot::Robot, Vec<(String, Recording)>)> {
+    let base = real_dir()?;
+    let robot = formats::robot_file::load(&base.join(folders[0]).join("robot.toml")).unwrap();
+    let recs = folders
+        .iter()
+        .map(|f| {
+            let r = Recording::load(&base.join(f).join("recording.csv"), &robot).unwrap();
+            (f.to_string(), r)
+        })
+        .collect();
+    Some((robot, recs))
+}
+
+const SQUARES: [&str; 6] = [
+    "diff-square-run-01",
+    "diff-square-run-02",
+    "diff-square-run-03",
+    "diff-square-run-04",
+    "diff-square-run-05",
+    "diff-square-run-06",
+];
+
+fn param(c: &Calibration, name: &str) -> f64 {
+    c.params.iter().find(|p| p.name == name).unwrap().value
+}
+
+#[test]
+fn six_squares_give_one_plausible_geometry() {
+    let Some((robot, recs)) = load_runs(&SQUARES) else {
+        return;
+    };
+    let opts = CalOptions {
+        leave_one_out: true,
+        ..Default::default()
+    };
+    let c = calibrate(&robot, &recs, None, &opts).unwrap();
+    println!("{c}");
+    // cw and ccw together separate E_d from E_b.
+    assert!(c.not_separable.is_empty(), "{:?}", c.not_separable);
+    assert!(c.implausible.is_empty(), "{:?}", c.implausible);
+    // UMBmark over the same six squares (end points only) gives E_d ~ 0.9990 and
+    // E_b ~ 1.008 (data README): the whole-trajectory fit must agree on E_d to 0.1 %
+    // (the squares' end errors fix it) and on E_b to 0.3 % (UMBmark's E_b absorbs the
+    // turn-in-place scrub the trajectory fit sees in time).
+    assert!(
+        (param(&c, "ed") - 0.9990).abs() < 1e-3,
+        "{}",
+        param(&c, "ed")
+    );
+    assert!(
+        (param(&c, "eb") - 1.008).abs() < 3e-3,
+        "{}",
+        param(&c, "eb")
+    );
+    // Joint fit RMSE at least halved; every run improves.
+    assert!(c.joint_rmse_after_m < 0.5 * c.joint_rmse_before_m);
+    for r in &c.per_recording {
+        assert!(r.rmse_after_m < r.rmse_before_m, "{}", r.name);
+    }
+    // Leave one out: the geometry from five squares explains the sixth (start pose and
+    // clocks fitted) at least twice as well as the nominal, and dead reckoning improves
+    // on average.
+    let (b, a) = (
+        c.leave_one_out_aligned_before_m.unwrap(),
+        c.leave_one_out_aligned_after_m.unwrap(),
+    );
+    assert!(a < 0.5 * b, "{b} -> {a}");
+    assert!(c.leave_one_out_mean_after_m.unwrap() < c.leave_one_out_mean_before_m.unwrap());
+}
+
+#[test]
+fn one_direction_cannot_separate_ed_from_eb() {
+    for runs in [&SQUARES[0..3], &SQUARES[3..6]] {
+        let Some((robot, recs)) = load_runs(runs) else {
+            return;
+        };
+        let c = calibrate(&robot, &recs, None, &CalOptions::default()).unwrap();
+        assert!(
+            c.not_separable
+                .iter()
+                .any(|p| p.contains(&"ed".to_string()) && p.contains(&"eb".to_string())),
+            "{runs:?}: {:?}",
+            c.not_separable
+        );
+        let i = &c.inseparable[0];
+        assert!(i.advice.contains("other way"), "{}", i.advice);
+    }
+}
+
+#[test]
+fn omni3_geometry_is_plausible() {
+    let Some((robot, recs)) = load_runs(&["omni3-square-run-01"]) else {
+        return;
+    };
+    let c = calibrate(&robot, &recs, None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    for p in &c.params {
+        assert!(
+            p.value >= p.plausible.0 - 1e-9 && p.value <= p.plausible.1 + 1e-9,
+            "{}: {}",
+            p.name,
+            p.value
+        );
+    }
+    // One square cannot pin nine wheel parameters: what it cannot tell is said.
+    assert!(!c.not_separable.is_empty());
+    // Within the plausible ranges the fit still removes most of the error (the 3.6 %
+    // over-rotation of the data README).
+    assert!(c.joint_rmse_after_m < 0.5 * c.joint_rmse_before_m);
+    let r = &c.per_recording[0];
+    assert!(r.dead_reckoning_after_m < 0.5 * r.dead_reckoning_before_m);
+}
+
+#[test]
+fn six_squares_diagnosed_jointly() {
+    let Some((robot, recs)) = load_runs(&SQUARES) else {
+        return;
+    };
+    let r = diagnose::multi::diagnose_many(&robot, &recs, &Options::default()).unwrap();
+    println!("{r}");
+    assert_eq!(r.recordings.len(), 6);
+    assert!(r.joint_rmse_shared_geometry_m < 0.5 * r.joint_rmse_nominal_m);
+    // A single square cannot separate ed from eb, so no square alone is evidence for
+    // either; the table says which recordings carry each remaining finding.
+    for rr in &r.recordings {
+        assert!(
+            !rr.geometry_evidence.iter().any(|g| g == "ed" || g == "eb"),
+            "{}",
+            rr.name
+        );
+        for f in &rr.findings {
+            assert!(r.carried_by[&f.effect].contains(&rr.name));
+        }
+    }
+}
+
+#[test]
+fn one_square_says_ed_and_eb_are_not_separable() {
+    let Some(r) = run("diff-square-run-04") else {
+        return;
+    };
+    assert!(
+        r.not_separable
+            .iter()
+            .any(|p| p.contains(&"ed".to_string()) && p.contains(&"eb".to_string())),
+        "{:?}",
+        r.not_separable
+    );
+    assert!(r.separation_advice.iter().any(|a| a.contains("other way")));
 }

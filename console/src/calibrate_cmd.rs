@@ -1,0 +1,343 @@
+//! `wheelcal calibrate`: the robot's geometry from whole trajectories with ground truth.
+//! A thin shell over `diagnose::calibrate`: gathers recordings (files, run folders or a
+//! directory of run folders), prints or writes the result.
+
+use crate::output::Output;
+use crate::ros2;
+use anyhow::{bail, Context, Result};
+use calib_core::robot::Robot;
+use clap::Args;
+use diagnose::calibrate::{calibrate, CalOptions, Calibration, Factors};
+use formats::recording::Recording;
+use formats::robot_file;
+use std::path::{Path, PathBuf};
+
+#[derive(Debug, Args)]
+pub struct CalibrateArgs {
+    /// Robot description (formats.md §1): the nominal geometry.
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// Recording with motion-capture poses (formats.md §2): a CSV file, a run folder
+    /// holding recording.csv, or a directory of run folders; repeatable.
+    #[arg(long, required = true)]
+    pub recording: Vec<PathBuf>,
+    /// A recording kept out of the fit: its dead-reckoning RMSE before and after.
+    #[arg(long)]
+    pub holdout: Option<PathBuf>,
+    /// Write the robot description with all fitted geometry.
+    #[arg(long)]
+    pub write_robot: Option<PathBuf>,
+    /// Write calibration.json, summary.txt, robot.toml (and ros2.yaml) into this folder.
+    #[arg(long)]
+    pub report: Option<PathBuf>,
+    /// Skip leave-one-out cross-validation.
+    #[arg(long)]
+    pub no_cross_validation: bool,
+    /// Also fit where motion capture tracks on the body (omni robots).
+    #[arg(long)]
+    pub marker_offset: bool,
+}
+
+/// Recording CSV files named by `p`: the file itself, `p/recording.csv`, or every
+/// `recording.csv` one level down (sorted).
+pub fn recording_files(p: &Path) -> Result<Vec<PathBuf>> {
+    if p.is_file() {
+        return Ok(vec![p.to_path_buf()]);
+    }
+    if !p.is_dir() {
+        bail!("{}: no such recording file or folder", p.display());
+    }
+    let own = p.join("recording.csv");
+    if own.is_file() {
+        return Ok(vec![own]);
+    }
+    let mut v: Vec<PathBuf> = std::fs::read_dir(p)
+        .with_context(|| format!("cannot read {}", p.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter_map(|d| {
+            if d.is_dir() && d.join("recording.csv").is_file() {
+                Some(d.join("recording.csv"))
+            } else if d.extension().is_some_and(|x| x == "csv") {
+                Some(d)
+            } else {
+                None
+            }
+        })
+        .collect();
+    v.sort();
+    if v.is_empty() {
+        bail!("{}: holds no recording.csv", p.display());
+    }
+    Ok(v)
+}
+
+/// Every recording file named by `paths` (see [`recording_files`]).
+pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut v = Vec::new();
+    for p in paths {
+        v.extend(recording_files(p)?);
+    }
+    Ok(v)
+}
+
+/// `wheelcal diagnose` with several recordings: shared geometry, per-recording nuisance,
+/// each recording diagnosed against the shared geometry.
+pub fn diagnose_many(a: &crate::cli::DiagnoseArgs, files: &[PathBuf], out: Output) -> Result<()> {
+    let robot = robot_file::load(&a.robot)?;
+    let recs = files
+        .iter()
+        .map(|f| load(f, &robot, &a.robot))
+        .collect::<Result<Vec<_>>>()?;
+    let opts = diagnose::Options {
+        max_effects: a.max_effects.clamp(1, 4),
+    };
+    let rep = diagnose::multi::diagnose_many(&robot, &recs, &opts).map_err(|e| {
+        let file = e
+            .recording
+            .as_ref()
+            .and_then(|n| recs.iter().position(|(r, _)| r == n))
+            .map(|i| files[i].display().to_string());
+        match file {
+            Some(f) => anyhow::anyhow!("{f}: {}", e.message),
+            None => anyhow::anyhow!("{e}"),
+        }
+    })?;
+    if a.report.is_some() {
+        out.note(
+            "--report with several recordings: see calibrate --report (plots are per recording)",
+        );
+    }
+    if let Some(p) = &a.write_robot {
+        std::fs::write(p, rep.geometry.robot_toml())
+            .with_context(|| format!("cannot write {}", p.display()))?;
+        out.note(&format!("fitted robot: {}", p.display()));
+    }
+    out.emit(&rep, || rep.to_string())
+}
+
+/// A short name: the run folder for `.../run/recording.csv`, else the file name.
+fn short_name(f: &Path) -> String {
+    let file = f
+        .file_name()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_default();
+    match f.parent().and_then(|d| d.file_name()) {
+        Some(d) if file == "recording.csv" => d.to_string_lossy().to_string(),
+        _ => file,
+    }
+}
+
+/// Loads a recording against `robot`; a robot.toml beside it naming another robot is an
+/// error naming both files.
+fn load(f: &Path, robot: &Robot, robot_path: &Path) -> Result<(String, Recording)> {
+    if let Some(beside) = f
+        .parent()
+        .map(|d| d.join("robot.toml"))
+        .filter(|p| p.is_file())
+    {
+        if let Ok(other) = robot_file::load(&beside) {
+            if other.name != robot.name {
+                bail!(
+                    "{}: recorded with robot '{}' ({}), but --robot {} is '{}'",
+                    f.display(),
+                    other.name,
+                    beside.display(),
+                    robot_path.display(),
+                    robot.name
+                );
+            }
+        }
+    }
+    let rec = Recording::load(f, robot)?;
+    Ok((short_name(f), rec))
+}
+
+pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
+    let robot = robot_file::load(&a.robot)?;
+    let mut recs = Vec::new();
+    let mut paths = Vec::new();
+    for p in &a.recording {
+        for f in recording_files(p)? {
+            recs.push(load(&f, &robot, &a.robot)?);
+            paths.push(f);
+        }
+    }
+    let held = match &a.holdout {
+        Some(h) => {
+            let f = recording_files(h)?;
+            if f.len() != 1 {
+                bail!(
+                    "{}: --holdout takes one recording, found {}",
+                    h.display(),
+                    f.len()
+                );
+            }
+            Some(load(&f[0], &robot, &a.robot)?)
+        }
+        None => None,
+    };
+    let opts = CalOptions {
+        leave_one_out: !a.no_cross_validation,
+        marker_offset: a.marker_offset,
+    };
+    let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|e| {
+        // Name the file, not only the short name.
+        let file = e
+            .recording
+            .as_ref()
+            .and_then(|n| {
+                recs.iter()
+                    .position(|(r, _)| r == n)
+                    .map(|i| paths[i].display().to_string())
+            })
+            .or_else(|| {
+                e.recording
+                    .clone()
+                    .and(a.holdout.as_ref().map(|h| h.display().to_string()))
+            });
+        match file {
+            Some(f) => anyhow::anyhow!("{f}: {}", e.message),
+            None => anyhow::anyhow!("{e}"),
+        }
+    })?;
+    if let Some(p) = &a.write_robot {
+        std::fs::write(p, cal.robot_toml())
+            .with_context(|| format!("cannot write {}", p.display()))?;
+        out.note(&format!("fitted robot: {}", p.display()));
+    }
+    if let Some(dir) = &a.report {
+        write_report(&cal, dir)
+            .with_context(|| format!("cannot write the report into {}", dir.display()))?;
+        out.note(&format!("report: {}", dir.display()));
+    }
+    out.emit(&cal, || human(&cal))
+}
+
+fn ros2_yaml(cal: &Calibration) -> Option<String> {
+    match cal.factors {
+        Factors::Diff { c_l, c_r, e_b } => Some(ros2::diff_drive_yaml(
+            &ros2::DiffFactors { c_l, c_r, e_b },
+            "diff_drive_controller",
+        )),
+        Factors::Wheels { .. } => None,
+    }
+}
+
+fn human(cal: &Calibration) -> String {
+    let mut s = cal.to_string();
+    match ros2_yaml(cal) {
+        Some(y) => {
+            s.push_str("ROS 2 (diff_drive_controller):\n");
+            s.push_str(&y);
+        }
+        None => s.push_str(
+            "ROS 2: no multiplier parameters for this drive; use the fitted robot file (--write-robot)\n",
+        ),
+    }
+    s
+}
+
+fn write_report(cal: &Calibration, dir: &Path) -> Result<()> {
+    std::fs::create_dir_all(dir)?;
+    std::fs::write(
+        dir.join("calibration.json"),
+        serde_json::to_string_pretty(cal)?,
+    )?;
+    std::fs::write(dir.join("summary.txt"), human(cal))?;
+    std::fs::write(dir.join("robot.toml"), cal.robot_toml())?;
+    if let Some(y) = ros2_yaml(cal) {
+        std::fs::write(dir.join("ros2.yaml"), y)?;
+    }
+    Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    const DIFF: &str = "name = \"d\"\nkind = \"diff_drive\"\n[drive]\ntype = \"dc\"\ngear_ratio = 1.0\nencoder_counts_per_rev = 1000\n[[wheels]]\nname = \"left\"\nradius_m = 0.04\nalpha_deg = 90.0\nl_m = 0.1\nbeta_deg = 0.0\n[[wheels]]\nname = \"right\"\nradius_m = 0.04\nalpha_deg = -90.0\nl_m = 0.1\nbeta_deg = 180.0\n";
+
+    fn dir(tag: &str) -> PathBuf {
+        let d = std::env::temp_dir().join(format!("calcmd-{tag}-{}", std::process::id()));
+        std::fs::create_dir_all(&d).unwrap();
+        d
+    }
+
+    fn args(robot: &Path, rec: &Path) -> CalibrateArgs {
+        CalibrateArgs {
+            robot: robot.to_path_buf(),
+            recording: vec![rec.to_path_buf()],
+            holdout: None,
+            write_robot: None,
+            report: None,
+            no_cross_validation: true,
+            marker_offset: false,
+        }
+    }
+
+    #[test]
+    fn no_ground_truth_names_the_file() {
+        let d = dir("nogt");
+        std::fs::write(d.join("robot.toml"), DIFF).unwrap();
+        // Pose columns blank but for a start-frame sample or five: no usable ground truth.
+        let mut csv = String::from("t,enc_left,enc_right,x,y,theta\n");
+        for k in 0..50 {
+            let pose = if k < 5 { "0,0,0" } else { ",," };
+            csv.push_str(&format!(
+                "{},{},{},{pose}\n",
+                k as f64 * 0.05,
+                k * 10,
+                k * 11
+            ));
+        }
+        std::fs::write(d.join("recording.csv"), csv).unwrap();
+        let e = run(&args(&d.join("robot.toml"), &d), Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(
+            text.contains(&d.join("recording.csv").display().to_string()),
+            "{text}"
+        );
+        assert!(text.contains("motion capture"), "{text}");
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn another_robots_recording_names_both_files() {
+        let d = dir("other");
+        let run_dir = d.join("run");
+        std::fs::create_dir_all(&run_dir).unwrap();
+        std::fs::write(d.join("robot.toml"), DIFF).unwrap();
+        std::fs::write(
+            run_dir.join("robot.toml"),
+            DIFF.replace("\"d\"", "\"other\""),
+        )
+        .unwrap();
+        std::fs::write(
+            run_dir.join("recording.csv"),
+            "t,enc_left,enc_right\n0,0,0\n",
+        )
+        .unwrap();
+        let e = run(&args(&d.join("robot.toml"), &run_dir), Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(
+            text.contains("recording.csv") && text.contains("'other'"),
+            "{text}"
+        );
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn different_wheel_names_name_the_file() {
+        let d = dir("wheels");
+        std::fs::write(d.join("robot.toml"), DIFF).unwrap();
+        std::fs::write(
+            d.join("recording.csv"),
+            "t,enc_w1,enc_w2,x,y,theta\n0,0,0,0,0,0\n",
+        )
+        .unwrap();
+        let e = run(&args(&d.join("robot.toml"), &d), Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(text.contains("recording.csv"), "{text}");
+        std::fs::remove_dir_all(&d).ok();
+    }
+}

@@ -1,0 +1,1339 @@
+//! Calibration from whole trajectories: the robot's geometry fitted to one or more
+//! recordings with motion-capture ground truth (what OptiOdom does), not only to end
+//! points as UMBmark does.
+//!
+//! Shared by all recordings: the geometry (differential drive: mean wheel scale, E_d,
+//! E_b; any other wheel set: per wheel radius scale, mounting-angle offset and distance
+//! scale). Per recording (nuisance): the start pose and the recording parameters
+//! `time_offset_s` (poses later than encoders when positive) and `clock_ratio` (pose
+//! clock over encoder clock).
+//!
+//! What the data cannot tell is said, not guessed: the covariance of the fit (with the
+//! residuals' autocorrelation counted, since drift residuals are not independent
+//! samples) gives correlations; pairs that move together are reported `not_separable`
+//! with the recording that would separate them, and only their identifiable combination
+//! is fitted. Every parameter has a plausible range; a value outside is listed
+//! `implausible` with what it most likely stands in for.
+
+use crate::fit;
+use crate::replay::unwrap_angles;
+use calib_core::correction::Corrections;
+use calib_core::kinematics::Kinematics;
+use calib_core::odometry::{integrate_arc, Pose};
+use calib_core::robot::{Robot, RobotKind};
+use formats::recording::Recording;
+use nalgebra::{DMatrix, SymmetricEigen};
+use serde::Serialize;
+use std::cell::RefCell;
+use std::fmt;
+
+/// Unit of the position residuals (m): only scales the cost, uncertainties use the
+/// observed scatter.
+const RES_UNIT_M: f64 = 1e-3;
+/// Heading residuals count as position errors at this lever arm (m).
+const HEADING_LEVER_M: f64 = 0.1;
+/// Least pose samples per recording.
+pub const MIN_POSES: usize = 20;
+/// |correlation| above which two parameters are reported not separable.
+pub const CORR_LIMIT: f64 = 0.95;
+
+/// One geometry parameter of the fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GeomKind {
+    /// Differential drive: mean actual / nominal wheel diameter (catalogue `wheel_scale`).
+    Scale,
+    /// Differential drive: D_right / D_left with the mean kept (Borenstein's E_d).
+    Ed,
+    /// Actual / nominal wheelbase (Borenstein's E_b).
+    Eb,
+    /// Actual / nominal radius of one wheel.
+    Radius(usize),
+    /// Mounting angle offset of one wheel, rad (position and rolling direction turn).
+    Alpha(usize),
+    /// Actual / nominal distance of one wheel from the centre.
+    L(usize),
+    /// Where motion capture tracks, body frame, m (a recording parameter shared by the
+    /// recordings of one rig: a marker set not at the kinematic centre).
+    MarkerX,
+    MarkerY,
+}
+
+/// A parameter's description: name, null value, plausible range and what a value
+/// outside it most likely stands for.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParamSpec {
+    pub kind: GeomKind,
+    pub name: String,
+    /// Catalogue effect the parameter belongs to.
+    pub effect: &'static str,
+    pub nominal: f64,
+    pub plausible: (f64, f64),
+    #[serde(skip)]
+    pub stands_for: &'static str,
+}
+
+fn spec(
+    kind: GeomKind,
+    name: String,
+    effect: &'static str,
+    nominal: f64,
+    half: f64,
+    stands_for: &'static str,
+) -> ParamSpec {
+    ParamSpec {
+        kind,
+        name,
+        effect,
+        nominal,
+        plausible: (nominal - half, nominal + half),
+        stands_for,
+    }
+}
+
+/// Tyre radius: within a few per cent of nominal (wear, pressure, load).
+pub const RADIUS_RANGE: f64 = 0.05;
+/// Left/right diameter ratio.
+pub const ED_RANGE: f64 = 0.03;
+/// Wheelbase and wheel distances: the contact patch moves across a tyre's width.
+pub const BASE_RANGE: f64 = 0.08;
+/// Mounting angle, rad (3 degrees).
+pub const ALPHA_RANGE: f64 = 3.0 * std::f64::consts::PI / 180.0;
+
+const SCALE_STANDS: &str = "a wrong nominal diameter, gear ratio or encoder resolution (counts_per_rev_error), or longitudinal slip";
+const ED_STANDS: &str =
+    "slip on one side, a tilted floor or a drift the motion does not separate from wheel size";
+const EB_STANDS: &str =
+    "tyre scrub in turns (the effective wheelbase of a skidding robot) or castor drag";
+const ALPHA_STANDS: &str =
+    "rollers slipping sideways, or the motion-capture frame turned against the body";
+/// Motion-capture marker offset from the kinematic centre, m.
+pub const MARKER_RANGE: f64 = 0.02;
+const MARKER_STANDS: &str =
+    "a marker set far from the kinematic centre, or wheel slip in turns in place";
+const L_STANDS: &str = "scrub in rotation or a radius error the motion does not separate";
+
+/// The parameters fitted for `robot` (with `marker`: the motion-capture marker offset
+/// too, for omni robots).
+pub fn param_specs(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
+    let two_wheel_diff = robot.kind == RobotKind::DiffDrive && robot.wheels.len() == 2;
+    if two_wheel_diff {
+        return vec![
+            spec(
+                GeomKind::Scale,
+                "scale".into(),
+                "wheel_scale",
+                1.0,
+                RADIUS_RANGE,
+                SCALE_STANDS,
+            ),
+            spec(
+                GeomKind::Ed,
+                "ed".into(),
+                "wheel_diameter_mismatch",
+                1.0,
+                ED_RANGE,
+                ED_STANDS,
+            ),
+            spec(
+                GeomKind::Eb,
+                "eb".into(),
+                "wheelbase_error",
+                1.0,
+                BASE_RANGE,
+                EB_STANDS,
+            ),
+        ];
+    }
+    let marker_specs = [
+        spec(
+            GeomKind::MarkerX,
+            "marker_x_m".into(),
+            "marker_offset",
+            0.0,
+            MARKER_RANGE,
+            MARKER_STANDS,
+        ),
+        spec(
+            GeomKind::MarkerY,
+            "marker_y_m".into(),
+            "marker_offset",
+            0.0,
+            MARKER_RANGE,
+            MARKER_STANDS,
+        ),
+    ];
+    let mut v = Vec::new();
+    for (i, w) in robot.wheels.iter().enumerate() {
+        v.push(spec(
+            GeomKind::Radius(i),
+            format!("radius_scale_{}", w.name),
+            "wheel_diameter_mismatch",
+            1.0,
+            RADIUS_RANGE,
+            SCALE_STANDS,
+        ));
+    }
+    if robot.kind == RobotKind::Omni {
+        for (i, w) in robot.wheels.iter().enumerate() {
+            v.push(spec(
+                GeomKind::Alpha(i),
+                format!("alpha_offset_rad_{}", w.name),
+                "wheel_angle_error",
+                0.0,
+                ALPHA_RANGE,
+                ALPHA_STANDS,
+            ));
+        }
+        for (i, w) in robot.wheels.iter().enumerate() {
+            v.push(spec(
+                GeomKind::L(i),
+                format!("l_scale_{}", w.name),
+                "wheel_position_error",
+                1.0,
+                BASE_RANGE,
+                L_STANDS,
+            ));
+        }
+        if marker {
+            v.extend(marker_specs);
+        }
+    } else {
+        v.push(spec(
+            GeomKind::Eb,
+            "eb".into(),
+            "wheelbase_error",
+            1.0,
+            BASE_RANGE,
+            EB_STANDS,
+        ));
+    }
+    v
+}
+
+/// The robot with geometry parameters `values` (in `specs` order) applied.
+pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
+    let n = base.wheels.len();
+    let (mut rs, mut ls, mut da) = (vec![1.0; n], vec![1.0; n], vec![0.0; n]);
+    for (s, &x) in specs.iter().zip(values) {
+        match s.kind {
+            GeomKind::Scale => rs.iter_mut().for_each(|r| *r *= x),
+            GeomKind::Ed => {
+                for (i, w) in base.wheels.iter().enumerate() {
+                    // Left is the +y wheel (as calib-core's Corrections).
+                    rs[i] *= if w.position().1 >= 0.0 {
+                        2.0 / (x + 1.0)
+                    } else {
+                        2.0 * x / (x + 1.0)
+                    };
+                }
+            }
+            GeomKind::Eb => ls.iter_mut().for_each(|l| *l *= x),
+            GeomKind::Radius(i) => rs[i] *= x,
+            GeomKind::Alpha(i) => da[i] += x,
+            GeomKind::L(i) => ls[i] *= x,
+            GeomKind::MarkerX | GeomKind::MarkerY => {}
+        }
+    }
+    let mut r = base.clone();
+    for (i, w) in r.wheels.iter_mut().enumerate() {
+        w.radius_m *= rs[i];
+        w.l_m *= ls[i];
+        w.alpha_rad += da[i];
+    }
+    r
+}
+
+/// Why calibration cannot run.
+#[derive(Debug, Clone, PartialEq)]
+pub struct CalibrateError {
+    /// The recording at fault (its name as given), if one is.
+    pub recording: Option<String>,
+    pub message: String,
+}
+
+impl fmt::Display for CalibrateError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match &self.recording {
+            Some(r) => write!(f, "{r}: {}", self.message),
+            None => f.write_str(&self.message),
+        }
+    }
+}
+
+impl std::error::Error for CalibrateError {}
+
+/// A recording reduced to what calibration replays: wheel angles per row and poses.
+#[derive(Debug, Clone)]
+pub struct Series {
+    pub name: String,
+    pub t: Vec<f64>,
+    /// Per row, per wheel: angle increment to the next row (rad).
+    inc: Vec<Vec<f64>>,
+    pose_row: Vec<usize>,
+    px: Vec<f64>,
+    py: Vec<f64>,
+    pth: Vec<f64>,
+}
+
+impl Series {
+    /// Checks the recording has encoders for every wheel and ground truth.
+    pub fn new(name: &str, robot: &Robot, rec: &Recording) -> Result<Series, CalibrateError> {
+        let err = |m: String| CalibrateError {
+            recording: Some(name.to_string()),
+            message: m,
+        };
+        if rec.wheels.len() != robot.wheels.len() {
+            return Err(err(format!(
+                "the recording has {} wheels, the robot {}",
+                rec.wheels.len(),
+                robot.wheels.len()
+            )));
+        }
+        let rpc = robot
+            .drive
+            .rad_per_count()
+            .ok_or_else(|| err("the robot file gives no encoder resolution".into()))?;
+        let n = rec.len();
+        let mut angles = Vec::new();
+        for (w, s) in robot.wheels.iter().zip(&rec.wheels) {
+            let cells = s.enc.as_ref().ok_or_else(|| {
+                err(format!(
+                    "no encoder column for wheel '{}' (calibrate replays encoders)",
+                    w.name
+                ))
+            })?;
+            let mut last = cells
+                .iter()
+                .find_map(|c| *c)
+                .ok_or_else(|| err(format!("the encoder column of wheel '{}' is empty", w.name)))?;
+            let c0 = last;
+            let a: Vec<f64> = cells
+                .iter()
+                .map(|c| {
+                    if let Some(v) = c {
+                        last = *v;
+                    }
+                    (last - c0) as f64 * rpc
+                })
+                .collect();
+            angles.push(a);
+        }
+        let inc = (0..n.saturating_sub(1))
+            .map(|k| angles.iter().map(|a| a[k + 1] - a[k]).collect())
+            .collect();
+        let (mut pose_row, mut px, mut py, mut pth) = (vec![], vec![], vec![], vec![]);
+        for (i, x, y, th) in rec.pose_rows() {
+            pose_row.push(i);
+            px.push(x);
+            py.push(y);
+            pth.push(th);
+        }
+        if pose_row.len() < MIN_POSES {
+            return Err(err(format!(
+                "{} ground-truth pose samples (x, y, theta), calibrate needs at least {MIN_POSES}: record with motion capture",
+                pose_row.len()
+            )));
+        }
+        unwrap_angles(&mut pth);
+        Ok(Series {
+            name: name.to_string(),
+            t: rec.t.clone(),
+            inc,
+            pose_row,
+            px,
+            py,
+            pth,
+        })
+    }
+
+    pub fn pose_samples(&self) -> usize {
+        self.pose_row.len()
+    }
+
+    /// Dead-reckoned path (x, y, theta per row from the origin).
+    fn path(&self, kin: &Kinematics<f64>, out: &mut Path) {
+        out.clear();
+        let mut p = Pose::new(0.0, 0.0, 0.0);
+        out.push(p);
+        for inc in &self.inc {
+            p = integrate_arc(p, &kin.forward(inc));
+            out.push(p);
+        }
+    }
+}
+
+#[derive(Debug, Clone, Default)]
+struct Path {
+    x: Vec<f64>,
+    y: Vec<f64>,
+    th: Vec<f64>,
+}
+
+impl Path {
+    fn clear(&mut self) {
+        self.x.clear();
+        self.y.clear();
+        self.th.clear();
+    }
+    fn push(&mut self, p: Pose<f64>) {
+        self.x.push(p.x);
+        self.y.push(p.y);
+        self.th.push(p.theta);
+    }
+}
+
+/// Per-recording nuisance: start pose and recording parameters.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Nuisance {
+    pub x0_m: f64,
+    pub y0_m: f64,
+    pub theta0_rad: f64,
+    pub time_offset_s: f64,
+    pub clock_ratio: f64,
+}
+
+const NUIS: usize = 5;
+
+impl Nuisance {
+    fn from(v: &[f64]) -> Nuisance {
+        Nuisance {
+            x0_m: v[0],
+            y0_m: v[1],
+            theta0_rad: v[2],
+            time_offset_s: v[3],
+            clock_ratio: v[4],
+        }
+    }
+}
+
+/// Residuals (ex, ey, lever * eth per pose sample, in RES_UNIT_M) of one recording.
+fn residuals_into(s: &Series, path: &Path, nu: &Nuisance, marker: (f64, f64), out: &mut Vec<f64>) {
+    let t0 = s.t[0];
+    let (c, sn) = (nu.theta0_rad.cos(), nu.theta0_rad.sin());
+    let n = s.t.len();
+    let mut k = 0usize;
+    for j in 0..s.pose_row.len() {
+        let tj = s.t[s.pose_row[j]];
+        let tau = t0 + (tj - t0 - nu.time_offset_s) / nu.clock_ratio;
+        while k + 2 < n && s.t[k + 1] <= tau {
+            k += 1;
+        }
+        while k > 0 && s.t[k] > tau {
+            k -= 1;
+        }
+        let (x, y, th) = if n < 2 || tau <= s.t[0] {
+            (path.x[0], path.y[0], path.th[0])
+        } else if tau >= s.t[n - 1] {
+            (path.x[n - 1], path.y[n - 1], path.th[n - 1])
+        } else {
+            let f = (tau - s.t[k]) / (s.t[k + 1] - s.t[k]);
+            let l = |v: &[f64]| v[k] + (v[k + 1] - v[k]) * f;
+            (l(&path.x), l(&path.y), l(&path.th))
+        };
+        // The marker sits at `marker` in the body frame: it moves on a circle in a turn.
+        let (cm, sm) = ((nu.theta0_rad + th).cos(), (nu.theta0_rad + th).sin());
+        let wx = nu.x0_m + c * x - sn * y + cm * marker.0 - sm * marker.1;
+        let wy = nu.y0_m + sn * x + c * y + sm * marker.0 + cm * marker.1;
+        out.push((wx - s.px[j]) / RES_UNIT_M);
+        out.push((wy - s.py[j]) / RES_UNIT_M);
+        out.push((nu.theta0_rad + th - s.pth[j]) * HEADING_LEVER_M / RES_UNIT_M);
+    }
+}
+
+/// Position RMSE (m) from residuals laid out by `residuals_into`.
+fn position_rmse(r: &[f64]) -> f64 {
+    let n = r.len() / 3;
+    if n == 0 {
+        return 0.0;
+    }
+    let s: f64 = r.chunks(3).map(|c| c[0] * c[0] + c[1] * c[1]).sum::<f64>();
+    (s / n as f64).sqrt() * RES_UNIT_M
+}
+
+/// Dead reckoning from the first measured pose with the given robot and no fitted
+/// nuisance: the prediction a user gets (OptiOdom's held-out measure). Position RMSE, m.
+pub fn dead_reckoning_rmse(robot: &Robot, s: &Series) -> Option<f64> {
+    let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
+    let mut path = Path::default();
+    s.path(&kin, &mut path);
+    let k0 = s.pose_row[0];
+    let dth = s.pth[0] - path.th[k0];
+    let (c, sn) = (dth.cos(), dth.sin());
+    let mut acc = 0.0;
+    for j in 0..s.pose_row.len() {
+        let k = s.pose_row[j];
+        let (dx, dy) = (path.x[k] - path.x[k0], path.y[k] - path.y[k0]);
+        let ex = s.px[0] + c * dx - sn * dy - s.px[j];
+        let ey = s.py[0] + sn * dx + c * dy - s.py[j];
+        acc += ex * ex + ey * ey;
+    }
+    Some((acc / s.pose_row.len() as f64).sqrt())
+}
+
+/// The joint problem: geometry shared, nuisance per recording.
+struct Problem<'a> {
+    robot: &'a Robot,
+    specs: &'a [ParamSpec],
+    series: &'a [Series],
+    /// Prior rows: (weights over the geometry parameters, target, sigma).
+    priors: Vec<(Vec<f64>, f64, f64)>,
+    /// Prior rows are multiplied by this: sqrt(residual variance x autocorrelation
+    /// inflation) once known, so the prior weighs against what the data really tell.
+    prior_scale: f64,
+    cache: RefCell<(Vec<f64>, Vec<Path>)>,
+    /// Bound the geometry to the plausible ranges (else 10 times wider).
+    plausible_bounds: bool,
+}
+
+impl<'a> Problem<'a> {
+    fn new(robot: &'a Robot, specs: &'a [ParamSpec], series: &'a [Series]) -> Self {
+        // A weak prior at nominal (one plausible half-range) keeps directions the data
+        // do not constrain where they are; it is negligible against thousands of
+        // millimetre residuals wherever the data speak.
+        let g = specs.len();
+        let priors = specs
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                let mut w = vec![0.0; g];
+                w[i] = 1.0;
+                (w, s.nominal, s.plausible.1 - s.nominal)
+            })
+            .collect();
+        Problem {
+            robot,
+            specs,
+            series,
+            priors,
+            prior_scale: 1.0,
+            plausible_bounds: false,
+            cache: RefCell::new((vec![f64::NAN], vec![Path::default(); series.len()])),
+        }
+    }
+
+    fn paths(&self, geom: &[f64]) -> bool {
+        let mut c = self.cache.borrow_mut();
+        if c.0.as_slice() == geom {
+            return true;
+        }
+        let r = robot_with(self.robot, self.specs, geom);
+        let Ok(kin) = Kinematics::<f64>::new(&r, &Corrections::None) else {
+            c.0 = vec![f64::NAN];
+            return false;
+        };
+        for (s, p) in self.series.iter().zip(c.1.iter_mut()) {
+            s.path(&kin, p);
+        }
+        c.0 = geom.to_vec();
+        true
+    }
+
+    /// Data residuals of every recording, then prior rows.
+    fn residuals(&self, geom: &[f64], nuis: &[f64], with_prior: bool) -> Vec<f64> {
+        let mut out = Vec::new();
+        if !self.paths(geom) {
+            let m: usize = self.series.iter().map(|s| 3 * s.pose_samples()).sum();
+            return vec![1e12; m + if with_prior { self.priors.len() } else { 0 }];
+        }
+        let c = self.cache.borrow();
+        let get = |k: GeomKind| {
+            self.specs
+                .iter()
+                .position(|s| s.kind == k)
+                .map_or(0.0, |i| geom[i])
+        };
+        let marker = (get(GeomKind::MarkerX), get(GeomKind::MarkerY));
+        for (i, s) in self.series.iter().enumerate() {
+            let nu = Nuisance::from(&nuis[i * NUIS..(i + 1) * NUIS]);
+            residuals_into(s, &c.1[i], &nu, marker, &mut out);
+        }
+        if with_prior {
+            for (w, target, sigma) in &self.priors {
+                let v: f64 = w.iter().zip(geom).map(|(a, b)| a * b).sum();
+                out.push((v - target) / sigma * self.prior_scale);
+            }
+        }
+        out
+    }
+
+    fn data_len(&self) -> usize {
+        self.series.iter().map(|s| 3 * s.pose_samples()).sum()
+    }
+}
+
+fn nuisance_bounds(n: usize) -> (Vec<f64>, Vec<f64>) {
+    let lo = [-10.0, -10.0, -10.0, -2.0, 0.8];
+    let hi = [10.0, 10.0, 10.0, 2.0, 1.25];
+    (
+        (0..n).flat_map(|_| lo).collect(),
+        (0..n).flat_map(|_| hi).collect(),
+    )
+}
+
+fn geom_bounds(specs: &[ParamSpec]) -> (Vec<f64>, Vec<f64>) {
+    // Bounds far outside the plausible range: an implausible value must be seen to be
+    // reported, not clamped away.
+    specs
+        .iter()
+        .map(|s| {
+            let h = 10.0 * (s.plausible.1 - s.nominal);
+            (s.nominal - h, s.nominal + h)
+        })
+        .unzip()
+}
+
+/// The joint fit: geometry (free or fixed) and every recording's nuisance.
+struct Solved {
+    geom: Vec<f64>,
+    nuis: Vec<f64>,
+    /// Jacobian of the data residuals with respect to [geometry, nuisance] (free ones).
+    jac: DMatrix<f64>,
+    data_cost: f64,
+    evaluations: usize,
+}
+
+fn solve(p: &Problem, geom0: &[f64], nuis0: &[f64], fit_geom: bool) -> Solved {
+    let g = p.specs.len();
+    let (nlo, nhi) = nuisance_bounds(p.series.len());
+    let (glo, ghi) = if p.plausible_bounds {
+        p.specs.iter().map(|s| s.plausible).unzip()
+    } else {
+        geom_bounds(p.specs)
+    };
+    let (x0, lo, hi) = if fit_geom {
+        (
+            [geom0, nuis0].concat(),
+            [glo.as_slice(), &nlo].concat(),
+            [ghi.as_slice(), &nhi].concat(),
+        )
+    } else {
+        (nuis0.to_vec(), nlo, nhi)
+    };
+    let mut f = |x: &[f64]| -> Vec<f64> {
+        if fit_geom {
+            p.residuals(&x[..g], &x[g..], true)
+        } else {
+            p.residuals(geom0, x, false)
+        }
+    };
+    let (r, jac) = fit::levenberg_marquardt_jacobian(&mut f, &x0, &lo, &hi, 60);
+    let (geom, nuis) = if fit_geom {
+        (r.x[..g].to_vec(), r.x[g..].to_vec())
+    } else {
+        (geom0.to_vec(), r.x.clone())
+    };
+    let m = p.data_len();
+    let data = p.residuals(&geom, &nuis, false);
+    let data_cost = data.iter().map(|v| v * v).sum();
+    Solved {
+        geom,
+        nuis,
+        jac: jac.rows(0, m).into_owned(),
+        data_cost,
+        evaluations: r.evaluations,
+    }
+}
+
+/// Nuisance start: start pose at the first measured pose, clocks nominal.
+fn nuisance_start(series: &[Series]) -> Vec<f64> {
+    series
+        .iter()
+        .flat_map(|s| {
+            // The path starts at row 0; the first pose sample may come later, but the
+            // fit moves the start from there.
+            [s.px[0], s.py[0], s.pth[0], 0.0, 1.0]
+        })
+        .collect()
+}
+
+/// One fitted geometry parameter.
+#[derive(Debug, Clone, Serialize)]
+pub struct FittedParam {
+    pub name: String,
+    pub effect: &'static str,
+    pub value: f64,
+    /// One standard deviation, residual autocorrelation counted.
+    pub sigma: f64,
+    pub nominal: f64,
+    pub plausible: (f64, f64),
+}
+
+/// Fitted geometry of one wheel.
+#[derive(Debug, Clone, Serialize)]
+pub struct WheelGeometry {
+    pub name: String,
+    pub radius_m: f64,
+    pub l_m: f64,
+    pub alpha_deg: f64,
+}
+
+/// Firmware correction factors.
+#[derive(Debug, Clone, Serialize)]
+#[serde(untagged)]
+pub enum Factors {
+    /// `factors set` values of a differential drive.
+    Diff { c_l: f64, c_r: f64, e_b: f64 },
+    /// Per wheel: the command multiplier f_lat (1 / radius scale), f_lon = 1. Wheel
+    /// angle and position errors have no firmware factor: use the fitted robot file.
+    Wheels { f_lat: Vec<f64>, f_lon: f64 },
+}
+
+/// RMSE of one recording.
+#[derive(Debug, Clone, Serialize)]
+pub struct PerRecording {
+    pub name: String,
+    pub pose_samples: usize,
+    /// Nominal geometry, nuisance (start pose, clocks) fitted.
+    pub rmse_before_m: f64,
+    /// Fitted geometry, nuisance fitted.
+    pub rmse_after_m: f64,
+    /// Dead reckoning from the first measured pose, nominal and fitted geometry.
+    pub dead_reckoning_before_m: f64,
+    pub dead_reckoning_after_m: f64,
+    pub nuisance: Nuisance,
+    /// One standard deviation of `time_offset_s` and `clock_ratio` (autocorrelation
+    /// counted).
+    pub time_offset_sigma_s: f64,
+    pub clock_ratio_sigma: f64,
+}
+
+/// RMSE on a recording the fit did not see (dead reckoning from its first pose).
+#[derive(Debug, Clone, Serialize)]
+pub struct Heldout {
+    pub name: String,
+    pub rmse_before_m: f64,
+    pub rmse_after_m: f64,
+    /// With its start pose and clocks fitted (geometry as given): what the geometry
+    /// explains without the start heading's noise, which dead reckoning carries to the end.
+    pub aligned_before_m: f64,
+    pub aligned_after_m: f64,
+}
+
+/// Fit RMSE of `s` with the geometry fixed, only its start pose and clocks fitted.
+fn aligned_rmse(robot: &Robot, specs: &[ParamSpec], geom: &[f64], s: &Series) -> f64 {
+    let one = [s.clone()];
+    let p = Problem::new(robot, specs, &one);
+    let r = solve(&p, geom, &nuisance_start(&one), false);
+    position_rmse(&p.residuals(geom, &r.nuis, false))
+}
+
+/// Two parameters (or a parameter and the rest) the data do not separate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Inseparable {
+    pub params: [String; 2],
+    pub correlation: f64,
+    /// The combination the data do fix (unit vector over `params`).
+    pub identifiable: [f64; 2],
+    /// What recording would separate them.
+    pub advice: String,
+}
+
+/// A parameter outside its physical range.
+#[derive(Debug, Clone, Serialize)]
+pub struct Implausible {
+    pub name: String,
+    pub value: f64,
+    pub plausible: (f64, f64),
+    pub stands_for: String,
+}
+
+/// The result of [`calibrate`].
+#[derive(Debug, Clone, Serialize)]
+pub struct Calibration {
+    pub robot: String,
+    pub recordings: Vec<String>,
+    pub params: Vec<FittedParam>,
+    pub geometry: Vec<WheelGeometry>,
+    pub factors: Factors,
+    pub per_recording: Vec<PerRecording>,
+    /// All recordings together, nuisance fitted.
+    pub joint_rmse_before_m: f64,
+    pub joint_rmse_after_m: f64,
+    pub heldout: Option<Heldout>,
+    /// Leave one recording out: fit on the rest, dead-reckon the one left out.
+    pub leave_one_out: Vec<Heldout>,
+    pub leave_one_out_mean_before_m: Option<f64>,
+    pub leave_one_out_mean_after_m: Option<f64>,
+    pub leave_one_out_aligned_before_m: Option<f64>,
+    pub leave_one_out_aligned_after_m: Option<f64>,
+    /// Correlations between the geometry parameters (params order).
+    pub correlations: Vec<Vec<f64>>,
+    /// Pairs the data do not separate, by name (the JSON shape).
+    pub not_separable: Vec<[String; 2]>,
+    pub inseparable: Vec<Inseparable>,
+    /// Directions over the geometry the data leave unconstrained (unit vectors).
+    pub unconstrained: Vec<Vec<(String, f64)>>,
+    pub implausible: Vec<Implausible>,
+    pub notes: Vec<String>,
+    pub model_runs: usize,
+    #[serde(skip)]
+    pub fitted_robot: Robot,
+}
+
+/// Options of [`calibrate`].
+#[derive(Debug, Clone, Default)]
+pub struct CalOptions {
+    /// Run leave-one-out cross-validation (when there are at least 2 recordings).
+    pub leave_one_out: bool,
+    /// Also fit where motion capture tracks on the body (omni robots).
+    pub marker_offset: bool,
+}
+
+fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
+    use GeomKind::*;
+    let pair =
+        |x: GeomKind, y: GeomKind| (a.kind == x && b.kind == y) || (a.kind == y && b.kind == x);
+    if pair(Ed, Eb) {
+        "drive the square the other way too (clockwise and counter-clockwise, as UMBmark does)"
+            .into()
+    } else if pair(Scale, Eb) || matches!((a.kind, b.kind), (Radius(_), L(_)) | (L(_), Radius(_))) {
+        "add a straight run of known length and a turn in place".into()
+    } else if matches!(a.kind, Alpha(_)) || matches!(b.kind, Alpha(_)) {
+        "add pure translations in several directions without rotation, and a turn in place".into()
+    } else {
+        "add motion that moves them differently: straight runs both ways and turns in place both ways".into()
+    }
+}
+
+/// Fits the geometry of `robot` to `recordings` (name, recording) jointly.
+pub fn calibrate(
+    robot: &Robot,
+    recordings: &[(String, Recording)],
+    holdout: Option<&(String, Recording)>,
+    opts: &CalOptions,
+) -> Result<Calibration, CalibrateError> {
+    if recordings.is_empty() {
+        return Err(CalibrateError {
+            recording: None,
+            message: "no recording given".into(),
+        });
+    }
+    if robot.kind == RobotKind::WheeledLegged {
+        return Err(CalibrateError {
+            recording: None,
+            message: "calibrate fits differential and omni geometry; wheeled-legged robots are not supported".into(),
+        });
+    }
+    if Kinematics::<f64>::new(robot, &Corrections::None).is_err() {
+        return Err(CalibrateError {
+            recording: None,
+            message: "the robot's wheels cannot resolve the body twist".into(),
+        });
+    }
+    let series = recordings
+        .iter()
+        .map(|(n, r)| Series::new(n, robot, r))
+        .collect::<Result<Vec<_>, _>>()?;
+    let held = holdout.map(|(n, r)| Series::new(n, robot, r)).transpose()?;
+    let specs = param_specs(robot, opts.marker_offset);
+    let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
+    let mut notes = Vec::new();
+
+    // Nominal geometry, nuisance fitted: the "before".
+    let mut p = Problem::new(robot, &specs, &series);
+    let before = solve(&p, &nominal, &nuisance_start(&series), false);
+    let before_res = p.residuals(&nominal, &before.nuis, false);
+    let mut runs = before.evaluations;
+
+    // Joint fit, the prior weighed by the nominal residuals first (directions the data
+    // do not constrain must not wander off while the fit starts).
+    p.prior_scale = noise_scale(&p, &before);
+    let mut fitted = solve(&p, &nominal, &before.nuis, true);
+    runs += fitted.evaluations;
+    // Weigh the plausibility prior against the data's real information (MAP), and refit.
+    p.prior_scale = noise_scale(&p, &fitted);
+    fitted = solve(&p, &fitted.geom, &fitted.nuis, true);
+    runs += fitted.evaluations;
+    let g = specs.len();
+    let (mut cov, inflation) = covariance(&p, &fitted);
+    let mut corr = correlations(&cov, g);
+    // Not separable pairs: fit only the combination the data fix.
+    let mut insep = Vec::new();
+    for a in 0..g {
+        for b in a + 1..g {
+            let c = corr[a][b];
+            let (sa, sb) = (cov[(a, a)].sqrt(), cov[(b, b)].sqrt());
+            let (da, db) = (
+                (fitted.geom[a] - specs[a].nominal).abs(),
+                (fitted.geom[b] - specs[b].nominal).abs(),
+            );
+            // "Uncertainty larger than the value" counts only when the uncertainty is material
+            // against the plausible range: a parameter fitted 0 ± 0.0002 is known, not lost.
+            let (ra, rb) = (
+                0.1 * (specs[a].plausible.1 - specs[a].nominal),
+                0.1 * (specs[b].plausible.1 - specs[b].nominal),
+            );
+            let weak = c.abs() > 0.5 && (sa > da.max(ra) || sb > db.max(rb));
+            if c.abs() > CORR_LIMIT || weak {
+                // Well-determined direction of the 2x2 block: the eigenvector with the
+                // smaller variance.
+                let blk =
+                    nalgebra::Matrix2::new(cov[(a, a)], cov[(a, b)], cov[(a, b)], cov[(b, b)]);
+                let e = SymmetricEigen::new(blk);
+                let i_small = if e.eigenvalues[0] < e.eigenvalues[1] {
+                    0
+                } else {
+                    1
+                };
+                let good = e.eigenvectors.column(i_small);
+                let sgn = if good[0] < 0.0 { -1.0 } else { 1.0 };
+                insep.push(Inseparable {
+                    params: [specs[a].name.clone(), specs[b].name.clone()],
+                    correlation: c,
+                    identifiable: [sgn * good[0], sgn * good[1]],
+                    advice: advice(&specs[a], &specs[b]),
+                });
+            }
+        }
+    }
+    notes.push(format!(
+        "uncertainties count the residuals' autocorrelation (variance x{inflation:.0})"
+    ));
+    // What the data ask for outside the physical ranges is reported, and the geometry
+    // is refitted within them: an implausible value stands in for something else and
+    // must not be written to a robot.
+    let implausible: Vec<Implausible> = specs
+        .iter()
+        .zip(&fitted.geom)
+        .filter(|(s, v)| **v < s.plausible.0 || **v > s.plausible.1)
+        .map(|(s, v)| Implausible {
+            name: s.name.clone(),
+            value: *v,
+            plausible: s.plausible,
+            stands_for: s.stands_for.to_string(),
+        })
+        .collect();
+    if !implausible.is_empty() {
+        let unbounded = p.residuals(&fitted.geom, &fitted.nuis, false);
+        notes.push(format!(
+            "geometry fitted within the plausible ranges; unbounded it reaches {:.2} mm (fit RMSE) with the implausible values listed",
+            position_rmse(&unbounded) * 1e3
+        ));
+        p.plausible_bounds = true;
+        fitted = solve(&p, &fitted.geom, &fitted.nuis, true);
+        runs += fitted.evaluations;
+        (cov, _) = covariance(&p, &fitted);
+        corr = correlations(&cov, g);
+    }
+    let after_res = p.residuals(&fitted.geom, &fitted.nuis, false);
+    let fitted_robot = robot_with(robot, &specs, &fitted.geom);
+
+    // Unconstrained directions: eigenvectors of the correlation matrix with tiny
+    // eigenvalues.
+    let mut unconstrained = Vec::new();
+    if g > 1 {
+        let cm = DMatrix::from_fn(g, g, |i, j| corr[i][j]);
+        let e = SymmetricEigen::new(cm);
+        for k in 0..g {
+            if e.eigenvalues[k] < 1e-2 {
+                let v = e.eigenvectors.column(k);
+                let mut dir: Vec<(String, f64)> = (0..g)
+                    .filter(|&i| v[i].abs() > 0.1)
+                    .map(|i| (specs[i].name.clone(), v[i]))
+                    .collect();
+                if dir.first().is_some_and(|d| d.1 < 0.0) {
+                    dir.iter_mut().for_each(|d| d.1 = -d.1);
+                }
+                unconstrained.push(dir);
+            }
+        }
+    }
+
+    // Per recording.
+    let mut per_recording = Vec::new();
+    let mut offs = (0, 0);
+    for (i, s) in series.iter().enumerate() {
+        let m = 3 * s.pose_samples();
+        offs.1 = offs.0 + m;
+        per_recording.push(PerRecording {
+            name: s.name.clone(),
+            pose_samples: s.pose_samples(),
+            rmse_before_m: position_rmse(&before_res[offs.0..offs.1]),
+            rmse_after_m: position_rmse(&after_res[offs.0..offs.1]),
+            dead_reckoning_before_m: dead_reckoning_rmse(robot, s).unwrap_or(f64::NAN),
+            dead_reckoning_after_m: dead_reckoning_rmse(&fitted_robot, s).unwrap_or(f64::NAN),
+            nuisance: Nuisance::from(&fitted.nuis[i * NUIS..(i + 1) * NUIS]),
+            time_offset_sigma_s: cov[(g + i * NUIS + 3, g + i * NUIS + 3)].max(0.0).sqrt(),
+            clock_ratio_sigma: cov[(g + i * NUIS + 4, g + i * NUIS + 4)].max(0.0).sqrt(),
+        });
+        offs.0 = offs.1;
+    }
+    let heldout = held.as_ref().map(|h| Heldout {
+        name: h.name.clone(),
+        rmse_before_m: dead_reckoning_rmse(robot, h).unwrap_or(f64::NAN),
+        aligned_before_m: aligned_rmse(robot, &specs, &nominal, h),
+        aligned_after_m: aligned_rmse(robot, &specs, &fitted.geom, h),
+        rmse_after_m: dead_reckoning_rmse(&fitted_robot, h).unwrap_or(f64::NAN),
+    });
+
+    // Leave one out: the same procedure (pairs pinned as in the joint fit) on the rest.
+    let mut leave_one_out = Vec::new();
+    if opts.leave_one_out && series.len() >= 2 {
+        for i in 0..series.len() {
+            let rest: Vec<Series> = series
+                .iter()
+                .enumerate()
+                .filter(|(j, _)| *j != i)
+                .map(|(_, s)| s.clone())
+                .collect();
+            let mut q = Problem::new(robot, &specs, &rest);
+            q.priors = p.priors.clone();
+            q.prior_scale = p.prior_scale;
+            q.plausible_bounds = p.plausible_bounds;
+            let nuis: Vec<f64> = (0..series.len())
+                .filter(|j| *j != i)
+                .flat_map(|j| fitted.nuis[j * NUIS..(j + 1) * NUIS].to_vec())
+                .collect();
+            let f = solve(&q, &nominal, &nuis, true);
+            runs += f.evaluations;
+            let r = robot_with(robot, &specs, &f.geom);
+            leave_one_out.push(Heldout {
+                name: series[i].name.clone(),
+                rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
+                rmse_after_m: dead_reckoning_rmse(&r, &series[i]).unwrap_or(f64::NAN),
+                aligned_before_m: per_recording[i].rmse_before_m,
+                aligned_after_m: aligned_rmse(robot, &specs, &f.geom, &series[i]),
+            });
+        }
+    }
+    let mean = |f: &dyn Fn(&Heldout) -> f64| {
+        (!leave_one_out.is_empty())
+            .then(|| leave_one_out.iter().map(f).sum::<f64>() / leave_one_out.len() as f64)
+    };
+
+    let params: Vec<FittedParam> = specs
+        .iter()
+        .enumerate()
+        .map(|(i, s)| FittedParam {
+            name: s.name.clone(),
+            effect: s.effect,
+            value: fitted.geom[i],
+            sigma: cov[(i, i)].max(0.0).sqrt(),
+            nominal: s.nominal,
+            plausible: s.plausible,
+        })
+        .collect();
+    let mut implausible = implausible;
+    for pr in &per_recording {
+        let nu = pr.nuisance;
+        if nu.time_offset_s.abs() > 0.5 {
+            implausible.push(Implausible {
+                name: format!("{}: time_offset_s", pr.name),
+                value: nu.time_offset_s,
+                plausible: (-0.5, 0.5),
+                stands_for:
+                    "a t column that does not match the encoders (check the logger's clock)".into(),
+            });
+        }
+        if (nu.clock_ratio - 1.0).abs() > 0.05 {
+            implausible.push(Implausible {
+                name: format!("{}: clock_ratio", pr.name),
+                value: nu.clock_ratio,
+                plausible: (0.95, 1.05),
+                stands_for: "resampled or mis-stamped ground truth".into(),
+            });
+        }
+    }
+
+    let geometry = fitted_robot
+        .wheels
+        .iter()
+        .map(|w| WheelGeometry {
+            name: w.name.to_string(),
+            radius_m: w.radius_m,
+            l_m: w.l_m,
+            alpha_deg: w.alpha_rad.to_degrees(),
+        })
+        .collect();
+    let factors = if specs.iter().any(|s| s.kind == GeomKind::Ed) {
+        let scale = |k: GeomKind| {
+            specs
+                .iter()
+                .position(|s| s.kind == k)
+                .map_or(1.0, |i| fitted.geom[i])
+        };
+        let (sc, ed, eb) = (
+            scale(GeomKind::Scale),
+            scale(GeomKind::Ed),
+            scale(GeomKind::Eb),
+        );
+        Factors::Diff {
+            c_l: sc * 2.0 / (ed + 1.0),
+            c_r: sc * 2.0 * ed / (ed + 1.0),
+            e_b: eb,
+        }
+    } else {
+        if specs
+            .iter()
+            .any(|s| matches!(s.kind, GeomKind::Alpha(_) | GeomKind::L(_)))
+        {
+            notes.push(
+                "wheel angle and position have no firmware factor: use --write-robot to carry them"
+                    .into(),
+            );
+        }
+        Factors::Wheels {
+            f_lat: fitted_robot
+                .wheels
+                .iter()
+                .zip(&robot.wheels)
+                .map(|(f, n)| n.radius_m / f.radius_m)
+                .collect(),
+            f_lon: 1.0,
+        }
+    };
+
+    Ok(Calibration {
+        robot: robot.name.to_string(),
+        recordings: series.iter().map(|s| s.name.clone()).collect(),
+        params,
+        geometry,
+        factors,
+        joint_rmse_before_m: position_rmse(&before_res),
+        joint_rmse_after_m: position_rmse(&after_res),
+        per_recording,
+        heldout,
+        leave_one_out_mean_before_m: mean(&|h| h.rmse_before_m),
+        leave_one_out_mean_after_m: mean(&|h| h.rmse_after_m),
+        leave_one_out_aligned_before_m: mean(&|h| h.aligned_before_m),
+        leave_one_out_aligned_after_m: mean(&|h| h.aligned_after_m),
+        leave_one_out,
+        correlations: corr,
+        not_separable: insep.iter().map(|i| i.params.clone()).collect(),
+        inseparable: insep,
+        unconstrained,
+        implausible,
+        notes,
+        model_runs: runs,
+        fitted_robot,
+    })
+}
+
+/// sqrt(residual variance x autocorrelation inflation), in residual units.
+fn noise_scale(p: &Problem, s: &Solved) -> f64 {
+    let m = s.jac.nrows();
+    let dof = m.saturating_sub(s.jac.ncols()).max(1) as f64;
+    (s.data_cost / dof * autocorrelation_inflation(p, s)).sqrt()
+}
+
+/// Lag-1 autocorrelation of the residual series (per component): an AR(1) series' mean
+/// has (1 + rho) / (1 - rho) times the variance of independent samples.
+fn autocorrelation_inflation(p: &Problem, s: &Solved) -> f64 {
+    let m = s.jac.nrows();
+    let r = p.residuals(&s.geom, &s.nuis, false);
+    let (mut num, mut den) = (0.0, 0.0);
+    for c in 0..3 {
+        let v: Vec<f64> = r.iter().skip(c).step_by(3).copied().collect();
+        for w in v.windows(2) {
+            num += w[0] * w[1];
+            den += w[0] * w[0];
+        }
+    }
+    let rho = if den > 0.0 {
+        (num / den).clamp(0.0, 0.999)
+    } else {
+        0.0
+    };
+    ((1.0 + rho) / (1.0 - rho)).min(m as f64 / 10.0).max(1.0)
+}
+
+/// Covariance of [geometry, nuisance] from what the data tell (the plausibility prior
+/// enters only as a ridge 1000 ranges wide, so a direction the data do not constrain
+/// shows as one), scaled by the residual variance and the autocorrelation inflation
+/// (returned).
+fn covariance(p: &Problem, s: &Solved) -> (DMatrix<f64>, f64) {
+    let m = s.jac.nrows();
+    let np = s.jac.ncols();
+    let g = p.specs.len();
+    let mut info = s.jac.transpose() * &s.jac;
+    let dof = m.saturating_sub(np).max(1) as f64;
+    let s2 = (s.data_cost / dof).max(1e-12);
+    let inflation = autocorrelation_inflation(p, s);
+    for (w, _, sigma) in &p.priors {
+        for a in 0..g {
+            for b in 0..g {
+                info[(a, b)] += w[a] * w[b] / (sigma * sigma) * 1e-6 * s2 * inflation;
+            }
+        }
+    }
+    let cov = info
+        .clone()
+        .try_inverse()
+        .unwrap_or_else(|| DMatrix::from_element(np, np, f64::INFINITY));
+    (cov * (s2 * inflation), inflation)
+}
+
+fn correlations(cov: &DMatrix<f64>, g: usize) -> Vec<Vec<f64>> {
+    (0..g)
+        .map(|a| {
+            (0..g)
+                .map(|b| {
+                    let d = (cov[(a, a)] * cov[(b, b)]).sqrt();
+                    if a == b {
+                        1.0
+                    } else if d > 0.0 && d.is_finite() {
+                        (cov[(a, b)] / d).clamp(-1.0, 1.0)
+                    } else {
+                        0.0
+                    }
+                })
+                .collect()
+        })
+        .collect()
+}
+
+impl Calibration {
+    /// The fitted robot file text (all geometry), with a header naming the recordings.
+    pub fn robot_toml(&self) -> String {
+        format!(
+            "# {} with geometry fitted by wheelcal calibrate from {}\n{}",
+            self.robot,
+            self.recordings.join(", "),
+            formats::robot_file::to_toml(&self.fitted_robot)
+        )
+    }
+}
+
+fn mm(v: f64) -> String {
+    format!("{:.2} mm", v * 1e3)
+}
+
+impl fmt::Display for Calibration {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "calibrate {}: {} recording(s), geometry shared, start pose and clocks per recording",
+            self.robot,
+            self.recordings.len()
+        )?;
+        writeln!(f, "geometry:")?;
+        for p in &self.params {
+            let flag = if self.implausible.iter().any(|i| i.name == p.name) {
+                "  (unbounded: implausible, see below)"
+            } else {
+                ""
+            };
+            writeln!(
+                f,
+                "  {:<24} {:.5} ± {:.5}  (nominal {}, plausible {:.4}..{:.4}){flag}",
+                p.name, p.value, p.sigma, p.nominal, p.plausible.0, p.plausible.1
+            )?;
+        }
+        for w in &self.geometry {
+            writeln!(
+                f,
+                "  wheel {:<8} radius {:.5} m, l {:.5} m, alpha {:.3} deg",
+                w.name, w.radius_m, w.l_m, w.alpha_deg
+            )?;
+        }
+        match &self.factors {
+            Factors::Diff { c_l, c_r, e_b } => writeln!(
+                f,
+                "firmware factors: factors set --c-l {c_l:.6} --c-r {c_r:.6} --e-b {e_b:.6}"
+            )?,
+            Factors::Wheels { f_lat, f_lon } => writeln!(
+                f,
+                "firmware factors: f_lat {} f_lon {f_lon:.6}",
+                f_lat
+                    .iter()
+                    .map(|v| format!("{v:.6}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            )?,
+        }
+        writeln!(
+            f,
+            "fit RMSE (start pose and clocks fitted): joint {} -> {}",
+            mm(self.joint_rmse_before_m),
+            mm(self.joint_rmse_after_m)
+        )?;
+        for r in &self.per_recording {
+            writeln!(
+                f,
+                "  {:<24} {} -> {}   dead reckoning {} -> {}   time_offset {:+.3} s, clock_ratio {:.4}",
+                r.name,
+                mm(r.rmse_before_m),
+                mm(r.rmse_after_m),
+                mm(r.dead_reckoning_before_m),
+                mm(r.dead_reckoning_after_m),
+                r.nuisance.time_offset_s,
+                r.nuisance.clock_ratio
+            )?;
+        }
+        if let Some(h) = &self.heldout {
+            writeln!(
+                f,
+                "held out {}: {} -> {} (dead reckoning, nominal -> fitted); {} -> {} with its start pose and clocks fitted",
+                h.name,
+                mm(h.rmse_before_m),
+                mm(h.rmse_after_m),
+                mm(h.aligned_before_m),
+                mm(h.aligned_after_m)
+            )?;
+        }
+        if !self.leave_one_out.is_empty() {
+            writeln!(f, "leave one out (fit on the rest; the one left out dead-reckoned, and aligned: start pose and clocks fitted):")?;
+            for h in &self.leave_one_out {
+                writeln!(
+                    f,
+                    "  {:<24} {} -> {}   aligned {} -> {}",
+                    h.name,
+                    mm(h.rmse_before_m),
+                    mm(h.rmse_after_m),
+                    mm(h.aligned_before_m),
+                    mm(h.aligned_after_m)
+                )?;
+            }
+            if let (Some(a), Some(b), Some(c), Some(d)) = (
+                self.leave_one_out_mean_before_m,
+                self.leave_one_out_mean_after_m,
+                self.leave_one_out_aligned_before_m,
+                self.leave_one_out_aligned_after_m,
+            ) {
+                writeln!(
+                    f,
+                    "  mean                     {} -> {}   aligned {} -> {}",
+                    mm(a),
+                    mm(b),
+                    mm(c),
+                    mm(d)
+                )?;
+            }
+        }
+        if self.inseparable.is_empty() {
+            writeln!(
+                f,
+                "identifiability: every parameter is separable from these recordings"
+            )?;
+        }
+        for i in &self.inseparable {
+            writeln!(
+                f,
+                "not separable: {} and {} (correlation {:+.3}); the data fix only {:.3}*{} {:+.3}*{}, the rest rests on the plausibility prior; to separate them: {}",
+                i.params[0], i.params[1], i.correlation, i.identifiable[0], i.params[0], i.identifiable[1], i.params[1], i.advice
+            )?;
+        }
+        for d in &self.unconstrained {
+            writeln!(
+                f,
+                "unconstrained direction: {}",
+                d.iter()
+                    .map(|(n, v)| format!("{v:+.2} {n}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            )?;
+        }
+        for i in &self.implausible {
+            writeln!(
+                f,
+                "implausible: {} = {:.5} outside {:.4}..{:.4}; most likely stands in for {}",
+                i.name, i.value, i.plausible.0, i.plausible.1, i.stands_for
+            )?;
+        }
+        for n in &self.notes {
+            writeln!(f, "note: {n}")?;
+        }
+        Ok(())
+    }
+}

@@ -1,0 +1,157 @@
+//! Several recordings of one robot at once: the geometry is shared (fitted jointly by
+//! [`crate::calibrate`], start pose and clocks per recording), then each recording is
+//! diagnosed against that shared geometry for what is left. Every finding says which
+//! recordings carry it: a finding present in only some recordings is reported as such,
+//! not as a property of the robot.
+
+use crate::calibrate::{calibrate, CalOptions, CalibrateError, Calibration};
+use crate::{diagnose, Finding, Options};
+use calib_core::robot::Robot;
+use formats::recording::Recording;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::fmt;
+
+/// One recording's part of a joint diagnosis.
+#[derive(Debug, Clone, Serialize)]
+pub struct RecordingResult {
+    pub name: String,
+    pub rows: usize,
+    /// Ground RMSE with the nominal geometry and with the shared geometry (start pose and
+    /// clocks fitted), m.
+    pub rmse_nominal_m: f64,
+    pub rmse_shared_geometry_m: f64,
+    /// Diagnosis of what the shared geometry leaves in this recording.
+    pub verdict: String,
+    pub findings: Vec<Finding>,
+    pub rmse_final_m: f64,
+    /// Geometry parameters this recording alone moves away from nominal (more than three
+    /// of its own sigmas, and separable in it).
+    pub geometry_evidence: Vec<String>,
+}
+
+/// The joint diagnosis.
+#[derive(Debug, Clone, Serialize)]
+pub struct MultiReport {
+    pub robot: String,
+    /// Shared geometry, its identifiability and plausibility, per-recording nuisance.
+    pub geometry: Calibration,
+    pub recordings: Vec<RecordingResult>,
+    /// Finding id or geometry parameter -> recordings that carry it.
+    pub carried_by: BTreeMap<String, Vec<String>>,
+    pub joint_rmse_nominal_m: f64,
+    pub joint_rmse_shared_geometry_m: f64,
+}
+
+/// Diagnoses `recordings` of `robot` jointly.
+pub fn diagnose_many(
+    robot: &Robot,
+    recordings: &[(String, Recording)],
+    options: &Options,
+) -> Result<MultiReport, CalibrateError> {
+    let cal = calibrate(
+        robot,
+        recordings,
+        None,
+        &CalOptions {
+            leave_one_out: recordings.len() >= 3,
+            ..CalOptions::default()
+        },
+    )?;
+    let mut carried_by: BTreeMap<String, Vec<String>> = BTreeMap::new();
+    let mut out = Vec::new();
+    for (i, (name, rec)) in recordings.iter().enumerate() {
+        let per = &cal.per_recording[i];
+        // Which geometry parameters this recording shows on its own.
+        let own = calibrate(robot, &recordings[i..=i], None, &CalOptions::default())?;
+        let geometry_evidence: Vec<String> = own
+            .params
+            .iter()
+            .filter(|p| (p.value - p.nominal).abs() > 3.0 * p.sigma)
+            .filter(|p| !own.not_separable.iter().any(|pair| pair.contains(&p.name)))
+            .map(|p| p.name.clone())
+            .collect();
+        for g in &geometry_evidence {
+            carried_by.entry(g.clone()).or_default().push(name.clone());
+        }
+        // Recording artefacts (late or fast pose clock) are removed before physics.
+        let rec = &crate::recording_stage::on_encoder_clock(rec, &per.nuisance);
+        let rep = diagnose(&cal.fitted_robot, rec, options).map_err(|e| CalibrateError {
+            recording: Some(name.clone()),
+            message: e.to_string(),
+        })?;
+        for f in &rep.findings {
+            carried_by
+                .entry(f.effect.clone())
+                .or_default()
+                .push(name.clone());
+        }
+        out.push(RecordingResult {
+            name: name.clone(),
+            rows: rec.len(),
+            rmse_nominal_m: per.rmse_before_m,
+            rmse_shared_geometry_m: per.rmse_after_m,
+            verdict: rep.verdict.clone(),
+            findings: rep.findings.clone(),
+            rmse_final_m: rep.rmse_final_m,
+            geometry_evidence,
+        });
+    }
+    Ok(MultiReport {
+        robot: robot.name.to_string(),
+        joint_rmse_nominal_m: cal.joint_rmse_before_m,
+        joint_rmse_shared_geometry_m: cal.joint_rmse_after_m,
+        geometry: cal,
+        recordings: out,
+        carried_by,
+    })
+}
+
+impl fmt::Display for MultiReport {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let n = self.recordings.len();
+        writeln!(
+            f,
+            "diagnose {}: {n} recordings jointly (geometry shared; start pose and clocks per recording)",
+            self.robot
+        )?;
+        writeln!(
+            f,
+            "joint ground RMSE: {:.2} mm nominal -> {:.2} mm with the shared geometry",
+            self.joint_rmse_nominal_m * 1e3,
+            self.joint_rmse_shared_geometry_m * 1e3
+        )?;
+        write!(f, "{}", self.geometry)?;
+        writeln!(f, "per recording (against the shared geometry):")?;
+        for r in &self.recordings {
+            writeln!(
+                f,
+                "  {:<24} {:.2} -> {:.2} mm (shared geometry) -> {:.2} mm; verdict {}; findings {}",
+                r.name,
+                r.rmse_nominal_m * 1e3,
+                r.rmse_shared_geometry_m * 1e3,
+                r.rmse_final_m * 1e3,
+                r.verdict,
+                if r.findings.is_empty() {
+                    "none".to_string()
+                } else {
+                    r.findings
+                        .iter()
+                        .map(|x| x.effect.as_str())
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                }
+            )?;
+        }
+        writeln!(f, "which recordings carry each finding:")?;
+        for (k, v) in &self.carried_by {
+            let all = if v.len() == n {
+                "all".to_string()
+            } else {
+                format!("only {} of {n}", v.len())
+            };
+            writeln!(f, "  {k:<24} {all}: {}", v.join(", "))?;
+        }
+        Ok(())
+    }
+}

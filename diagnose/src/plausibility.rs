@@ -1,0 +1,66 @@
+//! Physical ranges of the catalogue's parameters. A finding outside its range is not a
+//! property of the robot: it most likely stands in for something the catalogue lacks,
+//! so it is listed `implausible` (with that guess) and never becomes the verdict.
+
+use crate::calibrate::{ALPHA_RANGE, BASE_RANGE, ED_RANGE, RADIUS_RANGE};
+use crate::Finding;
+use serde::Serialize;
+
+/// A fitted parameter outside its physical range.
+#[derive(Debug, Clone, Serialize)]
+pub struct Implausible {
+    pub effect: String,
+    pub parameter: String,
+    pub value: f64,
+    pub plausible: (f64, f64),
+    pub stands_for: String,
+}
+
+/// (range, what a value outside most likely stands for) of a catalogue parameter.
+pub fn range(parameter: &str) -> Option<((f64, f64), &'static str)> {
+    let around = |c: f64, h: f64| (c - h, c + h);
+    if parameter.starts_with("radius_scale_") || parameter == "scale" {
+        return Some((
+            around(1.0, RADIUS_RANGE),
+            "wheel mounting angles or positions the catalogue did not fit (wheel_angle_error, wheel_position_error: try `wheelcal calibrate`), a wrong counts per revolution, or slip",
+        ));
+    }
+    if parameter.starts_with("alpha_offset_rad_") {
+        return Some((around(0.0, ALPHA_RANGE), "rollers slipping sideways"));
+    }
+    if parameter.starts_with("l_scale_") {
+        return Some((around(1.0, BASE_RANGE), "scrub in rotation"));
+    }
+    match parameter {
+        "ed" => Some((
+            around(1.0, ED_RANGE),
+            "slip on one side or a drift a one-direction run does not separate from wheel size",
+        )),
+        "eb" => Some((
+            around(1.0, BASE_RANGE),
+            "tyre scrub in turns or a wheel size error a one-direction run does not separate",
+        )),
+        _ => None,
+    }
+}
+
+/// The implausible parameters of `findings`.
+pub fn check(findings: &[Finding]) -> Vec<Implausible> {
+    let mut out = Vec::new();
+    for f in findings {
+        for (p, v) in &f.parameters {
+            if let Some(((lo, hi), why)) = range(p) {
+                if *v < lo || *v > hi {
+                    out.push(Implausible {
+                        effect: f.effect.clone(),
+                        parameter: p.clone(),
+                        value: *v,
+                        plausible: (lo, hi),
+                        stands_for: why.to_string(),
+                    });
+                }
+            }
+        }
+    }
+    out
+}

@@ -1,0 +1,258 @@
+//! `calibrate` on simulated recordings with known geometry (issue 10): every robot in
+//! robots/ that calibrate supports gets its geometry back within the fit's stated
+//! uncertainty; one-direction squares report E_d / E_b not separable, both directions
+//! separate them; recording artefacts (time offset, clock rate) are fitted as recording
+//! parameters with no physics reported.
+
+use calib_core::motion::{Direction, Program};
+use calib_core::robot::Robot;
+use diagnose::calibrate::{calibrate, param_specs, robot_with, CalOptions, Calibration};
+use formats::recording::Recording;
+use sim::{record, Motion, RandomMotion, RecordConfig, Surface};
+use std::path::Path;
+
+fn robot(name: &str) -> Robot {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../robots")
+        .join(format!("{name}.toml"));
+    formats::robot_file::load(&p).unwrap()
+}
+
+fn cfg(seed: u64) -> RecordConfig {
+    let mut c = RecordConfig {
+        row_rate_hz: 50.0,
+        ..RecordConfig::default()
+    };
+    c.sim.seed = seed;
+    c
+}
+
+fn square(truth: &Robot, dir: Direction, seed: u64) -> sim::SimRecording {
+    let motion = Motion::Program {
+        program: Box::new(Program::umbmark_square(1.0, dir)),
+        limits: Default::default(),
+    };
+    record(truth, &[], Surface::flat(), &motion, &cfg(seed)).unwrap()
+}
+
+fn random(truth: &Robot, seconds: f64, seed: u64) -> sim::SimRecording {
+    let motion = Motion::Random(RandomMotion {
+        duration_s: seconds,
+        ..RandomMotion::default()
+    });
+    record(truth, &[], Surface::flat(), &motion, &cfg(seed)).unwrap()
+}
+
+/// Every fitted parameter within 4 stated sigmas (plus `floor` for what the simulator
+/// does that a rigid kinematic model does not) of the truth.
+fn assert_recovered(c: &Calibration, truth: &[f64], floor: f64) {
+    for (p, t) in c.params.iter().zip(truth) {
+        assert!(
+            (p.value - t).abs() <= 4.0 * p.sigma + floor,
+            "{}: fitted {} ± {}, true {}\n{c}",
+            p.name,
+            p.value,
+            p.sigma,
+            t
+        );
+    }
+}
+
+#[test]
+fn differential_robots_recovered_from_both_directions() {
+    for name in ["mobolab", "robotest", "sweeper"] {
+        let nominal = robot(name);
+        let specs = param_specs(&nominal, false);
+        let truth = [0.99, 1.006, 1.03]; // scale, ed, eb: inside the plausible ranges
+        let actual = robot_with(&nominal, &specs, &truth);
+        let recs: Vec<(String, Recording)> = [Direction::Cw, Direction::Ccw]
+            .into_iter()
+            .enumerate()
+            .map(|(i, d)| (format!("{d:?}"), square(&actual, d, 3 + i as u64).recording))
+            .collect();
+        let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
+        assert!(c.not_separable.is_empty(), "{name}: {:?}", c.not_separable);
+        assert!(c.implausible.is_empty(), "{name}: {:?}", c.implausible);
+        assert_recovered(&c, &truth, 1e-3);
+        assert!(
+            c.joint_rmse_after_m < 0.5 * c.joint_rmse_before_m,
+            "{name}\n{c}"
+        );
+    }
+}
+
+#[test]
+fn one_direction_reports_ed_eb_not_separable() {
+    let nominal = robot("mobolab");
+    let specs = param_specs(&nominal, false);
+    let actual = robot_with(&nominal, &specs, &[1.0, 1.006, 1.03]);
+    for d in [Direction::Cw, Direction::Ccw] {
+        let recs = vec![("one".to_string(), square(&actual, d, 5).recording)];
+        let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
+        assert!(
+            c.not_separable.iter().any(|p| p[0] == "ed" && p[1] == "eb"),
+            "{d:?}: {:?}\n{c}",
+            c.not_separable
+        );
+    }
+}
+
+#[test]
+fn omni_robots_recovered_from_free_motion() {
+    for name in ["omni3", "omni4"] {
+        let nominal = robot(name);
+        let specs = param_specs(&nominal, false);
+        let n = nominal.wheels.len();
+        // radius scales, mounting angle offsets (rad), distance scales.
+        let mut truth = vec![];
+        truth.extend([1.01, 0.99, 1.0, 1.005][..n].iter());
+        truth.extend([0.01, -0.015, 0.0, 0.005][..n].iter());
+        truth.extend([1.02, 0.99, 1.0, 0.985][..n].iter());
+        let actual = robot_with(&nominal, &specs, &truth);
+        let recs = vec![("free".to_string(), random(&actual, 60.0, 9).recording)];
+        let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
+        println!("{c}");
+        assert!(c.implausible.is_empty(), "{name}: {:?}\n{c}", c.implausible);
+        assert_recovered(&c, &truth, 2e-3);
+        // Down to the simulated motion-capture noise (1 mm per axis).
+        assert!(c.joint_rmse_after_m < 2e-3, "{name}\n{c}");
+        if n == 3 {
+            // Three wheels: the nine parameters map one to one onto the kinematics.
+            for (p, t) in c.params.iter().zip(&truth) {
+                assert!((p.value - t).abs() < 2e-3, "{}: {} vs {t}", p.name, p.value);
+            }
+        } else {
+            // Four wheels: consistent encoders fix only 9 of the 12 numbers (any J' with
+            // pinv(J') J = I fits); that must be said, not guessed.
+            assert!(
+                !c.unconstrained.is_empty() || !c.not_separable.is_empty(),
+                "{c}"
+            );
+        }
+    }
+}
+
+#[test]
+fn wheeled_legged_is_refused_clearly() {
+    let nominal = robot("wlr");
+    let recs = vec![("free".to_string(), random(&nominal, 5.0, 1).recording)];
+    let e = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap_err();
+    assert!(e.to_string().contains("wheeled-legged"), "{e}");
+}
+
+/// A recording of the nominal robot whose pose columns are replaced by the truth at
+/// encoder time `(t - offset) / ratio`, as a late or fast motion-capture clock writes it.
+fn with_clock(rec: &sim::SimRecording, offset_s: f64, ratio: f64) -> Recording {
+    let mut r = rec.recording.clone();
+    let t = &r.t;
+    let at = |tau: f64| -> (f64, f64, f64) {
+        let k = t.partition_point(|&v| v <= tau).clamp(1, t.len() - 1);
+        let (a, b) = (&rec.truth[k - 1], &rec.truth[k]);
+        let f = ((tau - t[k - 1]) / (t[k] - t[k - 1])).clamp(0.0, 1.0);
+        (
+            a.pose.x + (b.pose.x - a.pose.x) * f,
+            a.pose.y + (b.pose.y - a.pose.y) * f,
+            a.pose.theta + (b.pose.theta - a.pose.theta) * f,
+        )
+    };
+    let t0 = t[0];
+    let poses: Vec<Option<(f64, f64, f64)>> = (0..t.len())
+        .map(|k| {
+            r.x[k]
+                .is_some()
+                .then(|| at(t0 + (t[k] - t0 - offset_s) / ratio))
+        })
+        .collect();
+    for (k, p) in poses.into_iter().enumerate() {
+        if let Some((x, y, th)) = p {
+            r.x[k] = Some(x);
+            r.y[k] = Some(y);
+            r.theta[k] = Some(th);
+        }
+    }
+    r
+}
+
+#[test]
+fn time_offset_and_clock_rate_are_recording_parameters() {
+    let nominal = robot("mobolab");
+    let sim = random(&nominal, 60.0, 21);
+    for (offset, ratio) in [(0.1, 1.0), (0.0, 1.02), (-0.05, 0.99)] {
+        let recs = vec![("clock".to_string(), with_clock(&sim, offset, ratio))];
+        let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
+        let nu = c.per_recording[0].nuisance;
+        assert!(
+            (nu.time_offset_s - offset).abs() < 0.01,
+            "offset {offset}: {}\n{c}",
+            nu.time_offset_s
+        );
+        assert!(
+            (nu.clock_ratio - ratio).abs() < 1e-3,
+            "ratio {ratio}: {}\n{c}",
+            nu.clock_ratio
+        );
+        // No physics: the geometry stays nominal within its uncertainty.
+        assert_recovered(&c, &[1.0, 1.0, 1.0], 1e-3);
+        assert!(c.implausible.is_empty(), "{:?}", c.implausible);
+    }
+}
+
+#[test]
+fn no_ground_truth_is_refused_naming_the_recording() {
+    let nominal = robot("mobolab");
+    let mut rec = random(&nominal, 5.0, 2).recording;
+    for k in 0..rec.len() {
+        rec.x[k] = None;
+        rec.y[k] = None;
+        rec.theta[k] = None;
+    }
+    let e = calibrate(
+        &nominal,
+        &[("runs/no-mocap.csv".to_string(), rec)],
+        None,
+        &CalOptions::default(),
+    )
+    .unwrap_err();
+    let text = e.to_string();
+    assert!(text.starts_with("runs/no-mocap.csv:"), "{text}");
+    assert!(text.contains("motion capture"), "{text}");
+}
+
+#[test]
+fn another_robots_recording_is_refused_naming_the_file() {
+    // A recording of the omni robot read against the differential robot: its wheel
+    // columns do not exist, and the reader names the file.
+    let omni = robot("omni3");
+    let dir = std::env::temp_dir().join(format!("calib-bad-{}", std::process::id()));
+    let sim = random(&omni, 3.0, 4);
+    sim.write_dir(&dir).unwrap();
+    let file = dir.join("recording.csv");
+    let e = Recording::load(&file, &robot("mobolab")).unwrap_err();
+    assert!(e.to_string().contains("recording.csv"), "{e}");
+    std::fs::remove_dir_all(&dir).ok();
+}
+
+#[test]
+fn diagnose_names_a_mean_wheel_scale() {
+    // Both tyres 1 % smaller than nominal: no ed (the ratio is 1), no eb; the catalogue's
+    // wheel_scale expresses it.
+    let nominal = robot("mobolab");
+    let effect = sim::Effect::parse(
+        "wheel_diameter_mismatch=radius_scale_left:0.99,radius_scale_right:0.99",
+    )
+    .unwrap();
+    let motion = Motion::Random(RandomMotion {
+        duration_s: 60.0,
+        ..RandomMotion::default()
+    });
+    let rec = record(&nominal, &[effect], Surface::flat(), &motion, &cfg(17))
+        .unwrap()
+        .recording;
+    let rep = diagnose::diagnose(&nominal, &rec, &diagnose::Options::default()).unwrap();
+    println!("{rep}");
+    assert_eq!(rep.verdict, "wheel_scale", "{rep}");
+    let scale = rep.findings[0].parameters["scale"];
+    // A tenth of the hidden 1 %.
+    assert!((scale - 0.99).abs() < 1e-3, "{scale}");
+    assert!(rep.implausible.is_empty());
+}

@@ -1,0 +1,194 @@
+//! The recording stage (issue 10 §4): artefacts of how a run was logged are found, fitted
+//! and reported under their own catalogue ids, removed before the physics is judged, and
+//! never reported as physics. Each case is a clean simulated run of the mobolab robot
+//! (no physical effect hidden) with one logging artefact put in.
+
+use calib_core::robot::Robot;
+use diagnose::{diagnose, Options, Report};
+use formats::recording::Recording;
+use sim::{record, Motion, RandomMotion, RecordConfig, Surface};
+use std::path::Path;
+
+fn robot() -> Robot {
+    let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml");
+    formats::robot_file::load(&p).unwrap()
+}
+
+fn clean(r: &Robot) -> sim::SimRecording {
+    let mut cfg = RecordConfig {
+        row_rate_hz: 50.0,
+        ..RecordConfig::default()
+    };
+    cfg.sim.seed = 31;
+    let motion = Motion::Random(RandomMotion {
+        duration_s: 60.0,
+        ..RandomMotion::default()
+    });
+    record(r, &[], Surface::flat(), &motion, &cfg).unwrap()
+}
+
+fn run(r: &Robot, rec: &Recording) -> Report {
+    let rep = diagnose(r, rec, &Options::default()).unwrap();
+    println!("{rep}");
+    rep
+}
+
+fn artefact<'a>(rep: &'a Report, id: &str) -> &'a diagnose::recording_stage::Artefact {
+    rep.recording_artefacts
+        .iter()
+        .find(|a| a.id == id)
+        .unwrap_or_else(|| panic!("no {id} in {:?}", rep.recording_artefacts))
+}
+
+/// No physics: nothing in the ground or actuator catalogue is named.
+fn assert_no_physics(rep: &Report) {
+    assert!(rep.findings.is_empty(), "{:?}", rep.findings);
+    assert_eq!(rep.verdict, diagnose::VERDICT_NONE);
+}
+
+/// Pose columns replaced by the truth at encoder time (t - offset) / ratio, with each
+/// sample's simulated measurement noise kept.
+fn with_clock(rec: &sim::SimRecording, offset_s: f64, ratio: f64) -> Recording {
+    let mut r = rec.recording.clone();
+    let t = r.t.clone();
+    let t0 = t[0];
+    for k in 0..t.len() {
+        if r.x[k].is_none() {
+            continue;
+        }
+        let tau = t0 + (t[k] - t0 - offset_s) / ratio;
+        let j = t.partition_point(|&v| v <= tau).clamp(1, t.len() - 1);
+        let (a, b) = (&rec.truth[j - 1], &rec.truth[j]);
+        let f = ((tau - t[j - 1]) / (t[j] - t[j - 1])).clamp(0.0, 1.0);
+        // Keep the simulated motion-capture noise of this sample.
+        let tr = &rec.truth[k].pose;
+        let (nx, ny, nth) = (
+            r.x[k].unwrap() - tr.x,
+            r.y[k].unwrap() - tr.y,
+            r.theta[k].unwrap() - tr.theta,
+        );
+        r.x[k] = Some(a.pose.x + (b.pose.x - a.pose.x) * f + nx);
+        r.y[k] = Some(a.pose.y + (b.pose.y - a.pose.y) * f + ny);
+        r.theta[k] = Some(a.pose.theta + (b.pose.theta - a.pose.theta) * f + nth);
+    }
+    r
+}
+
+#[test]
+fn clean_run_has_no_artefact_and_no_physics() {
+    let r = robot();
+    let rep = run(&r, &clean(&r).recording);
+    assert!(
+        rep.recording_artefacts.is_empty(),
+        "{:?}",
+        rep.recording_artefacts
+    );
+    assert_no_physics(&rep);
+}
+
+#[test]
+fn time_offset_is_fitted_and_removed() {
+    let r = robot();
+    let rep = run(&r, &with_clock(&clean(&r), 0.1, 1.0));
+    let a = artefact(&rep, "time_offset");
+    // Within a tenth of a 20 ms row.
+    assert!((a.parameters["time_offset_s"] - 0.1).abs() < 2e-3, "{a}");
+    assert!(a.removed);
+    assert_no_physics(&rep);
+}
+
+#[test]
+fn clock_rate_is_fitted_and_removed() {
+    let r = robot();
+    let rep = run(&r, &with_clock(&clean(&r), 0.0, 1.02));
+    let a = artefact(&rep, "clock_rate");
+    assert!((a.parameters["clock_ratio"] - 1.02).abs() < 2e-4, "{a}");
+    assert_no_physics(&rep);
+}
+
+#[test]
+fn duplicated_and_missing_samples_are_timed() {
+    let r = robot();
+    let mut rec = clean(&r).recording;
+    // Rows 500 and 1500 repeat the row before (a logger writing a stale sample).
+    let stale = [500usize, 1500];
+    for &k in &stale {
+        for w in rec.wheels.iter_mut() {
+            if let Some(e) = &mut w.enc {
+                e[k] = e[k - 1];
+            }
+            if let Some(c) = &mut w.cmd {
+                c[k] = c[k - 1];
+            }
+        }
+        rec.x[k] = rec.x[k - 1];
+        rec.y[k] = rec.y[k - 1];
+        rec.theta[k] = rec.theta[k - 1];
+    }
+    let dup_t: Vec<f64> = stale.iter().map(|&k| rec.t[k]).collect();
+    // Rows 1000..1003 lost (3 samples).
+    let lost_t: Vec<f64> = (1000..1003).map(|k| rec.t[k]).collect();
+    let keep: Vec<bool> = (0..rec.len()).map(|k| !(1000..1003).contains(&k)).collect();
+    let pick = |v: &mut Vec<Option<f64>>| {
+        *v = v
+            .iter()
+            .zip(&keep)
+            .filter(|(_, k)| **k)
+            .map(|(x, _)| *x)
+            .collect()
+    };
+    pick(&mut rec.x);
+    pick(&mut rec.y);
+    pick(&mut rec.theta);
+    rec.t = rec
+        .t
+        .iter()
+        .zip(&keep)
+        .filter(|(_, k)| **k)
+        .map(|(x, _)| *x)
+        .collect();
+    for w in rec.wheels.iter_mut() {
+        if let Some(e) = &mut w.enc {
+            *e = e
+                .iter()
+                .zip(&keep)
+                .filter(|(_, k)| **k)
+                .map(|(x, _)| *x)
+                .collect();
+        }
+        if let Some(c) = &mut w.cmd {
+            *c = c
+                .iter()
+                .zip(&keep)
+                .filter(|(_, k)| **k)
+                .map(|(x, _)| *x)
+                .collect();
+        }
+    }
+    let rep = run(&r, &rec);
+    let a = artefact(&rep, "sample_glitch");
+    assert_eq!(a.duplicated_at_s, dup_t);
+    assert_eq!(a.missing_at_s.len(), 3);
+    for (m, l) in a.missing_at_s.iter().zip(&lost_t) {
+        assert!((m - l).abs() < 1e-6, "{m} vs {l}");
+    }
+    assert_no_physics(&rep);
+}
+
+#[test]
+fn counts_per_rev_off_by_two_is_found_per_wheel() {
+    let r = robot();
+    let mut rec = clean(&r).recording;
+    // The left encoder really gives twice the configured counts per revolution.
+    if let Some(e) = &mut rec.wheels[0].enc {
+        for c in e.iter_mut().flatten() {
+            *c *= 2;
+        }
+    }
+    let rep = run(&r, &rec);
+    let a = artefact(&rep, "counts_per_rev_error");
+    let name = format!("counts_ratio_{}", r.wheels[0].name);
+    assert_eq!(a.parameters[&name], 2.0, "{a}");
+    assert_eq!(a.parameters.len(), 1, "only the left wheel: {a}");
+    assert_no_physics(&rep);
+}
