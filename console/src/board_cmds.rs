@@ -223,9 +223,8 @@ pub fn run_umbmark<L: Read + Write>(
     dir: Direction,
     side_m: f64,
     log_rate_hz: u16,
-) -> Result<()> {
-    c.run_program(ProgramSpec::Umbmark { side_m, dir }, log_rate_hz)
-        .map_err(Into::into)
+) -> Result<Duration> {
+    start_program(c, ProgramSpec::Umbmark { side_m, dir }, log_rate_hz)
 }
 
 /// Starts an omni path.
@@ -234,9 +233,39 @@ pub fn run_omni<L: Read + Write>(
     path: OmniPath,
     length_m: f64,
     log_rate_hz: u16,
-) -> Result<()> {
-    c.run_program(ProgramSpec::Omni { path, length_m }, log_rate_hz)
-        .map_err(Into::into)
+) -> Result<Duration> {
+    start_program(c, ProgramSpec::Omni { path, length_m }, log_rate_hz)
+}
+
+/// Checks a program with the board's own rule ([`ProgramSpec::validate`] against the
+/// board's robot and arena) before anything is sent, then starts it. Returns how long to
+/// wait for it before giving up: a minute plus a minute per metre of its longest length,
+/// which the check has bounded to the arena.
+pub fn start_program<L: Read + Write>(
+    c: &mut Client<L>,
+    program: ProgramSpec,
+    log_rate_hz: u16,
+) -> Result<Duration> {
+    let params = c.params()?;
+    let robot = &params.robot;
+    let arena = params.safety.arena_m as f64;
+    if let Err(why) = program.validate(robot.wheel_count(), robot.kind, arena) {
+        bail!("not sent: {why} (the board's arena is {arena} m; `factors`/params set it)");
+    }
+    let longest = match &program {
+        ProgramSpec::Umbmark { side_m, .. } => *side_m,
+        ProgramSpec::Omni { length_m, .. } => *length_m,
+        ProgramSpec::Custom(_) => arena,
+    };
+    c.run_program(program, log_rate_hz)?;
+    Ok(program_time_limit(longest))
+}
+
+/// A minute plus a minute per metre, for any finite length (negative or NaN count as 0,
+/// huge values saturate): never panics, whatever the number.
+pub fn program_time_limit(length_m: f64) -> Duration {
+    let s = 60.0 + 60.0 * length_m.max(0.0);
+    Duration::try_from_secs_f64(s).unwrap_or(Duration::from_secs(24 * 3600))
 }
 
 /// Drives at a twist for a while, refreshing the command faster than the board's

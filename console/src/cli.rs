@@ -535,8 +535,8 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                     log_rate,
                     no_wait,
                 } => {
-                    board_cmds::run_umbmark(client, dir.into(), side, log_rate)?;
-                    (no_wait, Duration::from_secs_f64(60.0 + side * 60.0))
+                    let limit = board_cmds::run_umbmark(client, dir.into(), side, log_rate)?;
+                    (no_wait, limit)
                 }
                 RunCmd::Omni {
                     path,
@@ -544,8 +544,8 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                     log_rate,
                     no_wait,
                 } => {
-                    board_cmds::run_omni(client, path.into(), length, log_rate)?;
-                    (no_wait, Duration::from_secs_f64(60.0 + length * 60.0))
+                    let limit = board_cmds::run_omni(client, path.into(), length, log_rate)?;
+                    (no_wait, limit)
                 }
             };
             let s = if no_wait {

@@ -2,7 +2,7 @@
 
 use crate::link::PortStream;
 use crate::virtual_board::{board_flash, TrialTruth, VirtualBoard};
-use anyhow::{Context, Result};
+use anyhow::{bail, Context, Result};
 use formats::robot_file;
 use sim::{Effect, SimConfig, SimRobot, Surface};
 use std::io::Write;
@@ -95,9 +95,7 @@ pub fn run(
     master.set_timeout(std::time::Duration::ZERO)?;
     let pty = slave.name().context("pseudo-terminal without a name")?;
     if let Some(link) = &opts.link {
-        let _ = std::fs::remove_file(link);
-        std::os::unix::fs::symlink(&pty, link)
-            .with_context(|| format!("cannot create the link {}", link.display()))?;
+        claim_link(link, Path::new(&pty))?;
     }
     let truth_file = opts
         .truth
@@ -127,7 +125,44 @@ pub fn run(
     );
     drop(slave);
     if let Some(link) = &opts.link {
-        let _ = std::fs::remove_file(link);
+        release_link(link, Path::new(&pty));
     }
     Ok(())
+}
+
+/// Points `link` at `pty`. Only a symbolic link may be replaced (a virtual board's link
+/// left by an earlier session, which points at a pseudo-terminal or nowhere); a file, a
+/// directory or any other link is never touched: `--link ~/notes.txt` must not delete
+/// the notes.
+pub fn claim_link(link: &Path, pty: &Path) -> Result<()> {
+    match std::fs::symlink_metadata(link) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => {}
+        Err(e) => return Err(e).with_context(|| format!("cannot use --link {}", link.display())),
+        Ok(m) if m.file_type().is_symlink() => {
+            let target = std::fs::read_link(link).unwrap_or_default();
+            let ours = target.starts_with("/dev/pts") || !target.exists();
+            if !ours {
+                bail!(
+                    "--link {} is a link to {}, not to a pseudo-terminal: not replaced (remove it or choose another path)",
+                    link.display(),
+                    target.display()
+                );
+            }
+            std::fs::remove_file(link)
+                .with_context(|| format!("cannot replace the old link {}", link.display()))?;
+        }
+        Ok(_) => bail!(
+            "--link {} exists and is not a link: not replaced (remove it or choose another path)",
+            link.display()
+        ),
+    }
+    std::os::unix::fs::symlink(pty, link)
+        .with_context(|| format!("cannot create the link {}", link.display()))
+}
+
+/// Removes `link` if it still points at `pty` (another board may have claimed it since).
+pub fn release_link(link: &Path, pty: &Path) {
+    if std::fs::read_link(link).is_ok_and(|t| t == pty) {
+        let _ = std::fs::remove_file(link);
+    }
 }

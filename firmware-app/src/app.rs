@@ -682,8 +682,12 @@ impl<'a> App<'a> {
         if self.moving() {
             return Err(Rejection::Busy);
         }
-        spec.validate(self.n, self.params.robot.kind)
-            .map_err(Rejection::InvalidProgram)?;
+        spec.validate(
+            self.n,
+            self.params.robot.kind,
+            self.params.safety.arena_m as f64,
+        )
+        .map_err(Rejection::InvalidProgram)?;
         let program = match &spec {
             ProgramSpec::Umbmark { side_m, dir } => Program::umbmark_square(*side_m, *dir),
             ProgramSpec::Omni { path, length_m } => Program::omni_path(*path, *length_m),

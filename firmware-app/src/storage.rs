@@ -20,8 +20,11 @@ use sequential_storage::map::{MapConfig, MapStorage};
 
 const KEY_CORRECTIONS: u8 = 1;
 const KEY_PARAMS: u8 = 2;
-/// Bumped when the stored layout changes; older values are then reported invalid.
-const FORMAT: u8 = 1;
+/// Bumped when an item's stored layout changes; older values are then reported invalid.
+/// Per item, so a new parameter layout does not throw away a saved calibration.
+const FORMAT_CORRECTIONS: u8 = 1;
+/// 2: `Safety::arena_m` added.
+const FORMAT_PARAMS: u8 = 2;
 /// Largest stored value (params with eight wheels are ~600 bytes) plus key and alignment.
 const BUF: usize = 1024;
 const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
@@ -82,16 +85,20 @@ impl<F: NorFlash> Store<F> {
         let (params, params_state) = match self.fetch(KEY_PARAMS).await {
             Ok(None) => (defaults::params(), Stored::Missing),
             Err(_) => (defaults::params(), Stored::StorageError),
-            Ok(Some(b)) => match unpack::<Params>(b).filter(|p| p.validate().is_ok()) {
-                Some(p) => (p, Stored::Loaded),
-                None => (defaults::params(), Stored::Invalid),
-            },
+            Ok(Some(b)) => {
+                match unpack::<Params>(b, FORMAT_PARAMS).filter(|p| p.validate().is_ok()) {
+                    Some(p) => (p, Stored::Loaded),
+                    None => (defaults::params(), Stored::Invalid),
+                }
+            }
         };
         let (corrections, corr_state) = match self.fetch(KEY_CORRECTIONS).await {
             Ok(None) => (Corrections::None, Stored::Missing),
             Err(_) => (Corrections::None, Stored::StorageError),
             Ok(Some(b)) => {
-                match unpack::<Corrections>(b).filter(|c| c.validate(&params.robot).is_ok()) {
+                match unpack::<Corrections>(b, FORMAT_CORRECTIONS)
+                    .filter(|c| c.validate(&params.robot).is_ok())
+                {
                     Some(c) => (c, Stored::Loaded),
                     None => (Corrections::None, Stored::Invalid),
                 }
@@ -111,8 +118,10 @@ impl<F: NorFlash> Store<F> {
     pub async fn save(&mut self, item: &PersistItem) -> Result<(), StoreError> {
         let mut value = [0u8; BUF - 8];
         let (key, len) = match item {
-            PersistItem::Corrections(c) => (KEY_CORRECTIONS, pack(c, &mut value)?),
-            PersistItem::Params(p) => (KEY_PARAMS, pack(p, &mut value)?),
+            PersistItem::Corrections(c) => {
+                (KEY_CORRECTIONS, pack(FORMAT_CORRECTIONS, c, &mut value)?)
+            }
+            PersistItem::Params(p) => (KEY_PARAMS, pack(FORMAT_PARAMS, p, &mut value)?),
         };
         self.map
             .store_item(&mut self.buf, &key, &&value[..len])
@@ -121,10 +130,10 @@ impl<F: NorFlash> Store<F> {
     }
 }
 
-/// `FORMAT | postcard | crc32(FORMAT | postcard)`.
-fn pack<T: serde::Serialize>(v: &T, out: &mut [u8]) -> Result<usize, StoreError> {
+/// `format | postcard | crc32(format | postcard)`.
+fn pack<T: serde::Serialize>(format: u8, v: &T, out: &mut [u8]) -> Result<usize, StoreError> {
     let body = out.len().checked_sub(4).ok_or(StoreError::TooBig)?;
-    out[0] = FORMAT;
+    out[0] = format;
     let n = 1 + postcard::to_slice(v, &mut out[1..body])
         .map_err(|_| StoreError::TooBig)?
         .len();
@@ -133,10 +142,10 @@ fn pack<T: serde::Serialize>(v: &T, out: &mut [u8]) -> Result<usize, StoreError>
     Ok(n + 4)
 }
 
-fn unpack<'a, T: serde::Deserialize<'a>>(b: &'a [u8]) -> Option<T> {
+fn unpack<'a, T: serde::Deserialize<'a>>(b: &'a [u8], format: u8) -> Option<T> {
     let n = b.len().checked_sub(4)?;
     let (data, crc) = b.split_at(n);
-    if data.first() != Some(&FORMAT) || CRC32.checksum(data).to_le_bytes() != crc {
+    if data.first() != Some(&format) || CRC32.checksum(data).to_le_bytes() != crc {
         return None;
     }
     postcard::from_bytes(&data[1..]).ok()

@@ -598,3 +598,38 @@ fn app_new_never_runs_with_invalid_settings() {
     // The factors still fit the default differential drive.
     assert_eq!(app.corrections(), &good_c);
 }
+
+/// Issue 13.1: an omni robot was sent `--length=-50` and drove 50 m backwards. The board
+/// refuses every program outside its arena, with the reason, and nothing moves.
+#[test]
+fn programs_outside_the_arena_are_refused_and_nothing_moves() {
+    let mut b = bench();
+    let mut l = Link::new();
+    let omni = Params {
+        robot: presets::omni4(),
+        ..defaults::params()
+    };
+    l.call(&mut b, &Request::SetParams(omni));
+    for length_m in [-50.0, -1.5, 0.0, 10.5] {
+        let r = rejected(
+            &mut b,
+            &mut l,
+            Request::RunProgram {
+                program: ProgramSpec::Omni {
+                    path: calib_core::motion::OmniPath::W1,
+                    length_m,
+                },
+                log_rate_hz: 10,
+            },
+        );
+        assert!(
+            matches!(&r, Rejection::InvalidProgram(s) if s.contains("length_m")),
+            "{length_m}: {r:?}"
+        );
+    }
+    // A second of ticks after the refusals: the robot has not moved.
+    b.run_ms(1000);
+    let moved = (b.pose.x.powi(2) + b.pose.y.powi(2)).sqrt();
+    assert!(moved < 1e-9, "moved {moved} m");
+    assert!(b.omega.iter().all(|w| *w == 0.0), "{:?}", b.omega);
+}

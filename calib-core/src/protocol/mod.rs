@@ -88,7 +88,7 @@ Rejected(Rejection)|Nack(FrameError);\
 Corrections=None|DiffDrive{c_l:f64,c_r:f64,e_b:f64}|Omni{f_lat:Vec<f64,8>,f_lon:f64};\
 Params{robot:Robot,gains:PiGains,limits:ProfileLimits,safety:Safety};\
 Robot{name:String<32>,kind:RobotKind,drive:Drive,wheels:Vec<Wheel,8>,legs:Option<Legs>};\
-Safety{command_timeout_ms:u16,stall_timeout_ms:u16,stall_min_rate:f32,max_jump_counts:u32};\
+Safety{command_timeout_ms:u16,stall_timeout_ms:u16,stall_min_rate:f32,max_jump_counts:u32,arena_m:f32};\
 ProgramSpec=Umbmark{side_m:f64,dir:Direction}|Omni{path:OmniPath,length_m:f64}|Custom(Vec<Segment,32>);\
 Info{firmware:String<24>,protocol_version:u16,schema:u32,robot_kind:RobotKind,drive:DriveType,wheel_count:u8,\
 uptime_ms:u64,boot:BootReport,log_capacity:u32,record_size:u16};\

@@ -24,6 +24,10 @@ pub struct Safety {
     pub stall_min_rate: f32,
     /// An encoder moving more than this in one tick is a fault (a glitch or a wrap missed).
     pub max_jump_counts: u32,
+    /// Largest distance a program may drive (m): the size of the floor the robot runs
+    /// on. A UMBmark side, an omni path or a custom segment longer than this is refused,
+    /// so a typo (`--length=-50`, `--side 40`) never sends the robot across the lab.
+    pub arena_m: f32,
 }
 
 impl Default for Safety {
@@ -33,6 +37,7 @@ impl Default for Safety {
             stall_timeout_ms: 50,
             stall_min_rate: 0.5,
             max_jump_counts: 2000,
+            arena_m: 10.0,
         }
     }
 }
@@ -79,7 +84,7 @@ impl Params {
         let g = &self.gains;
         let l = &self.limits;
         let s = &self.safety;
-        let ranges: [(&'static str, f64, f64, f64); 13] = [
+        let ranges: [(&'static str, f64, f64, f64); 14] = [
             ("gains.kp", g.kp as f64, 0.0, 100.0),
             ("gains.ki", g.ki as f64, 0.0, 1000.0),
             ("gains.kff", g.kff as f64, 0.0, 100.0),
@@ -108,6 +113,7 @@ impl Params {
                 1.0,
                 32_767.0,
             ),
+            ("safety.arena_m", s.arena_m as f64, 0.5, 1000.0),
         ];
         for (name, value, min, max) in ranges {
             if !(min..=max).contains(&value) {
@@ -137,9 +143,17 @@ pub enum ProgramSpec {
 }
 
 impl ProgramSpec {
-    /// Checks every number is finite and within reach (segments of at most 100 m or
-    /// 100 rad, pauses of at most 10 min) and wheel indices exist.
-    pub fn validate(&self, wheel_count: usize, kind: RobotKind) -> Result<(), Reason> {
+    /// Checks every number is finite and within reach before anything moves: sides and
+    /// path lengths positive and at most `arena_m` (the board's [`Safety::arena_m`]),
+    /// custom straights and translations within the arena, turns of at most 100 rad,
+    /// pauses of at most 10 min, and that wheel indices exist. The board refuses a program
+    /// that fails, and the console runs the same check before sending.
+    pub fn validate(
+        &self,
+        wheel_count: usize,
+        kind: RobotKind,
+        arena_m: f64,
+    ) -> Result<(), Reason> {
         let fin = |v: f64, max: f64, what: &str| -> Result<(), Reason> {
             if v.is_finite() && v.abs() <= max {
                 Ok(())
@@ -153,7 +167,7 @@ impl ProgramSpec {
         };
         match self {
             ProgramSpec::Umbmark { side_m, .. } => {
-                fin(*side_m, 100.0, "side_m")?;
+                fin(*side_m, arena_m, "side_m")?;
                 if *side_m <= 0.0 {
                     return Err(reason(&"side_m must be positive"));
                 }
@@ -162,7 +176,10 @@ impl ProgramSpec {
                 if kind != RobotKind::Omni {
                     return Err(reason(&"omni paths need an omni robot"));
                 }
-                fin(*length_m, 100.0, "length_m")?;
+                fin(*length_m, arena_m, "length_m")?;
+                if *length_m <= 0.0 {
+                    return Err(reason(&"length_m must be positive"));
+                }
             }
             ProgramSpec::Custom(segs) => {
                 if segs.is_empty() {
@@ -170,14 +187,14 @@ impl ProgramSpec {
                 }
                 for s in segs {
                     match *s {
-                        Segment::Straight { distance_m } => fin(distance_m, 100.0, "distance_m")?,
+                        Segment::Straight { distance_m } => fin(distance_m, arena_m, "distance_m")?,
                         Segment::Turn { angle_rad } => fin(angle_rad, 100.0, "angle_rad")?,
                         Segment::Translate { dx_m, dy_m } => {
                             if kind != RobotKind::Omni {
                                 return Err(reason(&"translate segments need an omni robot"));
                             }
-                            fin(dx_m, 100.0, "dx_m")?;
-                            fin(dy_m, 100.0, "dy_m")?;
+                            fin(dx_m, arena_m, "dx_m")?;
+                            fin(dy_m, arena_m, "dy_m")?;
                         }
                         Segment::SingleWheel { wheel, angle_rad } => {
                             if wheel as usize >= wheel_count {

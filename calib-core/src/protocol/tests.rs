@@ -653,7 +653,7 @@ fn schema_golden() {
     std::println!("golden {golden:#010x}, fingerprint {SCHEMA_FINGERPRINT:#010x}");
     assert_eq!(
         (golden, SCHEMA_FINGERPRINT),
-        (0xa343aa12, 0xe6187f7b),
+        (0xc309426e, 0xd5f8e12a),
         "message types changed: update SCHEMA and these constants"
     );
 }
@@ -687,13 +687,78 @@ fn validation_messages() {
         .unwrap(),
     );
     assert!(bad
-        .validate(2, RobotKind::DiffDrive)
+        .validate(2, RobotKind::DiffDrive, 10.0)
         .unwrap_err()
         .contains("wheel 2"));
     let nan = ProgramSpec::Umbmark {
         side_m: f64::NAN,
         dir: Direction::Cw,
     };
-    assert!(nan.validate(2, RobotKind::DiffDrive).is_err());
+    assert!(nan.validate(2, RobotKind::DiffDrive, 10.0).is_err());
     assert_eq!(reason(&"y".repeat(300)).len(), REASON_LEN);
+}
+
+/// Issue 13.1: `run omni --length=-50` drove 50 m backwards. Every length a program drives
+/// must be positive (where a sign makes no sense) and within the arena.
+#[test]
+fn programs_outside_the_arena_or_negative_are_refused() {
+    let arena = Safety::default().arena_m as f64;
+    assert_eq!(arena, 10.0);
+    let omni = |length_m: f64| ProgramSpec::Omni {
+        path: OmniPath::W1,
+        length_m,
+    };
+    let square = |side_m: f64| ProgramSpec::Umbmark {
+        side_m,
+        dir: Direction::Ccw,
+    };
+    for bad in [-1.5, -50.0, 0.0, 10.001, 1e9, f64::INFINITY, f64::NAN] {
+        let e = omni(bad).validate(4, RobotKind::Omni, arena);
+        assert!(e.is_err(), "omni length {bad} accepted");
+        assert!(
+            square(bad)
+                .validate(2, RobotKind::DiffDrive, arena)
+                .is_err(),
+            "side {bad}"
+        );
+    }
+    assert!(omni(-1.5)
+        .validate(4, RobotKind::Omni, arena)
+        .unwrap_err()
+        .contains("positive"));
+    assert!(square(40.0)
+        .validate(2, RobotKind::DiffDrive, arena)
+        .unwrap_err()
+        .contains("side_m = 40"));
+    // At the limit and inside it: accepted; a larger arena accepts more.
+    assert_eq!(omni(10.0).validate(4, RobotKind::Omni, arena), Ok(()));
+    assert_eq!(square(4.0).validate(2, RobotKind::DiffDrive, arena), Ok(()));
+    assert_eq!(square(40.0).validate(2, RobotKind::DiffDrive, 50.0), Ok(()));
+    // A custom straight may go backwards, but not further than the arena.
+    let straight = |d: f64| {
+        ProgramSpec::Custom(Vec::from_slice(&[Segment::Straight { distance_m: d }]).unwrap())
+    };
+    assert_eq!(
+        straight(-2.0).validate(2, RobotKind::DiffDrive, arena),
+        Ok(())
+    );
+    assert!(straight(-11.0)
+        .validate(2, RobotKind::DiffDrive, arena)
+        .is_err());
+    // The arena itself is a validated setting.
+    let mut p = Params {
+        robot: presets::mobolab(),
+        gains: PiGains {
+            kp: 0.1,
+            ki: 1.0,
+            kff: 0.05,
+            kstatic: 0.0,
+            out_max: 1.0,
+        },
+        limits: ProfileLimits::default(),
+        safety: Safety::default(),
+    };
+    assert_eq!(p.validate(), Ok(()));
+    p.safety.arena_m = 0.1;
+    assert!(std::format!("{}", p.validate().unwrap_err()).contains("safety.arena_m"));
 }

@@ -109,18 +109,43 @@ impl Measure for Terminal {
                 odo.y * 1e3
             );
             let _ = std::io::stderr().flush();
-            let line = read_line()?;
-            let v: Vec<f64> = line
-                .split([' ', ',', '\t'])
-                .filter(|s| !s.is_empty())
-                .filter_map(|s| s.parse().ok())
-                .collect();
-            if v.len() == 2 && v.iter().all(|x| x.is_finite()) {
-                return Ok((v[0] / 1e3 - odo.x as f64, v[1] / 1e3 - odo.y as f64, None));
+            match parse_end_position(&read_line()?) {
+                Ok((x_mm, y_mm)) => {
+                    return Ok((x_mm / 1e3 - odo.x as f64, y_mm / 1e3 - odo.y as f64, None))
+                }
+                Err(why) => eprintln!("  {why}; type two numbers in millimetres, e.g. `12.5 -30`"),
             }
-            eprintln!("  please type two numbers in millimetres, e.g. `12.5 -30`");
         }
     }
+}
+
+/// Largest end position a person can type (mm): 100 m, far beyond any test path.
+const MAX_END_MM: f64 = 100_000.0;
+
+/// A typed end position: exactly two numbers in millimetres, separated by spaces, a comma
+/// or both; surrounding white space (the Enter key's newline) is ignored. Anything else is
+/// refused with the reason, never guessed at.
+pub fn parse_end_position(line: &str) -> std::result::Result<(f64, f64), String> {
+    let tokens: Vec<&str> = line
+        .trim()
+        .split(|c: char| c == ',' || c.is_whitespace())
+        .filter(|s| !s.is_empty())
+        .collect();
+    if tokens.len() != 2 {
+        return Err(format!("got {} values, need exactly two", tokens.len()));
+    }
+    let mut v = [0.0; 2];
+    for (slot, tok) in v.iter_mut().zip(&tokens) {
+        *slot = tok
+            .parse::<f64>()
+            .ok()
+            .filter(|x| x.is_finite())
+            .ok_or_else(|| format!("`{tok}` is not a number"))?;
+        if slot.abs() > MAX_END_MM {
+            return Err(format!("`{tok}` mm is more than 100 m from the start mark"));
+        }
+    }
+    Ok((v[0], v[1]))
 }
 
 /// A virtual board's truth (true end pose in the start frame, x along the start heading)
@@ -442,15 +467,11 @@ fn run_phase<L: Read + Write>(
             );
             m.ready(&what)?;
             m.say(&format!("{what}: running"));
-            match t {
+            let limit = match t {
                 Trial::Square(d) => board_cmds::run_umbmark(c, d, length, 10)?,
                 Trial::Path(p) => board_cmds::run_omni(c, p, length, 10)?,
-            }
-            let end = board_cmds::wait_program(
-                c,
-                Duration::from_secs_f64(120.0 + 60.0 * length),
-                |_| {},
-            )?;
+            };
+            let end = board_cmds::wait_program(c, limit + Duration::from_secs(60), |_| {})?;
             let trial = c
                 .trials()?
                 .trials
@@ -500,4 +521,37 @@ fn run_phase<L: Read + Write>(
 /// Removes a runs file (the demo starts clean each time).
 pub fn remove_runs(path: &Path) {
     let _ = std::fs::remove_file(path);
+}
+
+#[cfg(test)]
+mod tests {
+    use super::parse_end_position;
+
+    /// Issue 13.2: the prompt's own example was refused because of the newline, and
+    /// `1 2 3` was taken as (1, 2).
+    #[test]
+    fn typed_end_positions() {
+        assert_eq!(parse_end_position("12.5 -30\n"), Ok((12.5, -30.0)));
+        assert_eq!(parse_end_position("  12.5,-30 \r\n"), Ok((12.5, -30.0)));
+        assert_eq!(parse_end_position("12.5, -30"), Ok((12.5, -30.0)));
+        assert_eq!(parse_end_position("-0.5\t4e1\n"), Ok((-0.5, 40.0)));
+        for bad in [
+            "1 2 3\n",
+            "12.5\n",
+            "\n",
+            "12.5 abc\n",
+            "nan 1",
+            "1 inf",
+            "1e6 0",
+        ] {
+            let e = parse_end_position(bad).unwrap_err();
+            assert!(!e.is_empty(), "{bad:?}");
+        }
+        assert!(parse_end_position("1 2 3")
+            .unwrap_err()
+            .contains("3 values"));
+        assert!(parse_end_position("12.5 abc")
+            .unwrap_err()
+            .contains("`abc`"));
+    }
 }

@@ -1,0 +1,266 @@
+//! What a person does at the robot, through real processes and pseudo-terminals: the
+//! `wheelcal` binary against a `wheelcal sim-board` process, typed answers at the
+//! procedure's prompt, signals. Each test is a regression test of issue 13.
+
+use expectrl::{Eof, Expect, Regex, Session};
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+fn wheelcal() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_wheelcal"))
+}
+
+fn robot(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../robots")
+        .join(format!("{name}.toml"))
+}
+
+fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("wheelcal-at-robot-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+/// A `wheelcal sim-board` process; killed when dropped.
+struct Board {
+    child: Child,
+    link: PathBuf,
+}
+
+impl Board {
+    fn start(robot_name: &str, dir: &Path) -> Board {
+        let link = dir.join("board");
+        let child = wheelcal()
+            .args(["sim-board", "--speed", "max", "--robot"])
+            .arg(robot(robot_name))
+            .arg("--link")
+            .arg(&link)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("sim-board starts");
+        let t0 = Instant::now();
+        while !link.exists() {
+            assert!(t0.elapsed() < Duration::from_secs(20), "no link after 20 s");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Board { child, link }
+    }
+
+    fn run(&self, args: &[&str]) -> Output {
+        wheelcal()
+            .arg("--port")
+            .arg(&self.link)
+            .args(args)
+            .stdin(Stdio::null())
+            .output()
+            .expect("wheelcal runs")
+    }
+
+    fn status(&self) -> Value {
+        let o = self.run(&["--json", "status"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&o.stdout).expect("status JSON")
+    }
+}
+
+impl Drop for Board {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
+
+fn sigterm(child: &Child) {
+    let ok = Command::new("kill")
+        .args(["-TERM", &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(ok.success());
+}
+
+/// 13.1: `run omni --length=-1.5` panicked after the board had accepted the program, and
+/// `--length=-50 --no-wait` drove 50 m backwards.
+#[test]
+fn programs_outside_the_arena_are_refused_before_anything_moves() {
+    let dir = scratch("arena");
+    let board = Board::start("omni4", &dir);
+    for length in [
+        "--length=-1.5",
+        "--length=-50",
+        "--length=1e9",
+        "--length=NaN",
+    ] {
+        let o = board.run(&["run", "omni", "--path", "4W-1", length, "--no-wait"]);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{length}: {err}");
+        assert!(err.contains("length_m"), "{length}: {err}");
+        assert!(!err.contains("panicked"), "{length}: {err}");
+    }
+    let s = board.status();
+    assert_eq!(s["mode"], "Idle", "{s}");
+    let (x, y) = (
+        s["pose"]["x"].as_f64().unwrap(),
+        s["pose"]["y"].as_f64().unwrap(),
+    );
+    assert!(x.hypot(y) < 1e-6, "the robot moved to ({x}, {y})");
+    let trials = board.run(&["--json", "log", "list"]);
+    let v: Value = serde_json::from_slice(&trials.stdout).expect("log list JSON");
+    assert_eq!(v["trials"].as_array().map(Vec::len), Some(0), "{v}");
+}
+
+/// 13.4: `--link PATH` deleted an existing file, and SIGTERM left a dangling link.
+#[test]
+fn sim_board_link_never_replaces_a_file_and_is_removed_on_sigterm() {
+    let dir = scratch("link");
+    let notes = dir.join("notes.txt");
+    std::fs::write(&notes, "measurements of Tuesday").unwrap();
+    let o = wheelcal()
+        .args(["sim-board", "--robot"])
+        .arg(robot("mobolab"))
+        .arg("--link")
+        .arg(&notes)
+        .output()
+        .expect("runs");
+    assert_eq!(o.status.code(), Some(1));
+    assert!(String::from_utf8_lossy(&o.stderr).contains("not a link"));
+    assert_eq!(
+        std::fs::read_to_string(&notes).unwrap(),
+        "measurements of Tuesday"
+    );
+
+    for signal_name in ["TERM", "INT"] {
+        let mut board = Board::start("mobolab", &dir);
+        assert!(std::fs::read_link(&board.link)
+            .unwrap()
+            .starts_with("/dev/pts"));
+        if signal_name == "TERM" {
+            sigterm(&board.child);
+        } else {
+            let ok = Command::new("kill")
+                .args(["-INT", &board.child.id().to_string()])
+                .status()
+                .unwrap();
+            assert!(ok.success());
+        }
+        let t0 = Instant::now();
+        let status = loop {
+            if let Some(s) = board.child.try_wait().unwrap() {
+                break s;
+            }
+            assert!(
+                t0.elapsed() < Duration::from_secs(10),
+                "still running after SIG{signal_name}"
+            );
+            std::thread::sleep(Duration::from_millis(20));
+        };
+        assert!(status.success(), "SIG{signal_name}: {status:?}");
+        assert!(
+            std::fs::symlink_metadata(&board.link).is_err(),
+            "the link survived SIG{signal_name}"
+        );
+    }
+}
+
+/// The odometry the prompt shows, in mm: `odometry says +12.3 -4.5`.
+fn odometry_in_prompt(prompt: &str) -> (f64, f64) {
+    let tail = prompt
+        .rsplit("odometry says")
+        .next()
+        .expect("prompt shows odometry");
+    let nums: Vec<f64> = tail
+        .split(|c: char| c.is_whitespace() || c == ')')
+        .filter_map(|t| t.parse().ok())
+        .take(2)
+        .collect();
+    (nums[0], nums[1])
+}
+
+/// 13.2: the manual procedure, typed by a person at a terminal: Enter at each "place the
+/// robot" prompt, the end position in mm at each measurement prompt. The prompt's own
+/// example form is accepted, a wrong answer is refused with the reason and asked again,
+/// and what was typed lands in the runs file as typed minus odometry.
+#[test]
+fn manual_umbmark_procedure_typed_at_a_terminal() {
+    let dir = scratch("manual");
+    let board = Board::start("mobolab", &dir);
+    let runs_file = dir.join("runs.csv");
+    let mut cmd = wheelcal();
+    cmd.arg("--port")
+        .arg(&board.link)
+        .args([
+            "umbmark",
+            "run",
+            "--side",
+            "0.5",
+            "--runs",
+            "2",
+            "--after-runs",
+            "2",
+        ])
+        .arg("--runs-file")
+        .arg(&runs_file);
+    let mut p = Session::spawn(cmd).expect("spawn in a PTY");
+    p.set_expect_timeout(Some(Duration::from_secs(60)));
+    // Offsets typed on top of what odometry says, per direction: a curved-leg (E_d) and
+    // a turn (E_b) signature of a few mm, well inside the board's factor range.
+    let mut typed: Vec<(f64, f64)> = Vec::new();
+    let mut refused_once = false;
+    loop {
+        let m = p.expect(Regex(r"(press Enter |\): |Eof)")).map(|m| {
+            String::from_utf8_lossy(m.before()).to_string() + &String::from_utf8_lossy(&m[0])
+        });
+        let Ok(text) = m else {
+            break;
+        };
+        if text.ends_with("press Enter ") {
+            p.send_line("").unwrap();
+        } else if text.contains("measured end position") {
+            if !refused_once {
+                // Three numbers: refused with the reason, then asked again.
+                p.send_line("1 2 3").unwrap();
+                p.expect("need exactly two").expect("the reason is shown");
+                refused_once = true;
+                continue;
+            }
+            let (ox, oy) = odometry_in_prompt(&text);
+            let (dx, dy) = if typed.len() % 4 < 2 {
+                (6.0, -4.0)
+            } else {
+                (-6.0, -4.0)
+            };
+            let (x, y) = (ox + dx, oy + dy);
+            typed.push((dx, dy));
+            // The prompt's own example form: numbers separated by a space.
+            p.send_line(format!("{x:.1} {y:.1}")).unwrap();
+        } else {
+            break;
+        }
+    }
+    let _ = p.expect(Eof);
+    assert!(refused_once);
+    assert_eq!(typed.len(), 8, "4 runs before and 4 after were asked for");
+    let rows = std::fs::read_to_string(&runs_file).expect("runs file");
+    let data: Vec<&str> = rows
+        .lines()
+        .skip(1)
+        .filter(|l| !l.trim().is_empty())
+        .collect();
+    assert_eq!(data.len(), 8, "{rows}");
+    // Each row's error is what was typed minus odometry: the offset, to the 0.05 mm the
+    // prompt's rounding (one decimal of odometry, one of the answer) allows.
+    let header: Vec<&str> = rows.lines().next().unwrap().split(',').collect();
+    let col = |name: &str| header.iter().position(|h| *h == name).expect(name);
+    let (xi, yi) = (col("x_err_m"), col("y_err_m"));
+    for (row, (dx, dy)) in data.iter().zip(&typed) {
+        let f: Vec<&str> = row.split(',').collect();
+        let x: f64 = f[xi].parse().unwrap();
+        let y: f64 = f[yi].parse().unwrap();
+        assert!((x * 1e3 - dx).abs() < 0.11, "{row}: x {x} vs {dx} mm");
+        assert!((y * 1e3 - dy).abs() < 0.11, "{row}: y {y} vs {dy} mm");
+    }
+}
