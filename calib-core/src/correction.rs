@@ -80,7 +80,9 @@ impl fmt::Display for CorrectionError {
 
 impl core::error::Error for CorrectionError {}
 
-fn check(name: &'static str, index: Option<usize>, v: f64) -> Result<(), CorrectionError> {
+/// The board's rule for one factor: finite and within [[`FACTOR_MIN`], [`FACTOR_MAX`]].
+/// Every tool that writes factors anywhere (the board, a ROS 2 file) applies this one.
+pub fn check(name: &'static str, index: Option<usize>, v: f64) -> Result<(), CorrectionError> {
     if !v.is_finite() {
         return Err(CorrectionError::NotFinite { name, index });
     }

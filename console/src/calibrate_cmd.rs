@@ -215,10 +215,14 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
 
 fn ros2_yaml(cal: &Calibration) -> Option<String> {
     match cal.factors {
-        Factors::Diff { c_l, c_r, e_b } => Some(ros2::diff_drive_yaml(
-            &ros2::DiffFactors { c_l, c_r, e_b },
-            "diff_drive_controller",
-        )),
+        // Factors the board would refuse are not exported (the text says why not).
+        Factors::Diff { c_l, c_r, e_b } => Some(
+            ros2::diff_drive_yaml(
+                &ros2::DiffFactors { c_l, c_r, e_b },
+                "diff_drive_controller",
+            )
+            .unwrap_or_else(|e| format!("# {e}\n")),
+        ),
         Factors::Wheels { .. } => None,
     }
 }

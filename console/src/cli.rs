@@ -495,7 +495,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 },
                 _ => bail!("give --from RESULT.json, all of --c-l, --c-r, --e-b, or --port to read the board"),
             };
-            let yaml = ros2::diff_drive_yaml(&f, &a.controller);
+            let yaml = ros2::diff_drive_yaml(&f, &a.controller)?;
             std::fs::write(&a.ros2, &yaml)
                 .with_context(|| format!("cannot write {}", a.ros2.display()))?;
             #[derive(serde::Serialize)]
@@ -755,6 +755,12 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 .collect::<Result<Vec<_>>>()?;
             if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 7200.0) {
                 bail!("--duration must be within (0, 7200] seconds");
+            }
+            let arena = calib_core::protocol::Safety::default().arena_m as f64;
+            if let Some(side) = a.umbmark_side {
+                if !(side.is_finite() && side > 0.0 && side <= arena) {
+                    bail!("--umbmark-side must be within (0, {arena}] m, as on a board");
+                }
             }
             let motion = match a.umbmark_side {
                 Some(side) => sim::record::Motion::Program {

@@ -264,3 +264,23 @@ fn manual_umbmark_procedure_typed_at_a_terminal() {
         assert!((y * 1e3 - dy).abs() < 0.11, "{row}: y {y} vs {dy} mm");
     }
 }
+
+/// 13.8: `sim record --umbmark-side 1e9` grew without bound; it is bounded like a board's
+/// program (the default arena, 10 m).
+#[test]
+fn sim_record_bounds_the_square_like_a_board() {
+    let dir = scratch("simrec");
+    for side in ["1e9", "-1", "NaN", "10.5"] {
+        let o = wheelcal()
+            .args(["sim", "record", "--seed", "1", "--robot"])
+            .arg(robot("mobolab"))
+            .arg("--out")
+            .arg(dir.join("rec"))
+            .arg(format!("--umbmark-side={side}"))
+            .output()
+            .expect("runs");
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(1), "{side}: {err}");
+        assert!(err.contains("(0, 10] m"), "{side}: {err}");
+    }
+}

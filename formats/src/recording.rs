@@ -247,11 +247,10 @@ impl Recording {
             }
         }
         if robot.kind == RobotKind::WheeledLegged {
-            for (name, present) in [
-                ("leg_front", rec.leg_front.is_some()),
-                ("leg_rear", rec.leg_rear.is_some()),
-            ] {
-                if !present {
+            // The columns themselves, not `rec.leg_*`: a wheeled-legged recording starts
+            // with empty leg series, so those are always present.
+            for name in ["leg_front", "leg_rear"] {
+                if !headers.iter().any(|h| h == name) {
                     return Err(err(
                         Some(1),
                         None,
@@ -569,6 +568,43 @@ mod tests {
                 rec.pose_rows().next().map(|p| (p.1, p.2, p.3)),
                 Some((0.0, 0.0, 0.0))
             );
+        }
+    }
+
+    /// Issue 13.7: the check for the leg columns could not fire (the recording starts with
+    /// empty leg series), so a wheeled-legged recording without them was accepted.
+    #[test]
+    fn wheeled_legged_recordings_need_both_leg_columns() {
+        let wlr = crate::robot_file::load(
+            &Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/wlr.toml"),
+        )
+        .unwrap();
+        let wheels: Vec<String> = wlr
+            .wheels
+            .iter()
+            .map(|w| format!("enc_{}", w.name))
+            .collect();
+        let head = format!("t,x,y,theta,{}", wheels.join(","));
+        let zeros = vec!["0"; wheels.len()].join(",");
+        for (extra_cols, extra_vals, missing) in [
+            ("", "", Some("leg_front")),
+            (",leg_front", ",0.1", Some("leg_rear")),
+            (",leg_rear", ",0.1", Some("leg_front")),
+            (",leg_front,leg_rear", ",0.1,0.2", None),
+        ] {
+            let text = format!("{head}{extra_cols}\n0,0,0,0,{zeros}{extra_vals}\n");
+            let got = Recording::parse(&text, Path::new("wlr.csv"), &wlr);
+            match missing {
+                Some(name) => {
+                    let e = got.unwrap_err().to_string();
+                    assert!(e.contains(name) && e.contains("wlr.csv"), "{e}");
+                }
+                None => {
+                    let rec = got.unwrap();
+                    assert_eq!(rec.leg_front.as_deref(), Some(&[Some(0.1)][..]));
+                    assert_eq!(rec.leg_rear.as_deref(), Some(&[Some(0.2)][..]));
+                }
+            }
         }
     }
 }

@@ -5,7 +5,7 @@
 //! is the whole point.
 
 use calib_core::robot::{
-    Drive, DriveType, Legs, Problem, Robot, RobotError, RobotKind, Wheel, WheelName,
+    Drive, DriveType, Legs, Problem, Robot, RobotError, RobotKind, Wheel, WheelName, MAX_WHEELS,
 };
 use serde::Deserialize;
 use std::fmt;
@@ -88,8 +88,23 @@ pub fn line_col(text: &str, offset: usize) -> (usize, usize) {
     (line, col)
 }
 
+/// Largest robot file read (bytes). A description of eight wheels with comments is a few
+/// KB; a 200 MB file is a mistake (it took 30 s and 8.4 GB of memory to refuse).
+pub const MAX_FILE_BYTES: u64 = 1 << 20;
+
 /// Reads and validates a robot file.
 pub fn load(path: &Path) -> Result<Robot, RobotFileError> {
+    let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
+    if size > MAX_FILE_BYTES {
+        return Err(RobotFileError {
+            path: path.to_path_buf(),
+            line: None,
+            column: None,
+            message: format!(
+                "{size} bytes is not a robot description (at most {MAX_FILE_BYTES} bytes)"
+            ),
+        });
+    }
     let text = std::fs::read_to_string(path).map_err(|e| RobotFileError {
         path: path.to_path_buf(),
         line: None,
@@ -116,6 +131,22 @@ pub fn parse(text: &str, path: &Path) -> Result<Robot, RobotFileError> {
             message,
         }
     };
+    if text.len() as u64 > MAX_FILE_BYTES {
+        return Err(at(
+            None,
+            format!(
+                "{} bytes is not a robot description (at most {MAX_FILE_BYTES} bytes)",
+                text.len()
+            ),
+        ));
+    }
+    // Refuse a ninth wheel before the TOML parser builds them all.
+    if let Some((offset, _)) = text.match_indices("[[wheels]]").nth(MAX_WHEELS) {
+        return Err(at(
+            Some(offset..offset + 10),
+            format!("more than {MAX_WHEELS} wheels (the firmware drives at most {MAX_WHEELS})"),
+        ));
+    }
     let file: RobotFile =
         toml::from_str(text).map_err(|e| at(e.span(), e.message().trim().to_string()))?;
 
@@ -378,5 +409,25 @@ beta_deg = 180.0
         let e = parse(&bad, Path::new("r.toml")).unwrap_err();
         assert!(e.message.contains("rank < 3"), "{e}");
         assert!(e.line.is_some());
+    }
+
+    /// Issue 13.8: a 200 MB robot file took 30 s and 8.4 GB before it was refused.
+    #[test]
+    fn oversized_files_and_too_many_wheels_are_refused_early() {
+        let dir = std::env::temp_dir().join(format!("wheelcal-robot-cap-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let big = dir.join("big.toml");
+        std::fs::write(&big, "# padding\n".repeat(120_000)).unwrap();
+        let e = load(&big).unwrap_err();
+        assert!(e.message.contains("at most 1048576 bytes"), "{e}");
+        assert!(e.to_string().starts_with(&big.display().to_string()));
+        let wheel =
+            "[[wheels]]\nname = \"w\"\nradius_m = 0.03\nalpha_deg = 0\nl_m = 0.1\nbeta_deg = 0\n";
+        let text = format!("name = \"x\"\nkind = \"omni\"\n{}", wheel.repeat(9));
+        let e = parse(&text, Path::new("nine.toml")).unwrap_err();
+        assert!(e.message.contains("more than 8 wheels"), "{e}");
+        // The ninth `[[wheels]]` header: after two lines and eight six-line wheels.
+        assert_eq!((e.line, e.column), (Some(2 + 8 * 6 + 1), Some(1)));
+        let _ = std::fs::remove_dir_all(&dir);
     }
 }
