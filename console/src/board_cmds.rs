@@ -194,7 +194,12 @@ pub fn wait_program<L: Read + Write>(
 ) -> Result<Status> {
     let t0 = Instant::now();
     let mut seen_busy = false;
+    let _guard = crate::stop::Guard::new();
     loop {
+        if crate::stop::requested() {
+            c.stop()?;
+            return Err(crate::stop::Interrupted.into());
+        }
         let s = c.status()?;
         on_status(&s);
         let idle = matches!(s.mode, Mode::Idle);
@@ -275,10 +280,19 @@ pub fn drive_for<L: Read + Write>(
     twist: Twist<f32>,
     duration: Duration,
 ) -> Result<()> {
+    let _guard = crate::stop::Guard::new();
     let t0 = Instant::now();
+    let mut refreshed = None::<Instant>;
     while t0.elapsed() < duration {
-        c.drive(twist, 0)?;
-        std::thread::sleep(Duration::from_millis(100));
+        if crate::stop::requested() {
+            c.stop()?;
+            return Err(crate::stop::Interrupted.into());
+        }
+        if refreshed.is_none_or(|r| r.elapsed() >= Duration::from_millis(100)) {
+            c.drive(twist, 0)?;
+            refreshed = Some(Instant::now());
+        }
+        std::thread::sleep(Duration::from_millis(10));
     }
     c.stop()?;
     Ok(())

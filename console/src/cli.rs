@@ -401,14 +401,20 @@ pub struct DemoArgs {
 
 /// Entry point of the binary: runs the command, prints errors to stderr.
 pub fn main() -> ExitCode {
+    crate::stop::install();
     let cli = Cli::parse();
     let mut ctx = Ctx {
         port: cli.port.clone(),
         baud: cli.baud,
         client: None,
+        relay: None,
     };
     match run(cli, &mut ctx) {
         Ok(()) => ExitCode::SUCCESS,
+        Err(e) if e.is::<crate::stop::Interrupted>() => {
+            eprintln!("{e}");
+            ExitCode::from(130)
+        }
         Err(e) => {
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
@@ -416,13 +422,15 @@ pub fn main() -> ExitCode {
     }
 }
 
-type PortClient = Client<Box<dyn serialport::SerialPort>>;
+type PortClient = Client<crate::stop::LockedPort>;
 
 /// A lazily opened connection.
 pub struct Ctx {
     pub port: Option<String>,
     pub baud: u32,
     pub client: Option<PortClient>,
+    /// Relays E-stops from other terminals to the port while this process holds it.
+    pub relay: Option<crate::stop::Relay>,
 }
 
 impl Ctx {
@@ -433,9 +441,11 @@ impl Ctx {
                 .clone()
                 .context("this command talks to a board: give --port DEV (or set WHEELCAL_PORT)")?;
             let link = link::open_serial(&port, self.baud)?;
+            let (link, relay) = crate::stop::hold(&port, link);
             let mut c = Client::new(link, &port);
             c.hello()?;
             self.client = Some(c);
+            self.relay = relay;
         }
         Ok(self.client.as_mut().expect("just connected"))
     }
@@ -569,11 +579,9 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 let s = client.status()?;
                 return out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)));
             }
-            let stop = Arc::new(AtomicBool::new(false));
-            let s2 = stop.clone();
-            let _ = ctrlc::set_handler(move || s2.store(true, Ordering::Relaxed));
+            let _guard = crate::stop::Guard::new();
             client.set_telemetry(period_ms.max(20))?;
-            while !stop.load(Ordering::Relaxed) {
+            while !crate::stop::requested() {
                 if let Some(s) = client.next_telemetry(Duration::from_millis(500))? {
                     out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))?;
                 }
@@ -587,6 +595,9 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         }
         Command::Log(LogCmd::Pull { trial, out: file }) => {
             let client = ctx.client()?;
+            // Ctrl-C ends the transfer between chunks; nothing is written (the file only
+            // appears when the whole trial is in).
+            let _guard = crate::stop::Guard::new();
             let bar = indicatif::ProgressBar::new(0);
             bar.set_style(
                 indicatif::ProgressStyle::with_template(
@@ -625,9 +636,18 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             out.emit(&serde_json::json!({"stopped": true}), || "stopped\n".into())
         }
         Command::Estop => {
-            ctx.client()?.estop()?;
-            out.emit(&serde_json::json!({"estop": true}), || {
-                "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into()
+            // Another wheelcal may hold the port: it relays the E-stop at once.
+            let relayed = match (&ctx.client, &ctx.port) {
+                (None, Some(port)) => crate::stop::relay_estop(port)?,
+                _ => None,
+            };
+            if relayed.is_none() {
+                ctx.client()?.estop()?;
+            }
+            let ms = relayed.map(|t| t.as_secs_f64() * 1e3);
+            out.emit(&serde_json::json!({"estop": true, "relayed_ms": ms}), || match ms {
+                Some(ms) => format!("E-STOP sent through the wheelcal holding the port ({ms:.1} ms): motors off (clear with `wheelcal clear-fault`)\n"),
+                None => "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into(),
             })
         }
         Command::ClearFault => {
@@ -694,9 +714,17 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 flash: a.flash,
                 truth: a.truth,
             };
+            // Ctrl-C or SIGTERM ends the board cleanly (its link is removed).
+            let _guard = crate::stop::Guard::new();
             let stop = Arc::new(AtomicBool::new(false));
             let s2 = stop.clone();
-            let _ = ctrlc::set_handler(move || s2.store(true, Ordering::Relaxed));
+            std::thread::spawn(move || loop {
+                if crate::stop::requested() {
+                    s2.store(true, Ordering::Relaxed);
+                    break;
+                }
+                std::thread::sleep(Duration::from_millis(20));
+            });
             sim_board::run(&opts, stop, |ready| {
                 let _ = out.emit(ready, || {
                     format!(

@@ -383,6 +383,12 @@ impl<L: Read + Write> Client<L> {
         let mut chunk = MAX_LOG_CHUNK;
         let mut clean = 0u32;
         loop {
+            if crate::stop::requested() {
+                return Err(ClientError::Io(io::Error::new(
+                    io::ErrorKind::Interrupted,
+                    "log transfer interrupted (Ctrl-C); nothing was written",
+                )));
+            }
             let offset = data.len() as u32;
             let reply = match self.request(&Request::ReadLog {
                 trial,

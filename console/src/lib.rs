@@ -15,4 +15,5 @@ pub mod repl;
 pub mod report;
 pub mod ros2;
 pub mod sim_board;
+pub mod stop;
 pub mod virtual_board;

@@ -102,6 +102,7 @@ pub fn run(ctx: &mut Ctx, json: bool) -> Result<()> {
         let _ = rl.load_history(h);
     }
     eprintln!("wheelcal console: type a command (`help` lists them, Tab completes, `quit` leaves)");
+    let mut failed = 0usize;
     loop {
         let prompt = format!("wheelcal {}> ", ctx.port.as_deref().unwrap_or("(no port)"));
         match rl.readline(&prompt) {
@@ -132,11 +133,20 @@ pub fn run(ctx: &mut Ctx, json: bool) -> Result<()> {
                             eprintln!("already in the console");
                             continue;
                         }
-                        if let Err(e) = run_command(cli, ctx) {
-                            eprintln!("error: {e:#}");
+                        match run_command(cli, ctx) {
+                            Ok(()) => {}
+                            // Ctrl-C stopped the robot; back to the prompt.
+                            Err(e) if e.is::<crate::stop::Interrupted>() => eprintln!("{e}"),
+                            Err(e) => {
+                                failed += 1;
+                                eprintln!("error: {e:#}");
+                            }
                         }
                     }
                     Err(e) => {
+                        if e.use_stderr() {
+                            failed += 1;
+                        }
                         let _ = e.print();
                     }
                 }
@@ -148,6 +158,12 @@ pub fn run(ctx: &mut Ctx, json: bool) -> Result<()> {
     }
     if let Some(h) = &history {
         let _ = rl.save_history(h);
+    }
+    // Piped input (a script): a failed command makes the whole run fail, as a shell
+    // script with `set -e` would expect; at a terminal the person saw each error.
+    use std::io::IsTerminal;
+    if failed > 0 && !std::io::stdin().is_terminal() {
+        anyhow::bail!("{failed} command(s) failed");
     }
     Ok(())
 }

@@ -4,6 +4,7 @@
 
 use expectrl::{Eof, Expect, Regex, Session};
 use serde_json::Value;
+use std::io::Read;
 use std::path::{Path, PathBuf};
 use std::process::{Child, Command, Output, Stdio};
 use std::time::{Duration, Instant};
@@ -33,9 +34,15 @@ struct Board {
 
 impl Board {
     fn start(robot_name: &str, dir: &Path) -> Board {
+        Board::start_at(robot_name, dir, "max")
+    }
+
+    /// `speed` "1" runs the board in real time, as a robot on the floor: a drive's command
+    /// refreshes and Ctrl-C land at the moments they would on a real robot.
+    fn start_at(robot_name: &str, dir: &Path, speed: &str) -> Board {
         let link = dir.join("board");
         let child = wheelcal()
-            .args(["sim-board", "--speed", "max", "--robot"])
+            .args(["sim-board", "--speed", speed, "--robot"])
             .arg(robot(robot_name))
             .arg("--link")
             .arg(&link)
@@ -283,4 +290,127 @@ fn sim_record_bounds_the_square_like_a_board() {
         assert_eq!(o.status.code(), Some(1), "{side}: {err}");
         assert!(err.contains("(0, 10] m"), "{side}: {err}");
     }
+}
+
+fn pose_of(status: &Value) -> (f64, f64) {
+    (
+        status["pose"]["x"].as_f64().expect("pose.x"),
+        status["pose"]["y"].as_f64().expect("pose.y"),
+    )
+}
+
+/// 13.3: in `wheelcal console`, Ctrl-C during a 10 s drive was ignored (the robot drove
+/// 0.94 m to its end). Now it stops the robot at once and returns to the prompt.
+#[test]
+fn ctrl_c_in_the_console_stops_a_drive_and_returns_to_the_prompt() {
+    let dir = scratch("ctrlc");
+    let board = Board::start_at("mobolab", &dir, "1");
+    let mut cmd = wheelcal();
+    cmd.arg("--port")
+        .arg(&board.link)
+        .args(["--json", "console"]);
+    let mut p = Session::spawn(cmd).expect("spawn in a PTY");
+    p.set_expect_timeout(Some(Duration::from_secs(20)));
+    p.expect("> ").expect("prompt");
+    p.send_line("drive --vx 0.2 --duration 10").unwrap();
+    std::thread::sleep(Duration::from_millis(800));
+    let t0 = Instant::now();
+    p.send("\x03").unwrap();
+    p.expect("interrupted (Ctrl-C)")
+        .expect("the drive is interrupted");
+    let reaction = t0.elapsed();
+    p.expect("> ").expect("back at the prompt");
+    assert!(
+        reaction < Duration::from_millis(500),
+        "Ctrl-C took {reaction:?}"
+    );
+    // The robot stands: two readings of the pose 0.3 s apart agree, and it went about
+    // 0.2 m/s x 0.8 s, nowhere near the 2 m of the whole drive.
+    let read_pose = |p: &mut expectrl::session::OsSession| {
+        p.send_line("status").unwrap();
+        let m = p.expect(Regex(r"\{.*\}")).expect("status JSON");
+        let v: Value = serde_json::from_slice(&m[0]).expect("JSON");
+        p.expect("> ").expect("prompt");
+        pose_of(&v)
+    };
+    // Stop is a controlled stop (the board ramps down at its acceleration limit, a few
+    // tenths of a second from 0.2 m/s), so look once it has had a second.
+    std::thread::sleep(Duration::from_millis(1000));
+    let a = read_pose(&mut p);
+    std::thread::sleep(Duration::from_millis(300));
+    let b = read_pose(&mut p);
+    assert!(
+        (a.0 - b.0).hypot(a.1 - b.1) < 1e-3,
+        "still moving: {a:?} -> {b:?}"
+    );
+    assert!(a.0 > 0.05 && a.0 < 0.4, "drove {} m", a.0);
+    p.send_line("quit").unwrap();
+    let _ = p.expect(Eof);
+}
+
+/// 13.3: `wheelcal estop` from a second terminal was refused by the port lock while
+/// another wheelcal drove the robot. The holder relays it; it reaches the port within
+/// 100 ms of asking, the board latches, and the drive ends.
+#[test]
+fn estop_from_a_second_terminal_reaches_a_held_port() {
+    let dir = scratch("estop");
+    let board = Board::start_at("mobolab", &dir, "1");
+    let mut drive = wheelcal()
+        .arg("--port")
+        .arg(&board.link)
+        .args(["drive", "--vx", "0.2", "--duration", "10"])
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("drive starts");
+    let socket = wheelcal::stop::socket_path(board.link.to_str().unwrap());
+    let t0 = Instant::now();
+    while !socket.exists() {
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "the holder never listened"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    std::thread::sleep(Duration::from_millis(500));
+    let o = board.run(&["--json", "estop"]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let v: Value = serde_json::from_slice(&o.stdout).expect("estop JSON");
+    assert_eq!(v["estop"], true);
+    let ms = v["relayed_ms"]
+        .as_f64()
+        .expect("relayed through the holder");
+    assert!(ms < 100.0, "E-stop took {ms} ms to reach the port");
+    // The drive's next refresh is refused by the latched board: it ends with an error.
+    let t1 = Instant::now();
+    let status = loop {
+        if let Some(s) = drive.try_wait().unwrap() {
+            break s;
+        }
+        assert!(
+            t1.elapsed() < Duration::from_secs(2),
+            "the drive went on after the E-stop"
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    };
+    assert!(!status.success());
+    let mut err = String::new();
+    drive
+        .stderr
+        .take()
+        .unwrap()
+        .read_to_string(&mut err)
+        .unwrap();
+    assert!(err.to_lowercase().contains("stop"), "{err}");
+    // Port free again: the board reports the latch and stands still.
+    let a = board.status();
+    assert_eq!(a["estop"], true, "{a}");
+    std::thread::sleep(Duration::from_millis(300));
+    let b = board.status();
+    let (pa, pb) = (pose_of(&a), pose_of(&b));
+    assert!(
+        (pa.0 - pb.0).hypot(pa.1 - pb.1) < 1e-3,
+        "moving after E-stop: {pa:?} -> {pb:?}"
+    );
+    assert!(!socket.exists(), "the relay socket outlived its holder");
 }
