@@ -72,12 +72,6 @@ pub fn counts_to_rad(counts: i64, counts_per_rev: f64) -> f64 {
     counts as f64 * core::f64::consts::TAU / counts_per_rev
 }
 
-/// The f32 variant for the firmware tick: converts a per-tick *difference* (small), so
-/// f32 loses nothing.
-pub fn delta_counts_to_rad_f32(delta: i64, rad_per_count: f32) -> f32 {
-    delta as f32 * rad_per_count
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -144,11 +144,6 @@ impl<T: Float> Kinematics<T> {
         self.n
     }
 
-    /// Row i of the Jacobian: rad/s of wheel i per unit (vx, vy, omega).
-    pub fn jacobian_row(&self, i: usize) -> [T; 3] {
-        self.jacobian[i]
-    }
-
     /// Wheel i's rate for a body twist.
     pub fn wheel_rate(&self, i: usize, t: &Twist<T>) -> T {
         let j = &self.jacobian[i];

@@ -242,16 +242,6 @@ impl<'a> App<'a> {
     // Control tick
     // -----------------------------------------------------------------------------------
 
-    /// [`Self::tick`] at the time `clock` reads.
-    pub fn tick_at(
-        &mut self,
-        clock: &impl crate::Clock,
-        enc: &mut impl EncoderSource,
-        drv: &mut impl WheelDriver,
-    ) {
-        self.tick(clock.now_us(), enc, drv);
-    }
-
     /// One control period: read the encoders, update odometry, run the program or drive
     /// command, drive the wheels, log. Call at [`TICK_HZ`].
     pub fn tick(&mut self, now_us: u64, enc: &mut impl EncoderSource, drv: &mut impl WheelDriver) {

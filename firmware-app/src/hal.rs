@@ -29,11 +29,6 @@ pub trait WheelDriver {
     }
 }
 
-/// Monotonic time.
-pub trait Clock {
-    fn now_us(&self) -> u64;
-}
-
 /// A non-blocking byte stream (UART, pseudo-terminal, in-memory pipe).
 pub trait ByteStream {
     /// Reads what is available into `buf`; returns the count (0 when nothing).

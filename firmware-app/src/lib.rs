@@ -20,7 +20,7 @@ pub mod storage;
 pub mod wheel;
 
 pub use app::{App, Handled, PersistItem, TICK_HZ};
-pub use hal::{ByteStream, Clock, EncoderSource, WheelDriver};
+pub use hal::{ByteStream, EncoderSource, WheelDriver};
 pub use log::TrialLog;
 pub use server::{Server, Step};
 pub use storage::{Loaded, Store, StoreError};

@@ -518,11 +518,6 @@ fn run_phase<L: Read + Write>(
     Ok(())
 }
 
-/// Removes a runs file (the demo starts clean each time).
-pub fn remove_runs(path: &Path) {
-    let _ = std::fs::remove_file(path);
-}
-
 #[cfg(test)]
 mod tests {
     use super::parse_end_position;
