@@ -101,6 +101,8 @@ impl From<io::Error> for ClientError {
 /// Counters of what crossed the link.
 #[derive(Debug, Clone, Copy, Default, PartialEq, serde::Serialize)]
 pub struct LinkStats {
+    /// Bytes thrown away unread: stale answers and replies to noise found waiting.
+    pub discarded: u64,
     pub requests: u32,
     pub retries: u32,
     pub bad_frames: u32,
@@ -117,6 +119,20 @@ pub struct Hello {
 }
 
 /// A connection to one board.
+/// Resends a request may take for damage (Nacks, damaged answers) before giving up.
+const MAX_DAMAGE_RESENDS: u32 = 32;
+
+/// A starting sequence number that differs between sessions: the board answers a repeated
+/// (sequence number, body) pair from its cache without acting, so two console sessions
+/// both starting at 1 would have the second one's first requests answered, not done.
+fn fresh_seq() -> u16 {
+    let t = std::time::SystemTime::now()
+        .duration_since(std::time::UNIX_EPOCH)
+        .map(|d| d.subsec_nanos())
+        .unwrap_or(0);
+    (t ^ std::process::id().rotate_left(16)) as u16
+}
+
 pub struct Client<L: Read + Write> {
     link: L,
     port: String,
@@ -138,7 +154,7 @@ impl<L: Read + Write> Client<L> {
             link,
             port: port.to_string(),
             dec: FrameDecoder::new(),
-            seq: 0,
+            seq: fresh_seq(),
             tries: 4,
             timeout: Duration::from_millis(500),
             stats: LinkStats::default(),
@@ -147,8 +163,10 @@ impl<L: Read + Write> Client<L> {
         }
     }
 
-    /// The handshake: checks protocol version and schema fingerprint.
+    /// The handshake: checks protocol version and schema fingerprint. What was waiting
+    /// on the line (answers to an earlier session, replies to noise) is discarded first.
     pub fn hello(&mut self) -> Result<Hello, ClientError> {
+        self.drain();
         match self.request(&Request::Hello {
             protocol_version: PROTOCOL_VERSION,
             schema: SCHEMA_FINGERPRINT,
@@ -183,28 +201,50 @@ impl<L: Read + Write> Client<L> {
     pub fn request(&mut self, req: &Request) -> Result<Reply, ClientError> {
         self.seq = self.seq.wrapping_add(1);
         let seq = self.seq;
-        let mut wire = [0u8; MAX_WIRE];
-        let frame = encode(seq, req, &mut wire)
-            .map_err(|e| ClientError::Unexpected(format!("request does not fit a frame: {e}")))?;
+        // A delimiter first: whatever noise the line carried ends there as one damaged
+        // frame, and this request decodes on its own.
+        let mut wire = [0u8; MAX_WIRE + 1];
+        let len = encode(seq, req, &mut wire[1..])
+            .map_err(|e| ClientError::Unexpected(format!("request does not fit a frame: {e}")))?
+            .len();
+        let frame = &wire[..1 + len];
         self.stats.requests += 1;
-        for attempt in 0..self.tries.max(1) {
-            if attempt > 0 {
+        // Silent attempts (timeouts) are limited by `tries`. Damage (a Nack, a damaged
+        // frame) asks for a resend at once, after throwing away whatever else is queued:
+        // after a burst of line noise, the board's Nacks to the noise are still waiting,
+        // and each would otherwise cost a try. Those resends have their own, larger budget.
+        let mut silent = 0;
+        let mut damaged = 0;
+        let mut first = true;
+        while silent < self.tries.max(1) && damaged <= MAX_DAMAGE_RESENDS {
+            if !first {
                 self.stats.retries += 1;
             }
+            first = false;
             self.link.write_all(frame)?;
             self.link.flush()?;
             self.stats.bytes_sent += frame.len() as u64;
             let deadline = Instant::now() + self.timeout;
             loop {
                 match self.read_frame(deadline)? {
-                    None => break, // timed out: resend
+                    None => {
+                        silent += 1; // timed out: resend
+                        break;
+                    }
                     Some(Err(_)) => {
                         // Most likely our answer, damaged: ask again now rather than
                         // wait out the timeout (the board answers a repeat from cache).
                         self.stats.bad_frames += 1;
+                        damaged += 1;
+                        self.drain();
                         break;
                     }
-                    Some(Ok((_, Incoming::Nack))) => break, // the board saw damage: resend
+                    Some(Ok((_, Incoming::Nack))) => {
+                        // The board saw damage (ours, or noise before it): resend.
+                        damaged += 1;
+                        self.drain();
+                        break;
+                    }
                     Some(Ok((_, Incoming::Telemetry(s)))) => {
                         if self.telemetry.len() >= 256 {
                             self.telemetry.pop_front();
@@ -221,6 +261,29 @@ impl<L: Read + Write> Client<L> {
             tries: self.tries,
             bad_frames: self.stats.bad_frames,
         })
+    }
+
+    /// Throws away what is waiting on the line: reads until it has been quiet for 20 ms
+    /// (at most 1 s, so a board streaming telemetry cannot hold us here).
+    pub fn drain(&mut self) {
+        self.pending.clear();
+        self.dec = FrameDecoder::new();
+        let t0 = Instant::now();
+        let mut quiet_since = Instant::now();
+        let mut buf = [0u8; 1024];
+        while quiet_since.elapsed() < Duration::from_millis(20)
+            && t0.elapsed() < Duration::from_secs(1)
+        {
+            match self.link.read(&mut buf) {
+                Ok(n) if n > 0 => {
+                    self.stats.bytes_received += n as u64;
+                    self.stats.discarded += n as u64;
+                    quiet_since = Instant::now();
+                }
+                Ok(_) => std::thread::sleep(Duration::from_millis(1)),
+                Err(_) => {}
+            }
+        }
     }
 
     /// Reads bytes until a frame completes or the deadline passes. Bytes read past the

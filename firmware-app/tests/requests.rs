@@ -633,3 +633,59 @@ fn programs_outside_the_arena_are_refused_and_nothing_moves() {
     assert!(moved < 1e-9, "moved {moved} m");
     assert!(b.omega.iter().all(|w| *w == 0.0), "{:?}", b.omega);
 }
+
+/// Issue 14: 10 MB of line noise and bursts of valid-looking frames with bad CRCs,
+/// interleaved with valid requests. Every valid request (sent after a delimiter, as the
+/// console sends them) is answered, nothing corrupt is acted upon, and the factors change
+/// only when a valid request asks. The server has no heap: its memory is its fixed buffers.
+#[test]
+fn ten_megabytes_of_noise_never_cut_the_host_off() {
+    use rand::{RngCore, SeedableRng};
+    let mut b = bench();
+    let mut l = Link::new();
+    let factors = Corrections::DiffDrive {
+        c_l: 1.01,
+        c_r: 0.99,
+        e_b: 1.02,
+    };
+    l.call(&mut b, &Request::SetCorrections(factors.clone()));
+    let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(14);
+    let mut noise = vec![0u8; 100_000];
+    let mut nacks = 0usize;
+    for round in 0..100u32 {
+        rng.fill_bytes(&mut noise);
+        let answers = l.raw(&mut b, &noise);
+        // Valid-looking frames with a flipped bit: they must be Nacked, never applied.
+        for k in 0..20u16 {
+            let mut f = l.frame(&Request::SetCorrections(Corrections::DiffDrive {
+                c_l: 1.9,
+                c_r: 0.6,
+                e_b: 1.5 + f64::from(k) * 1e-3,
+            }));
+            let i = f.len() / 2;
+            f[i] = if f[i] ^ 0x08 == 0 {
+                f[i] ^ 0x04
+            } else {
+                f[i] ^ 0x08
+            };
+            l.raw(&mut b, &f);
+        }
+        for mut a in answers {
+            if let Ok(f) = calib_core::protocol::decode_frame(&mut a) {
+                if matches!(f.decode::<Response>(), Ok(Response::Nack(_))) {
+                    nacks += 1;
+                }
+            }
+        }
+        let mut framed = vec![0u8];
+        framed.extend(l.frame(&Request::GetCorrections));
+        let mut answers = l.raw(&mut b, &framed);
+        let last = answers.last_mut().expect("an answer after the noise");
+        match decode(last).1 {
+            Response::Corrections(c) => assert_eq!(c, factors, "round {round}"),
+            other => panic!("round {round}: {other:?}"),
+        }
+    }
+    // About one frame ends per 256 random bytes: thousands of Nacks were sent.
+    assert!(nacks > 10_000_000 / 256 / 2, "{nacks} Nacks");
+}
