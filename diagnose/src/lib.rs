@@ -19,6 +19,7 @@ pub mod actuator;
 pub mod effects;
 pub mod fit;
 pub mod ground;
+pub mod mechanisms;
 pub mod plots;
 pub mod replay;
 pub mod report;
@@ -165,6 +166,12 @@ pub fn diagnose(
             rmse_after_m: a,
             delta_bic: st.delta_bic,
             heldout_ratio: st.heldout_ratio,
+            mechanism: mechanisms::default_name(e).to_string(),
+            fit: "full".into(),
+            explained_share: 0.0,
+            signature: None,
+            residual_left_m: None,
+            implausible_sign: false,
         });
     }
 
@@ -227,6 +234,7 @@ pub fn diagnose(
         Some(f) => f.effect.clone(),
     };
 
+    let rmse_stage = findings.first().map_or(Stage::Ground, |f| f.rmse_stage);
     let plot = plot_data(&ev, &sel);
     let n_act = sel.nominal.n_act;
     Ok(Report {
@@ -245,6 +253,15 @@ pub fn diagnose(
         actuator_rmse_final_m: (n_act > 0).then(|| sel.final_rss.actuator_rmse()),
         noise: ev.noise,
         explained_fraction,
+        rmse_stage,
+        ground_rmse: report::StageRmse {
+            before_m: sel.nominal.ground_rmse(),
+            after_m: sel.final_rss.ground_rmse(),
+        },
+        actuator_rmse: (n_act > 0).then(|| report::StageRmse {
+            before_m: sel.nominal.actuator_rmse(),
+            after_m: sel.final_rss.actuator_rmse(),
+        }),
         start_pose: [
             sel.final_eval.start.0,
             sel.final_eval.start.1,
