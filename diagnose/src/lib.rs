@@ -166,7 +166,7 @@ pub fn diagnose(
             rmse_after_m: a,
             delta_bic: st.delta_bic,
             heldout_ratio: st.heldout_ratio,
-            mechanism: mechanisms::default_name(e).to_string(),
+            mechanism: e.mechanism().to_string(),
             fit: "full".into(),
             explained_share: 0.0,
             signature: None,

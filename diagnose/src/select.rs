@@ -235,7 +235,10 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
         let mut reused: Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> = Vec::new();
         if let (Some(added), false) = (last_added, ev.ground_uses_actuator()) {
             for (e, m_prev, sig_prev) in &last_fits {
-                if e.stage() != added.stage() && model.get(*e).is_none() && !rejected.contains(e) {
+                if e.stage() != added.stage()
+                    && !model.effects.iter().any(|(x, _)| x.base() == e.base())
+                    && !rejected.contains(e)
+                {
                     let mut m = m_prev.clone();
                     for (x, p) in &model.effects {
                         if x.stage() == added.stage() {
@@ -250,13 +253,19 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
         let todo: Vec<(Effect, Vec<Vec<f64>>)> = Effect::ALL
             .into_iter()
             .filter(|&e| {
-                model.get(e).is_none()
+                // One mechanism per catalogue effect.
+                !model.effects.iter().any(|(x, _)| x.base() == e.base())
                     && !rejected.contains(&e)
                     && e.applies(robot, has_cmd)
+                    && crate::mechanisms::applies(ev.p, e)
                     && !reused.iter().any(|r| r.0 == e)
             })
             .map(|e| {
-                let grid = e.start_grid(robot);
+                let grid = if e == Effect::BumpsRegion {
+                    crate::mechanisms::region_grid(ev.p)
+                } else {
+                    e.start_grid(robot)
+                };
                 let start = match previous.iter().find(|(x, _)| *x == e) {
                     Some((_, p)) => {
                         let mut s = vec![p.clone()];
@@ -325,7 +334,9 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
                 rejected.push(e);
                 continue;
             }
-            if e == Effect::MotorLag && m.get(e).is_some_and(|p| p[0] < 0.25 * ev.p.row_dt_s()) {
+            if matches!(e, Effect::MotorLag | Effect::LagDelay)
+                && m.get(e).is_some_and(|p| p[0] < 0.25 * ev.p.row_dt_s())
+            {
                 candidates[idx].note =
                     "a lag under a quarter row is a logging convention, not physics".into();
                 rejected.push(e);
