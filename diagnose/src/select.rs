@@ -527,3 +527,208 @@ pub fn named(robot: &calib_core::Robot, e: Effect, vals: &[f64]) -> Vec<(String,
         .map(|(s, v)| (s.name, *v))
         .collect()
 }
+
+/// Chi-square per residual of each stage for `r`, as the verdict counts it: the ground
+/// stage against the pose noise, the actuator stage against at least sqrt(2) encoder
+/// counts (below that a mismatch is not resolved from the sampling within a row).
+fn stage_chi2(ev: &Evaluator, r: &StageRss, s: Stage) -> Option<f64> {
+    let n = match s {
+        Stage::Ground => 3 * r.n_pose + r.n_free,
+        Stage::Actuator => r.n_act,
+    } as f64;
+    if n < 1.0 {
+        return None;
+    }
+    Some(match s {
+        Stage::Ground => ev.chi2(r, s) / n,
+        Stage::Actuator => {
+            let sigma2 = ev
+                .noise
+                .actuator_sigma_m
+                .max(ev.actuator_quantum_m() * 2f64.sqrt())
+                .powi(2);
+            r.act / sigma2 / n
+        }
+    })
+}
+
+/// The verdict and the explained fraction; fills each finding's `explained_share`,
+/// `implausible_sign`, signature and `fit`, adds findings named by signature alone, and
+/// orders the findings by explained share.
+pub fn verdict(
+    ev: &Evaluator,
+    sel: &Selection,
+    findings: &mut Vec<crate::report::Finding>,
+) -> (String, f64) {
+    use crate::signature;
+    use crate::{MIN_EXPLAINED, MISMATCH_CHI2, RESIDUAL_CHI2, WELL_EXPLAINED};
+    let (mut excess0, mut excess1) = (0.0, 0.0);
+    let mut worst_final: f64 = 0.0;
+    let mut mismatch = false;
+    let mut counted = Vec::new();
+    for s in [Stage::Ground, Stage::Actuator] {
+        let (Some(c0), Some(c1)) = (
+            stage_chi2(ev, &sel.nominal, s),
+            stage_chi2(ev, &sel.final_rss, s),
+        ) else {
+            continue;
+        };
+        // The actuator stage starts from its timing floor (the nominal model with the best
+        // sub-quarter-row delay, see `act_floor_rss`): what such a delay explains is
+        // logging, not physics.
+        let c0 = if s == Stage::Actuator {
+            c0.min(ev.act_floor_rss.get() / sel.nominal.act.max(1e-300) * c0)
+        } else {
+            c0
+        };
+        let c1 = c1.min(c0);
+        // A stage nothing was found on whose residual does not drift is noise, however
+        // coloured (motion capture correlated over a second, jittered sample times).
+        let found_here = findings.iter().any(|f| f.rmse_stage == s);
+        if !found_here && signature::stage_is_noise(ev, &sel.nominal_eval, s == Stage::Ground) {
+            continue;
+        }
+        if c0 > MISMATCH_CHI2 {
+            mismatch = true;
+            excess0 += c0 - 1.0;
+            excess1 += (c1 - 1.0).max(0.0);
+            worst_final = worst_final.max(c1);
+            counted.push(s);
+        }
+    }
+    let explained_fraction = if excess0 > 0.0 {
+        (1.0 - excess1 / excess0).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    // Each finding's share: the drop of the counted stages' chi-square when it was added.
+    for (f, st) in findings.iter_mut().zip(&sel.steps) {
+        let mut d = 0.0;
+        for &s in &counted {
+            if let (Some(b), Some(a)) =
+                (stage_chi2(ev, &st.before, s), stage_chi2(ev, &st.after, s))
+            {
+                d += b - a;
+            }
+        }
+        f.explained_share = if excess0 > 0.0 {
+            (d / excess0).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        // Physical signs: a side-slip coefficient is not negative (the log-fitted
+        // parameters cannot be).
+        f.implausible_sign = f.parameters.get("side_slip_s").is_some_and(|k| *k < 0.0);
+    }
+    // Signatures.
+    let steps = signature::stepper_steps(ev, &sel.nominal_eval).filter(|s| s.clear());
+    let region = signature::region_loss(ev).filter(|r| r.clear());
+    let left = 1.0 - explained_fraction;
+    let stage_rmse = |s: Stage| match s {
+        Stage::Ground => (sel.nominal.ground_rmse(), sel.final_rss.ground_rmse()),
+        Stage::Actuator => (sel.nominal.actuator_rmse(), sel.final_rss.actuator_rmse()),
+    };
+    if let Some(st) = &steps {
+        let text = format!(
+            "{} jumps of whole electrical cycles (off by {:.2} cycle on average), {:.0} % at high commanded acceleration",
+            st.jumps,
+            st.off_cycle,
+            st.at_high_accel * 100.0
+        );
+        match findings.iter_mut().find(|f| f.effect == "missed_steps") {
+            Some(f) => f.signature = Some(text),
+            None => {
+                let (b, a) = stage_rmse(Stage::Actuator);
+                findings.push(partial(
+                    "missed_steps",
+                    "quanta",
+                    Stage::Actuator,
+                    b,
+                    a,
+                    left,
+                    text,
+                ));
+            }
+        }
+    }
+    if let Some(r) = &region {
+        let text = format!(
+            "travel lost {:.2} % of distance for world x in [{:.2}, {:.2}] m ({:.0} sigma), {:.2} % outside",
+            r.loss_per_m * 100.0,
+            r.start_m,
+            r.end_m,
+            r.sigma,
+            r.outside_per_m * 100.0
+        );
+        match findings.iter_mut().find(|f| f.effect == "floor_bumps") {
+            Some(f) => f.signature = Some(text),
+            None => {
+                let (b, a) = stage_rmse(Stage::Ground);
+                let mut f = partial("floor_bumps", "region", Stage::Ground, b, a, left, text);
+                f.parameters.insert("start_m".into(), r.start_m);
+                f.parameters.insert("end_m".into(), r.end_m);
+                f.parameters.insert("loss_per_m".into(), r.loss_per_m);
+                for k in ["start_m", "end_m", "loss_per_m"] {
+                    f.uncertainties.insert(k.into(), None);
+                }
+                findings.push(f);
+            }
+        }
+    }
+    findings.sort_by(|a, b| b.explained_share.total_cmp(&a.explained_share));
+    let top = findings.iter().find(|f| !f.implausible_sign);
+    let verdict = match top {
+        None if mismatch => crate::VERDICT_UNEXPLAINED.to_string(),
+        None => crate::VERDICT_NONE.to_string(),
+        Some(f) if f.signature.is_some() => f.effect.clone(),
+        Some(_) if mismatch && explained_fraction < MIN_EXPLAINED => {
+            crate::VERDICT_UNEXPLAINED.to_string()
+        }
+        // A fit that leaves the residual far outside the noise must explain nearly all
+        // of it to be the answer: an effect can bend an out-of-catalogue drift a long way
+        // with implausible parameters.
+        Some(_)
+            if mismatch && worst_final > RESIDUAL_CHI2 && explained_fraction < WELL_EXPLAINED =>
+        {
+            crate::VERDICT_UNEXPLAINED.to_string()
+        }
+        Some(f) => f.effect.clone(),
+    };
+    // A named effect whose fit leaves the residual far outside the noise is partial.
+    for f in findings.iter_mut() {
+        if f.signature.is_some() && worst_final > RESIDUAL_CHI2 && f.fit == "full" {
+            f.fit = "partial".into();
+            f.residual_left_m = Some(f.rmse_after_m);
+        }
+    }
+    (verdict, explained_fraction)
+}
+
+/// A finding named by its signature alone.
+fn partial(
+    effect: &str,
+    mechanism: &str,
+    stage: Stage,
+    before: f64,
+    after: f64,
+    share: f64,
+    signature: String,
+) -> crate::report::Finding {
+    crate::report::Finding {
+        effect: effect.into(),
+        stage,
+        rmse_stage: stage,
+        parameters: Default::default(),
+        uncertainties: Default::default(),
+        rmse_before_m: before,
+        rmse_after_m: after,
+        delta_bic: f64::NAN,
+        heldout_ratio: f64::NAN,
+        mechanism: mechanism.into(),
+        fit: "partial".into(),
+        explained_share: share.clamp(0.0, 1.0),
+        signature: Some(signature),
+        residual_left_m: Some(after),
+        implausible_sign: false,
+    }
+}

@@ -1,0 +1,247 @@
+//! Signatures (issue 11): before any parametric fit, what each effect does to the
+//! residuals, looked for directly. A clear signature names an effect even when no
+//! mechanism fits it fully (the finding then says `"fit": "partial"`), and a residual with
+//! no signature of drift at all is noise, however coloured.
+//!
+//! - Noise: a stationary residual (motion-capture noise correlated over a second, jittered
+//!   sample times) changes by as much over 8 s as over 2 s; a model error keeps growing.
+//! - `missed_steps`: the wheel residual jumps by whole electrical cycles (four full steps)
+//!   where the commanded acceleration is high.
+//! - `floor_bumps` in a region: measured travel falls short of the wheels' in proportion to
+//!   distance, inside one stretch of the floor only (chord lengths: heading drift does not
+//!   enter).
+
+use crate::effects::Model;
+use crate::residuals::{Eval, Evaluator};
+
+/// Lags (s) of the stationarity test and the largest variance ratio still called noise.
+const LAG_SHORT_S: f64 = 2.0;
+const LAG_LONG_S: f64 = 8.0;
+pub const STATIONARY_RATIO: f64 = 2.0;
+
+/// Variance of the residual's change over the long lag over that over the short lag.
+/// `None` when the series is too short to tell.
+pub fn drift_ratio(t: &[f64], e: &[f64]) -> Option<f64> {
+    let n = t.len().min(e.len());
+    if n < 10 {
+        return None;
+    }
+    let span = t[n - 1] - t[0];
+    if span < 3.0 * LAG_LONG_S {
+        return None;
+    }
+    let var_at = |lag: f64| -> f64 {
+        let (mut s, mut c, mut j) = (0.0, 0usize, 0usize);
+        for i in 0..n {
+            while j < n && t[j] < t[i] + lag {
+                j += 1;
+            }
+            if j >= n {
+                break;
+            }
+            let d = e[j] - e[i];
+            s += d * d;
+            c += 1;
+        }
+        s / c.max(1) as f64
+    };
+    let short = var_at(LAG_SHORT_S);
+    (short > 0.0).then(|| var_at(LAG_LONG_S) / short)
+}
+
+/// True when every residual series of a stage is stationary (noise, not drift).
+pub fn stage_is_noise(ev: &Evaluator, e: &Eval, ground: bool) -> bool {
+    let p = ev.p;
+    if ground {
+        let t: Vec<f64> = p.poses.row.iter().map(|&r| p.t[r]).collect();
+        let mut any = false;
+        for s in [&e.ex, &e.ey, &e.eth] {
+            match drift_ratio(&t, s) {
+                Some(r) if r < STATIONARY_RATIO => any = true,
+                Some(_) => return false,
+                None => return false,
+            }
+        }
+        any
+    } else {
+        let t: Vec<f64> = ev.act_rows.iter().map(|&r| p.t[r]).collect();
+        let mut any = false;
+        for (_, s) in &e.act {
+            match drift_ratio(&t, s) {
+                Some(r) if r < STATIONARY_RATIO => any = true,
+                _ => return false,
+            }
+        }
+        any
+    }
+}
+
+/// What a stepper's wheel residual shows.
+#[derive(Debug, Clone, PartialEq)]
+pub struct StepSignature {
+    /// Jumps of at least half an electrical cycle.
+    pub jumps: usize,
+    /// Share of them within two rows of a high commanded acceleration.
+    pub at_high_accel: f64,
+    /// Mean distance of the jump sizes from whole cycles (0 = exact multiples).
+    pub off_cycle: f64,
+}
+
+impl StepSignature {
+    pub fn clear(&self) -> bool {
+        self.jumps >= 5 && self.at_high_accel >= 0.8 && self.off_cycle < 0.25
+    }
+}
+
+/// Looks for steps of one electrical cycle in the actuator residual of `e`.
+pub fn stepper_steps(ev: &Evaluator, e: &Eval) -> Option<StepSignature> {
+    let p = ev.p;
+    let d = &p.robot.drive;
+    if d.kind != calib_core::robot::DriveType::Stepper || d.steps_per_rev == 0 {
+        return None;
+    }
+    let cycle_rad = 4.0 * std::f64::consts::TAU / (d.steps_per_rev as f64 * d.gear_ratio);
+    let rows = &ev.act_rows;
+    let (mut jumps, mut hits, mut off) = (0usize, 0usize, 0.0);
+    for (i, s) in &e.act {
+        let w = &p.wheels[*i];
+        let Some(cmd) = &w.cmd else { continue };
+        let cycle_m = cycle_rad * w.radius_m;
+        // |commanded acceleration| per row, and its high level (95th percentile / 2).
+        let acc: Vec<f64> = (0..p.rows())
+            .map(|k| {
+                let k1 = (k + 1).min(p.rows() - 1);
+                let dt = (p.t[k1] - p.t[k]).max(1e-9);
+                ((cmd[k1] - cmd[k]) / dt).abs()
+            })
+            .collect();
+        let mut sorted = acc.clone();
+        sorted.sort_by(|a, b| a.total_cmp(b));
+        let high = 0.5 * sorted[((sorted.len() - 1) as f64 * 0.95) as usize];
+        if high <= 0.0 {
+            continue;
+        }
+        for k in 0..s.len().saturating_sub(1) {
+            let dj = s[k + 1] - s[k];
+            if dj.abs() < 0.5 * cycle_m {
+                continue;
+            }
+            jumps += 1;
+            let q = dj.abs() / cycle_m;
+            off += (q - q.round()).abs();
+            let (r0, r1) = (
+                rows[k].saturating_sub(2),
+                (rows[k + 1] + 2).min(p.rows() - 1),
+            );
+            if acc[r0..=r1].iter().any(|&a| a >= high) {
+                hits += 1;
+            }
+        }
+    }
+    Some(StepSignature {
+        jumps,
+        at_high_accel: hits as f64 / jumps.max(1) as f64,
+        off_cycle: off / jumps.max(1) as f64,
+    })
+}
+
+/// Travel lost inside a stretch of world x.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RegionSignature {
+    pub start_m: f64,
+    pub end_m: f64,
+    /// Travel lost per metre inside (chord lengths), and its significance in noise sigmas.
+    pub loss_per_m: f64,
+    pub sigma: f64,
+    /// Loss per metre outside the region.
+    pub outside_per_m: f64,
+}
+
+impl RegionSignature {
+    pub fn clear(&self) -> bool {
+        self.sigma > 8.0
+            && self.loss_per_m > 0.003
+            && self.outside_per_m.abs() < 0.3 * self.loss_per_m
+    }
+}
+
+/// Compares measured and nominal-odometry chord lengths over ~0.3 s segments, binned by
+/// world x, and returns the stretch with the most significant loss.
+pub fn region_loss(ev: &Evaluator) -> Option<RegionSignature> {
+    let p = ev.p;
+    let ps = &p.poses;
+    if ps.len() < 40 {
+        return None;
+    }
+    let path = ev.path(&Model::default());
+    let dur = p.t[ps.row[ps.len() - 1]] - p.t[ps.row[0]];
+    let step = ((0.3 * ps.len() as f64 / dur.max(1e-9)).round() as usize).max(1);
+    let sigma = ev.noise.pose_sigma_m.max(1e-6) * 2f64.sqrt();
+    // (world x, measured chord, odometry chord)
+    let mut seg = Vec::new();
+    let mut j = 0;
+    while j + step < ps.len() {
+        let (a, b) = (j, j + step);
+        let meas = (ps.x[b] - ps.x[a]).hypot(ps.y[b] - ps.y[a]);
+        let (ra, rb) = (ps.row[a], ps.row[b]);
+        let odo = (path.x[rb] - path.x[ra]).hypot(path.y[rb] - path.y[ra]);
+        if odo > 5.0 * sigma {
+            seg.push((0.5 * (ps.x[a] + ps.x[b]), meas, odo));
+        }
+        j = b;
+    }
+    if seg.len() < 20 {
+        return None;
+    }
+    let (lo, hi) = seg
+        .iter()
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), s| {
+            (l.min(s.0), h.max(s.0))
+        });
+    let bin = 0.05;
+    let nb = (((hi - lo) / bin).ceil() as usize).clamp(1, 400);
+    let mut loss = vec![0.0; nb];
+    let mut dist = vec![0.0; nb];
+    let mut count = vec![0usize; nb];
+    for (x, m, o) in &seg {
+        let b = (((x - lo) / bin) as usize).min(nb - 1);
+        loss[b] += o - m;
+        dist[b] += o;
+        count[b] += 1;
+    }
+    let (tl, td, tc): (f64, f64, usize) = (loss.iter().sum(), dist.iter().sum(), seg.len());
+    let mut best: Option<(f64, usize, usize)> = None;
+    for i in 0..nb {
+        let (mut l, mut d, mut c) = (0.0, 0.0, 0usize);
+        for k in i..nb {
+            l += loss[k];
+            d += dist[k];
+            c += count[k];
+            if c < 5 || tc - c < 5 || d <= 0.0 {
+                continue;
+            }
+            let z = l / (sigma * (c as f64).sqrt());
+            let out_d = td - d;
+            let out_rate = if out_d > 0.0 { (tl - l) / out_d } else { 0.0 };
+            // Contrast with the outside: a uniform loss (or a diameter error) is not a region.
+            let score = z - (tl - l) / (sigma * ((tc - c) as f64).sqrt()).max(1e-12);
+            if l / d > 2.0 * out_rate.abs() && best.is_none_or(|b| score > b.0) {
+                best = Some((score, i, k));
+            }
+        }
+    }
+    let (_, i, k) = best?;
+    let (l, d, c): (f64, f64, usize) = (
+        loss[i..=k].iter().sum(),
+        dist[i..=k].iter().sum(),
+        count[i..=k].iter().sum(),
+    );
+    let out_d = td - d;
+    Some(RegionSignature {
+        start_m: lo + i as f64 * bin,
+        end_m: lo + (k + 1) as f64 * bin,
+        loss_per_m: l / d,
+        sigma: l / (sigma * (c as f64).sqrt()),
+        outside_per_m: if out_d > 0.0 { (tl - l) / out_d } else { 0.0 },
+    })
+}
