@@ -306,7 +306,16 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
         }
         tried.sort_by(|a, b| a.4.total_cmp(&b.4));
         let mut accepted = false;
-        for (e, m, sig, cand_eval, d) in tried.into_iter().take(3) {
+        // The three best catalogue effects are examined, each with all its mechanisms
+        // (siblings of a rejected mechanism usually fail the same test).
+        let mut bases: Vec<Effect> = Vec::new();
+        for (e, m, sig, cand_eval, d) in tried.into_iter() {
+            if !bases.contains(&e.base()) {
+                if bases.len() == 3 {
+                    break;
+                }
+                bases.push(e.base());
+            }
             let idx = candidates
                 .iter()
                 .rposition(|c| c.round == round && c.effect == e)

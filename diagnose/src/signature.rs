@@ -217,14 +217,15 @@ pub fn region_loss(ev: &Evaluator) -> Option<RegionSignature> {
             l += loss[k];
             d += dist[k];
             c += count[k];
-            if c < 5 || tc - c < 5 || d <= 0.0 {
+            // A region is wider than a few segments (one bad segment is not a floor).
+            if c < 10 || k - i < 3 || tc - c < 10 || d <= 0.0 {
                 continue;
             }
             let z = l / (sigma * (c as f64).sqrt());
             let out_d = td - d;
             let out_rate = if out_d > 0.0 { (tl - l) / out_d } else { 0.0 };
             // Contrast with the outside: a uniform loss (or a diameter error) is not a region.
-            let score = z - (tl - l) / (sigma * ((tc - c) as f64).sqrt()).max(1e-12);
+            let score = z - ((tl - l) / (sigma * ((tc - c) as f64).sqrt())).abs();
             if l / d > 2.0 * out_rate.abs() && best.is_none_or(|b| score > b.0) {
                 best = Some((score, i, k));
             }
