@@ -314,12 +314,12 @@ impl Effect {
             Effect::MissedSteps => singles(log_grid(1.0, 3000.0, 64)),
             Effect::MotorLag => singles(log_grid(0.003, 1.0, 10)),
             Effect::CoulombFriction => singles(log_grid(0.02, 20.0, 12)),
-            Effect::SlipBody => singles(log_grid(0.02, 3.0, 12)),
-            Effect::SlipCreep => singles(log_grid(0.005, 0.5, 10)),
+            Effect::SlipBody => singles(log_grid(0.02, 3.0, 8)),
+            Effect::SlipCreep => singles(log_grid(0.005, 0.5, 6)),
             Effect::LateralSaturating => {
                 let mut g = Vec::new();
-                for k in log_grid(0.01, 0.5, 5) {
-                    for sat in log_grid(0.002, 0.05, 4) {
+                for k in log_grid(0.01, 0.5, 3) {
+                    for sat in log_grid(0.002, 0.05, 3) {
                         g.push(vec![k, sat]);
                     }
                 }

@@ -210,10 +210,7 @@ pub fn region_grid(p: &Prepared) -> Vec<Vec<f64>> {
     }
     xs.sort_by(|a, b| a.total_cmp(b));
     let q = |f: f64| xs[((xs.len() - 1) as f64 * f) as usize];
-    let cuts: Vec<f64> = [0.0, 0.2, 0.4, 0.6, 0.8, 1.0]
-        .iter()
-        .map(|&f| q(f))
-        .collect();
+    let cuts: Vec<f64> = [0.0, 0.25, 0.5, 0.75, 1.0].iter().map(|&f| q(f)).collect();
     let mut g = Vec::new();
     for i in 0..cuts.len() {
         for j in i + 1..cuts.len() {

@@ -278,7 +278,31 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             })
             .collect();
         let mut fitted: Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> = reused;
-        for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &todo) {
+        // Catalogue mechanisms first; the other mechanisms of an effect only when the data
+        // lean towards that effect at all (its default mechanism lowers the BIC), or when
+        // its default does not apply here. Keeps the larger catalogue's cost near the old.
+        let (defaults, variants): (Vec<_>, Vec<_>) =
+            todo.into_iter().partition(|(e, _)| e.base() == *e);
+        let mut leaning: Vec<Effect> = Vec::new();
+        for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &defaults) {
+            let k = e.params(robot).len();
+            if delta_bic(ev, &base_eval, &ce, k, evidence_stage(ev, e)) < 0.0 {
+                leaning.push(e);
+            }
+            fitted.push((e, m, sig, ce));
+        }
+        let base_rss = ev.rss(&base_eval, Fold::All);
+        let variants: Vec<_> = variants
+            .into_iter()
+            .filter(|(e, _)| {
+                leaning.contains(&e.base())
+                    || stage_chi2(ev, &base_rss, e.stage())
+                        .is_some_and(|c| c > crate::MISMATCH_CHI2)
+                    || !defaults.iter().any(|(d, _)| *d == e.base())
+                        && !fitted.iter().any(|f| f.0 == e.base())
+            })
+            .collect();
+        for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &variants) {
             fitted.push((e, m, sig, ce));
         }
         fitted.sort_by_key(|f| f.0);
@@ -631,7 +655,7 @@ pub fn verdict(
     }
     // Signatures.
     let steps = signature::stepper_steps(ev, &sel.nominal_eval).filter(|s| s.clear());
-    let region = signature::region_loss(ev).filter(|r| r.clear());
+    let region = signature::region_loss(ev, &sel.model).filter(|r| r.clear());
     let left = 1.0 - explained_fraction;
     let stage_rmse = |s: Stage| match s {
         Stage::Ground => (sel.nominal.ground_rmse(), sel.final_rss.ground_rmse()),

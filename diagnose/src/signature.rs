@@ -165,15 +165,16 @@ impl RegionSignature {
     }
 }
 
-/// Compares measured and nominal-odometry chord lengths over ~0.3 s segments, binned by
-/// world x, and returns the stretch with the most significant loss.
-pub fn region_loss(ev: &Evaluator) -> Option<RegionSignature> {
+/// Compares measured chord lengths over ~0.3 s segments with those of `model`'s odometry
+/// (the final model: travel other findings already explain, such as slip in launches, is
+/// not a floor), binned by world x, and returns the stretch with the most significant loss.
+pub fn region_loss(ev: &Evaluator, model: &Model) -> Option<RegionSignature> {
     let p = ev.p;
     let ps = &p.poses;
     if ps.len() < 40 {
         return None;
     }
-    let path = ev.path(&Model::default());
+    let path = ev.path(model);
     let dur = p.t[ps.row[ps.len() - 1]] - p.t[ps.row[0]];
     let step = ((0.3 * ps.len() as f64 / dur.max(1e-9)).round() as usize).max(1);
     let sigma = ev.noise.pose_sigma_m.max(1e-6) * 2f64.sqrt();
