@@ -165,35 +165,67 @@ impl RegionSignature {
     }
 }
 
-/// Compares measured chord lengths over ~0.3 s segments with those of `model`'s odometry
-/// (the final model: travel other findings already explain, such as slip in launches, is
-/// not a floor), binned by world x, and returns the stretch with the most significant loss.
-pub fn region_loss(ev: &Evaluator, model: &Model) -> Option<RegionSignature> {
+/// Per driven wheel with an encoder, compares the travel its encoder reports with the
+/// travel its contact made according to the measured poses (body motion over ~0.3 s
+/// segments, through the wheel's rolling row), binned by the wheel's world x, and returns
+/// the stretch with the most significant loss. Measured heading enters directly, so the
+/// heading drift a bump makes in dead reckoning does not blur the signature.
+pub fn region_loss(ev: &Evaluator, _model: &Model) -> Option<RegionSignature> {
     let p = ev.p;
     let ps = &p.poses;
     if ps.len() < 40 {
         return None;
     }
-    let path = ev.path(model);
     let dur = p.t[ps.row[ps.len() - 1]] - p.t[ps.row[0]];
     let step = ((0.3 * ps.len() as f64 / dur.max(1e-9)).round() as usize).max(1);
-    let sigma = ev.noise.pose_sigma_m.max(1e-6) * 2f64.sqrt();
-    // (world x, measured chord, odometry chord)
-    let mut seg = Vec::new();
-    let mut j = 0;
-    while j + step < ps.len() {
-        let (a, b) = (j, j + step);
-        let meas = (ps.x[b] - ps.x[a]).hypot(ps.y[b] - ps.y[a]);
-        let (ra, rb) = (ps.row[a], ps.row[b]);
-        let odo = (path.x[rb] - path.x[ra]).hypot(path.y[rb] - path.y[ra]);
-        if odo > 5.0 * sigma {
-            seg.push((0.5 * (ps.x[a] + ps.x[b]), meas, odo));
+    // (world x of the wheel, deficit m, wheel travel m)
+    let mut seg: Vec<(f64, f64, f64)> = Vec::new();
+    for (i, w) in p.robot.wheels.iter().enumerate() {
+        let Some(enc) = &p.wheels[i].enc_rad else {
+            continue;
+        };
+        if !w.driven {
+            continue;
         }
-        j = b;
+        let row = w.rolling_row();
+        let (bx, by) = w.position();
+        let r = w.radius_m * w.gamma_rad.cos();
+        let mut j = 0;
+        while j + step < ps.len() {
+            let (a, b) = (j, j + step);
+            j = b;
+            // Segments across a gap in the pose stream are not straight enough to resolve
+            // through one mid heading.
+            if p.t[ps.row[b]] - p.t[ps.row[a]] > 0.6 {
+                continue;
+            }
+            let th = 0.5 * (ps.theta[a] + ps.theta[b]);
+            let (sn, cs) = th.sin_cos();
+            let (dx, dy) = (ps.x[b] - ps.x[a], ps.y[b] - ps.y[a]);
+            let d = [
+                cs * dx + sn * dy,
+                -sn * dx + cs * dy,
+                ps.theta[b] - ps.theta[a],
+            ];
+            let implied = row[0] * d[0] + row[1] * d[1] + row[2] * d[2];
+            let travel = r * (enc[ps.row[b]] - enc[ps.row[a]]);
+            if travel.abs() < 1e-4 {
+                continue;
+            }
+            let wx = 0.5 * (ps.x[a] + ps.x[b]) + cs * bx - sn * by;
+            seg.push((wx, (travel - implied) * travel.signum(), travel.abs()));
+        }
     }
-    if seg.len() < 20 {
+    if seg.len() < 40 {
         return None;
     }
+    // Noise of one segment's deficit, robustly (the region is a minority of segments).
+    let mut dev: Vec<f64> = seg.iter().map(|s| s.1).collect();
+    dev.sort_by(|a, b| a.total_cmp(b));
+    let med = dev[dev.len() / 2];
+    let mut mad: Vec<f64> = dev.iter().map(|d| (d - med).abs()).collect();
+    mad.sort_by(|a, b| a.total_cmp(b));
+    let sigma = (1.4826 * mad[mad.len() / 2]).max(1e-6);
     let (lo, hi) = seg
         .iter()
         .fold((f64::INFINITY, f64::NEG_INFINITY), |(l, h), s| {
@@ -204,10 +236,10 @@ pub fn region_loss(ev: &Evaluator, model: &Model) -> Option<RegionSignature> {
     let mut loss = vec![0.0; nb];
     let mut dist = vec![0.0; nb];
     let mut count = vec![0usize; nb];
-    for (x, m, o) in &seg {
+    for (x, l, d) in &seg {
         let b = (((x - lo) / bin) as usize).min(nb - 1);
-        loss[b] += o - m;
-        dist[b] += o;
+        loss[b] += l;
+        dist[b] += d;
         count[b] += 1;
     }
     let (tl, td, tc): (f64, f64, usize) = (loss.iter().sum(), dist.iter().sum(), seg.len());
