@@ -170,8 +170,11 @@ impl RegionSignature {
 /// segments, through the wheel's rolling row), binned by the wheel's world x, and returns
 /// the stretch with the most significant loss. Measured heading enters directly, so the
 /// heading drift a bump makes in dead reckoning does not blur the signature.
-pub fn region_loss(ev: &Evaluator, _model: &Model) -> Option<RegionSignature> {
+pub fn region_loss(ev: &Evaluator, model: &Model) -> Option<RegionSignature> {
     let p = ev.p;
+    // The contact travel the model predicts (the final model: slip it found is not a
+    // floor), against what the measured poses say.
+    let path = ev.path(model);
     let ps = &p.poses;
     if ps.len() < 40 {
         return None;
@@ -208,8 +211,23 @@ pub fn region_loss(ev: &Evaluator, _model: &Model) -> Option<RegionSignature> {
                 ps.theta[b] - ps.theta[a],
             ];
             let implied = row[0] * d[0] + row[1] * d[1] + row[2] * d[2];
-            let travel = r * (enc[ps.row[b]] - enc[ps.row[a]]);
-            if travel.abs() < 1e-4 {
+            let (mut mx, mut my, mut mw) = (0.0, 0.0, 0.0);
+            for st in &path.step[ps.row[a]..ps.row[b].min(path.step.len())] {
+                mx += st.vx;
+                my += st.vy;
+                mw += st.omega;
+            }
+            let travel = row[0] * mx + row[1] * my + row[2] * mw;
+            if travel.abs() < 1e-4 || r <= 0.0 {
+                continue;
+            }
+            // Cruise only: slip in launches and stops loses travel wherever the robot
+            // happens to accelerate, which is not a property of the floor.
+            let (ra, rb) = (ps.row[a], ps.row[b]);
+            let rm = (ra + rb) / 2;
+            let v1 = (enc[rm] - enc[ra]) / (p.t[rm] - p.t[ra]).max(1e-9);
+            let v2 = (enc[rb] - enc[rm]) / (p.t[rb] - p.t[rm]).max(1e-9);
+            if (v2 - v1).abs() > 0.2 * v1.abs().max(v2.abs()) {
                 continue;
             }
             let wx = 0.5 * (ps.x[a] + ps.x[b]) + cs * bx - sn * by;
