@@ -297,3 +297,36 @@ pub fn region_loss(ev: &Evaluator, model: &Model) -> Option<RegionSignature> {
         outside_per_m: if out_d > 0.0 { (tl - l) / out_d } else { 0.0 },
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use rand::SeedableRng;
+    use rand_chacha::ChaCha8Rng;
+    use rand_distr::{Distribution, Normal};
+
+    #[test]
+    fn drift_ratio_tells_noise_from_drift() {
+        // 60 s at 30 Hz. White noise: the change over 8 s and over 2 s both have variance
+        // 2 sigma^2 (ratio 1). AR(1) with rho 0.97 (correlation ~1.1 s): 2 sigma^2 (1 -
+        // rho^240) / (2 sigma^2 (1 - rho^60)) = 1.19. A random walk: 8 / 2 = 4. A linear
+        // drift: (8 / 2)^2 = 16.
+        let mut rng = ChaCha8Rng::seed_from_u64(3);
+        let n = Normal::new(0.0, 1.0).unwrap();
+        let t: Vec<f64> = (0..1800).map(|k| k as f64 / 30.0).collect();
+        let white: Vec<f64> = t.iter().map(|_| n.sample(&mut rng)).collect();
+        let mut ar = vec![0.0; t.len()];
+        let mut walk = vec![0.0; t.len()];
+        for k in 1..t.len() {
+            ar[k] = 0.97 * ar[k - 1] + (1.0f64 - 0.97 * 0.97).sqrt() * n.sample(&mut rng);
+            walk[k] = walk[k - 1] + n.sample(&mut rng);
+        }
+        let line: Vec<f64> = t.iter().map(|x| 0.01 * x).collect();
+        let r = |s: &[f64]| drift_ratio(&t, s).unwrap();
+        assert!((r(&white) - 1.0).abs() < 0.15, "{}", r(&white));
+        assert!((r(&ar) - 1.19).abs() < 0.4, "{}", r(&ar));
+        assert!(r(&ar) < STATIONARY_RATIO);
+        assert!((r(&walk) - 4.0).abs() < 1.5, "{}", r(&walk));
+        assert!((r(&line) - 16.0).abs() < 0.5, "{}", r(&line));
+    }
+}

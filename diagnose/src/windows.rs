@@ -374,3 +374,27 @@ fn describe(
     }
     (map, best.map(|b| b.0.to_string()))
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn peaks_are_where_the_residual_steps() {
+        // A residual flat except for a 1 mm step between samples 5 and 6 (rows 10..12) and
+        // a 0.3 mm one (below half the largest) between 8 and 9.
+        let mut s = vec![0.0; 12];
+        for (k, v) in s.iter_mut().enumerate() {
+            *v = if k >= 9 {
+                1.3e-3
+            } else if k >= 6 {
+                1e-3
+            } else {
+                0.0
+            };
+        }
+        let rows: Vec<usize> = (0..12).map(|k| 2 * k).collect();
+        assert_eq!(peak_rows(&s, &rows, 0, 11), vec![10, 11, 12]);
+        assert!(peak_rows(&s, &rows, 0, 4).is_empty());
+    }
+}
