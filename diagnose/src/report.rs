@@ -175,10 +175,14 @@ impl fmt::Display for Report {
         for (i, x) in self.findings.iter().enumerate() {
             writeln!(
                 f,
-                "{}. {} ({} stage): RMSE {:.3} -> {:.3} mm, dBIC {:.0}, held-out ratio {:.3}",
+                "{}. {} by {} ({} stage, {:.0} % of the excess, {} fit{}): RMSE {:.3} -> {:.3} mm, dBIC {:.0}, held-out ratio {:.3}",
                 i + 1,
                 x.effect,
+                x.mechanism,
                 x.stage,
+                x.explained_share * 100.0,
+                x.fit,
+                if x.implausible_sign { ", implausible sign" } else { "" },
                 x.rmse_before_m * 1e3,
                 x.rmse_after_m * 1e3,
                 x.delta_bic,
@@ -187,6 +191,9 @@ impl fmt::Display for Report {
             for (name, v) in &x.parameters {
                 let s = x.uncertainties.get(name).copied().flatten();
                 writeln!(f, "     {name} = {}", fmt_param(*v, s))?;
+            }
+            if let Some(sig) = &x.signature {
+                writeln!(f, "     signature: {sig}")?;
             }
         }
         writeln!(f, "windows: {}", self.windows.len())?;
