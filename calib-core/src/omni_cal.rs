@@ -13,6 +13,18 @@
 //!
 //! Error convention (formats.md sec. 3): measured minus odometry, in the start frame with
 //! x along the commanded direction of the path and y to its left.
+//!
+//! # Idle wheels: released or held
+//! 001 describes its two paths differently: on 4W-1 "the other wheels have no angular
+//! velocity" (held at zero by their controllers), on 4W-2 "the actuators of wheels 1 and
+//! 3 are turned off" (released, free to turn). Released wheels add no constraint: each
+//! driven wheel's travel is its rolling row times the body motion, read straight off the
+//! arc. Held wheels are rolling constraints with zero wheel speed that fight the driven
+//! ones; the body then moves as the least-squares solution of all rolling constraints,
+//! driven and held weighted alike (how the sim crate resolves an over-determined wheel
+//! set): motion = P c with P the pseudo-inverse of the stacked rows and c the contact
+//! travels (k_j times nominal for driven wheels, 0 for held ones). The k_j are then the
+//! least-squares solution of that linear relation ([`IdleWheels::Held`] paths).
 
 use crate::linalg::sinc;
 use crate::stats;
@@ -76,6 +88,27 @@ impl DrivenWheel {
     }
 }
 
+/// How the wheels a path does not drive behave while it runs.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum IdleWheels {
+    /// Drive cut: free to turn, no constraint on the body (001's 4W-2).
+    #[default]
+    Released,
+    /// Velocity loop at zero: a rolling constraint with zero wheel speed (001's 4W-1).
+    Held,
+}
+
+impl IdleWheels {
+    /// The name used in robot files, flags and JSON.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            IdleWheels::Released => "released",
+            IdleWheels::Held => "held",
+        }
+    }
+}
+
 /// One test path with its runs.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PathRuns<'a> {
@@ -87,6 +120,9 @@ pub struct PathRuns<'a> {
     pub driven: &'a [DrivenWheel],
     /// Measured runs (at least one).
     pub runs: &'a [OmniRun],
+    /// Rolling rows of the wheels held at zero speed while this path ran; empty when the
+    /// idle wheels were released.
+    pub held: &'a [[f64; 3]],
 }
 
 /// The arc a run followed, inferred from its end error.
@@ -325,10 +361,82 @@ pub fn infer_arc(length_m: f64, run: &OmniRun) -> Option<ArcMotion> {
 /// Ground travel (row . integrated body twist) a wheel makes along `arc` on a path in
 /// body direction `direction_rad`.
 fn wheel_travel(row: &[f64; 3], arc: &ArcMotion, direction_rad: f64) -> f64 {
+    let m = arc_motion(arc, direction_rad);
+    row[0] * m[0] + row[1] * m[1] + row[2] * m[2]
+}
+
+/// Body motion (dx, dy, dtheta in the body frame) integrated along `arc`.
+fn arc_motion(arc: &ArcMotion, direction_rad: f64) -> [f64; 3] {
     let dir = direction_rad + arc.sideways_angle_rad;
-    let dx = arc.arc_length_m * libm::cos(dir);
-    let dy = arc.arc_length_m * libm::sin(dir);
-    row[0] * dx + row[1] * dy + row[2] * arc.heading_change_rad
+    [
+        arc.arc_length_m * libm::cos(dir),
+        arc.arc_length_m * libm::sin(dir),
+        arc.heading_change_rad,
+    ]
+}
+
+/// The driven wheels' k with the idle wheels held (module doc): the body motion is
+/// P c, c = (k_j n_j for driven wheels, 0 for held), so motion = A k with column j of A
+/// = P's driven column j times n_j; k solves A k = motion in least squares.
+fn held_ratios(path: &PathRuns<'_>, arc: &ArcMotion) -> Option<[f64; MAX_WHEELS]> {
+    let m = path.driven.len();
+    let rows = path.driven.iter().map(|w| &w.row).chain(path.held.iter());
+    // Normal matrix of all rolling rows (equal weights) and its inverse.
+    let mut nm = [[0.0; 3]; 3];
+    for r in rows {
+        for a in 0..3 {
+            for b in 0..3 {
+                nm[a][b] += r[a] * r[b];
+            }
+        }
+    }
+    let inv = crate::linalg::inverse3(&nm)?;
+    // A[:, j] = inv * row_j * n_j.
+    let mut cols = [[0.0; 3]; MAX_WHEELS];
+    for (j, w) in path.driven.iter().enumerate() {
+        for a in 0..3 {
+            cols[j][a] = (0..3).map(|b| inv[a][b] * w.row[b]).sum::<f64>() * w.nominal_travel_m;
+        }
+    }
+    let motion = arc_motion(arc, path.direction_rad);
+    // Normal equations (A^T A) k = A^T motion, m x m, by Gaussian elimination.
+    let mut g = [[0.0; MAX_WHEELS + 1]; MAX_WHEELS];
+    for i in 0..m {
+        for j in 0..m {
+            g[i][j] = (0..3).map(|a| cols[i][a] * cols[j][a]).sum();
+        }
+        g[i][m] = (0..3).map(|a| cols[i][a] * motion[a]).sum();
+    }
+    solve_in_place(&mut g, m)
+}
+
+/// Solves the m x m system in the first m columns of `g` (right-hand side in column m)
+/// by Gaussian elimination with partial pivoting; `None` when singular.
+fn solve_in_place(
+    g: &mut [[f64; MAX_WHEELS + 1]; MAX_WHEELS],
+    m: usize,
+) -> Option<[f64; MAX_WHEELS]> {
+    let scale = (0..m).map(|i| libm::fabs(g[i][i])).fold(0.0, f64::max);
+    for c in 0..m {
+        let piv = (c..m).max_by(|&a, &b| libm::fabs(g[a][c]).total_cmp(&libm::fabs(g[b][c])))?;
+        if !(libm::fabs(g[piv][c]) > 1e-12 * scale) {
+            return None;
+        }
+        g.swap(c, piv);
+        for r in 0..m {
+            if r != c {
+                let f = g[r][c] / g[c][c];
+                for k in c..=m {
+                    g[r][k] -= f * g[c][k];
+                }
+            }
+        }
+    }
+    let mut x = [0.0; MAX_WHEELS];
+    for i in 0..m {
+        x[i] = g[i][m] / g[i][i];
+    }
+    x.iter().all(|v| v.is_finite()).then_some(x)
 }
 
 fn validate_path(p: usize, path: &PathRuns<'_>, wheel_count: usize) -> Result<(), OmniCalError> {
@@ -434,8 +542,18 @@ pub fn calibrate(
                 run: r + 1,
             })?;
             theta_sum += arc.heading_change_rad;
-            for (j, w) in path.driven.iter().enumerate() {
-                k_sum[j] += wheel_travel(&w.row, &arc, path.direction_rad) / w.nominal_travel_m;
+            if path.held.is_empty() {
+                for (j, w) in path.driven.iter().enumerate() {
+                    k_sum[j] += wheel_travel(&w.row, &arc, path.direction_rad) / w.nominal_travel_m;
+                }
+            } else {
+                let k = held_ratios(path, &arc).ok_or(OmniCalError::ImpossibleRun {
+                    path: p,
+                    run: r + 1,
+                })?;
+                for (j, kj) in k.iter().take(path.driven.len()).enumerate() {
+                    k_sum[j] += kj;
+                }
             }
         }
         let mut path_inv_k_sum = 0.0;
@@ -632,12 +750,14 @@ mod tests {
                 direction_rad: 0.0,
                 driven: &d1,
                 runs: &runs1,
+                held: &[],
             },
             PathRuns {
                 length_m: LEN,
                 direction_rad: FRAC_PI_2,
                 driven: &d2,
                 runs: &runs2,
+                held: &[],
             },
         ];
         calibrate(&paths, 4).unwrap()
@@ -703,6 +823,7 @@ mod tests {
             direction_rad: 0.0,
             driven: &d,
             runs: &runs,
+            held: &[],
         }];
         let cal = calibrate(&paths, 4).unwrap();
         assert!(cal.correction.f_lon > 1.0);
@@ -727,6 +848,7 @@ mod tests {
             direction_rad: 0.0,
             driven: &d,
             runs: &runs,
+            held: &[],
         }];
         assert!(calibrate(&paths, 4).unwrap().correction.f_lon < 1.0);
     }
@@ -757,6 +879,7 @@ mod tests {
             direction_rad: 0.0,
             driven: &d,
             runs: &runs_a,
+            held: &[],
         }];
         let first = calibrate(&pa, 4).unwrap().correction;
         let m1 = first.wheel_multipliers();
@@ -767,6 +890,7 @@ mod tests {
             direction_rad: 0.0,
             driven: &d,
             runs: &runs_b,
+            held: &[],
         }];
         let second = calibrate(&pb, 4).unwrap().correction;
         let total = compose(&first, &second).unwrap();
@@ -799,6 +923,7 @@ mod tests {
                 direction_rad: 0.0,
                 driven: &d,
                 runs,
+                held: &[],
             }]
         };
         assert_eq!(calibrate(&[], 4).unwrap_err(), OmniCalError::NoPaths);
@@ -874,6 +999,7 @@ mod tests {
             direction_rad: 0.0,
             driven: &dup,
             runs: &ok,
+            held: &[],
         }];
         assert!(matches!(
             calibrate(&p, 4),
@@ -888,6 +1014,7 @@ mod tests {
             direction_rad: 0.0,
             driven: &zero,
             runs: &ok,
+            held: &[],
         }];
         assert!(matches!(
             calibrate(&p, 4),
@@ -898,6 +1025,7 @@ mod tests {
             direction_rad: 0.0,
             driven: &[],
             runs: &ok,
+            held: &[],
         }];
         assert_eq!(
             calibrate(&p, 4).unwrap_err(),

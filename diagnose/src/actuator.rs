@@ -19,17 +19,41 @@ pub struct ActuatorParams {
     /// Read commands as samples of a signal that varies linearly between rows (the
     /// controller ran faster than the log) instead of values held until the next row.
     pub linear: bool,
+    /// Mechanism variants (issue 11): transport delay of the command, s.
+    pub delay_s: Option<f64>,
+    /// Asymmetric backlash: play taken up turning forward is b (1 + a), backward b (1 - a).
+    pub backlash_asymmetry: Option<f64>,
+    /// Missed steps in quanta: one electrical cycle lost `rate` times a second (on average)
+    /// while the commanded acceleration is over `max_accel_rad_s2`.
+    pub quanta_rate_hz: Option<f64>,
+    /// Missed steps by stalling: over the limit the wheel stops until the command rests.
+    pub stall: bool,
 }
+
+/// A stalled stepper re-locks when the command is back near rest (rad/s).
+pub const STALL_RELEASE_RAD_S: f64 = 0.2;
 
 impl ActuatorParams {
     pub fn from_model(m: &Model) -> Self {
+        let quanta = m.get(Effect::MissedQuanta);
+        let stall = m.get(Effect::MissedStall);
+        let asym = m.get(Effect::BacklashAsymmetric);
         ActuatorParams {
             deadband_rad_s: m.get(Effect::CoulombFriction).map(|p| p[0]),
             tau_s: m.get(Effect::MotorLag).map(|p| p[0]),
-            max_accel_rad_s2: m.get(Effect::MissedSteps).map(|p| p[0]),
-            backlash_rad: m.get(Effect::Backlash).map(|p| p[0]),
+            max_accel_rad_s2: m
+                .get(Effect::MissedSteps)
+                .or(quanta)
+                .or(stall)
+                .or(m.get(Effect::LagSlew))
+                .map(|p| p[0]),
+            backlash_rad: m.get(Effect::Backlash).or(asym).map(|p| p[0]),
             linear: false,
             step_cycle_rad: None,
+            delay_s: m.get(Effect::LagDelay).map(|p| p[0]),
+            backlash_asymmetry: asym.map(|p| p[1]),
+            quanta_rate_hz: quanta.map(|p| p[1]),
+            stall: stall.is_some(),
         }
     }
 }
@@ -40,6 +64,21 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
     let n = t.len();
     if n == 0 {
         return;
+    }
+    if let Some(delay) = p.delay_s {
+        // Transport delay: the wheel turns as the command did `delay` earlier (at rest
+        // before the recording). Exact for held commands: the delayed command's mean over
+        // each row interval from the integral of the held command.
+        let delayed = crate::mechanisms::delay_commands(t, cmd, delay, p.linear);
+        let q = ActuatorParams {
+            delay_s: None,
+            linear: false,
+            ..*p
+        };
+        return simulate_wheel(t, &delayed, &q, out);
+    }
+    if p.quanta_rate_hz.is_some() || p.stall {
+        return crate::mechanisms::simulate_stepper_losses(t, cmd, p, out);
     }
     out.reserve(n);
     out.push(0.0);
@@ -53,6 +92,7 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
     };
     let mut last_tau_dt = (f64::NAN, 0.0);
     let mut stepper = Rotor::default();
+    let mut play = crate::mechanisms::Play::default();
     for k in 0..n - 1 {
         let dt = t[k + 1] - t[k];
         let (c0, c1) = if p.linear {
@@ -122,6 +162,10 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
         };
         motor += inc;
         match p.backlash_rad {
+            Some(b) if p.backlash_asymmetry.is_some() => {
+                let a = p.backlash_asymmetry.unwrap_or(0.0);
+                wheel += play.take(inc, b, a);
+            }
             Some(b) => {
                 let half = 0.5 * b;
                 if motor - wheel > half {

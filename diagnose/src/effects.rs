@@ -50,6 +50,26 @@ pub enum Effect {
     /// diameter, worn tyres, a gear ratio off by a little). With `ed` and `eb`, D_L, D_R
     /// and b are all free.
     WheelScale,
+    // Mechanism variants (issue 11): the same catalogue effect made another way. Each
+    // reports its catalogue id and its own `mechanism`.
+    /// longitudinal_slip: a bound on the body's linear acceleration (heading free).
+    SlipBody,
+    /// longitudinal_slip: creep, slip proportional to the contact's acceleration.
+    SlipCreep,
+    /// lateral_slip: slip speed saturating at `sat_m_s`.
+    LateralSaturating,
+    /// floor_bumps: only within `start_m` <= world x <= `end_m`.
+    BumpsRegion,
+    /// backlash: different play taken up on forward and backward reversals.
+    BacklashAsymmetric,
+    /// missed_steps: quanta of one electrical cycle while over the acceleration limit.
+    MissedQuanta,
+    /// missed_steps: full stall over the limit until the command rests.
+    MissedStall,
+    /// motor_lag: pure transport delay.
+    LagDelay,
+    /// motor_lag: slew-rate limit.
+    LagSlew,
 }
 
 /// How a parameter is mapped to the optimiser's coordinate.
@@ -107,7 +127,7 @@ impl ParamSpec {
 }
 
 impl Effect {
-    pub const ALL: [Effect; 10] = [
+    pub const ALL: [Effect; 19] = [
         Effect::WheelDiameterMismatch,
         Effect::WheelbaseError,
         Effect::LongitudinalSlip,
@@ -118,7 +138,54 @@ impl Effect {
         Effect::MotorLag,
         Effect::CoulombFriction,
         Effect::WheelScale,
+        Effect::SlipBody,
+        Effect::SlipCreep,
+        Effect::LateralSaturating,
+        Effect::BumpsRegion,
+        Effect::BacklashAsymmetric,
+        Effect::MissedQuanta,
+        Effect::MissedStall,
+        Effect::LagDelay,
+        Effect::LagSlew,
     ];
+
+    /// The catalogue effect this is a mechanism of (itself for the catalogue's own).
+    pub fn base(self) -> Effect {
+        match self {
+            Effect::SlipBody | Effect::SlipCreep => Effect::LongitudinalSlip,
+            Effect::LateralSaturating => Effect::LateralSlip,
+            Effect::BumpsRegion => Effect::FloorBumps,
+            Effect::BacklashAsymmetric => Effect::Backlash,
+            Effect::MissedQuanta | Effect::MissedStall => Effect::MissedSteps,
+            Effect::LagDelay | Effect::LagSlew => Effect::MotorLag,
+            e => e,
+        }
+    }
+
+    /// The mechanism's name (as the sim crate's `mechanism:<name>`).
+    pub fn mechanism(self) -> &'static str {
+        match self {
+            Effect::WheelDiameterMismatch | Effect::WheelbaseError | Effect::WheelScale => {
+                "geometry"
+            }
+            Effect::LongitudinalSlip => "wheel",
+            Effect::LateralSlip => "linear",
+            Effect::FloorBumps => "whole",
+            Effect::Backlash => "symmetric",
+            Effect::MissedSteps => "pull_out",
+            Effect::MotorLag => "first_order",
+            Effect::CoulombFriction => "dead_band",
+            Effect::SlipBody => "body",
+            Effect::SlipCreep => "creep",
+            Effect::LateralSaturating => "saturating",
+            Effect::BumpsRegion => "region",
+            Effect::BacklashAsymmetric => "asymmetric",
+            Effect::MissedQuanta => "quanta",
+            Effect::MissedStall => "stall",
+            Effect::LagDelay => "delay",
+            Effect::LagSlew => "slew",
+        }
+    }
 
     /// The catalogue id.
     pub fn id(self) -> &'static str {
@@ -133,6 +200,7 @@ impl Effect {
             Effect::MotorLag => "motor_lag",
             Effect::CoulombFriction => "coulomb_friction",
             Effect::WheelScale => "wheel_scale",
+            e => e.base().id(),
         }
     }
 
@@ -142,7 +210,7 @@ impl Effect {
     }
 
     pub fn stage(self) -> Stage {
-        match self {
+        match self.base() {
             Effect::Backlash | Effect::MissedSteps | Effect::MotorLag | Effect::CoulombFriction => {
                 Stage::Actuator
             }
@@ -189,6 +257,31 @@ impl Effect {
             Effect::CoulombFriction => {
                 vec![ParamSpec::new("deadband_rad_s", Log, 1e-9, 1e-3, 50.0)]
             }
+            Effect::SlipBody => vec![ParamSpec::new("mu", Log, 1e3, 0.01, 5.0)],
+            Effect::SlipCreep => vec![ParamSpec::new("creep_s", Log, 1e-9, 1e-3, 2.0)],
+            Effect::LateralSaturating => vec![
+                ParamSpec::new("side_slip_s", Log, 1e-9, 1e-3, 2.0),
+                ParamSpec::new("sat_m_s", Log, 1e3, 1e-4, 1.0),
+            ],
+            Effect::BumpsRegion => vec![
+                ParamSpec::new("spacing_m", Log, 0.03, 0.005, 1.0),
+                ParamSpec::new("loss_m", Log, 1e-9, 1e-6, 0.05),
+                ParamSpec::new("start_m", Linear, -1e3, -1e3, 1e3),
+                ParamSpec::new("end_m", Linear, 1e3, -1e3, 1e3),
+            ],
+            Effect::BacklashAsymmetric => vec![
+                ParamSpec::new("backlash_rad", Log, 1e-9, 1e-4, 1.0),
+                ParamSpec::new("asymmetry", Linear, 0.0, -0.95, 0.95),
+            ],
+            Effect::MissedQuanta => vec![
+                ParamSpec::new("max_accel_rad_s2", Log, 1e9, 0.1, 1e4),
+                ParamSpec::new("rate_hz", Log, 1e-9, 0.01, 500.0),
+            ],
+            Effect::MissedStall => {
+                vec![ParamSpec::new("max_accel_rad_s2", Log, 1e9, 0.1, 1e4)]
+            }
+            Effect::LagDelay => vec![ParamSpec::new("tau_s", Log, 1e-9, 1e-4, 2.0)],
+            Effect::LagSlew => vec![ParamSpec::new("slew_rad_s2", Log, 1e9, 0.05, 1e4)],
         }
     }
 
@@ -196,8 +289,14 @@ impl Effect {
     pub fn applies(self, robot: &Robot, has_commands: bool) -> bool {
         match self.stage() {
             Stage::Actuator => {
+                let stepper = robot.drive.kind == DriveType::Stepper;
                 has_commands
-                    && (self != Effect::MissedSteps || robot.drive.kind == DriveType::Stepper)
+                    && match self.base() {
+                        Effect::MissedSteps => stepper,
+                        // On a stepper a rate limit is the pull-out's business.
+                        _ if self == Effect::LagSlew => !stepper,
+                        _ => true,
+                    }
             }
             // Omni robots' per-wheel radius scales already hold a common scale.
             Stage::Ground => self != Effect::WheelScale || robot.kind == RobotKind::DiffDrive,
@@ -226,6 +325,40 @@ impl Effect {
             Effect::MissedSteps => singles(log_grid(1.0, 3000.0, 64)),
             Effect::MotorLag => singles(log_grid(0.003, 1.0, 10)),
             Effect::CoulombFriction => singles(log_grid(0.02, 20.0, 12)),
+            Effect::SlipBody => singles(log_grid(0.02, 3.0, 8)),
+            Effect::SlipCreep => singles(log_grid(0.005, 0.5, 6)),
+            Effect::LateralSaturating => {
+                let mut g = Vec::new();
+                for k in log_grid(0.01, 0.5, 3) {
+                    for sat in log_grid(0.002, 0.05, 3) {
+                        g.push(vec![k, sat]);
+                    }
+                }
+                g
+            }
+            Effect::BacklashAsymmetric => {
+                let mut g = Vec::new();
+                for b in log_grid(0.002, 0.5, 10) {
+                    for a in [-0.5, 0.0, 0.5] {
+                        g.push(vec![b, a]);
+                    }
+                }
+                g
+            }
+            Effect::MissedQuanta => {
+                let mut g = Vec::new();
+                for a in log_grid(1.0, 3000.0, 24) {
+                    for r in log_grid(1.0, 100.0, 3) {
+                        g.push(vec![a, r]);
+                    }
+                }
+                g
+            }
+            Effect::MissedStall => singles(log_grid(1.0, 3000.0, 64)),
+            Effect::LagDelay => singles(log_grid(0.003, 1.0, 12)),
+            Effect::LagSlew => singles(log_grid(0.5, 200.0, 16)),
+            // From the data: see `mechanisms::region_grid`.
+            Effect::BumpsRegion => Vec::new(),
             Effect::FloorBumps => {
                 let mut g = Vec::new();
                 // Crossings make the cost a comb in the spacing; the travel lost per

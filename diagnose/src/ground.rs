@@ -208,8 +208,11 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         scales_known = known.iter().map(|&i| scales[i]).collect();
     }
     let mu = model.get(Effect::LongitudinalSlip).map(|v| v[0]);
-    let side = model.get(Effect::LateralSlip).map(|v| v[0]);
-    let bumps = model.get(Effect::FloorBumps).map(|v| (v[0], v[1]));
+    // Mechanism variants (issue 11) live in `mechanisms`.
+    let side = (model.get(Effect::LateralSlip).is_some()
+        || model.get(Effect::LateralSaturating).is_some())
+    .then_some(());
+    let bumps = crate::mechanisms::cables(model);
     let per_wheel = mu.is_some() || bumps.is_some();
     // Effective radii and body-frame rolling directions and positions of the known wheels.
     let wheels: Vec<ContactWheel> = robot
@@ -338,12 +341,12 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
                 None => Twist::zero(),
             }
         };
-        if let Some(k_side) = side {
-            // v_y = -k v_x omega, as a displacement over the interval.
-            d.vy += -k_side * d.vx * d.omega / dt;
+        if side.is_some() {
+            // v_y = -k v_x omega (or its saturating form), as a displacement.
+            d.vy += crate::mechanisms::side_slip(model, &d, dt);
         }
         heading.advance(&mut pose, &d);
-        if let Some((spacing, loss)) = bumps {
+        if let Some((spacing, loss, lo, hi)) = bumps {
             // Cables at world x = k * spacing: a driven wheel rolling onto one owes `loss`
             // of travel along its rolling direction's share of the crossing.
             let spacing = spacing.max(1e-6);
@@ -351,9 +354,13 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
                 if !wheels[j].3 {
                     continue;
                 }
-                let s0 = (world_x(k, wheels[j].2) / spacing).floor();
-                let s1 = (world_x(k + 1, wheels[j].2) / spacing).floor();
-                let crossed = (s1 - s0).abs();
+                let crossed = crate::mechanisms::crossings(
+                    world_x(k, wheels[j].2),
+                    world_x(k + 1, wheels[j].2),
+                    spacing,
+                    lo,
+                    hi,
+                );
                 if crossed > 0.0 {
                     owed[j] += crossed * loss * world_dir(k + 1, wheels[j].1).abs();
                 }

@@ -20,6 +20,7 @@ pub mod calibrate;
 pub mod effects;
 pub mod fit;
 pub mod ground;
+pub mod mechanisms;
 pub mod multi;
 pub mod plausibility;
 pub mod plots;
@@ -28,6 +29,7 @@ pub mod replay;
 pub mod report;
 pub mod residuals;
 pub mod select;
+pub mod signature;
 pub mod windows;
 
 pub use effects::{Effect, Model, Stage};
@@ -172,67 +174,19 @@ pub fn diagnose(
             rmse_after_m: a,
             delta_bic: st.delta_bic,
             heldout_ratio: st.heldout_ratio,
+            mechanism: e.mechanism().to_string(),
+            fit: "full".into(),
+            explained_share: 0.0,
+            signature: None,
+            residual_left_m: None,
+            implausible_sign: false,
         });
     }
 
-    // Verdict: how much of the residual beyond the noise is explained.
-    let (mut excess0, mut excess1) = (0.0, 0.0);
-    let mut worst_final: f64 = 0.0;
-    let mut mismatch = false;
-    for s in [Stage::Ground, Stage::Actuator] {
-        let n = match s {
-            Stage::Ground => 3 * sel.nominal.n_pose + sel.nominal.n_free,
-            Stage::Actuator => sel.nominal.n_act,
-        } as f64;
-        if n < 1.0 {
-            continue;
-        }
-        // Chi-square per residual against the noise. The actuator stage starts from its
-        // timing floor (the nominal model with the best sub-quarter-row delay, see
-        // `act_floor_rss`): what such a delay explains is logging, not physics.
-        // Below two encoder counts of RMS, an actuator mismatch is not resolved from the
-        // way commands and counts are sampled within a row: the actuator noise used here
-        // is at least sqrt(2) counts, so MISMATCH_CHI2 = 2 means two counts.
-        let act_sigma2 = ev
-            .noise
-            .actuator_sigma_m
-            .max(ev.actuator_quantum_m() * 2f64.sqrt())
-            .powi(2);
-        let (c0, c1) = match s {
-            Stage::Ground => (ev.chi2(&sel.nominal, s) / n, ev.chi2(&sel.final_rss, s) / n),
-            Stage::Actuator => {
-                let c0 = ev.act_floor_rss.get().min(sel.nominal.act) / act_sigma2 / n;
-                (c0, (sel.final_rss.act / act_sigma2 / n).min(c0))
-            }
-        };
-        if c0 > MISMATCH_CHI2 {
-            mismatch = true;
-            excess0 += c0 - 1.0;
-            excess1 += (c1 - 1.0).max(0.0);
-            worst_final = worst_final.max(c1);
-        }
-    }
-    let explained_fraction = if excess0 > 0.0 {
-        (1.0 - excess1 / excess0).clamp(0.0, 1.0)
-    } else {
-        1.0
-    };
-    let verdict = match findings.first() {
-        None if mismatch => VERDICT_UNEXPLAINED.to_string(),
-        None => VERDICT_NONE.to_string(),
-        Some(_) if mismatch && explained_fraction < MIN_EXPLAINED => {
-            VERDICT_UNEXPLAINED.to_string()
-        }
-        // A fit that leaves the residual far outside the noise must explain nearly all
-        // of it to be the answer: an effect can bend an out-of-catalogue drift a long way
-        // with implausible parameters.
-        Some(_)
-            if mismatch && worst_final > RESIDUAL_CHI2 && explained_fraction < WELL_EXPLAINED =>
-        {
-            VERDICT_UNEXPLAINED.to_string()
-        }
-        Some(f) => f.effect.clone(),
-    };
+    // Verdict: the finding explaining the largest share of the excess over noise, with
+    // signatures naming effects no mechanism fits fully (issue 11).
+    let (verdict, explained_fraction) = select::verdict(&ev, &sel, &mut findings);
+    let rmse_stage = findings.first().map_or(Stage::Ground, |f| f.rmse_stage);
 
     // Geometry this recording cannot separate (from the whole-geometry fit of the
     // recording stage), said next to any finding that names one side of it.
@@ -289,6 +243,15 @@ pub fn diagnose(
         actuator_rmse_final_m: (n_act > 0).then(|| sel.final_rss.actuator_rmse()),
         noise: ev.noise,
         explained_fraction,
+        rmse_stage,
+        ground_rmse: report::StageRmse {
+            before_m: sel.nominal.ground_rmse(),
+            after_m: sel.final_rss.ground_rmse(),
+        },
+        actuator_rmse: (n_act > 0).then(|| report::StageRmse {
+            before_m: sel.nominal.actuator_rmse(),
+            after_m: sel.final_rss.actuator_rmse(),
+        }),
         start_pose: [
             sel.final_eval.start.0,
             sel.final_eval.start.1,

@@ -32,6 +32,28 @@ pub struct Finding {
     pub delta_bic: f64,
     /// Held-out sum of squares with the effect over without it.
     pub heldout_ratio: f64,
+    /// The mechanism that fitted best (issue 11), e.g. `wheel`, `body`, `creep`.
+    pub mechanism: String,
+    /// `full` when the mechanism's model explains the effect, `partial` when the effect
+    /// was named from its signature in the residuals and no mechanism fits it fully.
+    pub fit: String,
+    /// Share of the excess over noise this finding explains (0..1); findings are
+    /// ordered by it.
+    pub explained_share: f64,
+    /// What the signature test saw (e.g. steps of one electrical cycle at high
+    /// commanded acceleration), if the effect has one.
+    pub signature: Option<String>,
+    /// RMSE of `rmse_stage` still left after the fit, beyond the noise (partial fits).
+    pub residual_left_m: Option<f64>,
+    /// A parameter has a non-physical sign (negative slip, loss or delay).
+    pub implausible_sign: bool,
+}
+
+/// RMSE of one stage before and after the findings.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct StageRmse {
+    pub before_m: f64,
+    pub after_m: f64,
 }
 
 /// Series kept for plots (not serialised).
@@ -72,6 +94,12 @@ pub struct Report {
     pub noise: Noise,
     /// Fraction of the residual beyond the noise that the findings explain (0..1).
     pub explained_fraction: f64,
+    /// The stage on which the verdict's improvement is measured (issue 11): the
+    /// verdict's evidence stage; `rmse_nominal_m`/`rmse_final_m` are the ground stage's.
+    pub rmse_stage: Stage,
+    /// Both stages' RMSE before and after (actuator: only with commands and encoders).
+    pub ground_rmse: StageRmse,
+    pub actuator_rmse: Option<StageRmse>,
     /// Estimated start pose (x, y, theta) of the final model.
     pub start_pose: [f64; 3],
     /// Every effect tried, for transparency.
@@ -174,10 +202,14 @@ impl fmt::Display for Report {
         for (i, x) in self.findings.iter().enumerate() {
             writeln!(
                 f,
-                "{}. {} ({} stage): RMSE {:.3} -> {:.3} mm, dBIC {:.0}, held-out ratio {:.3}",
+                "{}. {} by {} ({} stage, {:.0} % of the excess, {} fit{}): RMSE {:.3} -> {:.3} mm, dBIC {:.0}, held-out ratio {:.3}",
                 i + 1,
                 x.effect,
+                x.mechanism,
                 x.stage,
+                x.explained_share * 100.0,
+                x.fit,
+                if x.implausible_sign { ", implausible sign" } else { "" },
                 x.rmse_before_m * 1e3,
                 x.rmse_after_m * 1e3,
                 x.delta_bic,
@@ -186,6 +218,9 @@ impl fmt::Display for Report {
             for (name, v) in &x.parameters {
                 let s = x.uncertainties.get(name).copied().flatten();
                 writeln!(f, "     {name} = {}", fmt_param(*v, s))?;
+            }
+            if let Some(sig) = &x.signature {
+                writeln!(f, "     signature: {sig}")?;
             }
         }
         writeln!(f, "windows: {}", self.windows.len())?;

@@ -361,6 +361,12 @@ impl<'a> Evaluator<'a> {
         let (g, a) = self.runs.get();
         self.runs.set((g + 1, a));
         let mut path = Path::default();
+        // Traction slip by the body-bound or creep mechanisms rewrites the wheel angles.
+        let slipped = crate::mechanisms::slip_angles(self.p, m, &angles);
+        let angles: Vec<Option<&[f64]>> = match &slipped {
+            Some(v) => v.iter().map(|a| a.as_deref()).collect(),
+            None => angles,
+        };
         simulate(self.p, &angles, m, &mut path);
         let path = Rc::new(path);
         *self.ground_cache.borrow_mut() = Some((k, Rc::clone(&path)));

@@ -235,7 +235,10 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
         let mut reused: Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> = Vec::new();
         if let (Some(added), false) = (last_added, ev.ground_uses_actuator()) {
             for (e, m_prev, sig_prev) in &last_fits {
-                if e.stage() != added.stage() && model.get(*e).is_none() && !rejected.contains(e) {
+                if e.stage() != added.stage()
+                    && !model.effects.iter().any(|(x, _)| x.base() == e.base())
+                    && !rejected.contains(e)
+                {
                     let mut m = m_prev.clone();
                     for (x, p) in &model.effects {
                         if x.stage() == added.stage() {
@@ -250,13 +253,19 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
         let todo: Vec<(Effect, Vec<Vec<f64>>)> = Effect::ALL
             .into_iter()
             .filter(|&e| {
-                model.get(e).is_none()
+                // One mechanism per catalogue effect.
+                !model.effects.iter().any(|(x, _)| x.base() == e.base())
                     && !rejected.contains(&e)
                     && e.applies(robot, has_cmd)
+                    && crate::mechanisms::applies(ev.p, e)
                     && !reused.iter().any(|r| r.0 == e)
             })
             .map(|e| {
-                let grid = e.start_grid(robot);
+                let grid = if e == Effect::BumpsRegion {
+                    crate::mechanisms::region_grid(ev.p)
+                } else {
+                    e.start_grid(robot)
+                };
                 let start = match previous.iter().find(|(x, _)| *x == e) {
                     Some((_, p)) => {
                         let mut s = vec![p.clone()];
@@ -269,7 +278,31 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             })
             .collect();
         let mut fitted: Vec<(Effect, Model, Vec<Vec<f64>>, Eval)> = reused;
-        for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &todo) {
+        // Catalogue mechanisms first; the other mechanisms of an effect only when the data
+        // lean towards that effect at all (its default mechanism lowers the BIC), or when
+        // its default does not apply here. Keeps the larger catalogue's cost near the old.
+        let (defaults, variants): (Vec<_>, Vec<_>) =
+            todo.into_iter().partition(|(e, _)| e.base() == *e);
+        let mut leaning: Vec<Effect> = Vec::new();
+        for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &defaults) {
+            let k = e.params(robot).len();
+            if delta_bic(ev, &base_eval, &ce, k, evidence_stage(ev, e)) < 0.0 {
+                leaning.push(e);
+            }
+            fitted.push((e, m, sig, ce));
+        }
+        let base_rss = ev.rss(&base_eval, Fold::All);
+        let variants: Vec<_> = variants
+            .into_iter()
+            .filter(|(e, _)| {
+                leaning.contains(&e.base())
+                    || stage_chi2(ev, &base_rss, e.stage())
+                        .is_some_and(|c| c > crate::MISMATCH_CHI2)
+                    || !defaults.iter().any(|(d, _)| *d == e.base())
+                        && !fitted.iter().any(|f| f.0 == e.base())
+            })
+            .collect();
+        for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &variants) {
             fitted.push((e, m, sig, ce));
         }
         fitted.sort_by_key(|f| f.0);
@@ -297,7 +330,16 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
         }
         tried.sort_by(|a, b| a.4.total_cmp(&b.4));
         let mut accepted = false;
-        for (e, m, sig, cand_eval, d) in tried.into_iter().take(3) {
+        // The three best catalogue effects are examined, each with all its mechanisms
+        // (siblings of a rejected mechanism usually fail the same test).
+        let mut bases: Vec<Effect> = Vec::new();
+        for (e, m, sig, cand_eval, d) in tried.into_iter() {
+            if !bases.contains(&e.base()) {
+                if bases.len() == 3 {
+                    break;
+                }
+                bases.push(e.base());
+            }
             let idx = candidates
                 .iter()
                 .rposition(|c| c.round == round && c.effect == e)
@@ -325,7 +367,9 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
                 rejected.push(e);
                 continue;
             }
-            if e == Effect::MotorLag && m.get(e).is_some_and(|p| p[0] < 0.25 * ev.p.row_dt_s()) {
+            if matches!(e, Effect::MotorLag | Effect::LagDelay)
+                && m.get(e).is_some_and(|p| p[0] < 0.25 * ev.p.row_dt_s())
+            {
                 candidates[idx].note =
                     "a lag under a quarter row is a logging convention, not physics".into();
                 rejected.push(e);
@@ -515,4 +559,209 @@ pub fn named(robot: &calib_core::Robot, e: Effect, vals: &[f64]) -> Vec<(String,
         .zip(vals)
         .map(|(s, v)| (s.name, *v))
         .collect()
+}
+
+/// Chi-square per residual of each stage for `r`, as the verdict counts it: the ground
+/// stage against the pose noise, the actuator stage against at least sqrt(2) encoder
+/// counts (below that a mismatch is not resolved from the sampling within a row).
+fn stage_chi2(ev: &Evaluator, r: &StageRss, s: Stage) -> Option<f64> {
+    let n = match s {
+        Stage::Ground => 3 * r.n_pose + r.n_free,
+        Stage::Actuator => r.n_act,
+    } as f64;
+    if n < 1.0 {
+        return None;
+    }
+    Some(match s {
+        Stage::Ground => ev.chi2(r, s) / n,
+        Stage::Actuator => {
+            let sigma2 = ev
+                .noise
+                .actuator_sigma_m
+                .max(ev.actuator_quantum_m() * 2f64.sqrt())
+                .powi(2);
+            r.act / sigma2 / n
+        }
+    })
+}
+
+/// The verdict and the explained fraction; fills each finding's `explained_share`,
+/// `implausible_sign`, signature and `fit`, adds findings named by signature alone, and
+/// orders the findings by explained share.
+pub fn verdict(
+    ev: &Evaluator,
+    sel: &Selection,
+    findings: &mut Vec<crate::report::Finding>,
+) -> (String, f64) {
+    use crate::signature;
+    use crate::{MIN_EXPLAINED, MISMATCH_CHI2, RESIDUAL_CHI2, WELL_EXPLAINED};
+    let (mut excess0, mut excess1) = (0.0, 0.0);
+    let mut worst_final: f64 = 0.0;
+    let mut mismatch = false;
+    let mut counted = Vec::new();
+    for s in [Stage::Ground, Stage::Actuator] {
+        let (Some(c0), Some(c1)) = (
+            stage_chi2(ev, &sel.nominal, s),
+            stage_chi2(ev, &sel.final_rss, s),
+        ) else {
+            continue;
+        };
+        // The actuator stage starts from its timing floor (the nominal model with the best
+        // sub-quarter-row delay, see `act_floor_rss`): what such a delay explains is
+        // logging, not physics.
+        let c0 = if s == Stage::Actuator {
+            c0.min(ev.act_floor_rss.get() / sel.nominal.act.max(1e-300) * c0)
+        } else {
+            c0
+        };
+        let c1 = c1.min(c0);
+        // A stage nothing was found on whose residual does not drift is noise, however
+        // coloured (motion capture correlated over a second, jittered sample times).
+        let found_here = findings.iter().any(|f| f.rmse_stage == s);
+        if !found_here && signature::stage_is_noise(ev, &sel.nominal_eval, s == Stage::Ground) {
+            continue;
+        }
+        if c0 > MISMATCH_CHI2 {
+            mismatch = true;
+            excess0 += c0 - 1.0;
+            excess1 += (c1 - 1.0).max(0.0);
+            worst_final = worst_final.max(c1);
+            counted.push(s);
+        }
+    }
+    let explained_fraction = if excess0 > 0.0 {
+        (1.0 - excess1 / excess0).clamp(0.0, 1.0)
+    } else {
+        1.0
+    };
+    // Each finding's share: the drop of the counted stages' chi-square when it was added.
+    for (f, st) in findings.iter_mut().zip(&sel.steps) {
+        let mut d = 0.0;
+        for &s in &counted {
+            if let (Some(b), Some(a)) =
+                (stage_chi2(ev, &st.before, s), stage_chi2(ev, &st.after, s))
+            {
+                d += b - a;
+            }
+        }
+        f.explained_share = if excess0 > 0.0 {
+            (d / excess0).clamp(0.0, 1.0)
+        } else {
+            0.0
+        };
+        // Physical signs: a side-slip coefficient is not negative (the log-fitted
+        // parameters cannot be).
+        f.implausible_sign = f.parameters.get("side_slip_s").is_some_and(|k| *k < 0.0);
+    }
+    // Signatures.
+    let steps = signature::stepper_steps(ev, &sel.nominal_eval).filter(|s| s.clear());
+    let region = signature::region_loss(ev, &sel.model).filter(|r| r.clear());
+    let left = 1.0 - explained_fraction;
+    let stage_rmse = |s: Stage| match s {
+        Stage::Ground => (sel.nominal.ground_rmse(), sel.final_rss.ground_rmse()),
+        Stage::Actuator => (sel.nominal.actuator_rmse(), sel.final_rss.actuator_rmse()),
+    };
+    if let Some(st) = &steps {
+        let text = format!(
+            "{} jumps of whole electrical cycles (off by {:.2} cycle on average), {:.0} % at high commanded acceleration",
+            st.jumps,
+            st.off_cycle,
+            st.at_high_accel * 100.0
+        );
+        match findings.iter_mut().find(|f| f.effect == "missed_steps") {
+            Some(f) => f.signature = Some(text),
+            None => {
+                let (b, a) = stage_rmse(Stage::Actuator);
+                findings.push(partial(
+                    "missed_steps",
+                    "quanta",
+                    Stage::Actuator,
+                    b,
+                    a,
+                    left,
+                    text,
+                ));
+            }
+        }
+    }
+    if let Some(r) = &region {
+        let text = format!(
+            "travel lost {:.2} % of distance for world x in [{:.2}, {:.2}] m ({:.0} sigma), {:.2} % outside",
+            r.loss_per_m * 100.0,
+            r.start_m,
+            r.end_m,
+            r.sigma,
+            r.outside_per_m * 100.0
+        );
+        match findings.iter_mut().find(|f| f.effect == "floor_bumps") {
+            Some(f) => f.signature = Some(text),
+            None => {
+                let (b, a) = stage_rmse(Stage::Ground);
+                let mut f = partial("floor_bumps", "region", Stage::Ground, b, a, left, text);
+                f.parameters.insert("start_m".into(), r.start_m);
+                f.parameters.insert("end_m".into(), r.end_m);
+                f.parameters.insert("loss_per_m".into(), r.loss_per_m);
+                for k in ["start_m", "end_m", "loss_per_m"] {
+                    f.uncertainties.insert(k.into(), None);
+                }
+                findings.push(f);
+            }
+        }
+    }
+    findings.sort_by(|a, b| b.explained_share.total_cmp(&a.explained_share));
+    let top = findings.iter().find(|f| !f.implausible_sign);
+    let verdict = match top {
+        None if mismatch => crate::VERDICT_UNEXPLAINED.to_string(),
+        None => crate::VERDICT_NONE.to_string(),
+        Some(f) if f.signature.is_some() => f.effect.clone(),
+        Some(_) if mismatch && explained_fraction < MIN_EXPLAINED => {
+            crate::VERDICT_UNEXPLAINED.to_string()
+        }
+        // A fit that leaves the residual far outside the noise must explain nearly all
+        // of it to be the answer: an effect can bend an out-of-catalogue drift a long way
+        // with implausible parameters.
+        Some(_)
+            if mismatch && worst_final > RESIDUAL_CHI2 && explained_fraction < WELL_EXPLAINED =>
+        {
+            crate::VERDICT_UNEXPLAINED.to_string()
+        }
+        Some(f) => f.effect.clone(),
+    };
+    // A named effect whose fit leaves the residual far outside the noise is partial.
+    for f in findings.iter_mut() {
+        if f.signature.is_some() && worst_final > RESIDUAL_CHI2 && f.fit == "full" {
+            f.fit = "partial".into();
+            f.residual_left_m = Some(f.rmse_after_m);
+        }
+    }
+    (verdict, explained_fraction)
+}
+
+/// A finding named by its signature alone.
+fn partial(
+    effect: &str,
+    mechanism: &str,
+    stage: Stage,
+    before: f64,
+    after: f64,
+    share: f64,
+    signature: String,
+) -> crate::report::Finding {
+    crate::report::Finding {
+        effect: effect.into(),
+        stage,
+        rmse_stage: stage,
+        parameters: Default::default(),
+        uncertainties: Default::default(),
+        rmse_before_m: before,
+        rmse_after_m: after,
+        delta_bic: f64::NAN,
+        heldout_ratio: f64::NAN,
+        mechanism: mechanism.into(),
+        fit: "partial".into(),
+        explained_share: share.clamp(0.0, 1.0),
+        signature: Some(signature),
+        residual_left_m: Some(after),
+        implausible_sign: false,
+    }
 }

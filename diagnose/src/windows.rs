@@ -224,7 +224,8 @@ pub fn locate(ev: &Evaluator, nominal: &Eval, fitted: &Eval, sig: &Signals) -> V
                 let (ra, rb) = (p.poses.row[a], p.poses.row[b]);
                 let explained = !after.iter().any(|&(c, d, _)| c <= b && d >= a);
                 let wheel = ground_wheel(ev, nominal, a, b, axis);
-                let (signals, related) = describe(sig, ra, rb);
+                let peaks = peak_rows(s0, &p.poses.row, a, b);
+                let (signals, related) = describe(sig, ra, rb, &peaks);
                 out.push(Window {
                     t_start_s: pose_t[a],
                     t_end_s: pose_t[b],
@@ -248,7 +249,8 @@ pub fn locate(ev: &Evaluator, nominal: &Eval, fitted: &Eval, sig: &Signals) -> V
             for (a, b, z) in flagged(e0, ev.noise.actuator_sigma_m, lag) {
                 let (ra, rb) = (ev.act_rows[a], ev.act_rows[b]);
                 let explained = !after.iter().any(|&(c, d, _)| c <= b && d >= a);
-                let (signals, related) = describe(sig, ra, rb);
+                let peaks = peak_rows(e0, &ev.act_rows, a, b);
+                let (signals, related) = describe(sig, ra, rb, &peaks);
                 out.push(Window {
                     t_start_s: act_t[a],
                     t_end_s: act_t[b],
@@ -291,9 +293,42 @@ fn ground_wheel(ev: &Evaluator, e: &Eval, a: usize, b: usize, axis: Axis) -> Opt
         .map(|(n, _)| n)
 }
 
-/// Mean absolute signal values over rows a..=b and the most unusual one (largest
-/// difference from the whole-recording mean in units of its spread).
-fn describe(sig: &Signals, a: usize, b: usize) -> (BTreeMap<String, f64>, Option<String>) {
+/// Rows where the residual changes most within samples a..=b (steps of at least half
+/// the window's largest): what the robot does there is what relates to the residual, not
+/// what it does on average including rest (issue 11).
+fn peak_rows(series: &[f64], rows: &[usize], a: usize, b: usize) -> Vec<usize> {
+    let b = b
+        .min(series.len().saturating_sub(1))
+        .min(rows.len().saturating_sub(1));
+    if b <= a {
+        return Vec::new();
+    }
+    let steps: Vec<f64> = (a..b).map(|k| (series[k + 1] - series[k]).abs()).collect();
+    let top = steps.iter().cloned().fold(0.0, f64::max);
+    if top <= 0.0 {
+        return Vec::new();
+    }
+    let mut out: Vec<usize> = Vec::new();
+    for (j, d) in steps.iter().enumerate() {
+        if *d >= 0.5 * top {
+            // The rows spanned by the step (samples may be several rows apart).
+            out.extend(rows[a + j]..=rows[a + j + 1]);
+        }
+    }
+    out.sort_unstable();
+    out.dedup();
+    out
+}
+
+/// Signal values over rows a..=b (mean absolute values at the residual's peaks `peaks`
+/// when given, else over the window) and the most unusual one (largest difference from
+/// the whole-recording mean in units of its spread).
+fn describe(
+    sig: &Signals,
+    a: usize,
+    b: usize,
+    peaks: &[usize],
+) -> (BTreeMap<String, f64>, Option<String>) {
     let mut map = BTreeMap::new();
     let mut best: Option<(&str, f64)> = None;
     for (name, v) in sig.names.iter().zip(&sig.values) {
@@ -308,6 +343,14 @@ fn describe(sig: &Signals, a: usize, b: usize) -> (BTreeMap<String, f64>, Option
             "reversals" => v[a..=b].iter().sum(),
             "x_m" | "y_m" | "leg_front_rad" | "leg_rear_rad" => {
                 v[a..=b].iter().sum::<f64>() / (b - a + 1) as f64
+            }
+            _ if !peaks.is_empty() => {
+                let at: Vec<f64> = peaks
+                    .iter()
+                    .filter(|&&k| k < v.len())
+                    .map(|&k| v[k])
+                    .collect();
+                abs_mean(&at)
             }
             _ => abs_mean(&v[a..=b]),
         };
@@ -330,4 +373,28 @@ fn describe(sig: &Signals, a: usize, b: usize) -> (BTreeMap<String, f64>, Option
         }
     }
     (map, best.map(|b| b.0.to_string()))
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn peaks_are_where_the_residual_steps() {
+        // A residual flat except for a 1 mm step between samples 5 and 6 (rows 10..12) and
+        // a 0.3 mm one (below half the largest) between 8 and 9.
+        let mut s = vec![0.0; 12];
+        for (k, v) in s.iter_mut().enumerate() {
+            *v = if k >= 9 {
+                1.3e-3
+            } else if k >= 6 {
+                1e-3
+            } else {
+                0.0
+            };
+        }
+        let rows: Vec<usize> = (0..12).map(|k| 2 * k).collect();
+        assert_eq!(peak_rows(&s, &rows, 0, 11), vec![10, 11, 12]);
+        assert!(peak_rows(&s, &rows, 0, 4).is_empty());
+    }
 }

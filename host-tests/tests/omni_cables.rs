@@ -185,6 +185,7 @@ fn cable_strip_errors_improve_at_least_80_percent() {
             direction_rad: path_direction(paths[i]),
             driven: &driven[i],
             runs: &before[i],
+            held: &[],
         })
         .collect();
     let cal = omni_cal::calibrate(&path_runs, 4).unwrap();

@@ -21,21 +21,64 @@ pub enum Effect {
     },
     /// `eb` = actual / nominal wheel separation (every wheel's l).
     WheelbaseError { eb: f64 },
-    /// `mu`: body acceleration bounded by mu * g * (load share on driven wheels).
-    LongitudinalSlip { mu: f64 },
-    /// `side_slip_s` = k in v_y = -k * v_x * omega.
-    LateralSlip { side_slip_s: f64 },
+    /// `mu`: acceleration bounded by mu * g * (load share on driven wheels). Mechanisms:
+    /// `wheel` (each wheel's contact speed, the default), `body` (the body's linear
+    /// acceleration; heading unaffected), `creep` (no hard limit: each contact slips by
+    /// `creep_s` times its acceleration, i.e. slip proportional to the drive force).
+    LongitudinalSlip {
+        mu: f64,
+        mechanism: Mechanism,
+        creep_s: f64,
+    },
+    /// `side_slip_s` = k in v_y = -k * v_x * omega (`linear`), or `saturating`:
+    /// v_y = -sat tanh(k v_x omega / sat) with `sat_m_s` the largest side-slip speed.
+    LateralSlip {
+        side_slip_s: f64,
+        mechanism: Mechanism,
+        sat_m_s: f64,
+    },
     /// `spacing_m`, `loss_m`: cables across the floor (perpendicular to world x), each
-    /// costing a wheel `loss_m` of travel.
-    FloorBumps { spacing_m: f64, loss_m: f64 },
-    /// `backlash_rad`: total dead band between motor and wheel, in wheel radians.
-    Backlash { backlash_rad: f64 },
+    /// costing a wheel `loss_m` of travel. Mechanisms: `whole` floor (default), `region`
+    /// (only for `start_m` <= world x <= `end_m`), `irregular` (each cable moved by up to
+    /// `jitter` spacings, pseudo-randomly).
+    FloorBumps {
+        spacing_m: f64,
+        loss_m: f64,
+        mechanism: Mechanism,
+        start_m: f64,
+        end_m: f64,
+        jitter: f64,
+    },
+    /// `backlash_rad`: total dead band between motor and wheel, in wheel radians
+    /// (`symmetric`), or `asymmetric`: `backlash_rad * (1 + asymmetry)` lost when the motor
+    /// turns forward again, `backlash_rad * (1 - asymmetry)` when it turns backward.
+    Backlash {
+        backlash_rad: f64,
+        mechanism: Mechanism,
+        asymmetry: f64,
+    },
     /// `max_accel_rad_s2`: the stepper loses synchronism above this wheel acceleration.
-    MissedSteps { max_accel_rad_s2: f64 },
-    /// `tau_s`: first-order lag of the wheel rate behind the command.
-    MotorLag { tau_s: f64 },
-    /// `deadband_rad_s`: the wheel stays still while |command| is below it.
-    CoulombFriction { deadband_rad_s: f64 },
+    /// Mechanisms: `pull_out` (rotor dynamics, default), `quanta` (while the commanded
+    /// acceleration is over the limit, one electrical cycle of four full steps is dropped
+    /// at random, `rate_hz` times a second on average), `stall` (over the limit the rotor
+    /// stops until the command comes back to rest).
+    MissedSteps {
+        max_accel_rad_s2: f64,
+        mechanism: Mechanism,
+        rate_hz: f64,
+    },
+    /// `tau_s`: first-order lag of the wheel rate behind the command (`first_order`), or a
+    /// pure transport `delay` of `tau_s`, or a `slew` limit of `slew_rad_s2` on the rate.
+    MotorLag {
+        tau_s: f64,
+        mechanism: Mechanism,
+        slew_rad_s2: f64,
+    },
+    /// `deadband_rad_s`: the wheel stays still while |command| is below it (`dead_band`).
+    CoulombFriction {
+        deadband_rad_s: f64,
+        mechanism: Mechanism,
+    },
     /// Not in the catalogue: a constant world drift `drift_m_s` towards `direction_rad`
     /// while the robot moves.
     TiltedFloor { drift_m_s: f64, direction_rad: f64 },
@@ -54,6 +97,97 @@ pub const EFFECT_IDS: [&str; 10] = [
     "coulomb_friction",
     "tilted_floor",
 ];
+
+/// How an effect comes about: every catalogue effect has several physical mechanisms
+/// (issue 11), chosen with `mechanism:<name>` in the effect string.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
+pub enum Mechanism {
+    /// longitudinal_slip: per-wheel traction limit.
+    Wheel,
+    /// longitudinal_slip: bound on the body's linear acceleration.
+    Body,
+    /// longitudinal_slip: slip proportional to the drive force, no hard limit.
+    Creep,
+    /// lateral_slip: v_y = -k v_x omega.
+    Linear,
+    /// lateral_slip: slip speed saturating at `sat_m_s`.
+    Saturating,
+    /// floor_bumps: cables over the whole floor.
+    Whole,
+    /// floor_bumps: cables only in a strip of the floor.
+    Region,
+    /// floor_bumps: irregular spacing.
+    Irregular,
+    /// backlash: same play both ways.
+    Symmetric,
+    /// backlash: different loss on the two reversal directions.
+    Asymmetric,
+    /// missed_steps: rotor pull-out dynamics.
+    PullOut,
+    /// missed_steps: random quanta of four full steps while over the limit.
+    Quanta,
+    /// missed_steps: full stall until the command rests.
+    Stall,
+    /// motor_lag: first-order lag.
+    FirstOrder,
+    /// motor_lag: transport delay.
+    Delay,
+    /// motor_lag: slew-rate limit.
+    Slew,
+    /// coulomb_friction: dead band around zero command.
+    DeadBand,
+}
+
+impl Mechanism {
+    /// (name, effect id) of every mechanism.
+    pub const ALL: [(Mechanism, &'static str, &'static str); 17] = [
+        (Mechanism::Wheel, "wheel", "longitudinal_slip"),
+        (Mechanism::Body, "body", "longitudinal_slip"),
+        (Mechanism::Creep, "creep", "longitudinal_slip"),
+        (Mechanism::Linear, "linear", "lateral_slip"),
+        (Mechanism::Saturating, "saturating", "lateral_slip"),
+        (Mechanism::Whole, "whole", "floor_bumps"),
+        (Mechanism::Region, "region", "floor_bumps"),
+        (Mechanism::Irregular, "irregular", "floor_bumps"),
+        (Mechanism::Symmetric, "symmetric", "backlash"),
+        (Mechanism::Asymmetric, "asymmetric", "backlash"),
+        (Mechanism::PullOut, "pull_out", "missed_steps"),
+        (Mechanism::Quanta, "quanta", "missed_steps"),
+        (Mechanism::Stall, "stall", "missed_steps"),
+        (Mechanism::FirstOrder, "first_order", "motor_lag"),
+        (Mechanism::Delay, "delay", "motor_lag"),
+        (Mechanism::Slew, "slew", "motor_lag"),
+        (Mechanism::DeadBand, "dead_band", "coulomb_friction"),
+    ];
+
+    pub fn name(self) -> &'static str {
+        Mechanism::ALL
+            .iter()
+            .find(|m| m.0 == self)
+            .map_or("?", |m| m.1)
+    }
+
+    /// The catalogue id this mechanism belongs to.
+    pub fn effect(self) -> &'static str {
+        Mechanism::ALL
+            .iter()
+            .find(|m| m.0 == self)
+            .map_or("?", |m| m.2)
+    }
+
+    /// The mechanism called `name` for effect `id`.
+    pub fn parse(id: &str, name: &str) -> Option<Mechanism> {
+        Mechanism::ALL
+            .iter()
+            .find(|m| m.1 == name && m.2 == id)
+            .map(|m| m.0)
+    }
+
+    /// The first (default) mechanism of an effect.
+    pub fn default_for(id: &str) -> Option<Mechanism> {
+        Mechanism::ALL.iter().find(|m| m.2 == id).map(|m| m.0)
+    }
+}
 
 /// A bad effect string or parameter.
 #[derive(Debug, Clone, PartialEq)]
@@ -157,7 +291,34 @@ impl Effect {
         !matches!(self, Effect::TiltedFloor { .. })
     }
 
-    /// Parameters as (name, value), with the catalogue's names.
+    /// The mechanism, for effects that have several.
+    pub fn mechanism(&self) -> Option<Mechanism> {
+        match self {
+            Effect::LongitudinalSlip { mechanism, .. }
+            | Effect::LateralSlip { mechanism, .. }
+            | Effect::FloorBumps { mechanism, .. }
+            | Effect::Backlash { mechanism, .. }
+            | Effect::MissedSteps { mechanism, .. }
+            | Effect::MotorLag { mechanism, .. }
+            | Effect::CoulombFriction { mechanism, .. } => Some(*mechanism),
+            _ => None,
+        }
+    }
+
+    fn mechanism_mut(&mut self) -> Option<&mut Mechanism> {
+        match self {
+            Effect::LongitudinalSlip { mechanism, .. }
+            | Effect::LateralSlip { mechanism, .. }
+            | Effect::FloorBumps { mechanism, .. }
+            | Effect::Backlash { mechanism, .. }
+            | Effect::MissedSteps { mechanism, .. }
+            | Effect::MotorLag { mechanism, .. }
+            | Effect::CoulombFriction { mechanism, .. } => Some(mechanism),
+            _ => None,
+        }
+    }
+
+    /// Parameters as (name, value), with the catalogue's names (plus the mechanism's own).
     pub fn params(&self) -> Vec<(String, f64)> {
         let p = |n: &str, v: f64| (n.to_string(), v);
         match self {
@@ -169,17 +330,75 @@ impl Effect {
                 v
             }
             Effect::WheelbaseError { eb } => vec![p("eb", *eb)],
-            Effect::LongitudinalSlip { mu } => vec![p("mu", *mu)],
-            Effect::LateralSlip { side_slip_s } => vec![p("side_slip_s", *side_slip_s)],
-            Effect::FloorBumps { spacing_m, loss_m } => {
-                vec![p("spacing_m", *spacing_m), p("loss_m", *loss_m)]
+            Effect::LongitudinalSlip {
+                mu,
+                mechanism,
+                creep_s,
+            } => match mechanism {
+                Mechanism::Creep => vec![p("creep_s", *creep_s)],
+                _ => vec![p("mu", *mu)],
+            },
+            Effect::LateralSlip {
+                side_slip_s,
+                mechanism,
+                sat_m_s,
+            } => {
+                let mut v = vec![p("side_slip_s", *side_slip_s)];
+                if *mechanism == Mechanism::Saturating {
+                    v.push(p("sat_m_s", *sat_m_s));
+                }
+                v
             }
-            Effect::Backlash { backlash_rad } => vec![p("backlash_rad", *backlash_rad)],
-            Effect::MissedSteps { max_accel_rad_s2 } => {
-                vec![p("max_accel_rad_s2", *max_accel_rad_s2)]
+            Effect::FloorBumps {
+                spacing_m,
+                loss_m,
+                mechanism,
+                start_m,
+                end_m,
+                jitter,
+            } => {
+                let mut v = vec![p("spacing_m", *spacing_m), p("loss_m", *loss_m)];
+                match mechanism {
+                    Mechanism::Region => {
+                        v.push(p("start_m", *start_m));
+                        v.push(p("end_m", *end_m));
+                    }
+                    Mechanism::Irregular => v.push(p("jitter", *jitter)),
+                    _ => {}
+                }
+                v
             }
-            Effect::MotorLag { tau_s } => vec![p("tau_s", *tau_s)],
-            Effect::CoulombFriction { deadband_rad_s } => {
+            Effect::Backlash {
+                backlash_rad,
+                mechanism,
+                asymmetry,
+            } => {
+                let mut v = vec![p("backlash_rad", *backlash_rad)];
+                if *mechanism == Mechanism::Asymmetric {
+                    v.push(p("asymmetry", *asymmetry));
+                }
+                v
+            }
+            Effect::MissedSteps {
+                max_accel_rad_s2,
+                mechanism,
+                rate_hz,
+            } => {
+                let mut v = vec![p("max_accel_rad_s2", *max_accel_rad_s2)];
+                if *mechanism == Mechanism::Quanta {
+                    v.push(p("rate_hz", *rate_hz));
+                }
+                v
+            }
+            Effect::MotorLag {
+                tau_s,
+                mechanism,
+                slew_rad_s2,
+            } => match mechanism {
+                Mechanism::Slew => vec![p("slew_rad_s2", *slew_rad_s2)],
+                _ => vec![p("tau_s", *tau_s)],
+            },
+            Effect::CoulombFriction { deadband_rad_s, .. } => {
                 vec![p("deadband_rad_s", *deadband_rad_s)]
             }
             Effect::TiltedFloor {
@@ -209,6 +428,31 @@ impl Effect {
                     reason: "expected name:value".into(),
                 })?;
                 let (name, value) = (name.trim(), value.trim());
+                if name == "mechanism" {
+                    let id = effect.id();
+                    let m = Mechanism::parse(id, value).ok_or_else(|| EffectError::Malformed {
+                        text: item.to_string(),
+                        reason: format!(
+                            "'{value}' is not a mechanism of {id} (known: {})",
+                            Mechanism::ALL
+                                .iter()
+                                .filter(|m| m.2 == id)
+                                .map(|m| m.1)
+                                .collect::<Vec<_>>()
+                                .join(", ")
+                        ),
+                    })?;
+                    match effect.mechanism_mut() {
+                        Some(slot) => *slot = m,
+                        None => {
+                            return Err(EffectError::UnknownParameter {
+                                effect: id.to_string(),
+                                name: name.to_string(),
+                            })
+                        }
+                    }
+                    continue;
+                }
                 let v: f64 = value.parse().map_err(|_| EffectError::Malformed {
                     text: item.to_string(),
                     reason: format!("'{value}' is not a number"),
@@ -237,19 +481,42 @@ impl Effect {
                 radius_scale: Vec::new(),
             },
             "wheelbase_error" => Effect::WheelbaseError { eb: 1.03 },
-            "longitudinal_slip" => Effect::LongitudinalSlip { mu: 0.3 },
-            "lateral_slip" => Effect::LateralSlip { side_slip_s: 0.05 },
+            "longitudinal_slip" => Effect::LongitudinalSlip {
+                mu: 0.3,
+                mechanism: Mechanism::Wheel,
+                creep_s: 0.05,
+            },
+            "lateral_slip" => Effect::LateralSlip {
+                side_slip_s: 0.05,
+                mechanism: Mechanism::Linear,
+                sat_m_s: 0.01,
+            },
             "floor_bumps" => Effect::FloorBumps {
                 spacing_m: 0.03,
                 loss_m: 0.0008,
+                mechanism: Mechanism::Whole,
+                start_m: 0.0,
+                end_m: 1.0,
+                jitter: 0.4,
             },
-            "backlash" => Effect::Backlash { backlash_rad: 0.05 },
+            "backlash" => Effect::Backlash {
+                backlash_rad: 0.05,
+                mechanism: Mechanism::Symmetric,
+                asymmetry: 0.5,
+            },
             "missed_steps" => Effect::MissedSteps {
                 max_accel_rad_s2: 20.0,
+                mechanism: Mechanism::PullOut,
+                rate_hz: 10.0,
             },
-            "motor_lag" => Effect::MotorLag { tau_s: 0.1 },
+            "motor_lag" => Effect::MotorLag {
+                tau_s: 0.1,
+                mechanism: Mechanism::FirstOrder,
+                slew_rad_s2: 20.0,
+            },
             "coulomb_friction" => Effect::CoulombFriction {
                 deadband_rad_s: 0.5,
+                mechanism: Mechanism::DeadBand,
             },
             "tilted_floor" => Effect::TiltedFloor {
                 drift_m_s: 0.005,
@@ -274,14 +541,29 @@ impl Effect {
                 radius_scale.push((wheel, v));
             }
             (Effect::WheelbaseError { eb }, "eb") => *eb = v,
-            (Effect::LongitudinalSlip { mu }, "mu") => *mu = v,
-            (Effect::LateralSlip { side_slip_s }, "side_slip_s") => *side_slip_s = v,
+            (Effect::LongitudinalSlip { mu, .. }, "mu") => *mu = v,
+            (Effect::LongitudinalSlip { creep_s, .. }, "creep_s") => *creep_s = v,
+            (Effect::LateralSlip { side_slip_s, .. }, "side_slip_s") => *side_slip_s = v,
+            (Effect::LateralSlip { sat_m_s, .. }, "sat_m_s") => *sat_m_s = v,
             (Effect::FloorBumps { spacing_m, .. }, "spacing_m") => *spacing_m = v,
             (Effect::FloorBumps { loss_m, .. }, "loss_m") => *loss_m = v,
-            (Effect::Backlash { backlash_rad }, "backlash_rad") => *backlash_rad = v,
-            (Effect::MissedSteps { max_accel_rad_s2 }, "max_accel_rad_s2") => *max_accel_rad_s2 = v,
-            (Effect::MotorLag { tau_s }, "tau_s") => *tau_s = v,
-            (Effect::CoulombFriction { deadband_rad_s }, "deadband_rad_s") => *deadband_rad_s = v,
+            (Effect::FloorBumps { start_m, .. }, "start_m") => *start_m = v,
+            (Effect::FloorBumps { end_m, .. }, "end_m") => *end_m = v,
+            (Effect::FloorBumps { jitter, .. }, "jitter") => *jitter = v,
+            (Effect::Backlash { backlash_rad, .. }, "backlash_rad") => *backlash_rad = v,
+            (Effect::Backlash { asymmetry, .. }, "asymmetry") => *asymmetry = v,
+            (
+                Effect::MissedSteps {
+                    max_accel_rad_s2, ..
+                },
+                "max_accel_rad_s2",
+            ) => *max_accel_rad_s2 = v,
+            (Effect::MissedSteps { rate_hz, .. }, "rate_hz") => *rate_hz = v,
+            (Effect::MotorLag { tau_s, .. }, "tau_s") => *tau_s = v,
+            (Effect::MotorLag { slew_rad_s2, .. }, "slew_rad_s2") => *slew_rad_s2 = v,
+            (Effect::CoulombFriction { deadband_rad_s, .. }, "deadband_rad_s") => {
+                *deadband_rad_s = v
+            }
             (Effect::TiltedFloor { drift_m_s, .. }, "drift_m_s") => *drift_m_s = v,
             (Effect::TiltedFloor { direction_rad, .. }, "direction_rad") => *direction_rad = v,
             (e, _) => return Err(unknown(e)),
@@ -311,15 +593,47 @@ impl Effect {
             Effect::WheelbaseError { eb } => {
                 range(id, "eb", *eb, (0.5..=2.0).contains(eb), "within [0.5, 2]")?
             }
-            Effect::LongitudinalSlip { mu } => range(id, "mu", *mu, *mu > 0.0, "positive")?,
-            Effect::LateralSlip { side_slip_s } => range(
-                id,
-                "side_slip_s",
-                *side_slip_s,
-                side_slip_s.abs() <= 10.0,
-                "within [-10, 10] s",
-            )?,
-            Effect::FloorBumps { spacing_m, loss_m } => {
+            Effect::LongitudinalSlip { mu, creep_s, .. } => {
+                range(id, "mu", *mu, *mu > 0.0, "positive")?;
+                range(
+                    id,
+                    "creep_s",
+                    *creep_s,
+                    (0.0..=10.0).contains(creep_s),
+                    "within [0, 10] s",
+                )?;
+            }
+            Effect::LateralSlip {
+                side_slip_s,
+                sat_m_s,
+                ..
+            } => {
+                range(
+                    id,
+                    "side_slip_s",
+                    *side_slip_s,
+                    side_slip_s.abs() <= 10.0,
+                    "within [-10, 10] s",
+                )?;
+                range(id, "sat_m_s", *sat_m_s, *sat_m_s > 0.0, "positive")?;
+            }
+            Effect::FloorBumps {
+                spacing_m,
+                loss_m,
+                start_m,
+                end_m,
+                jitter,
+                ..
+            } => {
+                range(id, "start_m", *start_m, true, "finite")?;
+                range(id, "end_m", *end_m, *end_m > *start_m, "above start_m")?;
+                range(
+                    id,
+                    "jitter",
+                    *jitter,
+                    (0.0..0.5).contains(jitter),
+                    "within [0, 0.5)",
+                )?;
                 range(id, "spacing_m", *spacing_m, *spacing_m > 0.0, "positive")?;
                 range(
                     id,
@@ -329,28 +643,65 @@ impl Effect {
                     "non-negative and below spacing_m",
                 )?;
             }
-            Effect::Backlash { backlash_rad } => range(
-                id,
-                "backlash_rad",
-                *backlash_rad,
-                (0.0..=1.0).contains(backlash_rad),
-                "within [0, 1] rad",
-            )?,
-            Effect::MissedSteps { max_accel_rad_s2 } => range(
-                id,
-                "max_accel_rad_s2",
-                *max_accel_rad_s2,
-                *max_accel_rad_s2 > 0.0,
-                "positive",
-            )?,
-            Effect::MotorLag { tau_s } => range(
-                id,
-                "tau_s",
-                *tau_s,
-                (0.0..=10.0).contains(tau_s),
-                "within [0, 10] s",
-            )?,
-            Effect::CoulombFriction { deadband_rad_s } => range(
+            Effect::Backlash {
+                backlash_rad,
+                asymmetry,
+                ..
+            } => {
+                range(
+                    id,
+                    "backlash_rad",
+                    *backlash_rad,
+                    (0.0..=1.0).contains(backlash_rad),
+                    "within [0, 1] rad",
+                )?;
+                range(
+                    id,
+                    "asymmetry",
+                    *asymmetry,
+                    (-1.0..=1.0).contains(asymmetry),
+                    "within [-1, 1]",
+                )?;
+            }
+            Effect::MissedSteps {
+                max_accel_rad_s2,
+                rate_hz,
+                ..
+            } => {
+                range(
+                    id,
+                    "max_accel_rad_s2",
+                    *max_accel_rad_s2,
+                    *max_accel_rad_s2 > 0.0,
+                    "positive",
+                )?;
+                range(
+                    id,
+                    "rate_hz",
+                    *rate_hz,
+                    (0.0..=1000.0).contains(rate_hz),
+                    "within [0, 1000]",
+                )?;
+            }
+            Effect::MotorLag {
+                tau_s, slew_rad_s2, ..
+            } => {
+                range(
+                    id,
+                    "tau_s",
+                    *tau_s,
+                    (0.0..=10.0).contains(tau_s),
+                    "within [0, 10] s",
+                )?;
+                range(
+                    id,
+                    "slew_rad_s2",
+                    *slew_rad_s2,
+                    *slew_rad_s2 > 0.0,
+                    "positive",
+                )?;
+            }
+            Effect::CoulombFriction { deadband_rad_s, .. } => range(
                 id,
                 "deadband_rad_s",
                 *deadband_rad_s,
@@ -379,8 +730,21 @@ impl fmt::Display for Effect {
     /// The `ID=name:value,...` form [`Effect::parse`] reads back.
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         write!(f, "{}", self.id())?;
-        for (i, (n, v)) in self.params().iter().enumerate() {
-            write!(f, "{}{n}:{v}", if i == 0 { '=' } else { ',' })?;
+        let mut first = true;
+        let mut sep = |f: &mut fmt::Formatter<'_>| {
+            let c = if first { '=' } else { ',' };
+            first = false;
+            write!(f, "{c}")
+        };
+        if let Some(m) = self.mechanism() {
+            if Mechanism::default_for(self.id()) != Some(m) {
+                sep(f)?;
+                write!(f, "mechanism:{}", m.name())?;
+            }
+        }
+        for (n, v) in self.params() {
+            sep(f)?;
+            write!(f, "{n}:{v}")?;
         }
         Ok(())
     }
@@ -412,6 +776,44 @@ pub struct Faults {
     /// Non-systematic floor roughness: each wheel's travel gets a random walk of this
     /// many metres per square-root metre travelled.
     pub travel_noise_m_per_sqrt_m: f64,
+    /// The mechanisms of the effects above (issue 11) and their extra parameters.
+    pub mech: MechanismFaults,
+}
+
+/// Which mechanism produces each effect, with the parameters only some mechanisms have.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct MechanismFaults {
+    pub slip: Mechanism,
+    /// Creep: slip speed per unit contact acceleration, s.
+    pub creep_s: f64,
+    pub lateral: Mechanism,
+    /// Saturating lateral slip: largest side-slip speed, m/s.
+    pub lateral_sat_m_s: f64,
+    pub backlash: Mechanism,
+    pub backlash_asymmetry: f64,
+    pub missed: Mechanism,
+    /// Quanta: mean drops per second while over the limit.
+    pub missed_rate_hz: f64,
+    pub lag: Mechanism,
+    /// Slew: largest change of the wheel rate, rad/s^2 (`None`: no slew limit).
+    pub slew_rad_s2: Option<f64>,
+}
+
+impl Default for MechanismFaults {
+    fn default() -> Self {
+        MechanismFaults {
+            slip: Mechanism::Wheel,
+            creep_s: 0.0,
+            lateral: Mechanism::Linear,
+            lateral_sat_m_s: f64::INFINITY,
+            backlash: Mechanism::Symmetric,
+            backlash_asymmetry: 0.0,
+            missed: Mechanism::PullOut,
+            missed_rate_hz: 0.0,
+            lag: Mechanism::FirstOrder,
+            slew_rad_s2: None,
+        }
+    }
 }
 
 impl Faults {
@@ -428,6 +830,7 @@ impl Faults {
             tau_s: 0.0,
             deadband_rad_s: 0.0,
             travel_noise_m_per_sqrt_m: 0.0,
+            mech: MechanismFaults::default(),
         }
     }
 
@@ -468,13 +871,66 @@ impl Faults {
                     }
                 }
                 Effect::WheelbaseError { eb } => f.wheelbase_scale *= eb,
-                Effect::LongitudinalSlip { mu } => f.mu = Some(*mu),
-                Effect::LateralSlip { side_slip_s } => f.side_slip_s = *side_slip_s,
-                Effect::FloorBumps { spacing_m, loss_m } => {
-                    surface.cables = Some(CableStrip::new(*spacing_m, *loss_m))
+                Effect::LongitudinalSlip {
+                    mu,
+                    mechanism,
+                    creep_s,
+                } => {
+                    f.mech.slip = *mechanism;
+                    if *mechanism == Mechanism::Creep {
+                        f.mech.creep_s = *creep_s;
+                    } else {
+                        f.mu = Some(*mu);
+                    }
                 }
-                Effect::Backlash { backlash_rad } => f.backlash_rad = *backlash_rad,
-                Effect::MissedSteps { max_accel_rad_s2 } => {
+                Effect::LateralSlip {
+                    side_slip_s,
+                    mechanism,
+                    sat_m_s,
+                } => {
+                    f.side_slip_s = *side_slip_s;
+                    f.mech.lateral = *mechanism;
+                    if *mechanism == Mechanism::Saturating {
+                        f.mech.lateral_sat_m_s = *sat_m_s;
+                    }
+                }
+                Effect::FloorBumps {
+                    spacing_m,
+                    loss_m,
+                    mechanism,
+                    start_m,
+                    end_m,
+                    jitter,
+                } => {
+                    let mut c = CableStrip::new(*spacing_m, *loss_m);
+                    match mechanism {
+                        Mechanism::Region => {
+                            c.start_m = *start_m;
+                            c.end_m = *end_m;
+                        }
+                        Mechanism::Irregular => c.jitter = *jitter,
+                        _ => {}
+                    }
+                    surface.cables = Some(c)
+                }
+                Effect::Backlash {
+                    backlash_rad,
+                    mechanism,
+                    asymmetry,
+                } => {
+                    f.backlash_rad = *backlash_rad;
+                    f.mech.backlash = *mechanism;
+                    if *mechanism == Mechanism::Asymmetric {
+                        f.mech.backlash_asymmetry = *asymmetry;
+                    }
+                }
+                Effect::MissedSteps {
+                    max_accel_rad_s2,
+                    mechanism,
+                    rate_hz,
+                } => {
+                    f.mech.missed = *mechanism;
+                    f.mech.missed_rate_hz = *rate_hz;
                     if robot.drive.kind != DriveType::Stepper {
                         return Err(crate::SimError::NotApplicable {
                             effect: e.id(),
@@ -483,8 +939,20 @@ impl Faults {
                     }
                     f.max_accel_rad_s2 = Some(*max_accel_rad_s2)
                 }
-                Effect::MotorLag { tau_s } => f.tau_s = *tau_s,
-                Effect::CoulombFriction { deadband_rad_s } => f.deadband_rad_s = *deadband_rad_s,
+                Effect::MotorLag {
+                    tau_s,
+                    mechanism,
+                    slew_rad_s2,
+                } => {
+                    f.mech.lag = *mechanism;
+                    match mechanism {
+                        Mechanism::Slew => f.mech.slew_rad_s2 = Some(*slew_rad_s2),
+                        _ => f.tau_s = *tau_s,
+                    }
+                }
+                Effect::CoulombFriction { deadband_rad_s, .. } => {
+                    f.deadband_rad_s = *deadband_rad_s
+                }
                 Effect::TiltedFloor {
                     drift_m_s,
                     direction_rad,
@@ -544,12 +1012,10 @@ mod tests {
     fn parses_the_catalogue_strings() {
         let e = Effect::parse("floor_bumps=spacing_m:0.03,loss_m:0.0008").unwrap();
         assert_eq!(
-            e,
-            Effect::FloorBumps {
-                spacing_m: 0.03,
-                loss_m: 0.0008
-            }
+            e.params(),
+            vec![("spacing_m".into(), 0.03), ("loss_m".into(), 0.0008)]
         );
+        assert_eq!(e.mechanism(), Some(Mechanism::Whole));
         assert_eq!(Effect::parse(&e.to_string()).unwrap(), e);
         let e = Effect::parse("wheel_diameter_mismatch=radius_scale_w2:1.02").unwrap();
         assert_eq!(
@@ -564,6 +1030,26 @@ mod tests {
             let e = Effect::parse(id).unwrap();
             assert_eq!(Effect::parse(&e.to_string()).unwrap(), e);
         }
+    }
+
+    #[test]
+    fn mechanisms_parse_and_print_back() {
+        let e = Effect::parse("longitudinal_slip=mu:0.15,mechanism:body").unwrap();
+        assert_eq!(e.mechanism(), Some(Mechanism::Body));
+        assert_eq!(e.to_string(), "longitudinal_slip=mechanism:body,mu:0.15");
+        assert_eq!(Effect::parse(&e.to_string()).unwrap(), e);
+        for (m, name, id) in Mechanism::ALL {
+            let e = Effect::parse(&format!("{id}=mechanism:{name}")).unwrap();
+            assert_eq!(e.mechanism(), Some(m));
+            assert_eq!(Effect::parse(&e.to_string()).unwrap(), e);
+        }
+        let e = Effect::parse("floor_bumps=mechanism:region,start_m:1,end_m:2").unwrap();
+        let (_, s) = Faults::from_effects(&presets::omni4(), &[e], Surface::flat()).unwrap();
+        let c = s.cables.unwrap();
+        assert_eq!((c.start_m, c.end_m), (1.0, 2.0));
+        assert!(Effect::parse("backlash=mechanism:body").is_err());
+        assert!(Effect::parse("wheelbase_error=mechanism:body").is_err());
+        assert!(Effect::parse("floor_bumps=mechanism:region,start_m:2,end_m:1").is_err());
     }
 
     #[test]
@@ -598,5 +1084,86 @@ mod tests {
         assert!(Faults::from_effects(&r, &[bad], Surface::flat()).is_err());
         let ms = Effect::parse("missed_steps").unwrap();
         assert!(Faults::from_effects(&presets::omni4(), &[ms], Surface::flat()).is_err());
+    }
+
+    /// Drives a DC diff drive (r 0.05, track 0.4) with wheel rates (left, right) for each
+    /// tick; returns the robot.
+    fn drive_diff(
+        effect: &str,
+        rates: impl Fn(usize) -> (f64, f64),
+        ticks: usize,
+    ) -> crate::SimRobot {
+        use calib_core::robot::Drive;
+        let r = presets::diff_drive("d", 0.05, 0.40, Drive::default());
+        let e = Effect::parse(effect).unwrap();
+        let cfg = crate::SimConfig {
+            random_counter_start: false,
+            ..Default::default()
+        };
+        let mut sim = crate::SimRobot::with_effects(&r, &[e], Surface::flat(), cfg).unwrap();
+        let left = r.wheels.iter().position(|w| w.position().1 >= 0.0).unwrap();
+        for k in 0..ticks {
+            let (l, rr) = rates(k);
+            let mut inp = [crate::WheelInput::Rate(rr), crate::WheelInput::Rate(rr)];
+            inp[left] = crate::WheelInput::Rate(l);
+            sim.step(1e-3, &inp).unwrap();
+        }
+        sim
+    }
+
+    #[test]
+    fn slip_mechanisms_in_numbers() {
+        // Body bound, mu 0.1: a step to 0.5 m/s reaches only mu g t = 0.0981 m/s after
+        // 0.1 s; a turn on the spot (no linear acceleration) is not held back at all.
+        let s = drive_diff(
+            "longitudinal_slip=mu:0.1,mechanism:body",
+            |_| (10.0, 10.0),
+            100,
+        );
+        assert!(
+            (s.true_twist().vx - 0.0981).abs() < 1e-3,
+            "{:?}",
+            s.true_twist()
+        );
+        let s = drive_diff(
+            "longitudinal_slip=mu:0.1,mechanism:body",
+            |_| (-2.0, 2.0),
+            100,
+        );
+        assert!((s.true_pose().theta - 0.1 * 2.0 * 0.05 / 0.2).abs() < 1e-9);
+        // The per-wheel limit does hold the turn back.
+        let s = drive_diff("longitudinal_slip=mu:0.1", |_| (-2.0, 2.0), 100);
+        assert!(s.true_pose().theta < 0.9 * 0.05);
+        // Creep 0.05 s: a 1 s ramp at 0.5 m/s^2 lags by creep_s a (t - creep_s) =
+        // 0.02375 m once the slip has settled at creep_s a.
+        let s = drive_diff(
+            "longitudinal_slip=mechanism:creep,creep_s:0.05",
+            |k| {
+                let v = 0.5 * (k as f64 + 1.0) * 1e-3;
+                (v / 0.05, v / 0.05)
+            },
+            1000,
+        );
+        let ideal = 0.5 * 0.5 * 1.0 * 1.0;
+        assert!(
+            (ideal - s.true_pose().x - 0.02375).abs() < 1e-3,
+            "{}",
+            s.true_pose().x
+        );
+        // Saturating side slip: 0.3 m/s on a 1 rad/s arc, k 0.05 s: linear -0.015 m/s,
+        // saturated at 5 mm/s: -0.005 tanh(3) = -0.004975 m/s.
+        let arc = |_| ((0.3 - 0.2) / 0.05, (0.3 + 0.2) / 0.05);
+        let s = drive_diff("lateral_slip=side_slip_s:0.05", arc, 10);
+        assert!(
+            (s.true_twist().vy + 0.015).abs() < 1e-9,
+            "{:?}",
+            s.true_twist()
+        );
+        let s = drive_diff(
+            "lateral_slip=side_slip_s:0.05,mechanism:saturating,sat_m_s:0.005",
+            arc,
+            10,
+        );
+        assert!((s.true_twist().vy + 0.005 * 3f64.tanh()).abs() < 1e-9);
     }
 }

@@ -21,6 +21,7 @@
 //! the diagnose catalogue is phrased in, so a fitted parameter means the same thing here.
 
 use crate::body::Geometry;
+use crate::effects::Mechanism;
 use crate::surface::Surface;
 use calib_core::kinematics::Twist;
 use calib_core::odometry::{integrate_arc, Pose};
@@ -41,6 +42,8 @@ pub struct GroundParams {
     pub driven_load_share: f64,
     pub side_slip_s: f64,
     pub travel_noise_m_per_sqrt_m: f64,
+    /// Mechanisms of the traction and side-slip effects (issue 11).
+    pub mech: crate::effects::MechanismFaults,
 }
 
 /// The body's state on the ground.
@@ -101,6 +104,13 @@ impl Ground {
             }
             let want = d / dt;
             self.contacts[i] = match params.mu {
+                _ if params.mech.creep_s > 0.0 => {
+                    // Creep: the contact follows the wheel with slip = creep_s * its
+                    // acceleration (first-order, exact for a held wheel speed).
+                    let now = geom.contact_speed(i, &self.wheel_twist);
+                    now + (want - now) * (1.0 - (-dt / params.mech.creep_s).exp())
+                }
+                Some(_) if params.mech.slip == Mechanism::Body => want,
                 None => want,
                 Some(mu) => {
                     let mut a = mu * crate::G * params.driven_load_share;
@@ -120,9 +130,27 @@ impl Ground {
             toward_zero(self.wheel_twist.vy, COAST_DECEL_M_S2),
             toward_zero(self.wheel_twist.omega, COAST_DECEL_RAD_S2),
         );
+        let prev = self.wheel_twist;
         self.wheel_twist = geom.twist_from_contacts(&self.contacts, &coast);
+        if let (Some(mu), Mechanism::Body) = (params.mu, params.mech.slip) {
+            // The body's linear acceleration is bounded (its heading is not).
+            let a = mu * crate::G * params.driven_load_share * dt;
+            let (dx, dy) = (self.wheel_twist.vx - prev.vx, self.wheel_twist.vy - prev.vy);
+            let d = dx.hypot(dy);
+            if d > a {
+                self.wheel_twist.vx = prev.vx + dx * a / d;
+                self.wheel_twist.vy = prev.vy + dy * a / d;
+            }
+        }
         let w = self.wheel_twist;
-        let mut body = Twist::new(w.vx, w.vy - params.side_slip_s * w.vx * w.omega, w.omega);
+        let side = match params.mech.lateral {
+            Mechanism::Saturating if params.mech.lateral_sat_m_s.is_finite() => {
+                let s = params.mech.lateral_sat_m_s;
+                s * (params.side_slip_s * w.vx * w.omega / s).tanh()
+            }
+            _ => params.side_slip_s * w.vx * w.omega,
+        };
+        let mut body = Twist::new(w.vx, w.vy - side, w.omega);
         if let (Some(tilt), true) = (surface.tilt, moving) {
             // World drift expressed in the body frame.
             let (sd, cd) = (tilt.direction_rad - self.pose.theta).sin_cos();

@@ -158,7 +158,7 @@ impl SimRobot {
         let rng_vision = ChaCha8Rng::seed_from_u64(seeder.random());
         let rng_imu = ChaCha8Rng::seed_from_u64(seeder.random());
         let actuators = (0..n)
-            .map(|_| {
+            .map(|i| {
                 Actuator::new(
                     &nominal.drive,
                     dc,
@@ -167,6 +167,7 @@ impl SimRobot {
                     faults.backlash_rad,
                     faults.max_accel_rad_s2,
                 )
+                .with_mechanisms(&faults.mech, cfg.seed ^ (i as u64 + 1).wrapping_mul(0x9e37))
             })
             .collect();
         let encoders = (0..n)
@@ -189,6 +190,7 @@ impl SimRobot {
                 .unwrap_or_else(|| driven_load_share(nominal, legs.0, legs.1)),
             side_slip_s: faults.side_slip_s,
             travel_noise_m_per_sqrt_m: faults.travel_noise_m_per_sqrt_m,
+            mech: faults.mech,
         };
         Ok(SimRobot {
             nominal: nominal.clone(),

@@ -20,6 +20,19 @@ pub struct CableStrip {
     /// Cables only where `start_m <= n . p <= end_m` (a strip); infinite by default.
     pub start_m: f64,
     pub end_m: f64,
+    /// Irregular spacing: cable k sits up to `jitter` spacings (< 0.5) off its regular
+    /// place, by a fixed pseudo-random amount per cable (0 = regular).
+    pub jitter: f64,
+}
+
+/// A fixed pseudo-random number in [-1, 1) for cable k (SplitMix64 of k): the same floor
+/// every run, without a random stream.
+fn cable_offset(k: i64) -> f64 {
+    let mut z = (k as u64).wrapping_add(0x9e37_79b9_7f4a_7c15);
+    z = (z ^ (z >> 30)).wrapping_mul(0xbf58_476d_1ce4_e5b9);
+    z = (z ^ (z >> 27)).wrapping_mul(0x94d0_49bb_1331_11eb);
+    z ^= z >> 31;
+    (z >> 11) as f64 / (1u64 << 52) as f64 - 1.0
 }
 
 impl CableStrip {
@@ -32,6 +45,7 @@ impl CableStrip {
             offset_m: 0.0,
             start_m: f64::NEG_INFINITY,
             end_m: f64::INFINITY,
+            jitter: 0.0,
         }
     }
 
@@ -45,6 +59,19 @@ impl CableStrip {
         let (a, b) = (s0.min(s1).max(self.start_m), s0.max(s1).min(self.end_m));
         if a >= b {
             return 0;
+        }
+        if self.jitter > 0.0 {
+            // Cable k sits at offset + (k + jitter * u_k) * spacing, |jitter| < 0.5: only
+            // the neighbours of the regular range can move in or out of it.
+            let k0 = ((a - self.offset_m) / self.spacing_m).floor() as i64 - 1;
+            let k1 = ((b - self.offset_m) / self.spacing_m).floor() as i64 + 1;
+            return (k0..=k1)
+                .filter(|&k| {
+                    let pos =
+                        self.offset_m + (k as f64 + self.jitter * cable_offset(k)) * self.spacing_m;
+                    a < pos && pos <= b
+                })
+                .count() as u32;
         }
         // Cable k sits at offset + k * spacing; count k with a < pos <= b.
         let ka = ((a - self.offset_m) / self.spacing_m).floor();
@@ -114,5 +141,19 @@ mod tests {
         s.start_m = 0.5;
         s.end_m = 0.7;
         assert_eq!(s.crossings(0.0, 1.0), 7); // 0.51 .. 0.69
+                                              // Irregular: as many cables per metre on average, but not evenly spaced.
+        let mut j = c;
+        j.jitter = 0.4;
+        assert!((j.crossings(0.0, 30.0) as i64 - 1000).abs() <= 1);
+        // Cable positions to 1 mm over 3 m: gaps from 0.2 to 1.8 spacings occur.
+        let pos: Vec<f64> = (0..3000)
+            .filter(|&i| j.crossings(i as f64 * 1e-3, (i + 1) as f64 * 1e-3) > 0)
+            .map(|i| i as f64 * 1e-3)
+            .collect();
+        let gaps: Vec<f64> = pos.windows(2).map(|w| w[1] - w[0]).collect();
+        let (lo, hi) = gaps
+            .iter()
+            .fold((1.0f64, 0.0f64), |a, &g| (a.0.min(g), a.1.max(g)));
+        assert!(lo < 0.5 * 0.03 && hi > 1.5 * 0.03, "{lo} {hi}");
     }
 }

@@ -196,6 +196,7 @@ pub fn compute(robot: &Robot, runs: &RunsFile) -> Result<OmniReport> {
             direction_rad: dirs[i],
             driven: &driven_sets[i],
             runs: &run_sets[i],
+            held: &[],
         })
         .collect();
     let cal = omni_cal::calibrate(&paths, robot.wheel_count())
