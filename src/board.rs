@@ -5,18 +5,21 @@
 //! | function | peripheral | pins |
 //! |---|---|---|
 //! | encoder wheel 0..3 (QEI, x4) | TIM3, TIM4, TIM5, TIM8 | PA6/PA7, PB6/PB7, PA0/PA1, PC6/PC7 |
-//! | DC PWM or stepper STEP, wheel 0..3 | TIM1 CH1..CH4 | PA8, PA9, PA10, PA11 |
+//! | DC PWM or stepper STEP, wheel 0..3 | TIM2 CH1..CH4 | PA5, PB3, PB10, PB11 |
 //! | direction, wheel 0..3 | GPIO | PB12, PB13, PB14, PB15 |
 //! | driver enable (all wheels) | GPIO, external pull-down | PB2 |
 //! | protocol serial | USART2 | TX PA2, RX PA3 |
+//! | protocol over USB (CDC-ACM, full speed, no VBUS sensing) | OTG_FS | DM PA11, DP PA12 |
 //! | watchdog | IWDG | |
 //! | settings storage | internal flash sectors 10-11 | |
 //!
-//! TIM2 is embassy's time driver. The enable line has a pull-down, so after any reset
+//! TIM12 is embassy's time driver. The motor outputs moved from TIM1 (PA8..PA11) to TIM2
+//! because the USB device's pins are fixed at PA11/PA12, and TIM1's channel 4 has no other
+//! pin on the 64-pin package. The enable line has a pull-down, so after any reset
 //! (the watchdog's included) the bridges and stepper drivers are off until the firmware
 //! has booted and the control task drives them.
 //!
-//! TIM1 serves either drive type, chosen at run time from the robot parameters: 20 kHz
+//! TIM2 serves either drive type, chosen at run time from the robot parameters: 20 kHz
 //! edge-aligned PWM for DC H-bridges, or free-running at 1 MHz with each channel in
 //! output-compare toggle mode for steppers, its compare register advanced by half a step
 //! period in the capture/compare interrupt, so four wheels step at independent rates from
@@ -32,7 +35,7 @@ use embassy_stm32::interrupt::Priority;
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals::Ocm;
 use embassy_stm32::peripherals::{
-    PA0, PA1, PA10, PA11, PA6, PA7, PA8, PA9, PB6, PB7, PC6, PC7, TIM1, TIM3, TIM4, TIM5, TIM8,
+    PA0, PA1, PA5, PA6, PA7, PB10, PB11, PB3, PB6, PB7, PC6, PC7, TIM2, TIM3, TIM4, TIM5, TIM8,
 };
 use embassy_stm32::time::Hertz;
 use embassy_stm32::timer::low_level::{OutputCompareMode, RoundTo, Timer};
@@ -80,12 +83,12 @@ pub fn config() -> embassy_stm32::Config {
 /// A timer and the two pins of its encoder.
 pub type QeiPins<T, A, B> = (Peri<'static, T>, Peri<'static, A>, Peri<'static, B>);
 
-/// TIM1's four output pins, kept alive (dropping them would release the pins).
-type Tim1Pins = (
-    PwmPin<'static, TIM1, embassy_stm32::timer::Ch1>,
-    PwmPin<'static, TIM1, embassy_stm32::timer::Ch2>,
-    PwmPin<'static, TIM1, embassy_stm32::timer::Ch3>,
-    PwmPin<'static, TIM1, embassy_stm32::timer::Ch4>,
+/// The motor timer's four output pins, kept alive (dropping them would release the pins).
+type MotorPins = (
+    PwmPin<'static, TIM2, embassy_stm32::timer::Ch1>,
+    PwmPin<'static, TIM2, embassy_stm32::timer::Ch2>,
+    PwmPin<'static, TIM2, embassy_stm32::timer::Ch3>,
+    PwmPin<'static, TIM2, embassy_stm32::timer::Ch4>,
 );
 
 /// The four quadrature counters.
@@ -131,7 +134,7 @@ impl EncoderSource for Encoders {
     }
 }
 
-/// Half step periods in 1 MHz ticks per TIM1 channel (0 = not stepping), read by the
+/// Half step periods in 1 MHz ticks per TIM2 channel (0 = not stepping), read by the
 /// compare interrupt.
 static HALF_PERIOD: [AtomicU16; 4] = [const { AtomicU16::new(0) }; 4];
 /// 1 MHz timer ticks.
@@ -142,7 +145,7 @@ const MAX_STEP_HZ: f32 = 20_000.0;
 const MIN_STEP_HZ: f32 = STEP_TICK_HZ as f32 / 2.0 / 65_535.0;
 const PWM_HZ: u32 = 20_000;
 
-/// TIM1's channel for a wheel.
+/// TIM2's channel for a wheel.
 fn channel(wheel: usize) -> Channel {
     [Channel::Ch1, Channel::Ch2, Channel::Ch3, Channel::Ch4][wheel & 3]
 }
@@ -152,16 +155,17 @@ fn channel(wheel: usize) -> Channel {
 /// (time driver, UART, flash) come next; the control executor is below them at
 /// `ceiling::CEILING`, the link and storage tasks in thread mode.
 pub fn set_priorities() {
-    interrupt::TIM1_CC.set_priority(Priority::P0);
-    interrupt::TIM2.set_priority(Priority::P1);
+    interrupt::TIM2.set_priority(Priority::P0);
+    interrupt::TIM8_BRK_TIM12.set_priority(Priority::P1);
     interrupt::USART2.set_priority(Priority::P2);
     interrupt::FLASH.set_priority(Priority::P2);
+    interrupt::OTG_FS.set_priority(Priority::P2);
 }
 
-/// Motor outputs: TIM1 channels (PWM or STEP), direction lines and the enable line.
+/// Motor outputs: TIM2 channels (PWM or STEP), direction lines and the enable line.
 pub struct Motors {
-    timer: Timer<'static, TIM1>,
-    _pins: Tim1Pins,
+    timer: Timer<'static, TIM2>,
+    _pins: MotorPins,
     dir: [Output<'static>; 4],
     enable: Output<'static>,
     mode: Option<DriveType>,
@@ -169,11 +173,11 @@ pub struct Motors {
 
 impl Motors {
     pub fn new(
-        tim: Peri<'static, TIM1>,
-        ch1: Peri<'static, PA8>,
-        ch2: Peri<'static, PA9>,
-        ch3: Peri<'static, PA10>,
-        ch4: Peri<'static, PA11>,
+        tim: Peri<'static, TIM2>,
+        ch1: Peri<'static, PA5>,
+        ch2: Peri<'static, PB3>,
+        ch3: Peri<'static, PB10>,
+        ch4: Peri<'static, PB11>,
         dir: [Output<'static>; 4],
         enable: Output<'static>,
     ) -> Self {
@@ -189,11 +193,11 @@ impl Motors {
             enable,
             mode: None,
         };
-        interrupt::TIM1_CC.set_priority(Priority::P0);
+        interrupt::TIM2.set_priority(Priority::P0);
         m
     }
 
-    /// Sets TIM1 up for the robot's drive type (at boot and when the parameters change).
+    /// Sets TIM2 up for the robot's drive type (at boot and when the parameters change).
     pub fn set_mode(&mut self, kind: DriveType) {
         if self.mode == Some(kind) {
             return;
@@ -201,7 +205,7 @@ impl Motors {
         self.stop_all();
         let t = &mut self.timer;
         t.stop();
-        interrupt::TIM1_CC.disable();
+        interrupt::TIM2.disable();
         match kind {
             DriveType::Dc => {
                 t.set_frequency(Hertz(PWM_HZ), RoundTo::Slower);
@@ -213,13 +217,14 @@ impl Motors {
             }
             DriveType::Stepper => {
                 t.set_tick_freq(Hertz(STEP_TICK_HZ));
-                t.set_max_compare_value(u16::MAX);
+                // 16-bit wrap like the compare arithmetic below (TIM2 could count 32).
+                t.set_max_compare_value(u16::MAX as u32);
                 for w in 0..4 {
                     t.set_output_compare_mode(channel(w), OutputCompareMode::ForceInactive);
                 }
-                interrupt::TIM1_CC.unpend();
-                // SAFETY: the handler below only touches TIM1 and HALF_PERIOD.
-                unsafe { interrupt::TIM1_CC.enable() };
+                interrupt::TIM2.unpend();
+                // SAFETY: the handler below only touches TIM2 and HALF_PERIOD.
+                unsafe { interrupt::TIM2.enable() };
             }
         }
         for w in 0..4 {
@@ -246,7 +251,7 @@ impl WheelDriver for Motors {
         self.enable.set_high();
         self.direction(wheel, duty >= 0.0);
         let max = self.timer.get_max_compare_value() as f32;
-        let d = (duty.abs().min(1.0) * max) as u16;
+        let d = (duty.abs().min(1.0) * max) as u32;
         self.timer.set_compare_value(channel(wheel), d);
     }
 
@@ -269,7 +274,7 @@ impl WheelDriver for Motors {
             // their read-modify-writes are the only code that masks it (a few instructions).
             let t = &self.timer;
             let now = t.regs_core().cnt().read().cnt();
-            t.set_compare_value(channel(wheel), now.wrapping_add(half));
+            t.set_compare_value(channel(wheel), now.wrapping_add(half) as u32);
             critical_section::with(|_| {
                 t.set_output_compare_mode(channel(wheel), OutputCompareMode::Toggle);
                 clear_cc_flag(wheel);
@@ -298,7 +303,7 @@ impl WheelDriver for Motors {
 /// a read-modify-write (what the HAL's `clear_input_interrupt` does) could clear another
 /// channel's flag that rose in between and lose that channel's edge.
 fn clear_cc_flag(ch: usize) {
-    pac::TIM1.sr().write(|w| {
+    pac::TIM2.sr().write(|w| {
         w.0 = !0;
         w.set_ccif(ch, false);
     });
@@ -307,10 +312,10 @@ fn clear_cc_flag(ch: usize) {
 /// Stepper pulses: each due channel toggles its STEP pin in hardware; here its next
 /// toggle is scheduled half a period later, or the channel is parked when stopped.
 /// It runs at the most urgent priority, so nothing preempts its read-modify-writes.
-/// It uses TIM1's typed register block (the interrupt cannot borrow the `Timer`).
+/// It uses TIM2's typed register block (the interrupt cannot borrow the `Timer`).
 #[interrupt]
-fn TIM1_CC() {
-    let r = pac::TIM1;
+fn TIM2() {
+    let r = pac::TIM2;
     let sr = r.sr().read();
     for (ch, half) in HALF_PERIOD.iter().enumerate() {
         if !sr.ccif(ch) {
@@ -323,8 +328,9 @@ fn TIM1_CC() {
             r.ccmr_output(ch / 2)
                 .modify(|w| w.set_ocm(ch % 2, Ocm::FORCE_INACTIVE));
         } else {
-            let c = r.ccr(ch).read().ccr();
-            r.ccr(ch).write(|w| w.set_ccr(c.wrapping_add(half)));
+            // 16-bit arithmetic: the counter wraps at 0xFFFF (set_mode).
+            let c = r.ccr(ch).read() as u16;
+            r.ccr(ch).write_value(c.wrapping_add(half) as u32);
         }
     }
 }

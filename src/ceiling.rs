@@ -4,8 +4,9 @@
 //! The application is shared by the control task (interrupt executor at [`CEILING`]) and
 //! the link tasks (thread mode). While a link task holds the lock, the control executor's
 //! interrupt cannot run, so the two never touch the application at once; interrupts more
-//! urgent than the ceiling (the stepper's TIM1_CC, the UART, the time driver) stay live,
-//! so a long answer (up to ~1 KiB encoded with CRC and COBS) cannot delay a step edge.
+//! urgent than the ceiling (the stepper's compare interrupt, the UART, USB, the time
+//! driver) stay live, so a long answer (up to ~1 KiB encoded with CRC and COBS) cannot
+//! delay a step edge.
 //! A critical-section mutex masked them all for the whole tick, request or telemetry.
 
 use cortex_m::register::{basepri, basepri_max};

@@ -4,14 +4,16 @@
 //!
 //! Tasks:
 //! - `control` (interrupt executor, high priority): the 1 kHz tick and the watchdog;
-//! - `serial` (thread executor): bytes from USART2 through the request handler, answers
-//!   and telemetry back;
-//! - `storage` (thread executor): settings saves to flash sectors 10-11, asked for by
-//!   `serial` (the handler answers a save only once it is written).
+//! - `serial` and `usb_link` (thread executor): the protocol over USART2 and over USB
+//!   CDC-ACM (`/dev/ttyACM*` on Linux), each with its own framing state on the one
+//!   application ([`link`]);
+//! - `usb_device` (thread executor): the USB device stack;
+//! - `storage` (thread executor): settings saves to flash sectors 10-11, asked for by a
+//!   link (the handler answers a save only once it is written).
 //!
-//! Both share the application through a priority-ceiling mutex ([`ceiling`]): the serial
-//! side holds it only while one byte is handled (a full answer is encoded then, ~1 KiB at
-//! most), and holding it masks only the control executor, never the stepper's TIM1_CC
+//! They share the application through a priority-ceiling mutex ([`ceiling`]): a link
+//! holds it only while one byte is handled (a full answer is encoded then, ~1 KiB at
+//! most), and holding it masks only the control executor, never the stepper's compare
 //! interrupt, which runs at the most urgent priority.
 //!
 //! Statics are `StaticCell`s initialised at run time, so nothing large sits in `.data`
@@ -21,33 +23,35 @@
 
 mod board;
 mod ceiling;
+mod link;
 
 use calib_core::protocol::Stored;
 use ceiling::CeilingRawMutex;
 use core::cell::RefCell;
 use defmt::{info, unwrap, warn};
 use embassy_executor::{InterruptExecutor, Spawner};
-use embassy_futures::select::{select, Either};
 use embassy_stm32::flash::{Async, Flash};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::InterruptExt;
-use embassy_stm32::peripherals::{IWDG, USART2};
+use embassy_stm32::peripherals::{IWDG, USART2, USB_OTG_FS};
 use embassy_stm32::usart::{BufferedUart, Config as UartConfig};
 use embassy_stm32::wdg::IndependentWatchdog;
-use embassy_stm32::{bind_interrupts, flash, usart, Peri};
+use embassy_stm32::{bind_interrupts, flash, usart, usb, Peri};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::blocking_mutex::Mutex;
-use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
 use embassy_time::{Duration, Instant, Ticker, Timer};
-use embedded_io_async::{Read, Write};
-use firmware_app::{App, PersistItem, Server, Step, Store};
+use embassy_usb::class::cdc_acm::{CdcAcmClass, State as CdcState};
+use embassy_usb::UsbDevice;
+use firmware_app::{App, Store};
+use link::{UsbDriver, SAVE, SAVED};
 use static_cell::{ConstStaticCell, StaticCell};
 use {defmt_rtt as _, panic_probe as _};
 
 bind_interrupts!(struct Irqs {
     USART2 => usart::BufferedInterruptHandler<USART2>;
     FLASH => flash::InterruptHandler;
+    OTG_FS => usb::InterruptHandler<USB_OTG_FS>;
 });
 
 /// Trial-log ring: all of CCM RAM but the cell's flag word (the ring takes any length).
@@ -58,16 +62,18 @@ const LOG_BYTES: usize = 64 * 1024 - 4;
 static LOG_BUF: ConstStaticCell<[u8; LOG_BYTES]> = ConstStaticCell::new([0; LOG_BYTES]);
 static TX_BUF: ConstStaticCell<[u8; 2048]> = ConstStaticCell::new([0; 2048]);
 static RX_BUF: ConstStaticCell<[u8; 1024]> = ConstStaticCell::new([0; 1024]);
+/// USB: received packets (the OTG FIFO is drained here), descriptors, control transfers.
+static USB_EP_OUT: ConstStaticCell<[u8; 256]> = ConstStaticCell::new([0; 256]);
+static USB_CONFIG_DESC: ConstStaticCell<[u8; 128]> = ConstStaticCell::new([0; 128]);
+static USB_BOS_DESC: ConstStaticCell<[u8; 32]> = ConstStaticCell::new([0; 32]);
+static USB_CONTROL: ConstStaticCell<[u8; 64]> = ConstStaticCell::new([0; 64]);
+static CDC_STATE: StaticCell<CdcState<'static>> = StaticCell::new();
 
 /// The application, shared by the control task and the link.
 type SharedApp = Mutex<CeilingRawMutex, RefCell<App<'static>>>;
 static APP: StaticCell<SharedApp> = StaticCell::new();
 
 static EXECUTOR_HIGH: InterruptExecutor = InterruptExecutor::new();
-
-/// Saves asked for by the request handler, and whether each worked.
-static SAVE: Channel<CriticalSectionRawMutex, PersistItem, 1> = Channel::new();
-static SAVED: Signal<CriticalSectionRawMutex, bool> = Signal::new();
 
 #[interrupt]
 unsafe fn UART4() {
@@ -117,11 +123,11 @@ async fn main(spawner: Spawner) {
         board::output(p.PB15),
     ];
     let mut motors = board::Motors::new(
-        p.TIM1,
-        p.PA8,
-        p.PA9,
-        p.PA10,
-        p.PA11,
+        p.TIM2,
+        p.PA5,
+        p.PB3,
+        p.PB10,
+        p.PB11,
         dir,
         board::output(p.PB2),
     );
@@ -133,12 +139,38 @@ async fn main(spawner: Spawner) {
     let uart =
         unwrap!(BufferedUart::new(p.USART2, p.PA3, p.PA2, tx_buf, rx_buf, Irqs, uart_config).ok());
 
+    // USB full speed on PA11/PA12; no VBUS sensing (PA9 is not wired to VBUS).
+    let mut otg = usb::Config::default();
+    otg.vbus_detection = false;
+    let driver = usb::Driver::new_fs(p.USB_OTG_FS, Irqs, p.PA12, p.PA11, USB_EP_OUT.take(), otg);
+    // pid.codes' test VID/PID; Linux binds cdc_acm by class, so it shows as /dev/ttyACM*.
+    let mut usb_config = embassy_usb::Config::new(0x1209, 0x0001);
+    usb_config.manufacturer = Some("wheelcal");
+    usb_config.product = Some("wheelcal wheel controller");
+    usb_config.max_power = 100;
+    let mut builder = embassy_usb::Builder::new(
+        driver,
+        usb_config,
+        USB_CONFIG_DESC.take(),
+        USB_BOS_DESC.take(),
+        &mut [],
+        USB_CONTROL.take(),
+    );
+    let cdc = CdcAcmClass::new(
+        &mut builder,
+        CDC_STATE.init(CdcState::new()),
+        link::USB_PACKET as u16,
+    );
+    let usb = builder.build();
+
     board::set_priorities();
     interrupt::UART4.set_priority(ceiling::CEILING);
     let high = EXECUTOR_HIGH.start(interrupt::UART4);
     high.spawn(unwrap!(control(app, encoders, motors, p.IWDG)));
     spawner.spawn(unwrap!(storage(flash_store)));
     spawner.spawn(unwrap!(serial(app, uart)));
+    spawner.spawn(unwrap!(usb_device(usb)));
+    spawner.spawn(unwrap!(usb_link(app, cdc)));
 }
 
 /// Watchdog timeout asked for by the storage task, applied by the control task (which
@@ -186,43 +218,22 @@ fn with_app<R>(app: &SharedApp, f: impl FnOnce(&mut App<'static>) -> R) -> R {
     app.lock(|a| f(&mut a.borrow_mut()))
 }
 
-/// The protocol link: request handler, telemetry, settings saves.
+/// The protocol over USART2.
 #[embassy_executor::task]
 async fn serial(app: &'static SharedApp, mut uart: BufferedUart<'static>) {
-    let mut server = Server::new();
-    let mut buf = [0u8; 64];
-    loop {
-        // Wake at least every 10 ms for telemetry.
-        let n = match select(uart.read(&mut buf), Timer::after_millis(10)).await {
-            Either::First(Ok(n)) => n,
-            Either::First(Err(_)) => 0, // framing/overrun: the decoder resynchronises
-            Either::Second(()) => 0,
-        };
-        for &b in &buf[..n] {
-            let now = now_us();
-            let step = with_app(app, |a| match server.push(b, a, now) {
-                Step::Idle => None,
-                Step::Send(w) => Some(Ok(w.len())),
-                Step::Persist { seq, item } => Some(Err((seq, item))),
-            });
-            match step {
-                None => {}
-                Some(Ok(len)) => {
-                    let _ = uart.write_all(server.last_frame(len)).await;
-                }
-                Some(Err((seq, item))) => {
-                    SAVE.send(item).await;
-                    let ok = SAVED.wait().await;
-                    let r = with_app(app, |a| a.persisted(ok));
-                    let _ = uart.write_all(server.reply(seq, &r)).await;
-                }
-            }
-        }
-        let tele = with_app(app, |a| server.telemetry(a).map(|t| t.len()));
-        if let Some(len) = tele {
-            let _ = uart.write_all(server.last_telemetry(len)).await;
-        }
-    }
+    link::serve(app, &mut uart, 1).await
+}
+
+/// The protocol over USB CDC-ACM.
+#[embassy_executor::task]
+async fn usb_link(app: &'static SharedApp, mut cdc: CdcAcmClass<'static, UsbDriver>) {
+    link::serve(app, &mut cdc, 2).await
+}
+
+/// The USB device stack (enumeration, control requests, suspend).
+#[embassy_executor::task]
+async fn usb_device(mut usb: UsbDevice<'static, UsbDriver>) {
+    usb.run().await
 }
 
 /// Writes settings to flash. Saves only happen with the motors stopped (the handler
