@@ -76,6 +76,22 @@ impl Link for CdcAcmClass<'static, UsbDriver> {
     }
 }
 
+/// One received byte through the link's server, under the application's lock: the
+/// length of an answer to send, or a save to make. Not inlined: both links share it.
+#[inline(never)]
+fn push(
+    app: &SharedApp,
+    server: &mut Server,
+    byte: u8,
+) -> Option<Result<usize, (u16, PersistItem)>> {
+    let now = Instant::now().as_micros();
+    with_app(app, |a| match server.push(byte, a, now) {
+        Step::Idle => None,
+        Step::Send(w) => Some(Ok(w.len())),
+        Step::Persist { seq, item } => Some(Err((seq, item))),
+    })
+}
+
 /// Serves one link for ever: requests through `server`, answers and (when this link
 /// was the last to be spoken to) telemetry back, saves through the storage task.
 pub async fn serve(app: &'static SharedApp, link: &mut impl Link, id: u8) -> ! {
@@ -88,13 +104,7 @@ pub async fn serve(app: &'static SharedApp, link: &mut impl Link, id: u8) -> ! {
             Either::Second(()) => 0,
         };
         for &b in &buf[..n.min(buf.len())] {
-            let now = Instant::now().as_micros();
-            let step = with_app(app, |a| match server.push(b, a, now) {
-                Step::Idle => None,
-                Step::Send(w) => Some(Ok(w.len())),
-                Step::Persist { seq, item } => Some(Err((seq, item))),
-            });
-            match step {
+            match push(app, &mut server, b) {
                 None => {}
                 Some(Ok(len)) => {
                     LAST_LINK.store(id, Ordering::Relaxed);
