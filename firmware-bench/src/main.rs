@@ -17,22 +17,25 @@
 //! frame, `bench_mark(8)`/`bench_mark(9)`. Under a critical-section mutex these masked
 //! the stepper interrupt; under the ceiling mutex they mask only the control executor.
 //! Last, the critical sections that remain: an `embassy_sync` `Signal` signalled and
-//! taken (what the storage and control tasks exchange), `bench_mark(12)`/`bench_mark(13)`.
+//! taken (what the storage and control tasks exchange), `bench_mark(12)`/`bench_mark(13)`;
+//! a settings save handed to the storage task and taken there (`Channel` of a
+//! `PersistItem`, copied inside its critical sections), `bench_mark(14)`/`bench_mark(15)`.
 #![no_std]
 #![no_main]
 
 use calib_core::encoder::CounterWidth;
 use calib_core::motion::Segment;
+use calib_core::protocol::{encode, MAX_WIRE};
 use calib_core::protocol::{BootReport, Params, ProgramSpec, Request, Stored};
 use calib_core::robot::presets;
 use calib_core::Corrections;
 use core::panic::PanicInfo;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
-use calib_core::protocol::{encode, MAX_WIRE};
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
 use embassy_sync::signal::Signal;
-use firmware_app::{defaults, App, EncoderSource, Server, Step, WheelDriver};
+use firmware_app::{defaults, App, EncoderSource, PersistItem, Server, Step, WheelDriver};
 
 /// Ticks counted.
 pub const N: u32 = 1000;
@@ -192,6 +195,13 @@ fn main() -> ! {
     SIG.signal(8_000_000);
     let taken = SIG.try_take();
     bench_mark(13);
+    static SAVE: Channel<CriticalSectionRawMutex, PersistItem, 1> = Channel::new();
+    let item = PersistItem::Params(defaults::params());
+    bench_mark(14);
+    let sent = SAVE.try_send(item).is_ok();
+    let got = SAVE.try_receive().is_ok();
+    bench_mark(15);
+    core::hint::black_box((sent, got));
     hprintln!(
         "read-log answer {} bytes, telemetry {} bytes, signal {:?}",
         answer,
