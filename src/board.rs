@@ -317,8 +317,11 @@ fn clear_cc_flag(ch: usize) {
 fn TIM2() {
     let r = pac::TIM2;
     let sr = r.sr().read();
+    let dier = r.dier().read();
     for (ch, half) in HALF_PERIOD.iter().enumerate() {
-        if !sr.ccif(ch) {
+        // A parked channel's flag also rises (its compare still matches once a wrap); it
+        // is left alone, so a channel being started by `set_steps` is not advanced early.
+        if !sr.ccif(ch) || !dier.ccie(ch) {
             continue;
         }
         clear_cc_flag(ch);

@@ -12,7 +12,7 @@ use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
 use embassy_sync::channel::Channel;
 use embassy_sync::mutex::Mutex;
 use embassy_sync::signal::Signal;
-use embassy_time::{Instant, Timer};
+use embassy_time::{with_timeout, Duration, Instant, Timer};
 use embassy_usb::class::cdc_acm::CdcAcmClass;
 use embedded_io_async::{Read, Write};
 use firmware_app::{PersistItem, Server, Step};
@@ -21,6 +21,9 @@ use firmware_app::{PersistItem, Server, Step};
 pub type UsbDriver = Driver<'static, USB_OTG_FS>;
 /// Full-speed bulk packets.
 pub const USB_PACKET: usize = 64;
+/// How long a USB packet may wait for the host to take it (a full-speed host polls
+/// every millisecond when it reads).
+const USB_WRITE: Duration = Duration::from_millis(50);
 
 /// Saves asked for by a link's request handler, and whether each worked. One save at a
 /// time: a link holds [`SAVE_TURN`] from sending the item to taking the answer.
@@ -64,16 +67,27 @@ impl Link for CdcAcmClass<'static, UsbDriver> {
     }
 
     async fn send(&mut self, data: &[u8]) {
+        // A host that has the port configured but does not read it would block the link
+        // for ever: a packet not taken within `USB_WRITE` is dropped, with the rest of the
+        // frame (the host's decoder resynchronises on the next delimiter).
         for packet in data.chunks(USB_PACKET) {
-            if self.write_packet(packet).await.is_err() {
+            if !put(self, packet).await {
                 return;
             }
         }
         // A transfer that ends on a full packet needs a zero-length one to end it.
         if data.len().is_multiple_of(USB_PACKET) {
-            let _ = self.write_packet(&[]).await;
+            put(self, &[]).await;
         }
     }
+}
+
+/// One USB packet, or false if the host did not take it in time (or is gone).
+async fn put(cdc: &mut CdcAcmClass<'static, UsbDriver>, packet: &[u8]) -> bool {
+    matches!(
+        with_timeout(USB_WRITE, cdc.write_packet(packet)).await,
+        Ok(Ok(()))
+    )
 }
 
 /// One received byte through the link's server, under the application's lock: the
