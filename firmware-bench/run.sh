@@ -26,6 +26,15 @@ awk -v mark="$mark" -v n="$n" '
     plant = at[3] - at[2]
     report("translating", at[2] - at[1] - plant)
     report("turning", at[5] - at[4] - plant)
+    if (seen < 15) { print "span markers not found (" seen ")"; exit 1 }
+    empty = at[11] - at[10]
+    span("ReadLog of a 992-byte chunk (last request byte: decode, read, encode ~1 KiB)", at[7] - at[6] - empty)
+    span("telemetry frame", at[9] - at[8] - empty)
+    span("Signal signal + try_take (two critical sections)", at[13] - at[12] - empty)
+    if (seen >= 15) span("save item through a Channel: try_send + try_receive (two critical sections, each copying the item)", at[15] - at[14] - empty)
+  }
+  function span(what, n) {
+    printf "lock span, %s: %d instructions = %.2f us to %.2f us at 168 MHz\n", what, n, n / 168, n * 1.5 / 168
   }
   function report(what, total,   per) {
     per = total / n

@@ -5,18 +5,21 @@
 //! | function | peripheral | pins |
 //! |---|---|---|
 //! | encoder wheel 0..3 (QEI, x4) | TIM3, TIM4, TIM5, TIM8 | PA6/PA7, PB6/PB7, PA0/PA1, PC6/PC7 |
-//! | DC PWM or stepper STEP, wheel 0..3 | TIM1 CH1..CH4 | PA8, PA9, PA10, PA11 |
+//! | DC PWM or stepper STEP, wheel 0..3 | TIM2 CH1..CH4 | PA5, PB3, PB10, PB11 |
 //! | direction, wheel 0..3 | GPIO | PB12, PB13, PB14, PB15 |
 //! | driver enable (all wheels) | GPIO, external pull-down | PB2 |
 //! | protocol serial | USART2 | TX PA2, RX PA3 |
+//! | protocol over USB (CDC-ACM, full speed, no VBUS sensing) | OTG_FS | DM PA11, DP PA12 |
 //! | watchdog | IWDG | |
 //! | settings storage | internal flash sectors 10-11 | |
 //!
-//! TIM2 is embassy's time driver. The enable line has a pull-down, so after any reset
+//! TIM12 is embassy's time driver. The motor outputs moved from TIM1 (PA8..PA11) to TIM2
+//! because the USB device's pins are fixed at PA11/PA12, and TIM1's channel 4 has no other
+//! pin on the 64-pin package. The enable line has a pull-down, so after any reset
 //! (the watchdog's included) the bridges and stepper drivers are off until the firmware
 //! has booted and the control task drives them.
 //!
-//! TIM1 serves either drive type, chosen at run time from the robot parameters: 20 kHz
+//! TIM2 serves either drive type, chosen at run time from the robot parameters: 20 kHz
 //! edge-aligned PWM for DC H-bridges, or free-running at 1 MHz with each channel in
 //! output-compare toggle mode for steppers, its compare register advanced by half a step
 //! period in the capture/compare interrupt, so four wheels step at independent rates from
@@ -28,17 +31,17 @@ use core::sync::atomic::{AtomicU16, Ordering};
 use embassy_stm32::gpio::{Level, Output, OutputType, Speed};
 use embassy_stm32::interrupt;
 use embassy_stm32::interrupt::InterruptExt;
+use embassy_stm32::interrupt::Priority;
 use embassy_stm32::pac;
 use embassy_stm32::pac::timer::vals::Ocm;
 use embassy_stm32::peripherals::{
-    IWDG, PA0, PA1, PA10, PA11, PA6, PA7, PA8, PA9, PB6, PB7, PC6, PC7, TIM1, TIM3, TIM4, TIM5,
-    TIM8,
+    PA0, PA1, PA5, PA6, PA7, PB10, PB11, PB3, PB6, PB7, PC6, PC7, TIM2, TIM3, TIM4, TIM5, TIM8,
 };
 use embassy_stm32::time::Hertz;
-use embassy_stm32::timer::low_level::{RoundTo, Timer};
+use embassy_stm32::timer::low_level::{OutputCompareMode, RoundTo, Timer};
 use embassy_stm32::timer::qei::{Config as QeiConfig, Qei};
 use embassy_stm32::timer::simple_pwm::PwmPin;
-use embassy_stm32::wdg::IndependentWatchdog;
+use embassy_stm32::timer::Channel;
 use embassy_stm32::Peri;
 use firmware_app::{EncoderSource, WheelDriver};
 
@@ -80,12 +83,12 @@ pub fn config() -> embassy_stm32::Config {
 /// A timer and the two pins of its encoder.
 pub type QeiPins<T, A, B> = (Peri<'static, T>, Peri<'static, A>, Peri<'static, B>);
 
-/// TIM1's four output pins, kept alive (dropping them would release the pins).
-type Tim1Pins = (
-    PwmPin<'static, TIM1, embassy_stm32::timer::Ch1>,
-    PwmPin<'static, TIM1, embassy_stm32::timer::Ch2>,
-    PwmPin<'static, TIM1, embassy_stm32::timer::Ch3>,
-    PwmPin<'static, TIM1, embassy_stm32::timer::Ch4>,
+/// The motor timer's four output pins, kept alive (dropping them would release the pins).
+type MotorPins = (
+    PwmPin<'static, TIM2, embassy_stm32::timer::Ch1>,
+    PwmPin<'static, TIM2, embassy_stm32::timer::Ch2>,
+    PwmPin<'static, TIM2, embassy_stm32::timer::Ch3>,
+    PwmPin<'static, TIM2, embassy_stm32::timer::Ch4>,
 );
 
 /// The four quadrature counters.
@@ -131,7 +134,7 @@ impl EncoderSource for Encoders {
     }
 }
 
-/// Half step periods in 1 MHz ticks per TIM1 channel (0 = not stepping), read by the
+/// Half step periods in 1 MHz ticks per TIM2 channel (0 = not stepping), read by the
 /// compare interrupt.
 static HALF_PERIOD: [AtomicU16; 4] = [const { AtomicU16::new(0) }; 4];
 /// 1 MHz timer ticks.
@@ -142,16 +145,27 @@ const MAX_STEP_HZ: f32 = 20_000.0;
 const MIN_STEP_HZ: f32 = STEP_TICK_HZ as f32 / 2.0 / 65_535.0;
 const PWM_HZ: u32 = 20_000;
 
-fn tim1() -> pac::timer::TimGp16 {
-    // SAFETY: TIM1's registers are a superset of the general-purpose 16-bit layout; the
-    // timer is owned by `Motors` and only touched from its methods and the CC interrupt.
-    unsafe { pac::timer::TimGp16::from_ptr(pac::TIM1.as_ptr()) }
+/// TIM2's channel for a wheel.
+fn channel(wheel: usize) -> Channel {
+    [Channel::Ch1, Channel::Ch2, Channel::Ch3, Channel::Ch4][wheel & 3]
 }
 
-/// Motor outputs: TIM1 channels (PWM or STEP), direction lines and the enable line.
+/// Interrupt priorities. The stepper's compare interrupt is the most urgent: it must
+/// re-arm a channel within half a step period (25 us at 20 kHz). The drivers' interrupts
+/// (time driver, UART, flash) come next; the control executor is below them at
+/// `ceiling::CEILING`, the link and storage tasks in thread mode.
+pub fn set_priorities() {
+    interrupt::TIM2.set_priority(Priority::P0);
+    interrupt::TIM8_BRK_TIM12.set_priority(Priority::P1);
+    interrupt::USART2.set_priority(Priority::P2);
+    interrupt::FLASH.set_priority(Priority::P2);
+    interrupt::OTG_FS.set_priority(Priority::P2);
+}
+
+/// Motor outputs: TIM2 channels (PWM or STEP), direction lines and the enable line.
 pub struct Motors {
-    timer: Timer<'static, TIM1>,
-    _pins: Tim1Pins,
+    timer: Timer<'static, TIM2>,
+    _pins: MotorPins,
     dir: [Output<'static>; 4],
     enable: Output<'static>,
     mode: Option<DriveType>,
@@ -159,11 +173,11 @@ pub struct Motors {
 
 impl Motors {
     pub fn new(
-        tim: Peri<'static, TIM1>,
-        ch1: Peri<'static, PA8>,
-        ch2: Peri<'static, PA9>,
-        ch3: Peri<'static, PA10>,
-        ch4: Peri<'static, PA11>,
+        tim: Peri<'static, TIM2>,
+        ch1: Peri<'static, PA5>,
+        ch2: Peri<'static, PB3>,
+        ch3: Peri<'static, PB10>,
+        ch4: Peri<'static, PB11>,
         dir: [Output<'static>; 4],
         enable: Output<'static>,
     ) -> Self {
@@ -179,46 +193,43 @@ impl Motors {
             enable,
             mode: None,
         };
-        interrupt::TIM1_CC.set_priority(interrupt::Priority::P1);
+        interrupt::TIM2.set_priority(Priority::P0);
         m
     }
 
-    /// Sets TIM1 up for the robot's drive type (at boot and when the parameters change).
+    /// Sets TIM2 up for the robot's drive type (at boot and when the parameters change).
     pub fn set_mode(&mut self, kind: DriveType) {
         if self.mode == Some(kind) {
             return;
         }
         self.stop_all();
-        let r = tim1();
-        self.timer.stop();
+        let t = &mut self.timer;
+        t.stop();
+        interrupt::TIM2.disable();
         match kind {
             DriveType::Dc => {
-                interrupt::TIM1_CC.disable();
-                self.timer.set_frequency(Hertz(PWM_HZ), RoundTo::Slower);
-                for ch in 0..4 {
-                    r.ccmr_output(ch / 2)
-                        .modify(|w| w.set_ocm(ch % 2, Ocm::PWM_MODE1));
-                    r.ccr(ch).write(|w| w.set_ccr(0));
-                    r.dier().modify(|w| w.set_ccie(ch, false));
+                t.set_frequency(Hertz(PWM_HZ), RoundTo::Slower);
+                for w in 0..4 {
+                    t.set_output_compare_mode(channel(w), OutputCompareMode::PwmMode1);
+                    t.set_compare_value(channel(w), 0);
+                    t.enable_input_interrupt(channel(w), false);
                 }
             }
             DriveType::Stepper => {
-                self.timer.set_tick_freq(Hertz(STEP_TICK_HZ));
-                r.arr().write(|w| w.set_arr(u16::MAX));
-                for ch in 0..4 {
-                    r.ccmr_output(ch / 2)
-                        .modify(|w| w.set_ocm(ch % 2, Ocm::FORCE_INACTIVE));
+                t.set_tick_freq(Hertz(STEP_TICK_HZ));
+                // 16-bit wrap like the compare arithmetic below (TIM2 could count 32).
+                t.set_max_compare_value(u16::MAX as u32);
+                for w in 0..4 {
+                    t.set_output_compare_mode(channel(w), OutputCompareMode::ForceInactive);
                 }
-                interrupt::TIM1_CC.unpend();
-                // SAFETY: the handler below only touches TIM1 and HALF_PERIOD.
-                unsafe { interrupt::TIM1_CC.enable() };
+                interrupt::TIM2.unpend();
+                // SAFETY: the handler below only touches TIM2 and HALF_PERIOD.
+                unsafe { interrupt::TIM2.enable() };
             }
         }
-        r.ccer().modify(|w| {
-            for ch in 0..4 {
-                w.set_cce(ch, true);
-            }
-        });
+        for w in 0..4 {
+            t.enable_channel(channel(w), true);
+        }
         self.timer.enable_outputs();
         self.timer.generate_update_event();
         self.timer.start();
@@ -239,10 +250,9 @@ impl WheelDriver for Motors {
         }
         self.enable.set_high();
         self.direction(wheel, duty >= 0.0);
-        let r = tim1();
-        let max = r.arr().read().arr() as f32;
-        let d = (duty.abs().min(1.0) * max) as u16;
-        r.ccr(wheel).write(|w| w.set_ccr(d));
+        let max = self.timer.get_max_compare_value() as f32;
+        let d = (duty.abs().min(1.0) * max) as u32;
+        self.timer.set_compare_value(channel(wheel), d);
     }
 
     fn set_steps(&mut self, wheel: usize, steps_per_s: f32, _steps: i32) {
@@ -252,7 +262,6 @@ impl WheelDriver for Motors {
         self.enable.set_high();
         self.direction(wheel, steps_per_s >= 0.0);
         let rate = steps_per_s.abs();
-        let r = tim1();
         if !(MIN_STEP_HZ..=f32::MAX).contains(&rate) {
             HALF_PERIOD[wheel].store(0, Ordering::Relaxed);
             return;
@@ -260,95 +269,103 @@ impl WheelDriver for Motors {
         let half = (STEP_TICK_HZ as f32 / 2.0 / rate.min(MAX_STEP_HZ)) as u16;
         let was = HALF_PERIOD[wheel].swap(half.max(1), Ordering::Relaxed);
         if was == 0 {
-            // Start stepping: first edge half a period from now.
-            let now = r.cnt().read().cnt();
-            r.ccr(wheel).write(|w| w.set_ccr(now.wrapping_add(half)));
-            r.ccmr_output(wheel / 2)
-                .modify(|w| w.set_ocm(wheel % 2, Ocm::TOGGLE));
-            r.sr().write(|w| {
-                w.0 = !0;
-                w.set_ccif(wheel, false);
+            // Start stepping: first edge half a period from now. CCMR and DIER are shared
+            // with the compare interrupt, which is not masked while the control task runs:
+            // their read-modify-writes are the only code that masks it (a few instructions).
+            let t = &self.timer;
+            let now = t.regs_core().cnt().read().cnt();
+            t.set_compare_value(channel(wheel), now.wrapping_add(half) as u32);
+            critical_section::with(|_| {
+                t.set_output_compare_mode(channel(wheel), OutputCompareMode::Toggle);
+                clear_cc_flag(wheel);
+                t.enable_input_interrupt(channel(wheel), true);
             });
-            r.dier().modify(|w| w.set_ccie(wheel, true));
         }
     }
 
     fn stop_all(&mut self) {
         self.enable.set_low();
-        let r = tim1();
-        for (ch, half) in HALF_PERIOD.iter().enumerate() {
+        let t = &self.timer;
+        for (w, half) in HALF_PERIOD.iter().enumerate() {
             half.store(0, Ordering::Relaxed);
-            r.ccr(ch).write(|w| w.set_ccr(0));
             if self.mode == Some(DriveType::Stepper) {
-                r.dier().modify(|w| w.set_ccie(ch, false));
-                r.ccmr_output(ch / 2)
-                    .modify(|w| w.set_ocm(ch % 2, Ocm::FORCE_INACTIVE));
+                critical_section::with(|_| {
+                    t.enable_input_interrupt(channel(w), false);
+                    t.set_output_compare_mode(channel(w), OutputCompareMode::ForceInactive);
+                });
             }
+            t.set_compare_value(channel(w), 0);
         }
     }
 }
 
+/// Clears one compare flag. SR's flags are cleared by writing 0 and kept by writing 1;
+/// a read-modify-write (what the HAL's `clear_input_interrupt` does) could clear another
+/// channel's flag that rose in between and lose that channel's edge.
+fn clear_cc_flag(ch: usize) {
+    pac::TIM2.sr().write(|w| {
+        w.0 = !0;
+        w.set_ccif(ch, false);
+    });
+}
+
 /// Stepper pulses: each due channel toggles its STEP pin in hardware; here its next
 /// toggle is scheduled half a period later, or the channel is parked when stopped.
+/// It runs at the most urgent priority, so nothing preempts its read-modify-writes.
+/// It uses TIM2's typed register block (the interrupt cannot borrow the `Timer`).
 #[interrupt]
-fn TIM1_CC() {
-    let r = tim1();
+fn TIM2() {
+    let r = pac::TIM2;
     let sr = r.sr().read();
+    let dier = r.dier().read();
     for (ch, half) in HALF_PERIOD.iter().enumerate() {
-        if !sr.ccif(ch) {
+        // A parked channel's flag also rises (its compare still matches once a wrap); it
+        // is left alone, so a channel being started by `set_steps` is not advanced early.
+        if !sr.ccif(ch) || !dier.ccie(ch) {
             continue;
         }
-        r.sr().write(|w| {
-            w.0 = !0;
-            w.set_ccif(ch, false);
-        });
+        clear_cc_flag(ch);
         let half = half.load(Ordering::Relaxed);
         if half == 0 {
             r.dier().modify(|w| w.set_ccie(ch, false));
             r.ccmr_output(ch / 2)
                 .modify(|w| w.set_ocm(ch % 2, Ocm::FORCE_INACTIVE));
         } else {
-            let c = r.ccr(ch).read().ccr();
-            r.ccr(ch).write(|w| w.set_ccr(c.wrapping_add(half)));
+            // 16-bit arithmetic: the counter wraps at 0xFFFF (set_mode).
+            let c = r.ccr(ch).read() as u16;
+            r.ccr(ch).write_value(c.wrapping_add(half) as u32);
         }
     }
 }
 
-/// The independent watchdog, petted by the control task.
-pub struct Watchdog {
-    iwdg: Peri<'static, IWDG>,
-}
-
-impl Watchdog {
-    pub fn start(iwdg: Peri<'static, IWDG>) -> Self {
-        let mut w = Watchdog { iwdg };
-        IndependentWatchdog::new(w.iwdg.reborrow(), WATCHDOG_US).unleash();
-        w
-    }
-
-    pub fn pet(&mut self) {
-        pac::IWDG
-            .kr()
-            .write(|w| w.set_key(pac::iwdg::vals::Key::RESET));
-    }
-
-    /// Changes the timeout of the running watchdog (and pets it). The prescaler and
-    /// reload registers ignore writes while a previous update is still being carried into
-    /// the watchdog's clock domain, so wait for that first (a few LSI periods).
-    pub fn set_timeout(&mut self, us: u32) {
-        self.pet();
-        for _ in 0..1_000_000 {
-            let sr = pac::IWDG.sr().read();
-            if !sr.pvu() && !sr.rvu() {
-                break;
-            }
-        }
-        let _ = IndependentWatchdog::new(self.iwdg.reborrow(), us);
-        self.pet();
-    }
+/// Whether the watchdog is still carrying a prescaler or reload write into its clock
+/// domain (PVU/RVU): a reload before they clear could use the old values.
+pub fn watchdog_updating() -> bool {
+    let sr = pac::IWDG.sr().read();
+    sr.pvu() || sr.rvu()
 }
 
 /// Direction and enable lines, all low (reverse, disabled) at start.
 pub fn output(pin: Peri<'static, impl embassy_stm32::gpio::Pin>) -> Output<'static> {
     Output::new(pin, Level::Low, Speed::Low)
 }
+
+// Zeroes CCM RAM (the `.ccmram` section: the trial-log ring and its `ConstStaticCell`
+// flag) before `main`, as the runtime does for `.bss`: the section is NOLOAD, so without
+// this the cell would start with whatever a previous run (or power-up) left there.
+// Assembly, because no Rust may run before RAM is initialised.
+core::arch::global_asm!(
+    ".section .text.__pre_init,\"ax\",%progbits",
+    ".global __pre_init",
+    ".type __pre_init,%function",
+    ".thumb_func",
+    "__pre_init:",
+    "    ldr r0, =__sccmram",
+    "    ldr r1, =__eccmram",
+    "    movs r2, #0",
+    "1:  cmp r0, r1",
+    "    bhs 2f",
+    "    str r2, [r0], #4",
+    "    b 1b",
+    "2:  bx lr",
+);

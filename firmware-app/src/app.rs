@@ -396,7 +396,8 @@ impl<'a> App<'a> {
     fn slew(&self, cur: Twist<f32>, target: Twist<f32>) -> Twist<f32> {
         let l = &self.params.limits;
         let (a, al) = ((l.a_max as f32) * DT, (l.alpha_max as f32) * DT);
-        let step = |c: f32, t: f32, m: f32| c + (t - c).clamp(-m, m);
+        // max/min, not clamp: clamp's panic path pulls core's float formatting (~15 KB).
+        let step = |c: f32, t: f32, m: f32| c + (t - c).max(-m).min(m);
         Twist::new(
             step(cur.vx, target.vx, a),
             step(cur.vy, target.vy, a),

@@ -9,18 +9,33 @@
 //! while translating, `bench_mark(2)`, N plant-only steps, `bench_mark(3)`; later
 //! `bench_mark(4)`, N ticks while turning (odometry's exact arc then needs two more
 //! sines), `bench_mark(5)`. Per tick = (ticks - plant) / N for each phase.
+//!
+//! Then the longest spans for which the firmware holds the application's lock, each
+//! between two markers (minus an empty span, `bench_mark(10)`/`bench_mark(11)`): the last
+//! byte of a `ReadLog` request for a full 992-byte chunk, which decodes it and encodes the
+//! ~1 KiB answer (postcard, CRC, COBS), `bench_mark(6)`/`bench_mark(7)`; one telemetry
+//! frame, `bench_mark(8)`/`bench_mark(9)`. Under a critical-section mutex these masked
+//! the stepper interrupt; under the ceiling mutex they mask only the control executor.
+//! Last, the critical sections that remain: an `embassy_sync` `Signal` signalled and
+//! taken (what the storage and control tasks exchange), `bench_mark(12)`/`bench_mark(13)`;
+//! a settings save handed to the storage task and taken there (`Channel` of a
+//! `PersistItem`, copied inside its critical sections), `bench_mark(14)`/`bench_mark(15)`.
 #![no_std]
 #![no_main]
 
 use calib_core::encoder::CounterWidth;
 use calib_core::motion::Segment;
+use calib_core::protocol::{encode, MAX_WIRE};
 use calib_core::protocol::{BootReport, Params, ProgramSpec, Request, Stored};
 use calib_core::robot::presets;
 use calib_core::Corrections;
 use core::panic::PanicInfo;
 use cortex_m_rt::entry;
 use cortex_m_semihosting::{debug, hprintln};
-use firmware_app::{defaults, App, EncoderSource, WheelDriver};
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_sync::signal::Signal;
+use firmware_app::{defaults, App, EncoderSource, PersistItem, Server, Step, WheelDriver};
 
 /// Ticks counted.
 pub const N: u32 = 1000;
@@ -147,6 +162,52 @@ fn main() -> ! {
         plant(&mut enc, &mut drv);
     }
     bench_mark(5);
+
+    // The longest lock holders of the firmware's link task.
+    let mut server = Server::new();
+    let mut req = [0u8; MAX_WIRE];
+    let read = Request::ReadLog {
+        trial: 1,
+        offset: 0,
+        max_len: 992,
+    };
+    let frame = encode(7, &read, &mut req).unwrap_or(&[]);
+    let (last, head) = frame.split_last().unwrap_or((&0, &[]));
+    for &b in head {
+        let _ = server.push(b, &mut app, t);
+    }
+    bench_mark(6);
+    let answer = match server.push(*last, &mut app, t) {
+        Step::Send(w) => w.len(),
+        _ => 0,
+    };
+    bench_mark(7);
+    let _ = app.handle(Request::SetTelemetry { period_ms: 10 }, t);
+    t += 20_000;
+    app.tick(t, &mut enc, &mut drv);
+    bench_mark(8);
+    let tele = server.telemetry(&mut app).map_or(0, |w| w.len());
+    bench_mark(9);
+    bench_mark(10);
+    bench_mark(11);
+    static SIG: Signal<CriticalSectionRawMutex, u32> = Signal::new();
+    bench_mark(12);
+    SIG.signal(8_000_000);
+    let taken = SIG.try_take();
+    bench_mark(13);
+    static SAVE: Channel<CriticalSectionRawMutex, PersistItem, 1> = Channel::new();
+    let item = PersistItem::Params(defaults::params());
+    bench_mark(14);
+    let sent = SAVE.try_send(item).is_ok();
+    let got = SAVE.try_receive().is_ok();
+    bench_mark(15);
+    core::hint::black_box((sent, got));
+    hprintln!(
+        "read-log answer {} bytes, telemetry {} bytes, signal {:?}",
+        answer,
+        tele,
+        taken
+    );
     let s = app.status();
     hprintln!(
         "ticks {} fault {} pose ({} mm, {} mm, {} mrad) records {}",

@@ -1,0 +1,146 @@
+//! The protocol links, USART2 and USB CDC-ACM, each served by its own
+//! [`firmware_app::Server`] (one link's framing state) on the one shared application: the
+//! request handling is firmware-app's, tested on the host; this is only byte transport.
+
+use crate::{with_app, SharedApp};
+use core::sync::atomic::{AtomicU8, Ordering};
+use embassy_futures::select::{select, Either};
+use embassy_stm32::peripherals::USB_OTG_FS;
+use embassy_stm32::usart::BufferedUart;
+use embassy_stm32::usb::Driver;
+use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
+use embassy_sync::channel::Channel;
+use embassy_sync::mutex::Mutex;
+use embassy_sync::signal::Signal;
+use embassy_time::{with_timeout, Duration, Instant, Timer};
+use embassy_usb::class::cdc_acm::CdcAcmClass;
+use embedded_io_async::{Read, Write};
+use firmware_app::{PersistItem, Server, Step};
+
+/// The USB device driver.
+pub type UsbDriver = Driver<'static, USB_OTG_FS>;
+/// Full-speed bulk packets.
+pub const USB_PACKET: usize = 64;
+/// How long a USB packet may wait for the host to take it (a full-speed host polls
+/// every millisecond when it reads).
+const USB_WRITE: Duration = Duration::from_millis(50);
+
+/// Saves asked for by a link's request handler, and whether each worked. One save at a
+/// time: a link holds [`SAVE_TURN`] from sending the item to taking the answer.
+pub static SAVE: Channel<CriticalSectionRawMutex, PersistItem, 1> = Channel::new();
+pub static SAVED: Signal<CriticalSectionRawMutex, bool> = Signal::new();
+static SAVE_TURN: Mutex<CriticalSectionRawMutex, ()> = Mutex::new(());
+
+/// Which link last received a valid frame: telemetry goes there only (the application has
+/// one telemetry schedule; split between two links each would see half the rate).
+static LAST_LINK: AtomicU8 = AtomicU8::new(0);
+
+/// A byte transport.
+pub trait Link {
+    /// Waits for received bytes; 0 after an error the framing recovers from.
+    async fn read(&mut self, buf: &mut [u8]) -> usize;
+    /// Sends `data`; what cannot be sent is lost, as on a line nobody listens to.
+    async fn send(&mut self, data: &[u8]);
+}
+
+impl Link for BufferedUart<'static> {
+    async fn read(&mut self, buf: &mut [u8]) -> usize {
+        // Framing or overrun errors: the decoder resynchronises on the next delimiter.
+        Read::read(self, buf).await.unwrap_or(0)
+    }
+
+    async fn send(&mut self, data: &[u8]) {
+        let _ = self.write_all(data).await;
+    }
+}
+
+impl Link for CdcAcmClass<'static, UsbDriver> {
+    async fn read(&mut self, buf: &mut [u8]) -> usize {
+        match self.read_packet(buf).await {
+            Ok(n) => n,
+            Err(_) => {
+                // Unplugged or not configured yet.
+                self.wait_connection().await;
+                0
+            }
+        }
+    }
+
+    async fn send(&mut self, data: &[u8]) {
+        // A host that has the port configured but does not read it would block the link
+        // for ever: a packet not taken within `USB_WRITE` is dropped, with the rest of the
+        // frame (the host's decoder resynchronises on the next delimiter).
+        for packet in data.chunks(USB_PACKET) {
+            if !put(self, packet).await {
+                return;
+            }
+        }
+        // A transfer that ends on a full packet needs a zero-length one to end it.
+        if data.len().is_multiple_of(USB_PACKET) {
+            put(self, &[]).await;
+        }
+    }
+}
+
+/// One USB packet, or false if the host did not take it in time (or is gone).
+async fn put(cdc: &mut CdcAcmClass<'static, UsbDriver>, packet: &[u8]) -> bool {
+    matches!(
+        with_timeout(USB_WRITE, cdc.write_packet(packet)).await,
+        Ok(Ok(()))
+    )
+}
+
+/// One received byte through the link's server, under the application's lock: the
+/// length of an answer to send, or a save to make. Not inlined: both links share it.
+#[inline(never)]
+fn push(
+    app: &SharedApp,
+    server: &mut Server,
+    byte: u8,
+) -> Option<Result<usize, (u16, PersistItem)>> {
+    let now = Instant::now().as_micros();
+    with_app(app, |a| match server.push(byte, a, now) {
+        Step::Idle => None,
+        Step::Send(w) => Some(Ok(w.len())),
+        Step::Persist { seq, item } => Some(Err((seq, item))),
+    })
+}
+
+/// Serves one link for ever: requests through `server`, answers and (when this link
+/// was the last to be spoken to) telemetry back, saves through the storage task.
+pub async fn serve(app: &'static SharedApp, link: &mut impl Link, id: u8) -> ! {
+    let mut server = Server::new();
+    let mut buf = [0u8; USB_PACKET];
+    loop {
+        // Wake at least every 10 ms for telemetry.
+        let n = match select(link.read(&mut buf), Timer::after_millis(10)).await {
+            Either::First(n) => n,
+            Either::Second(()) => 0,
+        };
+        for &b in &buf[..n.min(buf.len())] {
+            match push(app, &mut server, b) {
+                None => {}
+                Some(Ok(len)) => {
+                    LAST_LINK.store(id, Ordering::Relaxed);
+                    link.send(server.last_frame(len)).await;
+                }
+                Some(Err((seq, item))) => {
+                    LAST_LINK.store(id, Ordering::Relaxed);
+                    let ok = {
+                        let _turn = SAVE_TURN.lock().await;
+                        SAVE.send(item).await;
+                        SAVED.wait().await
+                    };
+                    let r = with_app(app, |a| a.persisted(ok));
+                    link.send(server.reply(seq, &r)).await;
+                }
+            }
+        }
+        if LAST_LINK.load(Ordering::Relaxed) == id {
+            let tele = with_app(app, |a| server.telemetry(a).map(|t| t.len()));
+            if let Some(len) = tele {
+                link.send(server.last_telemetry(len)).await;
+            }
+        }
+    }
+}
