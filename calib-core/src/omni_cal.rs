@@ -419,15 +419,18 @@ fn solve_in_place(
     let scale = (0..m).map(|i| libm::fabs(g[i][i])).fold(0.0, f64::max);
     for c in 0..m {
         let piv = (c..m).max_by(|&a, &b| libm::fabs(g[a][c]).total_cmp(&libm::fabs(g[b][c])))?;
-        if !(libm::fabs(g[piv][c]) > 1e-12 * scale) {
+        // NaN fails too.
+        if libm::fabs(g[piv][c]).partial_cmp(&(1e-12 * scale)) != Some(core::cmp::Ordering::Greater)
+        {
             return None;
         }
         g.swap(c, piv);
-        for r in 0..m {
+        let pivot_row = g[c];
+        for (r, row) in g.iter_mut().enumerate().take(m) {
             if r != c {
-                let f = g[r][c] / g[c][c];
-                for k in c..=m {
-                    g[r][k] -= f * g[c][k];
+                let f = row[c] / pivot_row[c];
+                for (x, p) in row[c..=m].iter_mut().zip(&pivot_row[c..=m]) {
+                    *x -= f * p;
                 }
             }
         }

@@ -237,9 +237,18 @@ pub fn run_omni<L: Read + Write>(
     c: &mut Client<L>,
     path: OmniPath,
     length_m: f64,
+    idle: calib_core::protocol::IdleWheels,
     log_rate_hz: u16,
 ) -> Result<Duration> {
-    start_program(c, ProgramSpec::Omni { path, length_m }, log_rate_hz)
+    start_program(
+        c,
+        ProgramSpec::Omni {
+            path,
+            length_m,
+            idle,
+        },
+        log_rate_hz,
+    )
 }
 
 /// Checks a program with the board's own rule ([`ProgramSpec::validate`] against the

@@ -267,6 +267,8 @@ pub enum RunCmd {
         log_rate: u16,
         #[arg(long)]
         no_wait: bool,
+        #[command(flatten)]
+        idle: IdleArgs,
     },
 }
 
@@ -297,7 +299,7 @@ pub enum UmbmarkCmd {
 #[derive(Debug, Subcommand)]
 pub enum OmniCmd {
     /// Compute F_lat and F_lon from measured end errors of paths 4W-1 / 4W-2.
-    Compute(ComputeArgs),
+    Compute(OmniComputeArgs),
     /// The guided procedure on a board: n runs of 4W-1 and 4W-2, compute, upload, save,
     /// and the same again after.
     Run(ProcedureArgs),
@@ -314,10 +316,45 @@ pub struct ComputeArgs {
     /// Write an HTML report with SVG and PNG plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
-    /// Omni second pass: the `--json` result of the first pass (its f_lat and f_lon were
-    /// in force during these runs); the result is their composition (001).
+}
+
+/// `omni compute`: the common arguments, the second pass and the idle-wheel mode.
+#[derive(Debug, Args)]
+pub struct OmniComputeArgs {
+    #[command(flatten)]
+    pub common: ComputeArgs,
+    /// Second pass: the `--json` result of the first pass (its f_lat and f_lon were in
+    /// force during these runs); the result is their composition.
     #[arg(long)]
     pub previous: Option<PathBuf>,
+    #[command(flatten)]
+    pub idle: IdleArgs,
+}
+
+/// How the wheels an omni path does not drive behaved while the runs were measured.
+#[derive(Debug, Args, Clone, Copy)]
+pub struct IdleArgs {
+    /// Idle wheels on omni paths: `released` (drive cut, free to turn) or `held` (velocity
+    /// loop at zero). Default: what `omni run` wrote beside the runs, else the robot
+    /// file's `[procedure] idle_wheels`, else released.
+    #[arg(long, value_enum)]
+    pub idle_wheels: Option<IdleArg>,
+}
+
+/// `--idle-wheels` values.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
+pub enum IdleArg {
+    Released,
+    Held,
+}
+
+impl From<IdleArg> for calib_core::protocol::IdleWheels {
+    fn from(a: IdleArg) -> Self {
+        match a {
+            IdleArg::Released => Self::Released,
+            IdleArg::Held => Self::Held,
+        }
+    }
 }
 
 #[derive(Debug, Args)]
@@ -349,10 +386,16 @@ pub struct ProcedureArgs {
     /// Skip the runs after calibration.
     #[arg(long)]
     pub no_after: bool,
-    /// 001's second pass: measure with the board's current factors and compose the
-    /// secondary factors with them (use a new --runs-file).
+    /// Second pass: measure with the board's current factors and compose the secondary
+    /// factors with them (use a new --runs-file).
     #[arg(long)]
     pub second_pass: bool,
+    /// Omni: a robot file whose `[procedure] idle_wheels` says how idle wheels behave
+    /// (`--idle-wheels` wins over it).
+    #[arg(long)]
+    pub robot: Option<PathBuf>,
+    #[command(flatten)]
+    pub idle: IdleArgs,
 }
 
 #[derive(Debug, Args)]
@@ -553,8 +596,10 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                     length,
                     log_rate,
                     no_wait,
+                    idle,
                 } => {
-                    let limit = board_cmds::run_omni(client, path.into(), length, log_rate)?;
+                    let idle = idle.idle_wheels.map(Into::into).unwrap_or_default();
+                    let limit = board_cmds::run_omni(client, path.into(), length, idle, log_rate)?;
                     (no_wait, limit)
                 }
             };
@@ -660,9 +705,6 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Umbmark(UmbmarkCmd::Compute(a)) => {
             let robot = robot_file::load(&a.robot)?;
             let runs = RunsFile::load(&a.runs)?;
-            if a.previous.is_some() {
-                bail!("--previous is for `omni compute`; a UMBmark second pass composes on the board (`umbmark run --second-pass`)");
-            }
             let rep = umbmark::compute(&robot, &runs)?;
             if let Some(dir) = &a.report {
                 let index = report::umbmark::write(&rep, dir)?;
@@ -671,13 +713,18 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             out.emit(&rep, || rep.human())
         }
         Command::Omni(OmniCmd::Compute(a)) => {
-            let robot = robot_file::load(&a.robot)?;
-            let runs = RunsFile::load(&a.runs)?;
-            let mut rep = omni::compute(&robot, &runs)?;
+            let robot = robot_file::load(&a.common.robot)?;
+            let runs = RunsFile::load(&a.common.runs)?;
+            let idle = omni::idle_wheels_for(
+                a.idle.idle_wheels.map(Into::into),
+                &a.common.runs,
+                &a.common.robot,
+            )?;
+            let mut rep = omni::compute(&robot, &runs, idle)?;
             if let Some(p) = &a.previous {
                 rep = omni::compose_with(rep, &omni::factors_from_json(p)?)?;
             }
-            if let Some(dir) = &a.report {
+            if let Some(dir) = &a.common.report {
                 let index = report::omni::write(&rep, dir)?;
                 out.note(&format!("report: {}", index.display()));
             }
@@ -685,13 +732,13 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         }
         Command::Umbmark(UmbmarkCmd::Run(a)) => {
             let port = ctx.port.clone().unwrap_or_default();
-            let opts = procedure_options(&a, &port, procedure::Kind::Umbmark);
+            let opts = procedure_options(&a, &port, procedure::Kind::Umbmark)?;
             let rep = procedure::run(ctx.client()?, &opts, measure_for(&opts).as_mut())?;
             out.emit(&rep, || rep.human())
         }
         Command::Omni(OmniCmd::Run(a)) => {
             let port = ctx.port.clone().unwrap_or_default();
-            let opts = procedure_options(&a, &port, procedure::Kind::Omni);
+            let opts = procedure_options(&a, &port, procedure::Kind::Omni)?;
             let rep = procedure::run(ctx.client()?, &opts, measure_for(&opts).as_mut())?;
             out.emit(&rep, || rep.human())
         }
@@ -865,8 +912,21 @@ fn measure_for(opts: &procedure::Options) -> Box<dyn procedure::Measure> {
     }
 }
 
-fn procedure_options(a: &ProcedureArgs, port: &str, kind: procedure::Kind) -> procedure::Options {
-    procedure::Options {
+fn procedure_options(
+    a: &ProcedureArgs,
+    port: &str,
+    kind: procedure::Kind,
+) -> Result<procedure::Options> {
+    let idle_wheels = match kind {
+        procedure::Kind::Omni => omni::idle_wheels_for(
+            a.idle.idle_wheels.map(Into::into),
+            &a.runs_file,
+            a.robot.as_deref().unwrap_or(std::path::Path::new("")),
+        )?,
+        procedure::Kind::Umbmark => Default::default(),
+    };
+    Ok(procedure::Options {
+        idle_wheels,
         kind,
         side_m: a.side,
         length_m: a.length,
@@ -881,5 +941,5 @@ fn procedure_options(a: &ProcedureArgs, port: &str, kind: procedure::Kind) -> pr
         report: a.report.clone(),
         after: !a.no_after,
         second_pass: a.second_pass,
-    }
+    })
 }

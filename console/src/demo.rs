@@ -216,6 +216,7 @@ pub fn procedure_on_virtual_board(
         report: report.map(Path::to_path_buf),
         after: after_runs > 0,
         second_pass: false,
+        idle_wheels: Default::default(),
     };
     let client = &mut board.client;
     let result = client

@@ -12,8 +12,8 @@ use calib_core::kinematics::Kinematics;
 use calib_core::motion::{Program, ProgramRunner, Setpoint};
 use calib_core::odometry::{Odometry, Pose};
 use calib_core::protocol::{
-    record_size, BootReport, CorrectionText, Fault, Info, LogChunk, Mode, Num, Params, ProgramSpec,
-    Record, Rejection, Request, Response, Status, StopReason, TrialEnd, MAX_LOG_CHUNK,
+    record_size, BootReport, CorrectionText, Fault, IdleWheels, Info, LogChunk, Mode, Num, Params,
+    ProgramSpec, Record, Rejection, Request, Response, Status, StopReason, TrialEnd, MAX_LOG_CHUNK,
     PROTOCOL_VERSION, SCHEMA_FINGERPRINT,
 };
 use calib_core::robot::{DriveType, MAX_WHEELS};
@@ -82,6 +82,8 @@ enum Motion {
 /// Everything the board knows and does, minus the registers. The trial log lives in a
 /// buffer the caller provides (`'a`).
 pub struct App<'a> {
+    /// The running omni program holds its idle wheels at zero speed (else: released).
+    hold_idle: bool,
     params: Params,
     corrections: Corrections,
     boot: BootReport,
@@ -159,6 +161,7 @@ impl<'a> App<'a> {
             estop: false,
             fault: None,
             stop: StopReason::None,
+            hold_idle: false,
             log: TrialLog::new(log_buf),
             decimation: 10,
             ticks: 0,
@@ -338,11 +341,12 @@ impl<'a> App<'a> {
                 None => self.kin.inverse_into(&self.twist, &mut cmd[..n]),
             }
             let standing = self.twist == Twist::zero();
-            // On an omni robot a wheel the motion does not use is switched off rather than
-            // held at zero (001 turns the actuators of the wheels a path does not use
-            // off): held, it would fight the rollers of the others and hide a rotation
-            // the calibration must see.
-            let omni = self.params.robot.kind == calib_core::robot::RobotKind::Omni;
+            // On an omni robot a wheel the motion does not use is switched off (released:
+            // 001 turns off the actuators of wheels 1 and 3 on 4W-2), unless the running
+            // program asked for the idle wheels held at zero by their velocity loops
+            // (001's 4W-1: "the other wheels have no angular velocity").
+            let held = self.hold_idle && matches!(self.motion, Motion::Program(..));
+            let omni = self.params.robot.kind == calib_core::robot::RobotKind::Omni && !held;
             for (i, w) in self.wheels[..n].iter_mut().enumerate() {
                 w.cmd = cmd[i];
                 if self.dc {
@@ -681,11 +685,18 @@ impl<'a> App<'a> {
         .map_err(Rejection::InvalidProgram)?;
         let program = match &spec {
             ProgramSpec::Umbmark { side_m, dir } => Program::umbmark_square(*side_m, *dir),
-            ProgramSpec::Omni { path, length_m } => Program::omni_path(*path, *length_m),
+            ProgramSpec::Omni { path, length_m, .. } => Program::omni_path(*path, *length_m),
             ProgramSpec::Custom(segs) => Program {
                 segments: segs.clone(),
             },
         };
+        self.hold_idle = matches!(
+            spec,
+            ProgramSpec::Omni {
+                idle: IdleWheels::Held,
+                ..
+            }
+        );
         // Odometry restarts at the origin: a trial's pose is relative to where it began.
         self.odo = Odometry::default();
         let count = program.segments.len() as u8;

@@ -221,6 +221,7 @@ fn rejected_requests_change_nothing_and_say_why() {
         &mut l,
         Request::RunProgram {
             program: ProgramSpec::Omni {
+                idle: calib_core::protocol::IdleWheels::Released,
                 path: calib_core::motion::OmniPath::W1,
                 length_m: 1.0,
             },
@@ -616,6 +617,7 @@ fn programs_outside_the_arena_are_refused_and_nothing_moves() {
             &mut l,
             Request::RunProgram {
                 program: ProgramSpec::Omni {
+                    idle: calib_core::protocol::IdleWheels::Released,
                     path: calib_core::motion::OmniPath::W1,
                     length_m,
                 },

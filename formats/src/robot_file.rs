@@ -20,6 +20,72 @@ struct RobotFile {
     drive: Spanned<DriveFile>,
     wheels: Spanned<Vec<Spanned<WheelFile>>>,
     legs: Option<Spanned<LegsFile>>,
+    /// Extension to formats.md §1 (optional): how the calibration procedures run.
+    procedure: Option<Spanned<ProcedureFile>>,
+}
+
+#[derive(Deserialize)]
+#[serde(deny_unknown_fields)]
+struct ProcedureFile {
+    idle_wheels: Option<Spanned<String>>,
+}
+
+/// The robot file's optional `[procedure]` table (an extension to formats.md §1, which
+/// other tools may ignore): how the calibration procedures drive this robot.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct Procedure {
+    /// `idle_wheels = "held" | "released"`: what the wheels an omni path does not drive
+    /// do (see `calib_core::omni_cal::IdleWheels`).
+    pub idle_wheels: Option<calib_core::omni_cal::IdleWheels>,
+}
+
+/// Reads the `[procedure]` table of a robot file (the whole file is validated too).
+pub fn load_procedure(path: &Path) -> Result<Procedure, RobotFileError> {
+    load(path)?;
+    let text = std::fs::read_to_string(path).map_err(|e| RobotFileError {
+        path: path.to_path_buf(),
+        line: None,
+        column: None,
+        message: format!("cannot read robot file: {e}"),
+    })?;
+    parse_procedure(&text, path)
+}
+
+/// The `[procedure]` table of robot TOML; `path` is only used in messages.
+pub fn parse_procedure(text: &str, path: &Path) -> Result<Procedure, RobotFileError> {
+    let file: RobotFile = toml::from_str(text).map_err(|e| {
+        let (line, column) = e.span().map_or((None, None), |s| {
+            let (l, c) = line_col(text, s.start);
+            (Some(l), Some(c))
+        });
+        RobotFileError {
+            path: path.to_path_buf(),
+            line,
+            column,
+            message: e.message().trim().to_string(),
+        }
+    })?;
+    let Some(idle) = file.procedure.and_then(|p| p.into_inner().idle_wheels) else {
+        return Ok(Procedure::default());
+    };
+    let idle_wheels = match idle.get_ref().as_str() {
+        "held" => calib_core::omni_cal::IdleWheels::Held,
+        "released" => calib_core::omni_cal::IdleWheels::Released,
+        other => {
+            let (l, c) = line_col(text, idle.span().start);
+            return Err(RobotFileError {
+                path: path.to_path_buf(),
+                line: Some(l),
+                column: Some(c),
+                message: format!(
+                    "procedure.idle_wheels: \"{other}\" (expected \"held\" or \"released\")"
+                ),
+            });
+        }
+    };
+    Ok(Procedure {
+        idle_wheels: Some(idle_wheels),
+    })
 }
 
 #[derive(Deserialize)]
@@ -429,5 +495,31 @@ beta_deg = 180.0
         // The ninth `[[wheels]]` header: after two lines and eight six-line wheels.
         assert_eq!((e.line, e.column), (Some(2 + 8 * 6 + 1), Some(1)));
         let _ = std::fs::remove_dir_all(&dir);
+    }
+
+    /// Issue 12: `[procedure] idle_wheels` in a robot file (an extension to formats.md).
+    #[test]
+    fn procedure_table_says_how_idle_wheels_behave() {
+        use calib_core::omni_cal::IdleWheels;
+        let base = std::fs::read_to_string(
+            Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/omni4.toml"),
+        )
+        .unwrap();
+        let p = Path::new("omni4.toml");
+        assert_eq!(parse_procedure(&base, p).unwrap().idle_wheels, None);
+        for (v, want) in [
+            ("held", IdleWheels::Held),
+            ("released", IdleWheels::Released),
+        ] {
+            let text = format!("{base}\n[procedure]\nidle_wheels = \"{v}\"\n");
+            assert_eq!(parse_procedure(&text, p).unwrap().idle_wheels, Some(want));
+            // The robot itself still parses with the table present.
+            assert_eq!(parse(&text, p).unwrap().wheel_count(), 4);
+        }
+        let text = format!("{base}\n[procedure]\nidle_wheels = \"hold\"\n");
+        let e = parse_procedure(&text, p).unwrap_err();
+        let line = text.lines().count();
+        assert_eq!((e.line, e.column), (Some(line), Some(15)), "{e}");
+        assert!(e.message.contains("\"held\" or \"released\""), "{e}");
     }
 }

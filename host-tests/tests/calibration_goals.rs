@@ -147,6 +147,7 @@ fn a_failed_computation_uploads_nothing() {
         report: None,
         after: true,
         second_pass: false,
+        idle_wheels: Default::default(),
     };
     let mut m = TruthFile {
         file: runs.with_extension("truth"),
@@ -219,6 +220,7 @@ fn a_stopped_procedure_resumes_without_losing_runs() {
         report: None,
         after: true,
         second_pass: false,
+        idle_wheels: Default::default(),
     };
     let mut truth = TruthChannel {
         rx: &board.truths,
@@ -339,6 +341,7 @@ fn omni_second_pass_composes_with_the_first_factors() {
         report: None,
         after: false,
         second_pass: true,
+        idle_wheels: Default::default(),
     };
     let mut truth = TruthChannel {
         rx: &board.truths,

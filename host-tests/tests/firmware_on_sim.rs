@@ -51,6 +51,7 @@ fn dc_wheels_track_the_profile_within_two_percent() {
         &mut b,
         Request::RunProgram {
             program: ProgramSpec::Omni {
+                idle: calib_core::protocol::IdleWheels::Released,
                 path: OmniPath::W1,
                 length_m: 1.0,
             },

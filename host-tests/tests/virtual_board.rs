@@ -145,6 +145,7 @@ fn faulty_link_never_corrupts_and_transfers_or_fails_clearly() {
     }
     c.run_program(
         ProgramSpec::Omni {
+            idle: calib_core::protocol::IdleWheels::Released,
             path: calib_core::motion::OmniPath::W1,
             length_m: 0.3,
         },

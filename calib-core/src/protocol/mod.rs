@@ -52,6 +52,7 @@ use crate::correction::{CorrectionError, Corrections};
 use crate::kinematics::Twist;
 use crate::motion::{Direction, OmniPath, ProfileLimits, Segment, MAX_SEGMENTS};
 use crate::odometry::Pose;
+pub use crate::omni_cal::IdleWheels;
 use crate::robot::{DriveType, Robot, RobotError, RobotKind, MAX_WHEELS};
 use core::fmt::{self, Write as _};
 use heapless::{String, Vec};
@@ -89,7 +90,7 @@ Corrections=None|DiffDrive{c_l:f64,c_r:f64,e_b:f64}|Omni{f_lat:Vec<f64,8>,f_lon:
 Params{robot:Robot,gains:PiGains,limits:ProfileLimits,safety:Safety};\
 Robot{name:String<32>,kind:RobotKind,drive:Drive,wheels:Vec<Wheel,8>,legs:Option<Legs>};\
 Safety{command_timeout_ms:u16,stall_timeout_ms:u16,stall_min_rate:f32,max_jump_counts:u32,arena_m:f32};\
-ProgramSpec=Umbmark{side_m:f64,dir:Direction}|Omni{path:OmniPath,length_m:f64}|Custom(Vec<Segment,32>);\
+ProgramSpec=Umbmark{side_m:f64,dir:Direction}|Omni{path:OmniPath,length_m:f64,idle:IdleWheels}|Custom(Vec<Segment,32>);\
 Info{firmware:String<24>,protocol_version:u16,schema:u32,robot_kind:RobotKind,drive:DriveType,wheel_count:u8,\
 uptime_ms:u64,boot:BootReport,log_capacity:u32,record_size:u16};\
 BootReport{corrections:Stored,params:Stored};Stored=Loaded|Missing|Invalid|StorageError;\
@@ -102,6 +103,7 @@ Fault=Stall{wheel:u8}|CounterJump{wheel:u8,delta:i32};\
 Trials{trials:Vec<TrialInfo,8>,evicted:u32};\
 TrialInfo{id:u16,program:ProgramKind,start_ms:u64,rate_hz:u16,wheel_count:u8,record_size:u16,\
 records:u32,bytes:u32,dropped:u32,end:TrialEnd,corrections:Corrections};\
+IdleWheels=Released|Held;\
 ProgramKind=Drive|Umbmark{side_m:f32,dir:Direction}|Omni{path:OmniPath,length_m:f32}|Custom{segments:u8};\
 TrialEnd=Running|Completed|Stopped|EStop|Fault|CommandTimeout;\
 LogChunk{trial:u16,offset:u32,total:u32,data:bytes};\

@@ -137,7 +137,13 @@ pub enum ProgramSpec {
     /// Borenstein's square.
     Umbmark { side_m: f64, dir: Direction },
     /// 001's straight omni paths.
-    Omni { path: OmniPath, length_m: f64 },
+    Omni {
+        path: OmniPath,
+        length_m: f64,
+        /// What the wheels the path does not drive do: released (drive cut) or held at
+        /// zero speed by their velocity loops (001 does both, one per path).
+        idle: IdleWheels,
+    },
     /// Up to [`MAX_SEGMENTS`] segments.
     Custom(Vec<Segment, MAX_SEGMENTS>),
 }
@@ -224,7 +230,7 @@ impl ProgramSpec {
                 side_m: *side_m as f32,
                 dir: *dir,
             },
-            ProgramSpec::Omni { path, length_m } => ProgramKind::Omni {
+            ProgramSpec::Omni { path, length_m, .. } => ProgramKind::Omni {
                 path: *path,
                 length_m: *length_m as f32,
             },

@@ -92,6 +92,11 @@ fn program() -> impl Strategy<Value = ProgramSpec> {
             dir: if cw { Direction::Cw } else { Direction::Ccw }
         }),
         (f64s(), any::<bool>()).prop_map(|(length_m, w1)| ProgramSpec::Omni {
+            idle: if w1 {
+                IdleWheels::Held
+            } else {
+                IdleWheels::Released
+            },
             path: if w1 { OmniPath::W1 } else { OmniPath::W2 },
             length_m
         }),
@@ -612,6 +617,7 @@ fn schema_golden() {
         },
         Request::RunProgram {
             program: ProgramSpec::Omni {
+                idle: IdleWheels::Released,
                 path: OmniPath::W2,
                 length_m: 0.6,
             },
@@ -705,6 +711,7 @@ fn programs_outside_the_arena_or_negative_are_refused() {
     let arena = Safety::default().arena_m as f64;
     assert_eq!(arena, 10.0);
     let omni = |length_m: f64| ProgramSpec::Omni {
+        idle: IdleWheels::Released,
         path: OmniPath::W1,
         length_m,
     };

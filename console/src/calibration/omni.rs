@@ -3,13 +3,14 @@
 
 use anyhow::{anyhow, bail, Result};
 use calib_core::motion::OmniPath;
-use calib_core::omni_cal::{self, DrivenWheel, OmniRun, PathRuns};
+use calib_core::omni_cal::{self, DrivenWheel, IdleWheels, OmniRun, PathRuns};
 use calib_core::robot::{Robot, RobotKind};
 use calib_core::stats;
 use calib_core::Corrections;
 use formats::runs_file::{OmniPathRuns, Phase, RunsFile};
 use serde::Serialize;
 use std::fmt::Write;
+use std::path::{Path, PathBuf};
 
 /// Statistics of one path's runs in one phase (001 Table II, Fig. 5).
 #[derive(Debug, Clone, Serialize)]
@@ -29,6 +30,8 @@ pub struct PathStats {
 #[derive(Debug, Clone, Serialize)]
 pub struct OmniReport {
     pub robot: String,
+    /// How the idle wheels were modelled: `released` or `held`.
+    pub idle_wheels: &'static str,
     pub wheels: Vec<String>,
     /// Multiplier on each wheel's command that makes the robot go straight.
     pub f_lat: Vec<f64>,
@@ -147,8 +150,68 @@ fn path_stats(p: &OmniPathRuns) -> PathStats {
     }
 }
 
-/// Computes F_lat and F_lon from a runs file.
-pub fn compute(robot: &Robot, runs: &RunsFile) -> Result<OmniReport> {
+/// Where `omni run` writes the idle-wheel mode its runs were measured with.
+pub fn idle_sidecar(runs_file: &Path) -> PathBuf {
+    let mut s = runs_file.as_os_str().to_owned();
+    s.push(".idle_wheels");
+    PathBuf::from(s)
+}
+
+/// The mode written beside a runs file, if any.
+pub fn read_idle_sidecar(runs_file: &Path) -> Result<Option<IdleWheels>> {
+    let f = idle_sidecar(runs_file);
+    match std::fs::read_to_string(&f) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(anyhow!("cannot read {}: {e}", f.display())),
+        Ok(t) => parse_idle(t.trim()).map(Some).ok_or_else(|| {
+            anyhow!(
+                "{}:1:1: expected `held` or `released`, found `{}`",
+                f.display(),
+                t.trim()
+            )
+        }),
+    }
+}
+
+/// Writes the mode beside a runs file.
+pub fn write_idle_sidecar(runs_file: &Path, idle: IdleWheels) -> Result<()> {
+    let f = idle_sidecar(runs_file);
+    std::fs::write(&f, format!("{}\n", idle.as_str()))
+        .map_err(|e| anyhow!("cannot write {}: {e}", f.display()))
+}
+
+fn parse_idle(s: &str) -> Option<IdleWheels> {
+    match s {
+        "held" => Some(IdleWheels::Held),
+        "released" => Some(IdleWheels::Released),
+        _ => None,
+    }
+}
+
+/// The idle-wheel mode in force: the flag, else what `omni run` wrote beside the runs,
+/// else the robot file's `[procedure] idle_wheels` (when a robot file is given), else
+/// released.
+pub fn idle_wheels_for(
+    flag: Option<IdleWheels>,
+    runs_file: &Path,
+    robot_file: &Path,
+) -> Result<IdleWheels> {
+    if let Some(f) = flag {
+        return Ok(f);
+    }
+    if let Some(s) = read_idle_sidecar(runs_file)? {
+        return Ok(s);
+    }
+    if robot_file.as_os_str().is_empty() {
+        return Ok(IdleWheels::Released);
+    }
+    Ok(formats::robot_file::load_procedure(robot_file)?
+        .idle_wheels
+        .unwrap_or_default())
+}
+
+/// Computes F_lat and F_lon from a runs file, with the idle wheels modelled as `idle`.
+pub fn compute(robot: &Robot, runs: &RunsFile, idle: IdleWheels) -> Result<OmniReport> {
     if robot.kind != RobotKind::Omni {
         bail!(
             "omni calibration needs an omni robot; '{}' is {} (use `wheelcal umbmark compute`)",
@@ -164,6 +227,7 @@ pub fn compute(robot: &Robot, runs: &RunsFile) -> Result<OmniReport> {
         );
     }
     let mut driven_sets: Vec<Vec<DrivenWheel>> = Vec::new();
+    let mut held_sets: Vec<Vec<[f64; 3]>> = Vec::new();
     let mut run_sets: Vec<Vec<OmniRun>> = Vec::new();
     let mut dirs = Vec::new();
     for p in &before {
@@ -175,6 +239,18 @@ pub fn compute(robot: &Robot, runs: &RunsFile) -> Result<OmniReport> {
             .map(|(i, w)| DrivenWheel::on_straight_path(i, w.rolling_row(), dir, p.length_m))
             .filter(|d| d.nominal_travel_m.abs() > 1e-9 * p.length_m)
             .collect();
+        // Held idle wheels: every wheel of the robot this path does not drive.
+        let held: Vec<[f64; 3]> = match idle {
+            IdleWheels::Released => Vec::new(),
+            IdleWheels::Held => robot
+                .wheels
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !driven.iter().any(|d| d.index == *i))
+                .map(|(_, w)| w.rolling_row())
+                .collect(),
+        };
+        held_sets.push(held);
         driven_sets.push(driven);
         run_sets.push(
             p.runs
@@ -196,7 +272,7 @@ pub fn compute(robot: &Robot, runs: &RunsFile) -> Result<OmniReport> {
             direction_rad: dirs[i],
             driven: &driven_sets[i],
             runs: &run_sets[i],
-            held: &[],
+            held: &held_sets[i],
         })
         .collect();
     let cal = omni_cal::calibrate(&paths, robot.wheel_count())
@@ -219,6 +295,7 @@ pub fn compute(robot: &Robot, runs: &RunsFile) -> Result<OmniReport> {
     };
     Ok(OmniReport {
         robot: robot.name.to_string(),
+        idle_wheels: idle.as_str(),
         wheels: robot.wheels.iter().map(|w| w.name.to_string()).collect(),
         f_lat: cal.correction.f_lat[..n].to_vec(),
         f_lon: cal.correction.f_lon,
@@ -312,7 +389,7 @@ mod tests {
         }
         text.push_str("omni,4W-1,0.6,-0.003,0,,after\nomni,4W-1,0.6,-0.002,0,,after\n");
         let runs = RunsFile::parse(&text, Path::new("r.csv")).unwrap();
-        let rep = compute(&presets::omni4(), &runs).unwrap();
+        let rep = compute(&presets::omni4(), &runs, IdleWheels::Released).unwrap();
         assert!((rep.f_lon - 1.0 / 0.95).abs() < 1e-9, "{}", rep.f_lon);
         for f in &rep.f_lat {
             assert!((f - 1.0).abs() < 1e-9);
@@ -333,7 +410,7 @@ mod tests {
             }
         }
         let runs = RunsFile::parse(&text, Path::new("r.csv")).unwrap();
-        let rep = compute(&presets::omni4(), &runs).unwrap();
+        let rep = compute(&presets::omni4(), &runs, IdleWheels::Released).unwrap();
         let first = Corrections::Omni {
             f_lat: heapless::Vec::from_slice(&[1.02, 1.0, 0.98, 1.0]).unwrap(),
             f_lon: 1.01,
@@ -356,7 +433,9 @@ mod tests {
     fn unknown_path_is_named() {
         let text = "test,path,length_m,x_err_m,y_err_m\nomni,diag,0.6,0,0\nomni,diag,0.6,0,0\n";
         let runs = RunsFile::parse(text, Path::new("r.csv")).unwrap();
-        let e = compute(&presets::omni4(), &runs).unwrap_err().to_string();
+        let e = compute(&presets::omni4(), &runs, IdleWheels::Released)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("unknown omni path 'diag'"), "{e}");
     }
 }

@@ -44,6 +44,9 @@ pub struct Options {
     /// the secondary factors with them (the factors are remembered beside the runs file,
     /// so a resumed second pass composes with the same ones).
     pub second_pass: bool,
+    /// Omni: idle wheels held or released on the paths; written beside the runs file so
+    /// `omni compute` on it uses the same mode.
+    pub idle_wheels: calib_core::protocol::IdleWheels,
 }
 
 /// Where a second pass remembers the factors it started from.
@@ -252,14 +255,15 @@ impl ProcedureReport {
 #[derive(Debug, Clone, Copy)]
 enum Trial {
     Square(Direction),
-    Path(OmniPath),
+    /// An omni path, with its idle wheels held or released.
+    Path(OmniPath, calib_core::protocol::IdleWheels),
 }
 
 impl Trial {
     fn path_name(self) -> &'static str {
         match self {
             Trial::Square(d) => d.as_str(),
-            Trial::Path(p) => p.as_str(),
+            Trial::Path(p, _) => p.as_str(),
         }
     }
 }
@@ -289,9 +293,23 @@ pub fn run<L: Read + Write>(
             if robot.kind != RobotKind::Omni {
                 bail!("the board's robot is {}: the omni procedure is for omni robots (use `wheelcal umbmark run`)", robot.kind.as_str());
             }
+            // Runs of one file share one idle-wheel mode; it is kept beside them so a
+            // later `omni compute` on the file models the same.
+            match omni::read_idle_sidecar(&opts.runs_file)? {
+                Some(m) if m != opts.idle_wheels && opts.runs_file.exists() => bail!(
+                    "{} was measured with idle wheels {}; use --idle-wheels {} to resume it, or a new --runs-file",
+                    opts.runs_file.display(),
+                    m.as_str(),
+                    m.as_str()
+                ),
+                _ => omni::write_idle_sidecar(&opts.runs_file, opts.idle_wheels)?,
+            }
             (
                 TestKind::Omni,
-                vec![Trial::Path(OmniPath::W1), Trial::Path(OmniPath::W2)],
+                vec![
+                    Trial::Path(OmniPath::W1, opts.idle_wheels),
+                    Trial::Path(OmniPath::W2, opts.idle_wheels),
+                ],
                 opts.length_m,
             )
         }
@@ -384,7 +402,7 @@ pub fn run<L: Read + Write>(
             }
         }
         Kind::Omni => {
-            let r = omni::compute(&robot, &runs)?;
+            let r = omni::compute(&robot, &runs, opts.idle_wheels)?;
             Corrections::Omni {
                 f_lat: heapless::Vec::from_slice(&r.f_lat)
                     .map_err(|_| anyhow::anyhow!("too many wheels"))?,
@@ -431,7 +449,7 @@ pub fn run<L: Read + Write>(
             ProcedureReport::Umbmark(Box::new(r))
         }
         Kind::Omni => {
-            let mut r = omni::compute(&robot, &runs)?;
+            let mut r = omni::compute(&robot, &runs, opts.idle_wheels)?;
             if let Some(p @ Corrections::Omni { .. }) = &previous {
                 r = omni::compose_with(r, p)?;
             }
@@ -469,7 +487,7 @@ fn run_phase<L: Read + Write>(
             m.say(&format!("{what}: running"));
             let limit = match t {
                 Trial::Square(d) => board_cmds::run_umbmark(c, d, length, 10)?,
-                Trial::Path(p) => board_cmds::run_omni(c, p, length, 10)?,
+                Trial::Path(p, idle) => board_cmds::run_omni(c, p, length, idle, 10)?,
             };
             let end = board_cmds::wait_program(c, limit + Duration::from_secs(60), |_| {})?;
             let trial = c
@@ -481,7 +499,7 @@ fn run_phase<L: Read + Write>(
             // The board's odometry in the path frame (x along the first leg or the path).
             let d = match t {
                 Trial::Square(_) => 0.0,
-                Trial::Path(p) => {
+                Trial::Path(p, _) => {
                     let (ux, uy) = p.direction();
                     uy.atan2(ux)
                 }
@@ -496,7 +514,7 @@ fn run_phase<L: Read + Write>(
                     let o = end.pose;
                     Pose::new(cd * o.x + sd * o.y, -sd * o.x + cd * o.y, o.theta)
                 }
-                Trial::Path(_) => Pose::new(length as f32, 0.0, 0.0),
+                Trial::Path(..) => Pose::new(length as f32, 0.0, 0.0),
             };
             let (x, y, th) = m.end_error(trial, reference, d, &what)?;
             RunsFile::append(
