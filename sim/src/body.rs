@@ -54,28 +54,6 @@ pub struct Geometry {
     pub off_mask: u32,
 }
 
-fn inv3(m: &[[f64; 3]; 3]) -> Option<[[f64; 3]; 3]> {
-    let c =
-        |r0: usize, c0: usize, r1: usize, c1: usize| m[r0][c0] * m[r1][c1] - m[r0][c1] * m[r1][c0];
-    let det = m[0][0] * c(1, 1, 2, 2) - m[0][1] * c(1, 0, 2, 2) + m[0][2] * c(1, 0, 2, 1);
-    let scale = m[0][0] * m[1][1] * m[2][2];
-    if !det.is_finite() || scale.is_nan() || scale <= 0.0 || det.abs() <= 1e-9 * scale {
-        return None;
-    }
-    let adj = [
-        [c(1, 1, 2, 2), -c(0, 1, 2, 2), c(0, 1, 1, 2)],
-        [-c(1, 0, 2, 2), c(0, 0, 2, 2), -c(0, 0, 1, 2)],
-        [c(1, 0, 2, 1), -c(0, 0, 2, 1), c(0, 0, 1, 1)],
-    ];
-    let mut out = [[0.0; 3]; 3];
-    for a in 0..3 {
-        for b in 0..3 {
-            out[a][b] = adj[a][b] / det;
-        }
-    }
-    Some(out)
-}
-
 impl Geometry {
     /// Geometry of an (actual) robot description, all its driven wheels driving.
     pub fn new(robot: &Robot) -> Result<Self, SimError> {
@@ -112,7 +90,7 @@ impl Geometry {
             }
             wheels.push(g);
         }
-        let inv = inv3(&m).ok_or(SimError::SingularGeometry)?;
+        let inv = calib_core::linalg::inverse3(&m).ok_or(SimError::SingularGeometry)?;
         let gain = wheels
             .iter()
             .map(|g| {
