@@ -382,22 +382,8 @@ impl<'a> Evaluator<'a> {
             let Some(enc) = &self.p.wheels[*i].enc_rad else {
                 continue;
             };
-            let r = self.p.wheels[*i].radius_m;
-            let mut e: Vec<f64> = self
-                .act_rows
-                .iter()
-                .map(|&k| (enc[k] - pred[k]) * r)
-                .collect();
-            let (mut s, mut c) = (0.0, 0usize);
-            for (j, v) in e.iter().enumerate() {
-                if fit.contains(self.act_block[j]) {
-                    s += v;
-                    c += 1;
-                }
-            }
-            let off = if c > 0 { s / c as f64 } else { 0.0 };
-            e.iter_mut().for_each(|v| *v -= off);
-            ev.free.push((*i, e));
+            ev.free
+                .push((*i, self.wheel_residual(enc, pred, self.p.wheels[*i].radius_m, fit)));
         }
         let wheels = self.actuator_wheels();
         if !wheels.is_empty() {
@@ -406,25 +392,32 @@ impl<'a> Evaluator<'a> {
                 let (Some(enc), Some(model)) = (&self.p.wheels[i].enc_rad, &sim[i]) else {
                     continue;
                 };
-                let r = self.p.wheels[i].radius_m;
-                let mut e: Vec<f64> = self
-                    .act_rows
-                    .iter()
-                    .map(|&k| (enc[k] - model[k]) * r)
-                    .collect();
-                let (mut s, mut c) = (0.0, 0usize);
-                for (j, v) in e.iter().enumerate() {
-                    if fit.contains(self.act_block[j]) {
-                        s += v;
-                        c += 1;
-                    }
-                }
-                let off = if c > 0 { s / c as f64 } else { 0.0 };
-                e.iter_mut().for_each(|v| *v -= off);
-                ev.act.push((i, e));
+                ev.act
+                    .push((i, self.wheel_residual(enc, model, self.p.wheels[i].radius_m, fit)));
             }
         }
         ev
+    }
+
+    /// A wheel's residual (measured minus modelled angle, as ground travel) on the
+    /// actuator rows, less its mean over the rows of the fitting fold: the encoder's
+    /// zero is a nuisance, not evidence.
+    fn wheel_residual(&self, enc: &[f64], model: &[f64], radius_m: f64, fit: Fold) -> Vec<f64> {
+        let mut e: Vec<f64> = self
+            .act_rows
+            .iter()
+            .map(|&k| (enc[k] - model[k]) * radius_m)
+            .collect();
+        let (mut s, mut c) = (0.0, 0usize);
+        for (j, v) in e.iter().enumerate() {
+            if fit.contains(self.act_block[j]) {
+                s += v;
+                c += 1;
+            }
+        }
+        let off = if c > 0 { s / c as f64 } else { 0.0 };
+        e.iter_mut().for_each(|v| *v -= off);
+        e
     }
 
     fn ground_residuals(&self, path: &Path, fit: Fold, ev: &mut Eval) {

@@ -5,6 +5,7 @@
 //! limit, while diagnose models the stepper's pull-out (cycles of four full steps) as the
 //! simulator does.
 
+mod check;
 mod common;
 
 use calib_core::robot::{presets, Drive, DriveType, Robot};
@@ -295,51 +296,13 @@ fn run(case: &Case) -> Outcome {
     let g = generate(&case.cfg);
     let r = diagnose(&case.cfg.robot, &g.recording, &Options::default()).expect("diagnosable");
     let found: Vec<&str> = r.findings.iter().map(|f| f.effect.as_str()).collect();
-    let mut problems = Vec::new();
     let expected_verdict = if case.verdict == "any" {
         case.also[0]
     } else {
         case.verdict
     };
-    let verdict_ok = if case.verdict == "any" {
-        case.also.contains(&r.verdict.as_str())
-    } else {
-        r.verdict == case.verdict
-    };
-    if !verdict_ok {
-        problems.push(format!("verdict {} (expected {})", r.verdict, case.verdict));
-    }
-    for e in &case.also {
-        if !found.contains(e) {
-            problems.push(format!("{e} not found"));
-        }
-    }
-    for (e, p, truth, tol, rel) in &case.params {
-        let Some(f) = r.findings.iter().find(|f| f.effect == *e) else {
-            continue;
-        };
-        // Cable spacing and loss per cable are separable only when single crossings stand
-        // out of the pose noise; the travel lost per metre (their ratio) always is.
-        let v = if *p == "loss_per_spacing" {
-            f.parameters["loss_m"] / f.parameters["spacing_m"]
-        } else {
-            f.parameters.get(*p).copied().unwrap_or(f64::NAN)
-        };
-        let err = if *rel {
-            (v / truth - 1.0).abs()
-        } else {
-            (v - truth).abs()
-        };
-        if err.is_nan() || err > *tol {
-            problems.push(format!("{e}.{p} = {v:.5}, truth {truth:.5} (tol {tol})"));
-        }
-    }
-    // The fit must improve: every finding lowers its stage's RMSE.
-    for f in &r.findings {
-        if f.rmse_after_m.is_nan() || f.rmse_after_m >= f.rmse_before_m {
-            problems.push(format!("{} does not improve RMSE", f.effect));
-        }
-    }
+    let (_, mut problems) = check::verdict_and_params(&r, case.verdict, &case.also, &case.params);
+    problems.extend(check::every_finding_improves(&r));
     if case.verdict != "none" && case.verdict != "unexplained" && r.findings.is_empty() {
         problems.push("no findings".into());
     }

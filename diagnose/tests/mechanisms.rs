@@ -17,6 +17,8 @@
 //! Now: SCORE 23/25 fully right, 24/25 right verdicts; 5 of 5 controls `none`.
 //! `DIAG_CASE=name` runs only the cases whose name contains it.
 
+mod check;
+
 use calib_core::robot::{presets, Drive, Robot};
 use diagnose::{diagnose, Options};
 use rand::{Rng, SeedableRng};
@@ -545,21 +547,8 @@ struct Outcome {
 fn run(case: &Case) -> Outcome {
     let rec = simulate(case);
     let r = diagnose(&case.robot, &rec, &Options::default()).expect("diagnosable");
-    let found: Vec<&str> = r.findings.iter().map(|f| f.effect.as_str()).collect();
-    let mut problems = Vec::new();
-    let verdict_ok = if case.verdict == "any" {
-        case.also.contains(&r.verdict.as_str())
-    } else {
-        r.verdict == case.verdict
-    };
-    if !verdict_ok {
-        problems.push(format!("verdict {} (expected {})", r.verdict, case.verdict));
-    }
-    for e in &case.also {
-        if !found.contains(e) {
-            problems.push(format!("{e} not found"));
-        }
-    }
+    let (verdict_ok, mut problems) =
+        check::verdict_and_params(&r, case.verdict, &case.also, &case.params);
     for (e, ok) in &case.mechanisms {
         if let Some(f) = r.findings.iter().find(|f| f.effect == *e) {
             if !ok.contains(&f.mechanism.as_str()) {
@@ -568,25 +557,6 @@ fn run(case: &Case) -> Outcome {
             if f.implausible_sign {
                 problems.push(format!("{e} marked implausible"));
             }
-        }
-    }
-    for (e, p, truth, tol, rel) in &case.params {
-        let Some(f) = r.findings.iter().find(|f| f.effect == *e) else {
-            continue;
-        };
-        let v = if *p == "loss_per_spacing" {
-            f.parameters.get("loss_m").copied().unwrap_or(f64::NAN)
-                / f.parameters.get("spacing_m").copied().unwrap_or(f64::NAN)
-        } else {
-            f.parameters.get(*p).copied().unwrap_or(f64::NAN)
-        };
-        let err = if *rel {
-            (v / truth - 1.0).abs()
-        } else {
-            (v - truth).abs()
-        };
-        if err.is_nan() || err > *tol {
-            problems.push(format!("{e}.{p} = {v:.5}, truth {truth:.5} (tol {tol})"));
         }
     }
     if r.findings

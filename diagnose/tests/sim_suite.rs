@@ -8,6 +8,8 @@
 //! 50 rows per second (commands and encoders), 30 Hz vision with 1 mm / 2 mrad noise.
 //! `DIAG_CASE=name` runs only the cases whose name contains it.
 
+mod check;
+
 use calib_core::robot::{presets, Drive, Robot};
 use diagnose::{diagnose, Options};
 use rand::{Rng, SeedableRng};
@@ -28,7 +30,7 @@ fn dc_diff() -> Robot {
 }
 
 /// (effect, parameter, true value, tolerance, relative?).
-type ParamCheck = (&'static str, &'static str, f64, f64, bool);
+use check::ParamCheck;
 
 struct Case {
     name: String,
@@ -353,43 +355,13 @@ fn run(case: &Case) -> Outcome {
     let rec = simulate(case);
     let r = diagnose(&case.robot, &rec, &Options::default()).expect("diagnosable");
     let found: Vec<&str> = r.findings.iter().map(|f| f.effect.as_str()).collect();
-    let mut problems = Vec::new();
-    let (verdict_ok, expected) = if case.verdict == "any" {
-        (case.also.contains(&r.verdict.as_str()), case.also[0])
+    let expected = if case.verdict == "any" {
+        case.also[0]
     } else {
-        (r.verdict == case.verdict, case.verdict)
+        case.verdict
     };
-    if !verdict_ok {
-        problems.push(format!("verdict {} (expected {})", r.verdict, case.verdict));
-    }
-    for e in &case.also {
-        if !found.contains(e) {
-            problems.push(format!("{e} not found"));
-        }
-    }
-    for (e, p, truth, tol, rel) in &case.params {
-        let Some(f) = r.findings.iter().find(|f| f.effect == *e) else {
-            continue;
-        };
-        let v = if *p == "loss_per_spacing" {
-            f.parameters["loss_m"] / f.parameters["spacing_m"]
-        } else {
-            f.parameters.get(*p).copied().unwrap_or(f64::NAN)
-        };
-        let err = if *rel {
-            (v / truth - 1.0).abs()
-        } else {
-            (v - truth).abs()
-        };
-        if err.is_nan() || err > *tol {
-            problems.push(format!("{e}.{p} = {v:.5}, truth {truth:.5} (tol {tol})"));
-        }
-    }
-    for f in &r.findings {
-        if f.rmse_after_m.is_nan() || f.rmse_after_m >= f.rmse_before_m {
-            problems.push(format!("{} does not improve its RMSE", f.effect));
-        }
-    }
+    let (_, mut problems) = check::verdict_and_params(&r, case.verdict, &case.also, &case.params);
+    problems.extend(check::every_finding_improves(&r));
     let detail = format!(
         "{:?} {:?} ground {:.2}->{:.2} mm, actuator {:.3}->{:.3} mm, windows {}",
         found,

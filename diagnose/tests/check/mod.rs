@@ -1,0 +1,66 @@
+//! The checks every diagnose suite makes of a report against its case's truth, in one
+//! place so the three suites (sim, generator, mechanisms) judge alike.
+
+use diagnose::report::Report;
+
+/// A parameter to check: (effect, parameter, truth, tolerance, relative?). The parameter
+/// `loss_per_spacing` is the travel lost per metre of floor bumps (loss_m / spacing_m):
+/// spacing and loss separate only when single crossings stand out of the pose noise, their
+/// ratio always does.
+pub type ParamCheck = (&'static str, &'static str, f64, f64, bool);
+
+/// Whether the verdict is right (`any`: one of `also`), and what else is wrong: effects of
+/// `also` not found, parameters outside their tolerance.
+pub fn verdict_and_params(
+    r: &Report,
+    verdict: &str,
+    also: &[&str],
+    params: &[ParamCheck],
+) -> (bool, Vec<String>) {
+    let found: Vec<&str> = r.findings.iter().map(|f| f.effect.as_str()).collect();
+    let mut problems = Vec::new();
+    let verdict_ok = if verdict == "any" {
+        also.contains(&r.verdict.as_str())
+    } else {
+        r.verdict == verdict
+    };
+    if !verdict_ok {
+        problems.push(format!("verdict {} (expected {verdict})", r.verdict));
+    }
+    for e in also {
+        if !found.contains(e) {
+            problems.push(format!("{e} not found"));
+        }
+    }
+    for (e, p, truth, tol, rel) in params {
+        let Some(f) = r.findings.iter().find(|f| f.effect == *e) else {
+            continue;
+        };
+        let get = |k: &str| f.parameters.get(k).copied().unwrap_or(f64::NAN);
+        let v = if *p == "loss_per_spacing" {
+            get("loss_m") / get("spacing_m")
+        } else {
+            get(p)
+        };
+        let err = if *rel {
+            (v / truth - 1.0).abs()
+        } else {
+            (v - truth).abs()
+        };
+        if err.is_nan() || err > *tol {
+            problems.push(format!("{e}.{p} = {v:.5}, truth {truth:.5} (tol {tol})"));
+        }
+    }
+    (verdict_ok, problems)
+}
+
+/// Every finding must lower its stage's RMSE (the sim and generator suites ask it; the
+/// mechanisms suite judges partial fits by their signature instead).
+#[allow(dead_code)]
+pub fn every_finding_improves(r: &Report) -> Vec<String> {
+    r.findings
+        .iter()
+        .filter(|f| f.rmse_after_m.is_nan() || f.rmse_after_m >= f.rmse_before_m)
+        .map(|f| format!("{} does not improve its RMSE", f.effect))
+        .collect()
+}
