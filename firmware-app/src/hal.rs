@@ -31,6 +31,7 @@ pub trait WheelDriver {
 
 /// Monotonic time.
 pub trait Clock {
+    /// Microseconds since an arbitrary start (boot).
     fn now_us(&self) -> u64;
 }
 
