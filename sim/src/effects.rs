@@ -16,29 +16,62 @@ pub enum Effect {
     /// `ed` = D_right / D_left (differential drive, mean diameter kept), and/or
     /// `radius_scale_<wheel>` = actual / nominal radius of one wheel.
     WheelDiameterMismatch {
+        /// D_right / D_left (differential drive), if given.
         ed: Option<f64>,
+        /// (wheel name, actual / nominal radius) per `radius_scale_<wheel>` given.
         radius_scale: Vec<(String, f64)>,
     },
     /// `eb` = actual / nominal wheel separation (every wheel's l).
-    WheelbaseError { eb: f64 },
+    WheelbaseError {
+        /// Actual / nominal wheel separation.
+        eb: f64,
+    },
     /// `mu`: body acceleration bounded by mu * g * (load share on driven wheels).
-    LongitudinalSlip { mu: f64 },
+    LongitudinalSlip {
+        /// Friction coefficient (dimensionless).
+        mu: f64,
+    },
     /// `side_slip_s` = k in v_y = -k * v_x * omega.
-    LateralSlip { side_slip_s: f64 },
+    LateralSlip {
+        /// k in v_y = -k * v_x * omega (s).
+        side_slip_s: f64,
+    },
     /// `spacing_m`, `loss_m`: cables across the floor (perpendicular to world x), each
     /// costing a wheel `loss_m` of travel.
-    FloorBumps { spacing_m: f64, loss_m: f64 },
+    FloorBumps {
+        /// Distance between cables along world x (m).
+        spacing_m: f64,
+        /// Travel a wheel loses crossing one cable (m).
+        loss_m: f64,
+    },
     /// `backlash_rad`: total dead band between motor and wheel, in wheel radians.
-    Backlash { backlash_rad: f64 },
+    Backlash {
+        /// Total dead band between motor and wheel (wheel rad).
+        backlash_rad: f64,
+    },
     /// `max_accel_rad_s2`: the stepper loses synchronism above this wheel acceleration.
-    MissedSteps { max_accel_rad_s2: f64 },
+    MissedSteps {
+        /// Largest wheel acceleration the stepper follows (rad/s^2).
+        max_accel_rad_s2: f64,
+    },
     /// `tau_s`: first-order lag of the wheel rate behind the command.
-    MotorLag { tau_s: f64 },
+    MotorLag {
+        /// Time constant of the wheel rate's lag (s).
+        tau_s: f64,
+    },
     /// `deadband_rad_s`: the wheel stays still while |command| is below it.
-    CoulombFriction { deadband_rad_s: f64 },
+    CoulombFriction {
+        /// Command below which the wheel stays still (rad/s).
+        deadband_rad_s: f64,
+    },
     /// Not in the catalogue: a constant world drift `drift_m_s` towards `direction_rad`
     /// while the robot moves.
-    TiltedFloor { drift_m_s: f64, direction_rad: f64 },
+    TiltedFloor {
+        /// Drift speed while moving (m/s).
+        drift_m_s: f64,
+        /// World direction of the drift (rad).
+        direction_rad: f64,
+    },
 }
 
 /// The catalogue ids, in issue 7's order, plus the out-of-catalogue control.
@@ -58,29 +91,43 @@ pub const EFFECT_IDS: [&str; 10] = [
 /// A bad effect string or parameter.
 #[derive(Debug, Clone, PartialEq)]
 pub enum EffectError {
+    /// An id not in [`EFFECT_IDS`].
     UnknownEffect(String),
+    /// A parameter the effect does not have.
     UnknownParameter {
+        /// The effect's id.
         effect: String,
+        /// The parameter's name.
         name: String,
     },
     /// `name:value` without a colon, or a value that is not a number.
     Malformed {
+        /// The offending text.
         text: String,
+        /// What is wrong with it.
         reason: String,
     },
     /// A value outside what is physically possible.
     OutOfRange {
+        /// The effect's id.
         effect: &'static str,
+        /// The parameter's name.
         name: String,
+        /// The value given.
         value: f64,
+        /// What the value must be (e.g. "within [0.5, 2]").
         expected: &'static str,
     },
+    /// A required parameter is missing.
     MissingParameter {
+        /// The effect's id.
         effect: &'static str,
+        /// The parameter's name.
         name: &'static str,
     },
     /// `radius_scale_<wheel>` names a wheel the robot does not have.
     UnknownWheel {
+        /// The wheel name given.
         name: String,
     },
 }
