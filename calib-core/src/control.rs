@@ -8,23 +8,28 @@
 /// PI gains and output limits (output in duty, -1..1, or volts: the caller decides).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PiGains {
+    /// Proportional gain (output per rad/s of error).
     pub kp: f32,
+    /// Integral gain (output per rad of accumulated error, i.e. per rad/s per s).
     pub ki: f32,
     /// Output per unit setpoint (duty per rad/s).
     pub kff: f32,
     /// Constant output added in the direction of motion (overcomes Coulomb friction).
     pub kstatic: f32,
+    /// Output limit: the output and the integrator stay within ±`out_max`.
     pub out_max: f32,
 }
 
 /// One wheel's velocity controller.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PiController {
+    /// Gains and limits in use.
     pub gains: PiGains,
     integral: f32,
 }
 
 impl PiController {
+    /// A controller with the given gains and an empty integrator.
     pub fn new(gains: PiGains) -> Self {
         PiController {
             gains,
@@ -62,6 +67,7 @@ impl PiController {
             .min(g.out_max)
     }
 
+    /// Current integrator value (output units).
     pub fn integral(&self) -> f32 {
         self.integral
     }

@@ -14,6 +14,7 @@ use serde::{Deserialize, Serialize};
 
 /// Factors outside this range are rejected: a real robot's wheels are not off by 2x.
 pub const FACTOR_MIN: f64 = 0.5;
+/// Factors above this are rejected (see [`FACTOR_MIN`]).
 pub const FACTOR_MAX: f64 = 2.0;
 
 /// The correction factors a board stores.
@@ -23,10 +24,19 @@ pub enum Corrections {
     None,
     /// Borenstein & Feng: effective left/right radius multipliers and actual/nominal
     /// wheelbase.
-    DiffDrive { c_l: f64, c_r: f64, e_b: f64 },
-    /// 001 eq. 6: wheel command = f_lon * f_lat[i] * (J * twist)_i.
+    DiffDrive {
+        /// Left wheel's effective radius / nominal radius.
+        c_l: f64,
+        /// Right wheel's effective radius / nominal radius.
+        c_r: f64,
+        /// Actual wheelbase / nominal wheelbase (Borenstein's E_b).
+        e_b: f64,
+    },
+    /// 001 eq. 6: wheel command = `f_lon * f_lat[i] * (J * twist)_i`.
     Omni {
+        /// Lateral factor per wheel, in the robot's wheel order (dimensionless).
         f_lat: Vec<f64, MAX_WHEELS>,
+        /// Longitudinal factor common to all wheels (dimensionless).
         f_lon: f64,
     },
 }
@@ -36,19 +46,33 @@ pub enum Corrections {
 pub enum CorrectionError {
     /// Factor `name` (index for f_lat) is NaN or infinite.
     NotFinite {
+        /// Name of the factor (`c_l`, `f_lat`, ...).
         name: &'static str,
+        /// Wheel index for per-wheel factors (`f_lat`), `None` otherwise.
         index: Option<usize>,
     },
     /// Factor outside [0.5, 2.0].
     OutOfRange {
+        /// Name of the factor.
         name: &'static str,
+        /// Wheel index for per-wheel factors (`f_lat`), `None` otherwise.
         index: Option<usize>,
+        /// The rejected value.
         value: f64,
     },
     /// Omni factors need one f_lat per wheel.
-    WrongWheelCount { expected: usize, got: usize },
+    WrongWheelCount {
+        /// Wheels the robot has.
+        expected: usize,
+        /// Factors given.
+        got: usize,
+    },
     /// Differential factors on an omni robot or the reverse.
-    WrongKind { robot: RobotKind },
+    /// The robot's kind, which the factors do not fit.
+    WrongKind {
+        /// The robot's kind, which the factors do not fit.
+        robot: RobotKind,
+    },
 }
 
 impl fmt::Display for CorrectionError {
@@ -97,6 +121,7 @@ pub fn check(name: &'static str, index: Option<usize>, v: f64) -> Result<(), Cor
 }
 
 impl Corrections {
+    /// No correction (nominal geometry); usable in `const` context.
     pub const fn none() -> Self {
         Corrections::None
     }

@@ -13,7 +13,9 @@ use serde::{Deserialize, Serialize};
 /// Width of the hardware counter.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum CounterWidth {
+    /// 16-bit timer (wraps every 65 536 counts).
     Bits16,
+    /// 32-bit timer.
     Bits32,
 }
 

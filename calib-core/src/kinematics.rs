@@ -15,16 +15,21 @@ use num_traits::Float;
 /// A planar body velocity (or displacement over a tick) in the body frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Twist<T> {
+    /// Forward velocity, body x (m/s; m for a displacement).
     pub vx: T,
+    /// Sideways velocity, body y (m/s; m for a displacement).
     pub vy: T,
+    /// Yaw rate (rad/s; rad for a displacement).
     pub omega: T,
 }
 
 impl<T: Float> Twist<T> {
+    /// A twist from its three components.
     pub fn new(vx: T, vy: T, omega: T) -> Self {
         Twist { vx, vy, omega }
     }
 
+    /// The zero twist.
     pub fn zero() -> Self {
         Twist {
             vx: T::zero(),
@@ -33,6 +38,7 @@ impl<T: Float> Twist<T> {
         }
     }
 
+    /// Every component multiplied by `k` (e.g. a velocity times dt gives a displacement).
     pub fn scale(self, k: T) -> Self {
         Twist {
             vx: self.vx * k,

@@ -16,11 +16,14 @@ pub const MAX_SEGMENTS: usize = 32;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Direction {
+    /// Clockwise seen from above: right turns at the corners.
     Cw,
+    /// Counter-clockwise seen from above: left turns at the corners.
     Ccw,
 }
 
 impl Direction {
+    /// Lower-case name as used in files and on the command line (`cw`, `ccw`).
     pub fn as_str(self) -> &'static str {
         match self {
             Direction::Cw => "cw",
@@ -40,6 +43,7 @@ pub enum OmniPath {
 }
 
 impl OmniPath {
+    /// The paper's name of the path (`4W-1`, `4W-2`).
     pub fn as_str(self) -> &'static str {
         match self {
             OmniPath::W1 => "4W-1",
@@ -60,15 +64,34 @@ impl OmniPath {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum Segment {
     /// Drive along body x.
-    Straight { distance_m: f64 },
+    Straight {
+        /// Signed distance (m); negative drives backwards.
+        distance_m: f64,
+    },
     /// Turn in place (positive = counter-clockwise).
-    Turn { angle_rad: f64 },
+    Turn {
+        /// Signed heading change (rad).
+        angle_rad: f64,
+    },
     /// Omni: translate without turning by (dx, dy) in the body frame.
-    Translate { dx_m: f64, dy_m: f64 },
+    Translate {
+        /// Displacement along body x (m).
+        dx_m: f64,
+        /// Displacement along body y (m).
+        dy_m: f64,
+    },
     /// Turn one wheel by an angle, the others held.
-    SingleWheel { wheel: u8, angle_rad: f64 },
+    SingleWheel {
+        /// Index of the wheel that turns (0-based, robot's wheel order).
+        wheel: u8,
+        /// Signed wheel rotation (rad).
+        angle_rad: f64,
+    },
     /// Stand still.
-    Pause { duration_s: f64 },
+    Pause {
+        /// How long to stand still (s).
+        duration_s: f64,
+    },
 }
 
 /// Speed and acceleration limits for the profiles.
@@ -126,6 +149,7 @@ impl Trapezoid {
         }
     }
 
+    /// Total time of the profile (s).
     pub fn duration(&self) -> f64 {
         2.0 * self.t_ramp + self.t_cruise
     }
@@ -174,16 +198,23 @@ pub enum Setpoint {
     /// Average body twist over the tick.
     Body(Twist<f64>),
     /// Average rate of one wheel over the tick; the others stand still.
-    Wheel { index: u8, rate: f64 },
+    Wheel {
+        /// Index of the wheel that turns (0-based).
+        index: u8,
+        /// Wheel rate (rad/s).
+        rate: f64,
+    },
 }
 
 /// A list of segments.
 #[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
 pub struct Program {
+    /// The segments in execution order (at most [`MAX_SEGMENTS`]).
     pub segments: Vec<Segment, MAX_SEGMENTS>,
 }
 
 impl Program {
+    /// A program of these segments, or `None` if there are more than [`MAX_SEGMENTS`].
     pub fn from_segments(segments: &[Segment]) -> Option<Self> {
         Vec::from_slice(segments)
             .ok()
@@ -292,6 +323,7 @@ impl ProgramRunner {
         self.index
     }
 
+    /// Whether every segment has been run.
     pub fn is_finished(&self) -> bool {
         self.index >= self.program.segments.len()
     }

@@ -22,13 +22,16 @@ use num_traits::{Float, FloatConst};
 /// A planar pose in the world frame.
 #[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
 pub struct Pose<T> {
+    /// World-frame x (m).
     pub x: T,
+    /// World-frame y (m).
     pub y: T,
     /// Heading, unwrapped (counts whole turns).
     pub theta: T,
 }
 
 impl<T: Float> Pose<T> {
+    /// A pose from its components (m, m, rad).
     pub fn new(x: T, y: T, theta: T) -> Self {
         Pose { x, y, theta }
     }
@@ -121,6 +124,7 @@ impl<T: Float + FloatConst> Default for Odometry<T> {
 }
 
 impl<T: Float + FloatConst> Odometry<T> {
+    /// Dead reckoning that starts at `start`.
     pub fn new(start: Pose<T>) -> Self {
         let mut o = Odometry {
             x: Compensated::new(start.x),

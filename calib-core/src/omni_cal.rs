@@ -8,7 +8,7 @@
 //! heading change theta, body-frame velocity direction constant). From the measured end
 //! point (and heading, when measured) the arc is inferred, each driven wheel's actual
 //! ground travel follows from its rolling row, and k_i = actual / nominal travel. Then
-//! f_lon * f_lat[i] = 1/k_i makes each wheel deliver its nominal travel. This works for
+//! `f_lon * f_lat[i] = 1/k_i` makes each wheel deliver its nominal travel. This works for
 //! any number of wheels and any wheel geometry, not only the 4-wheel robot of 001.
 //!
 //! Error convention (formats.md sec. 3): measured minus odometry, in the start frame with
@@ -39,7 +39,9 @@ pub const MAX_PATHS: usize = 4;
 /// End error of one straight-path run: measured minus odometry, path start frame.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct OmniRun {
+    /// End error along the commanded direction (m), measured minus odometry.
     pub x_err_m: f64,
+    /// End error to the left of the commanded direction (m), measured minus odometry.
     pub y_err_m: f64,
     /// Measured heading error; when absent the arc is assumed tangent to the commanded
     /// direction (no sideways body velocity) and theta is inferred from the chord.
@@ -137,7 +139,7 @@ pub struct ArcMotion {
     pub sideways_angle_rad: f64,
 }
 
-/// Corrective factors: wheel i is commanded f_lon * f_lat[i] times its nominal speed
+/// Corrective factors: wheel i is commanded `f_lon * f_lat[i]` times its nominal speed
 /// (001 eq. 6: F_lon F_lat J twist).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct OmniCorrection {
@@ -159,7 +161,7 @@ impl OmniCorrection {
         }
     }
 
-    /// Per-wheel speed multipliers f_lon * f_lat[i] (entries past `wheel_count` are 1).
+    /// Per-wheel speed multipliers `f_lon * f_lat[i]` (entries past `wheel_count` are 1).
     pub fn wheel_multipliers(&self) -> [f64; MAX_WHEELS] {
         let mut m = [1.0; MAX_WHEELS];
         for (i, v) in m.iter_mut().enumerate().take(self.wheel_count) {
@@ -172,10 +174,13 @@ impl OmniCorrection {
 /// Summary of one path.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct PathResult {
+    /// Commanded straight length L (m).
     pub length_m: f64,
+    /// Number of runs of this path.
     pub run_count: usize,
     /// Mean end error (x along the path, y to its left).
     pub mean_x_err_m: f64,
+    /// Mean end error to the left of the path (m).
     pub mean_y_err_m: f64,
     /// Mean inferred (or measured) heading change.
     pub mean_heading_change_rad: f64,
@@ -204,59 +209,97 @@ pub struct OmniCalibration {
 /// Why the omni calibration could not be computed; paths and runs are numbered from 1.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum OmniCalError {
+    /// No path given.
     NoPaths,
+    /// More paths than [`MAX_PATHS`].
     TooManyPaths {
+        /// Most paths supported.
         max: usize,
+        /// Paths given.
         got: usize,
     },
+    /// Wheel count zero or above [`MAX_WHEELS`].
     InvalidWheelCount {
+        /// Most wheels supported.
         max: usize,
+        /// Wheel count given.
         got: usize,
     },
+    /// A path without runs.
     NoRuns {
+        /// Path number (from 1).
         path: usize,
     },
+    /// A path that lists no driven wheels.
     NoDrivenWheels {
+        /// Path number (from 1).
         path: usize,
     },
+    /// A commanded length that is not a positive finite number of metres.
     InvalidLength {
+        /// Path number (from 1).
         path: usize,
+        /// The length given (m).
         value: f64,
     },
+    /// The direction, a wheel row or a nominal travel is NaN or infinite.
     NonFiniteParameter {
+        /// Path number (from 1).
         path: usize,
+        /// Which parameter.
         what: &'static str,
     },
+    /// A run's end error is NaN or infinite.
     NonFiniteRun {
+        /// Path number (from 1).
         path: usize,
+        /// Run number within the path (from 1).
         run: usize,
     },
+    /// A driven wheel's index is not a wheel of the robot.
     WheelIndexOutOfRange {
+        /// Path number (from 1).
         path: usize,
+        /// The wheel index given (0-based).
         index: usize,
+        /// Wheels the robot has.
         wheel_count: usize,
     },
+    /// A wheel is listed twice on one path.
     DuplicateWheel {
+        /// Path number (from 1).
         path: usize,
+        /// The repeated wheel index (0-based).
         index: usize,
     },
+    /// A listed wheel has zero nominal travel on the path (it is not driven).
     ZeroNominalTravel {
+        /// Path number (from 1).
         path: usize,
+        /// The wheel index (0-based).
         index: usize,
     },
     /// The end point cannot be reached by an arc (e.g. the robot ended at the start).
     ImpossibleRun {
+        /// Path number (from 1).
         path: usize,
+        /// Run number within the path (from 1).
         run: usize,
     },
     /// The inferred travel of a wheel has the wrong sign: it would need a negative factor.
     NonPositiveRatio {
+        /// Path number (from 1).
         path: usize,
+        /// The wheel index (0-based).
         index: usize,
+        /// The inferred ratio actual/nominal travel (not positive or not finite).
         k: f64,
     },
+    /// [`compose`] was given corrections for different wheel counts.
     WheelCountMismatch {
+        /// Wheel count of the first correction.
         first: usize,
+        /// Wheel count of the second correction.
         second: usize,
     },
 }
@@ -504,7 +547,7 @@ fn validate_path(p: usize, path: &PathRuns<'_>, wheel_count: usize) -> Result<()
 ///
 /// Per path, k_i is the mean over runs of (implied travel / nominal travel). A wheel
 /// driven on several paths gets the mean of its 1/k. Then f_lon = mean over driven wheels
-/// of 1/k_i and f_lat[i] = (1/k_i)/f_lon, so f_lon f_lat[i] = 1/k_i: every wheel delivers
+/// of 1/k_i and `f_lat[i] = (1/k_i)/f_lon`, so `f_lon f_lat[i] = 1/k_i`: every wheel delivers
 /// its nominal travel. A robot that stops short (x_err < 0) gets f_lon > 1.
 pub fn calibrate(
     paths: &[PathRuns<'_>],

@@ -49,13 +49,16 @@ impl RobotKind {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveType {
+    /// Stepper motors: the commanded rate becomes step pulses.
     Stepper,
+    /// DC motors under PI velocity control from their encoders.
     Dc,
 }
 
 /// Motor, gearing and encoder, common to all wheels.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct Drive {
+    /// Stepper or DC.
     pub kind: DriveType,
     /// Full steps per motor revolution (stepper only; 200 for 1.8 deg/step).
     pub steps_per_rev: u32,
@@ -99,7 +102,9 @@ impl Drive {
 /// One wheel, with Siegwart & Nourbakhsh's parameters (angles in radians).
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Wheel {
+    /// Unique name (`[a-z0-9_]+`, at most [`NAME_LEN`] characters).
     pub name: WheelName,
+    /// Wheel radius (m).
     pub radius_m: f64,
     /// Polar angle of the wheel centre from body x.
     pub alpha_rad: f64,
@@ -152,7 +157,9 @@ pub struct Legs {
     pub length_m: f64,
     /// Hip to hip along x.
     pub body_length_m: f64,
+    /// Body mass (kg).
     pub body_mass_kg: f64,
+    /// Mass of one leg (kg).
     pub leg_mass_kg: f64,
 }
 
@@ -178,28 +185,46 @@ impl Legs {
 /// A validated robot: construct with [`Robot::new`].
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Robot {
+    /// Free-text robot name (truncated to 32 characters).
     pub name: String<32>,
+    /// Differential drive, omni or wheeled-legged.
     pub kind: RobotKind,
+    /// Motor, gearing and encoder.
     pub drive: Drive,
+    /// The wheels, in the order used for wheel values everywhere.
     pub wheels: Vec<Wheel, MAX_WHEELS>,
+    /// Leg geometry (wheeled-legged robots only).
     pub legs: Option<Legs>,
 }
 
 /// Which value of a robot description is wrong.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Field {
+    /// `name`: a wheel's name.
     Name,
+    /// `kind`: the robot kind.
     Kind,
+    /// `wheels`: the wheel list as a whole.
     Wheels,
+    /// `radius_m`.
     RadiusM,
+    /// `alpha_deg`.
     AlphaDeg,
+    /// `l_m`.
     LM,
+    /// `beta_deg`.
     BetaDeg,
+    /// `gamma_deg`.
     GammaDeg,
+    /// `drive.steps_per_rev`.
     StepsPerRev,
+    /// `drive.microsteps`.
     Microsteps,
+    /// `drive.gear_ratio`.
     GearRatio,
+    /// `drive.encoder_counts_per_rev`.
     EncoderCountsPerRev,
+    /// `legs`: the leg geometry.
     Legs,
 }
 
@@ -227,23 +252,33 @@ impl Field {
 /// What is wrong with it.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum Problem {
+    /// NaN or infinite.
     NotFinite,
+    /// Must be positive; the value given.
     NotPositive(f64),
+    /// Must not be negative; the value given.
     Negative(f64),
     /// cos(gamma) = 0: the wheel's rollers are parallel to its axle and it cannot drive.
     RollerParallelToAxle,
+    /// Two wheels share a name.
     DuplicateName,
     /// Name empty, too long, or not `[a-z0-9_]+`.
     BadName,
+    /// Fewer than 2 wheels; the count given.
     TooFewWheels(usize),
+    /// More than [`MAX_WHEELS`] wheels; the count given.
     TooManyWheels(usize),
     /// The wheel constraints do not determine (vx, vy, omega): rank < 3.
     SingularJacobian,
     /// Legs given for a robot that is not wheeled_legged, or missing for one that is.
     LegsMismatch,
+    /// Wrong number of wheels for the kind (a differential drive has 2).
     WrongWheelCount {
+        /// The robot kind.
         kind: RobotKind,
+        /// Wheels the kind needs.
         expected: usize,
+        /// Wheels given.
         got: usize,
     },
 }
@@ -253,7 +288,9 @@ pub enum Problem {
 pub struct RobotError {
     /// Index and name of the wheel concerned.
     pub wheel: Option<(usize, WheelName)>,
+    /// Which value is wrong.
     pub field: Field,
+    /// What is wrong with it.
     pub problem: Problem,
 }
 

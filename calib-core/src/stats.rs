@@ -12,7 +12,12 @@ use core::fmt;
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum StatsError {
     /// The statistic needs more samples than were given.
-    TooFewSamples { need: usize, got: usize },
+    TooFewSamples {
+        /// Samples needed.
+        need: usize,
+        /// Samples given.
+        got: usize,
+    },
     /// A sample or parameter was NaN or infinite.
     NonFinite,
     /// All samples are equal, so a shape statistic (skewness, kurtosis) is undefined.

@@ -22,7 +22,9 @@ use core::fmt;
 /// End-position error of one square run: measured minus odometry, start frame, metres.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct Run {
+    /// End error along the first commanded leg (m).
     pub x_err_m: f64,
+    /// End error to the left of the first commanded leg (m).
     pub y_err_m: f64,
 }
 
@@ -50,13 +52,18 @@ fn turn_sign(d: Direction) -> f64 {
 pub enum UmbmarkError {
     /// Fewer runs than needed for a centroid and a standard deviation.
     TooFewRuns {
+        /// Direction of the runs concerned (`None` when not split by direction).
         direction: Option<Direction>,
+        /// Runs needed.
         need: usize,
+        /// Runs given.
         got: usize,
     },
     /// A run (0-based index) contains NaN or an infinite value.
     NonFiniteRun {
+        /// Direction of the runs concerned (`None` when not split by direction).
         direction: Option<Direction>,
+        /// Index of the run (0-based).
         index: usize,
     },
     /// The square side must be a positive finite length.
@@ -64,11 +71,24 @@ pub enum UmbmarkError {
     /// The nominal wheelbase must be a positive finite length.
     InvalidWheelbase(f64),
     /// E_d or E_b given to the forward model is not a positive finite ratio.
-    InvalidRatio { name: &'static str, value: f64 },
+    InvalidRatio {
+        /// Which ratio (`E_d` or `E_b`).
+        name: &'static str,
+        /// The value given.
+        value: f64,
+    },
     /// The centroids are outside what the model can explain (e.g. alpha >= 90 deg).
-    ErrorsTooLarge { alpha_rad: f64, beta_rad: f64 },
+    ErrorsTooLarge {
+        /// Borenstein's turn error alpha from the centroids (rad).
+        alpha_rad: f64,
+        /// Borenstein's leg curvature error beta from the centroids (rad).
+        beta_rad: f64,
+    },
     /// The exact fit did not converge within its iteration budget.
-    FitDidNotConverge { iterations: u32 },
+    FitDidNotConverge {
+        /// Iterations run.
+        iterations: u32,
+    },
 }
 
 impl fmt::Display for UmbmarkError {

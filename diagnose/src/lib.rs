@@ -15,6 +15,10 @@
 //!
 //! The entry point is [`diagnose`]; the console's `wheelcal diagnose` is a thin wrapper.
 
+// Documentation of every public item is under way (issue 15.5); until it is done the
+// workspace-wide `missing_docs` lint is relaxed for this crate only.
+#![allow(missing_docs)]
+
 pub mod actuator;
 pub mod calibrate;
 pub mod effects;

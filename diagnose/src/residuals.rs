@@ -382,8 +382,10 @@ impl<'a> Evaluator<'a> {
             let Some(enc) = &self.p.wheels[*i].enc_rad else {
                 continue;
             };
-            ev.free
-                .push((*i, self.wheel_residual(enc, pred, self.p.wheels[*i].radius_m, fit)));
+            ev.free.push((
+                *i,
+                self.wheel_residual(enc, pred, self.p.wheels[*i].radius_m, fit),
+            ));
         }
         let wheels = self.actuator_wheels();
         if !wheels.is_empty() {
@@ -392,8 +394,10 @@ impl<'a> Evaluator<'a> {
                 let (Some(enc), Some(model)) = (&self.p.wheels[i].enc_rad, &sim[i]) else {
                     continue;
                 };
-                ev.act
-                    .push((i, self.wheel_residual(enc, model, self.p.wheels[i].radius_m, fit)));
+                ev.act.push((
+                    i,
+                    self.wheel_residual(enc, model, self.p.wheels[i].radius_m, fit),
+                ));
             }
         }
         ev

@@ -58,7 +58,7 @@ pub struct Window {
 /// Per-row motion signals from the measured poses and nominal odometry.
 pub struct Signals {
     pub names: Vec<&'static str>,
-    /// [signal][row]
+    /// `[signal][row]`
     pub values: Vec<Vec<f64>>,
 }
 

@@ -27,7 +27,9 @@ const DT: f32 = 1.0 / TICK_HZ as f32;
 /// What the host asked to be written to flash.
 #[derive(Debug, Clone, PartialEq)]
 pub enum PersistItem {
+    /// New active corrections, to be saved.
     Corrections(Corrections),
+    /// New active parameters, to be saved.
     Params(Params),
 }
 
@@ -35,7 +37,9 @@ pub enum PersistItem {
 /// [`App::persisted`] once the (async) flash write is done.
 #[derive(Debug)]
 pub enum Handled<'a> {
+    /// Send this answer now.
     Reply(Response<'a>),
+    /// Write this to flash, then answer with [`App::persisted`].
     Persist(PersistItem),
 }
 
@@ -194,18 +198,22 @@ impl<'a> App<'a> {
         }
     }
 
+    /// The active parameters.
     pub fn params(&self) -> &Params {
         &self.params
     }
 
+    /// The active corrections.
     pub fn corrections(&self) -> &Corrections {
         &self.corrections
     }
 
+    /// The odometry pose (m, m, rad).
     pub fn pose(&self) -> Pose<f32> {
         self.odo.pose()
     }
 
+    /// The trial log.
     pub fn log(&self) -> &TrialLog<'a> {
         &self.log
     }

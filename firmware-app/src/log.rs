@@ -56,10 +56,12 @@ impl<'a> TrialLog<'a> {
         }
     }
 
+    /// Size of the log ring (bytes).
     pub fn capacity(&self) -> usize {
         self.buf.len()
     }
 
+    /// Free bytes of the log ring.
     pub fn free(&self) -> usize {
         self.buf.len() - (self.tail - self.head) as usize
     }
@@ -175,6 +177,7 @@ impl<'a> TrialLog<'a> {
         self.recording = false;
     }
 
+    /// The stored trials' headers, oldest first, and the eviction count.
     pub fn list(&self) -> Trials {
         Trials {
             trials: self.trials.iter().map(|e| e.info.clone()).collect(),
@@ -182,6 +185,7 @@ impl<'a> TrialLog<'a> {
         }
     }
 
+    /// Header of trial `id`, if it is still stored.
     pub fn info(&self, id: u16) -> Option<&TrialInfo> {
         self.trials
             .iter()

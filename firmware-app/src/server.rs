@@ -24,7 +24,12 @@ pub enum Step<'s> {
     /// Send these bytes.
     Send(&'s [u8]),
     /// Write `item` to flash, then send [`Server::reply`]`(seq, app.persisted(ok))`.
-    Persist { seq: u16, item: PersistItem },
+    Persist {
+        /// Sequence number of the request, for the reply.
+        seq: u16,
+        /// What to write.
+        item: PersistItem,
+    },
 }
 
 /// Framing state of one link.
@@ -52,6 +57,7 @@ fn fnv(b: &[u8]) -> u32 {
 }
 
 impl Server {
+    /// A server with no partial frame and nothing cached; usable in `const` context.
     pub const fn new() -> Self {
         Server {
             dec: FrameDecoder::new(),

@@ -44,8 +44,11 @@ pub enum StoreError {
 /// What boot found: values to run with and how they were obtained.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Loaded {
+    /// Parameters to run with (stored or defaults).
     pub params: Params,
+    /// Corrections to run with (stored or none).
     pub corrections: Corrections,
+    /// What was found for each item.
     pub boot: BootReport,
 }
 

@@ -20,7 +20,9 @@ pub struct WheelState {
     hist_at: usize,
     /// Counts moved over the window.
     rate_counts: i64,
+    /// Velocity controller (DC drives).
     pub pi: PiController,
+    /// Step generator (stepper drives).
     pub steps: StepAccumulator,
     /// Commanded rate, rad/s (corrections applied).
     pub cmd: f32,
@@ -33,6 +35,7 @@ pub struct WheelState {
 }
 
 impl WheelState {
+    /// A wheel with these gains and steps per wheel radian, before its first encoder reading.
     pub fn new(gains: PiGains, steps_per_rad: f64) -> Self {
         WheelState {
             ext: None,

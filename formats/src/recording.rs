@@ -14,6 +14,7 @@ use std::path::{Path, PathBuf};
 /// The columns of one wheel.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct WheelSeries {
+    /// Wheel name, as in the robot file (column prefix).
     pub name: String,
     /// Commanded wheel rate, rad/s; `None` in a row = not recorded at that instant.
     pub cmd: Option<Vec<Option<f64>>>,
@@ -28,10 +29,15 @@ pub struct Recording {
     pub t: Vec<f64>,
     /// One entry per wheel of the robot file, in its order.
     pub wheels: Vec<WheelSeries>,
+    /// Measured x of the body origin, world frame (m); `None` = no measurement in that row.
     pub x: Vec<Option<f64>>,
+    /// Measured y of the body origin, world frame (m); `None` = no measurement in that row.
     pub y: Vec<Option<f64>>,
+    /// Measured heading (rad, wrapped or unwrapped); `None` = no measurement in that row.
     pub theta: Vec<Option<f64>>,
+    /// Front leg angle per row (rad), wheeled-legged robots only.
     pub leg_front: Option<Vec<Option<f64>>>,
+    /// Rear leg angle per row (rad), wheeled-legged robots only.
     pub leg_rear: Option<Vec<Option<f64>>>,
     /// Notes for the reader (ignored unknown columns).
     pub notes: Vec<String>,
@@ -40,11 +46,13 @@ pub struct Recording {
 /// A recording that could not be read.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RecordingError {
+    /// The file.
     pub path: PathBuf,
     /// 1-based line (the header is line 1).
     pub line: Option<usize>,
     /// 1-based column number and the column's name.
     pub column: Option<(usize, String)>,
+    /// What is wrong.
     pub message: String,
 }
 
@@ -105,6 +113,7 @@ impl Recording {
         self.t.len()
     }
 
+    /// Whether there are no rows.
     pub fn is_empty(&self) -> bool {
         self.t.is_empty()
     }
@@ -461,10 +470,15 @@ impl Recording {
 /// One row to append with [`Recording::push_row`].
 #[derive(Debug, Clone, Copy, Default)]
 pub struct Row<'a> {
+    /// Time since start (s).
     pub t: f64,
+    /// Commanded wheel rates (rad/s), one per wheel.
     pub cmd: Option<&'a [f64]>,
+    /// Cumulative encoder counts, one per wheel.
     pub enc: Option<&'a [i64]>,
+    /// Measured pose (x m, y m, theta rad).
     pub pose: Option<(f64, f64, f64)>,
+    /// Leg angles (front, rear) in rad.
     pub legs: Option<(f64, f64)>,
 }
 

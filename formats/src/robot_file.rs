@@ -126,10 +126,13 @@ struct LegsFile {
 /// A robot file that could not be read: where and why.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RobotFileError {
+    /// The file.
     pub path: PathBuf,
     /// 1-based line and column, when known.
     pub line: Option<usize>,
+    /// 1-based column, when known.
     pub column: Option<usize>,
+    /// What is wrong.
     pub message: String,
 }
 

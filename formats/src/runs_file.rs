@@ -13,7 +13,9 @@ use std::path::{Path, PathBuf};
 /// Which calibration a run belongs to.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum TestKind {
+    /// UMBmark square runs (differential drive).
     Umbmark,
+    /// Omni straight-path runs (001).
     Omni,
 }
 
@@ -21,11 +23,14 @@ pub enum TestKind {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Phase {
+    /// Measured before the calibration factors were applied (the default).
     Before,
+    /// Measured with the new factors applied.
     After,
 }
 
 impl Phase {
+    /// Lower-case name as written in the file's `phase` column.
     pub fn as_str(self) -> &'static str {
         match self {
             Phase::Before => "before",
@@ -39,13 +44,19 @@ impl Phase {
 pub struct RunRow {
     /// Line in the file (1 = header); 0 for rows not read from a file.
     pub line: usize,
+    /// Which calibration.
     pub test: TestKind,
     /// `cw`/`ccw` for UMBmark; a path name such as `4W-1` for omni.
     pub path: String,
+    /// UMBmark: side L of the square; omni: commanded straight length (m).
     pub length_m: f64,
+    /// End error along the commanded direction (m), measured minus odometry.
     pub x_err_m: f64,
+    /// End error to the left of the commanded direction (m), measured minus odometry.
     pub y_err_m: f64,
+    /// End heading error (rad), measured minus odometry, when measured.
     pub theta_err_rad: Option<f64>,
+    /// Before or after the factors were applied.
     pub phase: Phase,
 }
 
@@ -63,9 +74,13 @@ impl RunRow {
 /// A problem with a runs file.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunsError {
+    /// The file.
     pub path: PathBuf,
+    /// 1-based line (1 = header), when known.
     pub line: Option<usize>,
+    /// The column's name, when known.
     pub column: Option<String>,
+    /// What is wrong.
     pub message: String,
 }
 
@@ -88,25 +103,31 @@ impl std::error::Error for RunsError {}
 /// A runs file in memory.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RunsFile {
+    /// The file (named in error messages).
     pub path: PathBuf,
+    /// The rows, in file order.
     pub rows: Vec<RunRow>,
 }
 
 /// UMBmark runs of one phase, checked.
 #[derive(Debug, Clone, PartialEq)]
 pub struct UmbmarkRuns {
+    /// Side of the square (m).
     pub side_m: f64,
     /// (x_err, y_err) per run.
     pub cw: Vec<(f64, f64)>,
+    /// (x_err, y_err) per ccw run (m).
     pub ccw: Vec<(f64, f64)>,
 }
 
 /// Omni runs of one path and phase.
 #[derive(Debug, Clone, PartialEq)]
 pub struct OmniPathRuns {
+    /// Path name as in the file (e.g. `4W-1`).
     pub path: String,
     /// 001's named path, when it is one.
     pub omni_path: Option<OmniPath>,
+    /// Commanded straight length (m).
     pub length_m: f64,
     /// (x_err, y_err, theta_err) per run.
     pub runs: Vec<(f64, f64, Option<f64>)>,
@@ -123,6 +144,7 @@ const HEADER: [&str; 7] = [
 ];
 
 impl RunsFile {
+    /// An empty runs file named `path` (nothing is read or written).
     pub fn new(path: &Path) -> Self {
         RunsFile {
             path: path.to_path_buf(),

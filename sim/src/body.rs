@@ -28,11 +28,13 @@ const INERTIA_WEIGHT2: f64 = 1e-14;
 pub struct WheelGeom {
     /// Contact point in the body frame.
     pub x: f64,
+    /// Contact point y in the body frame (m).
     pub y: f64,
     /// Siegwart's rolling row: dotted with the body twist gives r cos(gamma) phidot.
     pub row: [f64; 3],
     /// Effective rolling radius r cos(gamma).
     pub r_eff: f64,
+    /// Whether a motor drives the wheel.
     pub driven: bool,
 }
 
@@ -46,6 +48,7 @@ impl WheelGeom {
 /// Geometry plus the precomputed least-squares gains.
 #[derive(Debug, Clone, PartialEq)]
 pub struct Geometry {
+    /// The wheels, in the robot's order.
     pub wheels: Vec<WheelGeom>,
     /// Body twist = sum over driven wheels of gain[i] * contact speed[i] + hold * previous.
     gain: Vec<[f64; 3]>,

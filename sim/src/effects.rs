@@ -16,25 +16,36 @@ pub enum Effect {
     /// `ed` = D_right / D_left (differential drive, mean diameter kept), and/or
     /// `radius_scale_<wheel>` = actual / nominal radius of one wheel.
     WheelDiameterMismatch {
+        /// D_right / D_left (differential drive), if given.
         ed: Option<f64>,
+        /// (wheel name, actual / nominal radius) per `radius_scale_<wheel>` given.
         radius_scale: Vec<(String, f64)>,
     },
     /// `eb` = actual / nominal wheel separation (every wheel's l).
-    WheelbaseError { eb: f64 },
+    WheelbaseError {
+        /// Actual / nominal wheel separation.
+        eb: f64,
+    },
     /// `mu`: acceleration bounded by mu * g * (load share on driven wheels). Mechanisms:
     /// `wheel` (each wheel's contact speed, the default), `body` (the body's linear
     /// acceleration; heading unaffected), `creep` (no hard limit: each contact slips by
     /// `creep_s` times its acceleration, i.e. slip proportional to the drive force).
     LongitudinalSlip {
+        /// Friction coefficient (dimensionless).
         mu: f64,
+        /// How the effect is produced (see the variant's doc).
         mechanism: Mechanism,
+        /// `creep`: slip per unit of contact acceleration (s).
         creep_s: f64,
     },
     /// `side_slip_s` = k in v_y = -k * v_x * omega (`linear`), or `saturating`:
     /// v_y = -sat tanh(k v_x omega / sat) with `sat_m_s` the largest side-slip speed.
     LateralSlip {
+        /// k in v_y = -k * v_x * omega (s).
         side_slip_s: f64,
+        /// How the effect is produced (see the variant's doc).
         mechanism: Mechanism,
+        /// `saturating`: largest side-slip speed (m/s).
         sat_m_s: f64,
     },
     /// `spacing_m`, `loss_m`: cables across the floor (perpendicular to world x), each
@@ -42,19 +53,28 @@ pub enum Effect {
     /// (only for `start_m` <= world x <= `end_m`), `irregular` (each cable moved by up to
     /// `jitter` spacings, pseudo-randomly).
     FloorBumps {
+        /// Distance between cables along world x (m).
         spacing_m: f64,
+        /// Travel a wheel loses crossing one cable (m).
         loss_m: f64,
+        /// How the effect is produced (see the variant's doc).
         mechanism: Mechanism,
+        /// `region`: where the cables start, world x (m).
         start_m: f64,
+        /// `region`: where the cables end, world x (m).
         end_m: f64,
+        /// `irregular`: largest shift of a cable, in spacings.
         jitter: f64,
     },
     /// `backlash_rad`: total dead band between motor and wheel, in wheel radians
     /// (`symmetric`), or `asymmetric`: `backlash_rad * (1 + asymmetry)` lost when the motor
     /// turns forward again, `backlash_rad * (1 - asymmetry)` when it turns backward.
     Backlash {
+        /// Total dead band between motor and wheel (wheel rad).
         backlash_rad: f64,
+        /// How the effect is produced (see the variant's doc).
         mechanism: Mechanism,
+        /// `asymmetric`: the share by which forward and backward play differ.
         asymmetry: f64,
     },
     /// `max_accel_rad_s2`: the stepper loses synchronism above this wheel acceleration.
@@ -63,25 +83,38 @@ pub enum Effect {
     /// at random, `rate_hz` times a second on average), `stall` (over the limit the rotor
     /// stops until the command comes back to rest).
     MissedSteps {
+        /// Largest wheel acceleration the stepper follows (rad/s^2).
         max_accel_rad_s2: f64,
+        /// How the effect is produced (see the variant's doc).
         mechanism: Mechanism,
+        /// `quanta`: mean rate of dropped electrical cycles while over the limit (Hz).
         rate_hz: f64,
     },
     /// `tau_s`: first-order lag of the wheel rate behind the command (`first_order`), or a
     /// pure transport `delay` of `tau_s`, or a `slew` limit of `slew_rad_s2` on the rate.
     MotorLag {
+        /// Time constant (first order) or delay (s).
         tau_s: f64,
+        /// How the effect is produced (see the variant's doc).
         mechanism: Mechanism,
+        /// `slew`: largest change of the wheel rate (rad/s^2).
         slew_rad_s2: f64,
     },
     /// `deadband_rad_s`: the wheel stays still while |command| is below it (`dead_band`).
     CoulombFriction {
+        /// Command below which the wheel stays still (rad/s).
         deadband_rad_s: f64,
+        /// How the effect is produced (see the variant's doc).
         mechanism: Mechanism,
     },
     /// Not in the catalogue: a constant world drift `drift_m_s` towards `direction_rad`
     /// while the robot moves.
-    TiltedFloor { drift_m_s: f64, direction_rad: f64 },
+    TiltedFloor {
+        /// Drift speed while moving (m/s).
+        drift_m_s: f64,
+        /// World direction of the drift (rad).
+        direction_rad: f64,
+    },
 }
 
 /// The catalogue ids, in issue 7's order, plus the out-of-catalogue control.
@@ -160,6 +193,7 @@ impl Mechanism {
         (Mechanism::DeadBand, "dead_band", "coulomb_friction"),
     ];
 
+    /// The name used in `--effect ID=...,mechanism:NAME`.
     pub fn name(self) -> &'static str {
         Mechanism::ALL
             .iter()
@@ -192,29 +226,43 @@ impl Mechanism {
 /// A bad effect string or parameter.
 #[derive(Debug, Clone, PartialEq)]
 pub enum EffectError {
+    /// An id not in [`EFFECT_IDS`].
     UnknownEffect(String),
+    /// A parameter the effect does not have.
     UnknownParameter {
+        /// The effect's id.
         effect: String,
+        /// The parameter's name.
         name: String,
     },
     /// `name:value` without a colon, or a value that is not a number.
     Malformed {
+        /// The offending text.
         text: String,
+        /// What is wrong with it.
         reason: String,
     },
     /// A value outside what is physically possible.
     OutOfRange {
+        /// The effect's id.
         effect: &'static str,
+        /// The parameter's name.
         name: String,
+        /// The value given.
         value: f64,
+        /// What the value must be (e.g. "within [0.5, 2]").
         expected: &'static str,
     },
+    /// A required parameter is missing.
     MissingParameter {
+        /// The effect's id.
         effect: &'static str,
+        /// The parameter's name.
         name: &'static str,
     },
     /// `radius_scale_<wheel>` names a wheel the robot does not have.
     UnknownWheel {
+        /// The wheel name given.
         name: String,
     },
 }
@@ -783,17 +831,23 @@ pub struct Faults {
 /// Which mechanism produces each effect, with the parameters only some mechanisms have.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct MechanismFaults {
+    /// How longitudinal slip is produced.
     pub slip: Mechanism,
     /// Creep: slip speed per unit contact acceleration, s.
     pub creep_s: f64,
+    /// How lateral slip is produced.
     pub lateral: Mechanism,
     /// Saturating lateral slip: largest side-slip speed, m/s.
     pub lateral_sat_m_s: f64,
+    /// Symmetric or asymmetric backlash.
     pub backlash: Mechanism,
+    /// Asymmetric backlash: the share by which forward and backward play differ.
     pub backlash_asymmetry: f64,
+    /// How a stepper misses steps.
     pub missed: Mechanism,
     /// Quanta: mean drops per second while over the limit.
     pub missed_rate_hz: f64,
+    /// How the wheel rate lags the command.
     pub lag: Mechanism,
     /// Slew: largest change of the wheel rate, rad/s^2 (`None`: no slew limit).
     pub slew_rad_s2: Option<f64>,

@@ -10,23 +10,34 @@ pub enum SimError {
     Effect(EffectError),
     /// A configuration value out of range: which one and why.
     Config {
+        /// The configuration value's name.
         field: &'static str,
+        /// Why it is refused.
         message: String,
     },
     /// The effect does not apply to this robot (e.g. missed steps on a DC drive).
     NotApplicable {
+        /// The effect's id.
         effect: &'static str,
+        /// Why it does not apply.
         reason: String,
     },
     /// The driven wheels (with the faults applied) cannot determine the body motion.
     SingularGeometry,
     /// `step` got a different number of inputs than the robot has wheels.
-    InputCount { expected: usize, got: usize },
+    InputCount {
+        /// Wheels the robot has.
+        expected: usize,
+        /// Inputs given.
+        got: usize,
+    },
     /// A robot description built by the simulator failed calib-core's validation.
     Robot(calib_core::robot::RobotError),
     /// Writing a recording failed.
     Io {
+        /// The file.
         path: std::path::PathBuf,
+        /// The I/O error.
         error: std::io::Error,
     },
 }

@@ -38,9 +38,13 @@ const COAST_DECEL_RAD_S2: f64 = 5.0;
 /// Ground-stage parameters (from [`crate::Faults`]).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct GroundParams {
+    /// Friction coefficient; `None` = unlimited traction (pure rolling).
     pub mu: Option<f64>,
+    /// Share of the weight on the driven wheels (0..1).
     pub driven_load_share: f64,
+    /// k in v_y = -k v_x omega (s).
     pub side_slip_s: f64,
+    /// Random walk of each wheel's travel, metres per square-root metre travelled.
     pub travel_noise_m_per_sqrt_m: f64,
     /// Mechanisms of the traction and side-slip effects (issue 11).
     pub mech: crate::effects::MechanismFaults,
@@ -49,6 +53,7 @@ pub struct GroundParams {
 /// The body's state on the ground.
 #[derive(Debug, Clone)]
 pub struct Ground {
+    /// Pose in the world frame (m, m, rad).
     pub pose: Pose<f64>,
     /// Twist imposed by the wheels (before side slip and drift), body frame.
     pub wheel_twist: Twist<f64>,
@@ -62,6 +67,7 @@ pub struct Ground {
 }
 
 impl Ground {
+    /// A body at rest at `start` with `n_wheels` wheels.
     pub fn new(start: Pose<f64>, n_wheels: usize) -> Self {
         Ground {
             pose: start,

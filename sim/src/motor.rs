@@ -81,6 +81,7 @@ impl DcParams {
 /// One motor's state.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DcMotor {
+    /// Motor constants.
     pub params: DcParams,
     /// Motor shaft speed, rad/s.
     pub omega: f64,
@@ -90,6 +91,7 @@ pub struct DcMotor {
 }
 
 impl DcMotor {
+    /// A motor at rest with these constants.
     pub fn new(params: DcParams) -> Self {
         DcMotor {
             params,

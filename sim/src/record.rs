@@ -27,13 +27,19 @@ use std::path::Path;
 /// straight runs, arcs, turns on the spot, reversals and pauses.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct RandomMotion {
+    /// Length of the run (s).
     pub duration_s: f64,
+    /// Largest forward speed (m/s).
     pub v_max_m_s: f64,
+    /// Largest yaw rate (rad/s).
     pub omega_max_rad_s: f64,
+    /// Largest linear acceleration (m/s^2).
     pub a_max_m_s2: f64,
+    /// Largest angular acceleration (rad/s^2).
     pub alpha_max_rad_s2: f64,
     /// Shortest and longest time one target is held.
     pub segment_min_s: f64,
+    /// Longest time one target is held (s).
     pub segment_max_s: f64,
 }
 
@@ -56,7 +62,9 @@ impl Default for RandomMotion {
 pub enum Motion {
     /// A calib-core motion program (UMBmark square, omni path, custom segments).
     Program {
+        /// The program.
         program: Box<Program>,
+        /// Speed and acceleration limits it runs with.
         limits: ProfileLimits,
     },
     /// A generated trajectory, seeded from the run's seed.
@@ -66,20 +74,29 @@ pub enum Motion {
 /// Leg angles over a run (wheeled-legged robots), rad.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub enum LegMotion {
+    /// Constant leg angles.
     Fixed {
+        /// Front leg angle (rad).
         front: f64,
+        /// Rear leg angle (rad).
         rear: f64,
     },
     /// Linear from `from` to `to` (front, rear) over `duration_s`, then held.
     Sweep {
+        /// Start angles (front, rear), rad.
         from: (f64, f64),
+        /// End angles (front, rear), rad.
         to: (f64, f64),
+        /// Time of the sweep (s).
         duration_s: f64,
     },
     /// Smooth random sweeps within [min, max], a new target every `period_s`.
     Random {
+        /// Smallest angle (rad).
         min: f64,
+        /// Largest angle (rad).
         max: f64,
+        /// Time between targets (s).
         period_s: f64,
     },
 }
@@ -132,12 +149,15 @@ pub enum ActuatorMode {
 /// Rates and the simulation settings of a recording.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RecordConfig {
+    /// Sensors, start pose and surface of the run.
     pub sim: SimConfig,
     /// Control tick, s (1 kHz).
     pub dt_s: f64,
     /// Rows per second written (encoders and commands are sampled on every row).
     pub row_rate_hz: f64,
+    /// Leg angles over the run (wheeled-legged robots).
     pub legs: LegMotion,
+    /// How commands reach the wheels.
     pub actuator: ActuatorMode,
 }
 
@@ -159,7 +179,9 @@ impl Default for RecordConfig {
 /// One row of the ground truth.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct TruthRow {
+    /// Time since start (s).
     pub t: f64,
+    /// True pose in the world frame (m, m, rad).
     pub pose: Pose<f64>,
     /// Body twist over the tick before `t`, body frame.
     pub twist: Twist<f64>,
@@ -170,8 +192,11 @@ pub struct TruthRow {
 pub struct SimRecording {
     /// The nominal robot (what goes beside the CSV).
     pub robot: Robot,
+    /// The effects simulated.
     pub effects: Vec<Effect>,
+    /// Seed of the random generator (same seed, same recording).
     pub seed: u64,
+    /// The recording as a robot would log it.
     pub recording: Recording,
     /// One per recording row.
     pub truth: Vec<TruthRow>,

@@ -36,15 +36,20 @@ pub enum EncoderMount {
 pub struct SimConfig {
     /// Seeds every random stream (roughness, sensors, counter start values).
     pub seed: u64,
+    /// Where the encoders sit (wheel or motor shaft).
     pub encoder_mount: EncoderMount,
     /// DC motor constants; `None` = [`DcParams::typical`] with a 20 rad/s no-load wheel
     /// speed.
     pub dc: Option<DcParams>,
+    /// Position sensor (camera) settings.
     pub vision: VisionConfig,
+    /// Gyroscope settings.
     pub imu: ImuConfig,
+    /// Start pose in the world frame (m, m, rad).
     pub start: Pose<f64>,
     /// Initial leg angles (wheeled-legged robots), rad; pi/2 = vertical.
     pub leg_front_rad: f64,
+    /// Initial rear leg angle (wheeled-legged robots), rad; pi/2 = vertical.
     pub leg_rear_rad: f64,
     /// Start the 16-bit counters at random values (as hardware does) rather than 0.
     pub random_counter_start: bool,
@@ -317,6 +322,7 @@ impl SimRobot {
         self.t
     }
 
+    /// Number of wheels.
     pub fn wheel_count(&self) -> usize {
         self.actuators.len()
     }
@@ -331,10 +337,12 @@ impl SimRobot {
         &self.actual
     }
 
+    /// The fault numbers the run uses (effects folded in).
     pub fn faults(&self) -> &Faults {
         &self.faults
     }
 
+    /// The floor the robot runs on.
     pub fn surface(&self) -> &Surface {
         &self.surface
     }

@@ -29,6 +29,7 @@ impl Default for VisionConfig {
 }
 
 impl VisionConfig {
+    /// Checks every setting is finite and in range.
     pub fn validate(&self) -> Result<(), SimError> {
         check_range("vision.rate_hz", self.rate_hz, 1e-3, 1e6)?;
         check_range("vision.sigma_xy_m", self.sigma_xy_m, 0.0, 10.0)?;
@@ -49,6 +50,7 @@ impl VisionConfig {
 /// Gyro yaw rate: truth + constant bias + white noise.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct ImuConfig {
+    /// Constant bias (rad/s).
     pub bias_rad_s: f64,
     /// Standard deviation per sample, rad/s.
     pub sigma_rad_s: f64,
@@ -65,11 +67,13 @@ impl Default for ImuConfig {
 }
 
 impl ImuConfig {
+    /// Checks every setting is finite and in range.
     pub fn validate(&self) -> Result<(), SimError> {
         check_range("imu.bias_rad_s", self.bias_rad_s, -10.0, 10.0)?;
         check_range("imu.sigma_rad_s", self.sigma_rad_s, 0.0, 10.0)
     }
 
+    /// A noisy measurement of `true_rate` (rad/s).
     pub fn measure<R: Rng>(&self, true_rate: f64, rng: &mut R) -> f64 {
         true_rate + self.bias_rad_s + self.sigma_rad_s * rng.sample::<f64, _>(StandardNormal)
     }

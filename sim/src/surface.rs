@@ -13,12 +13,17 @@
 /// lines x = k * spacing_m across the whole floor.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct CableStrip {
+    /// Distance between cables along the normal (m).
     pub spacing_m: f64,
+    /// Travel a wheel loses crossing one cable (m).
     pub loss_m: f64,
+    /// Direction of the cables' normal from world x (rad).
     pub normal_rad: f64,
+    /// Position of cable 0 along the normal (m).
     pub offset_m: f64,
     /// Cables only where `start_m <= n . p <= end_m` (a strip); infinite by default.
     pub start_m: f64,
+    /// Upper end of the strip along the normal (m).
     pub end_m: f64,
     /// Irregular spacing: cable k sits up to `jitter` spacings (< 0.5) off its regular
     /// place, by a fixed pseudo-random amount per cable (0 = regular).
@@ -83,10 +88,15 @@ impl CableStrip {
 /// An axis-aligned rectangle of the floor where friction is `mu_scale` times the rest.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Patch {
+    /// Lower x bound (m).
     pub x_min: f64,
+    /// Upper x bound (m).
     pub x_max: f64,
+    /// Lower y bound (m).
     pub y_min: f64,
+    /// Upper y bound (m).
     pub y_max: f64,
+    /// Friction multiplier inside the patch.
     pub mu_scale: f64,
 }
 
@@ -94,6 +104,7 @@ pub struct Patch {
 /// drift velocity. Outside the diagnose catalogue on purpose (its "unexplained" control).
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct Tilt {
+    /// Drift speed while moving (m/s).
     pub drift_m_s: f64,
     /// Downhill direction from world x.
     pub direction_rad: f64,
@@ -102,8 +113,11 @@ pub struct Tilt {
 /// The floor the robot drives on: flat unless features are added.
 #[derive(Debug, Clone, PartialEq, Default)]
 pub struct Surface {
+    /// Cable strip, if any.
     pub cables: Option<CableStrip>,
+    /// Low-friction patches.
     pub patches: Vec<Patch>,
+    /// Tilt, if any.
     pub tilt: Option<Tilt>,
 }
 

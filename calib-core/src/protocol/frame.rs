@@ -33,7 +33,9 @@ impl core::error::Error for FrameError {}
 /// An intact frame: its sequence number and postcard body.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct Frame<'a> {
+    /// Sequence number (responses echo the request's).
     pub seq: u16,
+    /// The postcard-encoded message.
     pub body: &'a [u8],
 }
 
@@ -163,6 +165,7 @@ impl Default for FrameDecoder {
 }
 
 impl FrameDecoder {
+    /// An empty decoder; usable in `const` context.
     pub const fn new() -> Self {
         FrameDecoder {
             buf: [0; MAX_WIRE],

@@ -6,6 +6,7 @@ use super::*;
 /// The trial list.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Trials {
+    /// Trials still stored, oldest first.
     pub trials: Vec<TrialInfo, MAX_TRIALS>,
     /// Trials evicted since boot to make room for newer ones.
     pub evicted: u32,
@@ -14,50 +15,85 @@ pub struct Trials {
 /// A trial's header.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct TrialInfo {
+    /// Trial id (from 1, wrapping; never 0).
     pub id: u16,
+    /// What was run.
     pub program: ProgramKind,
     /// Board uptime at the first record.
     pub start_ms: u64,
+    /// Record rate (Hz): the control rate divided by the decimation.
     pub rate_hz: u16,
+    /// Wheels per record.
     pub wheel_count: u8,
+    /// Bytes per record ([`record_size`] of `wheel_count`).
     pub record_size: u16,
     /// Records stored (`bytes / record_size`).
     pub records: u32,
+    /// Bytes stored.
     pub bytes: u32,
     /// Records not stored because the log was full: the trial is missing its end.
     pub dropped: u32,
+    /// How the trial ended (`Running` while it records).
     pub end: TrialEnd,
     /// Corrections in force during the trial.
     pub corrections: Corrections,
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+/// What a trial ran, kept in its header.
 pub enum ProgramKind {
+    /// Driving by twist commands rather than a program.
     Drive,
-    Umbmark { side_m: f32, dir: Direction },
-    Omni { path: OmniPath, length_m: f32 },
-    Custom { segments: u8 },
+    /// UMBmark square.
+    Umbmark {
+        /// Side length (m).
+        side_m: f32,
+        /// Turning sense.
+        dir: Direction,
+    },
+    /// One of 001's straight omni paths.
+    Omni {
+        /// Which path.
+        path: OmniPath,
+        /// Commanded length (m).
+        length_m: f32,
+    },
+    /// A segment list from the host.
+    Custom {
+        /// Number of segments.
+        segments: u8,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+/// How a trial ended.
 pub enum TrialEnd {
+    /// Still recording.
     Running,
+    /// The program ran to its end.
     Completed,
+    /// Stopped by request (or by the start of another trial).
     Stopped,
+    /// Cut by an emergency stop.
     EStop,
+    /// Cut by a wheel fault (stall or counter jump).
     Fault,
+    /// Cut because twist commands stopped arriving within the command timeout.
     CommandTimeout,
 }
 
 /// Part of a trial's record bytes.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct LogChunk<'a> {
+    /// Trial id.
     pub trial: u16,
+    /// Byte offset of `data` within the trial's records.
     pub offset: u32,
     /// The trial's length in bytes so far (grows while it runs).
     pub total: u32,
     #[serde(borrow)]
+    /// The bytes.
     pub data: Bytes<'a>,
 }
 
@@ -96,6 +132,7 @@ pub struct Record {
     pub counts: [i32; MAX_WHEELS],
     /// Commanded wheel rates, rad/s.
     pub cmd: [f32; MAX_WHEELS],
+    /// Dead-reckoned pose (m, m, rad) in the trial's frame.
     pub pose: Pose<f32>,
 }
 

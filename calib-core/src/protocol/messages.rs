@@ -11,10 +11,14 @@ use super::*;
 pub enum Request {
     /// Variant 0, frozen: the handshake.
     Hello {
+        /// The host's [`PROTOCOL_VERSION`].
         protocol_version: u16,
+        /// The host's [`SCHEMA_FINGERPRINT`].
         schema: u32,
     },
+    /// Asks for [`Info`].
     GetInfo,
+    /// Asks for the active corrections.
     GetCorrections,
     /// Makes these the active corrections (validated; not persisted until saved).
     SetCorrections(Corrections),
@@ -22,21 +26,27 @@ pub enum Request {
     SaveCorrections,
     /// Active corrections back to none (persist with SaveCorrections).
     ResetCorrections,
+    /// Asks for the active parameters.
     GetParams,
     /// Replaces robot geometry, gains, limits and safety settings (validated; idle only).
     SetParams(Params),
+    /// Persists the active parameters.
     SaveParams,
     /// Active parameters back to the firmware's defaults (idle only).
     ResetParams,
     /// Drive at a body twist until the next Drive, or stop after `timeout_ms` (0 = the
     /// configured command timeout; longer values are capped by it).
     Drive {
+        /// Body twist (m/s, m/s, rad/s).
         twist: Twist<f32>,
+        /// Command timeout (ms); 0 = the configured one.
         timeout_ms: u16,
     },
     /// Run a motion program, logging a trial at `log_rate_hz` (0 = no log).
     RunProgram {
+        /// The program.
         program: ProgramSpec,
+        /// Log rate (Hz); 0 = no log.
         log_rate_hz: u16,
     },
     /// Controlled stop (ramps to zero through the controllers).
@@ -45,19 +55,26 @@ pub enum Request {
     EStop,
     /// Clears a latched E-stop or fault.
     ClearFault,
+    /// Asks for [`Status`].
     GetStatus,
     /// Unsolicited status frames every `period_ms` (0 = off).
     SetTelemetry {
+        /// Telemetry period (ms); 0 = off.
         period_ms: u16,
     },
+    /// Asks for the trial list.
     ListTrials,
     /// Bytes `offset..offset+max_len` of a trial's records (resumable: ask again from the
     /// offset reached).
     ReadLog {
+        /// Trial id.
         trial: u16,
+        /// First byte wanted (from the start of the trial's records).
         offset: u32,
+        /// Most bytes wanted (the board sends at most [`MAX_LOG_CHUNK`]).
         max_len: u16,
     },
+    /// Deletes every stored trial.
     ClearLogs,
 }
 
@@ -68,20 +85,31 @@ pub enum Request {
 pub enum Response<'a> {
     /// Variant 0, frozen: the handshake answer; `compatible` is false on a mismatch.
     Hello {
+        /// The board's [`PROTOCOL_VERSION`].
         protocol_version: u16,
+        /// The board's [`SCHEMA_FINGERPRINT`].
         schema: u32,
+        /// Firmware version text.
         firmware: String<FIRMWARE_LEN>,
+        /// Whether the host's version and schema match the board's.
         compatible: bool,
     },
+    /// Done (for requests with nothing to return).
     Ok,
+    /// Answer to [`Request::GetInfo`].
     Info(Info),
+    /// Answer to [`Request::GetCorrections`].
     Corrections(Corrections),
+    /// Answer to [`Request::GetParams`].
     Params(Params),
+    /// Answer to [`Request::GetStatus`].
     Status(Status),
     /// Unsolicited, every telemetry period.
     Telemetry(Status),
+    /// Answer to [`Request::ListTrials`].
     Trials(Trials),
     #[serde(borrow)]
+    /// Answer to [`Request::ReadLog`].
     LogChunk(LogChunk<'a>),
     /// The request was refused and nothing changed.
     Rejected(Rejection),
@@ -92,13 +120,21 @@ pub enum Response<'a> {
 /// Everything a board reports about itself.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Info {
+    /// Firmware version text.
     pub firmware: String<FIRMWARE_LEN>,
+    /// The board's [`PROTOCOL_VERSION`].
     pub protocol_version: u16,
+    /// The board's [`SCHEMA_FINGERPRINT`].
     pub schema: u32,
+    /// Kind of the configured robot.
     pub robot_kind: RobotKind,
+    /// How its wheels are driven.
     pub drive: DriveType,
+    /// Wheels of the configured robot.
     pub wheel_count: u8,
+    /// Time since boot (ms).
     pub uptime_ms: u64,
+    /// What was found in flash at boot.
     pub boot: BootReport,
     /// Bytes of trial-log RAM.
     pub log_capacity: u32,
@@ -109,7 +145,9 @@ pub struct Info {
 /// What the board found in flash at boot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub struct BootReport {
+    /// State of the stored corrections.
     pub corrections: Stored,
+    /// State of the stored parameters.
     pub params: Stored,
 }
 
@@ -130,7 +168,9 @@ pub enum Stored {
 /// Live state of a board.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Status {
+    /// Time since boot (ms).
     pub uptime_ms: u64,
+    /// What the board is doing.
     pub mode: Mode,
     /// Why the motors last stopped.
     pub stop: StopReason,
@@ -158,20 +198,36 @@ pub struct Status {
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+/// What the board is doing.
 pub enum Mode {
+    /// No drive or program under way (the twist ramps down to zero).
     Idle,
+    /// Driving by twist commands ([`Request::Drive`]).
     Drive,
-    Program { segment: u8, segments: u8 },
+    /// Running a program.
+    Program {
+        /// Index of the segment under way (0-based).
+        segment: u8,
+        /// Segments in the program.
+        segments: u8,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
+/// Why the motors last stopped.
 pub enum StopReason {
+    /// Not stopped since boot or the last program start.
     None,
+    /// [`Request::Stop`].
     Request,
+    /// [`Request::EStop`].
     EStop,
+    /// No new twist command within the command timeout.
     CommandTimeout,
+    /// A fault was detected (see [`Fault`]).
     Fault,
+    /// The program ran to its end.
     ProgramDone,
 }
 
@@ -180,20 +236,34 @@ pub enum StopReason {
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Fault {
     /// Commanded but the encoder did not move.
-    Stall { wheel: u8 },
+    Stall {
+        /// Wheel index (0-based).
+        wheel: u8,
+    },
     /// The encoder moved implausibly far in one tick.
-    CounterJump { wheel: u8, delta: i32 },
+    CounterJump {
+        /// Wheel index (0-based).
+        wheel: u8,
+        /// The movement seen in one tick (counts).
+        delta: i32,
+    },
 }
 
 /// Why a request was refused; the board's state is unchanged.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Rejection {
+    /// The host's version or schema did not match at [`Request::Hello`].
     ProtocolMismatch {
+        /// The board's [`PROTOCOL_VERSION`].
         board_version: u16,
+        /// The board's [`SCHEMA_FINGERPRINT`].
         board_schema: u32,
     },
+    /// The corrections failed validation.
     InvalidCorrections(Reason),
+    /// The parameters failed validation.
     InvalidParams(Reason),
+    /// The program failed validation.
     InvalidProgram(Reason),
     /// Not while a program or drive is under way.
     Busy,
@@ -201,9 +271,11 @@ pub enum Rejection {
     EStopped,
     /// A fault is latched: send ClearFault first.
     Faulted(Fault),
+    /// No trial with that id is stored.
     NoSuchTrial,
     /// The offset is past the trial's end.
     BadOffset {
+        /// The trial's length so far (bytes).
         total: u32,
     },
     /// Flash write or read failed; the stored values are unchanged.
@@ -213,6 +285,7 @@ pub enum Rejection {
 }
 
 impl Rejection {
+    /// [`Rejection::InvalidCorrections`] worded from a correction error.
     pub fn corrections(e: &CorrectionError) -> Self {
         Rejection::InvalidCorrections(reason(&CorrectionText(e)))
     }

@@ -6,9 +6,13 @@ use super::*;
 /// Robot geometry and the settings that go with it, persisted together.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub struct Params {
+    /// Geometry of the robot and its wheels.
     pub robot: Robot,
+    /// Wheel velocity controller gains.
     pub gains: PiGains,
+    /// Speed and acceleration limits of the motion profiles.
     pub limits: ProfileLimits,
+    /// When the board stops the motors by itself.
     pub safety: Safety,
 }
 
@@ -45,12 +49,17 @@ impl Default for Safety {
 /// Why a [`Params`] was refused.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ParamsError {
+    /// The robot geometry is invalid.
     Robot(RobotError),
     /// A setting is out of its range.
     Setting {
+        /// Name of the setting.
         name: &'static str,
+        /// Smallest value allowed.
         min: f64,
+        /// Largest value allowed.
         max: f64,
+        /// The value given.
         value: f64,
     },
 }
@@ -135,10 +144,17 @@ impl Params {
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum ProgramSpec {
     /// Borenstein's square.
-    Umbmark { side_m: f64, dir: Direction },
+    Umbmark {
+        /// Side length (m).
+        side_m: f64,
+        /// Turning sense.
+        dir: Direction,
+    },
     /// 001's straight omni paths.
     Omni {
+        /// Which path.
         path: OmniPath,
+        /// Commanded length (m).
         length_m: f64,
         /// What the wheels the path does not drive do: released (drive cut) or held at
         /// zero speed by their velocity loops (001 does both, one per path).
