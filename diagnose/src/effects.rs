@@ -204,11 +204,6 @@ impl Effect {
         }
     }
 
-    /// Parses a catalogue id.
-    pub fn from_id(id: &str) -> Option<Effect> {
-        Effect::ALL.into_iter().find(|e| e.id() == id)
-    }
-
     pub fn stage(self) -> Stage {
         match self.base() {
             Effect::Backlash | Effect::MissedSteps | Effect::MotorLag | Effect::CoulombFriction => {
@@ -402,10 +397,6 @@ impl Model {
             m.effects.push((e, params));
         }
         m
-    }
-
-    pub fn has_stage(&self, s: Stage) -> bool {
-        self.effects.iter().any(|(e, _)| e.stage() == s)
     }
 
     /// Per-wheel radius multipliers and the wheelbase multiplier of the geometry effects.

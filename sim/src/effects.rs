@@ -334,11 +334,6 @@ impl Effect {
         }
     }
 
-    /// True for effects of the diagnose catalogue (all but `tilted_floor`).
-    pub fn in_catalogue(&self) -> bool {
-        !matches!(self, Effect::TiltedFloor { .. })
-    }
-
     /// The mechanism, for effects that have several.
     pub fn mechanism(&self) -> Option<Mechanism> {
         match self {

@@ -399,11 +399,6 @@ impl SimRobot {
         }
     }
 
-    /// The most recent vision sample, however old.
-    pub fn last_vision(&self) -> Option<(f64, Pose<f64>)> {
-        self.vision
-    }
-
     /// One gyro reading of the yaw rate over the last tick (draws noise on each call).
     pub fn imu_yaw_rate(&mut self) -> f64 {
         self.cfg
@@ -442,11 +437,5 @@ impl SimRobot {
             .unwrap_or_else(|| DcParams::typical(gear, 20.0))
             .with_deadband(gear, self.faults.deadband_rad_s)
             .pi_gains(gear)
-    }
-
-    /// A random draw from the ground stream (used by callers that want extra seeded noise
-    /// tied to this run).
-    pub fn random_unit(&mut self) -> f64 {
-        self.rng_ground.random()
     }
 }
