@@ -93,6 +93,33 @@ impl Layout {
             None => Vec::new(),
         }
     }
+
+    /// The checks of "no legend covers a data point": a legend wholly inside the figure,
+    /// overlapping no data box, and every data point's centre inside the plotting area
+    /// (so the boxes are the drawn points in the drawn mapping).
+    pub fn check(&self) -> Result<(), String> {
+        let (Some(fig), Some(plot), Some(legend)) = (self.figure, self.plot, self.legend) else {
+            return Err(format!("incomplete layout {self:?}"));
+        };
+        if !fig.contains(&legend) {
+            return Err(format!("legend {legend:?} not inside the figure {fig:?}"));
+        }
+        let covered = self.covered();
+        if !covered.is_empty() {
+            return Err(format!(
+                "legend {legend:?} covers {} data point(s), first {:?}",
+                covered.len(),
+                covered[0]
+            ));
+        }
+        for d in &self.data {
+            let c = ((d.x0 + d.x1) / 2, (d.y0 + d.y1) / 2);
+            if !plot.contains(&PixelBox::around(c, 0)) {
+                return Err(format!("data point {d:?} outside the plot {plot:?}"));
+            }
+        }
+        Ok(())
+    }
 }
 
 /// How a legend entry is marked.
@@ -490,28 +517,27 @@ fn esc(s: &str) -> String {
 mod tests {
     use super::*;
 
-    /// Checks a figure's layout: a legend, inside the figure, covering no data box, and
-    /// every data box inside the plotting area (so the check looked at the real points).
-    pub(crate) fn assert_clear(name: &str, l: &Layout, n_points: usize) {
-        let (fig, plot, legend) = (l.figure.unwrap(), l.plot.unwrap(), l.legend.unwrap());
-        assert!(
-            fig.contains(&legend),
-            "{name}: legend {legend:?} off {fig:?}"
-        );
+    fn assert_clear(name: &str, l: &Layout, n_points: usize) {
         assert_eq!(l.data.len(), n_points, "{name}: data boxes");
-        assert!(
-            l.covered().is_empty(),
-            "{name}: legend covers {:?}",
-            l.covered()
-        );
-        // Vertex centres lie in the plotting area: the mapping is the one drawn with.
-        for d in &l.data {
-            let c = ((d.x0 + d.x1) / 2, (d.y0 + d.y1) / 2);
-            assert!(
-                plot.contains(&PixelBox::around(c, 0)),
-                "{name}: {d:?} off {plot:?}"
-            );
+        if let Err(e) = l.check() {
+            panic!("{name}: {e}");
         }
+    }
+
+    #[test]
+    fn check_sees_a_covered_point() {
+        let b = |x0, y0, x1, y1| PixelBox { x0, y0, x1, y1 };
+        let mut l = Layout {
+            figure: Some(b(0, 0, 100, 100)),
+            plot: Some(b(10, 10, 70, 90)),
+            legend: Some(b(50, 12, 68, 30)),
+            data: vec![b(20, 20, 28, 28), b(60, 20, 62, 22)],
+        };
+        assert!(l.check().unwrap_err().contains("covers 1 data point"));
+        l.data.pop();
+        assert!(l.check().is_ok());
+        l.legend = Some(b(90, 12, 110, 30));
+        assert!(l.check().unwrap_err().contains("not inside the figure"));
     }
 
     /// Data that fill every corner of the plot: whatever corner a legend inside the
