@@ -318,6 +318,10 @@ pub struct ComputeArgs {
     /// in force during these runs); the result is their composition (001).
     #[arg(long)]
     pub previous: Option<PathBuf>,
+    /// Longest path (UMBmark side, omni straight path) a runs row may name, metres;
+    /// longer rows are refused as implausible.
+    #[arg(long, default_value_t = crate::calibration::plausible::DEFAULT_MAX_LENGTH_M)]
+    pub max_length: f64,
 }
 
 #[derive(Debug, Args)]
@@ -663,7 +667,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
             if a.previous.is_some() {
                 bail!("--previous is for `omni compute`; a UMBmark second pass composes on the board (`umbmark run --second-pass`)");
             }
-            let rep = umbmark::compute(&robot, &runs)?;
+            let rep = umbmark::compute_limited(&robot, &runs, a.max_length)?;
             if let Some(dir) = &a.report {
                 let index = report::umbmark::write(&rep, dir)?;
                 out.note(&format!("report: {}", index.display()));
@@ -673,7 +677,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Omni(OmniCmd::Compute(a)) => {
             let robot = robot_file::load(&a.robot)?;
             let runs = RunsFile::load(&a.runs)?;
-            let mut rep = omni::compute(&robot, &runs)?;
+            let mut rep = omni::compute_limited(&robot, &runs, a.max_length)?;
             if let Some(p) = &a.previous {
                 rep = omni::compose_with(rep, &omni::factors_from_json(p)?)?;
             }
