@@ -32,6 +32,29 @@ pub struct InfoReport {
     pub record_size_bytes: u16,
 }
 
+/// What boot found for one stored item, as a JSON word: `loaded`, `none_saved`,
+/// `corrupted` (saved once, now unreadable: a lost calibration) or `flash_error`.
+pub fn stored_word(s: calib_core::protocol::Stored) -> &'static str {
+    use calib_core::protocol::Stored;
+    match s {
+        Stored::Loaded => "loaded",
+        Stored::Missing => "none_saved",
+        Stored::Invalid => "corrupted",
+        Stored::StorageError => "flash_error",
+    }
+}
+
+/// The words a user acts on: a corrupted item means a saved calibration was lost.
+fn stored_human(word: &str) -> &str {
+    match word {
+        "loaded" => "loaded",
+        "none_saved" => "none saved (nominal)",
+        "corrupted" => "corrupted, using nominal",
+        "flash_error" => "flash unreadable, using nominal",
+        other => other,
+    }
+}
+
 pub fn info<L: Read + Write>(c: &mut Client<L>) -> Result<InfoReport> {
     let i: Info = c.info()?;
     let p = c.params()?;
@@ -45,8 +68,8 @@ pub fn info<L: Read + Write>(c: &mut Client<L>) -> Result<InfoReport> {
         wheel_count: i.wheel_count,
         wheels: p.robot.wheels.iter().map(|w| w.name.to_string()).collect(),
         uptime_s: i.uptime_ms as f64 / 1000.0,
-        corrections_at_boot: format!("{:?}", i.boot.corrections).to_lowercase(),
-        params_at_boot: format!("{:?}", i.boot.params).to_lowercase(),
+        corrections_at_boot: stored_word(i.boot.corrections).into(),
+        params_at_boot: stored_word(i.boot.params).into(),
         log_capacity_bytes: i.log_capacity,
         record_size_bytes: i.record_size,
     })
@@ -72,7 +95,8 @@ impl InfoReport {
         let _ = writeln!(
             s,
             "at boot       corrections {}, parameters {}",
-            self.corrections_at_boot, self.params_at_boot
+            stored_human(&self.corrections_at_boot),
+            stored_human(&self.params_at_boot)
         );
         let _ = writeln!(
             s,
@@ -451,6 +475,7 @@ pub fn pull_trial<L: Read + Write>(
         bytes: data.len(),
         seconds: secs,
         retries: c.stats.retries,
+        partial: info.end == calib_core::protocol::TrialEnd::Running,
     })
 }
 
@@ -463,4 +488,41 @@ pub struct PulledTrial {
     pub bytes: usize,
     pub seconds: f64,
     pub retries: u32,
+    /// The trial was still running when pulled: the file holds only its start.
+    pub partial: bool,
+}
+
+impl PulledTrial {
+    /// Warnings a user must see with the pulled file.
+    pub fn warnings(&self) -> String {
+        let mut s = String::new();
+        if self.partial {
+            s.push_str("; PARTIAL: the trial was still running, the file holds only what was logged so far (pull again when it has ended)");
+        }
+        if self.dropped_records > 0 {
+            let _ = write!(
+                s,
+                "; WARNING: the board dropped {} records (log full): the trial is missing its end",
+                self.dropped_records
+            );
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod boot_words {
+    use super::*;
+    use calib_core::protocol::Stored;
+
+    #[test]
+    fn a_lost_calibration_is_named() {
+        let w = stored_word(Stored::Invalid);
+        assert_eq!(stored_human(w), "corrupted, using nominal");
+        assert_eq!(
+            stored_human(stored_word(Stored::Missing)),
+            "none saved (nominal)"
+        );
+        assert_ne!(stored_word(Stored::Invalid), stored_word(Stored::Missing));
+    }
 }

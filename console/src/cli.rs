@@ -625,7 +625,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                     r.bytes,
                     r.seconds,
                     r.retries,
-                    if r.dropped_records > 0 { format!("; WARNING: the board dropped {} records (log full): the trial is missing its end", r.dropped_records) } else { String::new() }
+                    r.warnings()
                 )
             })
         }
