@@ -32,6 +32,29 @@ pub struct InfoReport {
     pub record_size_bytes: u16,
 }
 
+/// What boot found for one stored item, as a JSON word: `loaded`, `none_saved`,
+/// `corrupted` (saved once, now unreadable: a lost calibration) or `flash_error`.
+pub fn stored_word(s: calib_core::protocol::Stored) -> &'static str {
+    use calib_core::protocol::Stored;
+    match s {
+        Stored::Loaded => "loaded",
+        Stored::Missing => "none_saved",
+        Stored::Invalid => "corrupted",
+        Stored::StorageError => "flash_error",
+    }
+}
+
+/// The words a user acts on: a corrupted item means a saved calibration was lost.
+fn stored_human(word: &str) -> &str {
+    match word {
+        "loaded" => "loaded",
+        "none_saved" => "none saved (nominal)",
+        "corrupted" => "corrupted, using nominal",
+        "flash_error" => "flash unreadable, using nominal",
+        other => other,
+    }
+}
+
 pub fn info<L: Read + Write>(c: &mut Client<L>) -> Result<InfoReport> {
     let i: Info = c.info()?;
     let p = c.params()?;
@@ -45,8 +68,8 @@ pub fn info<L: Read + Write>(c: &mut Client<L>) -> Result<InfoReport> {
         wheel_count: i.wheel_count,
         wheels: p.robot.wheels.iter().map(|w| w.name.to_string()).collect(),
         uptime_s: i.uptime_ms as f64 / 1000.0,
-        corrections_at_boot: format!("{:?}", i.boot.corrections).to_lowercase(),
-        params_at_boot: format!("{:?}", i.boot.params).to_lowercase(),
+        corrections_at_boot: stored_word(i.boot.corrections).into(),
+        params_at_boot: stored_word(i.boot.params).into(),
         log_capacity_bytes: i.log_capacity,
         record_size_bytes: i.record_size,
     })
@@ -72,7 +95,8 @@ impl InfoReport {
         let _ = writeln!(
             s,
             "at boot       corrections {}, parameters {}",
-            self.corrections_at_boot, self.params_at_boot
+            stored_human(&self.corrections_at_boot),
+            stored_human(&self.params_at_boot)
         );
         let _ = writeln!(
             s,
@@ -271,8 +295,64 @@ pub fn start_program<L: Read + Write>(
         ProgramSpec::Omni { length_m, .. } => *length_m,
         ProgramSpec::Custom(_) => arena,
     };
+    // Say before the run which trials it will push out of the log (the board cannot tell
+    // whether they were pulled).
+    let (info, trials) = (c.info()?, c.trials()?);
+    let gone = eviction_forecast(
+        &trials,
+        info.log_capacity,
+        info.record_size,
+        &program,
+        &params.limits,
+        log_rate_hz,
+    );
+    if !gone.is_empty() {
+        let ids: Vec<String> = gone.iter().map(u16::to_string).collect();
+        eprintln!(
+            "note: this run will evict trial(s) {} from the board's log to make room; pull any you still need first (`wheelcal log pull`)",
+            ids.join(", ")
+        );
+    }
     c.run_program(program, log_rate_hz)?;
     Ok(program_time_limit(longest))
+}
+
+/// Trials (ids, oldest first) a program logging at `rate_hz` would push out of the
+/// board's log: the ring evicts whole trials, oldest first, until the new records fit,
+/// and the oldest one when the trial table is full. The program's length comes from the
+/// board's own motion profile (`limits`), with 10 % to spare.
+pub fn eviction_forecast(
+    trials: &Trials,
+    capacity: u32,
+    record_size: u16,
+    program: &ProgramSpec,
+    limits: &calib_core::motion::ProfileLimits,
+    rate_hz: u16,
+) -> Vec<u16> {
+    use calib_core::motion::Program;
+    if rate_hz == 0 {
+        return Vec::new();
+    }
+    let prog = match program {
+        ProgramSpec::Umbmark { side_m, dir } => Program::umbmark_square(*side_m, *dir),
+        ProgramSpec::Omni { path, length_m, .. } => Program::omni_path(*path, *length_m),
+        ProgramSpec::Custom(segs) => Program {
+            segments: segs.clone(),
+        },
+    };
+    let records = (prog.duration(limits) * 1.1 * f64::from(rate_hz)).ceil();
+    let needed = (records * f64::from(record_size)).min(f64::from(capacity));
+    let mut used: f64 = trials.trials.iter().map(|t| f64::from(t.bytes)).sum();
+    let mut gone = Vec::new();
+    for t in &trials.trials {
+        let table_full = trials.trials.len() - gone.len() >= calib_core::protocol::MAX_TRIALS;
+        if f64::from(capacity) - used >= needed && !table_full {
+            break;
+        }
+        used -= f64::from(t.bytes);
+        gone.push(t.id);
+    }
+    gone
 }
 
 /// A minute plus a minute per metre, for any finite length (negative or NaN count as 0,
@@ -460,6 +540,7 @@ pub fn pull_trial<L: Read + Write>(
         bytes: data.len(),
         seconds: secs,
         retries: c.stats.retries,
+        partial: info.end == calib_core::protocol::TrialEnd::Running,
     })
 }
 
@@ -472,4 +553,90 @@ pub struct PulledTrial {
     pub bytes: usize,
     pub seconds: f64,
     pub retries: u32,
+    /// The trial was still running when pulled: the file holds only its start.
+    pub partial: bool,
+}
+
+impl PulledTrial {
+    /// Warnings a user must see with the pulled file.
+    pub fn warnings(&self) -> String {
+        let mut s = String::new();
+        if self.partial {
+            s.push_str("; PARTIAL: the trial was still running, the file holds only what was logged so far (pull again when it has ended)");
+        }
+        if self.dropped_records > 0 {
+            let _ = write!(
+                s,
+                "; WARNING: the board dropped {} records (log full): the trial is missing its end",
+                self.dropped_records
+            );
+        }
+        s
+    }
+}
+
+#[cfg(test)]
+mod boot_words {
+    use super::*;
+    use calib_core::protocol::{ProgramKind, Stored, TrialEnd, MAX_TRIALS};
+
+    fn trial(id: u16, bytes: u32) -> TrialInfo {
+        TrialInfo {
+            id,
+            program: ProgramKind::Drive,
+            start_ms: 0,
+            rate_hz: 50,
+            wheel_count: 2,
+            record_size: 32,
+            records: bytes / 32,
+            bytes,
+            dropped: 0,
+            end: TrialEnd::Completed,
+            corrections: Corrections::None,
+        }
+    }
+
+    #[test]
+    fn a_run_names_the_trials_it_will_evict() {
+        let limits = calib_core::motion::ProfileLimits::default();
+        let square = ProgramSpec::Umbmark {
+            side_m: 4.0,
+            dir: Direction::Cw,
+        };
+        let secs =
+            calib_core::motion::Program::umbmark_square(4.0, Direction::Cw).duration(&limits);
+        // Bytes the square logs at 50 Hz, 32-byte records, with the 10 % margin.
+        let need = (secs * 1.1 * 50.0).ceil() as u32 * 32;
+        let list = |sizes: &[u32]| Trials {
+            trials: sizes
+                .iter()
+                .enumerate()
+                .map(|(i, &b)| trial(i as u16 + 1, b))
+                .collect(),
+            evicted: 0,
+        };
+        // Room enough: nothing goes.
+        let cap = 3 * need;
+        let f = |t: &Trials| eviction_forecast(t, cap, 32, &square, &limits, 50);
+        assert!(f(&list(&[need, need / 2])).is_empty());
+        // Full log: the oldest go until the run fits (trial 1 frees `need`).
+        assert_eq!(f(&list(&[need, need, need / 2])), vec![1]);
+        assert_eq!(f(&list(&[need / 2, need / 2, need * 2])), vec![1, 2]);
+        // A full trial table evicts the oldest even with bytes to spare.
+        let many = vec![8; MAX_TRIALS];
+        assert_eq!(f(&list(&many)), vec![1]);
+        // No logging, no eviction.
+        assert!(eviction_forecast(&list(&[cap]), cap, 32, &square, &limits, 0).is_empty());
+    }
+
+    #[test]
+    fn a_lost_calibration_is_named() {
+        let w = stored_word(Stored::Invalid);
+        assert_eq!(stored_human(w), "corrupted, using nominal");
+        assert_eq!(
+            stored_human(stored_word(Stored::Missing)),
+            "none saved (nominal)"
+        );
+        assert_ne!(stored_word(Stored::Invalid), stored_word(Stored::Missing));
+    }
 }

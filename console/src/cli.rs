@@ -316,6 +316,10 @@ pub struct ComputeArgs {
     /// Write an HTML report with SVG and PNG plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Longest path (UMBmark side, omni straight path) a runs row may name, metres;
+    /// longer rows are refused as implausible.
+    #[arg(long, default_value_t = crate::calibration::plausible::DEFAULT_MAX_LENGTH_M)]
+    pub max_length: f64,
 }
 
 /// `omni compute`: the common arguments, the second pass and the idle-wheel mode.
@@ -666,7 +670,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                     r.bytes,
                     r.seconds,
                     r.retries,
-                    if r.dropped_records > 0 { format!("; WARNING: the board dropped {} records (log full): the trial is missing its end", r.dropped_records) } else { String::new() }
+                    r.warnings()
                 )
             })
         }
@@ -705,7 +709,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Umbmark(UmbmarkCmd::Compute(a)) => {
             let robot = robot_file::load(&a.robot)?;
             let runs = RunsFile::load(&a.runs)?;
-            let rep = umbmark::compute(&robot, &runs)?;
+            let rep = umbmark::compute_limited(&robot, &runs, a.max_length)?;
             if let Some(dir) = &a.report {
                 let index = report::umbmark::write(&rep, dir)?;
                 out.note(&format!("report: {}", index.display()));
@@ -720,7 +724,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 &a.common.runs,
                 &a.common.robot,
             )?;
-            let mut rep = omni::compute(&robot, &runs, idle)?;
+            let mut rep = omni::compute_limited(&robot, &runs, idle, a.common.max_length)?;
             if let Some(p) = &a.previous {
                 rep = omni::compose_with(rep, &omni::factors_from_json(p)?)?;
             }

@@ -344,6 +344,19 @@ impl InProcessBoard {
         to_host: crate::link::Faults,
         seed: u64,
     ) -> Result<Self, BoardError> {
+        Self::start_paced(robot, sim, to_board, to_host, seed, f64::INFINITY)
+    }
+
+    /// As [`Self::start`], with simulated time paced at `speed` times real time (tests
+    /// that must catch a program while it runs).
+    pub fn start_paced(
+        robot: &Robot,
+        sim: SimRobot,
+        to_board: crate::link::Faults,
+        to_host: crate::link::Faults,
+        seed: u64,
+        speed: f64,
+    ) -> Result<Self, BoardError> {
         use std::sync::atomic::Ordering;
         let flash = board_flash(None).map_err(|e| BoardError(e.to_string()))?;
         let mut board = VirtualBoard::boot(robot, sim, flash)?;
@@ -354,7 +367,7 @@ impl InProcessBoard {
         let thread = std::thread::spawn(move || {
             board.serve(
                 &mut end,
-                f64::INFINITY,
+                speed,
                 || s2.load(Ordering::Relaxed),
                 |t| {
                     let _ = tx.send(*t);

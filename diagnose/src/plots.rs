@@ -1,8 +1,11 @@
 //! The `--report DIR` output: SVG plots (path, residuals over time with the windows
 //! shaded, before/after overlays) and an index.html that shows them with the summary.
 
-use crate::report::Report;
+use crate::report::{PlotData, Report};
+use crate::windows::Window;
 use crate::Stage;
+use plotters::coord::types::RangedCoordf64;
+use plotters::coord::Shift;
 use plotters::prelude::*;
 use std::path::Path;
 
@@ -34,73 +37,288 @@ fn bounds(series: &[&[(f64, f64)]]) -> (f64, f64, f64, f64) {
     (x0, x1, y0, y1)
 }
 
+/// A rectangle in the backend's pixels (x0, y0 top left; x1, y1 bottom right).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub struct PixelBox {
+    pub x0: i32,
+    pub y0: i32,
+    pub x1: i32,
+    pub y1: i32,
+}
+
+impl PixelBox {
+    /// The box of a marker of half-size `r` around a pixel.
+    pub fn around((x, y): (i32, i32), r: i32) -> Self {
+        PixelBox {
+            x0: x - r,
+            y0: y - r,
+            x1: x + r,
+            y1: y + r,
+        }
+    }
+    /// True when the two boxes share any pixel (touching edges count).
+    pub fn overlaps(&self, o: &PixelBox) -> bool {
+        self.x0 <= o.x1 && o.x0 <= self.x1 && self.y0 <= o.y1 && o.y0 <= self.y1
+    }
+    /// True when `o` lies wholly inside this box.
+    pub fn contains(&self, o: &PixelBox) -> bool {
+        self.x0 <= o.x0 && o.x1 <= self.x1 && self.y0 <= o.y0 && o.y1 <= self.y1
+    }
+}
+
+/// Where a figure put its legend and its data, in the pixel mapping it drew with: the
+/// evidence for "no legend covers a data point", checked by the tests.
+#[derive(Debug, Clone, Default)]
+pub struct Layout {
+    /// The whole figure.
+    pub figure: Option<PixelBox>,
+    /// The plotting area (inside the axes).
+    pub plot: Option<PixelBox>,
+    /// The legend's frame.
+    pub legend: Option<PixelBox>,
+    /// One box per drawn data point (marker extent, line vertex, bar).
+    pub data: Vec<PixelBox>,
+}
+
+impl Layout {
+    /// Data boxes the legend overlaps (empty when none is covered).
+    pub fn covered(&self) -> Vec<PixelBox> {
+        match self.legend {
+            Some(l) => self
+                .data
+                .iter()
+                .filter(|d| d.overlaps(&l))
+                .copied()
+                .collect(),
+            None => Vec::new(),
+        }
+    }
+
+    /// The checks of "no legend covers a data point": a legend wholly inside the figure,
+    /// overlapping no data box, and every data point's centre inside the plotting area
+    /// (so the boxes are the drawn points in the drawn mapping).
+    pub fn check(&self) -> Result<(), String> {
+        let (Some(fig), Some(plot), Some(legend)) = (self.figure, self.plot, self.legend) else {
+            return Err(format!("incomplete layout {self:?}"));
+        };
+        if !fig.contains(&legend) {
+            return Err(format!("legend {legend:?} not inside the figure {fig:?}"));
+        }
+        let covered = self.covered();
+        if !covered.is_empty() {
+            return Err(format!(
+                "legend {legend:?} covers {} data point(s), first {:?}",
+                covered.len(),
+                covered[0]
+            ));
+        }
+        for d in &self.data {
+            let c = ((d.x0 + d.x1) / 2, (d.y0 + d.y1) / 2);
+            if !plot.contains(&PixelBox::around(c, 0)) {
+                return Err(format!("data point {d:?} outside the plot {plot:?}"));
+            }
+        }
+        Ok(())
+    }
+}
+
+/// How a legend entry is marked.
+#[derive(Debug, Clone, Copy)]
+pub enum LegendMark {
+    Line(RGBColor),
+    Dot(RGBColor),
+    Cross(RGBColor),
+    Bar(RGBColor),
+}
+
+const LEGEND_FONT: u32 = 15;
+const LEGEND_PAD: i32 = 8;
+const LEGEND_MARK_W: i32 = 26;
+
+fn legend_row_h<DB: DrawingBackend>(area: &DrawingArea<DB, Shift>, label: &str) -> (i32, i32) {
+    let (w, h) = area
+        .estimate_text_size(label, &("sans-serif", LEGEND_FONT).into_text_style(area))
+        .unwrap_or((8 * label.len() as u32, LEGEND_FONT));
+    (w as i32, (h as i32).max(14) + 6)
+}
+
+/// Splits a figure into the chart (left) and a legend column (right) as wide as the
+/// labels need: the legend then lies outside the plotting area, so it can cover no data
+/// however the points fall.
+pub fn split_for_legend<DB: DrawingBackend>(
+    area: &DrawingArea<DB, Shift>,
+    labels: &[&str],
+) -> (DrawingArea<DB, Shift>, DrawingArea<DB, Shift>) {
+    let text_w = labels
+        .iter()
+        .map(|l| legend_row_h(area, l).0)
+        .max()
+        .unwrap_or(0);
+    let col_w = text_w + LEGEND_MARK_W + 3 * LEGEND_PAD;
+    let (w, _) = area.dim_in_pixel();
+    // Never take more than 40 % of the figure (very long labels are cut at the edge).
+    let col_w = col_w.min(w as i32 * 2 / 5);
+    area.split_horizontally(w as i32 - col_w)
+}
+
+/// Draws the legend framed at the top of `column` (level with `top_px`, the plotting
+/// area's top in backend pixels) and returns its frame in backend pixels.
+pub fn draw_legend<DB: DrawingBackend>(
+    column: &DrawingArea<DB, Shift>,
+    entries: &[(String, LegendMark)],
+    top_px: i32,
+) -> Result<PixelBox, DrawingAreaErrorKind<DB::ErrorType>> {
+    let (bx, by) = column.get_base_pixel();
+    let rows: Vec<(i32, i32)> = entries
+        .iter()
+        .map(|(l, _)| legend_row_h(column, l))
+        .collect();
+    let text_w = rows.iter().map(|r| r.0).max().unwrap_or(0);
+    let (cw, _) = column.dim_in_pixel();
+    let x0 = LEGEND_PAD;
+    let x1 = (x0 + LEGEND_MARK_W + text_w + LEGEND_PAD).min(cw as i32 - 2);
+    let y0 = (top_px - by).max(0);
+    let y1 = y0 + LEGEND_PAD + rows.iter().map(|r| r.1).sum::<i32>();
+    column.draw(&Rectangle::new([(x0, y0), (x1, y1)], WHITE.filled()))?;
+    column.draw(&Rectangle::new([(x0, y0), (x1, y1)], BLACK))?;
+    let style = ("sans-serif", LEGEND_FONT).into_text_style(column).pos(
+        plotters::style::text_anchor::Pos::new(
+            plotters::style::text_anchor::HPos::Left,
+            plotters::style::text_anchor::VPos::Center,
+        ),
+    );
+    let mut y = y0 + LEGEND_PAD / 2;
+    for ((label, mark), (_, h)) in entries.iter().zip(&rows) {
+        let cy = y + h / 2;
+        let mx = x0 + LEGEND_PAD;
+        match *mark {
+            LegendMark::Line(c) => column.draw(&PathElement::new(
+                vec![(mx, cy), (mx + 16, cy)],
+                c.stroke_width(2),
+            ))?,
+            LegendMark::Dot(c) => column.draw(&Circle::new((mx + 8, cy), 4, c.filled()))?,
+            LegendMark::Cross(c) => column.draw(&Cross::new((mx + 8, cy), 6, c.stroke_width(3)))?,
+            LegendMark::Bar(c) => column.draw(&Rectangle::new(
+                [(mx + 2, cy - 5), (mx + 14, cy + 5)],
+                c.filled(),
+            ))?,
+        }
+        column.draw_text(label, &style, (x0 + LEGEND_MARK_W, cy))?;
+        y += h;
+    }
+    Ok(PixelBox {
+        x0: bx + x0,
+        y0: by + y0,
+        x1: bx + x1,
+        y1: by + y1,
+    })
+}
+
+/// The backend-pixel box of a chart's plotting area.
+pub fn plot_box<DB: DrawingBackend, CT: plotters::coord::CoordTranslate>(
+    a: &DrawingArea<DB, CT>,
+) -> PixelBox {
+    let (xr, yr) = a.get_pixel_range();
+    PixelBox {
+        x0: xr.start,
+        y0: yr.start,
+        x1: xr.end,
+        y1: yr.end,
+    }
+}
+
 const BLUE: RGBColor = RGBColor(31, 119, 180);
 const ORANGE: RGBColor = RGBColor(255, 127, 14);
 const GREEN: RGBColor = RGBColor(44, 160, 44);
 
-fn path_plot(r: &Report, file: &Path) -> PlotResult {
-    let p = &r.plot;
-    let (mut x0, mut x1, mut y0, mut y1) = bounds(&[&p.measured, &p.nominal, &p.fitted]);
-    // Equal axis scales so the path keeps its shape.
-    let (dx, dy) = (x1 - x0, y1 - y0);
-    if dx > dy {
-        let c = 0.5 * (y0 + y1);
-        (y0, y1) = (c - dx / 2.0, c + dx / 2.0);
-    } else {
-        let c = 0.5 * (x0 + x1);
-        (x0, x1) = (c - dy / 2.0, c + dy / 2.0);
-    }
-    let root = SVGBackend::new(file, (720, 720)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let mut chart = ChartBuilder::on(&root)
-        .caption(
+/// Boxes of the vertices of a line drawn with stroke `w`, in backend pixels.
+fn vertex_boxes<DB: DrawingBackend>(
+    chart: &ChartContext<'_, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>,
+    data: &[(f64, f64)],
+    w: i32,
+) -> Vec<PixelBox> {
+    data.iter()
+        .filter(|p| p.0.is_finite() && p.1.is_finite())
+        .map(|p| PixelBox::around(chart.backend_coord(p), w))
+        .collect()
+}
+
+type Chart2d<'a, DB> = ChartContext<'a, DB, Cartesian2d<RangedCoordf64, RangedCoordf64>>;
+
+/// The path plot on any backend; the legend stands in a column right of the chart.
+pub fn path_chart<DB: DrawingBackend>(
+    p: &PlotData,
+    root: &DrawingArea<DB, Shift>,
+) -> Result<Layout, String> {
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let lines = [
+        (&p.measured, BLACK, "measured"),
+        (&p.nominal, ORANGE, "nominal model"),
+        (&p.fitted, BLUE, "fitted model"),
+    ];
+    let body = root
+        .titled(
             "Path: measured, nominal model, fitted model",
             ("sans-serif", 20),
         )
-        .margin(10)
-        .x_label_area_size(40)
-        .y_label_area_size(60)
-        .build_cartesian_2d(x0..x1, y0..y1)?;
+        .map_err(e)?;
+    let (left, column) = split_for_legend(&body, &lines.map(|l| l.2));
+    let (margin, xl, yl) = (10, 40, 60);
+    let (w, h) = left.dim_in_pixel();
+    let aspect = (w as f64 - 2.0 * margin as f64 - yl as f64).max(1.0)
+        / (h as f64 - 2.0 * margin as f64 - xl as f64).max(1.0);
+    let (mut x0, mut x1, mut y0, mut y1) = bounds(&[&p.measured, &p.nominal, &p.fitted]);
+    // Equal axis scales (in pixels) so the path keeps its shape.
+    let (cx, cy) = (0.5 * (x0 + x1), 0.5 * (y0 + y1));
+    let half_y = (0.5 * (y1 - y0)).max(0.5 * (x1 - x0) / aspect);
+    let half_x = half_y * aspect;
+    (x0, x1, y0, y1) = (cx - half_x, cx + half_x, cy - half_y, cy + half_y);
+    let mut chart: Chart2d<DB> = ChartBuilder::on(&left)
+        .margin(margin)
+        .x_label_area_size(xl)
+        .y_label_area_size(yl)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(e)?;
     chart
         .configure_mesh()
         .x_desc("x (m)")
         .y_desc("y (m)")
-        .draw()?;
-    for (data, color, label) in [
-        (&p.measured, BLACK, "measured"),
-        (&p.nominal, ORANGE, "nominal model"),
-        (&p.fitted, BLUE, "fitted model"),
-    ] {
+        .draw()
+        .map_err(e)?;
+    let mut layout = Layout {
+        figure: Some(plot_box(root)),
+        plot: Some(plot_box(chart.plotting_area())),
+        ..Layout::default()
+    };
+    let mut entries = Vec::new();
+    for (data, color, label) in lines {
         chart
-            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(2)))?
-            .label(label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
+            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(2)))
+            .map_err(e)?;
+        layout.data.extend(vertex_boxes(&chart, data, 2));
+        entries.push((label.to_string(), LegendMark::Line(color)));
     }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    let top = plot_box(chart.plotting_area()).y0;
+    layout.legend = Some(draw_legend(&column, &entries, top).map_err(e)?);
+    Ok(layout)
+}
+
+fn path_plot(r: &Report, file: &Path) -> PlotResult {
+    let root = SVGBackend::new(file, (720, 720)).into_drawing_area();
+    path_chart(&r.plot, &root)?;
     root.present()?;
     Ok(())
 }
 
 fn shade_windows<DB: DrawingBackend>(
-    chart: &mut ChartContext<
-        '_,
-        DB,
-        Cartesian2d<plotters::coord::types::RangedCoordf64, plotters::coord::types::RangedCoordf64>,
-    >,
-    r: &Report,
+    chart: &mut Chart2d<'_, DB>,
+    windows: &[Window],
     stage: Stage,
     y0: f64,
     y1: f64,
-) -> PlotResult
-where
-    DB::ErrorType: 'static,
-{
-    let rects: Vec<_> = r
-        .windows
+) -> Result<(), DrawingAreaErrorKind<DB::ErrorType>> {
+    let rects: Vec<_> = windows
         .iter()
         .filter(|w| w.stage == stage)
         .map(|w| {
@@ -116,6 +334,61 @@ where
     Ok(())
 }
 
+/// A time plot (residuals over time, windows of `stage` shaded) on any backend; the
+/// legend stands in a column right of the chart.
+#[allow(clippy::too_many_arguments)]
+pub fn time_chart<DB: DrawingBackend>(
+    windows: &[Window],
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+    ylabel: &str,
+    t: &[f64],
+    series: &[(&[f64], RGBColor, &str)],
+    stage: Stage,
+) -> Result<Layout, String> {
+    let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
+    root.fill(&WHITE).map_err(e)?;
+    let pts: Vec<Vec<(f64, f64)>> = series
+        .iter()
+        .map(|(v, _, _)| t.iter().copied().zip(v.iter().copied()).collect())
+        .collect();
+    let refs: Vec<&[(f64, f64)]> = pts.iter().map(|v| v.as_slice()).collect();
+    let (x0, x1, y0, y1) = bounds(&refs);
+    let body = root.titled(title, ("sans-serif", 18)).map_err(e)?;
+    let labels: Vec<&str> = series.iter().map(|s| s.2).collect();
+    let (left, column) = split_for_legend(&body, &labels);
+    let mut chart: Chart2d<DB> = ChartBuilder::on(&left)
+        .margin(10)
+        .x_label_area_size(40)
+        .y_label_area_size(70)
+        .build_cartesian_2d(x0..x1, y0..y1)
+        .map_err(e)?;
+    chart
+        .configure_mesh()
+        .x_desc("t (s)")
+        .y_desc(ylabel)
+        .draw()
+        .map_err(e)?;
+    shade_windows(&mut chart, windows, stage, y0, y1).map_err(e)?;
+    let mut layout = Layout {
+        figure: Some(plot_box(root)),
+        plot: Some(plot_box(chart.plotting_area())),
+        ..Layout::default()
+    };
+    let mut entries = Vec::new();
+    for (data, (_, color, label)) in pts.iter().zip(series) {
+        let color = *color;
+        chart
+            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(1)))
+            .map_err(e)?;
+        layout.data.extend(vertex_boxes(&chart, data, 1));
+        entries.push((label.to_string(), LegendMark::Line(color)));
+    }
+    let top = plot_box(chart.plotting_area()).y0;
+    layout.legend = Some(draw_legend(&column, &entries, top).map_err(e)?);
+    Ok(layout)
+}
+
 fn time_plot(
     r: &Report,
     file: &Path,
@@ -126,37 +399,7 @@ fn time_plot(
     stage: Stage,
 ) -> PlotResult {
     let root = SVGBackend::new(file, (960, 420)).into_drawing_area();
-    root.fill(&WHITE)?;
-    let pts: Vec<Vec<(f64, f64)>> = series
-        .iter()
-        .map(|(v, _, _)| t.iter().copied().zip(v.iter().copied()).collect())
-        .collect();
-    let refs: Vec<&[(f64, f64)]> = pts.iter().map(|v| v.as_slice()).collect();
-    let (x0, x1, y0, y1) = bounds(&refs);
-    let mut chart = ChartBuilder::on(&root)
-        .caption(title, ("sans-serif", 18))
-        .margin(10)
-        .x_label_area_size(40)
-        .y_label_area_size(70)
-        .build_cartesian_2d(x0..x1, y0..y1)?;
-    chart
-        .configure_mesh()
-        .x_desc("t (s)")
-        .y_desc(ylabel)
-        .draw()?;
-    shade_windows(&mut chart, r, stage, y0, y1)?;
-    for (data, (_, color, label)) in pts.iter().zip(series) {
-        let color = *color;
-        chart
-            .draw_series(LineSeries::new(data.iter().copied(), color.stroke_width(1)))?
-            .label(*label)
-            .legend(move |(x, y)| PathElement::new(vec![(x, y), (x + 20, y)], color));
-    }
-    chart
-        .configure_series_labels()
-        .background_style(WHITE.mix(0.8))
-        .border_style(BLACK)
-        .draw()?;
+    time_chart(&r.windows, &root, title, ylabel, t, series, stage)?;
     root.present()?;
     Ok(())
 }
@@ -268,4 +511,106 @@ fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn assert_clear(name: &str, l: &Layout, n_points: usize) {
+        assert_eq!(l.data.len(), n_points, "{name}: data boxes");
+        if let Err(e) = l.check() {
+            panic!("{name}: {e}");
+        }
+    }
+
+    #[test]
+    fn check_sees_a_covered_point() {
+        let b = |x0, y0, x1, y1| PixelBox { x0, y0, x1, y1 };
+        let mut l = Layout {
+            figure: Some(b(0, 0, 100, 100)),
+            plot: Some(b(10, 10, 70, 90)),
+            legend: Some(b(50, 12, 68, 30)),
+            data: vec![b(20, 20, 28, 28), b(60, 20, 62, 22)],
+        };
+        assert!(l.check().unwrap_err().contains("covers 1 data point"));
+        l.data.pop();
+        assert!(l.check().is_ok());
+        l.legend = Some(b(90, 12, 110, 30));
+        assert!(l.check().unwrap_err().contains("not inside the figure"));
+    }
+
+    /// Data that fill every corner of the plot: whatever corner a legend inside the
+    /// axes took, it would cover some.
+    fn corners(n: usize) -> Vec<(f64, f64)> {
+        (0..n)
+            .map(|i| {
+                let a = i as f64 / n as f64 * std::f64::consts::TAU;
+                (
+                    a.cos().signum() * 2.0 + 0.1 * a.sin(),
+                    a.sin().signum() * 1.0,
+                )
+            })
+            .collect()
+    }
+
+    #[test]
+    fn path_legend_covers_no_data() {
+        assert!(register_font(), "DejaVu Sans needed for text layout");
+        let pts = corners(40);
+        let p = PlotData {
+            measured: pts.clone(),
+            nominal: pts.iter().map(|&(x, y)| (x * 0.98, y * 1.02)).collect(),
+            fitted: pts.iter().map(|&(x, y)| (x * 1.01, y)).collect(),
+            ..PlotData::default()
+        };
+        let mut svg = String::new();
+        let layout = {
+            let root = SVGBackend::with_string(&mut svg, (720, 720)).into_drawing_area();
+            path_chart(&p, &root).unwrap()
+        };
+        assert_clear("path", &layout, 120);
+        // Equal scales: one metre spans the same pixels on both axes (within 2 %).
+        let span = |v: &mut dyn Iterator<Item = f64>| {
+            v.fold((f64::INFINITY, f64::NEG_INFINITY), |a, x| {
+                (a.0.min(x), a.1.max(x))
+            })
+        };
+        let (mx, my) = (
+            span(&mut p.measured.iter().map(|q| q.0)),
+            span(&mut p.measured.iter().map(|q| q.1)),
+        );
+        let m = &layout.data[..40];
+        let (px, py) = (
+            span(&mut m.iter().map(|d| f64::from(d.x0 + d.x1) / 2.0)),
+            span(&mut m.iter().map(|d| f64::from(d.y0 + d.y1) / 2.0)),
+        );
+        let (sx, sy) = ((px.1 - px.0) / (mx.1 - mx.0), (py.1 - py.0) / (my.1 - my.0));
+        assert!((sx / sy - 1.0).abs() < 0.02, "px per m: x {sx}, y {sy}");
+        assert!(svg.contains("fitted model"));
+    }
+
+    #[test]
+    fn time_legend_covers_no_data() {
+        assert!(register_font());
+        let t: Vec<f64> = (0..200).map(|i| i as f64 * 0.05).collect();
+        // A residual at its largest at the end (where legends usually sit).
+        let a: Vec<f64> = t.iter().map(|t| t * t).collect();
+        let b: Vec<f64> = t.iter().map(|t| 100.0 - t * t).collect();
+        let mut svg = String::new();
+        let layout = {
+            let root = SVGBackend::with_string(&mut svg, (960, 420)).into_drawing_area();
+            time_chart(
+                &[],
+                &root,
+                "residual",
+                "error (mm)",
+                &t,
+                &[(&a, ORANGE, "nominal"), (&b, BLUE, "fitted")],
+                Stage::Ground,
+            )
+            .unwrap()
+        };
+        assert_clear("time", &layout, 400);
+    }
 }

@@ -20,6 +20,10 @@ use sequential_storage::map::{MapConfig, MapStorage};
 
 const KEY_CORRECTIONS: u8 = 1;
 const KEY_PARAMS: u8 = 2;
+/// One byte, a bit per item key that has ever been saved. sequential-storage skips an
+/// item whose CRC fails as if it were absent; with this record boot tells "never saved"
+/// from "saved, now unreadable" (a lost calibration the user must hear about).
+const KEY_SAVED: u8 = 3;
 /// Bumped when an item's stored layout changes; older values are then reported invalid.
 /// Per item, so a new parameter layout does not throw away a saved calibration.
 const FORMAT_CORRECTIONS: u8 = 1;
@@ -82,11 +86,28 @@ impl<F: NorFlash> Store<F> {
         }
     }
 
+    /// The keys ever saved (bit `1 << key`); 0 when the record is absent or unreadable.
+    async fn saved_mask(&mut self) -> u8 {
+        match self.fetch(KEY_SAVED).await {
+            Ok(Some(&[m])) => m,
+            _ => 0,
+        }
+    }
+
     /// Reads and validates both items; anything unusable becomes the defaults, and the
-    /// report says which.
+    /// report says which. An item that was saved once but is now gone is `Invalid`
+    /// (corrupted), not `Missing`.
     pub async fn load(&mut self) -> Loaded {
+        let saved = self.saved_mask().await;
+        let absent = |key: u8| {
+            if saved & (1 << key) != 0 {
+                Stored::Invalid
+            } else {
+                Stored::Missing
+            }
+        };
         let (params, params_state) = match self.fetch(KEY_PARAMS).await {
-            Ok(None) => (defaults::params(), Stored::Missing),
+            Ok(None) => (defaults::params(), absent(KEY_PARAMS)),
             Err(_) => (defaults::params(), Stored::StorageError),
             Ok(Some(b)) => {
                 match unpack::<Params>(b, FORMAT_PARAMS).filter(|p| p.validate().is_ok()) {
@@ -96,7 +117,7 @@ impl<F: NorFlash> Store<F> {
             }
         };
         let (corrections, corr_state) = match self.fetch(KEY_CORRECTIONS).await {
-            Ok(None) => (Corrections::None, Stored::Missing),
+            Ok(None) => (Corrections::None, absent(KEY_CORRECTIONS)),
             Err(_) => (Corrections::None, Stored::StorageError),
             Ok(Some(b)) => {
                 match unpack::<Corrections>(b, FORMAT_CORRECTIONS)
@@ -126,6 +147,15 @@ impl<F: NorFlash> Store<F> {
             }
             PersistItem::Params(p) => (KEY_PARAMS, pack(FORMAT_PARAMS, p, &mut value)?),
         };
+        // The "ever saved" bit goes first: a save cut short after it reads as corrupted
+        // (the save was lost), never as "nothing saved".
+        let saved = self.saved_mask().await;
+        if saved & (1 << key) == 0 {
+            self.map
+                .store_item(&mut self.buf, &KEY_SAVED, &&[saved | (1 << key)][..])
+                .await
+                .map_err(|_| StoreError::Flash)?;
+        }
         self.map
             .store_item(&mut self.buf, &key, &&value[..len])
             .await

@@ -166,3 +166,41 @@ fn faulty_link_never_corrupts_and_transfers_or_fails_clearly() {
     eprintln!("link stats: {:?}", c.stats);
     assert!(c.stats.retries > 0, "the faults should have forced retries");
 }
+
+/// 13.9: a trial pulled while it still runs is marked partial, with a warning.
+#[test]
+fn pulling_a_running_trial_says_partial() {
+    let path = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml");
+    let robot = robot_file::load(&path).unwrap();
+    let sim = SimRobot::new(
+        &robot,
+        SimFaults::none(2),
+        Surface::flat(),
+        SimConfig::default(),
+    )
+    .unwrap();
+    // Paced at real time: the 4 m square runs for many seconds.
+    let mut b =
+        InProcessBoard::start_paced(&robot, sim, Faults::none(), Faults::none(), 3, 1.0).unwrap();
+    let c = &mut b.client;
+    c.run_program(
+        ProgramSpec::Umbmark {
+            side_m: 4.0,
+            dir: Direction::Cw,
+        },
+        50,
+    )
+    .unwrap();
+    std::thread::sleep(Duration::from_millis(300));
+    let t = c.trials().unwrap().trials.last().unwrap().clone();
+    assert_eq!(t.end, TrialEnd::Running, "{t:?}");
+    let file = std::env::temp_dir().join(format!("partial-{}.csv", std::process::id()));
+    let r = wheelcal::board_cmds::pull_trial(c, t.id, &file, |_, _| {}).unwrap();
+    assert!(r.partial && r.records > 0, "{r:?}");
+    assert!(r.warnings().contains("PARTIAL"), "{}", r.warnings());
+    c.stop().unwrap();
+    wait_idle(c, Duration::from_secs(30));
+    let r = wheelcal::board_cmds::pull_trial(c, t.id, &file, |_, _| {}).unwrap();
+    let _ = std::fs::remove_file(&file);
+    assert!(!r.partial && !r.warnings().contains("PARTIAL"), "{r:?}");
+}

@@ -2,5 +2,6 @@
 //! commands, the guided procedures and the demo.
 
 pub mod omni;
+pub mod plausible;
 pub mod procedure;
 pub mod umbmark;

@@ -70,7 +70,7 @@ pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniR
         f_lon: p_lon,
     } = previous
     else {
-        bail!("the previous factors are not omni factors: {previous:?}");
+        bail!("the previous factors are not omni factors (f_lat, f_lon)");
     };
     let secondary = Corrections::Omni {
         f_lat: heapless::Vec::from_slice(&rep.f_lat)
@@ -92,6 +92,14 @@ pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniR
         f_lat: rep.f_lat.clone(),
         f_lon: rep.f_lon,
     });
+    // The composition is what the board gets: refuse it as the board would.
+    for (i, v) in f_lat.iter().enumerate() {
+        calib_core::correction::check("f_lat", Some(i), *v).map_err(|e| {
+            anyhow::anyhow!("composed with the previous pass, {e}: not recommended")
+        })?;
+    }
+    calib_core::correction::check("f_lon", None, f_lon)
+        .map_err(|e| anyhow::anyhow!("composed with the previous pass, {e}: not recommended"))?;
     rep.f_lat = f_lat.to_vec();
     rep.f_lon = f_lon;
     Ok(rep)
@@ -101,6 +109,13 @@ pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniR
 /// `omni compute` or `factors get`.
 pub fn factors_from_json(path: &std::path::Path) -> Result<Corrections> {
     let f = omni_factors_from_json(path)?;
+    // A first pass the board would refuse must not be composed with (e.g. f_lon: -1).
+    for (i, v) in f.f_lat.iter().enumerate() {
+        calib_core::correction::check("f_lat", Some(i), *v)
+            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    }
+    calib_core::correction::check("f_lon", None, f.f_lon)
+        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     let f_lat = heapless::Vec::from_slice(&f.f_lat)
         .map_err(|_| anyhow::anyhow!("{}: too many f_lat factors", path.display()))?;
     Ok(Corrections::Omni {
@@ -210,8 +225,35 @@ pub fn idle_wheels_for(
         .unwrap_or_default())
 }
 
-/// Computes F_lat and F_lon from a runs file, with the idle wheels modelled as `idle`.
+/// Computes F_lat and F_lon from a runs file (paths up to the default length limit), with
+/// the idle wheels modelled as `idle`.
 pub fn compute(robot: &Robot, runs: &RunsFile, idle: IdleWheels) -> Result<OmniReport> {
+    compute_limited(robot, runs, idle, super::plausible::DEFAULT_MAX_LENGTH_M)
+}
+
+/// Computes F_lat and F_lon from a runs file whose rows are first checked against
+/// physical bounds (paths up to `max_length_m`); factors the board would refuse are an
+/// error, never a recommendation.
+pub fn compute_limited(
+    robot: &Robot,
+    runs: &RunsFile,
+    idle: IdleWheels,
+    max_length_m: f64,
+) -> Result<OmniReport> {
+    super::plausible::check_runs(runs, max_length_m)?;
+    let rep = compute_unchecked(robot, runs, idle)?;
+    let mut factors: Vec<(&'static str, Option<usize>, f64)> = rep
+        .f_lat
+        .iter()
+        .enumerate()
+        .map(|(i, &f)| ("f_lat", Some(i), f))
+        .collect();
+    factors.push(("f_lon", None, rep.f_lon));
+    super::plausible::check_factors(runs, &factors)?;
+    Ok(rep)
+}
+
+fn compute_unchecked(robot: &Robot, runs: &RunsFile, idle: IdleWheels) -> Result<OmniReport> {
     if robot.kind != RobotKind::Omni {
         bail!(
             "omni calibration needs an omni robot; '{}' is {} (use `wheelcal umbmark compute`)",
@@ -427,6 +469,51 @@ mod tests {
             e_b: 1.0,
         };
         assert!(compose_with(rep, &diff).is_err());
+    }
+
+    #[test]
+    fn implausible_inputs_are_refused() {
+        // 30 mm typed as 30 on a 0.6 m path: refused before any fit, with the hint.
+        let text = "test,path,length_m,x_err_m,y_err_m\nomni,4W-1,0.6,-30,2\nomni,4W-1,0.6,-29,2\nomni,4W-2,0.6,-28,0\nomni,4W-2,0.6,-27,0\n";
+        let runs = RunsFile::parse(text, Path::new("r.csv")).unwrap();
+        let e = compute(&presets::omni4(), &runs, IdleWheels::Released)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("r.csv:2: column 'x_err_m'") && e.contains("millimetres"),
+            "{e}"
+        );
+        // 0.45 m short on 0.6 m passes the bounds but needs F_lon = 4: not recommended.
+        let text =
+            "test,path,length_m,x_err_m,y_err_m\nomni,4W-1,0.6,-0.45,0\nomni,4W-1,0.6,-0.45,0\nomni,4W-2,0.6,-0.45,0\nomni,4W-2,0.6,-0.45,0\n";
+        let runs = RunsFile::parse(text, Path::new("r.csv")).unwrap();
+        let e = compute(&presets::omni4(), &runs, IdleWheels::Released)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.contains("f_lon = 4") && e.contains("not recommended"),
+            "{e}"
+        );
+        // A previous pass with f_lon: -1 is refused, not composed.
+        let dir = std::env::temp_dir().join(format!("omni-prev-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let prev = dir.join("prev.json");
+        std::fs::write(&prev, r#"{"f_lat": [1, 1, 1, 1], "f_lon": -1}"#).unwrap();
+        let e = factors_from_json(&prev).unwrap_err().to_string();
+        assert!(e.contains("f_lon = -1 is outside [0.5, 2]"), "{e}");
+        std::fs::write(&prev, r#"{"f_lat": [1, 1, 1.2, 1], "f_lon": 1.9}"#).unwrap();
+        let first = factors_from_json(&prev).unwrap();
+        std::fs::remove_dir_all(&dir).unwrap();
+        // A composition past the board's range (1.9 / 0.9 = 2.11) is refused too.
+        let text =
+            "test,path,length_m,x_err_m,y_err_m\nomni,4W-1,0.6,-0.06,0\nomni,4W-1,0.6,-0.06,0\nomni,4W-2,0.6,-0.06,0\nomni,4W-2,0.6,-0.06,0\n";
+        let runs = RunsFile::parse(text, Path::new("r.csv")).unwrap();
+        let rep = compute(&presets::omni4(), &runs, IdleWheels::Released).unwrap();
+        let e = compose_with(rep, &first).unwrap_err().to_string();
+        assert!(
+            e.contains("f_lon = 2.11") && e.contains("not recommended"),
+            "{e}"
+        );
     }
 
     #[test]

@@ -140,8 +140,29 @@ pub fn nominal_wheelbase(robot: &Robot) -> f64 {
     robot.wheels.iter().map(|w| w.l_m).sum()
 }
 
-/// Computes the UMBmark factors from a runs file.
+/// Computes the UMBmark factors from a runs file (sides up to the default length limit).
 pub fn compute(robot: &Robot, runs: &RunsFile) -> Result<UmbmarkReport> {
+    compute_limited(robot, runs, super::plausible::DEFAULT_MAX_LENGTH_M)
+}
+
+/// Computes the UMBmark factors from a runs file whose rows are first checked against
+/// physical bounds (sides up to `max_length_m`); factors the board would refuse are an
+/// error, never a recommendation.
+pub fn compute_limited(robot: &Robot, runs: &RunsFile, max_length_m: f64) -> Result<UmbmarkReport> {
+    super::plausible::check_runs(runs, max_length_m)?;
+    let rep = compute_unchecked(robot, runs)?;
+    super::plausible::check_factors(
+        runs,
+        &[
+            ("c_l", None, rep.c_l),
+            ("c_r", None, rep.c_r),
+            ("e_b", None, rep.eb),
+        ],
+    )?;
+    Ok(rep)
+}
+
+fn compute_unchecked(robot: &Robot, runs: &RunsFile) -> Result<UmbmarkReport> {
     if robot.kind != RobotKind::DiffDrive {
         bail!(
             "UMBmark calibrates differential drives; robot '{}' is {} (use `wheelcal omni compute` for omni robots)",
@@ -265,6 +286,33 @@ mod tests {
     use super::*;
     use calib_core::robot::presets;
     use std::path::Path;
+
+    #[test]
+    fn millimetre_errors_are_not_recommended() {
+        // End errors of 5-10 mm typed as millimetres into the metre columns: 10 m off on
+        // a 4 m side (their fit gave E_b 0.90 with a 4 m fit residual, "recommended").
+        let mut text = String::from("test,path,length_m,x_err_m,y_err_m\n");
+        for (d, x, y) in [("cw", 8.0, -5.0), ("ccw", -6.0, 7.0)] {
+            for k in 0..3 {
+                text.push_str(&format!("umbmark,{d},4,{},{y}\n", x + k as f64));
+            }
+        }
+        let runs = RunsFile::parse(&text, Path::new("r.csv")).unwrap();
+        let e = compute(&presets::mobolab(), &runs).unwrap_err().to_string();
+        assert!(e.starts_with("r.csv:2: column 'x_err_m'"), "{e}");
+        assert!(
+            e.contains("larger than the 4 m side") && e.contains("millimetres"),
+            "{e}"
+        );
+        // 1e300 in a cell: refused with a sane number, not `inf mm`.
+        let text = "test,path,length_m,x_err_m,y_err_m\numbmark,cw,4,1e300,0\n";
+        let runs = RunsFile::parse(text, Path::new("r.csv")).unwrap();
+        let e = compute(&presets::mobolab(), &runs).unwrap_err().to_string();
+        assert!(
+            e.contains("1.000e300 m is larger than") && !e.contains("inf"),
+            "{e}"
+        );
+    }
 
     #[test]
     fn computes_from_synthetic_runs() {

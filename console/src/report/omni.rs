@@ -55,6 +55,23 @@ pub fn write(rep: &OmniReport, dir: &Path) -> Result<PathBuf> {
     if let Some(i) = rep.improvement_index_percent {
         page.paragraph(&format!("Improvement index (001 eq. 8): {i:.1} %"));
     }
+    page.figure(
+        &radial_errors(rep),
+        dir,
+        "radial_errors",
+        "Radial end error of each run, before and after calibration.",
+    )?;
+    page.figure(
+        &mean_radial(rep),
+        dir,
+        "mean_radial",
+        "Mean radial error per path before and after.",
+    )?;
+    page.write(dir)
+}
+
+/// Radial end error of each run, before and after (001 Fig. 5).
+pub fn radial_errors(rep: &OmniReport) -> XyChart {
     let mut series = Vec::new();
     for (k, (phase, ps)) in [("before", &rep.before), ("after", &rep.after)]
         .into_iter()
@@ -70,44 +87,37 @@ pub fn write(rep: &OmniReport, dir: &Path) -> Result<PathBuf> {
             series.push(Series::line(&format!("{} {phase}", p.path), pts, k * 2 + j));
         }
     }
-    page.figure(
-        &XyChart {
-            title: "Radial error per run (001 Fig. 5)".into(),
-            x_label: "run".into(),
-            y_label: "radial error (mm)".into(),
-            series,
-            equal_axes: false,
-            bands: vec![],
-        },
-        dir,
-        "radial_errors",
-        "Radial end error of each run, before and after calibration.",
-    )?;
+    XyChart {
+        title: "Radial error per run (001 Fig. 5)".into(),
+        x_label: "run".into(),
+        y_label: "radial error (mm)".into(),
+        series,
+        equal_axes: false,
+        bands: vec![],
+    }
+}
+
+/// Mean radial error per path, before and after.
+pub fn mean_radial(rep: &OmniReport) -> BarChart {
     let cats: Vec<String> = rep.before.iter().map(|p| p.path.clone()).collect();
     let mean_of = |ps: &Vec<crate::calibration::omni::PathStats>, path: &str| {
         ps.iter()
             .find(|p| p.path == path)
             .map_or(0.0, |p| p.mean_radial_error_m * 1e3)
     };
-    page.figure(
-        &BarChart {
-            title: "Mean radial error".into(),
-            y_label: "mm".into(),
-            categories: cats.clone(),
-            series: vec![
-                (
-                    "before".into(),
-                    cats.iter().map(|c| mean_of(&rep.before, c)).collect(),
-                ),
-                (
-                    "after".into(),
-                    cats.iter().map(|c| mean_of(&rep.after, c)).collect(),
-                ),
-            ],
-        },
-        dir,
-        "mean_radial",
-        "Mean radial error per path before and after.",
-    )?;
-    page.write(dir)
+    BarChart {
+        title: "Mean radial error".into(),
+        y_label: "mm".into(),
+        categories: cats.clone(),
+        series: vec![
+            (
+                "before".into(),
+                cats.iter().map(|c| mean_of(&rep.before, c)).collect(),
+            ),
+            (
+                "after".into(),
+                cats.iter().map(|c| mean_of(&rep.after, c)).collect(),
+            ),
+        ],
+    }
 }

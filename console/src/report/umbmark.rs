@@ -2,7 +2,7 @@
 
 use super::figures::{BarChart, Series, XyChart};
 use super::{prepare_dir, Page};
-use crate::calibration::umbmark::{DirectionStats, UmbmarkReport};
+use crate::calibration::umbmark::{DirectionStats, PhaseStats, UmbmarkReport};
 use anyhow::Result;
 use calib_core::stats;
 use std::path::{Path, PathBuf};
@@ -108,10 +108,74 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
         ]],
     );
 
+    let phases = phases(rep);
+    page.heading("End positions (000 Figs. 13-21)");
+    page.figure(
+        &end_positions(rep),
+        dir,
+        "end_positions",
+        "Measured minus odometry end positions of each run, cw and ccw, with their centroids.",
+    )?;
+
+    page.heading("Normal distribution of the errors (000 Figs. 22-23, eq. 18)");
+    page.figure(
+        &normal_curves(rep),
+        dir,
+        "normal_curves",
+        "Normal curves of the end-point distance e with each phase's mean and standard deviation.",
+    )?;
+
+    page.heading("Convergence: probability of ending within 3 cm of the centroid (000 Fig. 24)");
+    page.figure(
+        &p_within_3cm(rep),
+        dir,
+        "p_within_3cm",
+        "Probability, under a normal model with each direction's spreads, that a run ends within 3 cm of its centroid.",
+    )?;
+
+    page.heading("Error zones (000 Figs. 25-26)");
+    let mut zone_rows = Vec::new();
+    for (name, ph) in &phases {
+        for (dir_name, d) in [("cw", &ph.cw), ("ccw", &ph.ccw)] {
+            let z = zone_probabilities(d);
+            zone_rows.push(vec![
+                format!("{dir_name} {name}"),
+                format!("{:.3}", z[0]),
+                format!("{:.3}", z[1]),
+                format!("{:.3}", z[2]),
+            ]);
+        }
+    }
+    page.table(
+        &[
+            "run set",
+            "zone 1: min..max seen",
+            "zone 2: 0..min",
+            "zone 3: > max",
+        ],
+        &zone_rows,
+    );
+    page.figure(
+        &zones(rep),
+        dir,
+        "zones",
+        "Zone 1: between the smallest and largest error seen; zone 2: below the smallest; zone 3: above the largest.",
+    )?;
+    page.write(dir)
+}
+
+/// The phases present, before first.
+fn phases(rep: &UmbmarkReport) -> Vec<(&'static str, &PhaseStats)> {
     let mut phases = vec![("before", &rep.before)];
     if let Some(a) = &rep.after {
         phases.push(("after", a));
     }
+    phases
+}
+
+/// End-position errors of each run with the centroids (000 Figs. 13-21).
+pub fn end_positions(rep: &UmbmarkReport) -> XyChart {
+    let phases = phases(rep);
     let mut series = Vec::new();
     for (k, (name, ph)) in phases.iter().enumerate() {
         for (j, (dir_name, d)) in [("cw", &ph.cw), ("ccw", &ph.ccw)].into_iter().enumerate() {
@@ -132,22 +196,19 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
         }
     }
     series.push(Series::marker("start (odometry end)", (0.0, 0.0), 5));
-    page.heading("End positions (000 Figs. 13-21)");
-    page.figure(
-        &XyChart {
-            title: "End-position errors and centroids".into(),
-            x_label: "x error (mm)".into(),
-            y_label: "y error (mm)".into(),
-            series,
-            equal_axes: true,
-            bands: vec![],
-        },
-        dir,
-        "end_positions",
-        "Measured minus odometry end positions of each run, cw and ccw, with their centroids.",
-    )?;
+    XyChart {
+        title: "End-position errors and centroids".into(),
+        x_label: "x error (mm)".into(),
+        y_label: "y error (mm)".into(),
+        series,
+        equal_axes: true,
+        bands: vec![],
+    }
+}
 
-    page.heading("Normal distribution of the errors (000 Figs. 22-23, eq. 18)");
+/// Normal curves of the end-point distance (000 Figs. 22-23).
+pub fn normal_curves(rep: &UmbmarkReport) -> XyChart {
+    let phases = phases(rep);
     let mut curves = Vec::new();
     for (k, (name, ph)) in phases.iter().enumerate() {
         curves.push(Series::line(
@@ -161,71 +222,48 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
             k * 2 + 1,
         ));
     }
-    page.figure(
-        &XyChart {
-            title: "Distance of the end point from the origin".into(),
-            x_label: "e (mm)".into(),
-            y_label: "probability density (1/mm)".into(),
-            series: curves,
-            equal_axes: false,
-            bands: vec![],
-        },
-        dir,
-        "normal_curves",
-        "Normal curves of the end-point distance e with each phase's mean and standard deviation.",
-    )?;
+    XyChart {
+        title: "Distance of the end point from the origin".into(),
+        x_label: "e (mm)".into(),
+        y_label: "probability density (1/mm)".into(),
+        series: curves,
+        equal_axes: false,
+        bands: vec![],
+    }
+}
 
-    page.heading("Convergence: probability of ending within 3 cm of the centroid (000 Fig. 24)");
-    let cats: Vec<String> = phases.iter().map(|(n, _)| n.to_string()).collect();
-    page.figure(
-        &BarChart {
-            title: "P(end within 3 cm of centroid)".into(),
-            y_label: "probability".into(),
-            categories: cats.clone(),
-            series: vec![
-                ("cw".into(), phases.iter().map(|(_, p)| p.cw.p_within_3cm).collect()),
-                ("ccw".into(), phases.iter().map(|(_, p)| p.ccw.p_within_3cm).collect()),
-            ],
-        },
-        dir,
-        "p_within_3cm",
-        "Probability, under a normal model with each direction's spreads, that a run ends within 3 cm of its centroid.",
-    )?;
+/// P(end within 3 cm of the centroid) per phase and direction (000 Fig. 24).
+pub fn p_within_3cm(rep: &UmbmarkReport) -> BarChart {
+    let phases = phases(rep);
+    BarChart {
+        title: "P(end within 3 cm of centroid)".into(),
+        y_label: "probability".into(),
+        categories: phases.iter().map(|(n, _)| n.to_string()).collect(),
+        series: vec![
+            (
+                "cw".into(),
+                phases.iter().map(|(_, p)| p.cw.p_within_3cm).collect(),
+            ),
+            (
+                "ccw".into(),
+                phases.iter().map(|(_, p)| p.ccw.p_within_3cm).collect(),
+            ),
+        ],
+    }
+}
 
-    page.heading("Error zones (000 Figs. 25-26)");
-    let mut zone_series = Vec::new();
-    let mut zone_rows = Vec::new();
-    for (name, ph) in &phases {
+/// Error occurrence probability per zone (000 Figs. 25-26).
+pub fn zones(rep: &UmbmarkReport) -> BarChart {
+    let mut series = Vec::new();
+    for (name, ph) in phases(rep) {
         for (dir_name, d) in [("cw", &ph.cw), ("ccw", &ph.ccw)] {
-            let z = zone_probabilities(d);
-            zone_rows.push(vec![
-                format!("{dir_name} {name}"),
-                format!("{:.3}", z[0]),
-                format!("{:.3}", z[1]),
-                format!("{:.3}", z[2]),
-            ]);
-            zone_series.push((format!("{dir_name} {name}"), z.to_vec()));
+            series.push((format!("{dir_name} {name}"), zone_probabilities(d).to_vec()));
         }
     }
-    page.table(
-        &[
-            "run set",
-            "zone 1: min..max seen",
-            "zone 2: 0..min",
-            "zone 3: > max",
-        ],
-        &zone_rows,
-    );
-    page.figure(
-        &BarChart {
-            title: "Error occurrence probability per zone".into(),
-            y_label: "probability".into(),
-            categories: vec!["min..max".into(), "0..min".into(), "> max".into()],
-            series: zone_series,
-        },
-        dir,
-        "zones",
-        "Zone 1: between the smallest and largest error seen; zone 2: below the smallest; zone 3: above the largest.",
-    )?;
-    page.write(dir)
+    BarChart {
+        title: "Error occurrence probability per zone".into(),
+        y_label: "probability".into(),
+        categories: vec!["min..max".into(), "0..min".into(), "> max".into()],
+        series,
+    }
 }
