@@ -186,6 +186,8 @@ pub fn register_font() -> bool {
     })
 }
 
+/// Writes `r` into `dir` (created if missing): the SVG plots, `index.html` with the
+/// summary and `report.json`. Fails when the DejaVu Sans font the plots need is missing.
 pub fn write_report_dir(r: &Report, dir: &Path) -> std::io::Result<()> {
     if !register_font() {
         return Err(std::io::Error::other(format!(
