@@ -9,9 +9,13 @@ use crate::effects::{Effect, Model};
 /// Parameters of the actuator effects in a model, with "absent" as `None`.
 #[derive(Debug, Clone, Copy, Default)]
 pub struct ActuatorParams {
+    /// Coulomb friction: commands below this magnitude leave the wheel still, rad/s.
     pub deadband_rad_s: Option<f64>,
+    /// Motor lag: first-order time constant from command to wheel rate, s.
     pub tau_s: Option<f64>,
+    /// Acceleration the motor can follow (missed steps, slew limit), rad/s².
     pub max_accel_rad_s2: Option<f64>,
+    /// Gear backlash: total play between motor and wheel, rad.
     pub backlash_rad: Option<f64>,
     /// Stepper drives: wheel angle of one electrical cycle (four full steps), the unit in
     /// which a rotor that lost synchronism drops steps. `None`: a plain rate limit.
@@ -34,6 +38,7 @@ pub struct ActuatorParams {
 pub const STALL_RELEASE_RAD_S: f64 = 0.2;
 
 impl ActuatorParams {
+    /// The actuator-stage parameters of `m`'s effects (held commands, no stepper cycle).
     pub fn from_model(m: &Model) -> Self {
         let quanta = m.get(Effect::MissedQuanta);
         let stall = m.get(Effect::MissedStall);

@@ -56,6 +56,7 @@ pub enum GeomKind {
     /// Where motion capture tracks, body frame, m (a recording parameter shared by the
     /// recordings of one rig: a marker set not at the kinematic centre).
     MarkerX,
+    /// Where motion capture tracks, body frame y, m (see `MarkerX`).
     MarkerY,
 }
 
@@ -63,12 +64,17 @@ pub enum GeomKind {
 /// outside it most likely stands for.
 #[derive(Debug, Clone, Serialize)]
 pub struct ParamSpec {
+    /// Which geometry parameter it is.
     pub kind: GeomKind,
+    /// Its name in reports (`scale`, `ed`, `radius_scale_<wheel>`...).
     pub name: String,
     /// Catalogue effect the parameter belongs to.
     pub effect: &'static str,
+    /// Its value in the nominal geometry (1 for a scale, 0 for an offset).
     pub nominal: f64,
+    /// Physical range (low, high).
     pub plausible: (f64, f64),
+    /// What a value outside the range most likely stands in for.
     #[serde(skip)]
     pub stands_for: &'static str,
 }
@@ -249,6 +255,7 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
 pub struct CalibrateError {
     /// The recording at fault (its name as given), if one is.
     pub recording: Option<String>,
+    /// What is wrong.
     pub message: String,
 }
 
@@ -266,7 +273,9 @@ impl std::error::Error for CalibrateError {}
 /// A recording reduced to what calibration replays: wheel angles per row and poses.
 #[derive(Debug, Clone)]
 pub struct Series {
+    /// The recording's name as given.
     pub name: String,
+    /// Time of each row, s.
     pub t: Vec<f64>,
     /// Per row, per wheel: angle increment to the next row (rad).
     inc: Vec<Vec<f64>>,
@@ -347,6 +356,7 @@ impl Series {
         })
     }
 
+    /// Number of ground-truth pose samples.
     pub fn pose_samples(&self) -> usize {
         self.pose_row.len()
     }
@@ -386,10 +396,15 @@ impl Path {
 /// Per-recording nuisance: start pose and recording parameters.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Nuisance {
+    /// Start pose x in the motion-capture frame, m.
     pub x0_m: f64,
+    /// Start pose y in the motion-capture frame, m.
     pub y0_m: f64,
+    /// Start heading in the motion-capture frame, rad.
     pub theta0_rad: f64,
+    /// How much later the poses are stamped than the encoders, s.
     pub time_offset_s: f64,
+    /// Pose clock rate over encoder clock rate.
     pub clock_ratio: f64,
 }
 
@@ -650,21 +665,30 @@ fn nuisance_start(series: &[Series]) -> Vec<f64> {
 /// One fitted geometry parameter.
 #[derive(Debug, Clone, Serialize)]
 pub struct FittedParam {
+    /// The parameter's name (as [`ParamSpec::name`]).
     pub name: String,
+    /// Catalogue effect the parameter belongs to.
     pub effect: &'static str,
+    /// Fitted value.
     pub value: f64,
     /// One standard deviation, residual autocorrelation counted.
     pub sigma: f64,
+    /// Value in the nominal geometry.
     pub nominal: f64,
+    /// Physical range (low, high).
     pub plausible: (f64, f64),
 }
 
 /// Fitted geometry of one wheel.
 #[derive(Debug, Clone, Serialize)]
 pub struct WheelGeometry {
+    /// The wheel's name.
     pub name: String,
+    /// Fitted radius, m.
     pub radius_m: f64,
+    /// Fitted distance from the body centre, m.
     pub l_m: f64,
+    /// Fitted mounting angle (direction of the wheel's position), degrees.
     pub alpha_deg: f64,
 }
 
@@ -673,16 +697,30 @@ pub struct WheelGeometry {
 #[serde(untagged)]
 pub enum Factors {
     /// `factors set` values of a differential drive.
-    Diff { c_l: f64, c_r: f64, e_b: f64 },
+    Diff {
+        /// Left wheel's effective radius / nominal radius.
+        c_l: f64,
+        /// Right wheel's effective radius / nominal radius.
+        c_r: f64,
+        /// Actual wheelbase / nominal wheelbase.
+        e_b: f64,
+    },
     /// Per wheel: the command multiplier f_lat (1 / radius scale), f_lon = 1. Wheel
     /// angle and position errors have no firmware factor: use the fitted robot file.
-    Wheels { f_lat: Vec<f64>, f_lon: f64 },
+    Wheels {
+        /// Command multiplier per wheel, in the robot's wheel order.
+        f_lat: Vec<f64>,
+        /// Common multiplier (always 1 here).
+        f_lon: f64,
+    },
 }
 
 /// RMSE of one recording.
 #[derive(Debug, Clone, Serialize)]
 pub struct PerRecording {
+    /// The recording's name as given.
     pub name: String,
+    /// Its ground-truth pose samples.
     pub pose_samples: usize,
     /// Nominal geometry, nuisance (start pose, clocks) fitted.
     pub rmse_before_m: f64,
@@ -690,23 +728,30 @@ pub struct PerRecording {
     pub rmse_after_m: f64,
     /// Dead reckoning from the first measured pose, nominal and fitted geometry.
     pub dead_reckoning_before_m: f64,
+    /// Dead reckoning from the first measured pose with the fitted geometry, m.
     pub dead_reckoning_after_m: f64,
+    /// Its fitted start pose and clocks.
     pub nuisance: Nuisance,
     /// One standard deviation of `time_offset_s` and `clock_ratio` (autocorrelation
     /// counted).
     pub time_offset_sigma_s: f64,
+    /// One standard deviation of `clock_ratio`.
     pub clock_ratio_sigma: f64,
 }
 
 /// RMSE on a recording the fit did not see (dead reckoning from its first pose).
 #[derive(Debug, Clone, Serialize)]
 pub struct Heldout {
+    /// The recording's name as given.
     pub name: String,
+    /// Dead reckoning with the nominal geometry, m.
     pub rmse_before_m: f64,
+    /// Dead reckoning with the fitted geometry, m.
     pub rmse_after_m: f64,
     /// With its start pose and clocks fitted (geometry as given): what the geometry
     /// explains without the start heading's noise, which dead reckoning carries to the end.
     pub aligned_before_m: f64,
+    /// The same with the fitted geometry, m.
     pub aligned_after_m: f64,
 }
 
@@ -721,7 +766,9 @@ fn aligned_rmse(robot: &Robot, specs: &[ParamSpec], geom: &[f64], s: &Series) ->
 /// Two parameters (or a parameter and the rest) the data do not separate.
 #[derive(Debug, Clone, Serialize)]
 pub struct Inseparable {
+    /// The two parameters' names.
     pub params: [String; 2],
+    /// Their correlation in the fit.
     pub correlation: f64,
     /// The combination the data do fix (unit vector over `params`).
     pub identifiable: [f64; 2],
@@ -732,41 +779,64 @@ pub struct Inseparable {
 /// A parameter outside its physical range.
 #[derive(Debug, Clone, Serialize)]
 pub struct Implausible {
+    /// The parameter's name (a recording's clocks: `<recording>: time_offset_s`...).
     pub name: String,
+    /// The value the data ask for.
     pub value: f64,
+    /// Physical range (low, high).
     pub plausible: (f64, f64),
+    /// What the value most likely stands in for.
     pub stands_for: String,
 }
 
 /// The result of [`calibrate`].
 #[derive(Debug, Clone, Serialize)]
 pub struct Calibration {
+    /// The robot's name.
     pub robot: String,
+    /// The recordings' names, in the order given.
     pub recordings: Vec<String>,
+    /// The fitted geometry parameters (in [`param_specs`] order).
     pub params: Vec<FittedParam>,
+    /// Each wheel's fitted geometry, in the robot's wheel order.
     pub geometry: Vec<WheelGeometry>,
+    /// The fitted geometry as firmware correction factors.
     pub factors: Factors,
+    /// Each recording's fit, in the order given.
     pub per_recording: Vec<PerRecording>,
-    /// All recordings together, nuisance fitted.
+    /// All recordings together, nuisance fitted: position RMSE with the nominal
+    /// geometry, m.
     pub joint_rmse_before_m: f64,
+    /// The same with the fitted geometry, m.
     pub joint_rmse_after_m: f64,
+    /// The prediction of the held-out recording, when one was given.
     pub heldout: Option<Heldout>,
     /// Leave one recording out: fit on the rest, dead-reckon the one left out.
     pub leave_one_out: Vec<Heldout>,
+    /// Mean of `leave_one_out`'s `rmse_before_m` (`None` without leave-one-out), m.
     pub leave_one_out_mean_before_m: Option<f64>,
+    /// Mean of `leave_one_out`'s `rmse_after_m`, m.
     pub leave_one_out_mean_after_m: Option<f64>,
+    /// Mean of `leave_one_out`'s `aligned_before_m`, m.
     pub leave_one_out_aligned_before_m: Option<f64>,
+    /// Mean of `leave_one_out`'s `aligned_after_m`, m.
     pub leave_one_out_aligned_after_m: Option<f64>,
     /// Correlations between the geometry parameters (params order).
     pub correlations: Vec<Vec<f64>>,
     /// Pairs the data do not separate, by name (the JSON shape).
     pub not_separable: Vec<[String; 2]>,
+    /// The same pairs with their correlation, identifiable combination and advice.
     pub inseparable: Vec<Inseparable>,
     /// Directions over the geometry the data leave unconstrained (unit vectors).
     pub unconstrained: Vec<Vec<(String, f64)>>,
+    /// Values the data ask for outside their physical range (the geometry is then
+    /// refitted within the ranges), and implausible clocks of a recording.
     pub implausible: Vec<Implausible>,
+    /// Remarks for the reader.
     pub notes: Vec<String>,
+    /// Model evaluations the whole fit took.
     pub model_runs: usize,
+    /// The robot with the fitted geometry applied.
     #[serde(skip)]
     pub fitted_robot: Robot,
 }

@@ -19,6 +19,7 @@ pub enum Stage {
 }
 
 impl Stage {
+    /// The stage's name in reports: "actuator" or "ground".
     pub fn as_str(self) -> &'static str {
         match self {
             Stage::Actuator => "actuator",
@@ -37,14 +38,27 @@ impl fmt::Display for Stage {
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, PartialOrd, Ord)]
 #[serde(rename_all = "snake_case")]
 pub enum Effect {
+    /// Wheel radii off their nominal values: Borenstein's `ed` = D_R / D_L (mean diameter
+    /// kept) on a differential drive, one radius scale per wheel otherwise.
     WheelDiameterMismatch,
+    /// Wheel distances from the centre scaled by `eb` (Borenstein's wheelbase error).
     WheelbaseError,
+    /// Traction limit: a driven wheel's contact speed changes by at most `mu` g (times
+    /// the share of the weight on driven wheels) per second; beyond that it slips.
     LongitudinalSlip,
+    /// Side slip in turns: v_y = -`side_slip_s` v_x omega.
     LateralSlip,
+    /// Cables across the floor every `spacing_m` in world x: a driven wheel crossing one
+    /// loses up to `loss_m` of travel (its rolling direction's share of the crossing).
     FloorBumps,
+    /// Gear play between motor and wheel, `backlash_rad` in all.
     Backlash,
+    /// Stepper pull-out: the rotor follows with at most `max_accel_rad_s2` and loses
+    /// steps when it falls behind.
     MissedSteps,
+    /// First-order lag from commanded to actual wheel rate, time constant `tau_s`.
     MotorLag,
+    /// Dead band: commands below `deadband_rad_s` leave the wheel still.
     CoulombFriction,
     /// Differential drive: mean actual / nominal wheel diameter (a wrong nominal
     /// diameter, worn tyres, a gear ratio off by a little). With `ed` and `eb`, D_L, D_R
@@ -84,12 +98,15 @@ pub enum Scale {
 /// One fitted parameter's description.
 #[derive(Debug, Clone, PartialEq)]
 pub struct ParamSpec {
+    /// The parameter's name in reports (the catalogue's name where it has one).
     pub name: String,
+    /// How the optimiser sees the value.
     pub scale: Scale,
     /// Value meaning "no effect" (or, for thresholds, a value beyond any data).
     pub null: f64,
     /// Plausible range, used for the starting grid and as bounds.
     pub min: f64,
+    /// Upper end of the plausible range.
     pub max: f64,
 }
 
@@ -127,6 +144,7 @@ impl ParamSpec {
 }
 
 impl Effect {
+    /// Every effect: the catalogue's own first, then the mechanism variants.
     pub const ALL: [Effect; 19] = [
         Effect::WheelDiameterMismatch,
         Effect::WheelbaseError,
@@ -204,6 +222,7 @@ impl Effect {
         }
     }
 
+    /// The model stage the effect acts on (that of its catalogue effect).
     pub fn stage(self) -> Stage {
         match self.base() {
             Effect::Backlash | Effect::MissedSteps | Effect::MotorLag | Effect::CoulombFriction => {
@@ -378,10 +397,13 @@ impl fmt::Display for Effect {
 /// A model: the nominal kinematics plus some effects with parameter values.
 #[derive(Debug, Clone, Default, PartialEq)]
 pub struct Model {
+    /// The effects added to the nominal model, each with its parameter values (not the
+    /// optimiser's coordinates) in the order of [`Effect::params`].
     pub effects: Vec<(Effect, Vec<f64>)>,
 }
 
 impl Model {
+    /// The parameter values of `e`, if the model has it.
     pub fn get(&self, e: Effect) -> Option<&[f64]> {
         self.effects
             .iter()
@@ -389,6 +411,7 @@ impl Model {
             .map(|(_, p)| p.as_slice())
     }
 
+    /// A copy with `e` at `params` (replacing its values if `e` is already there).
     pub fn with(&self, e: Effect, params: Vec<f64>) -> Model {
         let mut m = self.clone();
         if let Some(slot) = m.effects.iter_mut().find(|(x, _)| *x == e) {

@@ -17,6 +17,7 @@ pub struct FitResult {
     /// s^2 (J^T J)^-1, with s^2 the reduced chi-square so over-noise residuals widen it;
     /// infinite where the data do not constrain the parameter.
     pub sigma: Vec<f64>,
+    /// Number of evaluations of the residual function (model runs).
     pub evaluations: usize,
 }
 

@@ -68,7 +68,9 @@ type ContactWheel = (f64, (f64, f64), (f64, f64), bool);
 pub struct Path {
     /// At every row.
     pub x: Vec<f64>,
+    /// Predicted y at every row, m.
     pub y: Vec<f64>,
+    /// Predicted heading at every row, rad (not wrapped).
     pub theta: Vec<f64>,
     /// Body displacement over each interval (row k to k+1), body frame.
     pub step: Vec<Twist<f64>>,

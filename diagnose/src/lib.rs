@@ -15,10 +15,6 @@
 //!
 //! The entry point is [`diagnose`]; the console's `wheelcal diagnose` is a thin wrapper.
 
-// Documentation of every public item is under way (issue 15.5); until it is done the
-// workspace-wide `missing_docs` lint is relaxed for this crate only.
-#![allow(missing_docs)]
-
 pub mod actuator;
 pub mod calibrate;
 pub mod effects;
@@ -57,6 +53,8 @@ pub const MIN_EXPLAINED: f64 = 0.5;
 /// ... and at least `WELL_EXPLAINED` of it when the final chi-square per residual is
 /// still above `RESIDUAL_CHI2` (residual RMS above ~3 noise sigmas).
 pub const WELL_EXPLAINED: f64 = 0.95;
+/// Final chi-square per residual above which the fit leaves the residual far outside the
+/// noise: the verdict then needs `WELL_EXPLAINED`, and a named finding is only partial.
 pub const RESIDUAL_CHI2: f64 = 10.0;
 
 /// Tuning of a diagnosis.

@@ -15,15 +15,20 @@ use std::fmt;
 /// One recording's part of a joint diagnosis.
 #[derive(Debug, Clone, Serialize)]
 pub struct RecordingResult {
+    /// The recording's name.
     pub name: String,
+    /// Rows in the recording.
     pub rows: usize,
     /// Ground RMSE with the nominal geometry and with the shared geometry (start pose and
     /// clocks fitted), m.
     pub rmse_nominal_m: f64,
+    /// Ground RMSE with the shared geometry, m.
     pub rmse_shared_geometry_m: f64,
     /// Diagnosis of what the shared geometry leaves in this recording.
     pub verdict: String,
+    /// The effects found against the shared geometry.
     pub findings: Vec<Finding>,
+    /// Ground RMSE with the shared geometry and those findings, m.
     pub rmse_final_m: f64,
     /// Geometry parameters this recording alone moves away from nominal (more than three
     /// of its own sigmas, and separable in it).
@@ -33,13 +38,17 @@ pub struct RecordingResult {
 /// The joint diagnosis.
 #[derive(Debug, Clone, Serialize)]
 pub struct MultiReport {
+    /// The robot's name.
     pub robot: String,
     /// Shared geometry, its identifiability and plausibility, per-recording nuisance.
     pub geometry: Calibration,
+    /// Each recording's diagnosis, in the order given.
     pub recordings: Vec<RecordingResult>,
     /// Finding id or geometry parameter -> recordings that carry it.
     pub carried_by: BTreeMap<String, Vec<String>>,
+    /// Ground RMSE of all recordings together with the nominal geometry, m.
     pub joint_rmse_nominal_m: f64,
+    /// Ground RMSE of all recordings together with the shared geometry, m.
     pub joint_rmse_shared_geometry_m: f64,
 }
 

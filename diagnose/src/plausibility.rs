@@ -9,10 +9,15 @@ use serde::Serialize;
 /// A fitted parameter outside its physical range.
 #[derive(Debug, Clone, Serialize)]
 pub struct Implausible {
+    /// Catalogue id of the finding.
     pub effect: String,
+    /// The parameter's name.
     pub parameter: String,
+    /// Its fitted value.
     pub value: f64,
+    /// Its physical range (low, high).
     pub plausible: (f64, f64),
+    /// What a value outside the range most likely stands in for.
     pub stands_for: String,
 }
 

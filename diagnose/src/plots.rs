@@ -40,9 +40,13 @@ fn bounds(series: &[&[(f64, f64)]]) -> (f64, f64, f64, f64) {
 /// A rectangle in the backend's pixels (x0, y0 top left; x1, y1 bottom right).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct PixelBox {
+    /// Left edge (px).
     pub x0: i32,
+    /// Top edge (px).
     pub y0: i32,
+    /// Right edge (px).
     pub x1: i32,
+    /// Bottom edge (px).
     pub y1: i32,
 }
 
@@ -125,9 +129,13 @@ impl Layout {
 /// How a legend entry is marked.
 #[derive(Debug, Clone, Copy)]
 pub enum LegendMark {
+    /// A line in this colour.
     Line(RGBColor),
+    /// A filled dot.
     Dot(RGBColor),
+    /// A cross (a centroid).
     Cross(RGBColor),
+    /// A filled bar.
     Bar(RGBColor),
 }
 
@@ -429,6 +437,8 @@ pub fn register_font() -> bool {
     })
 }
 
+/// Writes `r` into `dir` (created if missing): the SVG plots, `index.html` with the
+/// summary and `report.json`. Fails when the DejaVu Sans font the plots need is missing.
 pub fn write_report_dir(r: &Report, dir: &Path) -> std::io::Result<()> {
     if !register_font() {
         return Err(std::io::Error::other(format!(

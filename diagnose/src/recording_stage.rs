@@ -39,10 +39,15 @@ pub const RECORDING_IDS: [&str; 4] = [
 pub struct Artefact {
     /// One of [`RECORDING_IDS`].
     pub id: &'static str,
+    /// Fitted values or counts by name (`time_offset_s`, `clock_ratio`,
+    /// `counts_ratio_<wheel>`, `missing_samples`, `duplicated_samples`).
     pub parameters: BTreeMap<String, f64>,
+    /// Uncertainty per fitted parameter: one sigma for the clocks; for a counts ratio,
+    /// how far the raw estimate lies from the power of two it was snapped to.
     pub uncertainties: BTreeMap<String, f64>,
-    /// Times of sample glitches (s).
+    /// Times of the missing samples (s).
     pub missing_at_s: Vec<f64>,
+    /// Times of the duplicated rows (s).
     pub duplicated_at_s: Vec<f64>,
     /// Whether the physics stages saw the recording with this artefact removed.
     pub removed: bool,
@@ -97,7 +102,10 @@ impl fmt::Display for Artefact {
 /// What the recording stage found, and the recording with it removed.
 #[derive(Debug, Clone)]
 pub struct RecordingStage {
+    /// The artefacts found.
     pub artefacts: Vec<Artefact>,
+    /// The recording with the artefacts marked `removed` taken out (what the physics
+    /// stages see).
     pub corrected: Recording,
     /// The whole-geometry fit the clocks came from (its identifiability tells which
     /// geometry effects this recording cannot separate).

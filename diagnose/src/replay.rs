@@ -15,8 +15,11 @@ pub const G: f64 = 9.80665;
 /// One wheel's measured series.
 #[derive(Debug, Clone)]
 pub struct WheelData {
+    /// The wheel's name in the robot file.
     pub name: String,
+    /// Nominal wheel radius, m.
     pub radius_m: f64,
+    /// Whether a motor drives the wheel (otherwise it rolls freely with the body).
     pub driven: bool,
     /// Encoder angle in rad relative to the first count, one per row.
     pub enc_rad: Option<Vec<f64>>,
@@ -29,17 +32,23 @@ pub struct WheelData {
 /// Measured poses (rows with x, y and theta), heading unwrapped.
 #[derive(Debug, Clone, Default)]
 pub struct PoseSamples {
+    /// Recording row of each sample.
     pub row: Vec<usize>,
+    /// Measured x, m.
     pub x: Vec<f64>,
+    /// Measured y, m.
     pub y: Vec<f64>,
+    /// Measured heading, rad, unwrapped.
     pub theta: Vec<f64>,
 }
 
 impl PoseSamples {
+    /// Number of pose samples.
     pub fn len(&self) -> usize {
         self.row.len()
     }
 
+    /// Whether the recording has no pose sample.
     pub fn is_empty(&self) -> bool {
         self.row.is_empty()
     }
@@ -48,9 +57,13 @@ impl PoseSamples {
 /// A recording in the form the models need.
 #[derive(Debug, Clone)]
 pub struct Prepared {
+    /// The nominal robot.
     pub robot: Robot,
+    /// Time of each row, s.
     pub t: Vec<f64>,
+    /// Per-wheel series, in the robot file's wheel order.
     pub wheels: Vec<WheelData>,
+    /// The rows with a measured pose.
     pub poses: PoseSamples,
     /// Leg angles per row (wheeled-legged robots).
     pub legs: Option<(Vec<f64>, Vec<f64>)>,
@@ -177,12 +190,13 @@ impl Prepared {
         }
     }
 
+    /// Number of rows.
     pub fn rows(&self) -> usize {
         self.t.len()
     }
 
-    /// Wheel positions (x, y) in the body frame at row `k` (legs move wheeled-legged
-    /// contacts along x).
+    /// Leg angles (front, rear) at row `k`, rad, on wheeled-legged robots; they move the
+    /// wheel contacts along x.
     pub fn leg_angles(&self, k: usize) -> Option<(f64, f64)> {
         self.legs.as_ref().map(|(f, r)| (f[k], r[k]))
     }

@@ -16,7 +16,10 @@ use std::path::Path;
 pub struct Finding {
     /// Catalogue id.
     pub effect: String,
+    /// The stage the effect acts on.
     pub stage: Stage,
+    /// Fitted parameter values by name (the unit in the name where there is one:
+    /// `tau_s`, `backlash_rad`; `ed` and `mu` are dimensionless).
     pub parameters: BTreeMap<String, f64>,
     /// One standard deviation per parameter (from the Jacobian); `null` when the data
     /// do not constrain it.
@@ -27,6 +30,7 @@ pub struct Finding {
     /// RMSE of `rmse_stage` before and after adding it (ground: position error;
     /// actuator: wheel-surface error, encoder angle times radius).
     pub rmse_before_m: f64,
+    /// RMSE of `rmse_stage` with the effect added, m.
     pub rmse_after_m: f64,
     /// Information-criterion change when added (negative favours the effect).
     pub delta_bic: f64,
@@ -52,21 +56,32 @@ pub struct Finding {
 /// RMSE of one stage before and after the findings.
 #[derive(Debug, Clone, Copy, Serialize)]
 pub struct StageRmse {
+    /// RMSE of the nominal model, m.
     pub before_m: f64,
+    /// RMSE of the final model (nominal plus the findings), m.
     pub after_m: f64,
 }
 
 /// Series kept for plots (not serialised).
 #[derive(Debug, Clone, Default)]
 pub struct PlotData {
+    /// Time of each pose sample, s.
     pub pose_t: Vec<f64>,
+    /// Measured (x, y) per pose sample, m.
     pub measured: Vec<(f64, f64)>,
+    /// The nominal model's (x, y) at the pose samples, its start pose fitted, m.
     pub nominal: Vec<(f64, f64)>,
+    /// The final model's (x, y) at the pose samples, its start pose fitted, m.
     pub fitted: Vec<(f64, f64)>,
+    /// The nominal model's position error per pose sample, m.
     pub err_nominal: Vec<f64>,
+    /// The final model's position error per pose sample, m.
     pub err_fitted: Vec<f64>,
+    /// The nominal model's heading error (measured - predicted) per pose sample, rad.
     pub heading_nominal: Vec<f64>,
+    /// The final model's heading error (measured - predicted) per pose sample, rad.
     pub heading_fitted: Vec<f64>,
+    /// Time of each row compared in the actuator stage, s.
     pub act_t: Vec<f64>,
     /// (wheel name, nominal error, fitted error) in m.
     pub act: Vec<(String, Vec<f64>, Vec<f64>)>,
@@ -75,22 +90,33 @@ pub struct PlotData {
 /// The whole diagnosis.
 #[derive(Debug, Clone, Serialize)]
 pub struct Report {
+    /// The robot's name.
     pub robot: String,
+    /// Rows in the recording.
     pub rows: usize,
+    /// Rows with a measured pose.
     pub pose_samples: usize,
+    /// Time from the first to the last row, s.
     pub duration_s: f64,
     /// A catalogue id, `none` or `unexplained`.
     pub verdict: String,
+    /// The effects found, the one explaining the largest share of the excess first.
     pub findings: Vec<Finding>,
+    /// Where the residual leaves the noise band.
     pub windows: Vec<Window>,
     /// Ground-stage position RMSE of the nominal and the final model, m.
     pub rmse_nominal_m: f64,
+    /// Ground-stage position RMSE of the final model, m.
     pub rmse_final_m: f64,
+    /// Heading RMSE of the nominal model, rad.
     pub heading_rmse_nominal_rad: f64,
+    /// Heading RMSE of the final model, rad.
     pub heading_rmse_final_rad: f64,
     /// Actuator-stage RMSE (when commands and encoders exist), m at the wheel surface.
     pub actuator_rmse_nominal_m: Option<f64>,
+    /// Actuator-stage RMSE of the final model, m at the wheel surface.
     pub actuator_rmse_final_m: Option<f64>,
+    /// Noise levels estimated from the data.
     pub noise: Noise,
     /// Fraction of the residual beyond the noise that the findings explain (0..1).
     pub explained_fraction: f64,
@@ -99,17 +125,22 @@ pub struct Report {
     pub rmse_stage: Stage,
     /// Both stages' RMSE before and after (actuator: only with commands and encoders).
     pub ground_rmse: StageRmse,
+    /// The actuator stage's RMSE before and after (only with commands and encoders).
     pub actuator_rmse: Option<StageRmse>,
     /// Estimated start pose (x, y, theta) of the final model.
     pub start_pose: [f64; 3],
     /// Every effect tried, for transparency.
     pub candidates: Vec<Candidate>,
+    /// Remarks for the reader (missing encoders or commands, inseparable geometry...).
     pub notes: Vec<String>,
     /// How many times each stage's model was run (cost of the diagnosis).
     pub model_runs_ground: usize,
+    /// How many times the actuator stage's model was run.
     pub model_runs_actuator: usize,
+    /// The final model: the nominal one plus the effects the selection accepted.
     #[serde(skip)]
     pub model: Model,
+    /// Series for the plots.
     #[serde(skip)]
     pub plot: PlotData,
     /// The recording stage: logging artefacts (not physics), removed before the physics
@@ -119,6 +150,7 @@ pub struct Report {
     pub implausible: Vec<crate::plausibility::Implausible>,
     /// Geometry parameter pairs this recording cannot separate, and what would.
     pub not_separable: Vec<[String; 2]>,
+    /// For each such pair, `a / b: what would separate them`.
     pub separation_advice: Vec<String>,
 }
 

@@ -18,7 +18,9 @@ use std::rc::Rc;
 /// What a worker thread needs to rebuild an equivalent evaluator.
 #[derive(Debug, Clone, Copy)]
 pub struct ForkSpec {
+    /// The parent's noise levels.
     pub noise: Noise,
+    /// The parent's reading of the commands (linear between rows, or held).
     pub linear_commands: bool,
 }
 
@@ -28,8 +30,11 @@ type WheelAngles = Rc<Vec<Option<Vec<f64>>>>;
 /// Which samples take part: all, or alternate time blocks (for held-out validation).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Fold {
+    /// Every sample.
     All,
+    /// Samples in the even-numbered of the recording's ten equal time blocks.
     Even,
+    /// Samples in the odd-numbered time blocks.
     Odd,
 }
 
@@ -42,6 +47,7 @@ impl Fold {
         }
     }
 
+    /// The complementary fold (the held-out samples of a fit on `self`); `All` for `All`.
     pub fn other(self) -> Fold {
         match self {
             Fold::All => Fold::All,
@@ -54,7 +60,9 @@ impl Fold {
 /// Noise levels (one standard deviation) estimated from the nominal residuals.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize)]
 pub struct Noise {
+    /// Position noise of the measured poses, per axis, m.
     pub pose_sigma_m: f64,
+    /// Heading noise of the measured poses, rad.
     pub heading_sigma_rad: f64,
     /// Wheel-surface noise of the actuator stage (encoder angle times radius).
     pub actuator_sigma_m: f64,
@@ -67,7 +75,9 @@ pub struct Noise {
 pub struct Eval {
     /// Position and heading error (measured - predicted) per pose sample.
     pub ex: Vec<f64>,
+    /// y error (measured - predicted) per pose sample, m.
     pub ey: Vec<f64>,
+    /// Heading error (measured - predicted) per pose sample, rad.
     pub eth: Vec<f64>,
     /// Fitted start pose.
     pub start: (f64, f64, f64),
@@ -83,21 +93,27 @@ pub struct Eval {
 pub struct StageRss {
     /// Sum of ex^2 + ey^2 (m^2) and the number of pose samples.
     pub pos: f64,
+    /// Sum of heading errors squared, rad^2.
     pub heading: f64,
+    /// Number of pose samples in the fold.
     pub n_pose: usize,
     /// Sum of actuator errors squared (m^2) and their number.
     pub act: f64,
+    /// Number of actuator errors in the fold.
     pub n_act: usize,
     /// Sum of free-wheel errors squared (m^2) and their number (ground stage).
     pub free: f64,
+    /// Number of free-wheel errors in the fold.
     pub n_free: usize,
 }
 
 impl StageRss {
+    /// Position RMSE over the pose samples, m (0 without samples).
     pub fn ground_rmse(&self) -> f64 {
         (self.pos / self.n_pose.max(1) as f64).sqrt()
     }
 
+    /// Actuator RMSE at the wheel surface, m (0 without actuator errors).
     pub fn actuator_rmse(&self) -> f64 {
         (self.act / self.n_act.max(1) as f64).sqrt()
     }
@@ -105,7 +121,9 @@ impl StageRss {
 
 /// Evaluates models against one prepared recording, caching each stage's simulation.
 pub struct Evaluator<'a> {
+    /// The recording the models are compared with.
     pub p: &'a Prepared,
+    /// Noise levels that weight the residuals.
     pub noise: Noise,
     /// Rows compared in the actuator stage (decimated: the residual is an integrated
     /// angle, so neighbouring rows add little information but cost time).
@@ -150,6 +168,9 @@ fn key(m: &Model, stage: Stage, with_actuator: bool) -> Vec<f64> {
 }
 
 impl<'a> Evaluator<'a> {
+    /// An evaluator for `p`: decides whether commands are held or linear between rows
+    /// (whichever fits the encoders better) and estimates the noise from the nominal
+    /// model's residuals.
     pub fn new(p: &'a Prepared) -> Self {
         let mut ev = Self::with_noise(
             p,

@@ -31,38 +31,56 @@ type Tried = (Effect, Model, Vec<Vec<f64>>, Eval, f64);
 /// One effect tried in one round.
 #[derive(Debug, Clone, Serialize)]
 pub struct Candidate {
+    /// The selection round (0 first).
     pub round: usize,
+    /// The effect tried.
     pub effect: Effect,
+    /// Its fitted parameters, (name, value).
     pub parameters: Vec<(String, f64)>,
+    /// Discounted BIC change against the round's model (negative favours the effect).
     pub delta_bic: f64,
     /// Held-out sum of squares with the effect over without it (only computed for the
     /// round's best candidate).
     pub heldout_ratio: Option<f64>,
+    /// Whether it was added to the model.
     pub accepted: bool,
+    /// Why it was rejected, if it was examined and rejected; empty otherwise.
     pub note: String,
 }
 
 /// An accepted effect, in the order chosen.
 #[derive(Debug, Clone)]
 pub struct Step {
+    /// The effect added.
     pub effect: Effect,
+    /// Its discounted BIC change when added.
     pub delta_bic: f64,
+    /// Held-out chi-square with the effect over without it.
     pub heldout_ratio: f64,
+    /// Sums of squares of the model before the effect was added.
     pub before: StageRss,
+    /// Sums of squares after adding it (and refitting the effects it interacts with).
     pub after: StageRss,
 }
 
 /// The result of selection.
 #[derive(Debug, Clone)]
 pub struct Selection {
+    /// The final model: the nominal one plus every accepted effect.
     pub model: Model,
     /// 1-sigma uncertainty per effect parameter (value units), same order as `model`.
     pub sigma: Vec<(Effect, Vec<f64>)>,
+    /// The accepted effects, in the order chosen.
     pub steps: Vec<Step>,
+    /// Every effect tried, round by round.
     pub candidates: Vec<Candidate>,
+    /// Sums of squares of the nominal model.
     pub nominal: StageRss,
+    /// Sums of squares of the final model.
     pub final_rss: StageRss,
+    /// Residuals of the nominal model.
     pub nominal_eval: Eval,
+    /// Residuals of the final model.
     pub final_eval: Eval,
 }
 

@@ -17,6 +17,7 @@ use crate::residuals::{Eval, Evaluator};
 /// Lags (s) of the stationarity test and the largest variance ratio still called noise.
 const LAG_SHORT_S: f64 = 2.0;
 const LAG_LONG_S: f64 = 8.0;
+/// Largest [`drift_ratio`] (long-lag over short-lag variance) still called noise.
 pub const STATIONARY_RATIO: f64 = 2.0;
 
 /// Variance of the residual's change over the long lag over that over the short lag.
@@ -88,6 +89,8 @@ pub struct StepSignature {
 }
 
 impl StepSignature {
+    /// Whether the jumps name missed steps: at least 5, at least 80 % of them at high
+    /// commanded acceleration, and within a quarter cycle of whole cycles on average.
     pub fn clear(&self) -> bool {
         self.jumps >= 5 && self.at_high_accel >= 0.8 && self.off_cycle < 0.25
     }
@@ -148,16 +151,21 @@ pub fn stepper_steps(ev: &Evaluator, e: &Eval) -> Option<StepSignature> {
 /// Travel lost inside a stretch of world x.
 #[derive(Debug, Clone, PartialEq)]
 pub struct RegionSignature {
+    /// Start of the stretch, world x, m.
     pub start_m: f64,
+    /// End of the stretch, world x, m.
     pub end_m: f64,
     /// Travel lost per metre inside (chord lengths), and its significance in noise sigmas.
     pub loss_per_m: f64,
+    /// Significance of `loss_per_m`, in noise sigmas.
     pub sigma: f64,
     /// Loss per metre outside the region.
     pub outside_per_m: f64,
 }
 
 impl RegionSignature {
+    /// Whether the stretch names floor bumps in a region: loss over 8 sigmas and over
+    /// 3 mm per metre, with less than 30 % of that outside.
     pub fn clear(&self) -> bool {
         self.sigma > 8.0
             && self.loss_per_m > 0.003

@@ -20,12 +20,16 @@ pub const LAG_S: f64 = 0.5;
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
 #[serde(rename_all = "snake_case")]
 pub enum Axis {
+    /// Along the body's x axis (actuator stage: along the wheel's rolling direction).
     Longitudinal,
+    /// Along the body's y axis.
     Lateral,
+    /// The heading.
     Heading,
 }
 
 impl Axis {
+    /// The axis' name in reports.
     pub fn as_str(self) -> &'static str {
         match self {
             Axis::Longitudinal => "longitudinal",
@@ -38,9 +42,13 @@ impl Axis {
 /// A stretch of time where the model leaves the noise band.
 #[derive(Debug, Clone, Serialize)]
 pub struct Window {
+    /// Start of the window, s.
     pub t_start_s: f64,
+    /// End of the window, s.
     pub t_end_s: f64,
+    /// The stage whose residual leaves the band.
     pub stage: Stage,
+    /// The direction in which it leaves.
     pub axis: Axis,
     /// The wheel whose rolling direction carries most of the mismatch (actuator stage:
     /// the wheel compared).
@@ -57,6 +65,7 @@ pub struct Window {
 
 /// Per-row motion signals from the measured poses and nominal odometry.
 pub struct Signals {
+    /// Signal names, the unit in the name where there is one (`speed_m_s`, `reversals`).
     pub names: Vec<&'static str>,
     /// `[signal][row]`
     pub values: Vec<Vec<f64>>,

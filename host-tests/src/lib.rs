@@ -1,10 +1,6 @@
 //! Helpers for the closed-loop tests in `tests/`: calib-core's motion programs, step
 //! generation and odometry driving the simulator the way the firmware will.
 
-// Documentation of every public item is under way (issue 15.5); until it is done the
-// workspace-wide `missing_docs` lint is relaxed for this crate only.
-#![allow(missing_docs)]
-
 use calib_core::correction::Corrections;
 use calib_core::encoder::{CounterExtender, CounterWidth};
 use calib_core::kinematics::{Kinematics, Twist};
@@ -42,6 +38,7 @@ pub struct Board {
     steppers: Vec<StepAccumulator>,
     ext: Vec<CounterExtender>,
     rad_per_count: f64,
+    /// Dead reckoning from the encoder counters through the same kinematics.
     pub odometry: Odometry<f64>,
     rates: Vec<f64>,
     inc: Vec<f64>,
@@ -49,6 +46,8 @@ pub struct Board {
 }
 
 impl Board {
+    /// A board for the simulator's nominal robot with `corr` applied to its kinematics,
+    /// odometry starting at `start` and the counters at the simulator's current readings.
     pub fn new(sim: &SimRobot, corr: &Corrections, start: Pose<f64>) -> Self {
         let robot = sim.nominal();
         let n = robot.wheel_count();
