@@ -28,7 +28,8 @@ pub struct Cli {
     #[arg(long, global = true, env = "WHEELCAL_PORT")]
     pub port: Option<String>,
     /// Baud rate of the serial port.
-    #[arg(long, global = true, default_value_t = 115_200)]
+    #[arg(long, global = true, default_value_t = 115_200,
+          value_parser = clap::value_parser!(u32).range(50..=12_000_000))]
     pub baud: u32,
     /// One JSON object per result on stdout (human text otherwise).
     #[arg(long, global = true)]
@@ -165,7 +166,7 @@ pub struct SetArgs {
     #[arg(long)]
     pub e_b: Option<f64>,
     /// Omni: one factor per wheel, comma-separated, in the robot file's order.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', value_parser = trimmed_f64)]
     pub f_lat: Option<Vec<f64>>,
     #[arg(long)]
     pub f_lon: Option<f64>,
@@ -399,6 +400,14 @@ pub struct DemoArgs {
     pub report: Option<PathBuf>,
 }
 
+/// A number with the spaces around it ignored, so `--f-lat '1, 1, 1, 1'` reads as a
+/// person means it.
+fn trimmed_f64(s: &str) -> std::result::Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .map_err(|e| format!("'{}' is not a number ({e})", s.trim()))
+}
+
 /// Entry point of the binary: runs the command, prints errors to stderr.
 pub fn main() -> ExitCode {
     crate::stop::install();
@@ -501,7 +510,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 (None, Some(c_l), Some(c_r), Some(e_b)) => ros2::DiffFactors { c_l, c_r, e_b },
                 (None, None, None, None) => match ctx.client()?.corrections()? {
                     calib_core::Corrections::DiffDrive { c_l, c_r, e_b } => ros2::DiffFactors { c_l, c_r, e_b },
-                    other => bail!("the board's factors are not differential-drive factors: {other:?}"),
+                    other => bail!("the board's factors are not differential-drive factors: {}", board_cmds::factors_text(&other)),
                 },
                 _ => bail!("give --from RESULT.json, all of --c-l, --c-r, --e-b, or --port to read the board"),
             };

@@ -185,6 +185,24 @@ pub enum Fault {
     CounterJump { wheel: u8, delta: i32 },
 }
 
+impl fmt::Display for Fault {
+    /// Wheels numbered from 1, as in the robot file and the console's output.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Fault::Stall { wheel } => write!(
+                f,
+                "stall: wheel {} was commanded but its encoder did not move",
+                *wheel as u16 + 1
+            ),
+            Fault::CounterJump { wheel, delta } => write!(
+                f,
+                "counter jump: wheel {}'s encoder moved {delta} counts in one tick",
+                *wheel as u16 + 1
+            ),
+        }
+    }
+}
+
 /// Why a request was refused; the board's state is unchanged.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Rejection {
@@ -233,7 +251,7 @@ impl fmt::Display for Rejection {
             Rejection::InvalidProgram(r) => write!(f, "invalid program: {r}"),
             Rejection::Busy => write!(f, "busy: stop the robot first"),
             Rejection::EStopped => write!(f, "E-stop latched: clear it first"),
-            Rejection::Faulted(x) => write!(f, "fault latched ({x:?}): clear it first"),
+            Rejection::Faulted(x) => write!(f, "fault latched ({x}): clear it first"),
             Rejection::NoSuchTrial => write!(f, "no such trial"),
             Rejection::BadOffset { total } => write!(f, "offset past the end ({total} bytes)"),
             Rejection::Storage => write!(f, "flash storage failed; stored values unchanged"),

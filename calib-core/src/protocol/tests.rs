@@ -762,3 +762,31 @@ fn programs_outside_the_arena_or_negative_are_refused() {
     p.safety.arena_m = 0.1;
     assert!(std::format!("{}", p.validate().unwrap_err()).contains("safety.arena_m"));
 }
+
+/// Issue 13 polish: faults and the kind mismatch read as words (wheels numbered from 1, as
+/// in the robot file), not Rust's debug text or "a omni".
+#[test]
+fn faults_and_kind_mismatch_in_words() {
+    extern crate std;
+    use std::string::ToString;
+    let r = Rejection::Faulted(Fault::Stall { wheel: 2 });
+    assert_eq!(
+        r.to_string(),
+        "fault latched (stall: wheel 3 was commanded but its encoder did not move): clear it first"
+    );
+    let j = Fault::CounterJump {
+        wheel: 0,
+        delta: -4000,
+    };
+    assert_eq!(
+        j.to_string(),
+        "counter jump: wheel 1's encoder moved -4000 counts in one tick"
+    );
+    let e = crate::correction::CorrectionError::WrongKind {
+        robot: RobotKind::Omni,
+    };
+    assert!(Rejection::corrections(&e)
+        .to_string()
+        .contains("do not fit this omni robot"));
+    assert!(e.to_string().contains("do not fit this omni robot"));
+}
