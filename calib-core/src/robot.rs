@@ -186,7 +186,7 @@ pub struct Robot {
 }
 
 /// Which value of a robot description is wrong.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Field {
     Name,
     Kind,
@@ -225,7 +225,7 @@ impl Field {
 }
 
 /// What is wrong with it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum Problem {
     NotFinite,
     NotPositive(f64),
