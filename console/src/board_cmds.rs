@@ -1,7 +1,7 @@
 //! The board commands (`info`, `factors`, `drive`, `run`, `status`, `log`, `stop`), as
 //! functions over any [`Client`] so the tests drive them through an in-memory link.
 
-use crate::client::{decode_records, Client, ClientError};
+use crate::client::{decode_records, Client};
 use anyhow::{bail, Context, Result};
 use calib_core::motion::{Direction, OmniPath};
 use calib_core::protocol::{
@@ -457,7 +457,7 @@ pub fn pull_trial<L: Read + Write>(
     let t0 = Instant::now();
     let data = c
         .pull_log(trial, Vec::new(), progress)
-        .map_err(|e: ClientError| anyhow::anyhow!("log transfer of trial {trial} failed: {e}"))?;
+        .with_context(|| format!("log transfer of trial {trial} failed"))?;
     let secs = t0.elapsed().as_secs_f64();
     let recs = decode_records(&info, &data).map_err(|e| anyhow::anyhow!(e))?;
     let file =
