@@ -95,7 +95,7 @@ impl fmt::Display for CorrectionError {
             }
             CorrectionError::WrongKind { robot } => write!(
                 f,
-                "these factors do not fit a {} robot (diff_drive takes c_l, c_r, e_b; omni takes f_lat, f_lon)",
+                "these factors do not fit this {} robot (diff_drive takes c_l, c_r, e_b; omni takes f_lat, f_lon)",
                 robot.as_str()
             ),
         }

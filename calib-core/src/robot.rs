@@ -198,7 +198,7 @@ pub struct Robot {
 }
 
 /// Which value of a robot description is wrong.
-#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
 pub enum Field {
     /// `name`: a wheel's name.
     Name,
@@ -250,7 +250,7 @@ impl Field {
 }
 
 /// What is wrong with it.
-#[derive(Debug, Clone, Copy, PartialEq)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub enum Problem {
     /// NaN or infinite.
     NotFinite,

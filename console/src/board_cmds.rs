@@ -1,10 +1,12 @@
 //! The board commands (`info`, `factors`, `drive`, `run`, `status`, `log`, `stop`), as
 //! functions over any [`Client`] so the tests drive them through an in-memory link.
 
-use crate::client::{decode_records, Client, ClientError};
+use crate::client::{decode_records, Client};
 use anyhow::{bail, Context, Result};
 use calib_core::motion::{Direction, OmniPath};
-use calib_core::protocol::{Info, Mode, ProgramSpec, Record, Status, TrialInfo, Trials};
+use calib_core::protocol::{
+    Info, Mode, Num, ProgramKind, ProgramSpec, Record, Status, TrialInfo, Trials,
+};
 use calib_core::robot::{Robot, MAX_WHEELS};
 use calib_core::{Corrections, Twist};
 use formats::recording::Recording;
@@ -202,7 +204,7 @@ pub fn status_line(s: &Status) -> String {
         line.push_str("  E-STOP");
     }
     if let Some(f) = s.fault {
-        let _ = write!(line, "  FAULT {f:?}");
+        let _ = write!(line, "  FAULT ({f})");
     }
     if s.dropped_records > 0 {
         let _ = write!(line, "  log dropped {} records", s.dropped_records);
@@ -387,6 +389,26 @@ pub fn drive_for<L: Read + Write>(
     Ok(())
 }
 
+/// A trial's program in words (`umbmark cw, side 0.5 m`), not Rust's debug text.
+pub fn program_text(p: &ProgramKind) -> String {
+    match p {
+        ProgramKind::Drive => "drive".into(),
+        ProgramKind::Umbmark { side_m, dir } => {
+            format!("umbmark {}, side {} m", dir.as_str(), Num(*side_m as f64))
+        }
+        ProgramKind::Omni { path, length_m } => {
+            format!("omni {}, {} m", path.as_str(), Num(*length_m as f64))
+        }
+        ProgramKind::Custom { segments: 1 } => "custom, 1 segment".into(),
+        ProgramKind::Custom { segments } => format!("custom, {segments} segments"),
+    }
+}
+
+/// A board's factors in words for messages (`c_L = 1.000000  c_R = ...`).
+pub fn factors_text(c: &Corrections) -> String {
+    FactorsView::from(c).human().trim_end().to_string()
+}
+
 /// `log list` rows.
 #[derive(Debug, Clone, Serialize)]
 pub struct TrialRow {
@@ -414,7 +436,7 @@ pub fn trial_list(t: &Trials) -> TrialList {
             .iter()
             .map(|i| TrialRow {
                 trial: i.id,
-                program: format!("{:?}", i.program),
+                program: program_text(&i.program),
                 start_s: i.start_ms as f64 / 1000.0,
                 rate_hz: i.rate_hz,
                 records: i.records,
@@ -524,7 +546,7 @@ pub fn pull_trial<L: Read + Write>(
     let t0 = Instant::now();
     let data = c
         .pull_log(trial, Vec::new(), progress)
-        .map_err(|e: ClientError| anyhow::anyhow!("log transfer of trial {trial} failed: {e}"))?;
+        .with_context(|| format!("log transfer of trial {trial} failed"))?;
     let secs = t0.elapsed().as_secs_f64();
     let recs = decode_records(&info, &data).map_err(|e| anyhow::anyhow!(e))?;
     let file =

@@ -89,7 +89,7 @@ pub fn diagnose_many(a: &crate::cli::DiagnoseArgs, files: &[PathBuf], out: Outpu
         .map(|f| load(f, &robot, &a.robot))
         .collect::<Result<Vec<_>>>()?;
     let opts = diagnose::Options {
-        max_effects: a.max_effects.clamp(1, 4),
+        max_effects: a.max_effects.into(),
     };
     let rep = diagnose::multi::diagnose_many(&robot, &recs, &opts).map_err(|e| {
         let file = e

@@ -1,23 +1,14 @@
 //! Command-line interface of `wheelcal` (clap). Each subcommand is a few lines that call
 //! the library modules, so the tests exercise the same code.
 
-use crate::board_cmds::{self, FactorsView};
-use crate::calibration::{omni, procedure, umbmark};
 use crate::client::Client;
+use crate::link;
 use crate::output::Output;
-use crate::sim_board::{self, SimBoardOptions};
-use crate::{demo, link, report, ros2};
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use calib_core::motion::{Direction, OmniPath};
-use calib_core::Twist;
 use clap::{Args, Parser, Subcommand, ValueEnum};
-use formats::robot_file;
-use formats::runs_file::RunsFile;
 use std::path::PathBuf;
 use std::process::ExitCode;
-use std::sync::atomic::{AtomicBool, Ordering};
-use std::sync::Arc;
-use std::time::Duration;
 
 /// wheelcal: calibrate wheeled robots' odometry, talk to wheelcal boards, diagnose
 /// simulation against recordings.
@@ -28,7 +19,8 @@ pub struct Cli {
     #[arg(long, global = true, env = "WHEELCAL_PORT")]
     pub port: Option<String>,
     /// Baud rate of the serial port.
-    #[arg(long, global = true, default_value_t = 115_200)]
+    #[arg(long, global = true, default_value_t = 115_200,
+          value_parser = clap::value_parser!(u32).range(50..=12_000_000))]
     pub baud: u32,
     /// One JSON object per result on stdout (human text otherwise).
     #[arg(long, global = true)]
@@ -46,15 +38,15 @@ pub enum Command {
     Factors(FactorsCmd),
     /// Drive at a body twist for a while, then stop.
     Drive(DriveArgs),
-    /// Run one of the papers' test paths on the board.
+    /// Run a calibration test path (UMBmark square, omni straight path) on the board.
     #[command(subcommand)]
     Run(RunCmd),
     /// The board's state; with --follow, a live telemetry stream.
     Status {
         #[arg(long)]
         follow: bool,
-        /// Telemetry period with --follow.
-        #[arg(long, default_value_t = 200)]
+        /// Telemetry period with --follow, milliseconds.
+        #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u16).range(20..))]
         period_ms: u16,
     },
     /// Trial logs on the board.
@@ -71,7 +63,7 @@ pub enum Command {
     /// UMBmark (Borenstein's bidirectional square) for differential drives.
     #[command(subcommand)]
     Umbmark(UmbmarkCmd),
-    /// 001's F_lat / F_lon calibration for omni robots.
+    /// Omni calibration: F_lat / F_lon from the straight paths 4W-1 and 4W-2.
     #[command(subcommand)]
     Omni(OmniCmd),
     /// A virtual board (the firmware's application on the simulator) on a pseudo-terminal.
@@ -102,9 +94,9 @@ pub struct DiagnoseArgs {
     /// Write the robot description with the fitted geometry applied.
     #[arg(long)]
     pub write_robot: Option<PathBuf>,
-    /// Most effects to combine in one explanation.
-    #[arg(long, default_value_t = 3)]
-    pub max_effects: usize,
+    /// Most effects to combine in one explanation (1 to 4).
+    #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=4))]
+    pub max_effects: u8,
 }
 
 #[derive(Debug, Subcommand)]
@@ -128,14 +120,15 @@ pub struct SimRecordArgs {
     /// Output directory.
     #[arg(long)]
     pub out: PathBuf,
-    /// Length of the random trajectory, seconds.
-    #[arg(long, default_value_t = 60.0)]
+    /// Length of the random trajectory, seconds (at most 7200).
+    #[arg(long, default_value_t = 60.0, value_parser = record_seconds)]
     pub duration: f64,
-    /// Drive a UMBmark square of this side (metres) instead of a random trajectory.
-    #[arg(long)]
+    /// Drive a UMBmark square of this side (metres, at most a board's default arena)
+    /// instead of a random trajectory.
+    #[arg(long, value_parser = arena_side)]
     pub umbmark_side: Option<f64>,
     /// Rows per second.
-    #[arg(long, default_value_t = 200.0)]
+    #[arg(long, default_value_t = 200.0, value_parser = positive_f64)]
     pub rate: f64,
     /// Camera pose noise, metres (standard deviation).
     #[arg(long)]
@@ -165,7 +158,7 @@ pub struct SetArgs {
     #[arg(long)]
     pub e_b: Option<f64>,
     /// Omni: one factor per wheel, comma-separated, in the robot file's order.
-    #[arg(long, value_delimiter = ',')]
+    #[arg(long, value_delimiter = ',', value_parser = trimmed_f64)]
     pub f_lat: Option<Vec<f64>>,
     #[arg(long)]
     pub f_lon: Option<f64>,
@@ -203,8 +196,8 @@ pub struct DriveArgs {
     /// Turn rate, rad/s (counter-clockwise positive).
     #[arg(long, default_value_t = 0.0, allow_negative_numbers = true)]
     pub omega: f32,
-    /// How long, seconds.
-    #[arg(long, default_value_t = 1.0)]
+    /// How long, seconds (at most 600).
+    #[arg(long, default_value_t = 1.0, value_parser = drive_seconds)]
     pub duration: f64,
 }
 
@@ -246,30 +239,37 @@ pub enum RunCmd {
     Umbmark {
         #[arg(long, value_enum)]
         dir: DirArg,
-        /// Side of the square, metres.
-        #[arg(long, default_value_t = 4.0)]
+        /// Side of the square, metres (at most the board's arena: checked with the board's
+        /// own rule, `ProgramSpec::validate`, before anything is sent).
+        #[arg(long, default_value_t = 4.0, allow_negative_numbers = true)]
         side: f64,
-        /// Trial log rate, Hz (0 = no log).
-        #[arg(long, default_value_t = 50)]
-        log_rate: u16,
-        /// Return at once instead of waiting for the end.
-        #[arg(long)]
-        no_wait: bool,
+        #[command(flatten)]
+        run: ProgramRunArgs,
     },
-    /// 001's straight omni path.
+    /// A straight omni test path (4W-1 along body x, 4W-2 along body y).
     Omni {
         #[arg(long, value_enum)]
         path: PathArg,
-        /// Commanded length, metres.
-        #[arg(long, default_value_t = 0.6)]
+        /// Commanded length, metres (at most the board's arena: checked with the board's
+        /// own rule before anything is sent).
+        #[arg(long, default_value_t = 0.6, allow_negative_numbers = true)]
         length: f64,
-        #[arg(long, default_value_t = 50)]
-        log_rate: u16,
-        #[arg(long)]
-        no_wait: bool,
+        #[command(flatten)]
+        run: ProgramRunArgs,
         #[command(flatten)]
         idle: IdleArgs,
     },
+}
+
+/// What every `run` program shares.
+#[derive(Debug, Clone, Copy, Args)]
+pub struct ProgramRunArgs {
+    /// Trial log rate, Hz (0 = no log).
+    #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u16).range(0..=1000))]
+    pub log_rate: u16,
+    /// Return at once instead of waiting for the end.
+    #[arg(long)]
+    pub no_wait: bool,
 }
 
 #[derive(Debug, Subcommand)]
@@ -322,7 +322,7 @@ pub struct ComputeArgs {
     pub max_length: f64,
 }
 
-/// `omni compute`: the common arguments, the second pass and the idle-wheel mode.
+/// `omni compute`: the common inputs, the first pass of a second pass, the idle wheels.
 #[derive(Debug, Args)]
 pub struct OmniComputeArgs {
     #[command(flatten)]
@@ -348,7 +348,9 @@ pub struct IdleArgs {
 /// `--idle-wheels` values.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, ValueEnum)]
 pub enum IdleArg {
+    /// Drive cut: free to turn.
     Released,
+    /// Velocity loop at zero.
     Held,
 }
 
@@ -363,17 +365,17 @@ impl From<IdleArg> for calib_core::protocol::IdleWheels {
 
 #[derive(Debug, Args)]
 pub struct ProcedureArgs {
-    /// UMBmark: side of the square, metres.
+    /// UMBmark: side of the square, metres (checked as by the board before each run).
     #[arg(long, default_value_t = 4.0)]
     pub side: f64,
-    /// Omni: path length, metres.
+    /// Omni: path length, metres (checked as by the board before each run).
     #[arg(long, default_value_t = 0.6)]
     pub length: f64,
     /// Runs per direction (UMBmark) or per path (omni).
-    #[arg(long, default_value_t = 5)]
+    #[arg(long, default_value_t = 5, value_parser = run_count)]
     pub runs: usize,
     /// Runs per direction or path after calibration (default: --runs).
-    #[arg(long)]
+    #[arg(long, value_parser = run_count)]
     pub after_runs: Option<usize>,
     /// Measured runs are appended here as they are entered, so a stopped procedure
     /// resumes where it was.
@@ -390,8 +392,8 @@ pub struct ProcedureArgs {
     /// Skip the runs after calibration.
     #[arg(long)]
     pub no_after: bool,
-    /// Second pass: measure with the board's current factors and compose the secondary
-    /// factors with them (use a new --runs-file).
+    /// Second pass: measure with the board's current factors and compose the
+    /// secondary factors with them (use a new --runs-file).
     #[arg(long)]
     pub second_pass: bool,
     /// Omni: a robot file whose `[procedure] idle_wheels` says how idle wheels behave
@@ -413,8 +415,8 @@ pub struct SimBoardArgs {
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Simulated seconds per second; `max` runs programs as fast as possible.
-    #[arg(long, default_value = "1")]
-    pub speed: String,
+    #[arg(long, default_value = "1", value_parser = sim_speed)]
+    pub speed: f64,
     /// A hidden fault, `ID=name:value,...` (e.g. `wheelbase_error=eb:1.03`); repeatable.
     #[arg(long)]
     pub effect: Vec<String>,
@@ -444,6 +446,64 @@ pub struct DemoArgs {
     pub side: f64,
     #[arg(long)]
     pub report: Option<PathBuf>,
+}
+
+/// A finite number within `(0, max]`, for the value parsers below.
+fn in_range(s: &str, max: f64, unit: &str) -> std::result::Result<f64, String> {
+    let v = trimmed_f64(s)?;
+    if v.is_finite() && v > 0.0 && v <= max {
+        Ok(v)
+    } else {
+        Err(format!("{v} is outside (0, {max}] {unit}"))
+    }
+}
+
+fn positive_f64(s: &str) -> std::result::Result<f64, String> {
+    let v = trimmed_f64(s)?;
+    if v.is_finite() && v > 0.0 {
+        Ok(v)
+    } else {
+        Err(format!("{v} is not a positive number"))
+    }
+}
+
+fn drive_seconds(s: &str) -> std::result::Result<f64, String> {
+    in_range(s, 600.0, "seconds")
+}
+
+fn record_seconds(s: &str) -> std::result::Result<f64, String> {
+    in_range(s, 7200.0, "seconds")
+}
+
+/// A square side a board with the default arena would run.
+fn arena_side(s: &str) -> std::result::Result<f64, String> {
+    let arena = calib_core::protocol::Safety::default().arena_m as f64;
+    in_range(s, arena, "m (a board's default arena)")
+}
+
+/// Runs per direction or path: a procedure needs at least one, and a person measures
+/// each by hand.
+fn run_count(s: &str) -> std::result::Result<usize, String> {
+    match s.trim().parse::<usize>() {
+        Ok(n) if (1..=100).contains(&n) => Ok(n),
+        _ => Err(format!("'{}' is not a count within 1..=100", s.trim())),
+    }
+}
+
+/// `max` (as fast as possible) or a positive number of simulated seconds per second.
+fn sim_speed(s: &str) -> std::result::Result<f64, String> {
+    match s.trim() {
+        "max" | "inf" => Ok(f64::INFINITY),
+        v => in_range(v, 1e6, "").map_err(|_| format!("'{v}': give a positive number or `max`")),
+    }
+}
+
+/// A number with the spaces around it ignored, so `--f-lat '1, 1, 1, 1'` reads as a
+/// person means it.
+fn trimmed_f64(s: &str) -> std::result::Result<f64, String> {
+    s.trim()
+        .parse::<f64>()
+        .map_err(|e| format!("'{}' is not a number ({e})", s.trim()))
 }
 
 /// Entry point of the binary: runs the command, prints errors to stderr.
@@ -481,7 +541,7 @@ pub struct Ctx {
 }
 
 impl Ctx {
-    fn client(&mut self) -> Result<&mut PortClient> {
+    pub(crate) fn client(&mut self) -> Result<&mut PortClient> {
         if self.client.is_none() {
             let port = self
                 .port
@@ -498,452 +558,118 @@ impl Ctx {
     }
 }
 
-/// Runs a parsed command line.
+/// Runs a parsed command line: dispatch only, each command is a module of
+/// [`crate::commands`].
 pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
+    use crate::commands::{board, diagnose, factors, log, omni, program, sim, umbmark};
     let out = Output::from_flag(cli.json);
     match cli.command {
-        Command::Info => {
-            let r = board_cmds::info(ctx.client()?)?;
-            out.emit(&r, || r.human())
-        }
-        Command::Factors(FactorsCmd::Get) => {
-            let f = FactorsView::from(&ctx.client()?.corrections()?);
-            out.emit(&f, || f.human())
-        }
-        Command::Factors(FactorsCmd::Set(a)) => {
-            let c = board_cmds::corrections_from_args(
-                a.c_l,
-                a.c_r,
-                a.e_b,
-                a.f_lat.as_deref(),
-                a.f_lon,
-            )?;
-            let client = ctx.client()?;
-            client.set_corrections(c)?;
-            let f = FactorsView::from(&client.corrections()?);
-            out.emit(&f, || {
-                format!(
-                    "set (not yet saved: `wheelcal factors save`): {}",
-                    f.human()
-                )
-            })
-        }
-        Command::Factors(FactorsCmd::Save) => {
-            let client = ctx.client()?;
-            client.save_corrections()?;
-            let f = FactorsView::from(&client.corrections()?);
-            out.emit(&f, || format!("saved to flash: {}", f.human()))
-        }
-        Command::Factors(FactorsCmd::Reset) => {
-            let client = ctx.client()?;
-            client.reset_corrections()?;
-            let f = FactorsView::from(&client.corrections()?);
-            out.emit(&f, || {
-                "corrections reset to nominal (not yet saved: `wheelcal factors save`)\n".into()
-            })
-        }
-        Command::Factors(FactorsCmd::Export(a)) => {
-            let f = match (&a.from, a.c_l, a.c_r, a.e_b) {
-                (Some(p), ..) => ros2::factors_from_json(p)?,
-                (None, Some(c_l), Some(c_r), Some(e_b)) => ros2::DiffFactors { c_l, c_r, e_b },
-                (None, None, None, None) => match ctx.client()?.corrections()? {
-                    calib_core::Corrections::DiffDrive { c_l, c_r, e_b } => ros2::DiffFactors { c_l, c_r, e_b },
-                    other => bail!("the board's factors are not differential-drive factors: {other:?}"),
-                },
-                _ => bail!("give --from RESULT.json, all of --c-l, --c-r, --e-b, or --port to read the board"),
-            };
-            let yaml = ros2::diff_drive_yaml(&f, &a.controller)?;
-            std::fs::write(&a.ros2, &yaml)
-                .with_context(|| format!("cannot write {}", a.ros2.display()))?;
-            #[derive(serde::Serialize)]
-            struct Exported<'a> {
-                ros2_file: &'a std::path::Path,
-                c_l: f64,
-                c_r: f64,
-                e_b: f64,
-            }
-            let e = Exported {
-                ros2_file: &a.ros2,
-                c_l: f.c_l,
-                c_r: f.c_r,
-                e_b: f.e_b,
-            };
-            out.emit(&e, || format!("wrote {}\n{yaml}", a.ros2.display()))
-        }
-        Command::Drive(a) => {
-            if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 600.0) {
-                bail!("--duration must be within (0, 600] seconds");
-            }
-            let client = ctx.client()?;
-            board_cmds::drive_for(
-                client,
-                Twist::new(a.vx, a.vy, a.omega),
-                Duration::from_secs_f64(a.duration),
-            )?;
-            let s = client.status()?;
-            out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))
-        }
-        Command::Run(cmd) => {
-            let client = ctx.client()?;
-            let (no_wait, limit) = match cmd {
-                RunCmd::Umbmark {
-                    dir,
-                    side,
-                    log_rate,
-                    no_wait,
-                } => {
-                    let limit = board_cmds::run_umbmark(client, dir.into(), side, log_rate)?;
-                    (no_wait, limit)
-                }
-                RunCmd::Omni {
-                    path,
-                    length,
-                    log_rate,
-                    no_wait,
-                    idle,
-                } => {
-                    let idle = idle.idle_wheels.map(Into::into).unwrap_or_default();
-                    let limit = board_cmds::run_omni(client, path.into(), length, idle, log_rate)?;
-                    (no_wait, limit)
-                }
-            };
-            let s = if no_wait {
-                client.status()?
-            } else {
-                let human = out == Output::Human;
-                board_cmds::wait_program(client, limit, |s| {
-                    if human {
-                        eprint!("\r{}", board_cmds::status_line(s));
-                    }
-                })?
-            };
-            if out == Output::Human {
-                eprintln!();
-            }
-            out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))
-        }
-        Command::Status { follow, period_ms } => {
-            let client = ctx.client()?;
-            if !follow {
-                let s = client.status()?;
-                return out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)));
-            }
-            let _guard = crate::stop::Guard::new();
-            client.set_telemetry(period_ms.max(20))?;
-            while !crate::stop::requested() {
-                if let Some(s) = client.next_telemetry(Duration::from_millis(500))? {
-                    out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))?;
-                }
-            }
-            client.set_telemetry(0)?;
-            Ok(())
-        }
-        Command::Log(LogCmd::List) => {
-            let t = board_cmds::trial_list(&ctx.client()?.trials()?);
-            out.emit(&t, || t.human())
-        }
-        Command::Log(LogCmd::Pull { trial, out: file }) => {
-            let client = ctx.client()?;
-            // Ctrl-C ends the transfer between chunks; nothing is written (the file only
-            // appears when the whole trial is in).
-            let _guard = crate::stop::Guard::new();
-            let bar = indicatif::ProgressBar::new(0);
-            bar.set_style(
-                indicatif::ProgressStyle::with_template(
-                    "{msg} [{bar:40}] {bytes}/{total_bytes} {bytes_per_sec}",
-                )
-                .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
-            );
-            bar.set_message(format!("trial {trial}"));
-            let r = board_cmds::pull_trial(client, trial, &file, |done, total| {
-                bar.set_length(total);
-                bar.set_position(done);
-            });
-            bar.finish_and_clear();
-            let r = r?;
-            out.emit(&r, || {
-                format!(
-                    "trial {} -> {}: {} records ({} bytes) in {:.2} s, {} retries{}\n",
-                    r.trial,
-                    r.file,
-                    r.records,
-                    r.bytes,
-                    r.seconds,
-                    r.retries,
-                    r.warnings()
-                )
-            })
-        }
-        Command::Log(LogCmd::Clear) => {
-            ctx.client()?.clear_logs()?;
-            out.emit(&serde_json::json!({"cleared": true}), || {
-                "trial logs cleared\n".into()
-            })
-        }
-        Command::Stop => {
-            ctx.client()?.stop()?;
-            out.emit(&serde_json::json!({"stopped": true}), || "stopped\n".into())
-        }
-        Command::Estop => {
-            // Another wheelcal may hold the port: it relays the E-stop at once.
-            let relayed = match (&ctx.client, &ctx.port) {
-                (None, Some(port)) => crate::stop::relay_estop(port)?,
-                _ => None,
-            };
-            if relayed.is_none() {
-                ctx.client()?.estop()?;
-            }
-            let ms = relayed.map(|t| t.as_secs_f64() * 1e3);
-            out.emit(&serde_json::json!({"estop": true, "relayed_ms": ms}), || match ms {
-                Some(ms) => format!("E-STOP sent through the wheelcal holding the port ({ms:.1} ms): motors off (clear with `wheelcal clear-fault`)\n"),
-                None => "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into(),
-            })
-        }
-        Command::ClearFault => {
-            ctx.client()?.clear_fault()?;
-            out.emit(&serde_json::json!({"cleared": true}), || {
-                "fault and E-stop cleared\n".into()
-            })
-        }
+        Command::Info => board::info(ctx, out),
+        Command::Factors(cmd) => factors::run(cmd, ctx, out),
+        Command::Drive(a) => board::drive(a, ctx, out),
+        Command::Run(cmd) => program::run(cmd, ctx, out),
+        Command::Status { follow, period_ms } => board::status(follow, period_ms, ctx, out),
+        Command::Log(cmd) => log::run(cmd, ctx, out),
+        Command::Stop => board::stop(ctx, out),
+        Command::Estop => board::estop(ctx, out),
+        Command::ClearFault => board::clear_fault(ctx, out),
         Command::Console => crate::repl::run(ctx, cli.json),
-        Command::Umbmark(UmbmarkCmd::Compute(a)) => {
-            let robot = robot_file::load(&a.robot)?;
-            let runs = RunsFile::load(&a.runs)?;
-            let rep = umbmark::compute_limited(&robot, &runs, a.max_length)?;
-            if let Some(dir) = &a.report {
-                let index = report::umbmark::write(&rep, dir)?;
-                out.note(&format!("report: {}", index.display()));
-            }
-            out.emit(&rep, || rep.human())
-        }
-        Command::Omni(OmniCmd::Compute(a)) => {
-            let robot = robot_file::load(&a.common.robot)?;
-            let runs = RunsFile::load(&a.common.runs)?;
-            let idle = omni::idle_wheels_for(
-                a.idle.idle_wheels.map(Into::into),
-                &a.common.runs,
-                &a.common.robot,
-            )?;
-            let mut rep = omni::compute_limited(&robot, &runs, idle, a.common.max_length)?;
-            if let Some(p) = &a.previous {
-                rep = omni::compose_with(rep, &omni::factors_from_json(p)?)?;
-            }
-            if let Some(dir) = &a.common.report {
-                let index = report::omni::write(&rep, dir)?;
-                out.note(&format!("report: {}", index.display()));
-            }
-            out.emit(&rep, || rep.human())
-        }
-        Command::Umbmark(UmbmarkCmd::Run(a)) => {
-            let port = ctx.port.clone().unwrap_or_default();
-            let opts = procedure_options(&a, &port, procedure::Kind::Umbmark)?;
-            let rep = procedure::run(ctx.client()?, &opts, measure_for(&opts).as_mut())?;
-            out.emit(&rep, || rep.human())
-        }
-        Command::Omni(OmniCmd::Run(a)) => {
-            let port = ctx.port.clone().unwrap_or_default();
-            let opts = procedure_options(&a, &port, procedure::Kind::Omni)?;
-            let rep = procedure::run(ctx.client()?, &opts, measure_for(&opts).as_mut())?;
-            out.emit(&rep, || rep.human())
-        }
-        Command::SimBoard(a) => {
-            let speed = match a.speed.as_str() {
-                "max" | "inf" => f64::INFINITY,
-                s => s
-                    .parse::<f64>()
-                    .ok()
-                    .filter(|v| *v > 0.0 && v.is_finite())
-                    .context("--speed takes a positive number or `max`")?,
-            };
-            let opts = SimBoardOptions {
-                robot: a.robot,
-                link: a.link,
-                seed: a.seed,
-                speed,
-                effects: a.effect,
-                roughness: a.roughness,
-                flash: a.flash,
-                truth: a.truth,
-            };
-            // Ctrl-C or SIGTERM ends the board cleanly (its link is removed).
-            let _guard = crate::stop::Guard::new();
-            let stop = Arc::new(AtomicBool::new(false));
-            let s2 = stop.clone();
-            std::thread::spawn(move || loop {
-                if crate::stop::requested() {
-                    s2.store(true, Ordering::Relaxed);
-                    break;
-                }
-                std::thread::sleep(Duration::from_millis(20));
-            });
-            sim_board::run(&opts, stop, |ready| {
-                let _ = out.emit(ready, || {
-                    format!(
-                        "virtual board ({}, seed {}) on {}{}\ntruth of each trial: {}\nCtrl-C to stop\n",
-                        ready.robot,
-                        ready.seed,
-                        ready.pty,
-                        ready.link.as_ref().map(|l| format!(" (link {l})")).unwrap_or_default(),
-                        ready.truth_file
-                    )
-                });
-                use std::io::Write;
-                let _ = std::io::stdout().flush();
-            })
-        }
+        Command::Umbmark(cmd) => umbmark::run(cmd, ctx, out),
+        Command::Omni(cmd) => omni::run(cmd, ctx, out),
+        Command::SimBoard(a) => sim::sim_board(a, out),
+        Command::Demo(a) => sim::demo(a, out),
+        Command::Diagnose(a) => diagnose::run(a, out),
         Command::Calibrate(a) => crate::calibrate_cmd::run(&a, out),
-        Command::Diagnose(a) => {
-            let files = crate::calibrate_cmd::expand(&a.recording)?;
-            if files.len() > 1 {
-                return crate::calibrate_cmd::diagnose_many(&a, &files, out);
-            }
-            let recording = &files[0];
-            let robot = robot_file::load(&a.robot)?;
-            let rec = formats::recording::Recording::load(recording, &robot)?;
-            for n in &rec.notes {
-                out.note(&format!("{}: {n}", recording.display()));
-            }
-            let opts = diagnose::Options {
-                max_effects: a.max_effects.clamp(1, 4),
-            };
-            let rep = diagnose::diagnose(&robot, &rec, &opts)
-                .map_err(|e| anyhow::anyhow!("{}: {e}", recording.display()))?;
-            if let Some(dir) = &a.report {
-                if !report::font_available() {
-                    bail!("plots need the DejaVu Sans font: apt-get install fonts-dejavu-core");
-                }
-                diagnose::plots::write_report_dir(&rep, dir)
-                    .with_context(|| format!("cannot write the report into {}", dir.display()))?;
-                out.note(&format!("report: {}", dir.join("index.html").display()));
-            }
-            if let Some(p) = &a.write_robot {
-                diagnose::write_robot(&robot, &rep, p)
-                    .with_context(|| format!("cannot write {}", p.display()))?;
-                out.note(&format!("fitted robot: {}", p.display()));
-            }
-            out.emit(&rep, || rep.to_string())
-        }
-        Command::Sim(SimCmd::Record(a)) => {
-            let robot = robot_file::load(&a.robot)?;
-            let effects = a
-                .effect
-                .iter()
-                .map(|e| {
-                    sim::Effect::parse(e).map_err(|err| anyhow::anyhow!("--effect {e}: {err}"))
-                })
-                .collect::<Result<Vec<_>>>()?;
-            if !(a.duration.is_finite() && a.duration > 0.0 && a.duration <= 7200.0) {
-                bail!("--duration must be within (0, 7200] seconds");
-            }
-            let arena = calib_core::protocol::Safety::default().arena_m as f64;
-            if let Some(side) = a.umbmark_side {
-                if !(side.is_finite() && side > 0.0 && side <= arena) {
-                    bail!("--umbmark-side must be within (0, {arena}] m, as on a board");
-                }
-            }
-            let motion = match a.umbmark_side {
-                Some(side) => sim::record::Motion::Program {
-                    program: Box::new(calib_core::motion::Program::umbmark_square(
-                        side,
-                        Direction::Ccw,
-                    )),
-                    limits: Default::default(),
-                },
-                None => sim::record::Motion::Random(sim::record::RandomMotion {
-                    duration_s: a.duration,
-                    ..Default::default()
-                }),
-            };
-            let mut cfg = sim::record::RecordConfig {
-                row_rate_hz: a.rate,
-                ..Default::default()
-            };
-            cfg.sim.seed = a.seed;
-            if let Some(n) = a.vision_noise {
-                cfg.sim.vision.sigma_xy_m = n;
-            }
-            let rec = sim::record::record(&robot, &effects, sim::Surface::flat(), &motion, &cfg)
-                .map_err(|e| anyhow::anyhow!("{e}"))?;
-            rec.write_dir(&a.out).map_err(|e| anyhow::anyhow!("{e}"))?;
-            #[derive(serde::Serialize)]
-            struct Written {
-                out: String,
-                rows: usize,
-                effects: Vec<String>,
-                seed: u64,
-            }
-            let w = Written {
-                out: a.out.display().to_string(),
-                rows: rec.recording.len(),
-                effects: effects.iter().map(|e| e.to_string()).collect(),
-                seed: a.seed,
-            };
-            out.emit(&w, || {
-                format!(
-                    "wrote {} rows to {} (effects: {})\n",
-                    w.rows,
-                    w.out,
-                    if w.effects.is_empty() {
-                        "none".into()
-                    } else {
-                        w.effects.join(" ")
-                    }
-                )
-            })
-        }
-        Command::Demo(a) => {
-            let rep = demo::run(
-                &a.robot,
-                a.seed,
-                a.runs,
-                a.side,
-                a.report.as_deref(),
-                out == Output::Human,
-            )?;
-            out.emit(&rep, || rep.human())
-        }
+        Command::Sim(cmd) => sim::run(cmd, out),
     }
 }
 
-/// A person with a tape measure, or the virtual board's truth with --auto-measure.
-fn measure_for(opts: &procedure::Options) -> Box<dyn procedure::Measure> {
-    match &opts.auto_measure {
-        Some(file) => Box::new(procedure::TruthFile {
-            file: file.clone(),
-            quiet: false,
-        }),
-        None => Box::new(procedure::Terminal),
-    }
-}
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use clap::CommandFactory;
 
-fn procedure_options(
-    a: &ProcedureArgs,
-    port: &str,
-    kind: procedure::Kind,
-) -> Result<procedure::Options> {
-    let idle_wheels = match kind {
-        procedure::Kind::Omni => omni::idle_wheels_for(
-            a.idle.idle_wheels.map(Into::into),
-            &a.runs_file,
-            a.robot.as_deref().unwrap_or(std::path::Path::new("")),
-        )?,
-        procedure::Kind::Umbmark => Default::default(),
-    };
-    Ok(procedure::Options {
-        idle_wheels,
-        kind,
-        side_m: a.side,
-        length_m: a.length,
-        runs: a.runs,
-        after_runs: a.after_runs.unwrap_or(a.runs),
-        runs_file: a.runs_file.clone(),
-        auto_measure: a.auto_measure.then(|| {
-            a.truth
-                .clone()
-                .unwrap_or_else(|| sim_board::truth_file_for(std::path::Path::new(port)))
-        }),
-        report: a.report.clone(),
-        after: !a.no_after,
-        second_pass: a.second_pass,
-    })
+    /// clap's own consistency checks (conflicts, defaults, value parsers).
+    #[test]
+    fn cli_definition_is_consistent() {
+        Cli::command().debug_assert();
+    }
+
+    /// Ranges are the parser's business: a bad value never reaches a command.
+    #[test]
+    fn out_of_range_values_are_refused_while_parsing() {
+        let bad: [&[&str]; 9] = [
+            &["wheelcal", "drive", "--duration", "0"],
+            &["wheelcal", "drive", "--duration", "601"],
+            &["wheelcal", "status", "--period-ms", "5"],
+            &[
+                "wheelcal", "sim", "record", "--robot", "r", "--out", "o", "--rate", "0",
+            ],
+            &[
+                "wheelcal",
+                "run",
+                "umbmark",
+                "--dir",
+                "ccw",
+                "--log-rate",
+                "5000",
+            ],
+            &["wheelcal", "umbmark", "run", "--runs", "0"],
+            &["wheelcal", "sim-board", "--robot", "r.toml", "--speed", "0"],
+            &[
+                "wheelcal",
+                "sim",
+                "record",
+                "--robot",
+                "r",
+                "--out",
+                "o",
+                "--umbmark-side",
+                "1e9",
+            ],
+            &[
+                "wheelcal",
+                "umbmark",
+                "compute",
+                "--robot",
+                "r",
+                "--runs",
+                "x",
+                "--previous",
+                "p",
+            ],
+        ];
+        for argv in bad {
+            let e = Cli::try_parse_from(argv).expect_err(&argv.join(" "));
+            assert_eq!(e.exit_code(), 2, "{}: {e}", argv.join(" "));
+        }
+        let ok = Cli::try_parse_from(["wheelcal", "sim-board", "--robot", "r", "--speed", "max"])
+            .expect("max speed");
+        match ok.command {
+            Command::SimBoard(a) => assert_eq!(a.speed, f64::INFINITY),
+            other => panic!("{other:?}"),
+        }
+    }
+
+    /// Errors keep their causes (`source()`), so `{:#}` shows the chain once and a
+    /// caller can still find the OS error under it.
+    #[test]
+    fn causes_are_kept_not_flattened_into_text() {
+        use std::io;
+        let e =
+            crate::client::ClientError::Io(io::Error::new(io::ErrorKind::BrokenPipe, "pipe gone"));
+        let a = anyhow::Error::from(e).context("log transfer of trial 3 failed");
+        assert_eq!(
+            format!("{a:#}"),
+            "log transfer of trial 3 failed: serial I/O error: pipe gone"
+        );
+        assert!(a.chain().any(|c| c.downcast_ref::<io::Error>().is_some()));
+        let s = sim::SimError::Io {
+            path: "out/recording.csv".into(),
+            error: io::Error::new(io::ErrorKind::PermissionDenied, "denied"),
+        };
+        let a = anyhow::Error::from(s);
+        assert_eq!(format!("{a:#}"), "cannot write out/recording.csv: denied");
+        assert!(a.chain().any(|c| c.downcast_ref::<io::Error>().is_some()));
+    }
 }

@@ -85,12 +85,21 @@ impl fmt::Display for ClientError {
             ),
             ClientError::Rejected(r) => write!(f, "the board refused: {r}"),
             ClientError::Unexpected(what) => write!(f, "unexpected answer from the board: {what}"),
-            ClientError::Io(e) => write!(f, "serial I/O error: {e}"),
+            // The OS error is the `source()`: `{:#}` prints "serial I/O error: <it>".
+            ClientError::Io(_) => write!(f, "serial I/O error"),
         }
     }
 }
 
-impl std::error::Error for ClientError {}
+impl std::error::Error for ClientError {
+    /// The OS error under a serial I/O failure, kept as a cause rather than text.
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            ClientError::Io(e) => Some(e),
+            _ => None,
+        }
+    }
+}
 
 impl From<io::Error> for ClientError {
     fn from(e: io::Error) -> Self {

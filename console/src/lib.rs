@@ -11,6 +11,7 @@ pub mod calibrate_cmd;
 pub mod calibration;
 pub mod cli;
 pub mod client;
+pub mod commands;
 pub mod demo;
 pub mod flash;
 pub mod link;

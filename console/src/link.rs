@@ -28,9 +28,22 @@ pub fn open_serial(port: &str, baud: u32) -> anyhow::Result<Box<dyn serialport::
                 "permission denied opening {port}: add yourself to the port's group (usually `sudo usermod -aG dialout $USER`, then log in again)"
             ),
             ErrorKind::NoDevice => anyhow::anyhow!("{port} is not available: {e} (unplugged, or in use by another program?)"),
+            // ENOTTY ("Inappropriate ioctl for device" / "Not a typewriter"): a file that
+            // is not a terminal, such as /dev/null or a regular file.
+            _ if not_a_terminal(&e) => anyhow::anyhow!(
+                "{port} is not a serial port (a board shows up as /dev/ttyACM* or /dev/ttyUSB*; a virtual board as the --link of `wheelcal sim-board`)"
+            ),
             _ => anyhow::anyhow!("cannot open {port}: {e}"),
         }
     })
+}
+
+/// Whether opening failed because the file is not a terminal (errno ENOTTY), whatever
+/// words the C library has for it.
+fn not_a_terminal(e: &serialport::Error) -> bool {
+    let enotty = std::io::Error::from_raw_os_error(25).to_string();
+    let d = e.description.as_str();
+    d == enotty || d.contains("Not a typewriter") || d.contains("Inappropriate ioctl")
 }
 
 /// A board-side stream over a serial port or pseudo-terminal master (non-blocking reads).

@@ -13,37 +13,53 @@ use rustyline::hint::Hinter;
 use rustyline::validate::Validator;
 use rustyline::{Editor, Helper};
 
-/// Completes the first word from the command list and later words from each command's
-/// subcommands and flags.
+/// Completes the first word from the command list, the second from the command's
+/// subcommands and flags, and later words from the flags of the (sub)command typed so
+/// far only; a completed word gets its trailing space, as a shell does.
 struct Completion {
-    words: Vec<(String, Vec<String>)>,
+    root: clap::Command,
 }
 
 impl Completion {
     fn new() -> Self {
-        let cmd = Cli::command();
-        let words = cmd
-            .get_subcommands()
-            .filter(|c| !matches!(c.get_name(), "console" | "sim-board" | "demo"))
-            .map(|c| {
-                let mut follow: Vec<String> = c
-                    .get_subcommands()
-                    .map(|s| s.get_name().to_string())
-                    .collect();
-                follow.extend(
-                    c.get_arguments()
-                        .filter_map(|a| a.get_long().map(|l| format!("--{l}"))),
-                );
-                for s in c.get_subcommands() {
-                    follow.extend(
-                        s.get_arguments()
-                            .filter_map(|a| a.get_long().map(|l| format!("--{l}"))),
-                    );
-                }
-                (c.get_name().to_string(), follow)
-            })
-            .collect();
-        Completion { words }
+        Completion {
+            root: Cli::command(),
+        }
+    }
+
+    /// Candidates for the word after `typed` (the words before it).
+    fn candidates(&self, typed: &[&str]) -> Vec<String> {
+        let hidden = |c: &clap::Command| matches!(c.get_name(), "console" | "sim-board" | "demo");
+        let Some((first, rest)) = typed.split_first() else {
+            return self
+                .root
+                .get_subcommands()
+                .filter(|c| !hidden(c))
+                .map(|c| c.get_name().to_string())
+                .chain(["help".to_string(), "quit".to_string()])
+                .collect();
+        };
+        let Some(mut cmd) = self.root.find_subcommand(first).filter(|c| !hidden(c)) else {
+            return Vec::new();
+        };
+        // Descend through the subcommands typed (`factors set`, `run umbmark`).
+        let mut descended = false;
+        for w in rest {
+            if let Some(sub) = cmd.find_subcommand(w) {
+                cmd = sub;
+                descended = true;
+            }
+        }
+        let mut out: Vec<String> = Vec::new();
+        if !descended && rest.iter().all(|w| w.starts_with('-')) {
+            out.extend(cmd.get_subcommands().map(|s| s.get_name().to_string()));
+        }
+        out.extend(
+            cmd.get_arguments()
+                .filter(|a| !a.is_global_set() && !a.is_hide_set())
+                .filter_map(|a| a.get_long().map(|l| format!("--{l}"))),
+        );
+        out
     }
 }
 
@@ -58,28 +74,17 @@ impl Completer for Completion {
         let head = &line[..pos];
         let start = head.rfind(' ').map_or(0, |i| i + 1);
         let word = &head[start..];
-        let first = head.split_whitespace().next().unwrap_or("");
-        let pool: Vec<String> = if start == 0 {
-            self.words
-                .iter()
-                .map(|(w, _)| w.clone())
-                .chain(["help".to_string(), "quit".to_string()])
-                .collect()
-        } else {
-            self.words
-                .iter()
-                .find(|(w, _)| w == first)
-                .map(|(_, f)| f.clone())
-                .unwrap_or_default()
-        };
-        let mut out: Vec<Pair> = pool
+        let typed: Vec<&str> = head[..start].split_whitespace().collect();
+        let mut out: Vec<Pair> = self
+            .candidates(&typed)
             .into_iter()
             .filter(|w| w.starts_with(word))
             .map(|w| Pair {
-                display: w.clone(),
-                replacement: w,
+                replacement: format!("{w} "),
+                display: w,
             })
             .collect();
+        out.sort_by(|a, b| a.display.cmp(&b.display));
         out.dedup_by(|a, b| a.display == b.display);
         Ok((start, out))
     }
@@ -166,4 +171,54 @@ pub fn run(ctx: &mut Ctx, json: bool) -> Result<()> {
         anyhow::bail!("{failed} command(s) failed");
     }
     Ok(())
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn complete(line: &str) -> Vec<String> {
+        let h = rustyline::history::DefaultHistory::new();
+        let ctx = rustyline::Context::new(&h);
+        let (_, pairs) = Completion::new()
+            .complete(line, line.len(), &ctx)
+            .expect("completes");
+        pairs.into_iter().map(|p| p.replacement).collect()
+    }
+
+    /// Issue 13 polish: a completed word gets its space, so the next Tab goes on.
+    #[test]
+    fn completion_adds_the_space() {
+        assert_eq!(complete("fac"), ["factors "]);
+        assert_eq!(complete("factors s"), ["save ", "set "]);
+    }
+
+    /// Issue 13 polish: only the typed command's own flags, not other commands'.
+    #[test]
+    fn completion_offers_only_the_commands_own_flags() {
+        let run_umbmark = complete("run umbmark --");
+        for f in ["--dir ", "--side ", "--log-rate ", "--no-wait "] {
+            assert!(
+                run_umbmark.contains(&f.to_string()),
+                "{f} in {run_umbmark:?}"
+            );
+        }
+        assert!(
+            !run_umbmark.contains(&"--length ".to_string()),
+            "{run_umbmark:?}"
+        );
+        assert!(
+            !run_umbmark.contains(&"--path ".to_string()),
+            "{run_umbmark:?}"
+        );
+        let set = complete("factors set --");
+        assert!(set.contains(&"--f-lat ".to_string()), "{set:?}");
+        assert!(!set.contains(&"--ros2 ".to_string()), "{set:?}");
+        assert!(
+            !set.contains(&"--port ".to_string()),
+            "global flags: {set:?}"
+        );
+        assert_eq!(complete("drive --v"), ["--vx ", "--vy "]);
+        assert!(complete("sim-board --").is_empty());
+    }
 }

@@ -12,9 +12,9 @@ use calib_core::kinematics::Kinematics;
 use calib_core::motion::{Program, ProgramRunner, Setpoint};
 use calib_core::odometry::{Odometry, Pose};
 use calib_core::protocol::{
-    record_size, BootReport, CorrectionText, Fault, IdleWheels, Info, LogChunk, Mode, Num, Params,
-    ProgramSpec, Record, Rejection, Request, Response, Status, StopReason, TrialEnd, MAX_LOG_CHUNK,
-    PROTOCOL_VERSION, SCHEMA_FINGERPRINT,
+    record_size, BootReport, CorrectionFault, Fault, IdleWheels, Info, LogChunk, Mode, Params,
+    ParamsFault, ProgramError, ProgramSpec, Record, Rejection, Request, Response, Status,
+    StopReason, TrialEnd, MAX_LOG_CHUNK, PROTOCOL_VERSION, SCHEMA_FINGERPRINT,
 };
 use calib_core::robot::{DriveType, MAX_WHEELS};
 use calib_core::{Corrections, Twist};
@@ -628,16 +628,11 @@ impl<'a> App<'a> {
         if ok(t.vx, l.v_max) && ok(t.vy, l.v_max) && ok(t.omega, l.omega_max) {
             Ok(t)
         } else {
-            Err(Rejection::InvalidProgram(calib_core::protocol::reason(
-                &format_args!(
-                    "twist ({}, {}, {}) must be finite and within v_max {} m/s, omega_max {} rad/s",
-                    Num(t.vx as f64),
-                    Num(t.vy as f64),
-                    Num(t.omega as f64),
-                    Num(l.v_max),
-                    Num(l.omega_max)
-                ),
-            )))
+            Err(Rejection::InvalidProgram(ProgramError::Twist {
+                twist: t,
+                v_max: l.v_max,
+                omega_max: l.omega_max,
+            }))
         }
     }
 
@@ -647,11 +642,8 @@ impl<'a> App<'a> {
         }
         c.validate(&self.params.robot)
             .map_err(|e| Rejection::corrections(&e))?;
-        let kin = kinematics(&self.params, &c).ok_or_else(|| {
-            Rejection::InvalidCorrections(calib_core::protocol::reason(
-                &"the corrected geometry is singular",
-            ))
-        })?;
+        let kin = kinematics(&self.params, &c)
+            .ok_or(Rejection::InvalidCorrections(CorrectionFault::Singular))?;
         self.kin = kin;
         self.corrections = c;
         Ok(())
@@ -662,18 +654,14 @@ impl<'a> App<'a> {
             return Err(Rejection::Busy);
         }
         p.validate()
-            .map_err(|e| Rejection::InvalidParams(calib_core::protocol::reason(&e)))?;
+            .map_err(|e| Rejection::InvalidParams(ParamsFault::from(&e)))?;
         if let Err(e) = self.corrections.validate(&p.robot) {
-            return Err(Rejection::InvalidParams(calib_core::protocol::reason(
-                &format_args!(
-                    "the active corrections do not fit this robot ({}): reset them first",
-                    CorrectionText(&e)
-                ),
+            return Err(Rejection::InvalidParams(ParamsFault::CorrectionsDoNotFit(
+                CorrectionFault::from(&e),
             )));
         }
-        let kin = kinematics(&p, &self.corrections).ok_or_else(|| {
-            Rejection::InvalidParams(calib_core::protocol::reason(&"singular geometry"))
-        })?;
+        let kin = kinematics(&p, &self.corrections)
+            .ok_or(Rejection::InvalidParams(ParamsFault::Singular))?;
         self.kin = kin;
         self.params = p;
         self.configure();

@@ -58,12 +58,22 @@ impl fmt::Display for SimError {
                 write!(f, "expected {expected} wheel inputs, got {got}")
             }
             SimError::Robot(e) => write!(f, "robot: {e}"),
-            SimError::Io { path, error } => write!(f, "{}: {error}", path.display()),
+            // The OS error is the `source()`.
+            SimError::Io { path, .. } => write!(f, "cannot write {}", path.display()),
         }
     }
 }
 
-impl std::error::Error for SimError {}
+impl std::error::Error for SimError {
+    /// The OS error under a failed write stays an error (not text) so callers can walk
+    /// the chain; an effect error is shown as itself (transparent).
+    fn source(&self) -> Option<&(dyn std::error::Error + 'static)> {
+        match self {
+            SimError::Io { error, .. } => Some(error),
+            _ => None,
+        }
+    }
+}
 
 impl From<EffectError> for SimError {
     fn from(e: EffectError) -> Self {

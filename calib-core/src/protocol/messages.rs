@@ -249,7 +249,26 @@ pub enum Fault {
     },
 }
 
-/// Why a request was refused; the board's state is unchanged.
+impl fmt::Display for Fault {
+    /// Wheels numbered from 1, as in the robot file and the console's output.
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            Fault::Stall { wheel } => write!(
+                f,
+                "stall: wheel {} was commanded but its encoder did not move",
+                *wheel as u16 + 1
+            ),
+            Fault::CounterJump { wheel, delta } => write!(
+                f,
+                "counter jump: wheel {}'s encoder moved {delta} counts in one tick",
+                *wheel as u16 + 1
+            ),
+        }
+    }
+}
+
+/// Why a request was refused; the board's state is unchanged. Structured (no text is
+/// built on the board): the host words it with one `Display`.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
 pub enum Rejection {
     /// The host's version or schema did not match at [`Request::Hello`].
@@ -260,11 +279,11 @@ pub enum Rejection {
         board_schema: u32,
     },
     /// The corrections failed validation.
-    InvalidCorrections(Reason),
+    InvalidCorrections(CorrectionFault),
     /// The parameters failed validation.
-    InvalidParams(Reason),
+    InvalidParams(ParamsFault),
     /// The program failed validation.
-    InvalidProgram(Reason),
+    InvalidProgram(ProgramError),
     /// Not while a program or drive is under way.
     Busy,
     /// E-stop latched: send ClearFault first.
@@ -287,7 +306,239 @@ pub enum Rejection {
 impl Rejection {
     /// [`Rejection::InvalidCorrections`] worded from a correction error.
     pub fn corrections(e: &CorrectionError) -> Self {
-        Rejection::InvalidCorrections(reason(&CorrectionText(e)))
+        Rejection::InvalidCorrections(CorrectionFault::from(e))
+    }
+}
+
+/// A correction factor, as named on the wire ([`CorrectionError`] names it with text).
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum Factor {
+    /// c_L, the left wheel factor.
+    CL,
+    /// c_R, the right wheel factor.
+    CR,
+    /// E_b, the wheelbase factor.
+    EB,
+    /// A lateral factor of F_lat.
+    FLat,
+    /// F_lon, the longitudinal factor.
+    FLon,
+}
+
+impl Factor {
+    /// From the name `correction::check` was given (always one of the five; anything
+    /// else reads as f_lat).
+    pub fn from_name(name: &str) -> Factor {
+        match name {
+            "c_l" => Factor::CL,
+            "c_r" => Factor::CR,
+            "e_b" => Factor::EB,
+            "f_lon" => Factor::FLon,
+            _ => Factor::FLat,
+        }
+    }
+
+    /// The factor's name as the console and the robot files write it.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            Factor::CL => "c_l",
+            Factor::CR => "c_r",
+            Factor::EB => "e_b",
+            Factor::FLat => "f_lat",
+            Factor::FLon => "f_lon",
+        }
+    }
+}
+
+/// Why corrections were refused, on the wire.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum CorrectionFault {
+    /// A factor is NaN or infinite.
+    NotFinite {
+        /// Which factor.
+        factor: Factor,
+        /// Its wheel index (from 0) for per-wheel factors.
+        index: Option<u8>,
+    },
+    /// A factor outside [0.5, 2.0].
+    OutOfRange {
+        /// Which factor.
+        factor: Factor,
+        /// Its wheel index (from 0) for per-wheel factors.
+        index: Option<u8>,
+        /// The value refused.
+        value: f64,
+    },
+    /// Per-wheel factors for another number of wheels.
+    WrongWheelCount {
+        /// Wheels of the robot.
+        expected: u8,
+        /// Factors given.
+        got: u8,
+    },
+    /// Factors of another drive kind (differential vs omni).
+    WrongKind {
+        /// The robot's kind.
+        robot: RobotKind,
+    },
+    /// The corrected geometry cannot resolve a body twist.
+    Singular,
+}
+
+impl From<&CorrectionError> for CorrectionFault {
+    fn from(e: &CorrectionError) -> Self {
+        let idx = |i: &Option<usize>| i.map(|i| i.min(u8::MAX as usize) as u8);
+        let n = |v: usize| v.min(u8::MAX as usize) as u8;
+        match e {
+            CorrectionError::NotFinite { name, index } => CorrectionFault::NotFinite {
+                factor: Factor::from_name(name),
+                index: idx(index),
+            },
+            CorrectionError::OutOfRange { name, index, value } => CorrectionFault::OutOfRange {
+                factor: Factor::from_name(name),
+                index: idx(index),
+                value: *value,
+            },
+            CorrectionError::WrongWheelCount { expected, got } => {
+                CorrectionFault::WrongWheelCount {
+                    expected: n(*expected),
+                    got: n(*got),
+                }
+            }
+            CorrectionError::WrongKind { robot } => CorrectionFault::WrongKind { robot: *robot },
+        }
+    }
+}
+
+impl fmt::Display for CorrectionFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        let e = match *self {
+            CorrectionFault::Singular => return f.write_str("the corrected geometry is singular"),
+            CorrectionFault::NotFinite { factor, index } => CorrectionError::NotFinite {
+                name: factor.as_str(),
+                index: index.map(usize::from),
+            },
+            CorrectionFault::OutOfRange {
+                factor,
+                index,
+                value,
+            } => CorrectionError::OutOfRange {
+                name: factor.as_str(),
+                index: index.map(usize::from),
+                value,
+            },
+            CorrectionFault::WrongWheelCount { expected, got } => {
+                CorrectionError::WrongWheelCount {
+                    expected: expected.into(),
+                    got: got.into(),
+                }
+            }
+            CorrectionFault::WrongKind { robot } => CorrectionError::WrongKind { robot },
+        };
+        CorrectionText(&e).fmt(f)
+    }
+}
+
+/// Why parameters were refused, on the wire.
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum ParamsFault {
+    /// The robot description: wheel index (from 0) if a wheel is concerned.
+    Robot {
+        /// Wheel index (from 0), if a wheel is concerned.
+        wheel: Option<u8>,
+        /// The field at fault.
+        field: crate::robot::Field,
+        /// What is wrong with it.
+        problem: crate::robot::Problem,
+    },
+    /// Setting [`SETTING_NAMES`]`[index]` is outside `[min, max]`.
+    Setting {
+        /// Index into [`SETTING_NAMES`].
+        index: u8,
+        /// Smallest allowed value.
+        min: f64,
+        /// Largest allowed value.
+        max: f64,
+        /// The value refused.
+        value: f64,
+    },
+    /// The active corrections do not fit the new robot: reset them first.
+    CorrectionsDoNotFit(CorrectionFault),
+    /// The geometry cannot resolve a body twist.
+    Singular,
+}
+
+impl From<&ParamsError> for ParamsFault {
+    fn from(e: &ParamsError) -> Self {
+        match e {
+            ParamsError::Robot(r) => ParamsFault::Robot {
+                wheel: r
+                    .wheel
+                    .as_ref()
+                    .map(|(i, _)| (*i).min(u8::MAX as usize) as u8),
+                field: r.field,
+                problem: r.problem,
+            },
+            ParamsError::Setting {
+                name,
+                min,
+                max,
+                value,
+            } => ParamsFault::Setting {
+                index: SETTING_NAMES
+                    .iter()
+                    .position(|n| n == name)
+                    .unwrap_or(u8::MAX as usize) as u8,
+                min: *min,
+                max: *max,
+                value: *value,
+            },
+        }
+    }
+}
+
+impl fmt::Display for ParamsFault {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            ParamsFault::Robot {
+                wheel,
+                field,
+                problem,
+            } => {
+                if let Some(i) = wheel {
+                    write!(f, "wheel {}: ", *i as u16 + 1)?;
+                }
+                let e = RobotError {
+                    wheel: None,
+                    field: *field,
+                    problem: *problem,
+                };
+                write!(f, "robot: {}", RobotText(&e))
+            }
+            ParamsFault::Setting {
+                index,
+                min,
+                max,
+                value,
+            } => {
+                match SETTING_NAMES.get(*index as usize) {
+                    Some(n) => f.write_str(n)?,
+                    None => write!(f, "setting #{index}")?,
+                }
+                write!(
+                    f,
+                    " = {} is outside [{}, {}]",
+                    Num(*value),
+                    Num(*min),
+                    Num(*max)
+                )
+            }
+            ParamsFault::CorrectionsDoNotFit(c) => write!(
+                f,
+                "the active corrections do not fit this robot ({c}): reset them first"
+            ),
+            ParamsFault::Singular => f.write_str("singular geometry"),
+        }
     }
 }
 
@@ -306,7 +557,7 @@ impl fmt::Display for Rejection {
             Rejection::InvalidProgram(r) => write!(f, "invalid program: {r}"),
             Rejection::Busy => write!(f, "busy: stop the robot first"),
             Rejection::EStopped => write!(f, "E-stop latched: clear it first"),
-            Rejection::Faulted(x) => write!(f, "fault latched ({x:?}): clear it first"),
+            Rejection::Faulted(x) => write!(f, "fault latched ({x}): clear it first"),
             Rejection::NoSuchTrial => write!(f, "no such trial"),
             Rejection::BadOffset { total } => write!(f, "offset past the end ({total} bytes)"),
             Rejection::Storage => write!(f, "flash storage failed; stored values unchanged"),

@@ -107,9 +107,23 @@ IdleWheels=Released|Held;\
 ProgramKind=Drive|Umbmark{side_m:f32,dir:Direction}|Omni{path:OmniPath,length_m:f32}|Custom{segments:u8};\
 TrialEnd=Running|Completed|Stopped|EStop|Fault|CommandTimeout;\
 LogChunk{trial:u16,offset:u32,total:u32,data:bytes};\
-Rejection=ProtocolMismatch{board_version:u16,board_schema:u32}|InvalidCorrections(String<96>)|\
-InvalidParams(String<96>)|InvalidProgram(String<96>)|Busy|EStopped|Faulted(Fault)|NoSuchTrial|\
+Rejection=ProtocolMismatch{board_version:u16,board_schema:u32}|InvalidCorrections(CorrectionFault)|\
+InvalidParams(ParamsFault)|InvalidProgram(ProgramError)|Busy|EStopped|Faulted(Fault)|NoSuchTrial|\
 BadOffset{total:u32}|Storage|Undecodable;\
+Factor=CL|CR|EB|FLat|FLon;\
+CorrectionFault=NotFinite{factor:Factor,index:Option<u8>}|OutOfRange{factor:Factor,index:Option<u8>,value:f64}|\
+WrongWheelCount{expected:u8,got:u8}|WrongKind{robot:RobotKind}|Singular;\
+ParamsFault=Robot{wheel:Option<u8>,field:Field,problem:Problem}|Setting{index:u8,min:f64,max:f64,value:f64}|\
+CorrectionsDoNotFit(CorrectionFault)|Singular;\
+Field=Name|Kind|Wheels|RadiusM|AlphaDeg|LM|BetaDeg|GammaDeg|StepsPerRev|Microsteps|GearRatio|\
+EncoderCountsPerRev|Legs;\
+Problem=NotFinite|NotPositive(f64)|Negative(f64)|RollerParallelToAxle|DuplicateName|BadName|\
+TooFewWheels(usize)|TooManyWheels(usize)|SingularJacobian|LegsMismatch|\
+WrongWheelCount{kind:RobotKind,expected:usize,got:usize};\
+ProgramError=OutOfRange{field:ProgramField,value:f64,max:f64}|NotPositive{field:ProgramField,value:f64}|\
+NeedsOmni{robot:RobotKind}|NoSegments|NoSuchWheel{wheel:u8,wheels:u8}|\
+Twist{twist:Twist<f32>,v_max:f64,omega_max:f64};\
+ProgramField=SideM|LengthM|DistanceM|AngleRad|DxM|DyM|DurationS;\
 FrameError=Cobs|TooShort|TooLong|Crc;\
 Record=t_us:u32le,counts:i32le*n,cmd_rad_s:f32le*n,x:f32le,y:f32le,theta:f32le";
 

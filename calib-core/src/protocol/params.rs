@@ -46,6 +46,24 @@ impl Default for Safety {
     }
 }
 
+/// The settings [`Params::validate`] checks, in order; a rejection names one by its index.
+pub const SETTING_NAMES: [&str; 14] = [
+    "gains.kp",
+    "gains.ki",
+    "gains.kff",
+    "gains.kstatic",
+    "gains.out_max",
+    "limits.v_max",
+    "limits.a_max",
+    "limits.omega_max",
+    "limits.alpha_max",
+    "safety.command_timeout_ms",
+    "safety.stall_timeout_ms",
+    "safety.stall_min_rate",
+    "safety.max_jump_counts",
+    "safety.arena_m",
+];
+
 /// Why a [`Params`] was refused.
 #[derive(Debug, Clone, PartialEq)]
 pub enum ParamsError {
@@ -93,38 +111,24 @@ impl Params {
         let g = &self.gains;
         let l = &self.limits;
         let s = &self.safety;
-        let ranges: [(&'static str, f64, f64, f64); 14] = [
-            ("gains.kp", g.kp as f64, 0.0, 100.0),
-            ("gains.ki", g.ki as f64, 0.0, 1000.0),
-            ("gains.kff", g.kff as f64, 0.0, 100.0),
-            ("gains.kstatic", g.kstatic as f64, 0.0, 1.0),
-            ("gains.out_max", g.out_max as f64, 0.01, 1.0),
-            ("limits.v_max", l.v_max, 1e-3, 5.0),
-            ("limits.a_max", l.a_max, 1e-3, 20.0),
-            ("limits.omega_max", l.omega_max, 1e-3, 20.0),
-            ("limits.alpha_max", l.alpha_max, 1e-3, 100.0),
-            (
-                "safety.command_timeout_ms",
-                s.command_timeout_ms as f64,
-                10.0,
-                10_000.0,
-            ),
-            (
-                "safety.stall_timeout_ms",
-                s.stall_timeout_ms as f64,
-                5.0,
-                5_000.0,
-            ),
-            ("safety.stall_min_rate", s.stall_min_rate as f64, 0.0, 100.0),
-            (
-                "safety.max_jump_counts",
-                s.max_jump_counts as f64,
-                1.0,
-                32_767.0,
-            ),
-            ("safety.arena_m", s.arena_m as f64, 0.5, 1000.0),
+        // (value, min, max) in the order of SETTING_NAMES.
+        let ranges: [(f64, f64, f64); 14] = [
+            (g.kp as f64, 0.0, 100.0),
+            (g.ki as f64, 0.0, 1000.0),
+            (g.kff as f64, 0.0, 100.0),
+            (g.kstatic as f64, 0.0, 1.0),
+            (g.out_max as f64, 0.01, 1.0),
+            (l.v_max, 1e-3, 5.0),
+            (l.a_max, 1e-3, 20.0),
+            (l.omega_max, 1e-3, 20.0),
+            (l.alpha_max, 1e-3, 100.0),
+            (s.command_timeout_ms as f64, 10.0, 10_000.0),
+            (s.stall_timeout_ms as f64, 5.0, 5_000.0),
+            (s.stall_min_rate as f64, 0.0, 100.0),
+            (s.max_jump_counts as f64, 1.0, 32_767.0),
+            (s.arena_m as f64, 0.5, 1000.0),
         ];
-        for (name, value, min, max) in ranges {
+        for (name, (value, min, max)) in SETTING_NAMES.into_iter().zip(ranges) {
             if !(min..=max).contains(&value) {
                 return Err(ParamsError::Setting {
                     name,
@@ -175,61 +179,69 @@ impl ProgramSpec {
         wheel_count: usize,
         kind: RobotKind,
         arena_m: f64,
-    ) -> Result<(), Reason> {
-        let fin = |v: f64, max: f64, what: &str| -> Result<(), Reason> {
+    ) -> Result<(), ProgramError> {
+        use ProgramField as F;
+        let fin = |v: f64, max: f64, field: ProgramField| -> Result<(), ProgramError> {
             if v.is_finite() && v.abs() <= max {
                 Ok(())
             } else {
-                Err(reason(&format_args!(
-                    "{what} = {} must be finite and |{what}| <= {}",
-                    Num(v),
-                    Num(max)
-                )))
+                Err(ProgramError::OutOfRange {
+                    field,
+                    value: v,
+                    max,
+                })
+            }
+        };
+        let positive = |v: f64, field: ProgramField| -> Result<(), ProgramError> {
+            if v > 0.0 {
+                Ok(())
+            } else {
+                Err(ProgramError::NotPositive { field, value: v })
             }
         };
         match self {
             ProgramSpec::Umbmark { side_m, .. } => {
-                fin(*side_m, arena_m, "side_m")?;
-                if *side_m <= 0.0 {
-                    return Err(reason(&"side_m must be positive"));
-                }
+                fin(*side_m, arena_m, F::SideM)?;
+                positive(*side_m, F::SideM)?;
             }
             ProgramSpec::Omni { length_m, .. } => {
                 if kind != RobotKind::Omni {
-                    return Err(reason(&"omni paths need an omni robot"));
+                    return Err(ProgramError::NeedsOmni { robot: kind });
                 }
-                fin(*length_m, arena_m, "length_m")?;
-                if *length_m <= 0.0 {
-                    return Err(reason(&"length_m must be positive"));
-                }
+                fin(*length_m, arena_m, F::LengthM)?;
+                positive(*length_m, F::LengthM)?;
             }
             ProgramSpec::Custom(segs) => {
                 if segs.is_empty() {
-                    return Err(reason(&"a custom program needs at least one segment"));
+                    return Err(ProgramError::NoSegments);
                 }
                 for s in segs {
                     match *s {
-                        Segment::Straight { distance_m } => fin(distance_m, arena_m, "distance_m")?,
-                        Segment::Turn { angle_rad } => fin(angle_rad, 100.0, "angle_rad")?,
+                        Segment::Straight { distance_m } => fin(distance_m, arena_m, F::DistanceM)?,
+                        Segment::Turn { angle_rad } => fin(angle_rad, 100.0, F::AngleRad)?,
                         Segment::Translate { dx_m, dy_m } => {
                             if kind != RobotKind::Omni {
-                                return Err(reason(&"translate segments need an omni robot"));
+                                return Err(ProgramError::NeedsOmni { robot: kind });
                             }
-                            fin(dx_m, arena_m, "dx_m")?;
-                            fin(dy_m, arena_m, "dy_m")?;
+                            fin(dx_m, arena_m, F::DxM)?;
+                            fin(dy_m, arena_m, F::DyM)?;
                         }
                         Segment::SingleWheel { wheel, angle_rad } => {
                             if wheel as usize >= wheel_count {
-                                return Err(reason(&format_args!(
-                                    "wheel {wheel} does not exist ({wheel_count} wheels)"
-                                )));
+                                return Err(ProgramError::NoSuchWheel {
+                                    wheel,
+                                    wheels: wheel_count.min(u8::MAX as usize) as u8,
+                                });
                             }
-                            fin(angle_rad, 1000.0, "angle_rad")?;
+                            fin(angle_rad, 1000.0, F::AngleRad)?;
                         }
                         Segment::Pause { duration_s } => {
-                            fin(duration_s, 600.0, "duration_s")?;
+                            fin(duration_s, 600.0, F::DurationS)?;
                             if duration_s < 0.0 {
-                                return Err(reason(&"duration_s must not be negative"));
+                                return Err(ProgramError::NotPositive {
+                                    field: F::DurationS,
+                                    value: duration_s,
+                                });
                             }
                         }
                     }
@@ -253,6 +265,129 @@ impl ProgramSpec {
             ProgramSpec::Custom(s) => ProgramKind::Custom {
                 segments: s.len() as u8,
             },
+        }
+    }
+}
+
+/// A number of a program or drive request, named on the wire.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+pub enum ProgramField {
+    /// A UMBmark side (m).
+    SideM,
+    /// An omni path length (m).
+    LengthM,
+    /// A straight segment (m).
+    DistanceM,
+    /// A turn or single-wheel angle (rad).
+    AngleRad,
+    /// A translation along body x (m).
+    DxM,
+    /// A translation along body y (m).
+    DyM,
+    /// A pause (s).
+    DurationS,
+}
+
+impl ProgramField {
+    /// The field's name as in the program spec.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ProgramField::SideM => "side_m",
+            ProgramField::LengthM => "length_m",
+            ProgramField::DistanceM => "distance_m",
+            ProgramField::AngleRad => "angle_rad",
+            ProgramField::DxM => "dx_m",
+            ProgramField::DyM => "dy_m",
+            ProgramField::DurationS => "duration_s",
+        }
+    }
+}
+
+/// Why a program or a drive was refused (structured: the host words it).
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+pub enum ProgramError {
+    /// Not finite, or `|value| > max`.
+    OutOfRange {
+        /// Which number.
+        field: ProgramField,
+        /// The value refused.
+        value: f64,
+        /// Largest allowed magnitude.
+        max: f64,
+    },
+    /// Zero or negative where only positive makes sense (a pause: negative).
+    NotPositive {
+        /// Which number.
+        field: ProgramField,
+        /// The value refused.
+        value: f64,
+    },
+    /// Omni paths and translate segments need an omni robot.
+    NeedsOmni {
+        /// The robot's kind.
+        robot: RobotKind,
+    },
+    /// A custom program without segments.
+    NoSegments,
+    /// A single-wheel segment names a wheel the robot does not have.
+    NoSuchWheel {
+        /// The wheel index given (from 0).
+        wheel: u8,
+        /// Wheels of the robot.
+        wheels: u8,
+    },
+    /// A drive twist not finite or beyond the board's limits.
+    Twist {
+        /// The twist refused (m/s, m/s, rad/s).
+        twist: Twist<f32>,
+        /// The board's speed limit (m/s).
+        v_max: f64,
+        /// The board's turn-rate limit (rad/s).
+        omega_max: f64,
+    },
+}
+
+impl fmt::Display for ProgramError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match *self {
+            ProgramError::OutOfRange { field, value, max } => {
+                let w = field.as_str();
+                write!(
+                    f,
+                    "{w} = {} must be finite and |{w}| <= {}",
+                    Num(value),
+                    Num(max)
+                )
+            }
+            ProgramError::NotPositive {
+                field: ProgramField::DurationS,
+                value,
+            } => write!(f, "duration_s = {} must not be negative", Num(value)),
+            ProgramError::NotPositive { field, value } => {
+                write!(f, "{} = {} must be positive", field.as_str(), Num(value))
+            }
+            ProgramError::NeedsOmni { robot } => write!(
+                f,
+                "omni paths and translate segments need an omni robot, not {}",
+                robot.as_str()
+            ),
+            ProgramError::NoSegments => f.write_str("a custom program needs at least one segment"),
+            ProgramError::NoSuchWheel { wheel, wheels } => {
+                write!(f, "wheel {wheel} does not exist ({wheels} wheels)")
+            }
+            ProgramError::Twist {
+                twist,
+                v_max,
+                omega_max,
+            } => write!(
+                f,
+                "twist ({}, {}, {}) must be finite and within v_max {} m/s, omega_max {} rad/s",
+                Num(twist.vx as f64),
+                Num(twist.vy as f64),
+                Num(twist.omega as f64),
+                Num(v_max),
+                Num(omega_max)
+            ),
         }
     }
 }

@@ -1,6 +1,7 @@
 use super::*;
 use crate::robot::presets;
 use proptest::prelude::*;
+use std::string::ToString;
 
 fn roundtrip_req(r: &Request) -> Request {
     let mut out = [0u8; MAX_WIRE];
@@ -263,9 +264,22 @@ fn build_response(which: u8, v: f32, data: &[u8], x: u32) -> Response<'_> {
                 board_version: 3,
                 board_schema: x,
             },
-            1 => Rejection::InvalidCorrections(reason(&"c_l = 3 is out")),
-            2 => Rejection::InvalidParams(reason(&v)),
-            3 => Rejection::InvalidProgram(reason(&"x")),
+            1 => Rejection::InvalidCorrections(CorrectionFault::OutOfRange {
+                factor: Factor::FLat,
+                index: Some((x % 8) as u8),
+                value: v as f64,
+            }),
+            2 => Rejection::InvalidParams(ParamsFault::Setting {
+                index: (x % 14) as u8,
+                min: 0.0,
+                max: 1.0,
+                value: v as f64,
+            }),
+            3 => Rejection::InvalidProgram(ProgramError::OutOfRange {
+                field: ProgramField::LengthM,
+                value: v as f64,
+                max: 10.0,
+            }),
             4 => Rejection::Busy,
             5 => Rejection::EStopped,
             6 => Rejection::Faulted(Fault::Stall { wheel: 2 }),
@@ -409,7 +423,11 @@ fn largest_messages_fit_a_frame() {
         angle_rad: 1.5,
     }; MAX_SEGMENTS];
     let data = [0u8; MAX_LOG_CHUNK];
-    let long = reason(&"x".repeat(200));
+    let long = ProgramError::Twist {
+        twist: Twist::new(f32::MAX, f32::MAX, f32::MAX),
+        v_max: f64::MAX,
+        omega_max: f64::MAX,
+    };
     let sizes = [
         wire_of(u16::MAX, &Request::SetParams(params.clone())).len(),
         wire_of(u16::MAX, &Response::Params(params)).len(),
@@ -446,7 +464,7 @@ fn largest_messages_fit_a_frame() {
         wire_of(u16::MAX, &Response::Info(info())).len(),
         wire_of(
             u16::MAX,
-            &Response::Rejected(Rejection::InvalidParams(long)),
+            &Response::Rejected(Rejection::InvalidProgram(long)),
         )
         .len(),
     ];
@@ -659,7 +677,7 @@ fn schema_golden() {
     std::println!("golden {golden:#010x}, fingerprint {SCHEMA_FINGERPRINT:#010x}");
     assert_eq!(
         (golden, SCHEMA_FINGERPRINT),
-        (0x66ff2ca1, 0x739a7f24),
+        (0x955e8171, 0x83578214),
         "message types changed: update SCHEMA and these constants"
     );
 }
@@ -695,6 +713,7 @@ fn validation_messages() {
     assert!(bad
         .validate(2, RobotKind::DiffDrive, 10.0)
         .unwrap_err()
+        .to_string()
         .contains("wheel 2"));
     let nan = ProgramSpec::Umbmark {
         side_m: f64::NAN,
@@ -732,10 +751,12 @@ fn programs_outside_the_arena_or_negative_are_refused() {
     assert!(omni(-1.5)
         .validate(4, RobotKind::Omni, arena)
         .unwrap_err()
+        .to_string()
         .contains("positive"));
     assert!(square(40.0)
         .validate(2, RobotKind::DiffDrive, arena)
         .unwrap_err()
+        .to_string()
         .contains("side_m = 40"));
     // At the limit and inside it: accepted; a larger arena accepts more.
     assert_eq!(omni(10.0).validate(4, RobotKind::Omni, arena), Ok(()));
@@ -768,4 +789,119 @@ fn programs_outside_the_arena_or_negative_are_refused() {
     assert_eq!(p.validate(), Ok(()));
     p.safety.arena_m = 0.1;
     assert!(std::format!("{}", p.validate().unwrap_err()).contains("safety.arena_m"));
+}
+
+/// Issue 13 polish: faults and the kind mismatch read as words (wheels numbered from 1, as
+/// in the robot file), not Rust's debug text or "a omni".
+#[test]
+fn faults_and_kind_mismatch_in_words() {
+    let r = Rejection::Faulted(Fault::Stall { wheel: 2 });
+    assert_eq!(
+        r.to_string(),
+        "fault latched (stall: wheel 3 was commanded but its encoder did not move): clear it first"
+    );
+    let j = Fault::CounterJump {
+        wheel: 0,
+        delta: -4000,
+    };
+    assert_eq!(
+        j.to_string(),
+        "counter jump: wheel 1's encoder moved -4000 counts in one tick"
+    );
+    let e = crate::correction::CorrectionError::WrongKind {
+        robot: RobotKind::Omni,
+    };
+    assert!(Rejection::corrections(&e)
+        .to_string()
+        .contains("do not fit this omni robot"));
+    assert!(e.to_string().contains("do not fit this omni robot"));
+}
+
+/// 15.6: rejections travel as data, not text built on the board. The bytes of a few
+/// rejections are pinned (postcard: variant index, then fields), they decode back to the
+/// same value, and the host words them with one `Display`.
+#[test]
+fn structured_rejections_golden_and_words() {
+    let cases: [(Rejection, &[u8], &str); 5] = [
+        (
+            Rejection::InvalidProgram(ProgramError::OutOfRange {
+                field: ProgramField::LengthM,
+                value: -50.0,
+                max: 10.0,
+            }),
+            &[
+                0x03, 0x00, 0x01, 0, 0, 0, 0, 0, 0, 0x49, 0xc0, 0, 0, 0, 0, 0, 0, 0x24, 0x40,
+            ],
+            "invalid program: length_m = -50 must be finite and |length_m| <= 10",
+        ),
+        (
+            Rejection::InvalidProgram(ProgramError::NotPositive {
+                field: ProgramField::SideM,
+                value: 0.0,
+            }),
+            &[0x03, 0x01, 0x00, 0, 0, 0, 0, 0, 0, 0, 0],
+            "invalid program: side_m = 0 must be positive",
+        ),
+        (
+            Rejection::InvalidCorrections(CorrectionFault::OutOfRange {
+                factor: Factor::FLat,
+                index: Some(2),
+                value: 2.5,
+            }),
+            &[0x01, 0x01, 0x03, 0x01, 0x02, 0, 0, 0, 0, 0, 0, 0x04, 0x40],
+            "invalid corrections: f_lat[2] = 2.5 is outside [0.5, 2]",
+        ),
+        (
+            Rejection::InvalidParams(ParamsFault::Setting {
+                index: 13,
+                min: 0.5,
+                max: 1000.0,
+                value: 0.0,
+            }),
+            &[
+                0x02, 0x01, 0x0d, 0, 0, 0, 0, 0, 0, 0xe0, 0x3f, 0, 0, 0, 0, 0, 0x40, 0x8f, 0x40, 0,
+                0, 0, 0, 0, 0, 0, 0,
+            ],
+            "invalid parameters: safety.arena_m = 0 is outside [0.5, 1000]",
+        ),
+        (
+            Rejection::InvalidParams(ParamsFault::Robot {
+                wheel: Some(1),
+                field: crate::robot::Field::RadiusM,
+                problem: crate::robot::Problem::NotPositive(-0.05),
+            }),
+            &[
+                0x02, 0x00, 0x01, 0x01, 0x03, 0x01, 0x9a, 0x99, 0x99, 0x99, 0x99, 0x99, 0xa9, 0xbf,
+            ],
+            "invalid parameters: wheel 2: robot: radius_m: must be positive, got -0.05",
+        ),
+    ];
+    let mut buf = [0u8; 64];
+    for (r, bytes, words) in cases {
+        let got = postcard::to_slice(&r, &mut buf).unwrap();
+        assert_eq!(got, bytes, "{r:?}");
+        let back: Rejection = postcard::from_bytes(bytes).unwrap();
+        assert_eq!(back, r);
+        assert_eq!(r.to_string(), words);
+    }
+}
+
+proptest! {
+    /// Every program the board refuses is refused with a reason that names the number
+    /// at fault, and the rejection survives the wire unchanged.
+    #[test]
+    fn refused_programs_round_trip(length in proptest::num::f64::ANY, arena in 0.5f64..100.0) {
+        let spec = ProgramSpec::Omni { path: OmniPath::W1, length_m: length, idle: IdleWheels::Held };
+        if let Err(e) = spec.validate(4, RobotKind::Omni, arena) {
+            let r = Rejection::InvalidProgram(e);
+            let mut buf = [0u8; 64];
+            let bytes = postcard::to_slice(&r, &mut buf).unwrap();
+            let back: Rejection = postcard::from_bytes(bytes).unwrap();
+            // NaN != NaN: compare the words.
+            prop_assert_eq!(back.to_string(), r.to_string());
+            prop_assert!(r.to_string().contains("length_m"));
+        } else {
+            prop_assert!(length > 0.0 && length <= arena);
+        }
+    }
 }

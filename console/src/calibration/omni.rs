@@ -70,7 +70,10 @@ pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniR
         f_lon: p_lon,
     } = previous
     else {
-        bail!("the previous factors are not omni factors (f_lat, f_lon)");
+        bail!(
+            "the previous factors are not omni factors: {}",
+            crate::board_cmds::factors_text(previous)
+        );
     };
     let secondary = Corrections::Omni {
         f_lat: heapless::Vec::from_slice(&rep.f_lat)

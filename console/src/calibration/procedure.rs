@@ -412,7 +412,11 @@ pub fn run<L: Read + Write>(
     };
     let corrections = match &previous {
         Some(p) => p.compose(&corrections).with_context(|| {
-            format!("cannot compose the board's factors {p:?} with {corrections:?}: they do not fit this procedure")
+            format!(
+                "cannot compose the board's factors ({}) with ({}): they do not fit this procedure",
+                crate::board_cmds::factors_text(p),
+                crate::board_cmds::factors_text(&corrections)
+            )
         })?,
         None => corrections,
     };

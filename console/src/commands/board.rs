@@ -1,0 +1,76 @@
+//! Single board requests: `info`, `drive`, `status`, `stop`, `estop`, `clear-fault`.
+
+use crate::board_cmds;
+use crate::cli::Ctx;
+use crate::cli::DriveArgs;
+use crate::output::Output;
+use anyhow::Result;
+use calib_core::Twist;
+use std::time::Duration;
+
+/// `wheelcal info`.
+pub fn info(ctx: &mut Ctx, out: Output) -> Result<()> {
+    let r = board_cmds::info(ctx.client()?)?;
+    out.emit(&r, || r.human())
+}
+
+/// `wheelcal drive`: the twist for a while, then stop (Ctrl-C stops at once).
+pub fn drive(a: DriveArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
+    let client = ctx.client()?;
+    board_cmds::drive_for(
+        client,
+        Twist::new(a.vx, a.vy, a.omega),
+        Duration::from_secs_f64(a.duration),
+    )?;
+    let s = client.status()?;
+    out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))
+}
+
+/// `wheelcal status [--follow]`.
+pub fn status(follow: bool, period_ms: u16, ctx: &mut Ctx, out: Output) -> Result<()> {
+    let client = ctx.client()?;
+    if !follow {
+        let s = client.status()?;
+        return out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)));
+    }
+    let _guard = crate::stop::Guard::new();
+    client.set_telemetry(period_ms.max(20))?;
+    while !crate::stop::requested() {
+        if let Some(s) = client.next_telemetry(Duration::from_millis(500))? {
+            out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))?;
+        }
+    }
+    client.set_telemetry(0)?;
+    Ok(())
+}
+
+/// `wheelcal stop`.
+pub fn stop(ctx: &mut Ctx, out: Output) -> Result<()> {
+    ctx.client()?.stop()?;
+    out.emit(&serde_json::json!({"stopped": true}), || "stopped\n".into())
+}
+
+/// `wheelcal estop`: through the wheelcal holding the port if there is one.
+pub fn estop(ctx: &mut Ctx, out: Output) -> Result<()> {
+    // Another wheelcal may hold the port: it relays the E-stop at once.
+    let relayed = match (&ctx.client, &ctx.port) {
+        (None, Some(port)) => crate::stop::relay_estop(port)?,
+        _ => None,
+    };
+    if relayed.is_none() {
+        ctx.client()?.estop()?;
+    }
+    let ms = relayed.map(|t| t.as_secs_f64() * 1e3);
+    out.emit(&serde_json::json!({"estop": true, "relayed_ms": ms}), || match ms {
+        Some(ms) => format!("E-STOP sent through the wheelcal holding the port ({ms:.1} ms): motors off (clear with `wheelcal clear-fault`)\n"),
+        None => "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into(),
+    })
+}
+
+/// `wheelcal clear-fault`.
+pub fn clear_fault(ctx: &mut Ctx, out: Output) -> Result<()> {
+    ctx.client()?.clear_fault()?;
+    out.emit(&serde_json::json!({"cleared": true}), || {
+        "fault and E-stop cleared\n".into()
+    })
+}

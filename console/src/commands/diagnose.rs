@@ -1,0 +1,40 @@
+//! `wheelcal diagnose`.
+
+use crate::cli::DiagnoseArgs;
+use crate::output::Output;
+use crate::report;
+use anyhow::{bail, Context, Result};
+use formats::robot_file;
+
+/// Where simulation and recording part, and the physics left out.
+pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
+    let files = crate::calibrate_cmd::expand(&a.recording)?;
+    if files.len() > 1 {
+        return crate::calibrate_cmd::diagnose_many(&a, &files, out);
+    }
+    let recording = &files[0];
+    let robot = robot_file::load(&a.robot)?;
+    let rec = formats::recording::Recording::load(recording, &robot)?;
+    for n in &rec.notes {
+        out.note(&format!("{}: {n}", recording.display()));
+    }
+    let opts = diagnose::Options {
+        max_effects: a.max_effects.into(),
+    };
+    let rep =
+        diagnose::diagnose(&robot, &rec, &opts).with_context(|| recording.display().to_string())?;
+    if let Some(dir) = &a.report {
+        if !report::font_available() {
+            bail!("plots need the DejaVu Sans font: apt-get install fonts-dejavu-core");
+        }
+        diagnose::plots::write_report_dir(&rep, dir)
+            .with_context(|| format!("cannot write the report into {}", dir.display()))?;
+        out.note(&format!("report: {}", dir.join("index.html").display()));
+    }
+    if let Some(p) = &a.write_robot {
+        diagnose::write_robot(&robot, &rep, p)
+            .with_context(|| format!("cannot write {}", p.display()))?;
+        out.note(&format!("fitted robot: {}", p.display()));
+    }
+    out.emit(&rep, || rep.to_string())
+}
