@@ -10,6 +10,7 @@ pub mod client;
 pub mod demo;
 pub mod flash;
 pub mod link;
+pub mod mcap_out;
 pub mod output;
 pub mod repl;
 pub mod report;
