@@ -764,6 +764,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
                 diagnose::plots::write_report_dir(&rep, dir)
                     .with_context(|| format!("cannot write the report into {}", dir.display()))?;
                 out.note(&format!("report: {}", dir.join("index.html").display()));
+                crate::mcap_out::write_report_paths(&rep, &dir.join("paths.mcap"))?;
             }
             if let Some(p) = &a.write_robot {
                 diagnose::write_robot(&robot, &rep, p)

@@ -128,31 +128,50 @@ pub fn write_trial(info: &TrialInfo, recs: &[Record], out: &Path) -> Result<()> 
     o.finish()
 }
 
-/// One replayed path: a name (its topic is `/paths/<name>`) and poses `(t s, x m, y m,
-/// theta rad)`.
+/// One replayed path: a name (its topic is `/paths/<name>`), sample times (s) and
+/// positions `(x m, y m)`.
 pub struct PathSeries<'a> {
     pub name: &'a str,
-    pub poses: &'a [(f64, f64, f64, f64)],
+    pub t: &'a [f64],
+    pub xy: &'a [(f64, f64)],
 }
 
 /// Writes replayed paths (e.g. nominal and fitted, from the diagnose report) as MCAP,
-/// one `wheelcal.Pose2D` channel per path.
+/// one `wheelcal.Position2D` channel per path.
 pub fn write_paths(paths: &[PathSeries<'_>], out: &Path) -> Result<()> {
     let mut o = Out::new(create(out)?)?;
     for p in paths {
         let ch = o.channel(
             &format!("/paths/{}", p.name),
-            "wheelcal.Pose2D",
+            "wheelcal.Position2D",
             json!({"type": "object", "properties": {
                 "t": {"type": "number"},
                 "x": {"type": "number", "description": "m"},
-                "y": {"type": "number", "description": "m"},
-                "theta": {"type": "number", "description": "rad"}}}),
+                "y": {"type": "number", "description": "m"}}}),
         )?;
-        for &(t, x, y, theta) in p.poses {
+        for (&t, &(x, y)) in p.t.iter().zip(p.xy) {
             let t_ns = (t.max(0.0) * 1e9).round() as u64;
-            o.put(ch, t_ns, &json!({"t": t, "x": x, "y": y, "theta": theta}))?;
+            o.put(ch, t_ns, &json!({"t": t, "x": x, "y": y}))?;
         }
     }
     o.finish()
+}
+
+/// The diagnose report's measured, nominal and fitted paths as MCAP (beside its HTML).
+pub fn write_report_paths(rep: &diagnose::Report, out: &Path) -> Result<()> {
+    let p = &rep.plot;
+    let series = [
+        ("measured", &p.measured),
+        ("nominal", &p.nominal),
+        ("fitted", &p.fitted),
+    ];
+    let paths: Vec<PathSeries<'_>> = series
+        .iter()
+        .map(|(name, xy)| PathSeries {
+            name,
+            t: &p.pose_t,
+            xy,
+        })
+        .collect();
+    write_paths(&paths, out)
 }

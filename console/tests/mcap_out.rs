@@ -97,21 +97,20 @@ fn replayed_paths_as_mcap() {
     let dir = std::env::temp_dir().join(format!("wheelcal-paths-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("paths.mcap");
-    let nominal: Vec<_> = (0..100)
-        .map(|i| (i as f64 * 0.01, i as f64 * 0.01, 0.0, 0.0))
-        .collect();
-    let fitted: Vec<_> = (0..50)
-        .map(|i| (i as f64 * 0.02, i as f64 * 0.02, 0.001 * i as f64, 0.0))
-        .collect();
+    let t: Vec<f64> = (0..100).map(|i| i as f64 * 0.01).collect();
+    let nominal: Vec<_> = t.iter().map(|&t| (t, 0.0)).collect();
+    let fitted: Vec<_> = t.iter().map(|&t| (t, 0.1 * t)).collect();
     write_paths(
         &[
             PathSeries {
                 name: "nominal",
-                poses: &nominal,
+                t: &t,
+                xy: &nominal,
             },
             PathSeries {
                 name: "fitted",
-                poses: &fitted,
+                t: &t[..50],
+                xy: &fitted,
             },
         ],
         &out,
@@ -121,7 +120,7 @@ fn replayed_paths_as_mcap() {
     assert_eq!(topics["/paths/nominal"].len(), 100);
     assert_eq!(topics["/paths/fitted"].len(), 50);
     let (t, m) = &topics["/paths/fitted"][49];
-    assert_eq!(*t, 980_000_000);
+    assert_eq!(*t, 490_000_000);
     assert!((m["y"].as_f64().unwrap() - 0.049).abs() < 1e-12);
     let _ = std::fs::remove_dir_all(&dir);
 }
