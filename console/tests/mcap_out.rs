@@ -11,9 +11,12 @@ use wheelcal::link::Faults;
 use wheelcal::mcap_out::{write_paths, PathSeries, TRIAL_TOPICS};
 use wheelcal::virtual_board::InProcessBoard;
 
-fn read(path: &Path) -> (Vec<u8>, BTreeMap<String, Vec<(u64, serde_json::Value)>>) {
+/// Messages per topic: (log time ns, JSON body).
+type Topics = BTreeMap<String, Vec<(u64, serde_json::Value)>>;
+
+fn read(path: &Path) -> (Vec<u8>, Topics) {
     let bytes = std::fs::read(path).unwrap();
-    let mut by_topic: BTreeMap<String, Vec<(u64, serde_json::Value)>> = BTreeMap::new();
+    let mut by_topic = Topics::new();
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
         let schema = m
