@@ -1,11 +1,13 @@
-//! Log transfer from a virtual board: protocol efficiency (payload / wire bytes), time to
-//! pull 100 000 records over an in-memory link (no baud-rate limit: this measures the
-//! protocol and both ends' code, not a UART), and decode throughput.
+//! Log transfer from a virtual board: bytes per record of the compressed log (delta +
+//! zigzag varint blocks) against the fixed records it replaced, on typical drives
+//! (UMBmark square, omni path, standing still), the wire bytes and the time a 60 s /
+//! 1 kHz / 4-wheel trial takes at 115,200 baud (arithmetic from the wire bytes measured),
+//! and the host's pull / decode / CSV throughput over an in-memory link.
 //!
 //! `cargo bench -p wheelcal --bench log_transfer`
 
-use calib_core::motion::Segment;
-use calib_core::protocol::ProgramSpec;
+use calib_core::motion::{Direction, OmniPath, Segment};
+use calib_core::protocol::{record_size, ProgramSpec};
 use formats::robot_file;
 use std::path::Path;
 use std::time::{Duration, Instant};
@@ -14,13 +16,19 @@ use wheelcal::client::decode_records;
 use wheelcal::link::Faults;
 use wheelcal::virtual_board::InProcessBoard;
 
-fn main() {
-    let robot =
-        robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/omni4.toml"))
-            .unwrap();
+const BAUD_BYTES_PER_S: f64 = 115_200.0 / 10.0;
+
+fn trial(robot_name: &str, what: &str, program: ProgramSpec) -> f64 {
+    let robot = robot_file::load(
+        &Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../robots")
+            .join(robot_name),
+    )
+    .unwrap();
+    let n = robot.wheel_count();
     let sim = sim::SimRobot::new(
         &robot,
-        sim::Faults::none(4),
+        sim::Faults::none(n),
         sim::Surface::flat(),
         sim::SimConfig::default(),
     )
@@ -29,9 +37,7 @@ fn main() {
     let c = &mut board.client;
     c.timeout = Duration::from_secs(2);
     c.hello().unwrap();
-    // 100 s standing still, logged at 1 kHz: 100 000 records of 4 wheels (48 bytes each).
-    let program = heapless::Vec::from_slice(&[Segment::Pause { duration_s: 100.0 }]).unwrap();
-    c.run_program(ProgramSpec::Custom(program), 1000).unwrap();
+    c.run_program(program, 1000).unwrap();
     wheelcal::board_cmds::wait_program(c, Duration::from_secs(600), |_| {}).unwrap();
     let info = c.trials().unwrap().trials.last().unwrap().clone();
     let (rx0, tx0) = (c.stats.bytes_received, c.stats.bytes_sent);
@@ -46,39 +52,73 @@ fn main() {
     let mut csv = Vec::with_capacity(16 << 20);
     records_to_csv(&robot, &info, &recs, &mut csv).unwrap();
     let export = t2.elapsed();
-
+    let k = recs.len() as f64;
+    let fixed = record_size(n) as f64;
+    let per = data.len() as f64 / k;
+    println!("{what} ({robot_name}, {n} wheels, 1 kHz)");
     println!(
-        "records            {} ({} bytes each, {} bytes)",
+        "  records            {} in {} bytes: {per:.2} bytes/record (fixed {fixed}): {:.2}x fewer",
         recs.len(),
-        info.record_size,
-        data.len()
+        data.len(),
+        fixed / per
     );
     println!(
-        "wire, board->host  {rx} bytes: payload efficiency {:.1} %",
-        100.0 * data.len() as f64 / rx as f64
-    );
-    println!(
-        "wire, both ways    {} bytes: payload efficiency {:.1} %",
-        rx + tx,
+        "  wire board->host   {rx} bytes ({:.2} per record), host->board {tx} bytes ({:.1} % payload both ways)",
+        rx as f64 / k,
         100.0 * data.len() as f64 / (rx + tx) as f64
     );
     println!(
-        "at 115200 baud     {:.1} s (10 bits per byte on the UART)",
-        rx as f64 * 10.0 / 115_200.0
+        "  this trial at 115200 baud: {:.1} s (fixed records: {:.1} s)",
+        rx as f64 / BAUD_BYTES_PER_S,
+        rx as f64 / BAUD_BYTES_PER_S * fixed / per
     );
     println!(
-        "pull (in memory)   {:.3} s, {:.1} MB/s",
+        "  pull in memory {:.3} s, decode {:.1} M records/s, CSV {:.1} ms ({} bytes)",
         pull.as_secs_f64(),
-        data.len() as f64 / pull.as_secs_f64() / 1e6
-    );
-    println!(
-        "decode             {:.2} ms, {:.1} M records/s",
-        decode.as_secs_f64() * 1e3,
-        recs.len() as f64 / decode.as_secs_f64() / 1e6
-    );
-    println!(
-        "export CSV         {:.1} ms ({} bytes)",
+        k / decode.as_secs_f64() / 1e6,
         export.as_secs_f64() * 1e3,
         csv.len()
+    );
+    rx as f64 / k
+}
+
+fn main() {
+    let mut four = Vec::new();
+    trial(
+        "mobolab.toml",
+        "UMBmark square 2 m",
+        ProgramSpec::Umbmark {
+            side_m: 2.0,
+            dir: Direction::Ccw,
+        },
+    );
+    four.push(trial(
+        "omni4.toml",
+        "UMBmark square 2 m",
+        ProgramSpec::Umbmark {
+            side_m: 2.0,
+            dir: Direction::Cw,
+        },
+    ));
+    four.push(trial(
+        "omni4.toml",
+        "omni path W1 2 m",
+        ProgramSpec::Omni {
+            path: OmniPath::W1,
+            length_m: 2.0,
+            idle: calib_core::protocol::IdleWheels::Released,
+        },
+    ));
+    let still = heapless::Vec::from_slice(&[Segment::Pause { duration_s: 60.0 }]).unwrap();
+    four.push(trial(
+        "omni4.toml",
+        "standing still 60 s",
+        ProgramSpec::Custom(still),
+    ));
+    let worst = four.iter().cloned().fold(0.0, f64::max);
+    println!(
+        "60 s / 1 kHz / 4 wheels at 115200 baud: {:.1} s at the worst 4-wheel drive above ({worst:.2} wire bytes/record); fixed 48-byte records: {:.1} s",
+        60_000.0 * worst / BAUD_BYTES_PER_S,
+        60_000.0 * (48.0 * 1.03) / BAUD_BYTES_PER_S
     );
 }

@@ -549,11 +549,18 @@ pub fn pull_trial<L: Read + Write>(
         .with_context(|| format!("log transfer of trial {trial} failed"))?;
     let secs = t0.elapsed().as_secs_f64();
     let recs = decode_records(&info, &data).map_err(|e| anyhow::anyhow!(e))?;
-    let file =
-        std::fs::File::create(out).with_context(|| format!("cannot create {}", out.display()))?;
-    let mut w = std::io::BufWriter::new(file);
-    records_to_csv(&robot, &info, &recs, &mut w)?;
-    w.flush()?;
+    if out
+        .extension()
+        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
+    {
+        crate::mcap_out::write_trial(&info, &recs, out)?;
+    } else {
+        let file = std::fs::File::create(out)
+            .with_context(|| format!("cannot create {}", out.display()))?;
+        let mut w = std::io::BufWriter::new(file);
+        records_to_csv(&robot, &info, &recs, &mut w)?;
+        w.flush()?;
+    }
     Ok(PulledTrial {
         trial,
         file: out.display().to_string(),

@@ -553,20 +553,29 @@ impl From<Response<'_>> for Incoming {
     }
 }
 
-/// Decodes a trial's record bytes; errors when the length is not whole records.
+/// Decodes a trial's log blocks; errors when a block is damaged or the data is cut short
+/// (use [`decode_records_lossy`] to keep the intact blocks).
 pub fn decode_records(info: &TrialInfo, data: &[u8]) -> Result<Vec<Record>, String> {
-    let n = info.wheel_count as usize;
-    let size = protocol::record_size(n);
-    if size == 0 || !data.len().is_multiple_of(size) {
+    let (recs, s) = decode_records_lossy(info, data)?;
+    if s.bad_blocks > 0 || s.trailing > 0 {
         return Err(format!(
-            "trial {}: {} bytes is not a whole number of {size}-byte records",
-            info.id,
-            data.len()
+            "trial {}: {} damaged log blocks ({} records), {} bytes cut short",
+            info.id, s.bad_blocks, s.lost_records, s.trailing
         ));
     }
-    data.chunks_exact(size)
-        .map(|c| {
-            Record::decode(n, c).ok_or_else(|| format!("trial {}: undecodable record", info.id))
-        })
-        .collect()
+    Ok(recs)
+}
+
+/// Decodes a trial's log blocks, skipping damaged ones (each costs only its own records).
+pub fn decode_records_lossy(
+    info: &TrialInfo,
+    data: &[u8],
+) -> Result<(Vec<Record>, protocol::BlockSummary), String> {
+    let n = info.wheel_count as usize;
+    if n > calib_core::robot::MAX_WHEELS {
+        return Err(format!("trial {}: {n} wheels is too many", info.id));
+    }
+    let mut recs = Vec::with_capacity(info.records as usize);
+    let s = protocol::decode_blocks(n, data, |r| recs.push(r));
+    Ok((recs, s))
 }

@@ -15,6 +15,7 @@ pub mod commands;
 pub mod demo;
 pub mod flash;
 pub mod link;
+pub mod mcap_out;
 pub mod output;
 pub mod repl;
 pub mod report;

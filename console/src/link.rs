@@ -11,9 +11,7 @@ use std::time::Duration;
 pub fn open_serial(port: &str, baud: u32) -> anyhow::Result<Box<dyn serialport::SerialPort>> {
     let path = std::path::Path::new(port);
     if !path.exists() {
-        let found: Vec<String> = serialport::available_ports()
-            .map(|v| v.into_iter().map(|p| p.port_name).collect())
-            .unwrap_or_default();
+        let found: Vec<String> = list_ports().iter().map(|p| described_port(p)).collect();
         let hint = if found.is_empty() {
             "no serial ports found".to_string()
         } else {
@@ -44,6 +42,39 @@ fn not_a_terminal(e: &serialport::Error) -> bool {
     let enotty = std::io::Error::from_raw_os_error(25).to_string();
     let d = e.description.as_str();
     d == enotty || d.contains("Not a typewriter") || d.contains("Inappropriate ioctl")
+}
+
+/// Serial ports on this machine: what `serialport` finds plus any `/dev/ttyACM*` (the
+/// board's USB CDC-ACM link, which some systems list only once udev has named it).
+pub fn list_ports() -> Vec<String> {
+    let mut found: Vec<String> = serialport::available_ports()
+        .map(|v| v.into_iter().map(|p| p.port_name).collect())
+        .unwrap_or_default();
+    if let Ok(dir) = std::fs::read_dir("/dev") {
+        for e in dir.flatten() {
+            let name = e.file_name().to_string_lossy().into_owned();
+            if name.starts_with("ttyACM") {
+                let path = format!("/dev/{name}");
+                if !found.contains(&path) {
+                    found.push(path);
+                }
+            }
+        }
+    }
+    found.sort();
+    found
+}
+
+/// A port's name with what it probably is, so a user picks the right one.
+pub fn described_port(port: &str) -> String {
+    let base = port.rsplit('/').next().unwrap_or(port);
+    if base.starts_with("ttyACM") || base.starts_with("cu.usbmodem") {
+        format!("{port} (USB CDC-ACM link to the board: its USB port, fast log pulls)")
+    } else if base.starts_with("ttyUSB") || base.starts_with("cu.usbserial") {
+        format!("{port} (USB-serial adapter: the board's UART at 115200 baud)")
+    } else {
+        port.to_string()
+    }
 }
 
 /// A board-side stream over a serial port or pseudo-terminal master (non-blocking reads).
@@ -235,5 +266,17 @@ impl firmware_app::ByteStream for MemoryEnd {
     }
     fn write(&mut self, data: &[u8]) {
         self.tx.send(data);
+    }
+}
+
+#[cfg(test)]
+mod port_hint_tests {
+    use super::described_port;
+
+    #[test]
+    fn usb_ports_say_which_link_they_are() {
+        assert!(described_port("/dev/ttyACM0").contains("USB CDC-ACM link to the board"));
+        assert!(described_port("/dev/ttyUSB1").contains("UART"));
+        assert_eq!(described_port("/dev/ttyS0"), "/dev/ttyS0");
     }
 }

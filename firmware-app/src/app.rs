@@ -397,10 +397,7 @@ impl<'a> App<'a> {
                 rec.counts[i] = (w.position() - w.origin) as i32;
                 rec.cmd[i] = w.cmd;
             }
-            let mut buf = [0u8; record_size(MAX_WHEELS)];
-            if let Some(len) = rec.encode(n, &mut buf) {
-                self.log.append(&buf[..len]);
-            }
+            self.log.log_record(&rec);
         }
     }
 

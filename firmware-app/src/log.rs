@@ -1,5 +1,8 @@
-//! The trial log: packed records ([`calib_core::protocol::Record`]) of each trial in a RAM
-//! byte ring, with a header per trial kept in a small table.
+//! The trial log: each trial's records, compressed into blocks
+//! ([`calib_core::protocol::BlockEncoder`], a key frame per block), in a RAM byte ring,
+//! with a header per trial kept in a small table. The block being built is staged
+//! outside the ring and stored whole when it is full or the trial ends, so the ring only
+//! ever holds whole blocks and a host never reads one that is still growing.
 //!
 //! # When the ring fills
 //! Trials are contiguous in the ring, oldest first. A record that does not fit first
@@ -14,7 +17,8 @@
 //! so a download can resume at any offset.
 
 use calib_core::protocol::{
-    ProgramKind, Rejection, TrialEnd, TrialInfo, Trials, MAX_LOG_CHUNK, MAX_TRIALS,
+    BlockEncoder, ProgramKind, Record, Rejection, TrialEnd, TrialInfo, Trials, LOG_BLOCK_MAX,
+    MAX_LOG_CHUNK, MAX_TRIALS,
 };
 use calib_core::Corrections;
 use heapless::Deque;
@@ -39,6 +43,8 @@ pub struct TrialLog<'a> {
     next_id: u16,
     dropped_total: u32,
     evicted_total: u32,
+    /// The running trial's block being built.
+    block: BlockEncoder,
 }
 
 impl<'a> TrialLog<'a> {
@@ -53,6 +59,7 @@ impl<'a> TrialLog<'a> {
             next_id: 1,
             dropped_total: 0,
             evicted_total: 0,
+            block: BlockEncoder::new(0),
         }
     }
 
@@ -129,11 +136,43 @@ impl<'a> TrialLog<'a> {
             start: self.tail,
         });
         self.recording = true;
+        self.block = BlockEncoder::new(wheel_count as usize);
         id
     }
 
-    /// Appends one record to the running trial; false if none runs or it was dropped.
+    /// Adds one record to the running trial's block, storing the block first when it is
+    /// full; false if no trial runs or the stored block was dropped (ring full).
+    pub fn log_record(&mut self, rec: &Record) -> bool {
+        if !self.recording {
+            return false;
+        }
+        let mut stored = true;
+        if self.block.is_full() {
+            stored = self.store_block();
+        }
+        self.block.push(rec) && stored
+    }
+
+    /// Moves the staged block into the ring.
+    fn store_block(&mut self) -> bool {
+        let mut tmp = [0u8; LOG_BLOCK_MAX];
+        let records = self.block.records() as u32;
+        let Some(b) = self.block.take() else {
+            return true;
+        };
+        let len = b.len();
+        tmp[..len].copy_from_slice(b);
+        self.store(&tmp[..len], records)
+    }
+
+    /// Appends raw bytes counted as one record (tests of the ring).
     pub fn append(&mut self, rec: &[u8]) -> bool {
+        self.store(rec, 1)
+    }
+
+    /// Appends `rec` (holding `records` records) to the running trial; false if none runs
+    /// or it was dropped.
+    fn store(&mut self, rec: &[u8], records: u32) -> bool {
         if !self.recording {
             return false;
         }
@@ -145,11 +184,11 @@ impl<'a> TrialLog<'a> {
             return false;
         };
         if !fits {
-            active.info.dropped = active.info.dropped.saturating_add(1);
-            self.dropped_total = self.dropped_total.saturating_add(1);
+            active.info.dropped = active.info.dropped.saturating_add(records);
+            self.dropped_total = self.dropped_total.saturating_add(records);
             return false;
         }
-        active.info.records += 1;
+        active.info.records += records;
         active.info.bytes += rec.len() as u32;
         let cap = self.buf.len();
         let at = (self.tail % cap as u64) as usize;
@@ -163,6 +202,7 @@ impl<'a> TrialLog<'a> {
     /// Ends the running trial.
     pub fn finish(&mut self, end: TrialEnd) {
         if self.recording {
+            self.store_block();
             if let Some(e) = self.trials.back_mut() {
                 e.info.end = end;
             }
@@ -172,6 +212,7 @@ impl<'a> TrialLog<'a> {
 
     /// Forgets every trial (not while one is recording: the caller checks).
     pub fn clear(&mut self) {
+        self.block.take();
         self.trials.clear();
         self.head = self.tail;
         self.recording = false;

@@ -127,26 +127,13 @@ fn cobs_encode_in_place(buf: &mut [u8], off: usize, len: usize) -> usize {
     w
 }
 
-/// Decodes COBS in place; returns the decoded length.
+/// Decodes COBS in place with the `cobs` crate (the one postcard uses); returns the
+/// decoded length. An empty frame decodes to nothing (the caller reports it too short).
 fn cobs_decode_in_place(buf: &mut [u8]) -> Result<usize, FrameError> {
-    let (mut r, mut w) = (0, 0);
-    while r < buf.len() {
-        let code = buf[r] as usize;
-        if code == 0 || r + code > buf.len() {
-            return Err(FrameError::Cobs);
-        }
-        r += 1;
-        for _ in 1..code {
-            buf[w] = buf[r];
-            w += 1;
-            r += 1;
-        }
-        if code != 0xFF && r < buf.len() {
-            buf[w] = 0;
-            w += 1;
-        }
+    if buf.is_empty() {
+        return Ok(0);
     }
-    Ok(w)
+    cobs::decode_in_place(buf).map_err(|_| FrameError::Cobs)
 }
 
 /// Splits a byte stream into frames: bounded memory ([`MAX_WIRE`] bytes), never panics,

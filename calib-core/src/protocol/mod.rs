@@ -26,9 +26,10 @@
 //!   telemetry ([`Response::Telemetry`]); skip them.
 //! - Logs: [`Request::ListTrials`], then [`Request::ReadLog`] from offset 0 with
 //!   `max_len` = [`MAX_LOG_CHUNK`], each next offset = offset + data length, until the
-//!   offset reaches `total` of a finished trial. Split the bytes into [`Record`]s of
-//!   [`record_size`]`(wheel_count)` bytes. A chunk may be shorter than asked (the ring's
-//!   end); that is not the end of the trial.
+//!   offset reaches `total` of a finished trial. Decode the bytes with [`decode_blocks`]
+//!   (compressed blocks of [`Record`]s, a key frame each; `record_size` in the trial's
+//!   header is the size of one decoded record). A chunk may be shorter than asked (the
+//!   ring's end); that is not the end of the trial.
 //! - Saves ([`Request::SaveCorrections`], [`Request::SaveParams`]) answer only after the
 //!   flash write: allow a few seconds (a sector erase takes up to 2 s).
 //!
@@ -73,7 +74,7 @@ pub use params::*;
 pub use text::*;
 
 /// Bumped on any incompatible change of the messages or framing.
-pub const PROTOCOL_VERSION: u16 = 1;
+pub const PROTOCOL_VERSION: u16 = 2;
 
 /// Canonical description of the message schema; its CRC-32 is [`SCHEMA_FINGERPRINT`].
 /// Edit it whenever a message type changes (the golden test enforces this).

@@ -30,6 +30,8 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
         diagnose::plots::write_report_dir(&rep, dir)
             .with_context(|| format!("cannot write the report into {}", dir.display()))?;
         out.note(&format!("report: {}", dir.join("index.html").display()));
+        // The replayed paths for Foxglove / PlotJuggler beside the HTML.
+        crate::mcap_out::write_report_paths(&rep, &dir.join("paths.mcap"))?;
     }
     if let Some(p) = &a.write_robot {
         diagnose::write_robot(&robot, &rep, p)
