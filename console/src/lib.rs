@@ -5,7 +5,6 @@
 #[allow(missing_docs)] // documented with the link work (issue 14)
 pub mod board_cmds;
 pub mod calibrate_cmd;
-#[allow(missing_docs)] // documentation under way (issue 15.5)
 pub mod calibration;
 #[allow(missing_docs)] // documentation under way (issue 15.5)
 pub mod cli;
