@@ -6,7 +6,6 @@
 pub mod board_cmds;
 pub mod calibrate_cmd;
 pub mod calibration;
-#[allow(missing_docs)] // documentation under way (issue 15.5)
 pub mod cli;
 #[allow(missing_docs)] // documented with the link work (issue 14)
 pub mod client;
