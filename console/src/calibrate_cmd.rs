@@ -12,6 +12,7 @@ use formats::recording::Recording;
 use formats::robot_file;
 use std::path::{Path, PathBuf};
 
+/// Arguments of `wheelcal calibrate`.
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
     /// Robot description (formats.md §1): the nominal geometry.
@@ -152,6 +153,7 @@ fn load(f: &Path, robot: &Robot, robot_path: &Path) -> Result<(String, Recording
     Ok((short_name(f), rec))
 }
 
+/// Runs `wheelcal calibrate`: fits the robot's geometry to the recordings and prints or writes the result.
 pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
     let robot = robot_file::load(&a.robot)?;
     let mut recs = Vec::new();

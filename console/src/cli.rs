@@ -25,10 +25,12 @@ pub struct Cli {
     /// One JSON object per result on stdout (human text otherwise).
     #[arg(long, global = true)]
     pub json: bool,
+    /// What to do.
     #[command(subcommand)]
     pub command: Command,
 }
 
+/// The subcommands of `wheelcal`.
 #[derive(Debug, Subcommand)]
 pub enum Command {
     /// Firmware, protocol and robot of the board.
@@ -43,6 +45,7 @@ pub enum Command {
     Run(RunCmd),
     /// The board's state; with --follow, a live telemetry stream.
     Status {
+        /// Keep printing telemetry until Ctrl-C.
         #[arg(long)]
         follow: bool,
         /// Telemetry period with --follow, milliseconds.
@@ -79,6 +82,7 @@ pub enum Command {
     Sim(SimCmd),
 }
 
+/// Arguments of `wheelcal diagnose`.
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
     /// Robot description (formats.md §1).
@@ -99,6 +103,7 @@ pub struct DiagnoseArgs {
     pub max_effects: u8,
 }
 
+/// Subcommands of `wheelcal sim`.
 #[derive(Debug, Subcommand)]
 pub enum SimCmd {
     /// Write a simulated recording with effects hidden in it (recording.csv, robot.toml,
@@ -106,6 +111,7 @@ pub enum SimCmd {
     Record(SimRecordArgs),
 }
 
+/// Arguments of `wheelcal sim record`.
 #[derive(Debug, Args)]
 pub struct SimRecordArgs {
     /// Robot description (formats.md §1).
@@ -115,6 +121,7 @@ pub struct SimRecordArgs {
     /// `tilted_floor`); repeatable.
     #[arg(long)]
     pub effect: Vec<String>,
+    /// Seed of the simulation's random noise and trajectory.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Output directory.
@@ -135,6 +142,7 @@ pub struct SimRecordArgs {
     pub vision_noise: Option<f64>,
 }
 
+/// Subcommands of `wheelcal factors`.
 #[derive(Debug, Subcommand)]
 pub enum FactorsCmd {
     /// Show the active factors.
@@ -149,21 +157,27 @@ pub enum FactorsCmd {
     Export(ExportArgs),
 }
 
+/// Arguments of `wheelcal factors set`; only the factors given are changed.
 #[derive(Debug, Args)]
 pub struct SetArgs {
+    /// Differential drive: left wheel radius multiplier c_L.
     #[arg(long)]
     pub c_l: Option<f64>,
+    /// Differential drive: right wheel radius multiplier c_R.
     #[arg(long)]
     pub c_r: Option<f64>,
+    /// Differential drive: wheelbase multiplier E_b.
     #[arg(long)]
     pub e_b: Option<f64>,
     /// Omni: one factor per wheel, comma-separated, in the robot file's order.
     #[arg(long, value_delimiter = ',', value_parser = trimmed_f64)]
     pub f_lat: Option<Vec<f64>>,
+    /// Omni: common longitudinal factor F_lon.
     #[arg(long)]
     pub f_lon: Option<f64>,
 }
 
+/// Arguments of `wheelcal factors export`.
 #[derive(Debug, Args)]
 pub struct ExportArgs {
     /// Write a ROS 2 parameter YAML file (left/right_wheel_radius_multiplier = c_L/c_R,
@@ -174,10 +188,13 @@ pub struct ExportArgs {
     /// without it and without --c-l/--c-r/--e-b, from the board (--port).
     #[arg(long, conflicts_with_all = ["c_l", "c_r", "e_b"])]
     pub from: Option<PathBuf>,
+    /// Left wheel radius multiplier c_L (instead of the board's).
     #[arg(long)]
     pub c_l: Option<f64>,
+    /// Right wheel radius multiplier c_R (instead of the board's).
     #[arg(long)]
     pub c_r: Option<f64>,
+    /// Wheelbase multiplier E_b (instead of the board's).
     #[arg(long)]
     pub e_b: Option<f64>,
     /// Controller name at the top of the YAML.
@@ -185,6 +202,7 @@ pub struct ExportArgs {
     pub controller: String,
 }
 
+/// Arguments of `wheelcal drive`: a body twist and how long to hold it.
 #[derive(Debug, Args)]
 pub struct DriveArgs {
     /// Forward speed, m/s.
@@ -201,9 +219,12 @@ pub struct DriveArgs {
     pub duration: f64,
 }
 
+/// Direction of a UMBmark square.
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum DirArg {
+    /// Clockwise.
     Cw,
+    /// Counter-clockwise.
     Ccw,
 }
 
@@ -216,10 +237,13 @@ impl From<DirArg> for Direction {
     }
 }
 
+/// An omni test path.
 #[derive(Debug, Clone, Copy, ValueEnum)]
 pub enum PathArg {
+    /// Straight along body x.
     #[value(name = "4W-1")]
     W1,
+    /// Straight along body y.
     #[value(name = "4W-2")]
     W2,
 }
@@ -233,29 +257,35 @@ impl From<PathArg> for OmniPath {
     }
 }
 
+/// Subcommands of `wheelcal run`.
 #[derive(Debug, Subcommand)]
 pub enum RunCmd {
     /// A UMBmark square.
     Umbmark {
+        /// Direction of the square.
         #[arg(long, value_enum)]
         dir: DirArg,
         /// Side of the square, metres (at most the board's arena: checked with the board's
         /// own rule, `ProgramSpec::validate`, before anything is sent).
         #[arg(long, default_value_t = 4.0, allow_negative_numbers = true)]
         side: f64,
+        /// Log rate and waiting.
         #[command(flatten)]
         run: ProgramRunArgs,
     },
     /// A straight omni test path (4W-1 along body x, 4W-2 along body y).
     Omni {
+        /// Which straight path.
         #[arg(long, value_enum)]
         path: PathArg,
         /// Commanded length, metres (at most the board's arena: checked with the board's
         /// own rule before anything is sent).
         #[arg(long, default_value_t = 0.6, allow_negative_numbers = true)]
         length: f64,
+        /// Log rate and waiting.
         #[command(flatten)]
         run: ProgramRunArgs,
+        /// Idle-wheel mode.
         #[command(flatten)]
         idle: IdleArgs,
     },
@@ -272,14 +302,17 @@ pub struct ProgramRunArgs {
     pub no_wait: bool,
 }
 
+/// Subcommands of `wheelcal log`.
 #[derive(Debug, Subcommand)]
 pub enum LogCmd {
     /// The trials on the board.
     List,
     /// Download a trial as a recording (formats.md §2, plus odo_ columns).
     Pull {
+        /// Trial number (see `log list`).
         #[arg(long)]
         trial: u16,
+        /// Output recording file (CSV).
         #[arg(long)]
         out: PathBuf,
     },
@@ -287,6 +320,7 @@ pub enum LogCmd {
     Clear,
 }
 
+/// Subcommands of `wheelcal umbmark`.
 #[derive(Debug, Subcommand)]
 pub enum UmbmarkCmd {
     /// Compute E_d, E_b, c_L, c_R from measured end errors (formats.md §3).
@@ -296,6 +330,7 @@ pub enum UmbmarkCmd {
     Run(ProcedureArgs),
 }
 
+/// Subcommands of `wheelcal omni`.
 #[derive(Debug, Subcommand)]
 pub enum OmniCmd {
     /// Compute F_lat and F_lon from measured end errors of paths 4W-1 / 4W-2.
@@ -305,6 +340,7 @@ pub enum OmniCmd {
     Run(ProcedureArgs),
 }
 
+/// Arguments of `umbmark compute` (and the common part of `omni compute`).
 #[derive(Debug, Args)]
 pub struct ComputeArgs {
     /// Robot description (formats.md §1).
@@ -325,12 +361,14 @@ pub struct ComputeArgs {
 /// `omni compute`: the common inputs, the first pass of a second pass, the idle wheels.
 #[derive(Debug, Args)]
 pub struct OmniComputeArgs {
+    /// Robot, runs, report and length limit, as for `umbmark compute`.
     #[command(flatten)]
     pub common: ComputeArgs,
     /// Second pass: the `--json` result of the first pass (its f_lat and f_lon were in
     /// force during these runs); the result is their composition.
     #[arg(long)]
     pub previous: Option<PathBuf>,
+    /// Idle-wheel mode.
     #[command(flatten)]
     pub idle: IdleArgs,
 }
@@ -363,6 +401,7 @@ impl From<IdleArg> for calib_core::protocol::IdleWheels {
     }
 }
 
+/// Arguments of the guided procedures `umbmark run` and `omni run`.
 #[derive(Debug, Args)]
 pub struct ProcedureArgs {
     /// UMBmark: side of the square, metres (checked as by the board before each run).
@@ -387,6 +426,7 @@ pub struct ProcedureArgs {
     /// The virtual board's truth file (default: PORT.truth.jsonl).
     #[arg(long)]
     pub truth: Option<PathBuf>,
+    /// Write an HTML report with SVG and PNG plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
     /// Skip the runs after calibration.
@@ -400,10 +440,12 @@ pub struct ProcedureArgs {
     /// (`--idle-wheels` wins over it).
     #[arg(long)]
     pub robot: Option<PathBuf>,
+    /// Idle-wheel mode.
     #[command(flatten)]
     pub idle: IdleArgs,
 }
 
+/// Arguments of `wheelcal sim-board`.
 #[derive(Debug, Args)]
 pub struct SimBoardArgs {
     /// Robot description (formats.md §1).
@@ -412,6 +454,7 @@ pub struct SimBoardArgs {
     /// Create a symlink to the pseudo-terminal here (use it as --port).
     #[arg(long)]
     pub link: Option<PathBuf>,
+    /// Seed of the simulation's random noise.
     #[arg(long, default_value_t = 1)]
     pub seed: u64,
     /// Simulated seconds per second; `max` runs programs as fast as possible.
@@ -431,11 +474,13 @@ pub struct SimBoardArgs {
     pub truth: Option<PathBuf>,
 }
 
+/// Arguments of `wheelcal demo`.
 #[derive(Debug, Args)]
 pub struct DemoArgs {
     /// Robot description (default: robots/mobolab.toml).
     #[arg(long, default_value = "robots/mobolab.toml")]
     pub robot: PathBuf,
+    /// Seed of the hidden errors and the simulation noise.
     #[arg(long, default_value_t = 2026)]
     pub seed: u64,
     /// Runs per direction.
@@ -444,6 +489,7 @@ pub struct DemoArgs {
     /// Square side, metres.
     #[arg(long, default_value_t = 4.0)]
     pub side: f64,
+    /// Write an HTML report with SVG and PNG plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
 }
@@ -533,8 +579,11 @@ type PortClient = Client<crate::stop::LockedPort>;
 
 /// A lazily opened connection.
 pub struct Ctx {
+    /// The serial port given with --port or WHEELCAL_PORT.
     pub port: Option<String>,
+    /// Baud rate of the serial port.
     pub baud: u32,
+    /// The open connection, once a command has needed one.
     pub client: Option<PortClient>,
     /// Relays E-stops from other terminals to the port while this process holds it.
     pub relay: Option<crate::stop::Relay>,

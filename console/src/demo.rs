@@ -22,25 +22,39 @@ pub const DEMO_ROUGHNESS: f64 = 3e-4;
 
 const MOBOLAB: &str = include_str!("../../robots/mobolab.toml");
 
+/// Result of `wheelcal demo`: the hidden errors, the estimates and E_max,sys before and after.
 #[derive(Debug, Clone, Serialize)]
 pub struct DemoReport {
+    /// Name of the demo robot.
     pub robot: String,
+    /// Seed of the hidden errors and the simulation noise.
     pub seed: u64,
+    /// Side of the UMBmark square, m.
     pub side_m: f64,
+    /// Squares driven in each direction (CW and CCW), per phase.
     pub runs_per_direction: usize,
-    /// The hidden truth, revealed.
+    /// The hidden wheel-diameter ratio E_d = D_R / D_L (the truth, revealed).
     pub true_ed: f64,
+    /// The hidden wheelbase error E_b (true / nominal wheelbase).
     pub true_eb: f64,
+    /// UMBmark's estimate of E_d.
     pub estimated_ed: f64,
+    /// UMBmark's estimate of E_b.
     pub estimated_eb: f64,
+    /// UMBmark's E_max,sys before correction, m.
     pub e_max_sys_before_m: f64,
+    /// UMBmark's E_max,sys after correction, m.
     pub e_max_sys_after_m: f64,
+    /// E_max,sys before divided by after (how many times smaller the error got).
     pub improvement: f64,
+    /// Wall-clock time the demo took, s.
     pub seconds: f64,
+    /// The full UMBmark report of the demo's runs.
     pub umbmark: UmbmarkReport,
 }
 
 impl DemoReport {
+    /// The human-readable summary printed without `--json`.
     pub fn human(&self) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "wheelcal demo: UMBmark on a virtual {} (seed {}), {} x {} m squares each way, before and after", self.robot, self.seed, self.runs_per_direction, self.side_m);

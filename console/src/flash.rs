@@ -10,9 +10,12 @@ use std::path::PathBuf;
 /// Erase page size (small, so the virtual board's store is quick to scan).
 pub const PAGE: usize = 4096;
 
+/// Why a flash access was refused.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum FlashError {
+    /// The access runs past the end of the flash.
     OutOfBounds,
+    /// The offset or length is not a multiple of the read, write or erase size.
     NotAligned,
 }
 
@@ -54,10 +57,12 @@ impl RamFlash {
         Ok(f)
     }
 
+    /// Size of the flash, bytes.
     pub fn len(&self) -> usize {
         self.data.len()
     }
 
+    /// Whether the flash has no bytes at all (zero pages).
     pub fn is_empty(&self) -> bool {
         self.data.is_empty()
     }

@@ -6,11 +6,14 @@ use serde::Serialize;
 /// Where results go.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Output {
+    /// A human summary on stdout.
     Human,
+    /// Exactly one JSON object on stdout.
     Json,
 }
 
 impl Output {
+    /// `Json` when `--json` was given, else `Human`.
     pub fn from_flag(json: bool) -> Self {
         if json {
             Output::Json
@@ -47,7 +50,9 @@ impl Output {
 /// A point in metres, serialised as `{x_m, y_m}`.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct PointM {
+    /// x, m.
     pub x_m: f64,
+    /// y, m.
     pub y_m: f64,
 }
 

@@ -9,8 +9,11 @@ use std::path::Path;
 /// Differential-drive factors.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct DiffFactors {
+    /// Left wheel radius multiplier c_L (dimensionless).
     pub c_l: f64,
+    /// Right wheel radius multiplier c_R (dimensionless).
     pub c_r: f64,
+    /// Wheelbase (wheel separation) multiplier E_b (dimensionless).
     pub e_b: f64,
 }
 

@@ -13,8 +13,11 @@ use std::sync::Arc;
 /// What `sim-board` needs.
 #[derive(Debug, Clone)]
 pub struct SimBoardOptions {
+    /// Robot description (formats.md §1) the simulated robot is built from.
     pub robot: PathBuf,
+    /// Symbolic link to point at the pseudo-terminal (a stable port name), if any.
     pub link: Option<PathBuf>,
+    /// Seed of the simulation's random noise.
     pub seed: u64,
     /// Simulated seconds per wall-clock second; infinite = flat out while a program runs.
     pub speed: f64,
@@ -22,17 +25,24 @@ pub struct SimBoardOptions {
     pub effects: Vec<String>,
     /// Floor roughness (non-systematic error), metres of travel noise per sqrt(metre).
     pub roughness: f64,
+    /// File mirroring the virtual board's flash, so saved factors survive a restart.
     pub flash: Option<PathBuf>,
+    /// Where to write the truth file; default: next to the link or the PTY.
     pub truth: Option<PathBuf>,
 }
 
 /// Where a running virtual board can be reached.
 #[derive(Debug, Clone, serde::Serialize)]
 pub struct SimBoardReady {
+    /// Path of the pseudo-terminal the board serves.
     pub pty: String,
+    /// The symbolic link pointing at `pty`, if one was asked for.
     pub link: Option<String>,
+    /// Truth file (JSON lines, one per trial) the board appends to.
     pub truth_file: String,
+    /// Name of the robot being simulated.
     pub robot: String,
+    /// Seed of the simulation's random noise.
     pub seed: u64,
 }
 

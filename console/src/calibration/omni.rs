@@ -15,12 +15,19 @@ use std::path::{Path, PathBuf};
 /// Statistics of one path's runs in one phase (001 Table II, Fig. 5).
 #[derive(Debug, Clone, Serialize)]
 pub struct PathStats {
+    /// Path name as in the runs file.
     pub path: String,
+    /// Commanded length of the straight path, m.
     pub length_m: f64,
+    /// Number of runs on this path.
     pub runs: usize,
+    /// Mean radial end error, m.
     pub mean_radial_error_m: f64,
+    /// Sample standard deviation of the radial end errors, m.
     pub std_dev_radial_m: f64,
+    /// Skewness of the radial errors (absent with too few runs).
     pub skewness: Option<f64>,
+    /// Excess kurtosis of the radial errors (absent with too few runs).
     pub kurtosis: Option<f64>,
     /// Radial error of each run.
     pub radial_errors_m: Vec<f64>,
@@ -29,9 +36,11 @@ pub struct PathStats {
 /// The result of `omni compute`.
 #[derive(Debug, Clone, Serialize)]
 pub struct OmniReport {
+    /// Robot name from the robot description.
     pub robot: String,
     /// How the idle wheels were modelled: `released` or `held`.
     pub idle_wheels: &'static str,
+    /// Wheel names, in the robot description's order (the order of `f_lat` and `wheel_ratio`).
     pub wheels: Vec<String>,
     /// Multiplier on each wheel's command that makes the robot go straight.
     pub f_lat: Vec<f64>,
@@ -44,21 +53,27 @@ pub struct OmniReport {
     pub wheel_ratio: Vec<Option<f64>>,
     /// Mean radial error of the 'before' runs (001 eq. 7).
     pub mean_radial_error_m: f64,
+    /// Statistics of each path's `before` runs.
     pub before: Vec<PathStats>,
+    /// Statistics of each path's `after` runs (empty when there are none).
     pub after: Vec<PathStats>,
+    /// Mean radial error of the 'after' runs, m, when there are any.
     pub mean_radial_error_after_m: Option<f64>,
     /// 001 eq. 8, percent.
     pub improvement_index_percent: Option<f64>,
     /// Second pass: the factors in force while these runs were measured, and the
     /// secondary factors the runs give; `f_lat`/`f_lon` above are then their composition.
     pub previous: Option<OmniFactors>,
+    /// The secondary factors computed from these runs alone, on a second pass.
     pub secondary: Option<OmniFactors>,
 }
 
 /// A pair of omni factors.
 #[derive(Debug, Clone, PartialEq, Serialize)]
 pub struct OmniFactors {
+    /// Multiplier on each wheel's command (lateral factor).
     pub f_lat: Vec<f64>,
+    /// Common multiplier on all wheel commands (longitudinal factor).
     pub f_lon: f64,
 }
 
@@ -358,6 +373,7 @@ fn compute_unchecked(robot: &Robot, runs: &RunsFile, idle: IdleWheels) -> Result
 }
 
 impl OmniReport {
+    /// The human-readable summary printed without `--json`.
     pub fn human(&self) -> String {
         let mut s = String::new();
         let _ = writeln!(s, "Omni calibration (001): robot {}", self.robot);

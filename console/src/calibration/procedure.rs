@@ -21,24 +21,35 @@ use std::io::{BufRead, Read, Write};
 use std::path::{Path, PathBuf};
 use std::time::Duration;
 
+/// Which procedure to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
+    /// UMBmark squares on a differential drive (000).
     Umbmark,
+    /// Straight paths on an omnidirectional robot (001).
     Omni,
 }
 
+/// Settings of a guided procedure (`umbmark run`, `omni run`).
 #[derive(Debug, Clone)]
 pub struct Options {
+    /// Which procedure.
     pub kind: Kind,
+    /// UMBmark: side of the square, m.
     pub side_m: f64,
+    /// Omni: length of each straight path, m.
     pub length_m: f64,
+    /// Runs per direction (UMBmark) or path (omni) before calibration.
     pub runs: usize,
     /// Runs per direction or path after calibration (usually `runs`).
     pub after_runs: usize,
+    /// The runs file (formats.md §3) the measured end errors are appended to.
     pub runs_file: PathBuf,
     /// Read end errors from this virtual-board truth file instead of asking.
     pub auto_measure: Option<PathBuf>,
+    /// Write the HTML report into this folder at the end.
     pub report: Option<PathBuf>,
+    /// Also run the after trials once the factors are uploaded.
     pub after: bool,
     /// 001's second pass: measure with the board's current factors in force and compose
     /// the secondary factors with them (the factors are remembered beside the runs file,
@@ -170,7 +181,9 @@ fn truth_error(
 
 /// The virtual board's truth, read from its truth file.
 pub struct TruthFile {
+    /// The truth file the virtual board appends to (`sim-board`'s `truth_file`).
     pub file: PathBuf,
+    /// Do not print the procedure's messages to stderr.
     pub quiet: bool,
 }
 
@@ -200,8 +213,11 @@ impl Measure for TruthFile {
 
 /// The truth handed over in-process (the demo).
 pub struct TruthChannel<'a> {
+    /// Receives each trial's truth from the virtual board.
     pub rx: &'a std::sync::mpsc::Receiver<TrialTruth>,
+    /// Truths received so far, looked up by trial number.
     pub seen: Vec<TrialTruth>,
+    /// Progress bar advanced once per measured trial, and showing the messages.
     pub progress: Option<indicatif::ProgressBar>,
 }
 
@@ -238,11 +254,14 @@ impl Measure for TruthChannel<'_> {
 #[derive(Debug, Clone, Serialize)]
 #[serde(untagged)]
 pub enum ProcedureReport {
+    /// A UMBmark result.
     Umbmark(Box<umbmark::UmbmarkReport>),
+    /// An omni result.
     Omni(Box<omni::OmniReport>),
 }
 
 impl ProcedureReport {
+    /// The human-readable summary printed without `--json`.
     pub fn human(&self) -> String {
         match self {
             ProcedureReport::Umbmark(r) => r.human(),

@@ -16,12 +16,19 @@ pub const CONVERGENCE_RADIUS_M: f64 = 0.03;
 /// Factors of one estimator.
 #[derive(Debug, Clone, Serialize)]
 pub struct Estimate {
+    /// Wheel-diameter ratio E_d = D_R / D_L.
     pub ed: f64,
+    /// Wheelbase ratio E_b = actual / nominal wheelbase.
     pub eb: f64,
+    /// Left wheel radius multiplier c_L (mean diameter kept nominal).
     pub c_l: f64,
+    /// Right wheel radius multiplier c_R (mean diameter kept nominal).
     pub c_r: f64,
+    /// Corrected wheelbase E_b * nominal, m.
     pub wheelbase_m: f64,
+    /// Type A error: under-rotation per nominal 90-degree turn, rad.
     pub alpha_rad: f64,
+    /// Type B error: heading change along each straight leg, positive to the left, rad.
     pub beta_rad: f64,
 }
 
@@ -42,9 +49,13 @@ impl From<&UmbmarkResult> for Estimate {
 /// Statistics of one direction's runs.
 #[derive(Debug, Clone, Serialize)]
 pub struct DirectionStats {
+    /// Number of runs in this direction.
     pub runs: usize,
+    /// Centroid of the end errors (x, y), m.
     pub centroid: PointM,
+    /// Distance of the centroid from the origin (r_c.g.), m.
     pub r_cg_m: f64,
+    /// Sample standard deviation of the end errors in x and y, m.
     pub std_dev: PointM,
     /// Probability (normal model) of ending within 3 cm of the centroid.
     pub p_within_3cm: f64,
@@ -55,38 +66,63 @@ pub struct DirectionStats {
 /// The evaluation of one phase (before or after).
 #[derive(Debug, Clone, Serialize)]
 pub struct PhaseStats {
+    /// Statistics of the clockwise runs.
     pub cw: DirectionStats,
+    /// Statistics of the counter-clockwise runs.
     pub ccw: DirectionStats,
+    /// E_max,sys = the larger of the two directions' r_c.g., m.
     pub e_max_sys_m: f64,
 }
 
 /// The result of `umbmark compute`.
 #[derive(Debug, Clone, Serialize)]
 pub struct UmbmarkReport {
+    /// Robot name from the robot description.
     pub robot: String,
+    /// Side of the square driven, m.
     pub side_m: f64,
+    /// Nominal wheelbase from the robot description, m.
     pub wheelbase_nominal_m: f64,
     // The recommended (exact-model) estimate, at top level as formats.md's consumers expect.
+    /// Wheel-diameter ratio E_d = D_R / D_L (exact-model fit).
     pub ed: f64,
+    /// Wheelbase ratio E_b = actual / nominal (exact-model fit).
     pub eb: f64,
+    /// Left wheel radius multiplier c_L (exact-model fit).
     pub c_l: f64,
+    /// Right wheel radius multiplier c_R (exact-model fit).
     pub c_r: f64,
+    /// Corrected wheelbase, m (exact-model fit).
     pub wheelbase_m: f64,
+    /// Type A error per 90-degree turn, rad (exact-model fit).
     pub alpha_rad: f64,
+    /// Type B error per straight leg, rad (exact-model fit).
     pub beta_rad: f64,
+    /// E_max,sys of the runs the factors were computed from, m.
     pub e_max_sys_m: f64,
+    /// Centroid of the clockwise end errors, m.
     pub centroid_cw: PointM,
+    /// Centroid of the counter-clockwise end errors, m.
     pub centroid_ccw: PointM,
+    /// r_c.g. of the clockwise runs, m.
     pub r_cg_cw_m: f64,
+    /// r_c.g. of the counter-clockwise runs, m.
     pub r_cg_ccw_m: f64,
+    /// Which estimator the top-level factors come from (always "exact").
     pub recommended: &'static str,
+    /// Borenstein's closed-form estimate (000), for comparison.
     pub closed_form: Estimate,
+    /// The exact-model fit's estimate (the recommended one).
     pub exact: Estimate,
+    /// RMS of the exact fit's four centroid residuals, m.
     pub exact_fit_residual_m: f64,
+    /// Statistics of the `before` runs.
     pub before: PhaseStats,
     /// Present when the runs file has `after` rows.
     pub after: Option<PhaseStats>,
+    /// E_max,sys of the `before` runs, m.
     pub e_max_sys_before_m: f64,
+    /// E_max,sys of the `after` runs, m, when there are any.
     pub e_max_sys_after_m: Option<f64>,
     /// E_max,sys before / after (000 Table 1's "improvement").
     pub improvement: Option<f64>,

@@ -22,10 +22,13 @@ type DrawResult = Result<Layout, String>;
 /// Something that can be drawn in SVG and PNG; drawing returns where the legend and the
 /// data went, so tests can check that no legend covers a data point.
 pub trait Figure {
+    /// Image size in pixels (width, height).
     fn size(&self) -> (u32, u32) {
         (720, 480)
     }
+    /// Draws the figure into an SVG drawing area.
     fn draw_svg(&self, area: &DrawingArea<SVGBackend<'_>, Shift>) -> DrawResult;
+    /// Draws the figure into a bitmap (PNG) drawing area.
     fn draw_png(&self, area: &DrawingArea<BitMapBackend<'_>, Shift>) -> DrawResult;
 }
 
@@ -46,16 +49,20 @@ macro_rules! figure_impl {
 /// A named set of points or a line.
 #[derive(Debug, Clone)]
 pub struct Series {
+    /// Legend text.
     pub label: String,
+    /// The (x, y) points, in the chart's axis units.
     pub points: Vec<(f64, f64)>,
     /// Draw as a line (else as markers).
     pub line: bool,
     /// Large marker (centroids).
     pub emphasis: bool,
+    /// Index into [`PALETTE`] (taken modulo its length).
     pub colour: usize,
 }
 
 impl Series {
+    /// A series drawn as markers.
     pub fn points(label: &str, points: Vec<(f64, f64)>, colour: usize) -> Self {
         Series {
             label: label.into(),
@@ -65,6 +72,7 @@ impl Series {
             colour,
         }
     }
+    /// A series drawn as a line through the points.
     pub fn line(label: &str, points: Vec<(f64, f64)>, colour: usize) -> Self {
         Series {
             label: label.into(),
@@ -74,6 +82,7 @@ impl Series {
             colour,
         }
     }
+    /// A single large marker (e.g. a centroid).
     pub fn marker(label: &str, p: (f64, f64), colour: usize) -> Self {
         Series {
             label: label.into(),
@@ -88,10 +97,15 @@ impl Series {
 /// An x-y chart of several series, optionally with equal axis scales (positions).
 #[derive(Debug, Clone)]
 pub struct XyChart {
+    /// Title above the chart.
     pub title: String,
+    /// Label of the x axis, with its unit.
     pub x_label: String,
+    /// Label of the y axis, with its unit.
     pub y_label: String,
+    /// The series, drawn in order.
     pub series: Vec<Series>,
+    /// Equal scales on both axes, so positions keep their shape.
     pub equal_axes: bool,
     /// Shaded vertical bands (x ranges), e.g. zones or time windows.
     pub bands: Vec<(f64, f64)>,
@@ -218,8 +232,11 @@ figure_impl!(XyChart);
 /// Grouped bars: one group per category, one bar per series.
 #[derive(Debug, Clone)]
 pub struct BarChart {
+    /// Title above the chart.
     pub title: String,
+    /// Label of the y axis, with its unit.
     pub y_label: String,
+    /// Category names along the x axis, one bar group each.
     pub categories: Vec<String>,
     /// (series label, one value per category)
     pub series: Vec<(String, Vec<f64>)>,

@@ -55,6 +55,7 @@ pub struct Page {
 }
 
 impl Page {
+    /// An empty page with this title.
     pub fn new(title: &str) -> Self {
         Page {
             title: title.to_string(),
@@ -62,10 +63,12 @@ impl Page {
         }
     }
 
+    /// Adds a section heading.
     pub fn heading(&mut self, text: &str) {
         self.body.push_str(&format!("<h2>{}</h2>\n", escape(text)));
     }
 
+    /// Adds a paragraph of text (HTML-escaped).
     pub fn paragraph(&mut self, text: &str) {
         self.body.push_str(&format!("<p>{}</p>\n", escape(text)));
     }

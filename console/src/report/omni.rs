@@ -6,6 +6,7 @@ use crate::calibration::omni::OmniReport;
 use anyhow::Result;
 use std::path::{Path, PathBuf};
 
+/// Writes the omni report (index.html and its figures) into `dir`; returns the page's path.
 pub fn write(rep: &OmniReport, dir: &Path) -> Result<PathBuf> {
     prepare_dir(dir)?;
     let mut page = Page::new(&format!("Omni calibration: {}", rep.robot));
