@@ -131,8 +131,11 @@ pub fn write_trial(info: &TrialInfo, recs: &[Record], out: &Path) -> Result<()> 
 /// One replayed path: a name (its topic is `/paths/<name>`), sample times (s) and
 /// positions `(x m, y m)`.
 pub struct PathSeries<'a> {
+    /// The path's name (`measured`, `nominal`, `fitted`).
     pub name: &'a str,
+    /// Sample times (s).
     pub t: &'a [f64],
+    /// Positions (m) in the recording's world frame.
     pub xy: &'a [(f64, f64)],
 }
 
