@@ -188,10 +188,12 @@ fn pulling_a_running_trial_says_partial() {
             side_m: 4.0,
             dir: Direction::Cw,
         },
-        50,
+        200,
     )
     .unwrap();
-    std::thread::sleep(Duration::from_millis(300));
+    // The log is stored in 512-byte blocks (a running trial's last block appears when it
+    // fills): at 200 Hz and a few bytes a record, 1.5 s holds a few blocks.
+    std::thread::sleep(Duration::from_millis(1500));
     let t = c.trials().unwrap().trials.last().unwrap().clone();
     assert_eq!(t.end, TrialEnd::Running, "{t:?}");
     let file = std::env::temp_dir().join(format!("partial-{}.csv", std::process::id()));
