@@ -2,85 +2,14 @@
 //! `wheelcal` binary against a `wheelcal sim-board` process, typed answers at the
 //! procedure's prompt, signals. Each test is a regression test of issue 13.
 
+mod common;
+
+use common::{robot, scratch, wheelcal, Board};
 use expectrl::{Eof, Expect, Regex, Session};
 use serde_json::Value;
 use std::io::Read;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
+use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
-
-fn wheelcal() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_wheelcal"))
-}
-
-fn robot(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../robots")
-        .join(format!("{name}.toml"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("wheelcal-at-robot-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
-
-/// A `wheelcal sim-board` process; killed when dropped.
-struct Board {
-    child: Child,
-    link: PathBuf,
-}
-
-impl Board {
-    fn start(robot_name: &str, dir: &Path) -> Board {
-        Board::start_at(robot_name, dir, "max")
-    }
-
-    /// `speed` "1" runs the board in real time, as a robot on the floor: a drive's command
-    /// refreshes and Ctrl-C land at the moments they would on a real robot.
-    fn start_at(robot_name: &str, dir: &Path, speed: &str) -> Board {
-        let link = dir.join("board");
-        let child = wheelcal()
-            .args(["sim-board", "--speed", speed, "--robot"])
-            .arg(robot(robot_name))
-            .arg("--link")
-            .arg(&link)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("sim-board starts");
-        let t0 = Instant::now();
-        while !link.exists() {
-            assert!(t0.elapsed() < Duration::from_secs(20), "no link after 20 s");
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        Board { child, link }
-    }
-
-    fn run(&self, args: &[&str]) -> Output {
-        wheelcal()
-            .arg("--port")
-            .arg(&self.link)
-            .args(args)
-            .stdin(Stdio::null())
-            .output()
-            .expect("wheelcal runs")
-    }
-
-    fn status(&self) -> Value {
-        let o = self.run(&["--json", "status"]);
-        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
-        serde_json::from_slice(&o.stdout).expect("status JSON")
-    }
-}
-
-impl Drop for Board {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
 
 fn sigterm(child: &Child) {
     let ok = Command::new("kill")

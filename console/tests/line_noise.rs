@@ -3,45 +3,14 @@
 //! writes 10 MB of random bytes and bursts of valid-looking frames with bad CRCs into the
 //! line, interleaved with valid requests that must each be answered within 1 s.
 
+mod common;
+
 use calib_core::protocol::{encode, Request, MAX_WIRE};
 use calib_core::Corrections;
 use rand::{Rng, RngCore, SeedableRng};
 use std::io::Write;
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 use wheelcal::client::Client;
-
-struct Board {
-    child: Child,
-    link: PathBuf,
-}
-
-impl Drop for Board {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
-
-fn start_board(dir: &Path) -> Board {
-    let link = dir.join("board");
-    let child = Command::new(env!("CARGO_BIN_EXE_wheelcal"))
-        .args(["sim-board", "--speed", "max", "--robot"])
-        .arg(Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml"))
-        .arg("--link")
-        .arg(&link)
-        .stdout(Stdio::null())
-        .stderr(Stdio::null())
-        .spawn()
-        .expect("sim-board starts");
-    let t0 = Instant::now();
-    while !link.exists() {
-        assert!(t0.elapsed() < Duration::from_secs(20), "no link");
-        std::thread::sleep(Duration::from_millis(20));
-    }
-    Board { child, link }
-}
 
 /// Resident memory of a process, kB (Linux).
 fn rss_kb(pid: u32) -> u64 {
@@ -75,7 +44,7 @@ fn noise_never_cuts_the_console_off_the_board() {
     let dir = std::env::temp_dir().join(format!("wheelcal-noise-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&dir);
     std::fs::create_dir_all(&dir).unwrap();
-    let board = start_board(&dir);
+    let board = common::Board::start("mobolab", &dir);
     let port = wheelcal::link::open_serial(board.link.to_str().unwrap(), 115_200).unwrap();
     let mut noise = port.try_clone().expect("a second handle for the noise");
     let mut client = Client::new(port, "board");

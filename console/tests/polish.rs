@@ -1,73 +1,10 @@
 //! Issue 13's polish list, through the `wheelcal` binary as a person types it: words
 //! instead of Rust's debug text, arguments read as meant, errors in plain words.
 
-use std::path::{Path, PathBuf};
-use std::process::{Child, Command, Output, Stdio};
-use std::time::{Duration, Instant};
+mod common;
 
-fn wheelcal() -> Command {
-    Command::new(env!("CARGO_BIN_EXE_wheelcal"))
-}
-
-fn robot(name: &str) -> PathBuf {
-    Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../robots")
-        .join(format!("{name}.toml"))
-}
-
-fn scratch(name: &str) -> PathBuf {
-    let d = std::env::temp_dir().join(format!("wheelcal-polish-{}-{name}", std::process::id()));
-    let _ = std::fs::remove_dir_all(&d);
-    std::fs::create_dir_all(&d).expect("temp dir");
-    d
-}
-
-/// A `wheelcal sim-board` process at full speed; killed when dropped.
-struct Board {
-    child: Child,
-    link: PathBuf,
-}
-
-impl Board {
-    fn start(robot_name: &str, dir: &Path) -> Board {
-        let link = dir.join("board");
-        let child = wheelcal()
-            .args(["sim-board", "--speed", "max", "--robot"])
-            .arg(robot(robot_name))
-            .arg("--link")
-            .arg(&link)
-            .stdout(Stdio::null())
-            .stderr(Stdio::null())
-            .spawn()
-            .expect("sim-board starts");
-        let t0 = Instant::now();
-        while !link.exists() {
-            assert!(t0.elapsed() < Duration::from_secs(20), "no link after 20 s");
-            std::thread::sleep(Duration::from_millis(20));
-        }
-        Board { child, link }
-    }
-
-    fn run(&self, args: &[&str]) -> (Output, String, String) {
-        let o = wheelcal()
-            .arg("--port")
-            .arg(&self.link)
-            .args(args)
-            .stdin(Stdio::null())
-            .output()
-            .expect("wheelcal runs");
-        let out = String::from_utf8_lossy(&o.stdout).into_owned();
-        let err = String::from_utf8_lossy(&o.stderr).into_owned();
-        (o, out, err)
-    }
-}
-
-impl Drop for Board {
-    fn drop(&mut self) {
-        let _ = self.child.kill();
-        let _ = self.child.wait();
-    }
-}
+use common::{scratch, wheelcal, Board};
+use std::path::Path;
 
 /// `--f-lat '1, 1, 1, 1'` was refused (`invalid value ' 1'`); diff-drive factors on an
 /// omni board said "a omni robot"; `log list` showed `Omni { path: W1, length_m: 0.3 }`.
@@ -76,7 +13,7 @@ fn factors_and_trials_read_as_words() {
     let dir = scratch("words");
     let board = Board::start("omni4", &dir);
 
-    let (o, out, err) = board.run(&[
+    let (o, out, err) = board.run_text(&[
         "factors",
         "set",
         "--f-lat",
@@ -90,12 +27,12 @@ fn factors_and_trials_read_as_words() {
         "{out}"
     );
 
-    let (o, _, err) = board.run(&["factors", "set", "--c-l", "1", "--c-r", "1", "--e-b", "1"]);
+    let (o, _, err) = board.run_text(&["factors", "set", "--c-l", "1", "--c-r", "1", "--e-b", "1"]);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("do not fit this omni robot"), "{err}");
     assert!(!err.contains("a omni"), "{err}");
 
-    let (o, _, err) = board.run(&["factors", "set", "--f-lat", "1,x,1,1", "--f-lon", "1"]);
+    let (o, _, err) = board.run_text(&["factors", "set", "--f-lat", "1,x,1,1", "--f-lon", "1"]);
     assert_eq!(o.status.code(), Some(2), "{err}");
     assert!(err.contains("'x' is not a number"), "{err}");
 
@@ -103,17 +40,17 @@ fn factors_and_trials_read_as_words() {
         ["run", "omni", "--path", "4W-1", "--length", "0.3"],
         ["run", "umbmark", "--dir", "cw", "--side", "0.5"],
     ] {
-        let (o, _, err) = board.run(&args);
+        let (o, _, err) = board.run_text(&args);
         assert!(o.status.success(), "{args:?}: {err}");
     }
-    let (o, out, err) = board.run(&["log", "list"]);
+    let (o, out, err) = board.run_text(&["log", "list"]);
     assert!(o.status.success(), "{err}");
     assert!(out.contains("omni 4W-1, 0.3 m"), "{out}");
     assert!(out.contains("umbmark cw, side 0.5 m"), "{out}");
     for debug in ["{", "}", "W1", "Cw", "None", "Some("] {
         assert!(!out.contains(debug), "debug text {debug:?} in:\n{out}");
     }
-    let (_, out, _) = board.run(&["--json", "log", "list"]);
+    let (_, out, _) = board.run_text(&["--json", "log", "list"]);
     let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
     assert_eq!(v["trials"][0]["program"], "omni 4W-1, 0.3 m", "{v}");
 }

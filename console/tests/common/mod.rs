@@ -1,0 +1,96 @@
+//! What the console's process-level tests share: the `wheelcal` binary, the robot files,
+//! scratch folders and a `wheelcal sim-board` process on a pseudo-terminal.
+#![allow(dead_code)] // each test binary uses its own part
+
+use std::path::{Path, PathBuf};
+use std::process::{Child, Command, Output, Stdio};
+use std::time::{Duration, Instant};
+
+/// The `wheelcal` binary under test.
+pub fn wheelcal() -> Command {
+    Command::new(env!("CARGO_BIN_EXE_wheelcal"))
+}
+
+/// A robot file of `robots/`.
+pub fn robot(name: &str) -> PathBuf {
+    Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../robots")
+        .join(format!("{name}.toml"))
+}
+
+/// An empty scratch folder for one test.
+pub fn scratch(name: &str) -> PathBuf {
+    let d = std::env::temp_dir().join(format!("wheelcal-test-{}-{name}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&d);
+    std::fs::create_dir_all(&d).expect("temp dir");
+    d
+}
+
+/// A `wheelcal sim-board` process; killed when dropped.
+pub struct Board {
+    /// The board process.
+    pub child: Child,
+    /// The link to its pseudo-terminal (`--port`).
+    pub link: PathBuf,
+}
+
+impl Board {
+    /// A board at full speed.
+    pub fn start(robot_name: &str, dir: &Path) -> Board {
+        Board::start_at(robot_name, dir, "max")
+    }
+
+    /// `speed` "1" runs the board in real time, as a robot on the floor: a drive's command
+    /// refreshes and Ctrl-C land at the moments they would on a real robot.
+    pub fn start_at(robot_name: &str, dir: &Path, speed: &str) -> Board {
+        let link = dir.join("board");
+        let child = wheelcal()
+            .args(["sim-board", "--speed", speed, "--robot"])
+            .arg(robot(robot_name))
+            .arg("--link")
+            .arg(&link)
+            .stdout(Stdio::null())
+            .stderr(Stdio::null())
+            .spawn()
+            .expect("sim-board starts");
+        let t0 = Instant::now();
+        while !link.exists() {
+            assert!(t0.elapsed() < Duration::from_secs(20), "no link after 20 s");
+            std::thread::sleep(Duration::from_millis(20));
+        }
+        Board { child, link }
+    }
+
+    /// Runs `wheelcal --port LINK args...` with no standard input.
+    pub fn run(&self, args: &[&str]) -> Output {
+        wheelcal()
+            .arg("--port")
+            .arg(&self.link)
+            .args(args)
+            .stdin(Stdio::null())
+            .output()
+            .expect("wheelcal runs")
+    }
+
+    /// [`Board::run`] with stdout and stderr as text.
+    pub fn run_text(&self, args: &[&str]) -> (Output, String, String) {
+        let o = self.run(args);
+        let out = String::from_utf8_lossy(&o.stdout).into_owned();
+        let err = String::from_utf8_lossy(&o.stderr).into_owned();
+        (o, out, err)
+    }
+
+    /// `wheelcal --json status`, parsed.
+    pub fn status(&self) -> serde_json::Value {
+        let o = self.run(&["--json", "status"]);
+        assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+        serde_json::from_slice(&o.stdout).expect("status JSON")
+    }
+}
+
+impl Drop for Board {
+    fn drop(&mut self) {
+        let _ = self.child.kill();
+        let _ = self.child.wait();
+    }
+}
