@@ -79,7 +79,7 @@ pub fn described_port(port: &str) -> String {
 
 /// A board-side stream over a serial port or pseudo-terminal master (non-blocking reads).
 pub struct PortStream<P: Read + Write> {
-    /// The open port, read with a short timeout.
+    /// The open serial port or pseudo-terminal master.
     pub port: P,
 }
 
