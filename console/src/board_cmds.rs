@@ -19,18 +19,31 @@ use std::time::{Duration, Instant};
 /// `wheelcal info`.
 #[derive(Debug, Clone, Serialize)]
 pub struct InfoReport {
+    /// Firmware version text.
     pub firmware: String,
+    /// The board's protocol version.
     pub protocol_version: u16,
+    /// The board's schema fingerprint, 8 hex digits.
     pub schema: String,
+    /// Name of the robot the board is configured for.
     pub robot: String,
+    /// The robot's kind, as in the robot file.
     pub robot_kind: String,
+    /// How the wheels are driven, lower case.
     pub drive: String,
+    /// Wheels of the configured robot.
     pub wheel_count: u8,
+    /// Wheel names, in the robot's wheel order.
     pub wheels: Vec<String>,
+    /// Time since boot, s.
     pub uptime_s: f64,
+    /// What boot found for the corrections ([`stored_word`]).
     pub corrections_at_boot: String,
+    /// What boot found for the parameters ([`stored_word`]).
     pub params_at_boot: String,
+    /// Trial-log RAM, bytes.
     pub log_capacity_bytes: u32,
+    /// Bytes per log record for this robot.
     pub record_size_bytes: u16,
 }
 
@@ -57,6 +70,7 @@ fn stored_human(word: &str) -> &str {
     }
 }
 
+/// Asks the board for its info and parameters: what `wheelcal info` shows.
 pub fn info<L: Read + Write>(c: &mut Client<L>) -> Result<InfoReport> {
     let i: Info = c.info()?;
     let p = c.params()?;
@@ -78,6 +92,7 @@ pub fn info<L: Read + Write>(c: &mut Client<L>) -> Result<InfoReport> {
 }
 
 impl InfoReport {
+    /// The report as text lines for a person.
     pub fn human(&self) -> String {
         let mut s = String::new();
         let _ = writeln!(
@@ -114,9 +129,24 @@ impl InfoReport {
 #[derive(Debug, Clone, Serialize)]
 #[serde(tag = "kind", rename_all = "snake_case")]
 pub enum FactorsView {
+    /// Nominal geometry, no corrections.
     None,
-    DiffDrive { c_l: f64, c_r: f64, e_b: f64 },
-    Omni { f_lat: Vec<f64>, f_lon: f64 },
+    /// Differential drive (Borenstein & Feng).
+    DiffDrive {
+        /// Left wheel's effective radius / nominal radius.
+        c_l: f64,
+        /// Right wheel's effective radius / nominal radius.
+        c_r: f64,
+        /// Actual wheelbase / nominal wheelbase.
+        e_b: f64,
+    },
+    /// Omnidirectional robot.
+    Omni {
+        /// Lateral factor per wheel, in the robot's wheel order.
+        f_lat: Vec<f64>,
+        /// Longitudinal factor common to all wheels.
+        f_lon: f64,
+    },
 }
 
 impl From<&Corrections> for FactorsView {
@@ -137,6 +167,7 @@ impl From<&Corrections> for FactorsView {
 }
 
 impl FactorsView {
+    /// The factors as one text line.
     pub fn human(&self) -> String {
         match self {
             FactorsView::None => "no corrections (nominal geometry)\n".into(),
@@ -412,23 +443,36 @@ pub fn factors_text(c: &Corrections) -> String {
 /// `log list` rows.
 #[derive(Debug, Clone, Serialize)]
 pub struct TrialRow {
+    /// Trial id.
     pub trial: u16,
+    /// What was run, in words ([`program_text`]).
     pub program: String,
+    /// Board uptime at the first record, s.
     pub start_s: f64,
+    /// Record rate, Hz.
     pub rate_hz: u16,
+    /// Records stored.
     pub records: u32,
+    /// Log bytes stored.
     pub bytes: u32,
+    /// Records not stored because the log was full.
     pub dropped_records: u32,
+    /// How the trial ended, lower case (`running` while it records).
     pub end: String,
+    /// Corrections in force during the trial.
     pub corrections: FactorsView,
 }
 
+/// `log list`: the board's stored trials.
 #[derive(Debug, Clone, Serialize)]
 pub struct TrialList {
+    /// The trials, as the board lists them.
     pub trials: Vec<TrialRow>,
+    /// Trials evicted since boot to make room for newer ones.
     pub evicted_trials: u32,
 }
 
+/// The board's trial list as `log list` rows.
 pub fn trial_list(t: &Trials) -> TrialList {
     TrialList {
         trials: t
@@ -451,6 +495,7 @@ pub fn trial_list(t: &Trials) -> TrialList {
 }
 
 impl TrialList {
+    /// The list as a text table.
     pub fn human(&self) -> String {
         let mut s = format!(
             "{:>5} {:<42} {:>8} {:>6} {:>8} {:>8} {:<10}\n",
@@ -573,14 +618,22 @@ pub fn pull_trial<L: Read + Write>(
     })
 }
 
+/// What [`pull_trial`] did.
 #[derive(Debug, Clone, Serialize)]
 pub struct PulledTrial {
+    /// Trial id.
     pub trial: u16,
+    /// The file written (CSV, or MCAP for a `.mcap` name).
     pub file: String,
+    /// Records decoded and written.
     pub records: usize,
+    /// Records the board did not store because the log was full.
     pub dropped_records: u32,
+    /// Log bytes transferred.
     pub bytes: usize,
+    /// Time the transfer took, s.
     pub seconds: f64,
+    /// Resends on this connection so far (the client's running count).
     pub retries: u32,
     /// The trial was still running when pulled: the file holds only its start.
     pub partial: bool,

@@ -24,24 +24,41 @@ pub const MIN_CHUNK: usize = 48;
 #[allow(clippy::large_enum_variant)]
 #[derive(Debug, Clone, PartialEq)]
 pub enum Reply {
+    /// The handshake answer.
     Hello {
+        /// The board's protocol version.
         protocol_version: u16,
+        /// The board's schema fingerprint.
         schema: u32,
+        /// Firmware version text.
         firmware: String,
+        /// Whether the board found our version and schema equal to its own.
         compatible: bool,
     },
+    /// Done (for requests with nothing to return).
     Ok,
+    /// What the board reports about itself.
     Info(Info),
+    /// The active corrections.
     Corrections(Corrections),
+    /// The active parameters.
     Params(Params),
+    /// The board's status, asked for (telemetry is kept apart).
     Status(Status),
+    /// The stored trials.
     Trials(Trials),
+    /// A piece of a trial's record bytes.
     LogChunk {
+        /// Trial id.
         trial: u16,
+        /// Where `data` starts in the trial's records, bytes.
         offset: u32,
+        /// Size of the trial's records, bytes.
         total: u32,
+        /// The bytes themselves.
         data: Vec<u8>,
     },
+    /// The board refused the request; nothing changed there.
     Rejected(Rejection),
 }
 
@@ -50,20 +67,27 @@ pub enum Reply {
 pub enum ClientError {
     /// Nothing intact came back after every retry.
     NoAnswer {
+        /// The port, as named to the client.
         port: String,
+        /// Silent attempts allowed per request.
         tries: u32,
+        /// Damaged frames seen on this connection so far.
         bad_frames: u32,
     },
     /// The board speaks another protocol version or schema.
     ProtocolMismatch {
+        /// The board's protocol version.
         board_version: u16,
+        /// The board's schema fingerprint.
         board_schema: u32,
+        /// The board's firmware version text.
         firmware: String,
     },
     /// The board refused the request; nothing changed there.
     Rejected(Rejection),
     /// An answer of the wrong kind.
     Unexpected(String),
+    /// Reading or writing the port failed (or a transfer was interrupted).
     Io(io::Error),
 }
 
@@ -112,22 +136,29 @@ impl From<io::Error> for ClientError {
 pub struct LinkStats {
     /// Bytes thrown away unread: stale answers and replies to noise found waiting.
     pub discarded: u64,
+    /// Requests made (each counted once, however many times it was sent).
     pub requests: u32,
+    /// Resends after silence or damage.
     pub retries: u32,
+    /// Damaged frames received.
     pub bad_frames: u32,
+    /// Bytes written to the link.
     pub bytes_sent: u64,
+    /// Bytes read from the link (discarded ones included).
     pub bytes_received: u64,
 }
 
 /// Result of the handshake.
 #[derive(Debug, Clone, PartialEq, serde::Serialize)]
 pub struct Hello {
+    /// The board's firmware version text.
     pub firmware: String,
+    /// The protocol version both sides speak.
     pub protocol_version: u16,
+    /// The schema fingerprint both sides share.
     pub schema: u32,
 }
 
-/// A connection to one board.
 /// Resends a request may take for damage (Nacks, damaged answers) before giving up.
 const MAX_DAMAGE_RESENDS: u32 = 32;
 
@@ -142,6 +173,7 @@ fn fresh_seq() -> u16 {
     (t ^ std::process::id().rotate_left(16)) as u16
 }
 
+/// A connection to one board.
 pub struct Client<L: Read + Write> {
     link: L,
     port: String,
@@ -151,6 +183,7 @@ pub struct Client<L: Read + Write> {
     pub tries: u32,
     /// How long to wait for each attempt's answer.
     pub timeout: Duration,
+    /// What crossed the link so far.
     pub stats: LinkStats,
     telemetry: std::collections::VecDeque<Status>,
     pending: std::collections::VecDeque<u8>,
@@ -339,6 +372,7 @@ impl<L: Read + Write> Client<L> {
         }
     }
 
+    /// Asks for what the board reports about itself.
     pub fn info(&mut self) -> Result<Info, ClientError> {
         match self.request(&Request::GetInfo)? {
             Reply::Info(i) => Ok(i),
@@ -347,6 +381,7 @@ impl<L: Read + Write> Client<L> {
         }
     }
 
+    /// Asks for the active corrections.
     pub fn corrections(&mut self) -> Result<Corrections, ClientError> {
         match self.request(&Request::GetCorrections)? {
             Reply::Corrections(c) => Ok(c),
@@ -355,18 +390,22 @@ impl<L: Read + Write> Client<L> {
         }
     }
 
+    /// Makes `c` the active corrections (the board validates them; not saved yet).
     pub fn set_corrections(&mut self, c: Corrections) -> Result<(), ClientError> {
         self.expect_ok(Request::SetCorrections(c))
     }
 
+    /// Saves the active corrections to flash.
     pub fn save_corrections(&mut self) -> Result<(), ClientError> {
         self.expect_ok(Request::SaveCorrections)
     }
 
+    /// Active corrections back to none (save to make it last).
     pub fn reset_corrections(&mut self) -> Result<(), ClientError> {
         self.expect_ok(Request::ResetCorrections)
     }
 
+    /// Asks for the active parameters.
     pub fn params(&mut self) -> Result<Params, ClientError> {
         match self.request(&Request::GetParams)? {
             Reply::Params(p) => Ok(p),
@@ -375,10 +414,13 @@ impl<L: Read + Write> Client<L> {
         }
     }
 
+    /// Drives at `twist` (m/s, m/s, rad/s) until the next drive or `timeout_ms` (0: the
+    /// board's configured timeout).
     pub fn drive(&mut self, twist: Twist<f32>, timeout_ms: u16) -> Result<(), ClientError> {
         self.expect_ok(Request::Drive { twist, timeout_ms })
     }
 
+    /// Starts a motion program, logging a trial at `log_rate_hz` (0: no log).
     pub fn run_program(
         &mut self,
         program: ProgramSpec,
@@ -390,26 +432,32 @@ impl<L: Read + Write> Client<L> {
         })
     }
 
+    /// Controlled stop: the controllers ramp to zero.
     pub fn stop(&mut self) -> Result<(), ClientError> {
         self.expect_ok(Request::Stop)
     }
 
+    /// Immediate motor cut-off, latched until [`Client::clear_fault`].
     pub fn estop(&mut self) -> Result<(), ClientError> {
         self.expect_ok(Request::EStop)
     }
 
+    /// Clears a latched E-stop or fault.
     pub fn clear_fault(&mut self) -> Result<(), ClientError> {
         self.expect_ok(Request::ClearFault)
     }
 
+    /// Deletes every stored trial on the board.
     pub fn clear_logs(&mut self) -> Result<(), ClientError> {
         self.expect_ok(Request::ClearLogs)
     }
 
+    /// Asks for a telemetry frame every `period_ms` (0: off).
     pub fn set_telemetry(&mut self, period_ms: u16) -> Result<(), ClientError> {
         self.expect_ok(Request::SetTelemetry { period_ms })
     }
 
+    /// Asks for the board's status.
     pub fn status(&mut self) -> Result<Status, ClientError> {
         match self.request(&Request::GetStatus)? {
             Reply::Status(s) => Ok(s),
@@ -434,6 +482,7 @@ impl<L: Read + Write> Client<L> {
         Ok(None)
     }
 
+    /// Asks for the list of stored trials.
     pub fn trials(&mut self) -> Result<Trials, ClientError> {
         match self.request(&Request::ListTrials)? {
             Reply::Trials(t) => Ok(t),

@@ -2,17 +2,14 @@
 //! serial client, the virtual board and the diagnose command. The binary is a thin shell
 //! over these modules so the host tests drive the same code.
 
-#[allow(missing_docs)] // documented with the link work (issue 14)
 pub mod board_cmds;
 pub mod calibrate_cmd;
 pub mod calibration;
 pub mod cli;
-#[allow(missing_docs)] // documented with the link work (issue 14)
 pub mod client;
 pub mod commands;
 pub mod demo;
 pub mod flash;
-#[allow(missing_docs)] // documented with the link work (issue 14)
 pub mod link;
 pub mod mcap_out;
 pub mod output;
@@ -21,5 +18,4 @@ pub mod report;
 pub mod ros2;
 pub mod sim_board;
 pub mod stop;
-#[allow(missing_docs)] // documented with the link work (issue 14)
 pub mod virtual_board;

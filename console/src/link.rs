@@ -79,6 +79,7 @@ pub fn described_port(port: &str) -> String {
 
 /// A board-side stream over a serial port or pseudo-terminal master (non-blocking reads).
 pub struct PortStream<P: Read + Write> {
+    /// The open serial port or pseudo-terminal master.
     pub port: P,
 }
 
@@ -97,14 +98,18 @@ impl<P: Read + Write> firmware_app::ByteStream for PortStream<P> {
 /// Faults to inject on one direction of an in-memory link (probabilities per byte).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
 pub struct Faults {
+    /// Probability per byte of losing it.
     pub drop: f64,
+    /// Probability per byte of flipping one of its bits.
     pub flip: f64,
+    /// Probability per byte of sending it twice.
     pub duplicate: f64,
     /// Probability per write of cutting the rest of that write off.
     pub truncate: f64,
 }
 
 impl Faults {
+    /// A clean direction: no faults.
     pub fn none() -> Self {
         Faults::default()
     }
@@ -117,9 +122,13 @@ impl Faults {
 /// Counts of what a faulty direction did.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
 pub struct FaultCounts {
+    /// Bytes dropped.
     pub dropped: u64,
+    /// Bytes with a bit flipped.
     pub flipped: u64,
+    /// Bytes sent twice.
     pub duplicated: u64,
+    /// Writes cut short.
     pub truncated: u64,
 }
 

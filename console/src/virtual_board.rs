@@ -29,12 +29,14 @@ const DT_US: u64 = 1_000_000 / TICK_HZ as u64;
 
 /// The simulated hardware: the robot, and the inputs the application last set.
 pub struct SimHardware {
+    /// The simulated robot (true pose, encoders, physics).
     pub sim: SimRobot,
     inputs: Vec<WheelInput>,
     stepper: bool,
 }
 
 impl SimHardware {
+    /// Hardware for `sim` with every motor off (zero duty, or zero steps for steppers).
     pub fn new(sim: SimRobot) -> Self {
         let n = sim.wheel_count();
         let stepper = sim.nominal().drive.kind == DriveType::Stepper;
@@ -113,26 +115,35 @@ impl WheelDriver for Motors<'_> {
 /// Where a trial really ended, relative to its start, against the board's odometry.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct TrialTruth {
+    /// The trial's id, as in the board's trial log.
     pub trial: u16,
-    /// True end pose in the start frame (x along the start heading).
+    /// True end x in the start frame (along the start heading), m.
     pub true_x_m: f64,
+    /// True end y in the start frame (left of the start heading), m.
     pub true_y_m: f64,
+    /// True heading change, rad.
     pub true_theta_rad: f64,
-    /// The board's odometry at the end, same frame.
+    /// The board's odometry x at the end, same frame, m.
     pub odo_x_m: f64,
+    /// The board's odometry y at the end, m.
     pub odo_y_m: f64,
+    /// The board's odometry heading change, rad.
     pub odo_theta_rad: f64,
-    /// formats.md §3: measured minus odometry.
+    /// x error, true minus odometry (formats.md §3: measured minus odometry), m.
     pub x_err_m: f64,
+    /// y error (true minus odometry), m.
     pub y_err_m: f64,
+    /// Heading error (true minus odometry), rad.
     pub theta_err_rad: f64,
 }
 
 /// The board: application, server, store and simulated hardware.
 pub struct VirtualBoard {
+    /// The firmware application, as on the real board.
     pub app: App<'static>,
     server: Server,
     store: Store<RamFlash>,
+    /// The simulated hardware the application drives.
     pub hw: SimHardware,
     now_us: u64,
     running_trial: Option<(u16, Pose<f64>)>,
@@ -327,6 +338,7 @@ pub fn board_flash(file: Option<std::path::PathBuf>) -> std::io::Result<RamFlash
 /// other end: what the demo, the benches and the end-to-end tests run. Dropping it stops
 /// the board.
 pub struct InProcessBoard {
+    /// The host's client on the link's host end.
     pub client: crate::client::Client<crate::link::MemoryEnd>,
     /// The truth of each trial as it ends.
     pub truths: std::sync::mpsc::Receiver<TrialTruth>,
