@@ -171,14 +171,7 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
                 let a = p.backlash_asymmetry.unwrap_or(0.0);
                 wheel += play.take(inc, b, a);
             }
-            Some(b) => {
-                let half = 0.5 * b;
-                if motor - wheel > half {
-                    wheel = motor - half;
-                } else if wheel - motor > half {
-                    wheel = motor + half;
-                }
-            }
+            Some(b) => wheel = take_up_play(motor, wheel, b),
             None => wheel = motor,
         }
         out.push(wheel);
@@ -234,6 +227,19 @@ impl Rotor {
 
 /// Mean over a unit interval of c(s) = c0 + (c1 - c0) s where |c(s)| >= d (zero inside
 /// the dead band): the exact travel of a linearly varying command with Coulomb friction.
+/// Symmetric backlash of total play `b`: the wheel stays put until the motor has crossed
+/// half the play on either side, then follows it at that distance.
+pub(crate) fn take_up_play(motor: f64, wheel: f64, b: f64) -> f64 {
+    let half = 0.5 * b;
+    if motor - wheel > half {
+        motor - half
+    } else if wheel - motor > half {
+        motor + half
+    } else {
+        wheel
+    }
+}
+
 fn ramp_outside_deadband(c0: f64, c1: f64, d: f64) -> f64 {
     // Integrate c over the parts of [0, 1] where c >= d and where c <= -d.
     let slope = c1 - c0;

@@ -153,14 +153,7 @@ pub fn simulate_stepper_losses(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: 
         };
         motor += inc;
         match p.backlash_rad {
-            Some(b) => {
-                let half = 0.5 * b;
-                if motor - wheel > half {
-                    wheel = motor - half;
-                } else if wheel - motor > half {
-                    wheel = motor + half;
-                }
-            }
+            Some(b) => wheel = crate::actuator::take_up_play(motor, wheel, b),
             None => wheel = motor,
         }
         out.push(wheel);

@@ -333,19 +333,7 @@ fn thirty_concealed_recordings() {
     let filter = std::env::var("DIAG_CASE").ok();
     let all = cases();
     assert!(all.len() >= 30 || filter.is_some(), "{} cases", all.len());
-    let selected: Vec<&Case> = all
-        .iter()
-        .filter(|c| filter.as_ref().is_none_or(|f| c.name.contains(f.as_str())))
-        .collect();
-    // Two threads: the machine has two cores.
-    let outcomes: Vec<Outcome> = std::thread::scope(|s| {
-        let half = selected.len().div_ceil(2);
-        let hs: Vec<_> = selected
-            .chunks(half.max(1))
-            .map(|chunk| s.spawn(move || chunk.iter().map(|c| run(c)).collect::<Vec<_>>()))
-            .collect();
-        hs.into_iter().flat_map(|h| h.join().unwrap()).collect()
-    });
+    let outcomes: Vec<Outcome> = check::run_selected(&all, |c| c.name.as_str(), run);
     let mut labels: Vec<String> = outcomes
         .iter()
         .flat_map(|o| [o.expected.clone(), o.got.clone()])

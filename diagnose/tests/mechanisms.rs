@@ -646,20 +646,8 @@ fn explain_mechanism_case() {
 
 #[test]
 fn other_mechanisms() {
-    let filter = std::env::var("DIAG_CASE").ok();
     let all = cases();
-    let selected: Vec<&Case> = all
-        .iter()
-        .filter(|c| filter.as_ref().is_none_or(|f| c.name.contains(f.as_str())))
-        .collect();
-    let outcomes: Vec<Outcome> = std::thread::scope(|s| {
-        let half = selected.len().div_ceil(2).max(1);
-        let hs: Vec<_> = selected
-            .chunks(half)
-            .map(|chunk| s.spawn(move || chunk.iter().map(|c| run(c)).collect::<Vec<_>>()))
-            .collect();
-        hs.into_iter().flat_map(|h| h.join().unwrap()).collect()
-    });
+    let outcomes: Vec<Outcome> = check::run_selected(&all, |c| c.name.as_str(), run);
     confusion(&outcomes);
     for o in &outcomes {
         let tag = match (o.full_ok, o.verdict_ok) {

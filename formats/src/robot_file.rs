@@ -41,13 +41,8 @@ pub struct Procedure {
 
 /// Reads the `[procedure]` table of a robot file (the whole file is validated too).
 pub fn load_procedure(path: &Path) -> Result<Procedure, RobotFileError> {
-    load(path)?;
-    let text = std::fs::read_to_string(path).map_err(|e| RobotFileError {
-        path: path.to_path_buf(),
-        line: None,
-        column: None,
-        message: format!("cannot read robot file: {e}"),
-    })?;
+    let text = read(path)?;
+    parse(&text, path)?;
     parse_procedure(&text, path)
 }
 
@@ -163,6 +158,11 @@ pub const MAX_FILE_BYTES: u64 = 1 << 20;
 
 /// Reads and validates a robot file.
 pub fn load(path: &Path) -> Result<Robot, RobotFileError> {
+    parse(&read(path)?, path)
+}
+
+/// A robot file's text, refused before reading when it is too large to be one.
+fn read(path: &Path) -> Result<String, RobotFileError> {
     let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
     if size > MAX_FILE_BYTES {
         return Err(RobotFileError {
@@ -174,13 +174,12 @@ pub fn load(path: &Path) -> Result<Robot, RobotFileError> {
             ),
         });
     }
-    let text = std::fs::read_to_string(path).map_err(|e| RobotFileError {
+    std::fs::read_to_string(path).map_err(|e| RobotFileError {
         path: path.to_path_buf(),
         line: None,
         column: None,
         message: format!("cannot read robot file: {e}"),
-    })?;
-    parse(&text, path)
+    })
 }
 
 /// Parses and validates robot TOML; `path` is only used in messages.

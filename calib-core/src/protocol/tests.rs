@@ -682,17 +682,22 @@ fn schema_golden() {
     );
 }
 
+/// PI gains inside every validated range.
+fn test_gains() -> PiGains {
+    PiGains {
+        kp: 0.1,
+        ki: 1.0,
+        kff: 0.05,
+        kstatic: 0.0,
+        out_max: 1.0,
+    }
+}
+
 #[test]
 fn validation_messages() {
     let mut p = Params {
         robot: presets::mobolab(),
-        gains: PiGains {
-            kp: 0.1,
-            ki: 1.0,
-            kff: 0.05,
-            kstatic: 0.0,
-            out_max: 1.0,
-        },
+        gains: test_gains(),
         limits: ProfileLimits::default(),
         safety: Safety::default(),
     };
@@ -776,13 +781,7 @@ fn programs_outside_the_arena_or_negative_are_refused() {
     // The arena itself is a validated setting.
     let mut p = Params {
         robot: presets::mobolab(),
-        gains: PiGains {
-            kp: 0.1,
-            ki: 1.0,
-            kff: 0.05,
-            kstatic: 0.0,
-            out_max: 1.0,
-        },
+        gains: test_gains(),
         limits: ProfileLimits::default(),
         safety: Safety::default(),
     };

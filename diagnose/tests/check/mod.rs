@@ -64,3 +64,26 @@ pub fn every_finding_improves(r: &Report) -> Vec<String> {
         .map(|f| format!("{} does not improve its RMSE", f.effect))
         .collect()
 }
+
+/// The cases whose name contains `DIAG_CASE` (all when unset), run on two workers (the
+/// machine has two cores), outcomes in case order.
+pub fn run_selected<C: Sync, O: Send>(
+    all: &[C],
+    name: impl Fn(&C) -> &str,
+    run: impl Fn(&C) -> O + Sync,
+) -> Vec<O> {
+    let filter = std::env::var("DIAG_CASE").ok();
+    let selected: Vec<&C> = all
+        .iter()
+        .filter(|c| filter.as_ref().is_none_or(|f| name(c).contains(f.as_str())))
+        .collect();
+    let run = &run;
+    std::thread::scope(|s| {
+        let half = selected.len().div_ceil(2).max(1);
+        let hs: Vec<_> = selected
+            .chunks(half)
+            .map(|chunk| s.spawn(move || chunk.iter().map(|c| run(c)).collect::<Vec<_>>()))
+            .collect();
+        hs.into_iter().flat_map(|h| h.join().unwrap()).collect()
+    })
+}
