@@ -6,7 +6,9 @@
 //! in the direction the error pushes.
 
 /// PI gains and output limits (output in duty, -1..1, or volts: the caller decides).
-#[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize, postcard_schema::Schema,
+)]
 pub struct PiGains {
     /// Proportional gain (output per rad/s of error).
     pub kp: f32,

@@ -18,7 +18,7 @@ pub const FACTOR_MIN: f64 = 0.5;
 pub const FACTOR_MAX: f64 = 2.0;
 
 /// The correction factors a board stores.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Corrections {
     /// Nominal geometry.
     None,

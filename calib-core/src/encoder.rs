@@ -11,7 +11,7 @@
 use serde::{Deserialize, Serialize};
 
 /// Width of the hardware counter.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum CounterWidth {
     /// 16-bit timer (wraps every 65 536 counts).
     Bits16,

@@ -13,7 +13,16 @@ use crate::robot::{Robot, MAX_WHEELS};
 use num_traits::Float;
 
 /// A planar body velocity (or displacement over a tick) in the body frame.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    postcard_schema::Schema,
+)]
 pub struct Twist<T> {
     /// Forward velocity, body x (m/s; m for a displacement).
     pub vx: T,

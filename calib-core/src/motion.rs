@@ -13,7 +13,7 @@ use serde::{Deserialize, Serialize};
 pub const MAX_SEGMENTS: usize = 32;
 
 /// Turning sense of a square: cw turns right at the corners, ccw left.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Direction {
     /// Clockwise seen from above: right turns at the corners.
@@ -33,7 +33,7 @@ impl Direction {
 }
 
 /// 001's straight test paths of the 4-wheel omni robot.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum OmniPath {
     /// Along body +x: wheels 1 and 3 turn, 2 and 4 stand still.
@@ -61,7 +61,7 @@ impl OmniPath {
 }
 
 /// One piece of a motion program.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Segment {
     /// Drive along body x.
     Straight {
@@ -95,7 +95,7 @@ pub enum Segment {
 }
 
 /// Speed and acceleration limits for the profiles.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct ProfileLimits {
     /// m/s along a path.
     pub v_max: f64,
@@ -207,7 +207,7 @@ pub enum Setpoint {
 }
 
 /// A list of segments.
-#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Default, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Program {
     /// The segments in execution order (at most [`MAX_SEGMENTS`]).
     pub segments: Vec<Segment, MAX_SEGMENTS>,

@@ -20,7 +20,16 @@ use crate::kinematics::Twist;
 use num_traits::{Float, FloatConst};
 
 /// A planar pose in the world frame.
-#[derive(Debug, Clone, Copy, PartialEq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    postcard_schema::Schema,
+)]
 pub struct Pose<T> {
     /// World-frame x (m).
     pub x: T,

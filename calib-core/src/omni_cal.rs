@@ -91,7 +91,17 @@ impl DrivenWheel {
 }
 
 /// How the wheels a path does not drive behave while it runs.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default, serde::Serialize, serde::Deserialize)]
+#[derive(
+    Debug,
+    Clone,
+    Copy,
+    PartialEq,
+    Eq,
+    Default,
+    serde::Serialize,
+    serde::Deserialize,
+    postcard_schema::Schema,
+)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum IdleWheels {
     /// Drive cut: free to turn, no constraint on the body (001's 4W-2).

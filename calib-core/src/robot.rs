@@ -17,7 +17,7 @@ pub const NAME_LEN: usize = 16;
 pub type WheelName = String<NAME_LEN>;
 
 /// What kind of chassis: decides which wheel constraints hold.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum RobotKind {
     /// Two standard wheels on one axle (castors ignored).
@@ -46,7 +46,7 @@ impl RobotKind {
 }
 
 /// How the wheels are driven.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum DriveType {
     /// Stepper motors: the commanded rate becomes step pulses.
@@ -56,7 +56,7 @@ pub enum DriveType {
 }
 
 /// Motor, gearing and encoder, common to all wheels.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Drive {
     /// Stepper or DC.
     pub kind: DriveType,
@@ -100,7 +100,7 @@ impl Drive {
 }
 
 /// One wheel, with Siegwart & Nourbakhsh's parameters (angles in radians).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Wheel {
     /// Unique name (`[a-z0-9_]+`, at most [`NAME_LEN`] characters).
     pub name: WheelName,
@@ -151,7 +151,7 @@ impl Wheel {
 }
 
 /// Leg geometry of the wheeled-legged robot (002).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Legs {
     /// Hip to wheel centre.
     pub length_m: f64,
@@ -183,7 +183,7 @@ impl Legs {
 }
 
 /// A validated robot: construct with [`Robot::new`].
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Robot {
     /// Free-text robot name (truncated to 32 characters).
     pub name: String<32>,
@@ -198,7 +198,7 @@ pub struct Robot {
 }
 
 /// Which value of a robot description is wrong.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Field {
     /// `name`: a wheel's name.
     Name,
@@ -250,7 +250,7 @@ impl Field {
 }
 
 /// What is wrong with it.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Problem {
     /// NaN or infinite.
     NotFinite,
@@ -265,9 +265,9 @@ pub enum Problem {
     /// Name empty, too long, or not `[a-z0-9_]+`.
     BadName,
     /// Fewer than 2 wheels; the count given.
-    TooFewWheels(usize),
+    TooFewWheels(u32),
     /// More than [`MAX_WHEELS`] wheels; the count given.
-    TooManyWheels(usize),
+    TooManyWheels(u32),
     /// The wheel constraints do not determine (vx, vy, omega): rank < 3.
     SingularJacobian,
     /// Legs given for a robot that is not wheeled_legged, or missing for one that is.
@@ -277,9 +277,9 @@ pub enum Problem {
         /// The robot kind.
         kind: RobotKind,
         /// Wheels the kind needs.
-        expected: usize,
+        expected: u32,
         /// Wheels given.
-        got: usize,
+        got: u32,
     },
 }
 
@@ -368,13 +368,13 @@ impl Robot {
         if wheels.len() < 2 {
             return Err(RobotError::robot(
                 Field::Wheels,
-                Problem::TooFewWheels(wheels.len()),
+                Problem::TooFewWheels(wheels.len() as u32),
             ));
         }
         if wheels.len() > MAX_WHEELS {
             return Err(RobotError::robot(
                 Field::Wheels,
-                Problem::TooManyWheels(wheels.len()),
+                Problem::TooManyWheels(wheels.len() as u32),
             ));
         }
         if kind == RobotKind::DiffDrive && wheels.len() != 2 {
@@ -383,7 +383,7 @@ impl Robot {
                 Problem::WrongWheelCount {
                     kind,
                     expected: 2,
-                    got: wheels.len(),
+                    got: wheels.len() as u32,
                 },
             ));
         }

@@ -4,7 +4,7 @@
 use super::*;
 
 /// The trial list.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Trials {
     /// Trials still stored, oldest first.
     pub trials: Vec<TrialInfo, MAX_TRIALS>,
@@ -13,7 +13,7 @@ pub struct Trials {
 }
 
 /// A trial's header.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct TrialInfo {
     /// Trial id (from 1, wrapping; never 0).
     pub id: u16,
@@ -39,7 +39,7 @@ pub struct TrialInfo {
     pub corrections: Corrections,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 /// What a trial ran, kept in its header.
 pub enum ProgramKind {
     /// Driving by twist commands rather than a program.
@@ -65,7 +65,7 @@ pub enum ProgramKind {
     },
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 /// How a trial ended.
 pub enum TrialEnd {
@@ -84,7 +84,7 @@ pub enum TrialEnd {
 }
 
 /// Part of a trial's record bytes.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct LogChunk<'a> {
     /// Trial id.
     pub trial: u16,
@@ -108,6 +108,14 @@ impl Serialize for Bytes<'_> {
     }
 }
 
+impl postcard_schema::Schema for Bytes<'_> {
+    const SCHEMA: &'static postcard_schema::schema::NamedType =
+        &postcard_schema::schema::NamedType {
+            name: "Bytes",
+            ty: &postcard_schema::schema::DataModelType::ByteArray,
+        };
+}
+
 impl<'de: 'a, 'a> Deserialize<'de> for Bytes<'a> {
     fn deserialize<D: serde::Deserializer<'de>>(d: D) -> Result<Self, D::Error> {
         <&'de [u8]>::deserialize(d).map(Bytes)
@@ -123,8 +131,8 @@ pub const fn record_size(n: usize) -> usize {
 }
 
 /// One decimated control tick, packed little-endian without padding or tags (the layout
-/// is in [`SCHEMA`]), so log transfer is almost all payload.
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+/// is its `Schema` plus [`WIRE_RULES`]), so log transfer is almost all payload.
+#[derive(Debug, Clone, Copy, PartialEq, Default, postcard_schema::Schema)]
 pub struct Record {
     /// Microseconds since the trial's start (wraps after 71 minutes).
     pub t_us: u32,

@@ -7,7 +7,7 @@ use super::*;
 // ---------------------------------------------------------------------------------------
 
 /// What the host asks of a board.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Request {
     /// Variant 0, frozen: the handshake.
     Hello {
@@ -81,7 +81,7 @@ pub enum Request {
 /// A board's answer (or unsolicited telemetry).
 // Messages are built once per frame and never moved in bulk; no_std has no Box.
 #[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Response<'a> {
     /// Variant 0, frozen: the handshake answer; `compatible` is false on a mismatch.
     Hello {
@@ -118,7 +118,7 @@ pub enum Response<'a> {
 }
 
 /// Everything a board reports about itself.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Info {
     /// Firmware version text.
     pub firmware: String<FIRMWARE_LEN>,
@@ -143,7 +143,7 @@ pub struct Info {
 }
 
 /// What the board found in flash at boot.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct BootReport {
     /// State of the stored corrections.
     pub corrections: Stored,
@@ -152,7 +152,7 @@ pub struct BootReport {
 }
 
 /// State of one persisted item at boot.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Stored {
     /// Read, CRC and ranges good: in use.
@@ -166,7 +166,7 @@ pub enum Stored {
 }
 
 /// Live state of a board.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Status {
     /// Time since boot (ms).
     pub uptime_ms: u64,
@@ -196,7 +196,7 @@ pub struct Status {
     pub bad_frames: u32,
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 /// What the board is doing.
 pub enum Mode {
@@ -213,7 +213,7 @@ pub enum Mode {
     },
 }
 
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 /// Why the motors last stopped.
 pub enum StopReason {
@@ -232,7 +232,7 @@ pub enum StopReason {
 }
 
 /// A detected hardware fault (latched, motors off).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum Fault {
     /// Commanded but the encoder did not move.
@@ -269,7 +269,7 @@ impl fmt::Display for Fault {
 
 /// Why a request was refused; the board's state is unchanged. Structured (no text is
 /// built on the board): the host words it with one `Display`.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Rejection {
     /// The host's version or schema did not match at [`Request::Hello`].
     ProtocolMismatch {
@@ -311,7 +311,7 @@ impl Rejection {
 }
 
 /// A correction factor, as named on the wire ([`CorrectionError`] names it with text).
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Factor {
     /// c_L, the left wheel factor.
     CL,
@@ -351,7 +351,7 @@ impl Factor {
 }
 
 /// Why corrections were refused, on the wire.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum CorrectionFault {
     /// A factor is NaN or infinite.
     NotFinite {
@@ -440,7 +440,7 @@ impl fmt::Display for CorrectionFault {
 }
 
 /// Why parameters were refused, on the wire.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum ParamsFault {
     /// The robot description: wheel index (from 0) if a wheel is concerned.
     Robot {

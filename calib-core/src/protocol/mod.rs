@@ -38,15 +38,16 @@
 //! side is built around async dispatch tasks and its host client around tokio, while the
 //! board's request handler here is a plain synchronous function `bytes in -> bytes out`
 //! that must run identically on the UART, on a host pseudo-terminal and inside unit tests
-//! without any executor; its endpoint keys are hashes of postcard-schema descriptions,
-//! which would need `Schema` derives on calib-core types owned by other modules. The
-//! framing here is ~150 lines, so owning it is cheaper than adapting to it.
+//! without any executor. The messages do derive postcard-schema's `Schema` (the fingerprint
+//! below is made from it), and the framing uses postcard's COBS and CRC flavours, so a
+//! move to postcard-rpc later would keep the types.
 //!
 //! # Schema fingerprint
-//! [`SCHEMA`] is a canonical text description of every message type; the fingerprint is
-//! its CRC-32. A golden test (`tests::schema_golden`) serialises one sample of every
-//! variant and compares the bytes' CRC with a recorded value, so changing a type without
-//! updating [`SCHEMA`] (and thereby the fingerprint) breaks the build's tests.
+//! [`SCHEMA_FINGERPRINT`] is derived from the types: every message type derives
+//! postcard-schema's `Schema`, and the fingerprint folds the schema hashes of
+//! [`Request`], [`Response`] and the log [`Record`] with the [`WIRE_RULES`] the types cannot
+//! express. A golden test (`tests::schema_golden`) also pins the bytes of one sample of
+//! every variant, so an encoding change that leaves the types alone is caught too.
 
 use crate::control::PiGains;
 use crate::correction::{CorrectionError, Corrections};
@@ -76,60 +77,40 @@ pub use text::*;
 /// Bumped on any incompatible change of the messages or framing.
 pub const PROTOCOL_VERSION: u16 = 2;
 
-/// Canonical description of the message schema; its CRC-32 is [`SCHEMA_FINGERPRINT`].
-/// Edit it whenever a message type changes (the golden test enforces this).
-pub const SCHEMA: &str = "wheelcal-protocol v1;\
-frame=cobs(seq:u16le,postcard(body),crc32-iso-hdlc:u32le),0x00;\
-Request=Hello{protocol_version:u16,schema:u32}|GetInfo|GetCorrections|SetCorrections(Corrections)|\
-SaveCorrections|ResetCorrections|GetParams|SetParams(Params)|SaveParams|ResetParams|\
-Drive{twist:Twist<f32>,timeout_ms:u16}|RunProgram{program:ProgramSpec,log_rate_hz:u16}|Stop|EStop|\
-ClearFault|GetStatus|SetTelemetry{period_ms:u16}|ListTrials|ReadLog{trial:u16,offset:u32,max_len:u16}|ClearLogs;\
-Response=Hello{protocol_version:u16,schema:u32,firmware:String<24>,compatible:bool}|Ok|Info(Info)|\
-Corrections(Corrections)|Params(Params)|Status(Status)|Telemetry(Status)|Trials(Trials)|LogChunk(LogChunk)|\
-Rejected(Rejection)|Nack(FrameError);\
-Corrections=None|DiffDrive{c_l:f64,c_r:f64,e_b:f64}|Omni{f_lat:Vec<f64,8>,f_lon:f64};\
-Params{robot:Robot,gains:PiGains,limits:ProfileLimits,safety:Safety};\
-Robot{name:String<32>,kind:RobotKind,drive:Drive,wheels:Vec<Wheel,8>,legs:Option<Legs>};\
-Safety{command_timeout_ms:u16,stall_timeout_ms:u16,stall_min_rate:f32,max_jump_counts:u32,arena_m:f32};\
-ProgramSpec=Umbmark{side_m:f64,dir:Direction}|Omni{path:OmniPath,length_m:f64,idle:IdleWheels}|Custom(Vec<Segment,32>);\
-Info{firmware:String<24>,protocol_version:u16,schema:u32,robot_kind:RobotKind,drive:DriveType,wheel_count:u8,\
-uptime_ms:u64,boot:BootReport,log_capacity:u32,record_size:u16};\
-BootReport{corrections:Stored,params:Stored};Stored=Loaded|Missing|Invalid|StorageError;\
-Status{uptime_ms:u64,mode:Mode,stop:StopReason,estop:bool,fault:Option<Fault>,pose:Pose<f32>,\
-wheel_rates:Vec<f32,8>,wheel_cmds:Vec<f32,8>,trial:Option<u16>,log_free:u32,dropped_records:u32,\
-evicted_trials:u32,bad_frames:u32};\
-Mode=Idle|Drive|Program{segment:u8,segments:u8};\
-StopReason=None|Request|EStop|CommandTimeout|Fault|ProgramDone;\
-Fault=Stall{wheel:u8}|CounterJump{wheel:u8,delta:i32};\
-Trials{trials:Vec<TrialInfo,8>,evicted:u32};\
-TrialInfo{id:u16,program:ProgramKind,start_ms:u64,rate_hz:u16,wheel_count:u8,record_size:u16,\
-records:u32,bytes:u32,dropped:u32,end:TrialEnd,corrections:Corrections};\
-IdleWheels=Released|Held;\
-ProgramKind=Drive|Umbmark{side_m:f32,dir:Direction}|Omni{path:OmniPath,length_m:f32}|Custom{segments:u8};\
-TrialEnd=Running|Completed|Stopped|EStop|Fault|CommandTimeout;\
-LogChunk{trial:u16,offset:u32,total:u32,data:bytes};\
-Rejection=ProtocolMismatch{board_version:u16,board_schema:u32}|InvalidCorrections(CorrectionFault)|\
-InvalidParams(ParamsFault)|InvalidProgram(ProgramError)|Busy|EStopped|Faulted(Fault)|NoSuchTrial|\
-BadOffset{total:u32}|Storage|Undecodable;\
-Factor=CL|CR|EB|FLat|FLon;\
-CorrectionFault=NotFinite{factor:Factor,index:Option<u8>}|OutOfRange{factor:Factor,index:Option<u8>,value:f64}|\
-WrongWheelCount{expected:u8,got:u8}|WrongKind{robot:RobotKind}|Singular;\
-ParamsFault=Robot{wheel:Option<u8>,field:Field,problem:Problem}|Setting{index:u8,min:f64,max:f64,value:f64}|\
-CorrectionsDoNotFit(CorrectionFault)|Singular;\
-Field=Name|Kind|Wheels|RadiusM|AlphaDeg|LM|BetaDeg|GammaDeg|StepsPerRev|Microsteps|GearRatio|\
-EncoderCountsPerRev|Legs;\
-Problem=NotFinite|NotPositive(f64)|Negative(f64)|RollerParallelToAxle|DuplicateName|BadName|\
-TooFewWheels(usize)|TooManyWheels(usize)|SingularJacobian|LegsMismatch|\
-WrongWheelCount{kind:RobotKind,expected:usize,got:usize};\
-ProgramError=OutOfRange{field:ProgramField,value:f64,max:f64}|NotPositive{field:ProgramField,value:f64}|\
-NeedsOmni{robot:RobotKind}|NoSegments|NoSuchWheel{wheel:u8,wheels:u8}|\
-Twist{twist:Twist<f32>,v_max:f64,omega_max:f64};\
-ProgramField=SideM|LengthM|DistanceM|AngleRad|DxM|DyM|DurationS;\
-FrameError=Cobs|TooShort|TooLong|Crc;\
-Record=t_us:u32le,counts:i32le*n,cmd_rad_s:f32le*n,x:f32le,y:f32le,theta:f32le";
+/// The encoding rules the message types cannot express (framing, the packed log record,
+/// the log's block codec), hashed into [`SCHEMA_FINGERPRINT`] with the types.
+pub const WIRE_RULES: &str = "wheelcal frame=cobs(seq:u16le|postcard(body)|crc32-iso-hdlc:u32le) 0x00, \
+payload<=1024; log record=fields in declaration order, fixed-width little-endian, arrays cut to the \
+trial's wheel count; log data=blocks of a key record then zigzag-varint deltas";
 
-/// CRC-32 of [`SCHEMA`]: exchanged in the handshake.
-pub const SCHEMA_FINGERPRINT: u32 = CRC32.checksum(SCHEMA.as_bytes());
+/// The fingerprint exchanged in the handshake, derived from the types: the postcard-schema
+/// hashes (field and variant names, order and data-model types) of [`Request`],
+/// [`Response`] and [`Record`] and the hash of [`WIRE_RULES`], folded by CRC-32. Changing
+/// any message type changes it, without anyone editing a constant.
+pub const SCHEMA_FINGERPRINT: u32 = schema_fingerprint::<Request, Response<'static>, Record>();
+
+/// The fingerprint of a request type, a response type and a log record type.
+const fn schema_fingerprint<Req, Resp, Rec>() -> u32
+where
+    Req: postcard_schema::Schema,
+    Resp: postcard_schema::Schema,
+    Rec: postcard_schema::Schema,
+{
+    use postcard_schema::key::Key;
+    let keys = [
+        Key::for_path::<Req>("wheelcal/request").to_bytes(),
+        Key::for_path::<Resp>("wheelcal/response").to_bytes(),
+        Key::for_path::<Rec>("wheelcal/log-record").to_bytes(),
+        Key::for_path::<()>(WIRE_RULES).to_bytes(),
+    ];
+    let mut all = [0u8; 32];
+    let mut i = 0;
+    while i < all.len() {
+        all[i] = keys[i / 8][i % 8];
+        i += 1;
+    }
+    CRC32.checksum(&all)
+}
 
 /// Largest unencoded frame (seq + body + crc).
 pub const MAX_PAYLOAD: usize = 1024;

@@ -4,7 +4,7 @@
 use super::*;
 
 /// Robot geometry and the settings that go with it, persisted together.
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Params {
     /// Geometry of the robot and its wheels.
     pub robot: Robot,
@@ -17,7 +17,7 @@ pub struct Params {
 }
 
 /// When the board stops the motors by itself.
-#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Safety {
     /// Drive commands older than this stop the motors.
     pub command_timeout_ms: u16,
@@ -145,7 +145,7 @@ impl Params {
 /// A motion program as the host asks for it.
 // Messages are built once per frame and never moved in bulk; no_std has no Box.
 #[allow(clippy::large_enum_variant)]
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum ProgramSpec {
     /// Borenstein's square.
     Umbmark {
@@ -270,7 +270,7 @@ impl ProgramSpec {
 }
 
 /// A number of a program or drive request, named on the wire.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum ProgramField {
     /// A UMBmark side (m).
     SideM,
@@ -304,7 +304,7 @@ impl ProgramField {
 }
 
 /// Why a program or a drive was refused (structured: the host words it).
-#[derive(Debug, Clone, PartialEq, Serialize, Deserialize)]
+#[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum ProgramError {
     /// Not finite, or `|value| > max`.
     OutOfRange {

@@ -195,7 +195,7 @@ fn info() -> Info {
     Info {
         firmware: String::try_from("wheelcal-fw 0.1.0").unwrap(),
         protocol_version: PROTOCOL_VERSION,
-        schema: SCHEMA_FINGERPRINT,
+        schema: 0x8357_8214, // fixed: the golden bytes must not follow the fingerprint
         robot_kind: RobotKind::Omni,
         drive: DriveType::Dc,
         wheel_count: 4,
@@ -359,6 +359,33 @@ proptest! {
         prop_assert_eq!(f.decode::<Bytes>().expect("decodes").0, &data[..]);
     }
 
+    /// The wire format is `COBS(seq LE | postcard body | CRC-32 LE) 0x00`, checked against
+    /// an independent COBS encoder (the `cobs` crate's) over hand-laid bytes: the one-pass
+    /// flavour encoder changed no byte of the format.
+    #[test]
+    fn frames_are_cobs_of_seq_body_crc(r in request(), seq in any::<u16>(), data in proptest::collection::vec(any::<u8>(), 0..=MAX_PAYLOAD - 6)) {
+        for (wire, body) in [
+            (wire_of(seq, &r), { let mut b = [0u8; MAX_PAYLOAD]; postcard::to_slice(&r, &mut b).unwrap().to_vec() }),
+            ({ let mut o = [0u8; MAX_WIRE]; encode_body(seq, &data, &mut o).unwrap().to_vec() }, data.clone()),
+        ] {
+            let mut raw = seq.to_le_bytes().to_vec();
+            raw.extend_from_slice(&body);
+            raw.extend_from_slice(&CRC32.checksum(&raw).to_le_bytes());
+            let mut want = std::vec![0u8; raw.len() + raw.len() / 254 + 2];
+            let n = cobs::encode(&raw, &mut want);
+            want.truncate(n);
+            // When the input ends with a full run of 254 non-zero bytes, postcard's flavour
+            // (like the hand-written encoder it replaces) closes with an empty group (code
+            // 0x01) where the crate's `encode` stops; both are valid COBS and decode alike.
+            let run_end = raw.iter().rposition(|&b| b == 0).map_or(0, |i| i + 1);
+            if (raw.len() - run_end) % 254 == 0 && raw.len() > run_end {
+                want.push(1);
+            }
+            want.push(0);
+            prop_assert_eq!(wire, want);
+        }
+    }
+
     #[test]
     fn records_round_trip(n in 0usize..=MAX_WHEELS, t in any::<u32>(), c in any::<[i32; MAX_WHEELS]>(), v in f32s()) {
         let mut r = Record { t_us: t, counts: c, pose: Pose::new(v, -v, v / 3.0), ..Record::default() };
@@ -518,6 +545,23 @@ fn log_transfer_efficiency() {
     assert!(z <= chunk);
 }
 
+/// The unencoded limit is exact: a body of MAX_PAYLOAD - 6 bytes (seq and CRC take 6)
+/// frames, one more byte is refused, and a caller's short buffer is refused, not overrun.
+#[test]
+fn payload_limit_is_exact() {
+    let mut out = [0u8; MAX_WIRE];
+    let body = [0x55u8; MAX_PAYLOAD - 6];
+    let wire = encode_body(1, &body, &mut out).expect("fits").len();
+    // 1024 stuffed bytes: 5 code bytes (one per 254 and the first) and the delimiter.
+    assert_eq!(wire, MAX_PAYLOAD + 5 + 1);
+    assert!(wire <= MAX_WIRE);
+    let more = [0x55u8; MAX_PAYLOAD - 5];
+    assert_eq!(encode_body(1, &more, &mut out), Err(FrameError::TooLong));
+    let mut small = [0u8; 16];
+    assert_eq!(encode_body(1, &body, &mut small), Err(FrameError::TooLong));
+    assert!(encode_body(1, &[1, 2, 3], &mut small).is_ok());
+}
+
 #[test]
 fn hello_is_frozen_as_variant_zero() {
     // Whatever else changes, a Hello is `00 <varint version> <varint schema>`.
@@ -566,12 +610,11 @@ fn decoder_reports_oversize_and_recovers() {
     assert!(dec.push(0).is_none() && dec.push(0).is_none());
 }
 
-/// The fingerprint is the CRC of SCHEMA, and the golden CRC of one sample of every
-/// message shape pins the types: if this test fails after changing a message type,
-/// update SCHEMA (and PROTOCOL_VERSION if old hosts cannot read it) and the constant.
+/// The golden CRC of one sample of every message shape pins the bytes, and the
+/// fingerprint (derived from the types) pins the schema: if this fails after changing a
+/// message type, bump PROTOCOL_VERSION if old hosts cannot read it and record the values.
 #[test]
 fn schema_golden() {
-    assert_eq!(SCHEMA_FINGERPRINT, CRC32.checksum(SCHEMA.as_bytes()));
     let mut all = std::vec::Vec::new();
     let mut buf = [0u8; MAX_PAYLOAD];
     let mut add = |b: &[u8]| all.extend_from_slice(b);
@@ -677,9 +720,43 @@ fn schema_golden() {
     std::println!("golden {golden:#010x}, fingerprint {SCHEMA_FINGERPRINT:#010x}");
     assert_eq!(
         (golden, SCHEMA_FINGERPRINT),
-        (0xbb5075a0, 0x83578214),
-        "message types changed: update SCHEMA and these constants"
+        (0xbb5075a0, 0x4c974c0d),
+        "message types changed: record the new values (and bump PROTOCOL_VERSION if needed)"
     );
+}
+
+/// The fingerprint follows the types: the same three types give it again, and one field
+/// of the log record narrowed (t_us as u16) or renamed gives another.
+#[test]
+fn fingerprint_is_derived_from_the_types() {
+    #[derive(postcard_schema::Schema)]
+    #[allow(dead_code)]
+    struct Narrowed {
+        t_us: u16,
+        counts: [i32; MAX_WHEELS],
+        cmd: [f32; MAX_WHEELS],
+        pose: Pose<f32>,
+    }
+    #[derive(postcard_schema::Schema)]
+    #[allow(dead_code)]
+    struct Renamed {
+        t_ms: u32,
+        counts: [i32; MAX_WHEELS],
+        cmd: [f32; MAX_WHEELS],
+        pose: Pose<f32>,
+    }
+    assert_eq!(
+        schema_fingerprint::<Request, Response, Record>(),
+        SCHEMA_FINGERPRINT
+    );
+    let others = [
+        schema_fingerprint::<Request, Response, Narrowed>(),
+        schema_fingerprint::<Request, Response, Renamed>(),
+        schema_fingerprint::<Response, Request, Record>(),
+    ];
+    for f in others {
+        assert_ne!(f, SCHEMA_FINGERPRINT);
+    }
 }
 
 /// PI gains inside every validated range.
