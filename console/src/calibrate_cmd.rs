@@ -2,12 +2,14 @@
 //! A thin shell over `diagnose::calibrate`: gathers recordings (files, run folders or a
 //! directory of run folders), prints or writes the result.
 
+use crate::mcap_out::{write_paths_under, PathSeries};
 use crate::output::Output;
 use crate::ros2;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::Robot;
 use clap::Args;
 use diagnose::calibrate::{calibrate, CalOptions, Calibration, Factors};
+use diagnose::calibrate_plots;
 use formats::recording::Recording;
 use formats::robot_file;
 use std::path::{Path, PathBuf};
@@ -28,7 +30,8 @@ pub struct CalibrateArgs {
     /// Write the robot description with all fitted geometry.
     #[arg(long)]
     pub write_robot: Option<PathBuf>,
-    /// Write calibration.json, summary.txt, robot.toml (and ros2.yaml) into this folder.
+    /// Write calibration.json, summary.txt, robot.toml (and ros2.yaml), per-recording
+    /// path and error plots, a correlation plot, index.html and paths.mcap into this folder.
     #[arg(long)]
     pub report: Option<PathBuf>,
     /// Skip leave-one-out cross-validation.
@@ -208,7 +211,7 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         out.note(&format!("fitted robot: {}", p.display()));
     }
     if let Some(dir) = &a.report {
-        write_report(&cal, dir)
+        write_report(&cal, &robot, &recs, held.as_ref(), dir)
             .with_context(|| format!("cannot write the report into {}", dir.display()))?;
         out.note(&format!("report: {}", dir.display()));
     }
@@ -243,18 +246,50 @@ fn human(cal: &Calibration) -> String {
     s
 }
 
-fn write_report(cal: &Calibration, dir: &Path) -> Result<()> {
+/// The MCAP file of `calibrate --report`.
+pub const PATHS_MCAP: &str = "paths.mcap";
+
+/// Writes the `--report` folder: calibration.json, summary.txt, robot.toml, ros2.yaml
+/// (differential drive), the figures and index.html
+/// (`diagnose::calibrate_plots::write_calibration_figures`) and paths.mcap (per
+/// recording, held-out one included, `/<recording>/measured`, `/nominal`, `/fitted` at
+/// its pose samples).
+fn write_report(
+    cal: &Calibration,
+    robot: &Robot,
+    recs: &[(String, Recording)],
+    held: Option<&(String, Recording)>,
+    dir: &Path,
+) -> Result<()> {
     std::fs::create_dir_all(dir)?;
     std::fs::write(
         dir.join("calibration.json"),
         serde_json::to_string_pretty(cal)?,
     )?;
-    std::fs::write(dir.join("summary.txt"), human(cal))?;
+    let summary = human(cal);
+    std::fs::write(dir.join("summary.txt"), &summary)?;
     std::fs::write(dir.join("robot.toml"), cal.robot_toml())?;
     if let Some(y) = ros2_yaml(cal) {
         std::fs::write(dir.join("ros2.yaml"), y)?;
     }
-    Ok(())
+    let series = calibrate_plots::calibration_series(cal, robot, recs, held)
+        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    calibrate_plots::write_calibration_figures(cal, &series, &summary, dir)?;
+    let names: Vec<[String; 3]> = series
+        .iter()
+        .map(|s| ["measured", "nominal", "fitted"].map(|k| format!("{}/{k}", s.key)))
+        .collect();
+    let paths: Vec<PathSeries<'_>> = series
+        .iter()
+        .zip(&names)
+        .flat_map(|(s, n)| {
+            [&s.measured, &s.nominal, &s.fitted]
+                .into_iter()
+                .zip(n)
+                .map(|(xy, name)| PathSeries { name, t: &s.t, xy })
+        })
+        .collect();
+    write_paths_under("", &paths, &dir.join(PATHS_MCAP))
 }
 
 #[cfg(test)]

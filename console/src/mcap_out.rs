@@ -128,8 +128,8 @@ pub fn write_trial(info: &TrialInfo, recs: &[Record], out: &Path) -> Result<()> 
     o.finish()
 }
 
-/// One replayed path: a name (its topic is `/paths/<name>`), sample times (s) and
-/// positions `(x m, y m)`.
+/// One replayed path: a name (its topic is `/paths/<name>`, or `<prefix>/<name>` with
+/// [`write_paths_under`]), sample times (s) and positions `(x m, y m)`.
 pub struct PathSeries<'a> {
     /// The path's name (`measured`, `nominal`, `fitted`).
     pub name: &'a str,
@@ -140,12 +140,18 @@ pub struct PathSeries<'a> {
 }
 
 /// Writes replayed paths (e.g. nominal and fitted, from the diagnose report) as MCAP,
-/// one `wheelcal.Position2D` channel per path.
+/// one `wheelcal.Position2D` channel per path, on topic `/paths/<name>`.
 pub fn write_paths(paths: &[PathSeries<'_>], out: &Path) -> Result<()> {
+    write_paths_under("/paths", paths, out)
+}
+
+/// [`write_paths`] with the topics `<prefix>/<name>` (`prefix` empty: `/<name>`, as
+/// `calibrate --report` writes `/<recording>/measured`).
+pub fn write_paths_under(prefix: &str, paths: &[PathSeries<'_>], out: &Path) -> Result<()> {
     let mut o = Out::new(create(out)?)?;
     for p in paths {
         let ch = o.channel(
-            &format!("/paths/{}", p.name),
+            &format!("{prefix}/{}", p.name),
             "wheelcal.Position2D",
             json!({"type": "object", "properties": {
                 "t": {"type": "number"},

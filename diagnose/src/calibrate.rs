@@ -29,7 +29,7 @@ use std::fmt;
 
 /// Unit of the position residuals (m): only scales the cost, uncertainties use the
 /// observed scatter.
-const RES_UNIT_M: f64 = 1e-3;
+pub(crate) const RES_UNIT_M: f64 = 1e-3;
 /// Heading residuals count as position errors at this lever arm (m).
 const HEADING_LEVER_M: f64 = 0.1;
 /// Least pose samples per recording.
@@ -279,10 +279,10 @@ pub struct Series {
     pub t: Vec<f64>,
     /// Per row, per wheel: angle increment to the next row (rad).
     inc: Vec<Vec<f64>>,
-    pose_row: Vec<usize>,
-    px: Vec<f64>,
-    py: Vec<f64>,
-    pth: Vec<f64>,
+    pub(crate) pose_row: Vec<usize>,
+    pub(crate) px: Vec<f64>,
+    pub(crate) py: Vec<f64>,
+    pub(crate) pth: Vec<f64>,
 }
 
 impl Series {
@@ -362,7 +362,7 @@ impl Series {
     }
 
     /// Dead-reckoned path (x, y, theta per row from the origin).
-    fn path(&self, kin: &Kinematics<f64>, out: &mut Path) {
+    pub(crate) fn path(&self, kin: &Kinematics<f64>, out: &mut Path) {
         out.clear();
         let mut p = Pose::new(0.0, 0.0, 0.0);
         out.push(p);
@@ -374,10 +374,10 @@ impl Series {
 }
 
 #[derive(Debug, Clone, Default)]
-struct Path {
-    x: Vec<f64>,
-    y: Vec<f64>,
-    th: Vec<f64>,
+pub(crate) struct Path {
+    pub(crate) x: Vec<f64>,
+    pub(crate) y: Vec<f64>,
+    pub(crate) th: Vec<f64>,
 }
 
 impl Path {
@@ -423,7 +423,13 @@ impl Nuisance {
 }
 
 /// Residuals (ex, ey, lever * eth per pose sample, in RES_UNIT_M) of one recording.
-fn residuals_into(s: &Series, path: &Path, nu: &Nuisance, marker: (f64, f64), out: &mut Vec<f64>) {
+pub(crate) fn residuals_into(
+    s: &Series,
+    path: &Path,
+    nu: &Nuisance,
+    marker: (f64, f64),
+    out: &mut Vec<f64>,
+) {
     let t0 = s.t[0];
     let (c, sn) = (nu.theta0_rad.cos(), nu.theta0_rad.sin());
     let n = s.t.len();
@@ -1406,4 +1412,17 @@ impl fmt::Display for Calibration {
         }
         Ok(())
     }
+}
+
+/// Each recording's start pose and clocks fitted with the nominal geometry, exactly as
+/// [`calibrate`] fits its "before" (for the report's plots, `calibrate_plots`).
+pub(crate) fn nominal_nuisance(
+    robot: &Robot,
+    specs: &[ParamSpec],
+    series: &[Series],
+) -> Vec<Nuisance> {
+    let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
+    let p = Problem::new(robot, specs, series);
+    let r = solve(&p, &nominal, &nuisance_start(series), false);
+    r.nuis.chunks(NUIS).map(Nuisance::from).collect()
 }

@@ -17,6 +17,7 @@
 
 pub mod actuator;
 pub mod calibrate;
+pub mod calibrate_plots;
 pub mod effects;
 pub mod fit;
 pub mod ground;

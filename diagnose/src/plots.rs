@@ -235,9 +235,9 @@ pub fn plot_box<DB: DrawingBackend, CT: plotters::coord::CoordTranslate>(
     }
 }
 
-const BLUE: RGBColor = RGBColor(31, 119, 180);
-const ORANGE: RGBColor = RGBColor(255, 127, 14);
-const GREEN: RGBColor = RGBColor(44, 160, 44);
+pub(crate) const BLUE: RGBColor = RGBColor(31, 119, 180);
+pub(crate) const ORANGE: RGBColor = RGBColor(255, 127, 14);
+pub(crate) const GREEN: RGBColor = RGBColor(44, 160, 44);
 
 /// Boxes of the vertices of a line drawn with stroke `w`, in backend pixels.
 fn vertex_boxes<DB: DrawingBackend>(
@@ -258,6 +258,15 @@ pub fn path_chart<DB: DrawingBackend>(
     p: &PlotData,
     root: &DrawingArea<DB, Shift>,
 ) -> Result<Layout, String> {
+    path_chart_titled(p, root, "Path: measured, nominal model, fitted model")
+}
+
+/// [`path_chart`] with its own title.
+pub fn path_chart_titled<DB: DrawingBackend>(
+    p: &PlotData,
+    root: &DrawingArea<DB, Shift>,
+    title: &str,
+) -> Result<Layout, String> {
     let e = |e: DrawingAreaErrorKind<DB::ErrorType>| e.to_string();
     root.fill(&WHITE).map_err(e)?;
     let lines = [
@@ -265,12 +274,7 @@ pub fn path_chart<DB: DrawingBackend>(
         (&p.nominal, ORANGE, "nominal model"),
         (&p.fitted, BLUE, "fitted model"),
     ];
-    let body = root
-        .titled(
-            "Path: measured, nominal model, fitted model",
-            ("sans-serif", 20),
-        )
-        .map_err(e)?;
+    let body = root.titled(title, ("sans-serif", 20)).map_err(e)?;
     let (left, column) = split_for_legend(&body, &lines.map(|l| l.2));
     let (margin, xl, yl) = (10, 40, 60);
     let (w, h) = left.dim_in_pixel();
@@ -517,7 +521,7 @@ pub fn write_report_dir(r: &Report, dir: &Path) -> std::io::Result<()> {
     Ok(())
 }
 
-fn esc(s: &str) -> String {
+pub(crate) fn esc(s: &str) -> String {
     s.replace('&', "&amp;")
         .replace('<', "&lt;")
         .replace('>', "&gt;")

@@ -1,0 +1,379 @@
+//! `wheelcal calibrate --report DIR` end to end (issue 10): the folder holds the named
+//! files, the SVGs are well-formed XML with one polyline vertex per pose sample, and
+//! paths.mcap reads back with `/<recording>/measured|nominal|fitted` carrying every pose
+//! sample, the measured poses unchanged and the fitted error at the fit's RMSE.
+
+mod common;
+
+use calib_core::motion::{Direction, Program};
+use calib_core::robot::Robot;
+use diagnose::calibrate::{param_specs, robot_with};
+use formats::recording::Recording;
+use std::collections::BTreeMap;
+use std::path::Path;
+
+fn square(truth: &Robot, dir: Direction, seed: u64) -> Recording {
+    let mut cfg = sim::RecordConfig {
+        row_rate_hz: 50.0,
+        ..sim::RecordConfig::default()
+    };
+    cfg.sim.seed = seed;
+    let motion = sim::Motion::Program {
+        program: Box::new(Program::umbmark_square(1.0, dir)),
+        limits: Default::default(),
+    };
+    sim::record(truth, &[], sim::Surface::flat(), &motion, &cfg)
+        .unwrap()
+        .recording
+}
+
+/// An XML element: its name and attributes.
+type Element = (String, BTreeMap<String, String>);
+
+/// A small XML well-formedness check (no XML crate in the workspace): one root element,
+/// tags nest and close, attributes are quoted `name="value"` pairs, `&` starts an entity
+/// and text holds no `<`. Returns the elements as (name, attributes).
+fn parse_xml(text: &str) -> Result<Vec<Element>, String> {
+    let b = text.as_bytes();
+    let mut i = 0;
+    let mut stack: Vec<String> = Vec::new();
+    let mut elems = Vec::new();
+    let mut roots = 0;
+    let entity_ok = |s: &str| -> bool {
+        let mut rest = s;
+        while let Some(k) = rest.find('&') {
+            let tail = &rest[k + 1..];
+            let Some(end) = tail.find(';') else {
+                return false;
+            };
+            let name = &tail[..end];
+            let known = ["amp", "lt", "gt", "quot", "apos"].contains(&name)
+                || (name.starts_with('#') && name.len() > 1);
+            if !known {
+                return false;
+            }
+            rest = &tail[end + 1..];
+        }
+        true
+    };
+    while i < b.len() {
+        if b[i] != b'<' {
+            let k = text[i..].find('<').map_or(b.len(), |k| i + k);
+            let t = &text[i..k];
+            if stack.is_empty() && !t.trim().is_empty() {
+                return Err(format!("text outside the root: {t:?}"));
+            }
+            if !entity_ok(t) {
+                return Err(format!("bad entity in text {t:?}"));
+            }
+            i = k;
+            continue;
+        }
+        let rest = &text[i..];
+        if rest.starts_with("<?") {
+            i += rest.find("?>").ok_or("unclosed <?")? + 2;
+        } else if rest.starts_with("<!--") {
+            i += rest.find("-->").ok_or("unclosed comment")? + 3;
+        } else if rest.starts_with("<!") {
+            i += rest.find('>').ok_or("unclosed <!")? + 1;
+        } else if let Some(r) = rest.strip_prefix("</") {
+            let end = r.find('>').ok_or("unclosed end tag")?;
+            let name = r[..end].trim();
+            match stack.pop() {
+                Some(open) if open == name => {}
+                other => return Err(format!("</{name}> closes {other:?}")),
+            }
+            i += 2 + end + 1;
+        } else {
+            // Start tag: scan to the '>' outside quotes.
+            let mut j = 1;
+            let mut quote = None;
+            let rb = rest.as_bytes();
+            while j < rb.len() {
+                match (quote, rb[j]) {
+                    (None, b'"' | b'\'') => quote = Some(rb[j]),
+                    (Some(q), c) if c == q => quote = None,
+                    (None, b'>') => break,
+                    (None, b'<') => return Err("'<' inside a tag".into()),
+                    _ => {}
+                }
+                j += 1;
+            }
+            if j == rb.len() {
+                return Err("unclosed start tag".into());
+            }
+            let inner = &rest[1..j];
+            let self_closing = inner.ends_with('/');
+            let inner = inner.trim_end_matches('/');
+            let name_end = inner
+                .find(|c: char| c.is_whitespace())
+                .unwrap_or(inner.len());
+            let name = &inner[..name_end];
+            if name.is_empty()
+                || !name
+                    .chars()
+                    .all(|c| c.is_alphanumeric() || ":-_.".contains(c))
+            {
+                return Err(format!("bad element name {name:?}"));
+            }
+            let mut attrs = BTreeMap::new();
+            let mut a = inner[name_end..].trim_start();
+            while !a.is_empty() {
+                let eq = a
+                    .find('=')
+                    .ok_or(format!("attribute without value in <{name}>"))?;
+                let an = a[..eq].trim();
+                let v = a[eq + 1..].trim_start();
+                let q = v.chars().next().ok_or("empty attribute")?;
+                if q != '"' && q != '\'' {
+                    return Err(format!("unquoted attribute {an} in <{name}>"));
+                }
+                let close = v[1..].find(q).ok_or("unclosed attribute")?;
+                let value = &v[1..1 + close];
+                if !entity_ok(value) || value.contains('<') {
+                    return Err(format!("bad attribute value {value:?}"));
+                }
+                if attrs.insert(an.to_string(), value.to_string()).is_some() {
+                    return Err(format!("duplicate attribute {an} in <{name}>"));
+                }
+                a = v[1 + close + 1..].trim_start();
+            }
+            if stack.is_empty() {
+                roots += 1;
+            }
+            elems.push((name.to_string(), attrs));
+            if !self_closing {
+                stack.push(name.to_string());
+            }
+            i += j + 1;
+        }
+    }
+    if !stack.is_empty() {
+        return Err(format!("unclosed elements {stack:?}"));
+    }
+    if roots != 1 {
+        return Err(format!("{roots} root elements"));
+    }
+    Ok(elems)
+}
+
+/// Vertices of every polyline of an SVG.
+fn polylines(path: &Path) -> Vec<usize> {
+    let text = std::fs::read_to_string(path).unwrap();
+    let elems = parse_xml(&text).unwrap_or_else(|e| panic!("{}: {e}", path.display()));
+    assert_eq!(elems[0].0, "svg", "{}", path.display());
+    elems
+        .iter()
+        .filter(|(n, _)| n == "polyline")
+        .map(|(_, a)| a["points"].split_whitespace().count())
+        .collect()
+}
+
+#[test]
+fn the_xml_check_rejects_broken_svg() {
+    assert!(parse_xml("<svg a=\"1\"><g><polyline points=\"1,2 3,4\"/></g></svg>").is_ok());
+    for bad in [
+        "<svg><g></svg>",
+        "<svg a=1></svg>",
+        "<svg></svg><svg></svg>",
+        "<svg>a & b</svg>",
+        "<svg><text>x</tex></svg>",
+    ] {
+        assert!(parse_xml(bad).is_err(), "{bad}");
+    }
+}
+
+/// Messages per topic: (log time ns, JSON body).
+type Topics = BTreeMap<String, Vec<(u64, serde_json::Value)>>;
+
+fn read_mcap(path: &Path) -> Topics {
+    let bytes = std::fs::read(path).unwrap();
+    let mut by_topic = Topics::new();
+    for m in mcap::MessageStream::new(&bytes).unwrap() {
+        let m = m.unwrap();
+        assert_eq!(m.channel.message_encoding, "json");
+        by_topic
+            .entry(m.channel.topic.clone())
+            .or_default()
+            .push((m.log_time, serde_json::from_slice(&m.data).unwrap()));
+    }
+    by_topic
+}
+
+#[test]
+fn report_has_plots_index_and_mcap() {
+    let dir = common::scratch("calibrate-report");
+    let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
+    let specs = param_specs(&nominal, false);
+    let actual = robot_with(&nominal, &specs, &[0.99, 1.006, 1.03]);
+    let runs = [
+        ("cw", Direction::Cw, 3),
+        ("ccw", Direction::Ccw, 4),
+        ("held", Direction::Cw, 5),
+    ];
+    let mut recs = BTreeMap::new();
+    for (name, d, seed) in runs {
+        std::fs::create_dir_all(dir.join(name)).unwrap();
+        let file = dir.join(name).join("recording.csv");
+        square(&actual, d, seed).save(&file).unwrap();
+        // What the binary reads (the CSV's rounding included).
+        recs.insert(name, Recording::load(&file, &nominal).unwrap());
+    }
+    let report = dir.join("report");
+    let out = common::wheelcal()
+        .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
+        .arg(common::robot("mobolab"))
+        .arg("--recording")
+        .arg(dir.join("cw"))
+        .arg("--recording")
+        .arg(dir.join("ccw"))
+        .arg("--holdout")
+        .arg(dir.join("held"))
+        .arg("--report")
+        .arg(&report)
+        .output()
+        .unwrap();
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+
+    let mut files: Vec<String> = std::fs::read_dir(&report)
+        .unwrap()
+        .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+        .collect();
+    files.sort();
+    let mut want = vec![
+        "calibration.json",
+        "correlations.svg",
+        "error_ccw.svg",
+        "error_cw.svg",
+        "error_held.svg",
+        "index.html",
+        "path_ccw.svg",
+        "path_cw.svg",
+        "path_held.svg",
+        "paths.mcap",
+        "robot.toml",
+        "ros2.yaml",
+        "summary.txt",
+    ];
+    want.sort();
+    assert_eq!(files, want);
+
+    let cal: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(report.join("calibration.json")).unwrap())
+            .unwrap();
+    let poses = |name: &str| recs[name].pose_rows().count();
+    // The fit's RMSE of each recording (held out: dead reckoning from its first pose).
+    let mut rmse: BTreeMap<&str, (f64, f64)> = BTreeMap::new();
+    for (i, name) in ["cw", "ccw"].into_iter().enumerate() {
+        let p = &cal["per_recording"][i];
+        assert_eq!(p["name"], name);
+        assert_eq!(p["pose_samples"].as_u64().unwrap() as usize, poses(name));
+        rmse.insert(
+            name,
+            (
+                p["rmse_before_m"].as_f64().unwrap(),
+                p["rmse_after_m"].as_f64().unwrap(),
+            ),
+        );
+    }
+    let h = &cal["heldout"];
+    rmse.insert(
+        "held",
+        (
+            h["rmse_before_m"].as_f64().unwrap(),
+            h["rmse_after_m"].as_f64().unwrap(),
+        ),
+    );
+
+    // SVGs: well-formed; the path figure has its three lines (measured, nominal, fitted)
+    // and the error figure its two (nominal, fitted) with one vertex per pose sample.
+    for name in ["cw", "ccw", "held"] {
+        let n = poses(name);
+        let full = |f: &str| {
+            polylines(&report.join(f))
+                .into_iter()
+                .filter(|&k| k == n)
+                .count()
+        };
+        assert_eq!(full(&format!("path_{name}.svg")), 3, "path_{name}.svg");
+        assert_eq!(full(&format!("error_{name}.svg")), 2, "error_{name}.svg");
+    }
+    // The correlation figure prints every pair's correlation of the calibration.
+    let corr_svg = std::fs::read_to_string(report.join("correlations.svg")).unwrap();
+    parse_xml(&corr_svg).unwrap();
+    let corr = cal["correlations"].as_array().unwrap();
+    assert_eq!(corr.len(), 3, "scale, ed, eb");
+    // (plotters writes each text on a line of its own)
+    let texts: Vec<&str> = corr_svg.lines().map(str::trim).collect();
+    for (a, row) in corr.iter().enumerate() {
+        for (b, v) in row.as_array().unwrap().iter().enumerate() {
+            if a != b {
+                let s = format!("{:+.2}", v.as_f64().unwrap());
+                assert!(texts.contains(&s.as_str()), "{s} not in correlations.svg");
+            }
+        }
+    }
+    let index = std::fs::read_to_string(report.join("index.html")).unwrap();
+    for f in want.iter().filter(|f| f.ends_with(".svg")) {
+        assert!(
+            index.contains(&format!("src=\"{f}\"")),
+            "index.html lacks {f}"
+        );
+    }
+    assert!(
+        index.contains("firmware factors"),
+        "the summary is in index.html"
+    );
+
+    // MCAP: 3 topics per recording, one message per pose sample.
+    let topics = read_mcap(&report.join("paths.mcap"));
+    let mut want_topics: Vec<String> = ["cw", "ccw", "held"]
+        .iter()
+        .flat_map(|n| ["measured", "nominal", "fitted"].map(|k| format!("/{n}/{k}")))
+        .collect();
+    want_topics.sort();
+    assert_eq!(topics.keys().cloned().collect::<Vec<_>>(), want_topics);
+    for name in ["cw", "ccw", "held"] {
+        let rec = &recs[name];
+        let n = poses(name);
+        let get = |k: &str| &topics[&format!("/{name}/{k}")];
+        for k in ["measured", "nominal", "fitted"] {
+            assert_eq!(get(k).len(), n, "/{name}/{k}");
+        }
+        // Measured: the recording's poses unchanged (serde_json's default float parser
+        // may land one unit in the last place off: 4 eps relative, 1e-300 m absolute
+        // for zeros), stamped at the row's time since the first row (to the nanosecond).
+        let same = |a: f64, b: f64| (a - b).abs() <= 4.0 * f64::EPSILON * b.abs() + 1e-300;
+        for ((row, x, y, _), (t_ns, m)) in rec.pose_rows().zip(get("measured")) {
+            let (mx, my) = (m["x"].as_f64().unwrap(), m["y"].as_f64().unwrap());
+            assert!(same(mx, x) && same(my, y), "({mx}, {my}) vs ({x}, {y})");
+            let t = rec.t[row] - rec.t[0];
+            assert_eq!(*t_ns, (t * 1e9).round() as u64);
+        }
+        // The position error of the MCAP's paths is the fit's: its RMS equals the
+        // calibration's RMSE to 1e-9 relative (positions near 1 m, errors near 1 mm: the
+        // subtraction loses at most ~1e-13 relative).
+        for (k, want) in [("nominal", rmse[name].0), ("fitted", rmse[name].1)] {
+            let ms = get("measured");
+            let sq: f64 = get(k)
+                .iter()
+                .zip(ms)
+                .map(|((_, a), (_, b))| {
+                    let dx = a["x"].as_f64().unwrap() - b["x"].as_f64().unwrap();
+                    let dy = a["y"].as_f64().unwrap() - b["y"].as_f64().unwrap();
+                    dx * dx + dy * dy
+                })
+                .sum();
+            let got = (sq / n as f64).sqrt();
+            assert!(
+                (got - want).abs() <= 1e-9 * want,
+                "/{name}/{k}: RMS {got} vs calibration {want}"
+            );
+        }
+    }
+    let _ = std::fs::remove_dir_all(&dir);
+}
