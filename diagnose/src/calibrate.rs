@@ -53,6 +53,9 @@ pub enum GeomKind {
     Alpha(usize),
     /// Actual / nominal distance of one wheel from the centre.
     L(usize),
+    /// Mecanum: roller angle offset shared by every mecanum wheel, rad; each wheel's
+    /// |gamma| grows by it (left- and right-handed rollers mirror each other).
+    Gamma,
     /// Where motion capture tracks, body frame, m (a recording parameter shared by the
     /// recordings of one rig: a marker set not at the kinematic centre).
     MarkerX,
@@ -105,6 +108,10 @@ pub const ED_RANGE: f64 = 0.03;
 pub const BASE_RANGE: f64 = 0.08;
 /// Mounting angle, rad (3 degrees).
 pub const ALPHA_RANGE: f64 = 3.0 * std::f64::consts::PI / 180.0;
+/// Roller angle of a mecanum wheel set, rad (3 degrees: moulding tolerance and roller wear).
+pub const GAMMA_RANGE: f64 = 3.0 * std::f64::consts::PI / 180.0;
+/// A wheel with |gamma| above this (rad, 1 degree) is a mecanum wheel.
+pub const MECANUM_MIN_GAMMA: f64 = std::f64::consts::PI / 180.0;
 
 const SCALE_STANDS: &str = "a wrong nominal diameter, gear ratio or encoder resolution (counts_per_rev_error), or longitudinal slip";
 const ED_STANDS: &str =
@@ -118,6 +125,47 @@ pub const MARKER_RANGE: f64 = 0.02;
 const MARKER_STANDS: &str =
     "a marker set far from the kinematic centre, or wheel slip in turns in place";
 const L_STANDS: &str = "scrub in rotation or a radius error the motion does not separate";
+const GAMMA_STANDS: &str =
+    "rollers slipping along their axles, or wheels mounted at other angles (per-wheel alpha, l and radius)";
+
+/// True when some wheel has angled rollers (mecanum), so a roller angle can be fitted.
+pub fn is_mecanum(robot: &Robot) -> bool {
+    robot.kind == RobotKind::Omni
+        && robot
+            .wheels
+            .iter()
+            .any(|w| w.gamma_rad.abs() > MECANUM_MIN_GAMMA)
+}
+
+/// The roller model of a mecanum robot: per-wheel radius scales and one shared roller
+/// angle offset (with `marker`: the motion-capture marker offset too). In the kinematics a
+/// wheel's roller angle is exactly a combination of its mounting angle, distance and
+/// radius, so this is the parsimonious alternative to [`param_specs`]' full model, not an
+/// addition to it.
+pub fn roller_specs(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
+    let mut v: Vec<ParamSpec> = param_specs(robot, marker)
+        .into_iter()
+        .filter(|s| {
+            matches!(
+                s.kind,
+                GeomKind::Radius(_) | GeomKind::MarkerX | GeomKind::MarkerY
+            )
+        })
+        .collect();
+    let at = robot.wheels.len().min(v.len());
+    v.insert(
+        at,
+        spec(
+            GeomKind::Gamma,
+            "roller_angle_offset_rad".into(),
+            "roller_angle_error",
+            0.0,
+            GAMMA_RANGE,
+            GAMMA_STANDS,
+        ),
+    );
+    v
+}
 
 /// The parameters fitted for `robot` (with `marker`: the motion-capture marker offset
 /// too, for omni robots).
@@ -221,6 +269,7 @@ pub fn param_specs(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
 pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
     let n = base.wheels.len();
     let (mut rs, mut ls, mut da) = (vec![1.0; n], vec![1.0; n], vec![0.0; n]);
+    let mut dg = 0.0;
     for (s, &x) in specs.iter().zip(values) {
         match s.kind {
             GeomKind::Scale => rs.iter_mut().for_each(|r| *r *= x),
@@ -238,6 +287,7 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
             GeomKind::Radius(i) => rs[i] *= x,
             GeomKind::Alpha(i) => da[i] += x,
             GeomKind::L(i) => ls[i] *= x,
+            GeomKind::Gamma => dg += x,
             GeomKind::MarkerX | GeomKind::MarkerY => {}
         }
     }
@@ -246,6 +296,9 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
         w.radius_m *= rs[i];
         w.l_m *= ls[i];
         w.alpha_rad += da[i];
+        if w.gamma_rad.abs() > MECANUM_MIN_GAMMA {
+            w.gamma_rad += w.gamma_rad.signum() * dg;
+        }
     }
     r
 }
@@ -696,6 +749,8 @@ pub struct WheelGeometry {
     pub l_m: f64,
     /// Fitted mounting angle (direction of the wheel's position), degrees.
     pub alpha_deg: f64,
+    /// Roller angle, degrees (fitted for mecanum wheels in the roller model).
+    pub gamma_deg: f64,
 }
 
 /// Firmware correction factors.
@@ -865,10 +920,95 @@ fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
             .into()
     } else if pair(Scale, Eb) || matches!((a.kind, b.kind), (Radius(_), L(_)) | (L(_), Radius(_))) {
         "add a straight run of known length and a turn in place".into()
+    } else if a.kind == Gamma || b.kind == Gamma {
+        "add sideways and diagonal translations: the roller angle moves them, wheel size moves all motion alike".into()
     } else if matches!(a.kind, Alpha(_)) || matches!(b.kind, Alpha(_)) {
         "add pure translations in several directions without rotation, and a turn in place".into()
     } else {
         "add motion that moves them differently: straight runs both ways and turns in place both ways".into()
+    }
+}
+
+/// One joint fit of `specs` from nominal (nuisance first, then geometry with the prior
+/// weighed by the data): the fit, its residual variance x autocorrelation inflation, and
+/// its covariance.
+fn fit_specs(
+    robot: &Robot,
+    specs: &[ParamSpec],
+    series: &[Series],
+) -> (Solved, f64, DMatrix<f64>, usize) {
+    let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
+    let mut p = Problem::new(robot, specs, series);
+    let before = solve(&p, &nominal, &nuisance_start(series), false);
+    p.prior_scale = noise_scale(&p, &before);
+    let first = solve(&p, &nominal, &before.nuis, true);
+    p.prior_scale = noise_scale(&p, &first);
+    let f = solve(&p, &first.geom, &first.nuis, true);
+    let var = noise_scale(&p, &f).powi(2);
+    let (cov, _) = covariance(&p, &f);
+    let runs = before.evaluations + first.evaluations + f.evaluations;
+    (f, var, cov, runs)
+}
+
+/// 0.999 quantile of chi-squared with `k` degrees of freedom (Wilson-Hilferty; within
+/// 1 % of the tables for k >= 1).
+fn chi2_999(k: usize) -> f64 {
+    let k = k.max(1) as f64;
+    let a = 2.0 / (9.0 * k);
+    k * (1.0 - a + 3.0902 * a.sqrt()).powi(3)
+}
+
+/// The parameters to fit. For a mecanum robot the roller angle is fitted when the data
+/// ask for it: the roller model (radii and one roller angle) is chosen when its angle is
+/// significant (3 sigma) and it fits as well as the full per-wheel model (likelihood
+/// ratio below the 0.999 quantile for the parameters it saves). Says which and why.
+fn choose_specs(
+    robot: &Robot,
+    series: &[Series],
+    marker: bool,
+    notes: &mut Vec<String>,
+    runs: &mut usize,
+) -> Vec<ParamSpec> {
+    let full = param_specs(robot, marker);
+    if !is_mecanum(robot) {
+        return full;
+    }
+    let roller = roller_specs(robot, marker);
+    let (f_full, var_full, _, r1) = fit_specs(robot, &full, series);
+    let (f_roller, _, cov_roller, r2) = fit_specs(robot, &roller, series);
+    *runs += r1 + r2;
+    let gi = roller
+        .iter()
+        .position(|s| s.kind == GeomKind::Gamma)
+        .unwrap_or(0);
+    let (dg, sg) = (f_roller.geom[gi], cov_roller[(gi, gi)].max(0.0).sqrt());
+    let k = full.len() - roller.len();
+    let stat = (f_roller.data_cost - f_full.data_cost).max(0.0) / var_full.max(1e-300);
+    let q = chi2_999(k);
+    let significant = dg.abs() >= 3.0 * sg;
+    let as_good = stat <= q;
+    let deg = |v: f64| v.to_degrees();
+    if significant && as_good {
+        notes.push(format!(
+            "mecanum: one roller angle offset ({:+.3} ± {:.3} deg) explains the data as well as per-wheel angles, distances and radii (likelihood ratio {stat:.1} <= {q:.1} for {k} fewer parameters): the roller model is fitted",
+            deg(dg),
+            deg(sg)
+        ));
+        roller
+    } else {
+        let why = if significant {
+            format!("a roller angle alone ({:+.3} ± {:.3} deg) leaves a likelihood ratio of {stat:.1} > {q:.1} against per-wheel geometry", deg(dg), deg(sg))
+        } else {
+            format!(
+                "the roller angle is not asked for by the data ({:+.3} ± {:.3} deg)",
+                deg(dg),
+                deg(sg)
+            )
+        };
+        notes.push(format!(
+            "mecanum: {why}; per-wheel angles, distances and radii are fitted (in the kinematics a wheel's roller angle is a combination of them)"
+        ));
+        full
     }
 }
 
@@ -902,15 +1042,16 @@ pub fn calibrate(
         .map(|(n, r)| Series::new(n, robot, r))
         .collect::<Result<Vec<_>, _>>()?;
     let held = holdout.map(|(n, r)| Series::new(n, robot, r)).transpose()?;
-    let specs = param_specs(robot, opts.marker_offset);
-    let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
     let mut notes = Vec::new();
+    let mut runs = 0;
+    let specs = choose_specs(robot, &series, opts.marker_offset, &mut notes, &mut runs);
+    let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
 
     // Nominal geometry, nuisance fitted: the "before".
     let mut p = Problem::new(robot, &specs, &series);
     let before = solve(&p, &nominal, &nuisance_start(&series), false);
     let before_res = p.residuals(&nominal, &before.nuis, false);
-    let mut runs = before.evaluations;
+    runs += before.evaluations;
 
     // Joint fit, the prior weighed by the nominal residuals first (directions the data
     // do not constrain must not wander off while the fit starts).
@@ -1120,6 +1261,7 @@ pub fn calibrate(
             radius_m: w.radius_m,
             l_m: w.l_m,
             alpha_deg: w.alpha_rad.to_degrees(),
+            gamma_deg: w.gamma_rad.to_degrees(),
         })
         .collect();
     let factors = if specs.iter().any(|s| s.kind == GeomKind::Ed) {
@@ -1140,12 +1282,14 @@ pub fn calibrate(
             e_b: eb,
         }
     } else {
-        if specs
-            .iter()
-            .any(|s| matches!(s.kind, GeomKind::Alpha(_) | GeomKind::L(_)))
-        {
+        if specs.iter().any(|s| {
+            matches!(
+                s.kind,
+                GeomKind::Alpha(_) | GeomKind::L(_) | GeomKind::Gamma
+            )
+        }) {
             notes.push(
-                "wheel angle and position have no firmware factor: use --write-robot to carry them"
+                "wheel angle, position and roller angle have no firmware factor: use --write-robot to carry them"
                     .into(),
             );
         }
@@ -1297,11 +1441,15 @@ impl fmt::Display for Calibration {
             )?;
         }
         for w in &self.geometry {
-            writeln!(
+            write!(
                 f,
                 "  wheel {:<8} radius {:.5} m, l {:.5} m, alpha {:.3} deg",
                 w.name, w.radius_m, w.l_m, w.alpha_deg
             )?;
+            if w.gamma_deg.abs() > MECANUM_MIN_GAMMA.to_degrees() {
+                write!(f, ", gamma {:.3} deg", w.gamma_deg)?;
+            }
+            writeln!(f)?;
         }
         match &self.factors {
             Factors::Diff { c_l, c_r, e_b } => writeln!(

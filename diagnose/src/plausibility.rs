@@ -2,7 +2,7 @@
 //! property of the robot: it most likely stands in for something the catalogue lacks,
 //! so it is listed `implausible` (with that guess) and never becomes the verdict.
 
-use crate::calibrate::{ALPHA_RANGE, BASE_RANGE, ED_RANGE, RADIUS_RANGE};
+use crate::calibrate::{ALPHA_RANGE, BASE_RANGE, ED_RANGE, GAMMA_RANGE, RADIUS_RANGE};
 use crate::Finding;
 use serde::Serialize;
 
@@ -32,6 +32,12 @@ pub fn range(parameter: &str) -> Option<((f64, f64), &'static str)> {
     }
     if parameter.starts_with("alpha_offset_rad_") {
         return Some((around(0.0, ALPHA_RANGE), "rollers slipping sideways"));
+    }
+    if parameter == "roller_angle_offset_rad" {
+        return Some((
+            around(0.0, GAMMA_RANGE),
+            "rollers slipping along their axles, or wheels mounted at other angles",
+        ));
     }
     if parameter.starts_with("l_scale_") {
         return Some((around(1.0, BASE_RANGE), "scrub in rotation"));

@@ -132,6 +132,112 @@ fn omni_robots_recovered_from_free_motion() {
     }
 }
 
+/// A 4-wheel mecanum robot (X rollers at 45 degrees, wheels at the corners of a
+/// 0.2 m square, axles along y), the layout of most mecanum platforms.
+fn mecanum() -> Robot {
+    let mut t = String::from(
+        "name = \"mecanum4\"\nkind = \"omni\"\n[drive]\ntype = \"dc\"\ngear_ratio = 1.0\nencoder_counts_per_rev = 1920\n",
+    );
+    // (name, alpha, beta, gamma): alpha + beta = 90 deg puts every wheel plane along x.
+    for (n, a, g) in [
+        ("fl", 45.0, -45.0),
+        ("fr", -45.0, 45.0),
+        ("rl", 135.0, 45.0),
+        ("rr", -135.0, -45.0),
+    ] {
+        t.push_str(&format!(
+            "[[wheels]]\nname = \"{n}\"\nradius_m = 0.03\nalpha_deg = {a}\nl_m = 0.14142135623730953\nbeta_deg = {}\ngamma_deg = {g}\n",
+            90.0 - a
+        ));
+    }
+    formats::robot_file::parse(&t, Path::new("mecanum4.toml")).unwrap()
+}
+
+/// Mecanum rollers 2 degrees steeper than nominal (and radii a little off): the data ask
+/// for the roller angle, the roller model is chosen over the 12 per-wheel numbers, and
+/// the angle comes back within its stated uncertainty.
+#[test]
+fn mecanum_roller_angle_is_fitted_when_the_data_ask() {
+    let nominal = mecanum();
+    let specs = diagnose::calibrate::roller_specs(&nominal, false);
+    assert_eq!(specs.len(), 5, "four radii and one roller angle");
+    let truth = [1.01, 0.99, 1.0, 1.005, 2f64.to_radians()];
+    let ordered: Vec<f64> = specs
+        .iter()
+        .map(|s| match s.name.as_str() {
+            "roller_angle_offset_rad" => truth[4],
+            n => {
+                truth[[
+                    "radius_scale_fl",
+                    "radius_scale_fr",
+                    "radius_scale_rl",
+                    "radius_scale_rr",
+                ]
+                .iter()
+                .position(|w| *w == n)
+                .unwrap()]
+            }
+        })
+        .collect();
+    let actual = robot_with(&nominal, &specs, &ordered);
+    assert!((actual.wheels[0].gamma_rad.to_degrees() + 47.0).abs() < 1e-9);
+    assert!((actual.wheels[1].gamma_rad.to_degrees() - 47.0).abs() < 1e-9);
+    let recs = vec![("free".to_string(), random(&actual, 60.0, 9).recording)];
+    let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    assert!(
+        c.notes
+            .iter()
+            .any(|n| n.contains("the roller model is fitted")),
+        "{c}"
+    );
+    assert!(c.implausible.is_empty(), "{:?}\n{c}", c.implausible);
+    // 0.1 deg floor: what the simulator's contact model does that rigid kinematics does not.
+    assert_recovered(&c, &ordered, 2e-3);
+    let g = c
+        .params
+        .iter()
+        .find(|p| p.name == "roller_angle_offset_rad")
+        .unwrap();
+    assert!((g.value.to_degrees() - 2.0).abs() < 0.2, "{c}");
+    // The fitted robot carries the roller angle: |gamma| 47 degrees on every wheel.
+    for w in &c.geometry {
+        assert!(
+            (w.gamma_deg.abs() - 47.0).abs() < 0.2,
+            "{}: {}",
+            w.name,
+            w.gamma_deg
+        );
+    }
+    assert!(c.joint_rmse_after_m < 2e-3, "{c}");
+}
+
+/// Mounting errors per wheel (no roller error) on the same mecanum robot: one roller angle
+/// cannot explain them, so the full per-wheel model is kept and the note says why.
+#[test]
+fn mecanum_mounting_errors_keep_the_per_wheel_model() {
+    let nominal = mecanum();
+    let specs = param_specs(&nominal, false);
+    let mut truth = vec![1.01, 0.99, 1.0, 1.005];
+    truth.extend([0.02, -0.025, 0.0, 0.015]);
+    truth.extend([1.03, 0.98, 1.0, 0.985]);
+    let actual = robot_with(&nominal, &specs, &truth);
+    let recs = vec![("free".to_string(), random(&actual, 60.0, 9).recording)];
+    let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    assert!(
+        c.params.iter().all(|p| p.name != "roller_angle_offset_rad"),
+        "{c}"
+    );
+    assert!(
+        c.notes
+            .iter()
+            .any(|n| n.starts_with("mecanum:") && n.contains("per-wheel angles")),
+        "{c}"
+    );
+    assert!(c.joint_rmse_after_m < 2e-3, "{c}");
+}
+
 #[test]
 fn wheeled_legged_is_refused_clearly() {
     let nominal = robot("wlr");
