@@ -170,8 +170,11 @@ pub fn roller_specs(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
 /// The parameters fitted for `robot` (with `marker`: the motion-capture marker offset
 /// too, for omni robots).
 pub fn param_specs(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
-    let two_wheel_diff = robot.kind == RobotKind::DiffDrive && robot.wheels.len() == 2;
-    if two_wheel_diff {
+    // A wheeled-legged robot steers like a skid-steer pair: its encoders fix a left and a
+    // right wheel size and a track, not four radii (consistent wheels are averaged).
+    let left_right = (robot.kind == RobotKind::DiffDrive && robot.wheels.len() == 2)
+        || robot.kind == RobotKind::WheeledLegged;
+    if left_right {
         return vec![
             spec(
                 GeomKind::Scale,
@@ -336,6 +339,9 @@ pub struct Series {
     pub(crate) px: Vec<f64>,
     pub(crate) py: Vec<f64>,
     pub(crate) pth: Vec<f64>,
+    /// Wheeled-legged robots: (front, rear) leg angles per row, rad; they move the wheel
+    /// contacts along x, so the kinematics follow them.
+    legs: Option<Vec<(f64, f64)>>,
 }
 
 impl Series {
@@ -398,6 +404,32 @@ impl Series {
             )));
         }
         unwrap_angles(&mut pth);
+        let legs = if robot.kind == RobotKind::WheeledLegged {
+            let fill = |col: &Option<Vec<Option<f64>>>, which: &str| {
+                let cells = col.as_ref().ok_or_else(|| {
+                    err(format!("no {which} leg angle column (a wheeled-legged robot's wheels move with its legs)"))
+                })?;
+                let mut last = cells
+                    .iter()
+                    .find_map(|c| *c)
+                    .ok_or_else(|| err(format!("the {which} leg angle column is empty")))?;
+                Ok::<Vec<f64>, CalibrateError>(
+                    cells
+                        .iter()
+                        .map(|c| {
+                            if let Some(v) = c {
+                                last = *v;
+                            }
+                            last
+                        })
+                        .collect(),
+                )
+            };
+            let (f, r) = (fill(&rec.leg_front, "front")?, fill(&rec.leg_rear, "rear")?);
+            Some(f.into_iter().zip(r).collect())
+        } else {
+            None
+        };
         Ok(Series {
             name: name.to_string(),
             t: rec.t.clone(),
@@ -406,6 +438,7 @@ impl Series {
             px,
             py,
             pth,
+            legs,
         })
     }
 
@@ -414,15 +447,39 @@ impl Series {
         self.pose_row.len()
     }
 
-    /// Dead-reckoned path (x, y, theta per row from the origin).
-    pub(crate) fn path(&self, kin: &Kinematics<f64>, out: &mut Path) {
+    /// Dead-reckoned path (x, y, theta per row from the origin) of `robot`, whose
+    /// kinematics at its described geometry are `kin`. On a wheeled-legged robot the
+    /// kinematics follow the leg angles (rebuilt only when they move). False when the
+    /// wheels cannot resolve the body twist at some leg pose.
+    pub(crate) fn path(&self, robot: &Robot, kin: &Kinematics<f64>, out: &mut Path) -> bool {
         out.clear();
         let mut p = Pose::new(0.0, 0.0, 0.0);
         out.push(p);
-        for inc in &self.inc {
-            p = integrate_arc(p, &kin.forward(inc));
+        let Some(legs) = &self.legs else {
+            for inc in &self.inc {
+                p = integrate_arc(p, &kin.forward(inc));
+                out.push(p);
+            }
+            return true;
+        };
+        let mut at: Option<((f64, f64), Kinematics<f64>)> = None;
+        for (k, inc) in self.inc.iter().enumerate() {
+            let l = legs[k];
+            if at
+                .as_ref()
+                .is_none_or(|(a, _)| (a.0 - l.0).abs() > 1e-6 || (a.1 - l.1).abs() > 1e-6)
+            {
+                let r = crate::ground::geometry_at(robot, &[], 1.0, Some(l));
+                let Ok(kl) = Kinematics::<f64>::new(&r, &Corrections::None) else {
+                    return false;
+                };
+                at = Some((l, kl));
+            }
+            let kl = &at.as_ref().expect("set above").1;
+            p = integrate_arc(p, &kl.forward(inc));
             out.push(p);
         }
+        true
     }
 }
 
@@ -530,7 +587,9 @@ fn position_rmse(r: &[f64]) -> f64 {
 pub fn dead_reckoning_rmse(robot: &Robot, s: &Series) -> Option<f64> {
     let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
     let mut path = Path::default();
-    s.path(&kin, &mut path);
+    if !s.path(robot, &kin, &mut path) {
+        return None;
+    }
     let k0 = s.pose_row[0];
     let dth = s.pth[0] - path.th[k0];
     let (c, sn) = (dth.cos(), dth.sin());
@@ -597,7 +656,10 @@ impl<'a> Problem<'a> {
             return false;
         };
         for (s, p) in self.series.iter().zip(c.1.iter_mut()) {
-            s.path(&kin, p);
+            if !s.path(&r, &kin, p) {
+                c.0 = vec![f64::NAN];
+                return false;
+            }
         }
         c.0 = geom.to_vec();
         true
@@ -1023,12 +1085,6 @@ pub fn calibrate(
         return Err(CalibrateError {
             recording: None,
             message: "no recording given".into(),
-        });
-    }
-    if robot.kind == RobotKind::WheeledLegged {
-        return Err(CalibrateError {
-            recording: None,
-            message: "calibrate fits differential and omni geometry; wheeled-legged robots are not supported".into(),
         });
     }
     if Kinematics::<f64>::new(robot, &Corrections::None).is_err() {

@@ -172,10 +172,12 @@ pub fn calibration_series(
     };
     let marker = (at(GeomKind::MarkerX), at(GeomKind::MarkerY));
     let kin = |g: &[f64]| {
-        Kinematics::<f64>::new(&robot_with(robot, &specs, g), &Corrections::None)
+        let r = robot_with(robot, &specs, g);
+        Kinematics::<f64>::new(&r, &Corrections::None)
+            .map(|k| (r, k))
             .map_err(|_| err("the robot's wheels cannot resolve the body twist".into()))
     };
-    let (kin_nom, kin_fit) = (kin(&nominal)?, kin(&geom)?);
+    let ((r_nom, kin_nom), (r_fit, kin_fit)) = (kin(&nominal)?, kin(&geom)?);
     let series = recordings
         .iter()
         .map(|(n, r)| Series::new(n, robot, r))
@@ -188,8 +190,8 @@ pub fn calibration_series(
     // offset (as `dead_reckoning_rmse`).
     let mut one = |s: &Series, nuis: Option<(Nuisance, Nuisance)>| {
         let (mut p_nom, mut p_fit) = (DrPath::default(), DrPath::default());
-        s.path(&kin_nom, &mut p_nom);
-        s.path(&kin_fit, &mut p_fit);
+        s.path(&r_nom, &kin_nom, &mut p_nom);
+        s.path(&r_fit, &kin_fit, &mut p_fit);
         let ((nom, e_nom), (fit, e_fit)) = match nuis {
             Some((nu_nom, nu_fit)) => (
                 placed(s, &p_nom, &nu_nom, (0.0, 0.0)),
