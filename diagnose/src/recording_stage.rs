@@ -177,7 +177,24 @@ fn sample_glitches(rec: &mut Recording) -> Option<Artefact> {
                 ((None, ..), (None, ..)) => true,
                 _ => false,
             };
-            if e2 == e1 && same_pose && moving(&e0, &e1) && moving(&e2, &e3) {
+            // A wheel turning at least 2 counts per row on both sides cannot stand still
+            // for one row: a still row there is a stale sample, not slow motion (at high
+            // row rates slow wheels leave many honest rows unchanged).
+            let fast =
+                |a: &[Option<i64>], b: &[Option<i64>], c: &[Option<i64>], d: &[Option<i64>]| {
+                    (0..a.len()).any(|i| match (a[i], b[i], c[i], d[i]) {
+                        (Some(a), Some(b), Some(c), Some(d)) => {
+                            (b - a).abs() >= 2 && (d - c).abs() >= 2
+                        }
+                        _ => false,
+                    })
+                };
+            if e2 == e1
+                && same_pose
+                && moving(&e0, &e1)
+                && moving(&e2, &e3)
+                && fast(&e0, &e1, &e2, &e3)
+            {
                 *d = true;
                 a.duplicated_at_s.push(rec.t[k]);
             }
