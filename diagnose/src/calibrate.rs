@@ -371,21 +371,15 @@ impl Series {
                     w.name
                 ))
             })?;
-            let mut last = cells
-                .iter()
-                .find_map(|c| *c)
+            let counts = crate::replay::fill(cells)
                 .ok_or_else(|| err(format!("the encoder column of wheel '{}' is empty", w.name)))?;
-            let c0 = last;
-            let a: Vec<f64> = cells
-                .iter()
-                .map(|c| {
-                    if let Some(v) = c {
-                        last = *v;
-                    }
-                    (last - c0) as f64 * rpc
-                })
-                .collect();
-            angles.push(a);
+            let c0 = counts[0];
+            angles.push(
+                counts
+                    .iter()
+                    .map(|c| (c - c0) as f64 * rpc)
+                    .collect::<Vec<f64>>(),
+            );
         }
         let inc = (0..n.saturating_sub(1))
             .map(|k| angles.iter().map(|a| a[k + 1] - a[k]).collect())
@@ -409,21 +403,8 @@ impl Series {
                 let cells = col.as_ref().ok_or_else(|| {
                     err(format!("no {which} leg angle column (a wheeled-legged robot's wheels move with its legs)"))
                 })?;
-                let mut last = cells
-                    .iter()
-                    .find_map(|c| *c)
-                    .ok_or_else(|| err(format!("the {which} leg angle column is empty")))?;
-                Ok::<Vec<f64>, CalibrateError>(
-                    cells
-                        .iter()
-                        .map(|c| {
-                            if let Some(v) = c {
-                                last = *v;
-                            }
-                            last
-                        })
-                        .collect(),
-                )
+                crate::replay::fill(cells)
+                    .ok_or_else(|| err(format!("the {which} leg angle column is empty")))
             };
             let (f, r) = (fill(&rec.leg_front, "front")?, fill(&rec.leg_rear, "rear")?);
             Some(f.into_iter().zip(r).collect())

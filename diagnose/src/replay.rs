@@ -94,7 +94,7 @@ pub fn unwrap_angles(theta: &mut [f64]) {
 
 /// Holds the last measured value over blank cells (and the first one before it);
 /// `None` when the column has no value at all.
-fn fill<T: Copy>(cells: &[Option<T>]) -> Option<Vec<T>> {
+pub(crate) fn fill<T: Copy>(cells: &[Option<T>]) -> Option<Vec<T>> {
     let first = cells.iter().find_map(|c| *c)?;
     let mut last = first;
     Some(
