@@ -46,56 +46,69 @@ impl<'a> Frame<'a> {
     }
 }
 
+/// Most bytes COBS adds to `n` bytes (one per 254, plus the first code byte).
+const fn cobs_overhead(n: usize) -> usize {
+    n / 254 + 1
+}
+
 /// Encodes `msg` as a complete frame (delimiter included) into `out`, returning the wire
 /// bytes. `out` of [`MAX_WIRE`] bytes fits any message of this protocol.
 ///
-/// One pass, no scratch copy: postcard serialises `seq` and the body through its CRC
-/// flavour (which appends the CRC-32) into its COBS flavour (which stuffs the bytes as
-/// they come and adds the delimiter) into `out`.
+/// No scratch buffer: postcard writes `seq | body` at an offset inside `out`, the CRC-32
+/// is computed over it in one pass and appended, and the `cobs` crate's encoder state
+/// machine stuffs the bytes towards the start of `out` (its output index never overtakes
+/// its input index when the input starts at least the COBS overhead in).
 pub fn encode<'o, T: Serialize + ?Sized>(
     seq: u16,
     msg: &T,
     out: &'o mut [u8],
 ) -> Result<&'o [u8], FrameError> {
     let cap = out.len().min(MAX_WIRE);
-    let wire =
-        postcard::ser_flavors::Cobs::try_new(postcard::ser_flavors::Slice::new(&mut out[..cap]))
-            .map_err(|_| FrameError::TooLong)?;
-    let crc = postcard::ser_flavors::crc::CrcModifier::new(wire, CRC32.digest());
-    let limited = Limit {
-        inner: crc,
-        left: MAX_PAYLOAD - CRC_LEN,
-    };
-    // A `[u8; 2]` is a postcard tuple: the two bytes verbatim, no length prefix.
-    let n = postcard::serialize_with_flavor(&(seq.to_le_bytes(), msg), limited)
+    let raw_max = MAX_PAYLOAD.min(cap.saturating_sub(cobs_overhead(cap) + 1));
+    let off = cobs_overhead(raw_max);
+    if raw_max < SEQ_LEN + CRC_LEN {
+        return Err(FrameError::TooLong);
+    }
+    let raw = &mut out[off..off + raw_max];
+    raw[..SEQ_LEN].copy_from_slice(&seq.to_le_bytes());
+    let body_len = postcard::to_slice(msg, &mut raw[SEQ_LEN..raw_max - CRC_LEN])
         .map_err(|_| FrameError::TooLong)?
         .len();
-    Ok(&out[..n])
+    let crc_at = SEQ_LEN + body_len;
+    let crc = CRC32.checksum(&raw[..crc_at]);
+    raw[crc_at..crc_at + CRC_LEN].copy_from_slice(&crc.to_le_bytes());
+    let n = cobs_encode_in_place(out, off, crc_at + CRC_LEN);
+    out[n] = 0;
+    Ok(&out[..=n])
 }
 
-/// Refuses more than `left` bytes: the frame's unencoded size limit ([`MAX_PAYLOAD`]),
-/// which the wire buffer's size alone cannot express (COBS overhead depends on content).
-struct Limit<F> {
-    inner: F,
-    left: usize,
-}
-
-impl<F: postcard::ser_flavors::Flavor> postcard::ser_flavors::Flavor for Limit<F> {
-    type Output = F::Output;
-
-    // Not inlined: the CRC and COBS steps then exist once, not in every serialiser.
-    #[inline(never)]
-    fn try_push(&mut self, data: u8) -> postcard::Result<()> {
-        self.left = self
-            .left
-            .checked_sub(1)
-            .ok_or(postcard::Error::SerializeBufferFull)?;
-        self.inner.try_push(data)
+/// COBS-encodes `buf[off..off + len]` into `buf[0..]` with the `cobs` crate's
+/// [`cobs::EncoderState`] (the state machine postcard's COBS flavour drives); returns the
+/// encoded length. Position 0 holds the first code byte, as in the crate's encoders.
+fn cobs_encode_in_place(buf: &mut [u8], off: usize, len: usize) -> usize {
+    use cobs::PushResult::*;
+    let mut state = cobs::EncoderState::default();
+    let mut w = 1;
+    for i in off..off + len {
+        match state.push(buf[i]) {
+            AddSingle(b) => {
+                buf[w] = b;
+                w += 1;
+            }
+            ModifyFromStartAndSkip((at, code)) => {
+                buf[at] = code;
+                w += 1; // the next code byte's place, filled later
+            }
+            ModifyFromStartAndPushAndSkip((at, code, b)) => {
+                buf[at] = code;
+                buf[w] = b;
+                w += 2;
+            }
+        }
     }
-
-    fn finalize(self) -> postcard::Result<F::Output> {
-        self.inner.finalize()
-    }
+    let (at, code) = state.finalize();
+    buf[at] = code;
+    w
 }
 
 /// Frames an already serialised body (fuzzers and tests send arbitrary bodies this way).

@@ -39,8 +39,8 @@
 //! board's request handler here is a plain synchronous function `bytes in -> bytes out`
 //! that must run identically on the UART, on a host pseudo-terminal and inside unit tests
 //! without any executor. The messages do derive postcard-schema's `Schema` (the fingerprint
-//! below is made from it), and the framing uses postcard's COBS and CRC flavours, so a
-//! move to postcard-rpc later would keep the types.
+//! below is made from it) and COBS is the `cobs` crate's (as in postcard), so a move to
+//! postcard-rpc later would keep the types.
 //!
 //! # Schema fingerprint
 //! [`SCHEMA_FINGERPRINT`] is derived from the types: every message type derives

@@ -361,7 +361,7 @@ proptest! {
 
     /// The wire format is `COBS(seq LE | postcard body | CRC-32 LE) 0x00`, checked against
     /// an independent COBS encoder (the `cobs` crate's) over hand-laid bytes: the one-pass
-    /// flavour encoder changed no byte of the format.
+    /// encoder driven by the `cobs` crate's state machine changed no byte of the format.
     #[test]
     fn frames_are_cobs_of_seq_body_crc(r in request(), seq in any::<u16>(), data in proptest::collection::vec(any::<u8>(), 0..=MAX_PAYLOAD - 6)) {
         for (wire, body) in [
@@ -374,8 +374,8 @@ proptest! {
             let mut want = std::vec![0u8; raw.len() + raw.len() / 254 + 2];
             let n = cobs::encode(&raw, &mut want);
             want.truncate(n);
-            // When the input ends with a full run of 254 non-zero bytes, postcard's flavour
-            // (like the hand-written encoder it replaces) closes with an empty group (code
+            // When the input ends with a full run of 254 non-zero bytes, the crate's state
+            // machine (like the hand-written encoder it replaces) closes with an empty group (code
             // 0x01) where the crate's `encode` stops; both are valid COBS and decode alike.
             let run_end = raw.iter().rposition(|&b| b == 0).map_or(0, |i| i + 1);
             if (raw.len() - run_end) % 254 == 0 && raw.len() > run_end {
