@@ -266,3 +266,28 @@ fn one_square_says_ed_and_eb_are_not_separable() {
     );
     assert!(r.separation_advice.iter().any(|a| a.contains("other way")));
 }
+
+/// A lab floor has no cables: on the six squares any `floor_bumps` finding (the ccw
+/// square 04 gets one by region, its loss not where its region is: localised_sigma 2.0)
+/// is listed implausible and never the verdict.
+#[test]
+fn lab_floor_bumps_are_not_localised() {
+    let mut seen = 0;
+    for folder in SQUARES {
+        let Some(r) = run(folder) else {
+            return;
+        };
+        assert_ne!(r.verdict, "floor_bumps", "{folder}");
+        for f in r.findings.iter().filter(|f| f.effect == "floor_bumps") {
+            seen += 1;
+            let i = r
+                .implausible
+                .iter()
+                .find(|i| i.effect == "floor_bumps" && i.parameter == "localised_sigma")
+                .unwrap_or_else(|| panic!("{folder}: {f:?} not listed implausible"));
+            assert!(i.value < diagnose::localisation::LOCALISED_SIGMA, "{i:?}");
+        }
+    }
+    println!("floor_bumps findings on the six squares: {seen}");
+    assert!(seen >= 1, "the check was exercised");
+}
