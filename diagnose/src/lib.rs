@@ -21,6 +21,7 @@ pub mod calibrate_plots;
 pub mod effects;
 pub mod fit;
 pub mod ground;
+pub mod localisation;
 pub mod mechanisms;
 pub mod multi;
 pub mod plausibility;
@@ -216,8 +217,12 @@ pub fn diagnose(
             f.effect
         ));
     }
-    // A finding outside its physical range is listed, never the verdict.
-    let implausible = plausibility::check(&findings);
+    // A finding outside its physical range is listed, never the verdict; so are floor
+    // bumps whose travel loss is not where the bumps are (a uniform loss is wheel scale).
+    let mut implausible = plausibility::check(&findings);
+    implausible.extend(plausibility::bumps_not_localised(
+        &ev, &sel.model, &findings,
+    ));
     let verdict = if implausible.iter().any(|i| i.effect == verdict) {
         findings
             .iter()

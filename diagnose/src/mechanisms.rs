@@ -220,6 +220,35 @@ pub fn region_grid(p: &Prepared) -> Vec<Vec<f64>> {
     g
 }
 
+/// Starting points of the region mechanism from the region signature of the residual
+/// left by `model` ([`crate::signature::region_loss`]): its stretch of world x, at the
+/// grid's spacings with the losses per crossing the signature's loss per metre asks (the
+/// quantile grid's losses stop at 2 % of the spacing). The bounds are then scanned
+/// (`select`), but from a start whose loss is near the data's.
+pub fn region_seeds(ev: &crate::residuals::Evaluator, model: &Model) -> Vec<Vec<f64>> {
+    let Some(r) = crate::signature::region_loss(ev, model) else {
+        return Vec::new();
+    };
+    if !(r.loss_per_m > 0.0 && r.loss_per_m.is_finite() && r.end_m > r.start_m) {
+        return Vec::new();
+    }
+    // A cable takes its toll along the wheel's rolling direction's share of the
+    // crossing, and the wheel crosses at all in proportion to its travel along x: the
+    // loss per metre rolled is about half the loss per metre across the cables.
+    let mut g = Vec::new();
+    for s in [0.02, 0.05] {
+        for k in [1.0, 2.0, 4.0] {
+            g.push(vec![
+                s,
+                (k * s * r.loss_per_m).clamp(1e-6, 0.05),
+                r.start_m,
+                r.end_m,
+            ]);
+        }
+    }
+    g
+}
+
 /// Whether a mechanism variant can act on this recording: the traction variants that
 /// rewrite wheel angles need every wheel driven (no free wheel reports the body).
 pub fn applies(p: &Prepared, e: Effect) -> bool {

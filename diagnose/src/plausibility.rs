@@ -75,3 +75,36 @@ pub fn check(findings: &[Finding]) -> Vec<Implausible> {
     }
     out
 }
+
+// Floor bumps must be localised in space (issue 10: "bumps only where the residual is
+// localised in space"); the test itself is `crate::localisation`.
+
+/// Parameter name under which a `floor_bumps` finding's localisation is listed: the
+/// significance (sigmas) of its own loss pattern beyond a uniform loss per wheel.
+pub const LOCALISED_PARAMETER: &str = "localised_sigma";
+
+/// What a `floor_bumps` finding whose loss is not localised most likely stands for.
+pub const BUMPS_UNIFORM_STANDS_FOR: &str = "a wheel scale error or uniform slip: bumps spread evenly over the whole floor look like a smaller wheel (wheel_scale)";
+
+/// The `floor_bumps` findings whose travel loss is not shown to be where their bumps are
+/// (see [`crate::localisation`]); a recording too short to tell counts as not shown.
+pub fn bumps_not_localised(
+    ev: &crate::residuals::Evaluator,
+    model: &crate::effects::Model,
+    findings: &[Finding],
+) -> Vec<Implausible> {
+    findings
+        .iter()
+        .filter(|f| f.effect == crate::effects::Effect::FloorBumps.id())
+        .filter_map(|f| {
+            let z = crate::localisation::floor_bumps(ev, model, f).map_or(0.0, |l| l.sigma);
+            (z < crate::localisation::LOCALISED_SIGMA).then(|| Implausible {
+                effect: f.effect.clone(),
+                parameter: LOCALISED_PARAMETER.to_string(),
+                value: z,
+                plausible: (crate::localisation::LOCALISED_SIGMA, f64::INFINITY),
+                stands_for: BUMPS_UNIFORM_STANDS_FOR.to_string(),
+            })
+        })
+        .collect()
+}

@@ -7,9 +7,14 @@
 //!   on both sides), with their times. Duplicated rows are dropped; gaps only reported
 //!   (encoders are cumulative, so a gap loses no travel).
 //! - `counts_per_rev_error` (`counts_ratio_<wheel>`: true over configured counts per
-//!   wheel revolution): each wheel's encoder travel against the travel the measured body
-//!   motion asks of it. Only powers of two (within 10 %: a quadrature mode, a missed
-//!   gear stage) count; a few per cent is tyre size, physics.
+//!   wheel revolution, snapped to p/q; `counts_ratio_raw_<wheel>` the raw estimate with
+//!   its sigma): each wheel's encoder travel against the travel the measured body motion
+//!   asks of it through the nominal kinematics, over quarter-second segments. A ratio at
+//!   least [`COUNTS_FAR`] from 1 (no tyre or mounting error explains it) that exactly one
+//!   simple fraction (q <= 4: a resolution, quadrature mode or gear ratio written wrong)
+//!   matches within the tyre band and three sigmas is removed; one far from 1 that no
+//!   single fraction matches is reported as unexplained and left in. Nearer 1 it is tyre
+//!   size or geometry, physics.
 //! - `time_offset` (`time_offset_s`, poses later than encoders when positive) and
 //!   `clock_rate` (`clock_ratio`, the pose clock over the encoder clock): fitted with the
 //!   geometry by [`crate::calibrate`]; reported when beyond four sigmas and a material
@@ -42,8 +47,9 @@ pub struct Artefact {
     /// Fitted values or counts by name (`time_offset_s`, `clock_ratio`,
     /// `counts_ratio_<wheel>`, `missing_samples`, `duplicated_samples`).
     pub parameters: BTreeMap<String, f64>,
-    /// Uncertainty per fitted parameter: one sigma for the clocks; for a counts ratio,
-    /// how far the raw estimate lies from the power of two it was snapped to.
+    /// Uncertainty per fitted parameter: one sigma for the clocks and for a raw counts
+    /// ratio (`counts_ratio_raw_<wheel>`, from the scatter of its segments); the snapped
+    /// fraction `counts_ratio_<wheel>` has none.
     pub uncertainties: BTreeMap<String, f64>,
     /// Times of the missing samples (s).
     pub missing_at_s: Vec<f64>,
@@ -51,6 +57,9 @@ pub struct Artefact {
     pub duplicated_at_s: Vec<f64>,
     /// Whether the physics stages saw the recording with this artefact removed.
     pub removed: bool,
+    /// What was concluded per wheel, and what the data cannot tell (a counts ratio far
+    /// from 1 that no single simple fraction explains is reported here, not removed).
+    pub notes: Vec<String>,
 }
 
 impl Artefact {
@@ -62,6 +71,7 @@ impl Artefact {
             missing_at_s: vec![],
             duplicated_at_s: vec![],
             removed: false,
+            notes: vec![],
         }
     }
 }
@@ -95,6 +105,9 @@ impl fmt::Display for Artefact {
         if self.removed {
             write!(f, " (removed before the physics)")?;
         }
+        for n in &self.notes {
+            write!(f, "; {n}")?;
+        }
         Ok(())
     }
 }
@@ -119,9 +132,7 @@ pub fn analyse(robot: &Robot, rec: &Recording) -> RecordingStage {
     if let Some(a) = sample_glitches(&mut cur) {
         artefacts.push(a);
     }
-    if let Some(a) = counts_per_rev(robot, &mut cur) {
-        artefacts.push(a);
-    }
+    artefacts.extend(counts_per_rev(robot, &mut cur));
     let (clock_artefacts, geometry) = clocks(robot, &mut cur);
     artefacts.extend(clock_artefacts);
     RecordingStage {
@@ -242,67 +253,249 @@ fn drop_rows(rec: &mut Recording, drop: &[bool]) {
     }
 }
 
-/// Per-wheel counts ratio from the measured body motion; rescales the counts of wheels
-/// off by a factor no tyre explains.
-fn counts_per_rev(robot: &Robot, rec: &mut Recording) -> Option<Artefact> {
-    let rpc = robot.drive.rad_per_count()?;
-    let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
-    let rows: Vec<(usize, f64, f64, f64)> = rec.pose_rows().collect();
+/// A wheel's counts ratio is examined only this far from 1 (at or above 1.3, at or below
+/// 1 / 1.3). Nearer 1 it is tyre size or geometry, for the physics stages: a tyre is within
+/// [`crate::calibrate::RADIUS_RANGE`] (5 %) of nominal, and the nominal kinematics this
+/// estimate uses also fold wheel mounting errors into it (the real omni3 square shows a
+/// wheel 17 % large under nominal geometry, from its wheel angles); 1.05 x 1.17 = 1.23
+/// stays below the bound.
+pub const COUNTS_FAR: f64 = 1.3;
+/// Largest denominator q of a counts ratio p/q taken as a configuration error (a gear
+/// ratio or resolution written wrong: 3, 3/2, 5/3, 5/2, 3/4, ...). Powers of two down to
+/// 1/16 (quadrature modes and missed gear stages combined) count too.
+pub const COUNTS_MAX_DEN: u32 = 4;
+/// Largest numerator p of a counts ratio p/q.
+pub const COUNTS_MAX_NUM: u32 = 16;
+/// Sigmas of the estimate's own scatter added to the tyre band when a raw ratio is
+/// matched to a fraction.
+pub const COUNTS_SIGMAS: f64 = 3.0;
+/// Travel is compared over segments of about this length (s): long enough that pose
+/// noise is small against the travel (1 mm against ~5 cm), short enough that a wheel
+/// rarely reverses inside one.
+const COUNTS_SEGMENT_S: f64 = 0.25;
+
+/// The fractions a counts ratio may snap to: p/q in lowest terms with q <= 4 and
+/// p <= 16, and the powers of two 1/8 and 1/16; 1 excluded. Ascending.
+pub fn counts_fractions() -> Vec<(u32, u32)> {
+    fn gcd(a: u32, b: u32) -> u32 {
+        if b == 0 {
+            a
+        } else {
+            gcd(b, a % b)
+        }
+    }
+    let mut out: Vec<(u32, u32)> = vec![(1, 8), (1, 16)];
+    for q in 1..=COUNTS_MAX_DEN {
+        for p in 1..=COUNTS_MAX_NUM {
+            if p != q && gcd(p, q) == 1 {
+                out.push((p, q));
+            }
+        }
+    }
+    out.sort_by(|a, b| (a.0 as f64 / a.1 as f64).total_cmp(&(b.0 as f64 / b.1 as f64)));
+    out
+}
+
+/// One wheel's raw counts ratio: measured over asked-of-it travel.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct RawRatio {
+    /// Encoder travel over the travel the measured body motion asks of the wheel
+    /// (nominal kinematics), segment by segment.
+    pub ratio: f64,
+    /// One sigma, from the scatter of the segments about the ratio (their lag-1
+    /// autocorrelation counted).
+    pub sigma: f64,
+    /// Segments used.
+    pub segments: usize,
+}
+
+/// What a raw ratio far from 1 is taken for.
+#[derive(Debug, Clone, PartialEq)]
+pub enum CountsMatch {
+    /// Within the tyre band of 1: physics, left to the later stages.
+    NearOne,
+    /// Exactly one fraction p/q lies within the tyre band and [`COUNTS_SIGMAS`] of the raw
+    /// ratio.
+    Fraction(u32, u32),
+    /// Far from 1, and no fraction or several lie within the band: not identified.
+    Unexplained(Vec<(u32, u32)>),
+}
+
+/// Classifies a raw ratio: near 1 (physics), one simple fraction (a counts error), or
+/// unexplained. The band around a fraction f is |ln(raw / f)| <= ln(1 + RADIUS_RANGE) +
+/// COUNTS_SIGMAS sigma / raw: the raw ratio is the counts ratio times the wheel's own
+/// radius error (a tyre within RADIUS_RANGE), measured with scatter sigma.
+pub fn match_counts_ratio(raw: &RawRatio) -> CountsMatch {
+    let r = raw.ratio;
+    if !(r.is_finite() && r > 0.0) || r.ln().abs() < COUNTS_FAR.ln() {
+        return CountsMatch::NearOne;
+    }
+    let band = crate::calibrate::RADIUS_RANGE.ln_1p() + COUNTS_SIGMAS * raw.sigma / r;
+    let near: Vec<(u32, u32)> = counts_fractions()
+        .into_iter()
+        .filter(|(p, q)| (r * *q as f64 / *p as f64).ln().abs() <= band)
+        .collect();
+    match near.as_slice() {
+        [(p, q)] => CountsMatch::Fraction(*p, *q),
+        _ => CountsMatch::Unexplained(near),
+    }
+}
+
+/// Per wheel, the raw counts ratio from the measured body motion; `None` for a wheel
+/// without an encoder or without enough motion to tell (less than a revolution in all or
+/// fewer than 8 segments).
+pub fn raw_counts_ratios(robot: &Robot, rec: &Recording) -> Vec<Option<RawRatio>> {
+    let nw = robot.wheels.len();
+    let none = vec![None; nw];
+    let Some(rpc) = robot.drive.rad_per_count() else {
+        return none;
+    };
+    let Ok(kin) = Kinematics::<f64>::new(robot, &Corrections::None) else {
+        return none;
+    };
+    let rows: Vec<(usize, f64, f64, f64)> = rec
+        .pose_rows()
+        .filter(|r| r.0 < rec.t.len() && rec.t[r.0].is_finite())
+        .collect();
     if rows.len() < 20 {
-        return None;
+        return none;
     }
     let mut th: Vec<f64> = rows.iter().map(|r| r.3).collect();
     unwrap_angles(&mut th);
-    let nw = robot.wheels.len();
-    let (mut num, mut den) = (vec![0.0; nw], vec![0.0; nw]);
+    // Median pose interval: steps across a longer gap are skipped (a chord over a gap is
+    // not the wheel's travel).
+    let mut d: Vec<f64> = rows
+        .windows(2)
+        .map(|w| rec.t[w[1].0] - rec.t[w[0].0])
+        .collect();
+    d.sort_by(|a, b| a.total_cmp(b));
+    let dt_med = d[d.len() / 2];
+    if dt_med.is_nan() || dt_med <= 0.0 {
+        return none;
+    }
+    // Per wheel, (measured, asked) travel per segment, rad.
+    let mut segs: Vec<Vec<(f64, f64)>> = vec![Vec::new(); nw];
+    let mut acc = vec![(0.0, 0.0); nw];
+    let mut ok = vec![true; nw];
+    let mut seg_t = 0.0;
+    fn flush(acc: &mut [(f64, f64)], ok: &mut [bool], segs: &mut [Vec<(f64, f64)>]) {
+        for ((a, o), s) in acc.iter_mut().zip(ok.iter_mut()).zip(segs.iter_mut()) {
+            if *o && (a.0 != 0.0 || a.1 != 0.0) {
+                s.push(*a);
+            }
+            *a = (0.0, 0.0);
+            *o = true;
+        }
+    }
     for j in 1..rows.len() {
         let (k0, k1) = (rows[j - 1].0, rows[j].0);
+        let dt = rec.t[k1] - rec.t[k0];
+        if !(dt > 0.0 && dt <= 2.5 * dt_med) {
+            flush(&mut acc, &mut ok, &mut segs);
+            seg_t = 0.0;
+            continue;
+        }
         let (dx, dy) = (rows[j].1 - rows[j - 1].1, rows[j].2 - rows[j - 1].2);
         let mid = 0.5 * (th[j] + th[j - 1]);
         let (c, s) = (mid.cos(), mid.sin());
         let tw = Twist::new(c * dx + s * dy, -s * dx + c * dy, th[j] - th[j - 1]);
         for i in 0..nw {
-            let Some(e) = rec.wheels.get(i).and_then(|w| w.enc.as_ref()) else {
-                continue;
-            };
-            let (Some(a), Some(b)) = (e[k0], e[k1]) else {
-                continue;
-            };
-            let meas = (b - a) as f64 * rpc;
-            let pred = kin.wheel_rate(i, &tw);
-            num[i] += pred * meas;
-            den[i] += pred * pred;
+            let e = rec.wheels.get(i).and_then(|w| w.enc.as_ref());
+            match e.and_then(|e| Some((*e.get(k0)?, *e.get(k1)?))) {
+                Some((Some(a), Some(b))) => {
+                    acc[i].0 += (b as f64 - a as f64) * rpc;
+                    acc[i].1 += kin.wheel_rate(i, &tw);
+                }
+                _ => ok[i] = false,
+            }
+        }
+        seg_t += dt;
+        if seg_t >= COUNTS_SEGMENT_S {
+            flush(&mut acc, &mut ok, &mut segs);
+            seg_t = 0.0;
         }
     }
-    let mut a = Artefact::new("counts_per_rev_error");
-    let mut scale = vec![1.0; nw];
-    for i in 0..nw {
-        // Need real motion of this wheel (root-sum-square travel over half a radian).
-        if den[i] <= 0.0 || den[i].sqrt() < 0.5 {
-            continue;
-        }
-        let ratio = num[i] / den[i];
-        if !(ratio.is_finite() && ratio > 0.0) {
-            continue;
-        }
-        // Only a power of two other than 1, within 10 %: what a quadrature mode or a
-        // missed gear stage makes. Anything else this estimate sees (it uses the nominal
-        // geometry) may be geometry the later stages fit.
-        let p2 = 2f64.powf(ratio.log2().round());
-        if p2 == 1.0 || (ratio / p2 - 1.0).abs() > 0.1 {
-            continue;
-        }
-        let snapped = p2;
-        a.parameters
-            .insert(format!("counts_ratio_{}", robot.wheels[i].name), snapped);
-        a.uncertainties.insert(
-            format!("counts_ratio_{}", robot.wheels[i].name),
-            (ratio - snapped).abs(),
+    segs.iter()
+        .map(|s| {
+            // Magnitudes: a time offset between poses and encoders moves a reversal from
+            // one segment to the next, not the travel.
+            let pp: f64 = s.iter().map(|x| x.1 * x.1).sum();
+            let travel: f64 = s.iter().map(|x| x.1.abs()).sum();
+            let dot: f64 = s.iter().map(|x| x.0 * x.1).sum();
+            // A wheel turning against the asked direction is a wiring question, not a
+            // resolution.
+            if s.len() < 8 || travel < std::f64::consts::TAU || dot.is_nan() || dot <= 0.0 {
+                return None;
+            }
+            let ratio = s.iter().map(|x| x.0.abs() * x.1.abs()).sum::<f64>() / pp;
+            let e: Vec<f64> = s.iter().map(|x| x.0.abs() - ratio * x.1.abs()).collect();
+            let w: Vec<f64> = s.iter().zip(&e).map(|(x, e)| x.1.abs() * e).collect();
+            let (ss, lag): (f64, f64) = (
+                w.iter().map(|v| v * v).sum(),
+                w.windows(2).map(|v| v[0] * v[1]).sum(),
+            );
+            let rho = if ss > 0.0 {
+                (lag / ss).clamp(0.0, 0.9)
+            } else {
+                0.0
+            };
+            let sigma = ss.sqrt() / pp * ((1.0 + rho) / (1.0 - rho)).sqrt();
+            (ratio.is_finite() && sigma.is_finite()).then_some(RawRatio {
+                ratio,
+                sigma,
+                segments: s.len(),
+            })
+        })
+        .collect()
+}
+
+/// Per-wheel counts ratio from the measured body motion; rescales the counts of wheels
+/// off by a simple fraction no tyre explains, and reports (without removing) wheels far
+/// from 1 that no single simple fraction explains.
+fn counts_per_rev(robot: &Robot, rec: &mut Recording) -> Vec<Artefact> {
+    let raw = raw_counts_ratios(robot, rec);
+    let mut found = Artefact::new("counts_per_rev_error");
+    let mut odd = Artefact::new("counts_per_rev_error");
+    let mut scale = vec![1.0; raw.len()];
+    for (i, r) in raw.iter().enumerate() {
+        let Some(r) = r else { continue };
+        let name = &robot.wheels[i].name;
+        let (key, raw_key) = (
+            format!("counts_ratio_{name}"),
+            format!("counts_ratio_raw_{name}"),
         );
-        scale[i] = snapped;
-    }
-    if a.parameters.is_empty() {
-        return None;
+        match match_counts_ratio(r) {
+            CountsMatch::NearOne => {}
+            CountsMatch::Fraction(p, q) => {
+                let f = p as f64 / q as f64;
+                found.parameters.insert(key, f);
+                found.parameters.insert(raw_key.clone(), r.ratio);
+                found.uncertainties.insert(raw_key, r.sigma);
+                found.notes.push(format!(
+                    "{name}: {p}/{q} ({} segments; raw within {:.1} % of it)",
+                    r.segments,
+                    (r.ratio / f - 1.0) * 100.0
+                ));
+                scale[i] = f;
+            }
+            CountsMatch::Unexplained(near) => {
+                odd.parameters.insert(raw_key.clone(), r.ratio);
+                odd.uncertainties.insert(raw_key, r.sigma);
+                let why = if near.is_empty() {
+                    "no simple fraction p/q (q <= 4) within the tyre band".to_string()
+                } else {
+                    let s: Vec<String> = near.iter().map(|(p, q)| format!("{p}/{q}")).collect();
+                    format!(
+                        "{} all within the tyre band: cannot tell which",
+                        s.join(", ")
+                    )
+                };
+                odd.notes.push(format!(
+                    "{name}: unexplained, travel {:.3} of what the body motion asks, {why}; not removed",
+                    r.ratio
+                ));
+            }
+        }
     }
     for (w, s) in rec.wheels.iter_mut().zip(&scale) {
         if *s != 1.0 {
@@ -313,8 +506,15 @@ fn counts_per_rev(robot: &Robot, rec: &mut Recording) -> Option<Artefact> {
             }
         }
     }
-    a.removed = true;
-    Some(a)
+    let mut out = Vec::new();
+    if !found.parameters.is_empty() {
+        found.removed = true;
+        out.push(found);
+    }
+    if !odd.parameters.is_empty() {
+        out.push(odd);
+    }
+    out
 }
 
 /// Time offset and clock ratio of the poses against the encoders.

@@ -137,6 +137,13 @@ fn fit_params(
     let (lo, hi): (Vec<f64>, Vec<f64>) = flat_specs.iter().map(|s| s.bounds()).unzip();
     // Starting grid (only for a single effect; joint refits start from the current values).
     let mut best: Option<(Vec<f64>, f64)> = None;
+    // The region mechanism's parameters start at this offset; its best start per cable
+    // spacing is kept (the cost is a comb in the spacing: each has its own valley).
+    let region_off = effects
+        .iter()
+        .position(|e| *e == Effect::BumpsRegion)
+        .map(|k| specs[..k].iter().map(|s| s.len()).sum::<usize>());
+    let mut per_spacing: Vec<(Vec<f64>, f64)> = Vec::new();
     for s in start {
         let u: Vec<f64> = flat_specs
             .iter()
@@ -144,6 +151,16 @@ fn fit_params(
             .map(|(sp, v)| sp.internal(*v))
             .collect();
         let c: f64 = f(&u).iter().map(|v| v * v).sum();
+        if let (Some(off), true) = (region_off, c.is_finite()) {
+            match per_spacing
+                .iter_mut()
+                .find(|p| (p.0[off] - u[off]).abs() < 1e-9)
+            {
+                Some(p) if c < p.1 => *p = (u.clone(), c),
+                Some(_) => {}
+                None => per_spacing.push((u.clone(), c)),
+            }
+        }
         if c.is_finite() && best.as_ref().is_none_or(|b| c < b.1) {
             best = Some((u, c));
         }
@@ -180,7 +197,44 @@ fn fit_params(
             .map(|s| s.internal(s.null.clamp(s.min, s.max)))
             .collect()
     });
-    let r = levenberg_marquardt(&mut f, &u0, &lo, &hi, 20);
+    let mut r = levenberg_marquardt(&mut f, &u0, &lo, &hi, 20);
+    // The region mechanism's bounds: the cost is flat in a bound between two cables, so
+    // the local optimiser keeps them where it started. Scan each bound over where the
+    // robot went (5 cm steps, then 1 cm around the best) from the optimum; refit from
+    // there and (fitting from a grid) from the best start of each other spacing moved to
+    // those bounds; scan the best once more within 4 cm of its bounds and refit.
+    if let Some(off) = region_off {
+        let cands = region_bound_candidates(ev.p);
+        let bounds = [off + 2, off + 3];
+        let mut u = r.x.clone();
+        scan_bounds(&mut f, &mut u, bounds, &cands);
+        let mut starts = vec![u.clone()];
+        if start.len() > 2 {
+            for (mut p, _) in per_spacing {
+                if (p[off] - u[off]).abs() > 1e-9 {
+                    p[off + 2] = u[off + 2];
+                    p[off + 3] = u[off + 3];
+                    starts.push(p);
+                }
+            }
+        }
+        let mut best_cost = sum_sq(&f(&r.x));
+        for pass in 0..2 {
+            if pass == 1 {
+                // Once more around the best bounds, the loss now fitted inside them.
+                let mut u = r.x.clone();
+                scan_bounds(&mut f, &mut u, bounds, &[]);
+                starts = vec![u];
+            }
+            for u in &starts {
+                let rr = levenberg_marquardt(&mut f, u, &lo, &hi, 20);
+                let c = sum_sq(&f(&rr.x));
+                if c.is_finite() && c < best_cost {
+                    (best_cost, r) = (c, rr);
+                }
+            }
+        }
+    }
     let model = build(&r.x);
     let mut sig = Vec::new();
     let mut i = 0;
@@ -200,6 +254,59 @@ fn fit_params(
         );
     }
     (model, sig, r.cost)
+}
+
+fn sum_sq(v: &[f64]) -> f64 {
+    v.iter().map(|x| x * x).sum()
+}
+
+/// Moves each of the two bounds `idx` of `u` to the candidate (then to the 1 cm step
+/// within 4 cm of it) that lowers the cost most, one bound after the other.
+fn scan_bounds(
+    f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
+    u: &mut Vec<f64>,
+    idx: [usize; 2],
+    cands: &[f64],
+) {
+    let mut c_u = sum_sq(&f(u));
+    for i in idx {
+        let mut try_at = |x: f64, u: &mut Vec<f64>, c_u: &mut f64| {
+            let mut v = u.clone();
+            v[i] = x;
+            let c = sum_sq(&f(&v));
+            if c.is_finite() && c < *c_u {
+                (*c_u, *u) = (c, v);
+            }
+        };
+        for &x in cands {
+            try_at(x, u, &mut c_u);
+        }
+        let centre = u[i];
+        for k in (-4..=4).filter(|k| *k != 0) {
+            try_at(centre + 0.01 * k as f64, u, &mut c_u);
+        }
+    }
+}
+
+/// Where a region's bound may sit: world x from 5 cm before the path's lowest to 5 cm
+/// past its highest, in 5 cm steps (at most 40 of them: coarser on a longer path).
+fn region_bound_candidates(p: &crate::replay::Prepared) -> Vec<f64> {
+    let (lo, hi) = p
+        .pose_at_row
+        .iter()
+        .map(|q| q.0)
+        .filter(|x| x.is_finite())
+        .fold((f64::INFINITY, f64::NEG_INFINITY), |(a, b), x| {
+            (a.min(x), b.max(x))
+        });
+    if lo > hi {
+        return Vec::new();
+    }
+    let (lo, hi) = (lo - 0.05, hi + 0.05);
+    let step = ((hi - lo) / 40.0).max(0.05);
+    (0..=((hi - lo) / step).ceil() as usize)
+        .map(|i| lo + i as f64 * step)
+        .collect()
 }
 
 /// Discounted BIC change of `cand` against `base` (negative favours `cand`).
@@ -280,7 +387,9 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
             })
             .map(|e| {
                 let grid = if e == Effect::BumpsRegion {
-                    crate::mechanisms::region_grid(ev.p)
+                    let mut g = crate::mechanisms::region_seeds(ev, &model);
+                    g.extend(crate::mechanisms::region_grid(ev.p));
+                    g
                 } else {
                     e.start_grid(robot)
                 };
@@ -673,7 +782,18 @@ pub fn verdict(
     }
     // Signatures.
     let steps = signature::stepper_steps(ev, &sel.nominal_eval).filter(|s| s.clear());
-    let region = signature::region_loss(ev, &sel.model).filter(|r| r.clear());
+    // The region signature is looked for in what is left without any floor bumps the
+    // selection fitted: bumps in the model would hide the very loss that names them.
+    let without_bumps = crate::effects::Model {
+        effects: sel
+            .model
+            .effects
+            .iter()
+            .filter(|(e, _)| e.base() != crate::effects::Effect::FloorBumps)
+            .cloned()
+            .collect(),
+    };
+    let region = signature::region_loss(ev, &without_bumps).filter(|r| r.clear());
     let left = 1.0 - explained_fraction;
     let stage_rmse = |s: Stage| match s {
         Stage::Ground => (sel.nominal.ground_rmse(), sel.final_rss.ground_rmse()),
