@@ -90,10 +90,16 @@ pub fn diagnose_many(
             message: e.to_string(),
         })?;
         for f in &rep.findings {
-            carried_by
-                .entry(f.effect.clone())
-                .or_default()
-                .push(name.clone());
+            // A finding outside its physical range is not evidence for the effect: it is
+            // listed apart so the table does not count it as one.
+            let implausible =
+                f.implausible_sign || rep.implausible.iter().any(|i| i.effect == f.effect);
+            let key = if implausible {
+                format!("{} (implausible)", f.effect)
+            } else {
+                f.effect.clone()
+            };
+            carried_by.entry(key).or_default().push(name.clone());
         }
         out.push(RecordingResult {
             name: name.clone(),
