@@ -15,16 +15,21 @@ fn robot() -> Robot {
 }
 
 fn clean(r: &Robot) -> sim::SimRecording {
+    recorded(r, &[], 50.0, 31)
+}
+
+/// A 60 s random drive of `r` with `effects`, `rate_hz` rows per second.
+fn recorded(r: &Robot, effects: &[sim::Effect], rate_hz: f64, seed: u64) -> sim::SimRecording {
     let mut cfg = RecordConfig {
-        row_rate_hz: 50.0,
+        row_rate_hz: rate_hz,
         ..RecordConfig::default()
     };
-    cfg.sim.seed = 31;
+    cfg.sim.seed = seed;
     let motion = Motion::Random(RandomMotion {
         duration_s: 60.0,
         ..RandomMotion::default()
     });
-    record(r, &[], Surface::flat(), &motion, &cfg).unwrap()
+    record(r, effects, Surface::flat(), &motion, &cfg).unwrap()
 }
 
 fn run(r: &Robot, rec: &Recording) -> Report {
@@ -284,17 +289,8 @@ fn counts_ratio_far_from_any_fraction_is_reported_not_removed() {
 #[test]
 fn counts_ratio_near_one_is_left_to_the_physics() {
     let r = robot();
-    let mut cfg = RecordConfig {
-        row_rate_hz: 50.0,
-        ..RecordConfig::default()
-    };
-    cfg.sim.seed = 31;
-    let motion = Motion::Random(RandomMotion {
-        duration_s: 60.0,
-        ..RandomMotion::default()
-    });
     let fx = [sim::Effect::parse("wheel_diameter_mismatch=ed:1.02").unwrap()];
-    let rec = record(&r, &fx, Surface::flat(), &motion, &cfg).unwrap();
+    let rec = recorded(&r, &fx, 50.0, 31);
     let raw = diagnose::recording_stage::raw_counts_ratios(&r, &rec.recording);
     for (x, want) in raw.iter().zip([2.02 / 2.0, 2.02 / 2.04]) {
         let x = x.expect("both wheels move");
@@ -318,18 +314,7 @@ fn counts_ratio_near_one_is_left_to_the_physics() {
 #[test]
 fn high_row_rate_is_not_a_glitch() {
     let r = robot();
-    let mut cfg = RecordConfig {
-        row_rate_hz: 600.0,
-        ..RecordConfig::default()
-    };
-    cfg.sim.seed = 32;
-    let motion = Motion::Random(RandomMotion {
-        duration_s: 60.0,
-        ..RandomMotion::default()
-    });
-    let rec = record(&r, &[], Surface::flat(), &motion, &cfg)
-        .unwrap()
-        .recording;
+    let rec = recorded(&r, &[], 600.0, 32).recording;
     // Rows where no encoder changed while a neighbour row did: what fooled the old check.
     let still = (1..rec.len())
         .filter(|&k| {
