@@ -1568,11 +1568,28 @@ impl fmt::Display for Calibration {
                 "identifiability: every parameter is separable from these recordings"
             )?;
         }
-        for i in &self.inseparable {
+        // Many pairs (a 4-wheel per-wheel model) would bury the summary: the strongest
+        // few in words, the rest named; the JSON keeps every one.
+        const SHOWN: usize = 6;
+        let mut order: Vec<&Inseparable> = self.inseparable.iter().collect();
+        order.sort_by(|a, b| b.correlation.abs().total_cmp(&a.correlation.abs()));
+        for i in order.iter().take(SHOWN) {
             writeln!(
                 f,
                 "not separable: {} and {} (correlation {:+.3}); the data fix only {:.3}*{} {:+.3}*{}, the rest rests on the plausibility prior; to separate them: {}",
                 i.params[0], i.params[1], i.correlation, i.identifiable[0], i.params[0], i.identifiable[1], i.params[1], i.advice
+            )?;
+        }
+        if order.len() > SHOWN {
+            writeln!(
+                f,
+                "not separable, {} more pairs (all in --json): {}",
+                order.len() - SHOWN,
+                order[SHOWN..]
+                    .iter()
+                    .map(|i| format!("{}/{}", i.params[0], i.params[1]))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             )?;
         }
         for d in &self.unconstrained {
