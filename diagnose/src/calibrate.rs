@@ -836,6 +836,8 @@ pub struct PerRecording {
     pub dead_reckoning_after_m: f64,
     /// Its fitted start pose and clocks.
     pub nuisance: Nuisance,
+    /// Its start pose and clocks fitted with the nominal geometry (the "before").
+    pub nuisance_nominal: Nuisance,
     /// One standard deviation of `time_offset_s` and `clock_ratio` (autocorrelation
     /// counted).
     pub time_offset_sigma_s: f64,
@@ -943,6 +945,9 @@ pub struct Calibration {
     /// The robot with the fitted geometry applied.
     #[serde(skip)]
     pub fitted_robot: Robot,
+    /// The fitted parameters' descriptions, in `params` order (which model was kept).
+    #[serde(skip)]
+    pub specs: Vec<ParamSpec>,
 }
 
 /// Options of [`calibrate`].
@@ -1208,6 +1213,7 @@ pub fn calibrate(
             dead_reckoning_before_m: dead_reckoning_rmse(robot, s).unwrap_or(f64::NAN),
             dead_reckoning_after_m: dead_reckoning_rmse(&fitted_robot, s).unwrap_or(f64::NAN),
             nuisance: Nuisance::from(&fitted.nuis[i * NUIS..(i + 1) * NUIS]),
+            nuisance_nominal: Nuisance::from(&before.nuis[i * NUIS..(i + 1) * NUIS]),
             time_offset_sigma_s: cov[(g + i * NUIS + 3, g + i * NUIS + 3)].max(0.0).sqrt(),
             clock_ratio_sigma: cov[(g + i * NUIS + 4, g + i * NUIS + 4)].max(0.0).sqrt(),
         });
@@ -1364,6 +1370,7 @@ pub fn calibrate(
         notes,
         model_runs: runs,
         fitted_robot,
+        specs,
     })
 }
 
@@ -1614,17 +1621,4 @@ impl fmt::Display for Calibration {
         }
         Ok(())
     }
-}
-
-/// Each recording's start pose and clocks fitted with the nominal geometry, exactly as
-/// [`calibrate`] fits its "before" (for the report's plots, `calibrate_plots`).
-pub(crate) fn nominal_nuisance(
-    robot: &Robot,
-    specs: &[ParamSpec],
-    series: &[Series],
-) -> Vec<Nuisance> {
-    let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
-    let p = Problem::new(robot, specs, series);
-    let r = solve(&p, &nominal, &nuisance_start(series), false);
-    r.nuis.chunks(NUIS).map(Nuisance::from).collect()
 }

@@ -13,8 +13,8 @@
 //! [`Heldout`]: crate::calibrate::Heldout
 
 use crate::calibrate::{
-    nominal_nuisance, param_specs, residuals_into, robot_with, CalibrateError, Calibration,
-    GeomKind, Nuisance, Path as DrPath, Series, RES_UNIT_M,
+    residuals_into, robot_with, CalibrateError, Calibration, GeomKind, Nuisance, Path as DrPath,
+    Series, RES_UNIT_M,
 };
 use crate::plots::{
     draw_legend, esc, path_chart_titled, plot_box, register_font, split_for_legend, time_chart,
@@ -153,15 +153,13 @@ pub fn calibration_series(
             cal.recordings
         )));
     }
-    let specs = [false, true]
-        .into_iter()
-        .map(|m| param_specs(robot, m))
-        .find(|s| {
-            s.iter()
-                .map(|p| &p.name)
-                .eq(cal.params.iter().map(|p| &p.name))
-        })
-        .ok_or_else(|| err("the calibration's parameters are not this robot's".into()))?;
+    if cal.robot != robot.name.as_str() || cal.fitted_robot.wheels.len() != robot.wheels.len() {
+        return Err(err(format!(
+            "the calibration is of robot '{}', not of '{}'",
+            cal.robot, robot.name
+        )));
+    }
+    let specs = &cal.specs;
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
     let geom: Vec<f64> = cal.params.iter().map(|p| p.value).collect();
     let at = |k: GeomKind| {
@@ -172,7 +170,7 @@ pub fn calibration_series(
     };
     let marker = (at(GeomKind::MarkerX), at(GeomKind::MarkerY));
     let kin = |g: &[f64]| {
-        let r = robot_with(robot, &specs, g);
+        let r = robot_with(robot, specs, g);
         Kinematics::<f64>::new(&r, &Corrections::None)
             .map(|k| (r, k))
             .map_err(|_| err("the robot's wheels cannot resolve the body twist".into()))
@@ -182,7 +180,6 @@ pub fn calibration_series(
         .iter()
         .map(|(n, r)| Series::new(n, robot, r))
         .collect::<Result<Vec<_>, _>>()?;
-    let before = nominal_nuisance(robot, &specs, &series);
     let mut used = Vec::new();
     let mut out = Vec::new();
     // `nuis`: the fit's (nominal, fitted) start pose and clocks of a fitted recording;
@@ -218,7 +215,7 @@ pub fn calibration_series(
         let Some(fit) = cal.per_recording.get(i) else {
             return Err(err(format!("the calibration has no fit of {}", s.name)));
         };
-        one(s, Some((before[i], fit.nuisance)));
+        one(s, Some((fit.nuisance_nominal, fit.nuisance)));
     }
     if let Some((n, r)) = holdout {
         one(&Series::new(n, robot, r)?, None);

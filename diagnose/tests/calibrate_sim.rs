@@ -210,6 +210,10 @@ fn mecanum_roller_angle_is_fitted_when_the_data_ask() {
         );
     }
     assert!(c.joint_rmse_after_m < 2e-3, "{c}");
+    // The report's series follow the model kept: their RMS is the fit's.
+    let series = diagnose::calibrate_plots::calibration_series(&c, &nominal, &recs, None).unwrap();
+    let (got, want) = (series[0].rms_fitted_m(), c.per_recording[0].rmse_after_m);
+    assert!((got - want).abs() <= 1e-9 * want, "{got} vs {want}");
 }
 
 /// Mounting errors per wheel (no roller error) on the same mecanum robot: one roller angle
