@@ -1386,20 +1386,13 @@ fn noise_scale(p: &Problem, s: &Solved) -> f64 {
 fn autocorrelation_inflation(p: &Problem, s: &Solved) -> f64 {
     let m = s.jac.nrows();
     let r = p.residuals(&s.geom, &s.nuis, false);
-    let (mut num, mut den) = (0.0, 0.0);
-    for c in 0..3 {
-        let v: Vec<f64> = r.iter().skip(c).step_by(3).copied().collect();
-        for w in v.windows(2) {
-            num += w[0] * w[1];
-            den += w[0] * w[0];
-        }
-    }
-    let rho = if den > 0.0 {
-        (num / den).clamp(0.0, 0.999)
-    } else {
-        0.0
-    };
-    ((1.0 + rho) / (1.0 - rho)).min(m as f64 / 10.0).max(1.0)
+    let comps: Vec<Vec<f64>> = (0..3)
+        .map(|c| r.iter().skip(c).step_by(3).copied().collect())
+        .collect();
+    let rho = crate::residuals::lag1_autocorrelation(comps.iter().map(|v| v.as_slice()), 0.999);
+    crate::residuals::ar1_inflation(rho)
+        .min(m as f64 / 10.0)
+        .max(1.0)
 }
 
 /// Covariance of [geometry, nuisance] from what the data tell (the plausibility prior

@@ -39,7 +39,7 @@
 
 use crate::effects::{Effect, Model};
 use crate::report::Finding;
-use crate::residuals::{robust_sigma, Evaluator};
+use crate::residuals::{ar1_inflation, lag1_autocorrelation, robust_sigma, Evaluator};
 use nalgebra::{DMatrix, DVector};
 
 /// Least significance (c / sigma_c) of the bumps' own loss pattern beyond a per-wheel
@@ -284,20 +284,18 @@ fn travel(ev: &Evaluator, model: &Model) -> Option<Localisation> {
         .map(|o| o.2 - row_of(o).iter().map(|&(j, x)| beta[j] * x).sum::<f64>())
         .collect();
     let sigma_e = robust_sigma(&mut res.clone());
-    let (mut ss, mut lag) = (0.0, 0.0);
-    for (j, e) in res.iter().enumerate() {
-        ss += e * e;
-        if j > 0 && obs[j - 1].0 == obs[j].0 {
-            lag += e * res[j - 1];
+    // Pairs only within one group (wheel and stretch): the runs of equal `obs[j].0`.
+    let mut runs = Vec::new();
+    let mut start = 0;
+    for j in 1..=res.len() {
+        if j == res.len() || obs[j - 1].0 != obs[j].0 {
+            runs.push(&res[start..j]);
+            start = j;
         }
     }
-    let rho = if ss > 0.0 {
-        (lag / ss).clamp(0.0, MAX_RHO)
-    } else {
-        0.0
-    };
+    let rho = lag1_autocorrelation(runs, MAX_RHO);
     let c = beta[k - 1];
-    let sigma_c = sigma_e * inv_c.max(0.0).sqrt() * ((1.0 + rho) / (1.0 - rho)).sqrt();
+    let sigma_c = sigma_e * inv_c.max(0.0).sqrt() * ar1_inflation(rho).sqrt();
     if !(sigma_c > 0.0 && sigma_c.is_finite() && c.is_finite()) {
         return Some(not_localised());
     }

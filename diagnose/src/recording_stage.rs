@@ -430,16 +430,9 @@ pub fn raw_counts_ratios(robot: &Robot, rec: &Recording) -> Vec<Option<RawRatio>
             let ratio = s.iter().map(|x| x.0.abs() * x.1.abs()).sum::<f64>() / pp;
             let e: Vec<f64> = s.iter().map(|x| x.0.abs() - ratio * x.1.abs()).collect();
             let w: Vec<f64> = s.iter().zip(&e).map(|(x, e)| x.1.abs() * e).collect();
-            let (ss, lag): (f64, f64) = (
-                w.iter().map(|v| v * v).sum(),
-                w.windows(2).map(|v| v[0] * v[1]).sum(),
-            );
-            let rho = if ss > 0.0 {
-                (lag / ss).clamp(0.0, 0.9)
-            } else {
-                0.0
-            };
-            let sigma = ss.sqrt() / pp * ((1.0 + rho) / (1.0 - rho)).sqrt();
+            let ss: f64 = w.iter().map(|v| v * v).sum();
+            let rho = crate::residuals::lag1_autocorrelation([w.as_slice()], 0.9);
+            let sigma = ss.sqrt() / pp * crate::residuals::ar1_inflation(rho).sqrt();
             (ratio.is_finite() && sigma.is_finite()).then_some(RawRatio {
                 ratio,
                 sigma,
