@@ -248,6 +248,9 @@ impl WheelDriver for Motors {
         if wheel >= 4 || self.mode != Some(DriveType::Dc) {
             return;
         }
+        // The application never sends a non-finite duty (it faults instead); if one came
+        // anyway it must be 0, not full power: `NaN.abs().min(1.0)` is 1.0.
+        let duty = if duty.is_finite() { duty } else { 0.0 };
         self.enable.set_high();
         self.direction(wheel, duty >= 0.0);
         let max = self.timer.get_max_compare_value() as f32;
@@ -262,6 +265,7 @@ impl WheelDriver for Motors {
         self.enable.set_high();
         self.direction(wheel, steps_per_s >= 0.0);
         let rate = steps_per_s.abs();
+        // NaN and infinity fail this range: no stepping.
         if !(MIN_STEP_HZ..=f32::MAX).contains(&rate) {
             HALF_PERIOD[wheel].store(0, Ordering::Relaxed);
             return;

@@ -22,6 +22,19 @@ pub struct PiGains {
     pub out_max: f32,
 }
 
+/// `x` limited to [-m, m], NaN kept NaN. Not `max`/`min`, which drop a NaN operand
+/// (`NaN.max(-m).min(m)` is -m: full reverse duty from a NaN), and not `clamp`, whose
+/// panic path costs ~6 KiB of flash on the board. The caller checks the result is finite.
+fn limit(x: f32, m: f32) -> f32 {
+    if x > m {
+        m
+    } else if x < -m {
+        -m
+    } else {
+        x
+    }
+}
+
 /// One wheel's velocity controller.
 #[derive(Debug, Clone, Copy, PartialEq)]
 pub struct PiController {
@@ -61,12 +74,9 @@ impl PiController {
         if !pushing_out {
             self.integral += g.ki * err * dt;
             // Never let the integrator alone exceed the output range.
-            // max/min rather than clamp: clamp's panic path costs ~6 KiB of flash on the board.
-            self.integral = self.integral.max(-g.out_max).min(g.out_max);
+            self.integral = limit(self.integral, g.out_max);
         }
-        (ff + g.kp * err + self.integral)
-            .max(-g.out_max)
-            .min(g.out_max)
+        limit(ff + g.kp * err + self.integral, g.out_max)
     }
 
     /// Current integrator value (output units).
@@ -88,6 +98,32 @@ mod tests {
             w += dt / 0.05 * (k * u - b * w - load);
         }
         w
+    }
+
+    /// A NaN setpoint or measurement must come out as NaN (for the board's finite check to
+    /// catch), never as a saturated duty: `max`/`min` turned it into -out_max, full reverse.
+    #[test]
+    fn nan_in_is_nan_out_not_full_duty() {
+        let gains = PiGains {
+            kp: 0.05,
+            ki: 2.0,
+            kff: 0.05,
+            kstatic: 0.02,
+            out_max: 1.0,
+        };
+        for (sp, meas) in [
+            (f32::NAN, 1.0),
+            (1.0, f32::NAN),
+            (f32::INFINITY, f32::INFINITY),
+        ] {
+            let mut c = PiController::new(gains);
+            let u = c.update(sp, meas, 1e-3);
+            assert!(u.is_nan(), "update({sp}, {meas}) = {u}, expected NaN");
+        }
+        // Finite inputs beyond the range still saturate at exactly +-out_max.
+        let mut c = PiController::new(gains);
+        assert_eq!(c.update(1e6, 0.0, 1e-3), 1.0);
+        assert_eq!(c.update(-1e6, 0.0, 1e-3), -1.0);
     }
 
     #[test]

@@ -285,8 +285,14 @@ pub fn run_umbmark<L: Read + Write>(
     dir: Direction,
     side_m: f64,
     log_rate_hz: u16,
+    link_timeout_ms: u16,
 ) -> Result<Duration> {
-    start_program(c, ProgramSpec::Umbmark { side_m, dir }, log_rate_hz)
+    start_program(
+        c,
+        ProgramSpec::Umbmark { side_m, dir },
+        log_rate_hz,
+        link_timeout_ms,
+    )
 }
 
 /// Starts an omni path.
@@ -296,6 +302,7 @@ pub fn run_omni<L: Read + Write>(
     length_m: f64,
     idle: calib_core::protocol::IdleWheels,
     log_rate_hz: u16,
+    link_timeout_ms: u16,
 ) -> Result<Duration> {
     start_program(
         c,
@@ -305,17 +312,21 @@ pub fn run_omni<L: Read + Write>(
             idle,
         },
         log_rate_hz,
+        link_timeout_ms,
     )
 }
 
 /// Checks a program with the board's own rule ([`ProgramSpec::validate`] against the
 /// board's robot and arena) before anything is sent, then starts it. Returns how long to
 /// wait for it before giving up: a minute plus a minute per metre of its longest length,
-/// which the check has bounded to the arena.
+/// which the check has bounded to the arena. The board stops the program when it hears
+/// nothing from this host for `link_timeout_ms` (0: never; [`wait_program`]'s polling
+/// keeps it alive).
 pub fn start_program<L: Read + Write>(
     c: &mut Client<L>,
     program: ProgramSpec,
     log_rate_hz: u16,
+    link_timeout_ms: u16,
 ) -> Result<Duration> {
     let params = c.params()?;
     let robot = &params.robot;
@@ -346,7 +357,7 @@ pub fn start_program<L: Read + Write>(
             ids.join(", ")
         );
     }
-    c.run_program(program, log_rate_hz)?;
+    c.run_program(program, log_rate_hz, link_timeout_ms)?;
     Ok(program_time_limit(longest))
 }
 

@@ -297,9 +297,51 @@ pub struct ProgramRunArgs {
     /// Trial log rate, Hz (0 = no log).
     #[arg(long, default_value_t = 50, value_parser = clap::value_parser!(u16).range(0..=1000))]
     pub log_rate: u16,
-    /// Return at once instead of waiting for the end.
+    /// Return at once instead of waiting for the end (needs --no-link-failsafe: nobody
+    /// would be left to keep the board's host-link failsafe alive).
     #[arg(long)]
     pub no_wait: bool,
+    /// Host-link failsafe: the board stops the program when it hears nothing from this
+    /// console for this long (a frozen or suspended console, a crashed host, a pulled
+    /// cable), seconds.
+    #[arg(long, default_value_t = 0.5, value_parser = link_timeout_s)]
+    pub link_timeout: f64,
+    /// Run without the host-link failsafe: the robot drives on if this computer stops
+    /// talking to it.
+    #[arg(long)]
+    pub no_link_failsafe: bool,
+}
+
+impl ProgramRunArgs {
+    /// The link timeout to send (ms, 0 = off), or why these options cannot go together.
+    pub fn link_timeout_ms(&self) -> anyhow::Result<u16> {
+        if self.no_link_failsafe {
+            return Ok(0);
+        }
+        if self.no_wait {
+            anyhow::bail!(
+                "--no-wait leaves nobody to keep the board's host-link failsafe alive: the board \
+                 would stop the robot {} s after this command returns. Add --no-link-failsafe \
+                 to run without it (the robot then drives on whatever happens to this computer)",
+                self.link_timeout
+            );
+        }
+        Ok((self.link_timeout * 1000.0).round() as u16)
+    }
+}
+
+/// Parses `--link-timeout` (seconds, within what the board accepts).
+fn link_timeout_s(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("`{s}` is not a number of seconds"))?;
+    let min = calib_core::protocol::MIN_LINK_TIMEOUT_MS as f64 / 1000.0;
+    if !(min..=60.0).contains(&v) {
+        return Err(format!(
+            "{v} s is outside [{min}, 60] s (use --no-link-failsafe to turn it off)"
+        ));
+    }
+    Ok(v)
 }
 
 /// Subcommands of `wheelcal log`.

@@ -420,15 +420,18 @@ impl<L: Read + Write> Client<L> {
         self.expect_ok(Request::Drive { twist, timeout_ms })
     }
 
-    /// Starts a motion program, logging a trial at `log_rate_hz` (0: no log).
+    /// Starts a motion program, logging a trial at `log_rate_hz` (0: no log); the board
+    /// cuts it when no request arrives from this host for `link_timeout_ms` (0: off).
     pub fn run_program(
         &mut self,
         program: ProgramSpec,
         log_rate_hz: u16,
+        link_timeout_ms: u16,
     ) -> Result<(), ClientError> {
         self.expect_ok(Request::RunProgram {
             program,
             log_rate_hz,
+            link_timeout_ms,
         })
     }
 

@@ -52,6 +52,11 @@ impl SimHardware {
         }
     }
 
+    /// What the application last wrote to each motor (held until its next write).
+    pub fn inputs(&self) -> &[WheelInput] {
+        &self.inputs
+    }
+
     /// One tick of the application against this hardware, then one tick of physics.
     fn tick(&mut self, app: &mut App<'_>, now_us: u64) {
         app.tick(

@@ -58,6 +58,7 @@ fn a_pulled_trial_as_mcap_has_one_channel_per_signal_group() {
             length_m: 0.5,
         },
         rate,
+        calib_core::protocol::DEFAULT_LINK_TIMEOUT_MS,
     )
     .unwrap();
     wheelcal::board_cmds::wait_program(c, Duration::from_secs(120), |_| {}).unwrap();

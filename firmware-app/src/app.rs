@@ -12,9 +12,10 @@ use calib_core::kinematics::Kinematics;
 use calib_core::motion::{Program, ProgramRunner, Setpoint};
 use calib_core::odometry::{Odometry, Pose};
 use calib_core::protocol::{
-    record_size, BootReport, CorrectionFault, Fault, IdleWheels, Info, LogChunk, Mode, Params,
-    ParamsFault, ProgramError, ProgramSpec, Record, Rejection, Request, Response, Status,
-    StopReason, TrialEnd, MAX_LOG_CHUNK, PROTOCOL_VERSION, SCHEMA_FINGERPRINT,
+    record_size, BootReport, ControlValue, CorrectionFault, Fault, IdleWheels, Info, LogChunk,
+    Mode, Params, ParamsFault, ProgramError, ProgramSpec, Record, Rejection, Request, Response,
+    Status, StopReason, TrialEnd, MAX_LOG_CHUNK, MIN_LINK_TIMEOUT_MS, PROTOCOL_VERSION,
+    SCHEMA_FINGERPRINT,
 };
 use calib_core::robot::{DriveType, MAX_WHEELS};
 use calib_core::{Corrections, Twist};
@@ -57,6 +58,17 @@ struct Block {
     ticks_left: u32,
 }
 
+/// What one wheel's motor gets this tick.
+#[derive(Debug, Clone, Copy)]
+enum Output {
+    /// Drive off, free to turn (an idle omni wheel).
+    Release,
+    /// DC wheel: signed duty in [-1, 1], finite.
+    Duty(f32),
+    /// Stepper wheel: step rate (finite) and this tick's exact steps.
+    Steps { rate_hz: f32, steps: i32 },
+}
+
 /// What the motion state asks of this tick.
 #[derive(Debug, Clone, Copy)]
 enum Act {
@@ -64,6 +76,8 @@ enum Act {
     Set(Twist<f32>),
     Wheel(usize, f32),
     Timeout,
+    /// The host-link failsafe: no request within the program's link timeout.
+    LinkLost,
     Done,
 }
 
@@ -116,6 +130,13 @@ pub struct App<'a> {
     /// Result of the last Hello: false makes every other request a mismatch.
     peer_compatible: Option<bool>,
     bad_frames: u32,
+    /// When the last valid request arrived (the host-link failsafe's clock).
+    last_request_us: u64,
+    /// The running program's host-link timeout (0: off).
+    link_timeout_us: u64,
+    /// Test builds: a NaN forced into one wheel's control path every tick.
+    #[cfg(feature = "fault-injection")]
+    injected_nan: Option<(usize, ControlValue)>,
 }
 
 fn kinematics(params: &Params, c: &Corrections) -> Option<Kinematics<f32>> {
@@ -176,6 +197,10 @@ impl<'a> App<'a> {
             next_telemetry_us: 0,
             peer_compatible: None,
             bad_frames: 0,
+            last_request_us: now_us,
+            link_timeout_us: 0,
+            #[cfg(feature = "fault-injection")]
+            injected_nan: None,
         };
         app.configure();
         app
@@ -221,6 +246,14 @@ impl<'a> App<'a> {
     /// Commanded wheel rates (rad/s).
     pub fn wheel_cmds(&self) -> impl Iterator<Item = f32> + '_ {
         self.wheels[..self.n].iter().map(|w| w.cmd)
+    }
+
+    /// Test builds only (feature `fault-injection`): from the next tick on, forces a NaN
+    /// into `wheel`'s control path at `value` (a command or measured rate, or both inputs
+    /// of an output), as a bug upstream would; `None` stops it. Proves the boundary check.
+    #[cfg(feature = "fault-injection")]
+    pub fn inject_nan(&mut self, at: Option<(usize, ControlValue)>) {
+        self.injected_nan = at;
     }
 
     /// A damaged frame arrived (counted for the status).
@@ -300,6 +333,12 @@ impl<'a> App<'a> {
                         Act::Slew(*target)
                     }
                 }
+                Motion::Program(..)
+                    if self.link_timeout_us > 0
+                        && now_us.saturating_sub(self.last_request_us) > self.link_timeout_us =>
+                {
+                    Act::LinkLost
+                }
                 Motion::Program(runner, _, block) => {
                     if block.ticks_left == 0 {
                         let dt = TRAJECTORY_DIVIDER as f64 / TICK_HZ as f64;
@@ -329,6 +368,10 @@ impl<'a> App<'a> {
                     self.cut(StopReason::CommandTimeout, TrialEnd::CommandTimeout);
                     cut_now = true;
                 }
+                Act::LinkLost => {
+                    self.cut(StopReason::LinkLost, TrialEnd::LinkLost);
+                    cut_now = true;
+                }
                 Act::Done => {
                     self.motion = Motion::Idle;
                     self.twist = Twist::zero();
@@ -338,48 +381,34 @@ impl<'a> App<'a> {
             }
         }
 
-        // Wheel commands and outputs.
-        if cut_now {
-            drv.stop_all();
-        } else {
-            let mut cmd = [0f32; MAX_WHEELS];
-            match single {
-                Some((i, rate)) if i < n => cmd[i] = rate,
-                Some(_) => {}
-                None => self.kin.inverse_into(&self.twist, &mut cmd[..n]),
-            }
-            let standing = self.twist == Twist::zero();
-            // On an omni robot a wheel the motion does not use is switched off (released:
-            // 001 turns off the actuators of wheels 1 and 3 on 4W-2), unless the running
-            // program asked for the idle wheels held at zero by their velocity loops
-            // (001's 4W-1: "the other wheels have no angular velocity").
-            let held = self.hold_idle && matches!(self.motion, Motion::Program(..));
-            let omni = self.params.robot.kind == calib_core::robot::RobotKind::Omni && !held;
-            for (i, w) in self.wheels[..n].iter_mut().enumerate() {
-                w.cmd = cmd[i];
-                if self.dc {
-                    // (below 1e-4 rad/s: the Jacobian's sin(180 deg) is 1e-16, not 0)
-                    if w.cmd.abs() < 1e-4 && omni && !standing {
-                        w.pi.reset();
-                        drv.release(i);
-                        continue;
-                    }
-                    let duty = if w.cmd == 0.0 && standing {
-                        // Standing: no integrator creep, no hum.
-                        w.pi.reset();
-                        0.0
-                    } else {
-                        w.pi.update(w.cmd, w.rate, DT)
-                    };
-                    drv.set_duty(i, duty);
-                } else {
-                    let steps = w.steps.advance(w.cmd, DT);
-                    drv.set_steps(i, w.steps.step_rate_hz(w.cmd), steps);
-                    if self.rad_per_count.is_none() {
-                        dphi[i] = steps as f32 / self.steps_per_rad;
+        // Wheel commands and outputs: computed for every wheel first, checked, then
+        // written, so a non-finite value reaches no register (see `Fault::NonFiniteOutput`).
+        if !cut_now {
+            let mut out = [Output::Release; MAX_WHEELS];
+            let bad = self.wheel_outputs(single, &mut out);
+            if let Some(f) = bad {
+                if self.fault.is_none() {
+                    self.fault = Some(f);
+                }
+                self.cut(StopReason::Fault, TrialEnd::Fault);
+                cut_now = true;
+            } else {
+                for (i, o) in out[..n].iter().enumerate() {
+                    match *o {
+                        Output::Release => drv.release(i),
+                        Output::Duty(d) => drv.set_duty(i, d),
+                        Output::Steps { rate_hz, steps } => {
+                            drv.set_steps(i, rate_hz, steps);
+                            if self.rad_per_count.is_none() {
+                                dphi[i] = steps as f32 / self.steps_per_rad;
+                            }
+                        }
                     }
                 }
             }
+        }
+        if cut_now {
+            drv.stop_all();
         }
 
         // Odometry with the corrected geometry.
@@ -399,6 +428,87 @@ impl<'a> App<'a> {
             }
             self.log.log_record(&rec);
         }
+    }
+
+    /// This tick's wheel commands and motor outputs, or the fault of the first output
+    /// that is not a finite number (nothing is written then: every wheel stops).
+    fn wheel_outputs(
+        &mut self,
+        single: Option<(usize, f32)>,
+        out: &mut [Output; MAX_WHEELS],
+    ) -> Option<Fault> {
+        let n = self.n;
+        let mut cmd = [0f32; MAX_WHEELS];
+        match single {
+            Some((i, rate)) if i < n => cmd[i] = rate,
+            Some(_) => {}
+            None => self.kin.inverse_into(&self.twist, &mut cmd[..n]),
+        }
+        let standing = self.twist == Twist::zero();
+        // On an omni robot a wheel the motion does not use is switched off (released:
+        // 001 turns off the actuators of wheels 1 and 3 on 4W-2), unless the running
+        // program asked for the idle wheels held at zero by their velocity loops
+        // (001's 4W-1: "the other wheels have no angular velocity").
+        let held = self.hold_idle && matches!(self.motion, Motion::Program(..));
+        let omni = self.params.robot.kind == calib_core::robot::RobotKind::Omni && !held;
+        for (i, w) in self.wheels[..n].iter_mut().enumerate() {
+            w.cmd = cmd[i];
+            #[cfg(feature = "fault-injection")]
+            if let Some((wheel, value)) = self.injected_nan {
+                if wheel == i {
+                    match value {
+                        ControlValue::Command => w.cmd = f32::NAN,
+                        ControlValue::Rate => w.rate = f32::NAN,
+                        // The outputs are the PI's and the step generator's; a NaN in
+                        // either input reaches them.
+                        ControlValue::Duty | ControlValue::StepRate => {
+                            w.cmd = f32::NAN;
+                            w.rate = f32::NAN;
+                        }
+                    }
+                }
+            }
+            let nonfinite = |value| {
+                Some(Fault::NonFinite {
+                    wheel: i as u8,
+                    value,
+                })
+            };
+            if !w.cmd.is_finite() {
+                return nonfinite(ControlValue::Command);
+            }
+            if self.dc && !w.rate.is_finite() {
+                return nonfinite(ControlValue::Rate);
+            }
+            out[i] = if self.dc {
+                // (below 1e-4 rad/s: the Jacobian's sin(180 deg) is 1e-16, not 0)
+                if w.cmd.abs() < 1e-4 && omni && !standing {
+                    w.pi.reset();
+                    Output::Release
+                } else if w.cmd == 0.0 && standing {
+                    // Standing: no integrator creep, no hum.
+                    w.pi.reset();
+                    Output::Duty(0.0)
+                } else {
+                    let duty = w.pi.update(w.cmd, w.rate, DT);
+                    if !duty.is_finite() {
+                        return nonfinite(ControlValue::Duty);
+                    }
+                    // max/min, not clamp: clamp's panic path pulls in float formatting.
+                    Output::Duty(duty.max(-1.0).min(1.0))
+                }
+            } else {
+                let rate_hz = w.steps.step_rate_hz(w.cmd);
+                if !rate_hz.is_finite() {
+                    return nonfinite(ControlValue::StepRate);
+                }
+                Output::Steps {
+                    rate_hz,
+                    steps: w.steps.advance(w.cmd, DT),
+                }
+            };
+        }
+        None
     }
 
     /// Moves `cur` towards `target` within the acceleration limits.
@@ -473,6 +583,8 @@ impl<'a> App<'a> {
     /// Decides a request: validates completely, then acts, then answers.
     pub fn handle(&mut self, req: Request, now_us: u64) -> Handled<'_> {
         self.now_us = self.now_us.max(now_us);
+        // Any valid request proves the host alive (the console polls while it waits).
+        self.last_request_us = self.now_us;
         match self.handle_inner(req) {
             Ok(h) => h,
             Err(r) => Handled::Reply(Response::Rejected(r)),
@@ -555,8 +667,15 @@ impl<'a> App<'a> {
             Request::RunProgram {
                 program,
                 log_rate_hz,
+                link_timeout_ms,
             } => {
+                if link_timeout_ms != 0 && link_timeout_ms < MIN_LINK_TIMEOUT_MS {
+                    return Err(Rejection::InvalidProgram(ProgramError::LinkTimeout {
+                        ms: link_timeout_ms,
+                    }));
+                }
                 self.start_program(program, log_rate_hz)?;
+                self.link_timeout_us = link_timeout_ms as u64 * 1000;
                 reply(Response::Ok)
             }
             Request::Stop => {

@@ -36,6 +36,7 @@ fn dc_loop_tracks_a_trapezoid_within_2_percent() {
         Request::RunProgram {
             program: straight(2.0),
             log_rate_hz: 0,
+            link_timeout_ms: 0,
         },
         0,
     ));
@@ -104,6 +105,7 @@ fn umbmark_run(
                 dir: Direction::Cw,
             },
             log_rate_hz: 50,
+            link_timeout_ms: 0,
         },
         0,
     ));
@@ -345,6 +347,7 @@ fn omni_corrections_drive_the_true_robot_along_the_path() {
         Request::RunProgram {
             program: ProgramSpec::Custom(heapless::Vec::from_slice(&segs).unwrap()),
             log_rate_hz: 0,
+            link_timeout_ms: 0,
         },
         0,
     ));
@@ -380,6 +383,7 @@ fn single_wheel_segment_turns_one_wheel() {
         Request::RunProgram {
             program: ProgramSpec::Custom(heapless::Vec::from_slice(&segs).unwrap()),
             log_rate_hz: 0,
+            link_timeout_ms: 0,
         },
         0,
     ));

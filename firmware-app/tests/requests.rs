@@ -226,6 +226,7 @@ fn rejected_requests_change_nothing_and_say_why() {
                 dir: Direction::Cw,
             },
             log_rate_hz: 10,
+            link_timeout_ms: 0,
         },
     );
     rejected(
@@ -238,6 +239,7 @@ fn rejected_requests_change_nothing_and_say_why() {
                 length_m: 1.0,
             },
             log_rate_hz: 10,
+            link_timeout_ms: 0,
         },
     );
     rejected(
@@ -252,6 +254,7 @@ fn rejected_requests_change_nothing_and_say_why() {
                 .unwrap(),
             ),
             log_rate_hz: 10,
+            link_timeout_ms: 0,
         },
     );
     rejected(
@@ -272,6 +275,7 @@ fn rejected_requests_change_nothing_and_say_why() {
                 dir: Direction::Ccw,
             },
             log_rate_hz: 10,
+            link_timeout_ms: 0,
         },
     );
     b.run_ms(100);
@@ -284,7 +288,8 @@ fn rejected_requests_change_nothing_and_say_why() {
                     side_m: 1.0,
                     dir: Direction::Ccw
                 },
-                log_rate_hz: 10
+                log_rate_hz: 10,
+                link_timeout_ms: 0,
             }
         ),
         Rejection::Busy
@@ -327,6 +332,7 @@ fn retries_are_not_executed_twice_and_damage_is_nacked() {
             dir: Direction::Cw,
         },
         log_rate_hz: 10,
+        link_timeout_ms: 0,
     });
     let first = l.raw(&mut b, &run);
     b.run_ms(500);
@@ -356,6 +362,7 @@ fn trial_log_downloads_in_chunks() {
                 dir: Direction::Ccw,
             },
             log_rate_hz: 20,
+            link_timeout_ms: 0,
         },
     );
     let mut status = b.app.status();
@@ -484,6 +491,7 @@ fn a_full_log_reports_dropped_records() {
                 dir: Direction::Cw,
             },
             log_rate_hz: 1000,
+            link_timeout_ms: 0,
         },
     );
     let mut ticks = 0u32;
@@ -636,6 +644,7 @@ fn programs_outside_the_arena_are_refused_and_nothing_moves() {
                     length_m,
                 },
                 log_rate_hz: 10,
+                link_timeout_ms: 0,
             },
         );
         assert!(

@@ -121,6 +121,7 @@ fn main() -> ! {
         Request::RunProgram {
             program,
             log_rate_hz: 100,
+            link_timeout_ms: 0,
         },
         0,
     );

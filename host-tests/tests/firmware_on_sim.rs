@@ -56,6 +56,7 @@ fn dc_wheels_track_the_profile_within_two_percent() {
                 length_m: 1.0,
             },
             log_rate_hz: 0,
+            link_timeout_ms: 0,
         },
     );
     let mut worst: f64 = 0.0;
@@ -160,6 +161,7 @@ fn corrected_umbmark_square_lands_where_calib_core_predicts() {
                 dir: Direction::Ccw,
             },
             log_rate_hz: 10,
+            link_timeout_ms: 0,
         },
     );
     let mut n = 0;

@@ -88,6 +88,7 @@ fn info_factors_program_and_log() {
             dir: Direction::Ccw,
         },
         50,
+        calib_core::protocol::DEFAULT_LINK_TIMEOUT_MS,
     )
     .unwrap();
     wait_idle(c, Duration::from_secs(120));
@@ -150,6 +151,8 @@ fn faulty_link_never_corrupts_and_transfers_or_fails_clearly() {
             length_m: 0.3,
         },
         200,
+        // Off: the test sleeps 1.5 s without a request, which the failsafe would end.
+        0,
     )
     .unwrap();
     wait_idle(c, Duration::from_secs(120));
@@ -189,6 +192,8 @@ fn pulling_a_running_trial_says_partial() {
             dir: Direction::Cw,
         },
         200,
+        // Off: the test sleeps 1.5 s without a request, which the failsafe would end.
+        0,
     )
     .unwrap();
     // The log is stored in 512-byte blocks (a running trial's last block appears when it

@@ -81,6 +81,9 @@ pub enum TrialEnd {
     Fault,
     /// Cut because twist commands stopped arriving within the command timeout.
     CommandTimeout,
+    /// Cut by the host-link failsafe: no request from the host within the program's
+    /// link timeout.
+    LinkLost,
 }
 
 /// Part of a trial's record bytes.

@@ -48,6 +48,12 @@ pub enum Request {
         program: ProgramSpec,
         /// Log rate (Hz); 0 = no log.
         log_rate_hz: u16,
+        /// Host-link failsafe: the program is cut ([`StopReason::LinkLost`]) when no valid
+        /// request has arrived for this long, so a host that froze, crashed or lost its
+        /// cable cannot leave the robot driving. 0 turns it off (an explicit choice, e.g.
+        /// a program started with `--no-wait`); otherwise at least
+        /// [`MIN_LINK_TIMEOUT_MS`].
+        link_timeout_ms: u16,
     },
     /// Controlled stop (ramps to zero through the controllers).
     Stop,
@@ -229,6 +235,9 @@ pub enum StopReason {
     Fault,
     /// The program ran to its end.
     ProgramDone,
+    /// No request from the host within the program's link timeout (the host-link
+    /// failsafe of [`Request::RunProgram`]).
+    LinkLost,
 }
 
 /// A detected hardware fault (latched, motors off).
@@ -247,6 +256,50 @@ pub enum Fault {
         /// The movement seen in one tick (counts).
         delta: i32,
     },
+    /// A value on the way to a motor was not a finite number (NaN or infinite). Nothing
+    /// is written to the motor then and every wheel stops: a NaN that reached the
+    /// velocity loop used to come out as full reverse duty (`NaN.max(-1.0)` is -1.0).
+    NonFinite {
+        /// Wheel index (0-based).
+        wheel: u8,
+        /// Which value it was.
+        value: ControlValue,
+    },
+}
+
+/// The per-wheel values of the control path that lead to a motor register, each checked
+/// finite every tick before anything is written.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
+#[cfg_attr(feature = "defmt", derive(defmt::Format))]
+pub enum ControlValue {
+    /// The wheel's commanded rate (from the kinematics or a program), rad/s.
+    Command,
+    /// The wheel's measured rate (from the encoder), rad/s.
+    Rate,
+    /// A DC wheel's signed PWM duty (becomes a timer compare value and a direction pin).
+    Duty,
+    /// A stepper wheel's step rate (becomes a timer half period and a direction pin).
+    StepRate,
+}
+
+impl ControlValue {
+    /// Every value that is checked, in the order of the control path.
+    pub const ALL: [ControlValue; 4] = [
+        ControlValue::Command,
+        ControlValue::Rate,
+        ControlValue::Duty,
+        ControlValue::StepRate,
+    ];
+
+    /// The value's name in messages.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            ControlValue::Command => "commanded rate",
+            ControlValue::Rate => "measured rate",
+            ControlValue::Duty => "PWM duty",
+            ControlValue::StepRate => "step rate",
+        }
+    }
 }
 
 impl fmt::Display for Fault {
@@ -262,6 +315,13 @@ impl fmt::Display for Fault {
                 f,
                 "counter jump: wheel {}'s encoder moved {delta} counts in one tick",
                 *wheel as u16 + 1
+            ),
+            Fault::NonFinite { wheel, value } => write!(
+                f,
+                "not a number: wheel {}'s {} was not finite; nothing was written to the \
+                 motor and every wheel was stopped",
+                *wheel as u16 + 1,
+                value.as_str()
             ),
         }
     }

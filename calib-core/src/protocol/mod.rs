@@ -75,7 +75,14 @@ pub use params::*;
 pub use text::*;
 
 /// Bumped on any incompatible change of the messages or framing.
-pub const PROTOCOL_VERSION: u16 = 2;
+pub const PROTOCOL_VERSION: u16 = 3;
+
+/// Shortest non-zero host-link timeout a program accepts: the console's requests while it
+/// waits for a program come every 50 ms, its heartbeat at the latest every 200 ms.
+pub const MIN_LINK_TIMEOUT_MS: u16 = 250;
+
+/// The host-link timeout the console asks for by default (ms).
+pub const DEFAULT_LINK_TIMEOUT_MS: u16 = 500;
 
 /// The encoding rules the message types cannot express (framing, the packed log record,
 /// the log's block codec), hashed into [`SCHEMA_FINGERPRINT`] with the types.

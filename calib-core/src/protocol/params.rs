@@ -345,6 +345,11 @@ pub enum ProgramError {
         /// The board's turn-rate limit (rad/s).
         omega_max: f64,
     },
+    /// A host-link timeout shorter than the console's requests can keep alive.
+    LinkTimeout {
+        /// The timeout asked for (ms).
+        ms: u16,
+    },
 }
 
 impl fmt::Display for ProgramError {
@@ -387,6 +392,10 @@ impl fmt::Display for ProgramError {
                 Num(twist.omega as f64),
                 Num(v_max),
                 Num(omega_max)
+            ),
+            ProgramError::LinkTimeout { ms } => write!(
+                f,
+                "link timeout {ms} ms is too short: 0 (off) or at least {MIN_LINK_TIMEOUT_MS} ms"
             ),
         }
     }

@@ -127,10 +127,13 @@ fn request() -> impl Strategy<Value = Request> {
                 timeout_ms,
             }
         }),
-        (program(), any::<u16>()).prop_map(|(program, log_rate_hz)| Request::RunProgram {
-            program,
-            log_rate_hz
-        }),
+        (program(), any::<u16>(), any::<u16>()).prop_map(
+            |(program, log_rate_hz, link_timeout_ms)| Request::RunProgram {
+                program,
+                log_rate_hz,
+                link_timeout_ms,
+            }
+        ),
         Just(Request::Stop),
         Just(Request::EStop),
         Just(Request::ClearFault),
@@ -463,6 +466,7 @@ fn largest_messages_fit_a_frame() {
             &Request::RunProgram {
                 program: ProgramSpec::Custom(Vec::from_slice(&segs).unwrap()),
                 log_rate_hz: 1,
+                link_timeout_ms: 0,
             },
         )
         .len(),
@@ -668,6 +672,7 @@ fn schema_golden() {
                 .unwrap(),
             ),
             log_rate_hz: 100,
+            link_timeout_ms: DEFAULT_LINK_TIMEOUT_MS,
         },
         Request::RunProgram {
             program: ProgramSpec::Umbmark {
@@ -675,6 +680,7 @@ fn schema_golden() {
                 dir: Direction::Ccw,
             },
             log_rate_hz: 100,
+            link_timeout_ms: 0,
         },
         Request::RunProgram {
             program: ProgramSpec::Omni {
@@ -683,6 +689,7 @@ fn schema_golden() {
                 length_m: 0.6,
             },
             log_rate_hz: 100,
+            link_timeout_ms: 0,
         },
         Request::Stop,
         Request::EStop,
@@ -720,7 +727,7 @@ fn schema_golden() {
     std::println!("golden {golden:#010x}, fingerprint {SCHEMA_FINGERPRINT:#010x}");
     assert_eq!(
         (golden, SCHEMA_FINGERPRINT),
-        (0xbb5075a0, 0x4c974c0d),
+        (0x3299cb83, 0xb2d278ee),
         "message types changed: record the new values (and bump PROTOCOL_VERSION if needed)"
     );
 }

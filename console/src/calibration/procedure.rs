@@ -13,6 +13,7 @@ use crate::virtual_board::TrialTruth;
 use anyhow::{bail, Context, Result};
 use calib_core::motion::{Direction, OmniPath};
 use calib_core::odometry::Pose;
+use calib_core::protocol::DEFAULT_LINK_TIMEOUT_MS;
 use calib_core::robot::RobotKind;
 use calib_core::Corrections;
 use formats::runs_file::{Phase, RunRow, RunsFile, TestKind};
@@ -509,8 +510,12 @@ fn run_phase<L: Read + Write>(
             m.ready(&what)?;
             m.say(&format!("{what}: running"));
             let limit = match t {
-                Trial::Square(d) => board_cmds::run_umbmark(c, d, length, 10)?,
-                Trial::Path(p, idle) => board_cmds::run_omni(c, p, length, idle, 10)?,
+                Trial::Square(d) => {
+                    board_cmds::run_umbmark(c, d, length, 10, DEFAULT_LINK_TIMEOUT_MS)?
+                }
+                Trial::Path(p, idle) => {
+                    board_cmds::run_omni(c, p, length, idle, 10, DEFAULT_LINK_TIMEOUT_MS)?
+                }
             };
             let end = board_cmds::wait_program(c, limit + Duration::from_secs(60), |_| {})?;
             let trial = c

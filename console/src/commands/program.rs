@@ -8,10 +8,13 @@ use anyhow::Result;
 
 /// Starts the program (validated first) and, unless --no-wait, follows it to its end.
 pub fn run(cmd: RunCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
+    let link_ms = match &cmd {
+        RunCmd::Umbmark { run, .. } | RunCmd::Omni { run, .. } => run.link_timeout_ms()?,
+    };
     let client = ctx.client()?;
     let (no_wait, limit) = match cmd {
         RunCmd::Umbmark { dir, side, run } => {
-            let limit = board_cmds::run_umbmark(client, dir.into(), side, run.log_rate)?;
+            let limit = board_cmds::run_umbmark(client, dir.into(), side, run.log_rate, link_ms)?;
             (run.no_wait, limit)
         }
         RunCmd::Omni {
@@ -21,7 +24,8 @@ pub fn run(cmd: RunCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
             idle,
         } => {
             let idle = idle.idle_wheels.map(Into::into).unwrap_or_default();
-            let limit = board_cmds::run_omni(client, path.into(), length, idle, run.log_rate)?;
+            let limit =
+                board_cmds::run_omni(client, path.into(), length, idle, run.log_rate, link_ms)?;
             (run.no_wait, limit)
         }
     };
