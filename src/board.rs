@@ -119,7 +119,9 @@ impl Encoders {
 
 impl EncoderSource for Encoders {
     fn width(&self) -> CounterWidth {
-        // TIM5 is 32-bit but runs with a 16-bit reload like the others.
+        // TIM5 is 32-bit (Qei writes only the low half of its reload, which stays
+        // 0xFFFF_FFFF), but `count()` reads the counter's low 16 bits, and those wrap
+        // exactly as the 16-bit timers' counters do.
         CounterWidth::Bits16
     }
 
@@ -181,7 +183,8 @@ impl Motors {
         dir: [Output<'static>; 4],
         enable: Output<'static>,
     ) -> Self {
-        let m = Motors {
+        // TIM2's priority is set once, in `set_priorities`.
+        Motors {
             timer: Timer::new(tim),
             _pins: (
                 PwmPin::new(ch1, OutputType::PushPull),
@@ -192,9 +195,7 @@ impl Motors {
             dir,
             enable,
             mode: None,
-        };
-        interrupt::TIM2.set_priority(Priority::P0);
-        m
+        }
     }
 
     /// Sets TIM2 up for the robot's drive type (at boot and when the parameters change).

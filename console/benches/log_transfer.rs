@@ -37,7 +37,8 @@ fn trial(robot_name: &str, what: &str, program: ProgramSpec) -> f64 {
     let c = &mut board.client;
     c.timeout = Duration::from_secs(2);
     c.hello().unwrap();
-    c.run_program(program, 1000).unwrap();
+    c.run_program(program, 1000, calib_core::protocol::DEFAULT_LINK_TIMEOUT_MS)
+        .unwrap();
     wheelcal::board_cmds::wait_program(c, Duration::from_secs(600), |_| {}).unwrap();
     let info = c.trials().unwrap().trials.last().unwrap().clone();
     let (rx0, tx0) = (c.stats.bytes_received, c.stats.bytes_sent);

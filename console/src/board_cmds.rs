@@ -243,6 +243,33 @@ pub fn status_line(s: &Status) -> String {
     line
 }
 
+/// After Ctrl-C: sends Stop, says so, and watches the board until every wheel is at rest
+/// (or [`crate::stop::REST_TIMEOUT`] passes), so the message the user reads is true.
+pub fn stop_after_interrupt<L: Read + Write>(
+    c: &mut Client<L>,
+) -> Result<crate::stop::Interrupted> {
+    use crate::stop::{REST_RATE, REST_TIMEOUT};
+    c.stop()?;
+    eprintln!("\nCtrl-C: stopping the robot...");
+    let t0 = Instant::now();
+    while t0.elapsed() < REST_TIMEOUT {
+        let Ok(s) = c.status() else { break };
+        let idle = matches!(s.mode, Mode::Idle);
+        // Commands at zero (the stop ramp has ended; an open-loop stepper has no measured
+        // rate) and measured rates at rest.
+        let still = |v: &[f32]| v.iter().all(|r| r.abs() < REST_RATE);
+        if idle && still(&s.wheel_cmds) && still(&s.wheel_rates) {
+            return Ok(crate::stop::Interrupted {
+                came_to_rest_after: Some(t0.elapsed()),
+            });
+        }
+        std::thread::sleep(Duration::from_millis(20));
+    }
+    Ok(crate::stop::Interrupted {
+        came_to_rest_after: None,
+    })
+}
+
 /// Waits for a program to end, calling `on_status` now and then; returns the last status.
 pub fn wait_program<L: Read + Write>(
     c: &mut Client<L>,
@@ -254,8 +281,7 @@ pub fn wait_program<L: Read + Write>(
     let _guard = crate::stop::Guard::new();
     loop {
         if crate::stop::requested() {
-            c.stop()?;
-            return Err(crate::stop::Interrupted.into());
+            return Err(stop_after_interrupt(c)?.into());
         }
         let s = c.status()?;
         on_status(&s);
@@ -418,8 +444,7 @@ pub fn drive_for<L: Read + Write>(
     let mut refreshed = None::<Instant>;
     while t0.elapsed() < duration {
         if crate::stop::requested() {
-            c.stop()?;
-            return Err(crate::stop::Interrupted.into());
+            return Err(stop_after_interrupt(c)?.into());
         }
         if refreshed.is_none_or(|r| r.elapsed() >= Duration::from_millis(100)) {
             c.drive(twist, 0)?;
@@ -429,6 +454,19 @@ pub fn drive_for<L: Read + Write>(
     }
     c.stop()?;
     Ok(())
+}
+
+/// How a trial ended, as `log list` prints it (snake case, one word per state).
+pub fn trial_end_text(end: calib_core::protocol::TrialEnd) -> &'static str {
+    match end {
+        calib_core::protocol::TrialEnd::Running => "running",
+        calib_core::protocol::TrialEnd::Completed => "completed",
+        calib_core::protocol::TrialEnd::Stopped => "stopped",
+        calib_core::protocol::TrialEnd::EStop => "estop",
+        calib_core::protocol::TrialEnd::Fault => "fault",
+        calib_core::protocol::TrialEnd::CommandTimeout => "command_timeout",
+        calib_core::protocol::TrialEnd::LinkLost => "link_lost",
+    }
 }
 
 /// A trial's program in words (`umbmark cw, side 0.5 m`), not Rust's debug text.
@@ -497,7 +535,7 @@ pub fn trial_list(t: &Trials) -> TrialList {
                 records: i.records,
                 bytes: i.bytes,
                 dropped_records: i.dropped,
-                end: format!("{:?}", i.end).to_lowercase(),
+                end: trial_end_text(i.end).into(),
                 corrections: (&i.corrections).into(),
             })
             .collect(),

@@ -197,7 +197,14 @@ mod tests {
     #[test]
     fn completion_offers_only_the_commands_own_flags() {
         let run_umbmark = complete("run umbmark --");
-        for f in ["--dir ", "--side ", "--log-rate ", "--no-wait "] {
+        for f in [
+            "--dir ",
+            "--side ",
+            "--log-rate ",
+            "--no-wait ",
+            "--link-timeout ",
+            "--no-link-failsafe ",
+        ] {
             assert!(
                 run_umbmark.contains(&f.to_string()),
                 "{f} in {run_umbmark:?}"

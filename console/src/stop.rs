@@ -70,13 +70,38 @@ impl Drop for Guard {
     }
 }
 
-/// The error a guarded loop returns after Ctrl-C, once it has sent Stop.
+/// The error a guarded loop returns after Ctrl-C, once it has sent Stop and watched the
+/// robot come to rest (a program's Stop ramps down at the acceleration limit: "the motors
+/// are off" at the moment Stop was sent would be false for a good half second).
 #[derive(Debug)]
-pub struct Interrupted;
+pub struct Interrupted {
+    /// How long after Stop the board reported every wheel at rest; `None`: it had not
+    /// within [`REST_TIMEOUT`] (or could not be asked).
+    pub came_to_rest_after: Option<Duration>,
+}
+
+/// How long to watch for standstill after Ctrl-C before saying it was not confirmed.
+pub const REST_TIMEOUT: Duration = Duration::from_secs(3);
+
+/// A wheel commanded and measured slower than this (rad/s) is at rest: below one encoder
+/// count per 8 ms rate window of a 1920-count wheel (0.41 rad/s), so the estimate reads 0.
+pub const REST_RATE: f32 = 0.05;
 
 impl std::fmt::Display for Interrupted {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        write!(f, "interrupted (Ctrl-C): sent Stop, the motors are off")
+        match self.came_to_rest_after {
+            Some(t) => write!(
+                f,
+                "interrupted (Ctrl-C): sent Stop; the robot came to rest {} ms later",
+                t.as_millis()
+            ),
+            None => write!(
+                f,
+                "interrupted (Ctrl-C): sent Stop, but standstill was not confirmed within {} s: \
+                 check the robot (`wheelcal estop` cuts the motors)",
+                REST_TIMEOUT.as_secs()
+            ),
+        }
     }
 }
 
@@ -135,10 +160,16 @@ impl Drop for Relay {
 /// E-stop needs it, and `wheelcal estop` then says the port is busy.
 pub fn hold(port_name: &str, port: Box<dyn serialport::SerialPort>) -> (LockedPort, Option<Relay>) {
     let lock = Arc::new(Mutex::new(()));
-    let relay = port
-        .try_clone()
-        .ok()
-        .and_then(|writer| start_relay(&socket_path(port_name), writer, lock.clone()).ok());
+    let relay = match port.try_clone() {
+        Ok(writer) => match start_relay(&socket_path(port_name), writer, lock.clone()) {
+            Ok(r) => Some(r),
+            Err(e) => {
+                eprintln!("note: {e:#}: `wheelcal estop` from another terminal cannot reach this port while this command holds it");
+                None
+            }
+        },
+        Err(_) => None,
+    };
     (LockedPort { port, lock }, relay)
 }
 
@@ -147,9 +178,19 @@ fn start_relay(
     mut writer: Box<dyn serialport::SerialPort>,
     lock: Arc<Mutex<()>>,
 ) -> Result<Relay> {
-    // A socket left by a holder that died is stale: nobody answers on it.
-    if UnixStream::connect(path).is_err() {
-        let _ = std::fs::remove_file(path);
+    // A socket left by a holder that died is stale: nobody answers on it. Anything else
+    // at that path is somebody's file: never deleted (no relay then).
+    if let Ok(meta) = std::fs::symlink_metadata(path) {
+        use std::os::unix::fs::FileTypeExt;
+        if !meta.file_type().is_socket() {
+            anyhow::bail!(
+                "{} is not a socket; not replacing it (the E-stop relay is off)",
+                path.display()
+            );
+        }
+        if UnixStream::connect(path).is_err() {
+            let _ = std::fs::remove_file(path);
+        }
     }
     let listener =
         UnixListener::bind(path).with_context(|| format!("cannot listen on {}", path.display()))?;
@@ -191,25 +232,106 @@ fn start_relay(
     })
 }
 
-/// Asks the process holding `port` to send an E-stop. `Ok(None)`: nobody holds it (open
-/// the port yourself); `Ok(Some(t))`: the frame was written to the port `t` after asking.
-pub fn relay_estop(port: &str) -> Result<Option<Duration>> {
+/// How an E-stop reached a port another wheelcal holds.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Relayed {
+    /// From asking to the holder's confirmation that the frame is on the port.
+    pub elapsed: Duration,
+    /// The holder was stopped (Ctrl-Z, SIGSTOP) and did not answer within
+    /// [`WAKE_AFTER`]: its process id, sent SIGCONT so that its relay could write.
+    pub woke_pid: Option<i32>,
+}
+
+/// How long a holder may take to confirm before it is taken for stopped and woken.
+pub const WAKE_AFTER: Duration = Duration::from_millis(100);
+
+/// What [`relay_estop`] found.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub enum RelayOutcome {
+    /// Nobody holds the port: open it yourself.
+    NotHeld,
+    /// The holder wrote the E-stop to the port.
+    Relayed(Relayed),
+    /// The holder (this process id) died while asked: the port is free, open it yourself.
+    HolderGone(i32),
+}
+
+/// Asks the process holding `port` to send an E-stop. A holder that does not confirm
+/// within [`WAKE_AFTER`] is taken for suspended (Ctrl-Z, SIGSTOP: all its threads stand,
+/// the relay's too) and sent SIGCONT, its process id read from the socket's peer
+/// credentials; its relay then writes the frame. A holder that is gone leaves the port to
+/// the caller.
+pub fn relay_estop(port: &str) -> Result<RelayOutcome> {
     let path = socket_path(port);
     let t0 = Instant::now();
     let Ok(mut conn) = UnixStream::connect(&path) else {
-        return Ok(None);
+        return Ok(RelayOutcome::NotHeld);
     };
-    conn.set_read_timeout(Some(Duration::from_secs(1)))?;
+    let pid = holder_pid(&conn);
     writeln!(conn, "estop")?;
+    let mut reader = BufReader::new(conn.try_clone()?);
     let mut answer = String::new();
-    BufReader::new(&conn)
-        .read_line(&mut answer)
-        .context("the wheelcal holding the port did not confirm the E-stop")?;
+    conn.set_read_timeout(Some(WAKE_AFTER))?;
+    let mut woke_pid = None;
+    if reader.read_line(&mut answer).is_err() {
+        // No answer in time: a suspended holder cannot relay. Wake it.
+        let Some(pid) = pid else {
+            anyhow::bail!(
+                "the wheelcal holding {port} did not confirm the E-stop within {} ms, and its \
+                 process id could not be read to wake it",
+                WAKE_AFTER.as_millis()
+            );
+        };
+        if !wake(pid) {
+            return Ok(RelayOutcome::HolderGone(pid));
+        }
+        woke_pid = Some(pid);
+        conn.set_read_timeout(Some(Duration::from_secs(1)))?;
+        answer.clear();
+        if reader.read_line(&mut answer).is_err() || answer.is_empty() {
+            if !alive(pid) {
+                return Ok(RelayOutcome::HolderGone(pid));
+            }
+            anyhow::bail!(
+                "the wheelcal holding {port} (process {pid}) did not confirm the E-stop even \
+                 after being woken: stop the robot by hand"
+            );
+        }
+    }
     match answer.split_whitespace().next() {
-        Some("ok") => Ok(Some(t0.elapsed())),
+        Some("ok") => Ok(RelayOutcome::Relayed(Relayed {
+            elapsed: t0.elapsed(),
+            woke_pid,
+        })),
+        None if pid.is_some_and(|p| !alive(p)) => Ok(RelayOutcome::HolderGone(pid.unwrap_or(0))),
         _ => anyhow::bail!(
             "the wheelcal holding {port} could not write the E-stop to the port ({})",
             answer.trim()
         ),
     }
+}
+
+/// The process at the other end of a Unix socket (SO_PEERCRED).
+fn holder_pid(conn: &UnixStream) -> Option<i32> {
+    use nix::sys::socket::{getsockopt, sockopt::PeerCredentials};
+    getsockopt(conn, PeerCredentials).ok().map(|c| c.pid())
+}
+
+/// Sends SIGCONT; false when the process does not exist.
+fn wake(pid: i32) -> bool {
+    use nix::sys::signal::{kill, Signal};
+    kill(nix::unistd::Pid::from_raw(pid), Signal::SIGCONT).is_ok()
+}
+
+/// Whether a process exists (signal 0) and is not a zombie.
+fn alive(pid: i32) -> bool {
+    let exists = nix::sys::signal::kill(nix::unistd::Pid::from_raw(pid), None).is_ok();
+    let zombie = std::fs::read_to_string(format!("/proc/{pid}/stat"))
+        .ok()
+        .and_then(|s| {
+            s.rsplit_once(')')
+                .map(|(_, r)| r.trim_start().starts_with('Z'))
+        })
+        .unwrap_or(false);
+    exists && !zombie
 }

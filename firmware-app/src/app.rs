@@ -256,6 +256,14 @@ impl<'a> App<'a> {
         self.injected_nan = at;
     }
 
+    /// The link layer heard the host now, by a clock of its own: for a board whose time
+    /// runs faster than the host's (the virtual board flat out), where the host's silence
+    /// must be judged on the host's clock. Real boards never need it: every valid request
+    /// already counts.
+    pub fn host_heard(&mut self) {
+        self.last_request_us = self.now_us;
+    }
+
     /// A damaged frame arrived (counted for the status).
     pub fn note_bad_frame(&mut self) {
         self.bad_frames = self.bad_frames.saturating_add(1);
@@ -494,8 +502,9 @@ impl<'a> App<'a> {
                     if !duty.is_finite() {
                         return nonfinite(ControlValue::Duty);
                     }
-                    // max/min, not clamp: clamp's panic path pulls in float formatting.
-                    Output::Duty(duty.max(-1.0).min(1.0))
+                    // Finite, and within +-out_max <= 1 (the PI limits it; params are
+                    // validated).
+                    Output::Duty(duty)
                 }
             } else {
                 let rate_hz = w.steps.step_rate_hz(w.cmd);

@@ -106,9 +106,14 @@ impl Measure for Terminal {
         eprintln!("{text}");
     }
     fn ready(&mut self, what: &str) -> Result<()> {
-        eprint!("{what}: place the robot on the start mark, heading along the first leg, and press Enter ");
-        let _ = std::io::stderr().flush();
-        read_line().map(|_| ())
+        loop {
+            eprint!("{what}: place the robot on the start mark, heading along the first leg, and press Enter ");
+            let _ = std::io::stderr().flush();
+            match start_confirmation(&read_line()?) {
+                Ok(()) => return Ok(()),
+                Err(why) => eprintln!("  {why}"),
+            }
+        }
     }
     fn end_error(
         &mut self,
@@ -131,6 +136,18 @@ impl Measure for Terminal {
                 Err(why) => eprintln!("  {why}; type two numbers in millimetres, e.g. `12.5 -30`"),
             }
         }
+    }
+}
+
+/// The answer to "press Enter to start": only an empty line or `y` starts the robot. A
+/// measurement typed one prompt too early (`12.5 -30`) must not set it moving.
+pub fn start_confirmation(line: &str) -> Result<(), String> {
+    match line.trim() {
+        "" | "y" | "Y" | "yes" => Ok(()),
+        other => Err(format!(
+            "`{other}` is not a go-ahead: the robot did not move. Press Enter alone (or type y) \
+             when it is on the start mark; a measurement is asked for after the run"
+        )),
     }
 }
 

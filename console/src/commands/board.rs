@@ -50,21 +50,40 @@ pub fn stop(ctx: &mut Ctx, out: Output) -> Result<()> {
     out.emit(&serde_json::json!({"stopped": true}), || "stopped\n".into())
 }
 
-/// `wheelcal estop`: through the wheelcal holding the port if there is one.
+/// `wheelcal estop`: through the wheelcal holding the port if there is one (woken first
+/// if it is suspended), else on the port itself.
 pub fn estop(ctx: &mut Ctx, out: Output) -> Result<()> {
+    use crate::stop::RelayOutcome;
     // Another wheelcal may hold the port: it relays the E-stop at once.
-    let relayed = match (&ctx.client, &ctx.port) {
+    let outcome = match (&ctx.client, &ctx.port) {
         (None, Some(port)) => crate::stop::relay_estop(port)?,
-        _ => None,
+        _ => RelayOutcome::NotHeld,
+    };
+    let relayed = match outcome {
+        RelayOutcome::Relayed(r) => Some(r),
+        RelayOutcome::NotHeld => None,
+        RelayOutcome::HolderGone(pid) => {
+            eprintln!("note: the wheelcal holding the port (process {pid}) is gone; sending the E-stop on the port directly");
+            None
+        }
     };
     if relayed.is_none() {
         ctx.client()?.estop()?;
     }
-    let ms = relayed.map(|t| t.as_secs_f64() * 1e3);
-    out.emit(&serde_json::json!({"estop": true, "relayed_ms": ms}), || match ms {
-        Some(ms) => format!("E-STOP sent through the wheelcal holding the port ({ms:.1} ms): motors off (clear with `wheelcal clear-fault`)\n"),
-        None => "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into(),
-    })
+    let ms = relayed.map(|r| r.elapsed.as_secs_f64() * 1e3);
+    let woke = relayed.and_then(|r| r.woke_pid);
+    let holder_gone = match outcome {
+        RelayOutcome::HolderGone(pid) => Some(pid),
+        _ => None,
+    };
+    out.emit(
+        &serde_json::json!({"estop": true, "relayed_ms": ms, "woke_pid": woke, "holder_gone_pid": holder_gone}),
+        || match (ms, woke) {
+            (Some(ms), Some(pid)) => format!("E-STOP sent through the wheelcal holding the port ({ms:.1} ms): it was suspended (process {pid}), so it was woken with SIGCONT to relay it; motors off (clear with `wheelcal clear-fault`)\n"),
+            (Some(ms), None) => format!("E-STOP sent through the wheelcal holding the port ({ms:.1} ms): motors off (clear with `wheelcal clear-fault`)\n"),
+            (None, _) => "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into(),
+        },
+    )
 }
 
 /// `wheelcal clear-fault`.
