@@ -3,19 +3,15 @@
 //! request handling is firmware-app's, tested on the host; this is only byte transport.
 
 use crate::{with_app, SharedApp};
-use core::sync::atomic::{AtomicU8, Ordering};
 use embassy_futures::select::{select, Either};
 use embassy_stm32::peripherals::USB_OTG_FS;
 use embassy_stm32::usart::BufferedUart;
 use embassy_stm32::usb::Driver;
 use embassy_sync::blocking_mutex::raw::CriticalSectionRawMutex;
-use embassy_sync::channel::Channel;
-use embassy_sync::mutex::Mutex;
-use embassy_sync::signal::Signal;
 use embassy_time::{with_timeout, Duration, Instant, Timer};
 use embassy_usb::class::cdc_acm::CdcAcmClass;
 use embedded_io_async::{Read, Write};
-use firmware_app::{PersistItem, Server, Step};
+use firmware_app::{PersistItem, SaveQueue, Server, Step, TelemetryRoute};
 
 /// The USB device driver.
 pub type UsbDriver = Driver<'static, USB_OTG_FS>;
@@ -25,15 +21,11 @@ pub const USB_PACKET: usize = 64;
 /// every millisecond when it reads).
 const USB_WRITE: Duration = Duration::from_millis(50);
 
-/// Saves asked for by a link's request handler, and whether each worked. One save at a
-/// time: a link holds [`SAVE_TURN`] from sending the item to taking the answer.
-pub static SAVE: Channel<CriticalSectionRawMutex, PersistItem, 1> = Channel::new();
-pub static SAVED: Signal<CriticalSectionRawMutex, bool> = Signal::new();
-static SAVE_TURN: Mutex<CriticalSectionRawMutex, ()> = Mutex::new(());
+/// Saves asked for by the links' request handlers, one at a time (firmware-app's policy).
+pub static SAVES: SaveQueue<CriticalSectionRawMutex> = SaveQueue::new();
 
-/// Which link last received a valid frame: telemetry goes there only (the application has
-/// one telemetry schedule; split between two links each would see half the rate).
-static LAST_LINK: AtomicU8 = AtomicU8::new(0);
+/// Telemetry goes to the link that last received a valid frame (firmware-app's policy).
+static TELEMETRY: TelemetryRoute = TelemetryRoute::new();
 
 /// A byte transport.
 pub trait Link {
@@ -121,22 +113,18 @@ pub async fn serve(app: &'static SharedApp, link: &mut impl Link, id: u8) -> ! {
             match push(app, &mut server, b) {
                 None => {}
                 Some(Ok(len)) => {
-                    LAST_LINK.store(id, Ordering::Relaxed);
+                    TELEMETRY.spoke(id);
                     link.send(server.last_frame(len)).await;
                 }
                 Some(Err((seq, item))) => {
-                    LAST_LINK.store(id, Ordering::Relaxed);
-                    let ok = {
-                        let _turn = SAVE_TURN.lock().await;
-                        SAVE.send(item).await;
-                        SAVED.wait().await
-                    };
+                    TELEMETRY.spoke(id);
+                    let ok = SAVES.save(item).await;
                     let r = with_app(app, |a| a.persisted(ok));
                     link.send(server.reply(seq, &r)).await;
                 }
             }
         }
-        if LAST_LINK.load(Ordering::Relaxed) == id {
+        if TELEMETRY.gets_telemetry(id) {
             let tele = with_app(app, |a| server.telemetry(a).map(|t| t.len()));
             if let Some(len) = tele {
                 link.send(server.last_telemetry(len)).await;

@@ -44,7 +44,7 @@ use embassy_time::{Duration, Instant, Ticker, Timer};
 use embassy_usb::class::cdc_acm::{CdcAcmClass, State as CdcState};
 use embassy_usb::UsbDevice;
 use firmware_app::{App, Store};
-use link::{UsbDriver, SAVE, SAVED};
+use link::{UsbDriver, SAVES};
 use static_cell::{ConstStaticCell, StaticCell};
 use {defmt_rtt as _, panic_probe as _};
 
@@ -242,7 +242,7 @@ async fn usb_device(mut usb: UsbDevice<'static, UsbDriver>) {
 #[embassy_executor::task]
 async fn storage(mut store: Store<Flash<'static, Async>>) {
     loop {
-        let item = SAVE.receive().await;
+        let item = SAVES.next().await;
         RETIME.signal(board::WATCHDOG_SAVE_US);
         RETIMED.wait().await;
         let ok = store.save(&item).await.is_ok();
@@ -251,6 +251,6 @@ async fn storage(mut store: Store<Flash<'static, Async>>) {
         if !ok {
             warn!("settings save failed");
         }
-        SAVED.signal(ok);
+        SAVES.finished(ok);
     }
 }

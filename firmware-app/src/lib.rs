@@ -14,6 +14,7 @@
 pub mod app;
 pub mod defaults;
 pub mod hal;
+pub mod links;
 pub mod log;
 pub mod server;
 pub mod storage;
@@ -21,6 +22,7 @@ pub mod wheel;
 
 pub use app::{App, Handled, PersistItem, TICK_HZ};
 pub use hal::{ByteStream, EncoderSource, WheelDriver};
+pub use links::{SaveQueue, TelemetryRoute};
 pub use log::TrialLog;
 pub use server::{Server, Step};
 pub use storage::{Loaded, Store, StoreError};

@@ -8,7 +8,7 @@ mod common;
 use calib_core::protocol::{decode_frame, encode, Request, Response, MAX_WIRE};
 use calib_core::Corrections;
 use common::*;
-use firmware_app::{defaults, Server, Step};
+use firmware_app::{defaults, SaveQueue, Server, Step, TelemetryRoute};
 
 fn frame(seq: u16, req: &Request) -> Vec<u8> {
     let mut out = [0u8; MAX_WIRE];
@@ -147,4 +147,128 @@ fn two_links_share_one_app_and_keep_their_own_framing() {
     assert_eq!(bb.len(), 1);
     assert_eq!(decoded(&bb[0]), (4, Response::Corrections(good)));
     assert_eq!(b.app.status().bad_frames as usize, a.len());
+}
+
+/// What the board's link task does with a link's answer: an answered frame routes
+/// telemetry to that link ([`TelemetryRoute::spoke`]).
+fn request_on(
+    route: &TelemetryRoute,
+    id: u8,
+    server: &mut Server,
+    b: &mut Bench,
+    req: &Request,
+    seq: u16,
+) {
+    let mut answered = false;
+    for byte in frame(seq, req) {
+        answered |= push(server, b, byte).is_some();
+    }
+    assert!(answered, "link {id} got no answer");
+    route.spoke(id);
+}
+
+/// Telemetry frames each link would send over `ms` milliseconds: the board's link task
+/// asks its server for one every tick when the route points at it.
+fn telemetry_over(
+    route: &TelemetryRoute,
+    b: &mut Bench,
+    links: &mut [(u8, &mut Server)],
+    ms: u64,
+) -> Vec<usize> {
+    let mut counts = vec![0; links.len()];
+    for _ in 0..ms {
+        b.tick();
+        for (k, (id, server)) in links.iter_mut().enumerate() {
+            if route.gets_telemetry(*id) && server.telemetry(&mut b.app).is_some() {
+                counts[k] += 1;
+            }
+        }
+    }
+    counts
+}
+
+/// Issue 20.5: the rule that telemetry goes only to the link that last received a valid
+/// frame lived in the embassy glue, untested. At a 100 ms period over 1 s: none before
+/// either link speaks, ten frames to A once A has spoken and none to B, then all to B
+/// once B speaks.
+#[test]
+fn telemetry_goes_only_to_the_link_that_spoke_last() {
+    let mut b = bench();
+    let route = TelemetryRoute::new();
+    let (mut sa, mut sb) = (Server::new(), Server::new());
+    let period = Request::SetTelemetry { period_ms: 100 };
+    // The period is set on the application directly: no link has spoken.
+    let now = b.now();
+    let _ = b.app.handle(period.clone(), now);
+    let counts = telemetry_over(&route, &mut b, &mut [(1, &mut sa), (2, &mut sb)], 1000);
+    assert_eq!(counts, [0, 0], "telemetry before any link spoke");
+    request_on(&route, 1, &mut sa, &mut b, &period, 1);
+    let counts = telemetry_over(&route, &mut b, &mut [(1, &mut sa), (2, &mut sb)], 1000);
+    assert!(
+        (10..=11).contains(&counts[0]) && counts[1] == 0,
+        "{counts:?}"
+    );
+    request_on(&route, 2, &mut sb, &mut b, &Request::GetStatus, 1);
+    let counts = telemetry_over(&route, &mut b, &mut [(1, &mut sa), (2, &mut sb)], 1000);
+    assert!(
+        counts[0] == 0 && (10..=11).contains(&counts[1]),
+        "{counts:?}"
+    );
+}
+
+/// Issue 20.5: two links saving at once (both asked SaveCorrections in the same
+/// millisecond) each get their own write's result, in turn: the storage task writes A's
+/// item, A gets that result (a failed write here), and only then is B's item handed over
+/// (and succeeds). Without the turn, both items queue and the one result signal can
+/// wake the wrong link.
+#[test]
+fn saves_from_two_links_take_turns_and_get_their_own_results() {
+    use embassy_futures::block_on;
+    use embassy_futures::join::join3;
+    use embassy_futures::yield_now;
+    use embassy_sync::blocking_mutex::raw::NoopRawMutex;
+    use firmware_app::PersistItem;
+    use std::cell::RefCell;
+
+    let queue: SaveQueue<NoopRawMutex> = SaveQueue::new();
+    let log = RefCell::new(Vec::<String>::new());
+    let item = |c: f64| {
+        PersistItem::Corrections(Corrections::DiffDrive {
+            c_l: c,
+            c_r: 1.0,
+            e_b: 1.0,
+        })
+    };
+    let name = |i: &PersistItem| match i {
+        PersistItem::Corrections(Corrections::DiffDrive { c_l, .. }) if *c_l == 1.01 => "A",
+        PersistItem::Corrections(_) => "B",
+        PersistItem::Params(_) => "params",
+    };
+    let link_a = async {
+        let ok = queue.save(item(1.01)).await;
+        log.borrow_mut().push(format!("A got {ok}"));
+    };
+    // B asks a moment after A, and is polled before A from then on (the worst order for
+    // the single result signal: B would be the one to take A's result).
+    let link_b = async {
+        yield_now().await;
+        let ok = queue.save(item(1.02)).await;
+        log.borrow_mut().push(format!("B got {ok}"));
+    };
+    let storage = async {
+        // The first write fails (a worn sector), the second works; each takes a while.
+        for ok in [false, true] {
+            let i = queue.next().await;
+            log.borrow_mut().push(format!("wrote {}", name(&i)));
+            for _ in 0..3 {
+                yield_now().await;
+            }
+            queue.finished(ok);
+        }
+    };
+    block_on(join3(link_b, link_a, storage));
+    assert_eq!(
+        log.into_inner(),
+        ["wrote A", "A got false", "wrote B", "B got true"]
+    );
 }
