@@ -299,13 +299,27 @@ impl<'a> App<'a> {
     pub fn tick(&mut self, now_us: u64, enc: &mut impl EncoderSource, drv: &mut impl WheelDriver) {
         self.now_us = now_us;
         self.ticks = self.ticks.wrapping_add(1);
-        let n = self.n;
-        let width = enc.width();
-
-        // Encoders: wrap extension, rates, jump/stall monitor.
         let mut dphi = [0f32; MAX_WHEELS];
+        self.read_encoders(enc, &mut dphi);
+        let wheels = match self.setpoint(now_us) {
+            Some(single) => self.drive_wheels(single, drv, &mut dphi),
+            None => false,
+        };
+        if !wheels {
+            drv.stop_all();
+        }
+        // Odometry with the corrected geometry.
+        let d = self.kin.forward(&dphi[..self.n]);
+        self.odo.update(&d);
+        self.log_tick(now_us);
+    }
+
+    /// Encoders: wrap extension, rates, the jump and stall monitor (a fault cuts the
+    /// motion), and each wheel's rotation this tick into `dphi`.
+    fn read_encoders(&mut self, enc: &mut impl EncoderSource, dphi: &mut [f32; MAX_WHEELS]) {
+        let width = enc.width();
         let mut fault = None;
-        for (i, w) in self.wheels[..n].iter_mut().enumerate() {
+        for (i, w) in self.wheels[..self.n].iter_mut().enumerate() {
             let delta = w.read(width, enc.raw(i));
             if let Some(rpc) = self.rad_per_count {
                 w.update_rate(rpc, DT);
@@ -322,120 +336,125 @@ impl<'a> App<'a> {
                 self.cut(StopReason::Fault, TrialEnd::Fault);
             }
         }
+    }
 
-        // Setpoint.
-        let mut single: Option<(usize, f32)> = None;
-        let mut cut_now = self.estop || self.fault.is_some();
-        if cut_now {
+    /// The motion state's setpoint for this tick: the body twist is left in `self.twist`,
+    /// and a single-wheel segment's wheel and rate are returned inside. `None`: the motors
+    /// are to be cut (E-stop, fault, command timeout, lost host link).
+    fn setpoint(&mut self, now_us: u64) -> Option<Option<(usize, f32)>> {
+        if self.estop || self.fault.is_some() {
             self.twist = Twist::zero();
-        } else {
-            let act = match &mut self.motion {
-                Motion::Idle => Act::Slew(Twist::zero()),
-                Motion::Drive {
-                    target,
-                    deadline_us,
-                } => {
-                    if now_us >= *deadline_us {
-                        Act::Timeout
-                    } else {
-                        Act::Slew(*target)
-                    }
-                }
-                Motion::Program(..)
-                    if self.link_timeout_us > 0
-                        && now_us.saturating_sub(self.last_request_us) > self.link_timeout_us =>
-                {
-                    Act::LinkLost
-                }
-                Motion::Program(runner, _, block) => {
-                    if block.ticks_left == 0 {
-                        let dt = TRAJECTORY_DIVIDER as f64 / TICK_HZ as f64;
-                        block.act = match runner.setpoint(dt) {
-                            Some(Setpoint::Body(t)) => {
-                                Act::Set(Twist::new(t.vx as f32, t.vy as f32, t.omega as f32))
-                            }
-                            Some(Setpoint::Wheel { index, rate }) => {
-                                Act::Wheel(index as usize, rate as f32)
-                            }
-                            None => Act::Done,
-                        };
-                        block.ticks_left = TRAJECTORY_DIVIDER;
-                    }
-                    block.ticks_left -= 1;
-                    block.act
-                }
-            };
-            match act {
-                Act::Slew(target) => self.twist = self.slew(self.twist, target),
-                Act::Set(t) => self.twist = t,
-                Act::Wheel(i, rate) => {
-                    self.twist = Twist::zero();
-                    single = Some((i, rate));
-                }
-                Act::Timeout => {
-                    self.cut(StopReason::CommandTimeout, TrialEnd::CommandTimeout);
-                    cut_now = true;
-                }
-                Act::LinkLost => {
-                    self.cut(StopReason::LinkLost, TrialEnd::LinkLost);
-                    cut_now = true;
-                }
-                Act::Done => {
-                    self.motion = Motion::Idle;
-                    self.twist = Twist::zero();
-                    self.stop = StopReason::ProgramDone;
-                    self.log.finish(TrialEnd::Completed);
+            return None;
+        }
+        let act = match &mut self.motion {
+            Motion::Idle => Act::Slew(Twist::zero()),
+            Motion::Drive {
+                target,
+                deadline_us,
+            } => {
+                if now_us >= *deadline_us {
+                    Act::Timeout
+                } else {
+                    Act::Slew(*target)
                 }
             }
-        }
-
-        // Wheel commands and outputs: computed for every wheel first, checked, then
-        // written, so a non-finite value reaches no register (see `Fault::NonFiniteOutput`).
-        if !cut_now {
-            let mut out = [Output::Release; MAX_WHEELS];
-            let bad = self.wheel_outputs(single, &mut out);
-            if let Some(f) = bad {
-                if self.fault.is_none() {
-                    self.fault = Some(f);
-                }
-                self.cut(StopReason::Fault, TrialEnd::Fault);
-                cut_now = true;
-            } else {
-                for (i, o) in out[..n].iter().enumerate() {
-                    match *o {
-                        Output::Release => drv.release(i),
-                        Output::Duty(d) => drv.set_duty(i, d),
-                        Output::Steps { rate_hz, steps } => {
-                            drv.set_steps(i, rate_hz, steps);
-                            if self.rad_per_count.is_none() {
-                                dphi[i] = steps as f32 / self.steps_per_rad;
-                            }
+            Motion::Program(..)
+                if self.link_timeout_us > 0
+                    && now_us.saturating_sub(self.last_request_us) > self.link_timeout_us =>
+            {
+                Act::LinkLost
+            }
+            Motion::Program(runner, _, block) => {
+                if block.ticks_left == 0 {
+                    let dt = TRAJECTORY_DIVIDER as f64 / TICK_HZ as f64;
+                    block.act = match runner.setpoint(dt) {
+                        Some(Setpoint::Body(t)) => {
+                            Act::Set(Twist::new(t.vx as f32, t.vy as f32, t.omega as f32))
                         }
+                        Some(Setpoint::Wheel { index, rate }) => {
+                            Act::Wheel(index as usize, rate as f32)
+                        }
+                        None => Act::Done,
+                    };
+                    block.ticks_left = TRAJECTORY_DIVIDER;
+                }
+                block.ticks_left -= 1;
+                block.act
+            }
+        };
+        match act {
+            Act::Slew(target) => self.twist = self.slew(self.twist, target),
+            Act::Set(t) => self.twist = t,
+            Act::Wheel(i, rate) => {
+                self.twist = Twist::zero();
+                return Some(Some((i, rate)));
+            }
+            Act::Timeout => {
+                self.cut(StopReason::CommandTimeout, TrialEnd::CommandTimeout);
+                return None;
+            }
+            Act::LinkLost => {
+                self.cut(StopReason::LinkLost, TrialEnd::LinkLost);
+                return None;
+            }
+            Act::Done => {
+                self.motion = Motion::Idle;
+                self.twist = Twist::zero();
+                self.stop = StopReason::ProgramDone;
+                self.log.finish(TrialEnd::Completed);
+            }
+        }
+        Some(None)
+    }
+
+    /// Wheel commands and motor outputs: computed for every wheel first, checked, then
+    /// written, so a non-finite value reaches no register (see [`Fault::NonFinite`]).
+    /// Returns false when nothing was written and the motors are to be cut (a fault).
+    /// Open-loop steppers' rotation this tick is the steps emitted, into `dphi`.
+    fn drive_wheels(
+        &mut self,
+        single: Option<(usize, f32)>,
+        drv: &mut impl WheelDriver,
+        dphi: &mut [f32; MAX_WHEELS],
+    ) -> bool {
+        let mut out = [Output::Release; MAX_WHEELS];
+        if let Some(f) = self.wheel_outputs(single, &mut out) {
+            if self.fault.is_none() {
+                self.fault = Some(f);
+            }
+            self.cut(StopReason::Fault, TrialEnd::Fault);
+            return false;
+        }
+        for (i, o) in out[..self.n].iter().enumerate() {
+            match *o {
+                Output::Release => drv.release(i),
+                Output::Duty(d) => drv.set_duty(i, d),
+                Output::Steps { rate_hz, steps } => {
+                    drv.set_steps(i, rate_hz, steps);
+                    if self.rad_per_count.is_none() {
+                        dphi[i] = steps as f32 / self.steps_per_rad;
                     }
                 }
             }
         }
-        if cut_now {
-            drv.stop_all();
-        }
+        true
+    }
 
-        // Odometry with the corrected geometry.
-        let d = self.kin.forward(&dphi[..n]);
-        self.odo.update(&d);
-
-        // Trial log.
-        if self.log.recording().is_some() && self.ticks.is_multiple_of(self.decimation as u64) {
-            let mut rec = Record {
-                t_us: now_us.wrapping_sub(self.trial_start_us) as u32,
-                pose: self.odo.pose(),
-                ..Record::default()
-            };
-            for (i, w) in self.wheels[..n].iter().enumerate() {
-                rec.counts[i] = (w.position() - w.origin) as i32;
-                rec.cmd[i] = w.cmd;
-            }
-            self.log.log_record(&rec);
+    /// The trial log's record for this tick, at the trial's decimated rate.
+    fn log_tick(&mut self, now_us: u64) {
+        if self.log.recording().is_none() || !self.ticks.is_multiple_of(self.decimation as u64) {
+            return;
         }
+        let mut rec = Record {
+            t_us: now_us.wrapping_sub(self.trial_start_us) as u32,
+            pose: self.odo.pose(),
+            ..Record::default()
+        };
+        for (i, w) in self.wheels[..self.n].iter().enumerate() {
+            rec.counts[i] = (w.position() - w.origin) as i32;
+            rec.cmd[i] = w.cmd;
+        }
+        self.log.log_record(&rec);
     }
 
     /// This tick's wheel commands and motor outputs, or the fault of the first output
