@@ -1,5 +1,5 @@
-//! Odometry corrections: Borenstein's c_L, c_R, E_b for differential drive and 001's
-//! F_lat, F_lon for omni robots.
+//! Odometry corrections: Borenstein's c_L, c_R, E_b for differential drive and
+//! [Redundant omni]'s F_lat, F_lon for omni robots.
 //!
 //! Both are expressed the same way underneath, as an effective radius multiplier per wheel
 //! and a multiplier on the wheels' distance from the body origin. Kinematics built from
@@ -32,7 +32,7 @@ pub enum Corrections {
         /// Actual wheelbase / nominal wheelbase (Borenstein's E_b).
         e_b: f64,
     },
-    /// 001 eq. 6: wheel command = `f_lon * f_lat[i] * (J * twist)_i`.
+    /// [Redundant omni] eq. 6: wheel command = `f_lon * f_lat[i] * (J * twist)_i`.
     Omni {
         /// Lateral factor per wheel, in the robot's wheel order (dimensionless).
         f_lat: Vec<f64, MAX_WHEELS>,
@@ -184,7 +184,7 @@ impl Corrections {
         }
     }
 
-    /// A second calibration pass (001): runs measured with `self` in force give
+    /// A second calibration pass ([Redundant omni]): runs measured with `self` in force give
     /// `secondary`, which measures only what `self` left; every multiplier of the two
     /// multiplies. `None` for factors of different kinds or wheel counts.
     pub fn compose(&self, secondary: &Corrections) -> Option<Corrections> {

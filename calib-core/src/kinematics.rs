@@ -1,6 +1,6 @@
 //! Wheel kinematics after Siegwart & Nourbakhsh: inverse (body twist -> wheel rates, the
-//! n x 3 Jacobian of 001 with its 1/(r cos gamma) prefactor) and forward (wheel increments
-//! -> body motion by least squares).
+//! n x 3 Jacobian of [Redundant omni] with its 1/(r cos gamma) prefactor) and forward
+//! (wheel increments -> body motion by least squares).
 //!
 //! The least-squares pseudo-inverse is computed once at construction so the 1 kHz tick
 //! only does a 3 x n product. Standard wheels also contribute their sliding constraint
@@ -76,7 +76,7 @@ pub struct Kinematics<T> {
 ///
 /// Small on purpose: the sliding rows only have to pin down what the rolling rows cannot
 /// see (a differential drive's sideways velocity). A skid-steered robot with four standard
-/// wheels (002's wheeled-legged robot) can only turn by skidding, so its sliding
+/// wheels ([Korayem et al.]'s wheeled-legged robot) can only turn by skidding, so its sliding
 /// constraints contradict each other while turning; weighted equally they would shrink the
 /// turn rate the wheels measure. Weighted 1e-3, they move the estimate by ~1e-6 relative.
 const SLIDING_WEIGHT: f64 = 1e-3;
@@ -217,7 +217,8 @@ mod tests {
 
     #[test]
     fn omni4_paths_use_two_wheels() {
-        // 001: path 4W-1 (along x) turns wheels 1 and 3 only; 4W-2 (along y) wheels 2 and 4.
+        // [Redundant omni]: path 4W-1 (along x) turns wheels 1 and 3 only; 4W-2 (along y)
+        // wheels 2 and 4.
         let k = Kinematics::<f64>::new(&presets::omni4(), &Corrections::None).unwrap();
         let w = k.inverse(&Twist::new(0.1, 0.0, 0.0));
         assert!(close(w[0], 0.1 / 0.03, 1e-12) && close(w[2], -0.1 / 0.03, 1e-12));
@@ -237,7 +238,7 @@ mod tests {
         let t = Twist::new(0.1, 0.05, 0.3);
         let (n, f) = (k0.inverse(&t), k.inverse(&t));
         for (i, fl) in [1.08, 0.96, 1.02, 0.98].iter().enumerate() {
-            // 001 eq. 6: final rate = F_lon * F_lat * J * twist.
+            // [Redundant omni] eq. 6: final rate = F_lon * F_lat * J * twist.
             assert!(close(f[i], 0.94 * fl * n[i], 1e-12));
         }
     }

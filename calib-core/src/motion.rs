@@ -1,5 +1,5 @@
 //! Motion programs: segments with trapezoidal velocity profiles, and the papers' test
-//! paths (UMBmark square, 001's omni paths 4W-1 and 4W-2).
+//! paths (UMBmark square, [Redundant omni]'s omni paths 4W-1 and 4W-2).
 //!
 //! The runner hands out, per control tick, the *average* twist over that tick
 //! (displacement / dt), so the commanded displacements of a segment add up to its exact
@@ -32,7 +32,7 @@ impl Direction {
     }
 }
 
-/// 001's straight test paths of the 4-wheel omni robot.
+/// [Redundant omni]'s straight test paths of the 4-wheel omni robot.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum OmniPath {
@@ -236,7 +236,7 @@ impl Program {
         Program { segments }
     }
 
-    /// 001's straight omni test path of length `length_m`.
+    /// [Redundant omni]'s straight omni test path of length `length_m`.
     pub fn omni_path(path: OmniPath, length_m: f64) -> Self {
         let (ux, uy) = path.direction();
         let mut segments = Vec::new();

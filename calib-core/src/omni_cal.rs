@@ -1,25 +1,26 @@
 //! Lateral / longitudinal corrective factors for omnidirectional robots from straight-path
-//! runs (001 sec. III: F_lat eq. 4, F_lon eq. 5, final wheel speeds F_lon F_lat J twist
-//! eq. 6; paths 4W-1 and 4W-2; secondary factors from a repeated test).
+//! runs ([Redundant omni] sec. III: F_lat eq. 4, F_lon eq. 5, final wheel speeds F_lon
+//! F_lat J twist eq. 6; paths 4W-1 and 4W-2; secondary factors from a repeated test).
 //!
-//! 001 gives the factors only loosely, so this module makes them exact under one stated
-//! model: during a run every wheel turns at a constant rate, so the body twist is
-//! constant and the body moves along an exact constant-curvature arc (arc length s,
+//! [Redundant omni] gives the factors only loosely, so this module makes them exact under
+//! one stated model: during a run every wheel turns at a constant rate, so the body twist
+//! is constant and the body moves along an exact constant-curvature arc (arc length s,
 //! heading change theta, body-frame velocity direction constant). From the measured end
 //! point (and heading, when measured) the arc is inferred, each driven wheel's actual
 //! ground travel follows from its rolling row, and k_i = actual / nominal travel. Then
 //! `f_lon * f_lat[i] = 1/k_i` makes each wheel deliver its nominal travel. This works for
-//! any number of wheels and any wheel geometry, not only the 4-wheel robot of 001.
+//! any number of wheels and any wheel geometry, not only the 4-wheel robot of
+//! [Redundant omni].
 //!
-//! Error convention (formats.md sec. 3): measured minus odometry, in the start frame with
+//! Error convention (docs/formats.md §3): measured minus odometry, in the start frame with
 //! x along the commanded direction of the path and y to its left.
 //!
 //! # Idle wheels: released or held
-//! 001 describes its two paths differently: on 4W-1 "the other wheels have no angular
-//! velocity" (held at zero by their controllers), on 4W-2 "the actuators of wheels 1 and
-//! 3 are turned off" (released, free to turn). Released wheels add no constraint: each
-//! driven wheel's travel is its rolling row times the body motion, read straight off the
-//! arc. Held wheels are rolling constraints with zero wheel speed that fight the driven
+//! [Redundant omni] describes its two paths differently: on 4W-1 "the other wheels have no
+//! angular velocity" (held at zero by their controllers), on 4W-2 "the actuators of wheels
+//! 1 and 3 are turned off" (released, free to turn). Released wheels add no constraint:
+//! each driven wheel's travel is its rolling row times the body motion, read straight off
+//! the arc. Held wheels are rolling constraints with zero wheel speed that fight the driven
 //! ones; the body then moves as the least-squares solution of all rolling constraints,
 //! driven and held weighted alike (how the sim crate resolves an over-determined wheel
 //! set): motion = P c with P the pseudo-inverse of the stacked rows and c the contact
@@ -104,10 +105,11 @@ impl DrivenWheel {
 )]
 #[cfg_attr(feature = "defmt", derive(defmt::Format))]
 pub enum IdleWheels {
-    /// Drive cut: free to turn, no constraint on the body (001's 4W-2).
+    /// Drive cut: free to turn, no constraint on the body ([Redundant omni]'s 4W-2).
     #[default]
     Released,
-    /// Velocity loop at zero: a rolling constraint with zero wheel speed (001's 4W-1).
+    /// Velocity loop at zero: a rolling constraint with zero wheel speed
+    /// ([Redundant omni]'s 4W-1).
     Held,
 }
 
@@ -150,7 +152,7 @@ pub struct ArcMotion {
 }
 
 /// Corrective factors: wheel i is commanded `f_lon * f_lat[i]` times its nominal speed
-/// (001 eq. 6: F_lon F_lat J twist).
+/// ([Redundant omni] eq. 6: F_lon F_lat J twist).
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct OmniCorrection {
     /// Number of valid entries in `f_lat`.
@@ -196,10 +198,10 @@ pub struct PathResult {
     pub mean_heading_change_rad: f64,
     /// Longitudinal factor from this path alone: mean of 1/k over its driven wheels.
     pub f_lon: f64,
-    /// 001 eq. 5 with our sign convention: L / sqrt((L + xbar)^2 + ybar^2). Reported for
-    /// comparison; it ignores the curvature of the path.
+    /// [Redundant omni] eq. 5 with our sign convention: L / sqrt((L + xbar)^2 + ybar^2).
+    /// Reported for comparison; it ignores the curvature of the path.
     pub f_lon_eq5: f64,
-    /// Mean radial error (001 eq. 7).
+    /// Mean radial error ([Redundant omni] eq. 7).
     pub mean_radial_error_m: f64,
 }
 
@@ -212,7 +214,7 @@ pub struct OmniCalibration {
     pub k: [Option<f64>; MAX_WHEELS],
     /// Per-path summaries in input order; None past the number of paths.
     pub paths: [Option<PathResult>; MAX_PATHS],
-    /// Mean radial error (001 eq. 7) over all runs of all paths.
+    /// Mean radial error ([Redundant omni] eq. 7) over all runs of all paths.
     pub mean_radial_error_m: f64,
 }
 
@@ -687,7 +689,8 @@ pub fn calibrate(
 }
 
 /// Applies secondary factors (measured with `first` already applied) on top of `first`
-/// (001 sec. IV.B: "two sets of corrective factors"): the speed multipliers multiply.
+/// ([Redundant omni] sec. IV.B: "two sets of corrective factors"): the speed multipliers
+/// multiply.
 pub fn compose(
     first: &OmniCorrection,
     second: &OmniCorrection,
@@ -720,7 +723,7 @@ mod tests {
     const L_WHEEL: f64 = 0.035;
     const LEN: f64 = 1.0;
 
-    /// Rolling rows of 001's robot: wheels 1..4 at alpha 90, 180, 270, 0 deg.
+    /// Rolling rows of [Redundant omni]'s robot: wheels 1..4 at alpha 90, 180, 270, 0 deg.
     fn rows() -> [[f64; 3]; 4] {
         [90.0f64, 180.0, 270.0, 0.0].map(|a| rolling_row(a.to_radians(), 0.0, 0.0, L_WHEEL))
     }
@@ -888,7 +891,7 @@ mod tests {
         // Undriven wheels keep f_lat = 1 and have no k.
         assert_eq!(cal.correction.f_lat[1], 1.0);
         assert_eq!(cal.k[1], None);
-        // 001 eq. 5 with our sign: L / (L + xbar) = 1/0.96 for a straight run.
+        // [Redundant omni] eq. 5 with our sign: L / (L + xbar) = 1/0.96 for a straight run.
         let p = cal.paths[0].unwrap();
         assert!((p.f_lon_eq5 - 1.0 / 0.96).abs() < 1e-12);
         assert!((p.mean_radial_error_m - 0.04).abs() < 1e-12);

@@ -1,4 +1,4 @@
-//! The robot description of formats.md §1, validated, in SI units and radians.
+//! The robot description of docs/formats.md §1, validated, in SI units and radians.
 //!
 //! Parsing TOML is a host convenience (`robot_file`, feature `std`); this module is what
 //! the firmware keeps in RAM and flash, so it is plain data with bounded sizes.
@@ -7,8 +7,9 @@ use core::fmt;
 use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
-/// Most wheels a robot may have (the 4-wheel omni of 001 and the wheeled-legged robot of
-/// 002 have four; eight leaves room without making the firmware's tables large).
+/// Most wheels a robot may have (the 4-wheel omni of [Redundant omni] and the
+/// wheeled-legged robot of [Korayem et al.] have four; eight leaves room without making the
+/// firmware's tables large).
 pub const MAX_WHEELS: usize = 8;
 /// Longest wheel name, in bytes.
 pub const NAME_LEN: usize = 16;
@@ -24,8 +25,8 @@ pub enum RobotKind {
     DiffDrive,
     /// Swedish (omni or mecanum) wheels: no sliding constraint.
     Omni,
-    /// The planar wheeled-legged robot of 002: standard wheels whose contact points move
-    /// with the leg angles.
+    /// The planar wheeled-legged robot of [Korayem et al.]: standard wheels whose contact
+    /// points move with the leg angles.
     WheeledLegged,
 }
 
@@ -64,7 +65,7 @@ pub struct Drive {
     pub steps_per_rev: u32,
     /// Microsteps per full step (stepper only).
     pub microsteps: u32,
-    /// Motor revolutions per wheel revolution (78/16 = 4.875 in 000).
+    /// Motor revolutions per wheel revolution (78/16 = 4.875 in [Measuring errors]).
     pub gear_ratio: f64,
     /// Encoder counts per WHEEL revolution as read (480 ppr x4 = 1920); 0 = no encoder.
     pub encoder_counts_per_rev: f64,
@@ -150,7 +151,7 @@ impl Wheel {
     }
 }
 
-/// Leg geometry of the wheeled-legged robot (002).
+/// Leg geometry of the wheeled-legged robot ([Korayem et al.]).
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct Legs {
     /// Hip to wheel centre.
@@ -165,7 +166,7 @@ pub struct Legs {
 
 impl Legs {
     /// Wheel-centre x of the front and rear pairs for leg angles measured from body +x
-    /// towards -z (pi/2 = vertical leg), formats.md §1.
+    /// towards -z (pi/2 = vertical leg), docs/formats.md §1.
     pub fn wheel_x(&self, leg_front_rad: f64, leg_rear_rad: f64) -> (f64, f64) {
         (
             self.body_length_m / 2.0 + self.length_m * libm::cos(leg_front_rad),
@@ -562,8 +563,8 @@ pub mod presets {
             .expect("preset geometry is valid")
     }
 
-    /// 001's four-wheel omni robot: wheels at alpha 90, 180, 270, 0 deg, r = 0.03 m,
-    /// l = 0.035 m, 480-ppr encoders.
+    /// The four-wheel omni robot of [Redundant omni]: wheels at alpha 90, 180, 270, 0 deg,
+    /// r = 0.03 m, l = 0.035 m, 480-ppr encoders.
     pub fn omni4() -> Robot {
         let wheels = [
             wheel("w1", 0.03, 90.0, 0.035, 0.0, true),
@@ -586,8 +587,8 @@ pub mod presets {
             .expect("preset geometry is valid")
     }
 
-    /// MoboLab of 000: stepper, 1.8 deg/step, 78/16 gears, 100 mm wheels. The paper gives no
-    /// wheelbase; 0.40 m suits its 60 cm square chassis.
+    /// MoboLab of [Measuring errors]: stepper, 1.8 deg/step, 78/16 gears, 100 mm wheels.
+    /// The paper gives no wheelbase; 0.40 m suits its 60 cm square chassis.
     pub fn mobolab() -> Robot {
         let drive = Drive {
             kind: DriveType::Stepper,

@@ -1,5 +1,5 @@
 //! Descriptive statistics and normal-distribution probabilities used to judge calibration
-//! runs (000 sec. 7, 001 sec. IV).
+//! runs ([Measuring errors] sec. 7, [Redundant omni] sec. IV).
 //!
 //! Everything is f64 and allocation-free. Functions come in two flavours: on `&[f64]`, and
 //! `*_by` on any slice with a projection, so callers can summarise e.g. the x errors of a
@@ -104,7 +104,7 @@ pub fn sample_std_dev(xs: &[f64]) -> Result<f64, StatsError> {
 }
 
 /// Adjusted Fisher-Pearson sample skewness G1 = sqrt(n(n-1))/(n-2) * m3/m2^1.5, the
-/// definition of Excel's SKEW and SPSS, which 001's Table II most likely used.
+/// definition of Excel's SKEW and SPSS, which [Redundant omni]'s Table II most likely used.
 pub fn skewness_by<T>(items: &[T], f: impl Fn(&T) -> f64) -> Result<f64, StatsError> {
     let n = items.len();
     if n < 3 {
@@ -155,7 +155,8 @@ fn check_sigma(sigma: f64) -> Result<(), StatsError> {
     Ok(())
 }
 
-/// Normal probability density (000 eq. 18), used to draw the error distribution curves.
+/// Normal probability density ([Measuring errors] eq. 18), used to draw the error
+/// distribution curves.
 pub fn normal_pdf(x: f64, mean: f64, sigma: f64) -> Result<f64, StatsError> {
     check_finite(x)?;
     check_finite(mean)?;
@@ -188,8 +189,9 @@ pub fn normal_cdf(x: f64, mean: f64, sigma: f64) -> Result<f64, StatsError> {
     Ok(std_normal_cdf((x - mean) / sigma))
 }
 
-/// Probability that a normal variable lies in the zone [a, b] (000 Fig. 25: zones between
-/// zero, the smallest and the largest observed error). `a`/`b` may be -inf/+inf.
+/// Probability that a normal variable lies in the zone [a, b] ([Measuring errors] Fig. 25:
+/// zones between zero, the smallest and the largest observed error). `a`/`b` may be
+/// -inf/+inf.
 pub fn normal_probability_between(
     mean: f64,
     sigma: f64,
@@ -219,8 +221,8 @@ pub fn normal_probability_between(
 }
 
 /// Probability that a 2-D normal end point with independent axes (standard deviations
-/// `sigma_x`, `sigma_y`) lies within `radius` of its centre (000 Fig. 24: "within 3 cm of
-/// the centre of gravity").
+/// `sigma_x`, `sigma_y`) lies within `radius` of its centre ([Measuring errors] Fig. 24:
+/// "within 3 cm of the centre of gravity").
 ///
 /// In polar coordinates the radial integral is closed-form; substituting
 /// tan(phi) = (s_min/s_max) tan(t) then turns the angular integral into
@@ -288,7 +290,7 @@ pub fn probability_within_radius(
     Ok(estimate.clamp(0.0, 1.0))
 }
 
-/// Mean radial error (001 eq. 7): mean distance of the end points from the target.
+/// Mean radial error ([Redundant omni] eq. 7): mean distance of the end points from the target.
 pub fn mean_radial_error_by<T>(
     items: &[T],
     f: impl Fn(&T) -> (f64, f64),
@@ -299,12 +301,13 @@ pub fn mean_radial_error_by<T>(
     })
 }
 
-/// Mean radial error (001 eq. 7) of (x, y) error pairs.
+/// Mean radial error ([Redundant omni] eq. 7) of (x, y) error pairs.
 pub fn mean_radial_error(points: &[(f64, f64)]) -> Result<f64, StatsError> {
     mean_radial_error_by(points, |p| *p)
 }
 
-/// Mean error improvement index (001 eq. 8), in percent: 100 (before - after) / before.
+/// Mean error improvement index ([Redundant omni] eq. 8), in percent:
+/// 100 (before - after) / before.
 pub fn improvement_index_percent(before: f64, after: f64) -> Result<f64, StatsError> {
     check_finite(before)?;
     check_finite(after)?;
@@ -321,9 +324,10 @@ pub fn improvement_index_percent(before: f64, after: f64) -> Result<f64, StatsEr
     Ok((before - after) / before * 100.0)
 }
 
-/// 000 eq. 19: P_e = (e_BC - e_AC) / e_BC, the relative decrease of the maximum error
-/// before (BC) and after (AC) calibration. Returned as a fraction exactly as eq. 19 is
-/// written (the paper's text calls it a percentage: multiply by 100 to print it so).
+/// [Measuring errors] eq. 19: P_e = (e_BC - e_AC) / e_BC, the relative decrease of the
+/// maximum error before (BC) and after (AC) calibration. Returned as a fraction exactly as
+/// eq. 19 is written (the paper's text calls it a percentage: multiply by 100 to print it
+/// so).
 pub fn error_decrease_pe(max_error_before: f64, max_error_after: f64) -> Result<f64, StatsError> {
     improvement_index_percent(max_error_before, max_error_after).map(|p| p / 100.0)
 }
@@ -511,20 +515,20 @@ mod tests {
         let pts = [(3.0, 4.0), (-5.0, 12.0)];
         assert!((mean_radial_error(&pts).unwrap() - 9.0).abs() < 1e-12);
         assert!(mean_radial_error(&[]).is_err());
-        // 001 Table II: 91.72 -> 15.43 is quoted as an 80 % improvement (eq. 8 gives
-        // 83.18 %, which the paper rounds down to "at least 80 %").
+        // [Redundant omni] Table II: 91.72 -> 15.43 is quoted as an 80 % improvement (eq. 8
+        // gives 83.18 %, which the paper rounds down to "at least 80 %").
         let imp = improvement_index_percent(91.72, 15.43).unwrap();
         assert!((imp - 83.177_060_619_276_1).abs() < 1e-9);
         assert!(imp >= 80.0);
         assert!(improvement_index_percent(0.0, 1.0).is_err());
         assert!(improvement_index_percent(1.0, f64::NAN).is_err());
-        // 000 eq. 19 with Table 1 Case I: (97.15 - 8.54)/97.15 = 0.912095.
+        // [Measuring errors] eq. 19 with Table 1 Case I: (97.15 - 8.54)/97.15 = 0.912095.
         let pe = error_decrease_pe(97.15, 8.54).unwrap();
         assert!((pe - 88.61 / 97.15).abs() < 1e-12);
         assert!(error_decrease_pe(-1.0, 0.0).is_err());
-        // 000 Table 1's "Improvement" column (11, 10, 5) is NOT eq. 19: it is the ratio
-        // E_max,sys before/after, truncated (97.15/8.54 = 11.4, 101.42/9.43 = 10.8,
-        // 33.39/6.23 = 5.4), while eq. 19 gives 0.91, 0.91, 0.81.
+        // [Measuring errors] Table 1's "Improvement" column (11, 10, 5) is NOT eq. 19: it
+        // is the ratio E_max,sys before/after, truncated (97.15/8.54 = 11.4,
+        // 101.42/9.43 = 10.8, 33.39/6.23 = 5.4), while eq. 19 gives 0.91, 0.91, 0.81.
         for (before, after, column) in [
             (97.15, 8.54, 11.0),
             (101.42, 9.43, 10.0),

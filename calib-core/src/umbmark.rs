@@ -1,5 +1,6 @@
-//! UMBmark bi-directional square test for differential-drive robots (Borenstein & Feng,
-//! IEEE Trans. Robotics and Automation 12(6), 1996; used in 000 sec. 6.2).
+//! UMBmark bi-directional square test for differential-drive robots ([Borenstein 1996]:
+//! Borenstein & Feng, IEEE Trans. Robotics and Automation 12(6), 1996; used in
+//! [Measuring errors] sec. 6.2).
 //!
 //! Conventions (start frame: x along the first commanded leg, y to its left; errors are
 //! measured absolute end position minus odometry end position):
@@ -9,10 +10,10 @@
 //! - Type B (wheel diameters, E_d = D_R/D_L > 1) curves every leg left by beta:
 //!   ccw error (2L beta, -2L beta), cw (-2L beta, -2L beta).
 //!
-//! [`closed_form`] is Borenstein's first-order estimate (the corrected equations: 000's
-//! extracted text swaps E_d/E_b and writes beta with y centroids; do not copy it).
-//! [`exact_fit`] fits E_d and E_b to the exact forward model [`square_end_error`], which
-//! matters once E_b is off by a few percent.
+//! [`closed_form`] is Borenstein's first-order estimate (the corrected equations: the
+//! extracted text of [Measuring errors] swaps E_d/E_b and writes beta with y centroids; do
+//! not copy it). [`exact_fit`] fits E_d and E_b to the exact forward model
+//! [`square_end_error`], which matters once E_b is off by a few percent.
 
 use crate::linalg::sinc;
 use crate::stats;
@@ -136,7 +137,7 @@ impl core::error::Error for UmbmarkError {}
 /// Result of a UMBmark evaluation. Lengths in metres, angles in radians.
 #[derive(Debug, Clone, Copy, PartialEq, serde::Serialize, serde::Deserialize)]
 pub struct UmbmarkResult {
-    /// Centroid (x, y) of the cw end errors (000 eq. 8-9).
+    /// Centroid (x, y) of the cw end errors ([Measuring errors] eq. 8-9).
     pub centroid_cw_m: (f64, f64),
     /// Centroid (x, y) of the ccw end errors.
     pub centroid_ccw_m: (f64, f64),
@@ -160,11 +161,12 @@ pub struct UmbmarkResult {
     pub c_r: f64,
     /// Corrected wheelbase E_b * b_nominal.
     pub wheelbase_m: f64,
-    /// Distance of the cw centroid from the origin (000 eq. 14).
+    /// Distance of the cw centroid from the origin ([Measuring errors] eq. 14).
     pub r_cg_cw_m: f64,
-    /// Distance of the ccw centroid from the origin (000 eq. 15).
+    /// Distance of the ccw centroid from the origin ([Measuring errors] eq. 15).
     pub r_cg_ccw_m: f64,
-    /// E_max,sys = max(r_cg_cw, r_cg_ccw), the UMBmark accuracy figure (000 eq. 16).
+    /// E_max,sys = max(r_cg_cw, r_cg_ccw), the UMBmark accuracy figure ([Measuring errors]
+    /// eq. 16).
     pub e_max_sys_m: f64,
 }
 
@@ -182,7 +184,7 @@ pub struct UmbmarkFit {
     pub iterations: u32,
 }
 
-/// Centroid (mean x, mean y) of the end errors (000 eq. 8-9).
+/// Centroid (mean x, mean y) of the end errors ([Measuring errors] eq. 8-9).
 pub fn centroid(runs: &[Run]) -> Result<(f64, f64), UmbmarkError> {
     check_runs(runs, None, 1)?;
     centroid_unchecked(runs)
@@ -201,13 +203,13 @@ fn centroid_unchecked(runs: &[Run]) -> Result<(f64, f64), UmbmarkError> {
     }
 }
 
-/// Distance of a centroid from the origin (000 eq. 14-15).
+/// Distance of a centroid from the origin ([Measuring errors] eq. 14-15).
 pub fn r_cg(centroid: (f64, f64)) -> f64 {
     libm::hypot(centroid.0, centroid.1)
 }
 
-/// E_max,sys = max(r_cg_cw, r_cg_ccw) (000 eq. 16). Taking the larger offset keeps a
-/// robot from looking good because its cw and ccw errors happen to cancel.
+/// E_max,sys = max(r_cg_cw, r_cg_ccw) ([Measuring errors] eq. 16). Taking the larger offset
+/// keeps a robot from looking good because its cw and ccw errors happen to cancel.
 pub fn e_max_sys(centroid_cw: (f64, f64), centroid_ccw: (f64, f64)) -> f64 {
     libm::fmax(r_cg(centroid_cw), r_cg(centroid_ccw))
 }

@@ -473,9 +473,9 @@ impl<'a> App<'a> {
         }
         let standing = self.twist == Twist::zero();
         // On an omni robot a wheel the motion does not use is switched off (released:
-        // 001 turns off the actuators of wheels 1 and 3 on 4W-2), unless the running
-        // program asked for the idle wheels held at zero by their velocity loops
-        // (001's 4W-1: "the other wheels have no angular velocity").
+        // [Redundant omni] turns off the actuators of wheels 1 and 3 on 4W-2), unless the
+        // running program asked for the idle wheels held at zero by their velocity loops
+        // ([Redundant omni]'s 4W-1: "the other wheels have no angular velocity").
         let held = self.hold_idle && matches!(self.motion, Motion::Program(..));
         let omni = self.params.robot.kind == calib_core::robot::RobotKind::Omni && !held;
         for (i, w) in self.wheels[..n].iter_mut().enumerate() {

@@ -21,7 +21,7 @@ pub trait WheelDriver {
     fn set_steps(&mut self, wheel: usize, steps_per_s: f32, steps: i32);
     /// Every output off now (E-stop, fault, command timeout).
     fn stop_all(&mut self);
-    /// DC wheel: motor off, free to be turned by the ground (001 switches off the
+    /// DC wheel: motor off, free to be turned by the ground ([Redundant omni] switches off the
     /// actuators a path does not use). Boards whose bridges cannot coast keep the default,
     /// zero duty.
     fn release(&mut self, wheel: usize) {

@@ -321,9 +321,9 @@ fn estop_cuts_and_latches() {
     ));
 }
 
-/// 001's omni corrections, applied through the corrected Jacobian to commands and odometry
-/// alike: a robot whose wheels really have the corrected radii translates by (0.4, 0.3) m
-/// and turns 6 rad where it was told to, and its odometry agrees.
+/// [Redundant omni]'s omni corrections, applied through the corrected Jacobian to commands
+/// and odometry alike: a robot whose wheels really have the corrected radii translates by
+/// (0.4, 0.3) m and turns 6 rad where it was told to, and its odometry agrees.
 #[test]
 fn omni_corrections_drive_the_true_robot_along_the_path() {
     let params = calib_core::protocol::Params {

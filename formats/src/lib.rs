@@ -1,4 +1,4 @@
-//! formats: the host's readers and writers of wheelcal's files (`../shared/spec/formats.md`):
+//! formats: the host's readers and writers of wheelcal's files (`docs/formats.md`):
 //! robot descriptions (TOML, §1), recordings (CSV, §2) and runs files (CSV, §3).
 //!
 //! They live apart from calib-core because they need std, csv and toml, while calib-core

@@ -1,4 +1,4 @@
-//! Recordings (formats.md §2): one CSV row per sample with time, per-wheel commands and
+//! Recordings (docs/formats.md §2): one CSV row per sample with time, per-wheel commands and
 //! encoder counts, the measured pose (blank between camera samples) and, for
 //! wheeled-legged robots, the leg angles.
 //!
@@ -409,7 +409,7 @@ impl Recording {
         Ok(rec)
     }
 
-    /// Writes the recording as formats.md §2 CSV.
+    /// Writes the recording as docs/formats.md §2 CSV.
     pub fn write_csv<W: Write>(&self, out: W) -> std::io::Result<()> {
         let mut w = csv::Writer::from_writer(out);
         let mut header = vec!["t".to_string()];

@@ -1,4 +1,4 @@
-//! Robot description files (formats.md §1, TOML) on the host.
+//! Robot description files (docs/formats.md §1, TOML) on the host.
 //!
 //! Every error names the file, the line and column, and the field: a person edits these
 //! by hand, so "wheel 2 ('right'): radius_m must be positive, got -0.05" at the right line
@@ -20,7 +20,8 @@ struct RobotFile {
     drive: Spanned<DriveFile>,
     wheels: Spanned<Vec<Spanned<WheelFile>>>,
     legs: Option<Spanned<LegsFile>>,
-    /// Extension to formats.md §1 (optional): how the calibration procedures run.
+    /// Extension to docs/formats.md §1 (optional, see §5): how the calibration procedures
+    /// run.
     procedure: Option<Spanned<ProcedureFile>>,
 }
 
@@ -30,8 +31,8 @@ struct ProcedureFile {
     idle_wheels: Option<Spanned<String>>,
 }
 
-/// The robot file's optional `[procedure]` table (an extension to formats.md §1, which
-/// other tools may ignore): how the calibration procedures drive this robot.
+/// The robot file's optional `[procedure]` table (an extension to docs/formats.md §1, see
+/// §5, which other tools may ignore): how the calibration procedures drive this robot.
 #[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
 pub struct Procedure {
     /// `idle_wheels = "held" | "released"`: what the wheels an omni path does not drive
@@ -354,7 +355,7 @@ fn span_of(file: &RobotFile, e: &RobotError) -> Option<core::ops::Range<usize>> 
 }
 
 /// Writes a robot description back as TOML (for `--write-robot` and the simulator's
-/// recordings), in formats.md §1 layout.
+/// recordings), in docs/formats.md §1 layout.
 pub fn to_toml(robot: &Robot) -> String {
     use std::fmt::Write;
     let mut s = String::new();
@@ -499,7 +500,7 @@ beta_deg = 180.0
         let _ = std::fs::remove_dir_all(&dir);
     }
 
-    /// Issue 12: `[procedure] idle_wheels` in a robot file (an extension to formats.md).
+    /// Issue 12: `[procedure] idle_wheels` in a robot file (an extension, docs/formats.md §5).
     #[test]
     fn procedure_table_says_how_idle_wheels_behave() {
         use calib_core::omni_cal::IdleWheels;

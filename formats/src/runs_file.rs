@@ -1,4 +1,4 @@
-//! Measured end positions of calibration runs (formats.md §3), one CSV row per run.
+//! Measured end positions of calibration runs (docs/formats.md §3), one CSV row per run.
 //!
 //! The guided procedures append to these files as each run is measured, so a person can
 //! stop and resume; the compute commands read them. Errors name the file, the line and
@@ -15,7 +15,7 @@ use std::path::{Path, PathBuf};
 pub enum TestKind {
     /// UMBmark square runs (differential drive).
     Umbmark,
-    /// Omni straight-path runs (001).
+    /// Omni straight-path runs ([Redundant omni]).
     Omni,
 }
 
@@ -125,7 +125,7 @@ pub struct UmbmarkRuns {
 pub struct OmniPathRuns {
     /// Path name as in the file (e.g. `4W-1`).
     pub path: String,
-    /// 001's named path, when it is one.
+    /// [Redundant omni]'s named path, when it is one.
     pub omni_path: Option<OmniPath>,
     /// Commanded straight length (m).
     pub length_m: f64,

@@ -1,8 +1,8 @@
-//! Simulated seconds per wall-clock second: omni4 (001) at 1 kHz control with DC motor
-//! dynamics, calib-core's PI velocity loop closing each wheel on its encoder, and the
-//! 001 cable strip (5 mm cables every 30 mm) under the wheels.
+//! Simulated seconds per wall-clock second: omni4 ([Redundant omni]) at 1 kHz control with
+//! DC motor dynamics, calib-core's PI velocity loop closing each wheel on its encoder, and
+//! the [Redundant omni] cable strip (5 mm cables every 30 mm) under the wheels.
 //!
-//! One iteration simulates 10 s (10 000 ticks) of 001's 4W-1 path back and forth;
+//! One iteration simulates 10 s (10 000 ticks) of [Redundant omni]'s 4W-1 path back and forth;
 //! criterion reports the time per iteration, so real-time factor = 10 s / that time.
 
 use calib_core::control::PiController;

@@ -26,8 +26,8 @@ pub enum WheelInput {
     Duty(f64),
     /// Stepper: microsteps to issue during this tick (signed).
     Steps(i32),
-    /// Motor off: the wheel rolls with the ground and back-drives the motor (001 turns
-    /// the actuators of the wheels a path does not use off).
+    /// Motor off: the wheel rolls with the ground and back-drives the motor
+    /// ([Redundant omni] turns the actuators of the wheels a path does not use off).
     Free,
 }
 

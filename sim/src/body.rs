@@ -1,18 +1,18 @@
 //! The actual geometry the simulated robot has (faults applied, legs placed) and the body
 //! motion its driven wheels impose.
 //!
-//! Redundant wheels that disagree (001's four omni wheels with slightly different radii)
-//! cannot all roll without slipping. The body moves with the least-squares twist of the
-//! driven wheels' rolling constraints, so every wheel slips by its residual; standard
-//! wheels add their sliding constraints (zero sideways velocity) weighted 1e-3, enough to
-//! fix the sideways velocity of a differential drive but not to fight a skid-steer turn.
-//! Free-spinning wheels (free in the robot file, or with their motor off this tick) impose
-//! nothing: they roll with the ground (see [`crate::ground`]). A direction no driven wheel
-//! constrains (001's 4W-1 path with wheels 2 and 4 off leaves the sideways velocity free)
-//! keeps the body's previous velocity, less a little rolling resistance: a tiny Tikhonov
-//! term (weight 1e-7) pulls the solution towards it, a stand-in for the body's inertia
-//! that changes the constrained directions by ~1e-12 relative. With every motor off the
-//! robot coasts to a stop (see [`crate::ground`]).
+//! Redundant wheels that disagree ([Redundant omni]'s four omni wheels with slightly
+//! different radii) cannot all roll without slipping. The body moves with the least-squares
+//! twist of the driven wheels' rolling constraints, so every wheel slips by its residual;
+//! standard wheels add their sliding constraints (zero sideways velocity) weighted 1e-3,
+//! enough to fix the sideways velocity of a differential drive but not to fight a
+//! skid-steer turn. Free-spinning wheels (free in the robot file, or with their motor off
+//! this tick) impose nothing: they roll with the ground (see [`crate::ground`]). A
+//! direction no driven wheel constrains ([Redundant omni]'s 4W-1 path with wheels 2 and 4
+//! off leaves the sideways velocity free) keeps the body's previous velocity, less a little
+//! rolling resistance: a tiny Tikhonov term (weight 1e-7) pulls the solution towards it, a
+//! stand-in for the body's inertia that changes the constrained directions by ~1e-12
+//! relative. With every motor off the robot coasts to a stop (see [`crate::ground`]).
 
 use crate::SimError;
 use calib_core::kinematics::Twist;
@@ -155,7 +155,7 @@ pub fn actual_robot(nominal: &Robot, radius_scale: &[f64], wheelbase_scale: f64)
     r
 }
 
-/// Moves a wheeled-legged robot's wheels to the leg angles (formats.md §1: front pair at
+/// Moves a wheeled-legged robot's wheels to the leg angles (docs/formats.md §1: front pair at
 /// +body_length/2 + length cos(leg_front), rear at -body_length/2 + length cos(leg_rear)),
 /// keeping each wheel's y and rolling direction. Other robots are returned unchanged.
 pub fn place_legs(robot: &Robot, leg_front: f64, leg_rear: f64) -> Robot {

@@ -16,7 +16,7 @@
 //! - [`surface`]: floor features in world coordinates;
 //! - [`sensors`]: vision and IMU noise models;
 //! - [`robot`]: [`SimRobot`], the stepped simulation;
-//! - [`mod@record`]: whole runs to formats.md §2 recordings with the truth kept beside.
+//! - [`mod@record`]: whole runs to docs/formats.md §2 recordings with the truth kept beside.
 //!
 //! A board's view, one tick at a time:
 //!
@@ -42,8 +42,8 @@
 //! # Ok::<(), sim::SimError>(())
 //! ```
 //!
-//! Whole runs: [`record()`] (robot + effects + [`Motion`] + seed -> formats.md §2 recording
-//! and truth), [`SimRecording::write_dir`] (CSV + robot TOML + truth).
+//! Whole runs: [`record()`] (robot + effects + [`Motion`] + seed -> docs/formats.md §2
+//! recording and truth), [`SimRecording::write_dir`] (CSV + robot TOML + truth).
 //!
 //! Determinism: every random draw comes from ChaCha8 streams seeded from
 //! [`SimConfig::seed`]; the same seed and inputs give the same outputs bit for bit.

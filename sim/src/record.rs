@@ -1,4 +1,4 @@
-//! Whole runs to recordings: robot + effects + motion + seed -> a formats.md §2
+//! Whole runs to recordings: robot + effects + motion + seed -> a docs/formats.md §2
 //! [`Recording`] (what a real setup would have logged) with the ground truth kept
 //! separately, and a directory writer that puts the robot TOML beside the CSV.
 //!

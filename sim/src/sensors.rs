@@ -58,7 +58,7 @@ pub struct ImuConfig {
 
 impl Default for ImuConfig {
     fn default() -> Self {
-        // An MPU-6050 class gyro (002): a few mrad/s of bias and noise per sample.
+        // An MPU-6050 class gyro ([Korayem et al.]): a few mrad/s of bias and noise per sample.
         ImuConfig {
             bias_rad_s: 0.003,
             sigma_rad_s: 0.005,

@@ -1,12 +1,12 @@
-//! Floor features in world coordinates: cable strips (001), low-friction patches, a tilted
-//! floor.
+//! Floor features in world coordinates: cable strips ([Redundant omni]), low-friction
+//! patches, a tilted floor.
 //!
 //! They are properties of the floor, not of the robot, so the same robot driven over a
 //! different part of the floor meets them at different times: that is what makes them
 //! locatable by position in a recording.
 
-/// Parallel cables (001: 5 mm cables every 30 mm) that each cost a wheel `loss_m` of
-/// travel when it rolls over one.
+/// Parallel cables ([Redundant omni]: 5 mm cables every 30 mm) that each cost a wheel
+/// `loss_m` of travel when it rolls over one.
 ///
 /// The cables are the lines `n . p = offset_m + k * spacing_m` for every integer k, with
 /// `n` the unit normal at `normal_rad` from world x: with the default normal 0 they are the

@@ -173,9 +173,9 @@ fn backlash_delays_the_robot_after_a_reversal() {
 
 #[test]
 fn cable_crossings_shorten_a_straight_run_by_loss_times_crossings() {
-    // 000's MoboLab drives 1 m along x over cables every 30 mm costing 0.8 mm each: the
-    // body comes short by exactly 0.8 mm per cable its wheels crossed (both wheels cross
-    // together, so the body loses what each wheel loses).
+    // The MoboLab of [Measuring errors] drives 1 m along x over cables every 30 mm costing
+    // 0.8 mm each: the body comes short by exactly 0.8 mm per cable its wheels crossed (both
+    // wheels cross together, so the body loses what each wheel loses).
     let r = robot("mobolab");
     let e = Effect::parse("floor_bumps=spacing_m:0.03,loss_m:0.0008").unwrap();
     let cfg = SimConfig {
@@ -248,8 +248,8 @@ fn side_slip_in_a_turn() {
 
 #[test]
 fn free_wheels_roll_with_the_ground() {
-    // 002's robot: front wheels driven, rear free. Driving straight 0.5 m, the rear
-    // encoders (4096 counts/rev, r = 0.034 m) count the ground distance: 0.5 / (2 pi
+    // [Korayem et al.]'s robot: front wheels driven, rear free. Driving straight 0.5 m, the
+    // rear encoders (4096 counts/rev, r = 0.034 m) count the ground distance: 0.5 / (2 pi
     // 0.034) * 4096 = 9587 counts, to a count.
     let r = robot("wlr");
     let mut sim = SimRobot::new(&r, Faults::none(4), Surface::flat(), quiet()).unwrap();
@@ -278,10 +278,10 @@ fn free_wheels_roll_with_the_ground() {
 
 #[test]
 fn legs_shift_the_traction_limit() {
-    // 002: front legs at 30 deg, rear at 30 deg: the rear contact is 58 mm behind the
-    // mass, the front 292 mm ahead, so the driven front pair carries 0.058/0.350 = 16.6 %
-    // of the weight; rear legs at 150 deg: 0.292/0.584 = 50 %. With mu = 0.5 the body's
-    // acceleration limit is mu g share: 0.81 and 2.45 m/s^2.
+    // [Korayem et al.]: front legs at 30 deg, rear at 30 deg: the rear contact is 58 mm
+    // behind the mass, the front 292 mm ahead, so the driven front pair carries
+    // 0.058/0.350 = 16.6 % of the weight; rear legs at 150 deg: 0.292/0.584 = 50 %. With
+    // mu = 0.5 the body's acceleration limit is mu g share: 0.81 and 2.45 m/s^2.
     let r = robot("wlr");
     for (rear_deg, share) in [(30.0f64, 0.0583 / 0.35), (150.0, 0.5)] {
         let legs = r.legs.unwrap();
@@ -316,8 +316,8 @@ fn legs_shift_the_traction_limit() {
 
 #[test]
 fn motors_off_roll_with_the_ground() {
-    // 001's 4W-1 path with wheels 2 and 4 off: wheels 1 and 3 alone set vx and omega
-    // (no slip), the sideways velocity stays 0, and the free wheels' encoders see the
+    // [Redundant omni]'s 4W-1 path with wheels 2 and 4 off: wheels 1 and 3 alone set vx and
+    // omega (no slip), the sideways velocity stays 0, and the free wheels' encoders see the
     // rotation: wheel 1 at r = 1.003 r0, wheel 3 nominal: omega = -(c1 + c3) / (2 l).
     let r = robot("omni4");
     let e = Effect::parse("wheel_diameter_mismatch=radius_scale_w1:1.003").unwrap();

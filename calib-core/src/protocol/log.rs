@@ -51,7 +51,7 @@ pub enum ProgramKind {
         /// Turning sense.
         dir: Direction,
     },
-    /// One of 001's straight omni paths.
+    /// One of [Redundant omni]'s straight omni paths.
     Omni {
         /// Which path.
         path: OmniPath,

@@ -154,14 +154,14 @@ pub enum ProgramSpec {
         /// Turning sense.
         dir: Direction,
     },
-    /// 001's straight omni paths.
+    /// [Redundant omni]'s straight omni paths.
     Omni {
         /// Which path.
         path: OmniPath,
         /// Commanded length (m).
         length_m: f64,
         /// What the wheels the path does not drive do: released (drive cut) or held at
-        /// zero speed by their velocity loops (001 does both, one per path).
+        /// zero speed by their velocity loops ([Redundant omni] does both, one per path).
         idle: IdleWheels,
     },
     /// Up to [`MAX_SEGMENTS`] segments.

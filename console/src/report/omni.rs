@@ -1,4 +1,5 @@
-//! The omni report: 001's Fig. 5 (radial errors before/after) and Table II.
+//! The omni report: the radial errors before/after (Fig. 5) and Table II of the omni
+//! calibration method of [Redundant omni].
 
 use super::figures::{BarChart, Series, XyChart};
 use super::{prepare_dir, Page};
@@ -10,7 +11,7 @@ use std::path::{Path, PathBuf};
 pub fn write(rep: &OmniReport, dir: &Path) -> Result<PathBuf> {
     prepare_dir(dir)?;
     let mut page = Page::new(&format!("Omni calibration: {}", rep.robot));
-    page.paragraph("Lateral (F_lat) and longitudinal (F_lon) corrective factors of 001 from straight-path runs; final wheel rates = F_lon * F_lat * J * twist (001 eq. 6).");
+    page.paragraph("Lateral (F_lat) and longitudinal (F_lon) corrective factors of the omni calibration method ([Redundant omni]) from straight-path runs; final wheel rates = F_lon * F_lat * J * twist ([Redundant omni] eq. 6).");
     page.heading("Factors");
     let rows: Vec<Vec<String>> = rep
         .wheels
@@ -26,7 +27,7 @@ pub fn write(rep: &OmniReport, dir: &Path) -> Result<PathBuf> {
         .collect();
     page.table(&["wheel", "effective ratio k", "F_lat"], &rows);
     page.paragraph(&format!("F_lon = {:.5}", rep.f_lon));
-    page.heading("Radial errors (001 Table II)");
+    page.heading("Radial errors (omni calibration, [Redundant omni] Table II)");
     let mut rows = Vec::new();
     for (phase, ps) in [("before", &rep.before), ("after", &rep.after)] {
         for p in ps {
@@ -54,7 +55,9 @@ pub fn write(rep: &OmniReport, dir: &Path) -> Result<PathBuf> {
         &rows,
     );
     if let Some(i) = rep.improvement_index_percent {
-        page.paragraph(&format!("Improvement index (001 eq. 8): {i:.1} %"));
+        page.paragraph(&format!(
+            "Mean error improvement index ([Redundant omni] eq. 8): {i:.1} %"
+        ));
     }
     page.figure(
         &radial_errors(rep),
@@ -68,10 +71,13 @@ pub fn write(rep: &OmniReport, dir: &Path) -> Result<PathBuf> {
         "mean_radial",
         "Mean radial error per path before and after.",
     )?;
+    page.paragraph(
+        "Citation keys in square brackets refer to docs/references.md in the wheelcal repository.",
+    );
     page.write(dir)
 }
 
-/// Radial end error of each run, before and after (001 Fig. 5).
+/// Radial end error of each run, before and after ([Redundant omni] Fig. 5).
 pub fn radial_errors(rep: &OmniReport) -> XyChart {
     let mut series = Vec::new();
     for (k, (phase, ps)) in [("before", &rep.before), ("after", &rep.after)]
@@ -89,7 +95,7 @@ pub fn radial_errors(rep: &OmniReport) -> XyChart {
         }
     }
     XyChart {
-        title: "Radial error per run (001 Fig. 5)".into(),
+        title: "Radial error per run ([Redundant omni] Fig. 5)".into(),
         x_label: "run".into(),
         y_label: "radial error (mm)".into(),
         series,

@@ -1,4 +1,4 @@
-//! The UMBmark report: 000's figures 13-26 and Table 1 for one robot.
+//! The UMBmark report: the figures 13-26 and Table 1 of [Measuring errors] for one robot.
 
 use super::figures::{BarChart, Series, XyChart};
 use super::{prepare_dir, Page};
@@ -7,7 +7,8 @@ use anyhow::Result;
 use calib_core::stats;
 use std::path::{Path, PathBuf};
 
-/// Distances of the end points from the origin (000 eqs. 14-15) and their normal model.
+/// Distances of the end points from the origin ([Measuring errors] eqs. 14-15) and their
+/// normal model.
 struct Distances {
     mean: f64,
     sd: f64,
@@ -25,8 +26,8 @@ fn distances(d: &DirectionStats) -> Distances {
     }
 }
 
-/// 000's three zones of the error distribution: [min, max] seen in trials, [0, min), and
-/// beyond max, as probabilities under the fitted normal curve (eq. 18).
+/// The three zones of the error distribution of [Measuring errors]: [min, max] seen in
+/// trials, [0, min), and beyond max, as probabilities under the fitted normal curve (eq. 18).
 pub fn zone_probabilities(d: &DirectionStats) -> [f64; 3] {
     let z = distances(d);
     if z.sd <= 0.0 {
@@ -56,7 +57,7 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
     prepare_dir(dir)?;
     let mut page = Page::new(&format!("UMBmark: {}", rep.robot));
     page.paragraph(&format!(
-        "{} m bidirectional square (Borenstein & Feng 1996), nominal wheelbase {:.4} m. Errors are measured minus odometry end positions in the start frame.",
+        "{} m bidirectional square (UMBmark, [Borenstein 1996]), nominal wheelbase {:.4} m. Errors are measured minus odometry end positions in the start frame.",
         rep.side_m, rep.wheelbase_nominal_m
     ));
     page.heading("Correction factors");
@@ -88,14 +89,14 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
             row("exact model (recommended)", &rep.exact),
         ],
     );
-    page.heading("E_max,sys (000 Table 1)");
+    page.heading("E_max,sys (UMBmark accuracy, [Measuring errors] Table 1)");
     page.table(
         &[
             "robot",
             "before mm",
             "after mm",
             "improvement",
-            "P_e (eq. 19)",
+            "P_e ([Measuring errors] eq. 19)",
         ],
         &[vec![
             rep.robot.clone(),
@@ -109,7 +110,7 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
     );
 
     let phases = phases(rep);
-    page.heading("End positions (000 Figs. 13-21)");
+    page.heading("End positions (UMBmark, [Measuring errors] Figs. 13-21)");
     page.figure(
         &end_positions(rep),
         dir,
@@ -117,7 +118,7 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
         "Measured minus odometry end positions of each run, cw and ccw, with their centroids.",
     )?;
 
-    page.heading("Normal distribution of the errors (000 Figs. 22-23, eq. 18)");
+    page.heading("Normal distribution of the errors ([Measuring errors] Figs. 22-23, eq. 18)");
     page.figure(
         &normal_curves(rep),
         dir,
@@ -125,7 +126,9 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
         "Normal curves of the end-point distance e with each phase's mean and standard deviation.",
     )?;
 
-    page.heading("Convergence: probability of ending within 3 cm of the centroid (000 Fig. 24)");
+    page.heading(
+        "Convergence: probability of ending within 3 cm of the centroid ([Measuring errors] Fig. 24)",
+    );
     page.figure(
         &p_within_3cm(rep),
         dir,
@@ -133,7 +136,7 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
         "Probability, under a normal model with each direction's spreads, that a run ends within 3 cm of its centroid.",
     )?;
 
-    page.heading("Error zones (000 Figs. 25-26)");
+    page.heading("Error zones ([Measuring errors] Figs. 25-26)");
     let mut zone_rows = Vec::new();
     for (name, ph) in &phases {
         for (dir_name, d) in [("cw", &ph.cw), ("ccw", &ph.ccw)] {
@@ -161,6 +164,9 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
         "zones",
         "Zone 1: between the smallest and largest error seen; zone 2: below the smallest; zone 3: above the largest.",
     )?;
+    page.paragraph(
+        "Citation keys in square brackets refer to docs/references.md in the wheelcal repository.",
+    );
     page.write(dir)
 }
 
@@ -173,7 +179,7 @@ fn phases(rep: &UmbmarkReport) -> Vec<(&'static str, &PhaseStats)> {
     phases
 }
 
-/// End-position errors of each run with the centroids (000 Figs. 13-21).
+/// End-position errors of each run with the centroids ([Measuring errors] Figs. 13-21).
 pub fn end_positions(rep: &UmbmarkReport) -> XyChart {
     let phases = phases(rep);
     let mut series = Vec::new();
@@ -206,7 +212,7 @@ pub fn end_positions(rep: &UmbmarkReport) -> XyChart {
     }
 }
 
-/// Normal curves of the end-point distance (000 Figs. 22-23).
+/// Normal curves of the end-point distance ([Measuring errors] Figs. 22-23).
 pub fn normal_curves(rep: &UmbmarkReport) -> XyChart {
     let phases = phases(rep);
     let mut curves = Vec::new();
@@ -232,7 +238,7 @@ pub fn normal_curves(rep: &UmbmarkReport) -> XyChart {
     }
 }
 
-/// P(end within 3 cm of the centroid) per phase and direction (000 Fig. 24).
+/// P(end within 3 cm of the centroid) per phase and direction ([Measuring errors] Fig. 24).
 pub fn p_within_3cm(rep: &UmbmarkReport) -> BarChart {
     let phases = phases(rep);
     BarChart {
@@ -252,7 +258,7 @@ pub fn p_within_3cm(rep: &UmbmarkReport) -> BarChart {
     }
 }
 
-/// Error occurrence probability per zone (000 Figs. 25-26).
+/// Error occurrence probability per zone ([Measuring errors] Figs. 25-26).
 pub fn zones(rep: &UmbmarkReport) -> BarChart {
     let mut series = Vec::new();
     for (name, ph) in phases(rep) {
