@@ -568,7 +568,7 @@ impl TrialList {
     }
 }
 
-/// Converts a trial's records into a recording (formats.md §2): `cmd_` and `enc_`
+/// Converts a trial's records into a recording (docs/formats.md §2): `cmd_` and `enc_`
 /// columns from the board, pose columns blank (the board does not measure its pose), and
 /// the board's odometry as extra `odo_x`, `odo_y`, `odo_theta` columns.
 pub fn records_to_csv(

@@ -85,10 +85,10 @@ pub enum Command {
 /// Arguments of `wheelcal diagnose`.
 #[derive(Debug, Args)]
 pub struct DiagnoseArgs {
-    /// Robot description (formats.md §1).
+    /// Robot description (docs/formats.md §1).
     #[arg(long)]
     pub robot: PathBuf,
-    /// Recording (formats.md §2): a CSV file or a run folder; repeatable, or a directory
+    /// Recording (docs/formats.md §2): a CSV file or a run folder; repeatable, or a directory
     /// of run folders: several recordings are diagnosed jointly (shared geometry).
     #[arg(long, required = true)]
     pub recording: Vec<PathBuf>,
@@ -114,7 +114,7 @@ pub enum SimCmd {
 /// Arguments of `wheelcal sim record`.
 #[derive(Debug, Args)]
 pub struct SimRecordArgs {
-    /// Robot description (formats.md §1).
+    /// Robot description (docs/formats.md §1).
     #[arg(long)]
     pub robot: PathBuf,
     /// An effect to hide, `ID` or `ID=name:value,...` (catalogue ids of `diagnose`, or
@@ -349,7 +349,7 @@ fn link_timeout_s(s: &str) -> Result<f64, String> {
 pub enum LogCmd {
     /// The trials on the board.
     List,
-    /// Download a trial as a recording (formats.md §2, plus odo_ columns).
+    /// Download a trial as a recording (docs/formats.md §2, plus odo_ columns).
     Pull {
         /// Trial number (see `log list`).
         #[arg(long)]
@@ -365,7 +365,7 @@ pub enum LogCmd {
 /// Subcommands of `wheelcal umbmark`.
 #[derive(Debug, Subcommand)]
 pub enum UmbmarkCmd {
-    /// Compute E_d, E_b, c_L, c_R from measured end errors (formats.md §3).
+    /// Compute E_d, E_b, c_L, c_R from measured end errors (docs/formats.md §3).
     Compute(ComputeArgs),
     /// The guided procedure on a board: n cw and n ccw squares, compute, upload, save,
     /// and the same again after.
@@ -385,10 +385,10 @@ pub enum OmniCmd {
 /// Arguments of `umbmark compute` (and the common part of `omni compute`).
 #[derive(Debug, Args)]
 pub struct ComputeArgs {
-    /// Robot description (formats.md §1).
+    /// Robot description (docs/formats.md §1).
     #[arg(long)]
     pub robot: PathBuf,
-    /// Measured runs (formats.md §3).
+    /// Measured runs (docs/formats.md §3).
     #[arg(long)]
     pub runs: PathBuf,
     /// Write an HTML report with SVG and PNG plots into this directory.
@@ -490,7 +490,7 @@ pub struct ProcedureArgs {
 /// Arguments of `wheelcal sim-board`.
 #[derive(Debug, Args)]
 pub struct SimBoardArgs {
-    /// Robot description (formats.md §1).
+    /// Robot description (docs/formats.md §1).
     #[arg(long)]
     pub robot: PathBuf,
     /// Create a symlink to the pseudo-terminal here (use it as --port).

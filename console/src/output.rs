@@ -1,5 +1,5 @@
 //! Output conventions: a human summary by default, or with `--json` exactly one JSON
-//! object on stdout and nothing else there (formats.md §4).
+//! object on stdout and nothing else there (docs/formats.md §4).
 
 use serde::Serialize;
 

@@ -13,7 +13,7 @@ use std::sync::Arc;
 /// What `sim-board` needs.
 #[derive(Debug, Clone)]
 pub struct SimBoardOptions {
-    /// Robot description (formats.md §1) the simulated robot is built from.
+    /// Robot description (docs/formats.md §1) the simulated robot is built from.
     pub robot: PathBuf,
     /// Symbolic link to point at the pseudo-terminal (a stable port name), if any.
     pub link: Option<PathBuf>,

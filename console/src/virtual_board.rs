@@ -134,7 +134,7 @@ pub struct TrialTruth {
     pub odo_y_m: f64,
     /// The board's odometry heading change, rad.
     pub odo_theta_rad: f64,
-    /// x error, true minus odometry (formats.md §3: measured minus odometry), m.
+    /// x error, true minus odometry (docs/formats.md §3: measured minus odometry), m.
     pub x_err_m: f64,
     /// y error (true minus odometry), m.
     pub y_err_m: f64,

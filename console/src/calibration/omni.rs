@@ -376,7 +376,11 @@ impl OmniReport {
     /// The human-readable summary printed without `--json`.
     pub fn human(&self) -> String {
         let mut s = String::new();
-        let _ = writeln!(s, "Omni calibration (001): robot {}", self.robot);
+        let _ = writeln!(
+            s,
+            "Omni calibration (lateral and longitudinal factors, [Redundant omni]): robot {}",
+            self.robot
+        );
         let _ = writeln!(s, "  {:<10} {:>12} {:>10}", "wheel", "ratio k", "F_lat");
         for (i, w) in self.wheels.iter().enumerate() {
             let k = self.wheel_ratio[i].map_or("-".to_string(), |k| format!("{k:.5}"));
@@ -384,7 +388,7 @@ impl OmniReport {
         }
         let _ = writeln!(
             s,
-            "  F_lon = {:.5} (001 eq. 5 per path: {:?})",
+            "  F_lon = {:.5} ([Redundant omni] eq. 5, per path: {:?})",
             self.f_lon,
             self.f_lon_eq5
                 .iter()
@@ -393,7 +397,7 @@ impl OmniReport {
         );
         let _ = writeln!(
             s,
-            "  wheel command = F_lon * F_lat[i] * (J twist)_i  (001 eq. 6)"
+            "  wheel command = F_lon * F_lat[i] * (J twist)_i  ([Redundant omni] eq. 6)"
         );
         if let (Some(p), Some(q)) = (&self.previous, &self.secondary) {
             let _ = writeln!(
@@ -422,7 +426,7 @@ impl OmniReport {
         ) {
             let _ = writeln!(
                 s,
-                "  mean radial error {:.2} mm -> {:.2} mm: improvement {:.1} % (001 eq. 8)",
+                "  mean radial error {:.2} mm -> {:.2} mm: improvement {:.1} % ([Redundant omni] eq. 8)",
                 self.mean_radial_error_m * 1e3,
                 a * 1e3,
                 i
