@@ -4,7 +4,7 @@
 
 mod common;
 
-use common::{robot, scratch, wheelcal, Board};
+use common::{pose_of, robot, scratch, wait_exit, wheelcal, Board};
 use expectrl::{Eof, Expect, Regex, Session};
 use serde_json::Value;
 use std::io::Read;
@@ -230,13 +230,6 @@ fn sim_record_bounds_the_square_like_a_board() {
     }
 }
 
-fn pose_of(status: &Value) -> (f64, f64) {
-    (
-        status["pose"]["x"].as_f64().expect("pose.x"),
-        status["pose"]["y"].as_f64().expect("pose.y"),
-    )
-}
-
 /// 13.3: in `wheelcal console`, Ctrl-C during a 10 s drive was ignored (the robot drove
 /// 0.94 m to its end). Now it stops the robot at once and returns to the prompt.
 #[test]
@@ -326,17 +319,11 @@ fn estop_from_a_second_terminal_reaches_a_held_port() {
         .expect("relayed through the holder");
     assert!(ms < 100.0, "E-stop took {ms} ms to reach the port");
     // The drive's next refresh is refused by the latched board: it ends with an error.
-    let t1 = Instant::now();
-    let status = loop {
-        if let Some(s) = drive.try_wait().unwrap() {
-            break s;
-        }
-        assert!(
-            t1.elapsed() < Duration::from_secs(2),
-            "the drive went on after the E-stop"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
+    let status = wait_exit(
+        &mut drive,
+        Duration::from_secs(2),
+        "the drive went on after the E-stop",
+    );
     assert!(!status.success());
     let mut err = String::new();
     drive

@@ -4,20 +4,12 @@
 
 mod common;
 
-use common::{scratch, wheelcal, Board};
+use common::{pose_of, scratch, signal, wait_exit, wheelcal, Board};
 use expectrl::{Eof, Expect, Regex, Session};
 use serde_json::Value;
 use std::path::Path;
-use std::process::{Child, Command, Stdio};
+use std::process::Stdio;
 use std::time::{Duration, Instant};
-
-fn signal(child: &Child, sig: &str) {
-    let ok = Command::new("kill")
-        .args([sig, &child.id().to_string()])
-        .status()
-        .expect("kill runs");
-    assert!(ok.success(), "kill {sig}");
-}
 
 /// Waits until the holder of `link` listens for E-stops (it has opened the port).
 fn wait_for_holder(link: &Path) {
@@ -46,13 +38,6 @@ fn last_trial(board: &Board) -> Value {
 fn process_state(pid: u32) -> Option<char> {
     let stat = std::fs::read_to_string(format!("/proc/{pid}/stat")).ok()?;
     stat.rsplit_once(')')?.1.trim_start().chars().next()
-}
-
-fn pose_of(status: &Value) -> (f64, f64) {
-    (
-        status["pose"]["x"].as_f64().expect("pose.x"),
-        status["pose"]["y"].as_f64().expect("pose.y"),
-    )
 }
 
 /// Issue 23.1: a console stopped by SIGSTOP mid-program left the robot driving (0.41 m
@@ -166,18 +151,11 @@ fn estop_wakes_a_suspended_holder() {
     // 100 ms of waiting for the suspended holder, then its relay thread's next poll.
     assert!(ms < 300.0, "E-stop took {ms} ms to reach the port");
     // The woken console sees the latched board and ends; then the board can be asked.
-    let t0 = Instant::now();
-    let status = loop {
-        if let Some(s) = run.try_wait().unwrap() {
-            break s;
-        }
-        assert!(
-            t0.elapsed() < Duration::from_secs(5),
-            "the woken console never ended"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    };
-    let _ = status;
+    wait_exit(
+        &mut run,
+        Duration::from_secs(5),
+        "the woken console never ended",
+    );
     let s = board.status();
     assert_eq!(s["estop"], true, "{s}");
     assert_eq!(last_trial(&board)["end"], "estop");

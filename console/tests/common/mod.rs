@@ -94,3 +94,32 @@ impl Drop for Board {
         let _ = self.child.wait();
     }
 }
+
+/// Waits for `child` to end, failing the test with `what` after `limit`.
+pub fn wait_exit(child: &mut Child, limit: Duration, what: &str) -> std::process::ExitStatus {
+    let t0 = Instant::now();
+    loop {
+        if let Some(s) = child.try_wait().expect("try_wait") {
+            return s;
+        }
+        assert!(t0.elapsed() < limit, "{what}");
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
+
+/// Sends `sig` (as `kill` spells it: `-STOP`, `-TERM`) to `child`.
+pub fn signal(child: &Child, sig: &str) {
+    let ok = Command::new("kill")
+        .args([sig, &child.id().to_string()])
+        .status()
+        .expect("kill runs");
+    assert!(ok.success(), "kill {sig}");
+}
+
+/// The (x, y) of a `status --json` answer.
+pub fn pose_of(status: &serde_json::Value) -> (f64, f64) {
+    (
+        status["pose"]["x"].as_f64().expect("pose.x"),
+        status["pose"]["y"].as_f64().expect("pose.y"),
+    )
+}
