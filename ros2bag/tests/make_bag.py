@@ -241,9 +241,14 @@ def main():
         if a.pose == 'tf':
             c = writer.add_connection('/tf_static', TFMessage.__msgtype__, typestore=STORE)
             writer.write(c, msgs[0][0], STORE.serialize_cdr(static_tf(msgs[0][0]), TFMessage.__msgtype__))
+        # Which chunk each joint message lands in (rosbags closes a chunk past 1 MiB;
+        # its writer's list of closed chunks says which one is open).
+        joint_chunks = []
         for recv, topic, ty, m in msgs:
             if topic not in conns:
                 conns[topic] = writer.add_connection(topic, ty, typestore=STORE)
+            if topic == '/joint_states':
+                joint_chunks.append(len(writer.storage.chunks))
             writer.write(conns[topic], recv, STORE.serialize_cdr(m, ty))
 
     mcap = out / f'{out.name}.mcap'
@@ -266,8 +271,7 @@ def main():
         data[f : f + 4] = b'\0\0\0\0'
         mcap.write_bytes(bytes(data))
         report['corrupted_offset'] = chunk_offsets[a.corrupt_chunk]
-        # Messages whose receive time is before the corrupted chunk's first message.
-        report['corrupted_chunk'] = a.corrupt_chunk
+        report['joint_messages_before'] = sum(1 for c in joint_chunks if c < a.corrupt_chunk)
     print(json.dumps(report))
 
 
