@@ -224,15 +224,27 @@ fn bag_files(path: &Path) -> Result<Vec<PathBuf>, ImportError> {
             ),
         ));
     }
-    if info.compression_mode.as_deref().unwrap_or("").eq_ignore_ascii_case("file") {
+    if info
+        .compression_mode
+        .as_deref()
+        .unwrap_or("")
+        .eq_ignore_ascii_case("file")
+    {
         return Err(ImportError::new(
             &meta,
             "the bag's files are compressed whole (compression_mode FILE): decompress them first (`ros2 bag decompress`), or record with MCAP chunk compression instead",
         ));
     }
-    let files: Vec<PathBuf> = info.relative_file_paths.iter().map(|f| path.join(f)).collect();
+    let files: Vec<PathBuf> = info
+        .relative_file_paths
+        .iter()
+        .map(|f| path.join(f))
+        .collect();
     if files.is_empty() {
-        return Err(ImportError::new(&meta, "lists no files (relative_file_paths is empty)"));
+        return Err(ImportError::new(
+            &meta,
+            "lists no files (relative_file_paths is empty)",
+        ));
     }
     for f in &files {
         if !f.is_file() {

@@ -28,7 +28,10 @@ pub fn commands(bag: &Bag, topic: &str, use_receive_time: bool) -> Result<Comman
     let Some(t) = bag.topic(topic) else {
         return Err(ImportError::new(
             &bag.path,
-            format!("no command topic {topic}; the bag holds:\n{}", bag.describe_topics()),
+            format!(
+                "no command topic {topic}; the bag holds:\n{}",
+                bag.describe_topics()
+            ),
         ));
     };
     let stamped = match t.msg_type.as_str() {
@@ -46,13 +49,27 @@ pub fn commands(bag: &Bag, topic: &str, use_receive_time: bool) -> Result<Comman
         }
     };
     let mut rows = Vec::new();
-    for (k, m) in bag.messages.get(topic).map(Vec::as_slice).unwrap_or(&[]).iter().enumerate() {
+    for (k, m) in bag
+        .messages
+        .get(topic)
+        .map(Vec::as_slice)
+        .unwrap_or(&[])
+        .iter()
+        .enumerate()
+    {
         let err = |e: String| {
-            ImportError::new(&bag.path, format!("{topic}: message {k} cannot be decoded: {e}"))
+            ImportError::new(
+                &bag.path,
+                format!("{topic}: message {k} cannot be decoded: {e}"),
+            )
         };
         let (stamp, tw) = if stamped {
             let s: TwistStamped = decode(&m.data).map_err(err)?;
-            let st = if use_receive_time { m.log_time_ns as i64 } else { s.header.stamp.ns() };
+            let st = if use_receive_time {
+                m.log_time_ns as i64
+            } else {
+                s.header.stamp.ns()
+            };
             (st, s.twist)
         } else {
             let s: Twist = decode(&m.data).map_err(err)?;

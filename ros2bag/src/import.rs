@@ -86,7 +86,12 @@ fn joint_names(robot: &Robot, o: &ImportOptions) -> Result<Vec<String>, String> 
         if !robot.wheels.iter().any(|x| x.name.as_str() == w) {
             return Err(format!(
                 "--joint {w}=...: the robot has no wheel {w} (its wheels: {})",
-                robot.wheels.iter().map(|x| x.name.as_str()).collect::<Vec<_>>().join(", ")
+                robot
+                    .wheels
+                    .iter()
+                    .map(|x| x.name.as_str())
+                    .collect::<Vec<_>>()
+                    .join(", ")
             ));
         }
     }
@@ -139,7 +144,9 @@ pub fn import(path: &Path, robot: &Robot, o: &ImportOptions) -> Result<Imported,
                 format!("{d}; import what came before with --keep-partial"),
             ));
         }
-        notes.push(format!("damaged bag, the messages before the damage are kept: {d}"));
+        notes.push(format!(
+            "damaged bag, the messages before the damage are kept: {d}"
+        ));
     }
 
     let js = joint_series(&bag, &o.joint_topic, &joints, o.use_receive_time)?;
@@ -197,10 +204,17 @@ pub fn import(path: &Path, robot: &Robot, o: &ImportOptions) -> Result<Imported,
     }
     to_start_frame(&mut poses);
 
-    let cmds = if o.cmd_topic.is_some() || bag.topic(auto_cmd).is_some_and(|t| types::TWIST_TYPES.contains(&t.msg_type.as_str())) {
+    let cmds = if o.cmd_topic.is_some()
+        || bag
+            .topic(auto_cmd)
+            .is_some_and(|t| types::TWIST_TYPES.contains(&t.msg_type.as_str()))
+    {
         let c = commands(&bag, &cmd_topic, o.use_receive_time)?;
         if o.cmd_topic.is_none() {
-            notes.push(format!("commands from {auto_cmd} ({} messages)", c.stamps_ns.len()));
+            notes.push(format!(
+                "commands from {auto_cmd} ({} messages)",
+                c.stamps_ns.len()
+            ));
         }
         Some(
             wheel_commands(robot, &c, &js.stamps_ns, (o.cmd_timeout_s * 1e9) as i64)

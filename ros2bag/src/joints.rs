@@ -48,7 +48,10 @@ pub fn joint_series(
                 if js.is_empty() {
                     String::new()
                 } else {
-                    format!(" (JointState topics: {}; choose one with --joint-topic)", js.join(", "))
+                    format!(
+                        " (JointState topics: {}; choose one with --joint-topic)",
+                        js.join(", ")
+                    )
                 },
                 bag.describe_topics()
             ),
@@ -72,7 +75,10 @@ pub fn joint_series(
     let mut zero_stamps = 0usize;
     for (k, m) in msgs.iter().enumerate() {
         let js: JointState = decode(&m.data).map_err(|e| {
-            ImportError::new(&bag.path, format!("{topic}: message {k} cannot be decoded: {e}"))
+            ImportError::new(
+                &bag.path,
+                format!("{topic}: message {k} cannot be decoded: {e}"),
+            )
         })?;
         // Look the names up again only when the message's layout changes.
         let fits = index

@@ -98,7 +98,10 @@ pub fn pose_series(bag: &Bag, q: &PoseQuery<'_>) -> Result<PoseSeries, ImportErr
     };
     let msgs = bag.messages.get(q.topic).map(Vec::as_slice).unwrap_or(&[]);
     let decode_err = |k: usize, e: String| {
-        ImportError::new(&bag.path, format!("{}: message {k} cannot be decoded: {e}", q.topic))
+        ImportError::new(
+            &bag.path,
+            format!("{}: message {k} cannot be decoded: {e}", q.topic),
+        )
     };
     let mut frames: BTreeSet<String> = BTreeSet::new();
     let mut children: BTreeSet<String> = BTreeSet::new();

@@ -64,7 +64,11 @@ mod tests {
     fn interpolates_inside_and_never_extrapolates() {
         let p = poses_at(&series(), &[50, 100, 150, 200, 600, 1_000, 1_001], 500);
         assert_eq!(p[0], None, "before the first pose");
-        assert_eq!(p[1], Some((0.0, 0.0, 3.0)), "a coinciding stamp is the sample itself");
+        assert_eq!(
+            p[1],
+            Some((0.0, 0.0, 3.0)),
+            "a coinciding stamp is the sample itself"
+        );
         let (x, y, th) = p[2].unwrap();
         assert!((x - 0.5).abs() < 1e-15 && (y + 0.5).abs() < 1e-15 && (th - 3.2).abs() < 1e-15);
         assert_eq!(p[3], Some((1.0, -1.0, 3.4)));
@@ -75,7 +79,11 @@ mod tests {
 
     #[test]
     fn start_frame_puts_the_first_pose_at_the_origin() {
-        let mut p = vec![None, Some((1.0, 2.0, std::f64::consts::FRAC_PI_2)), Some((1.0, 3.0, 2.0))];
+        let mut p = vec![
+            None,
+            Some((1.0, 2.0, std::f64::consts::FRAC_PI_2)),
+            Some((1.0, 3.0, 2.0)),
+        ];
         to_start_frame(&mut p);
         assert_eq!(p[0], None);
         assert_eq!(p[1], Some((0.0, 0.0, 0.0)));

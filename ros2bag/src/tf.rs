@@ -27,9 +27,19 @@ fn read_edges(
     use_receive_time: bool,
     edges: &mut BTreeMap<(String, String), Edge>,
 ) -> Result<(), ImportError> {
-    for (k, m) in bag.messages.get(topic).map(Vec::as_slice).unwrap_or(&[]).iter().enumerate() {
+    for (k, m) in bag
+        .messages
+        .get(topic)
+        .map(Vec::as_slice)
+        .unwrap_or(&[])
+        .iter()
+        .enumerate()
+    {
         let tf: TFMessage = decode(&m.data).map_err(|e| {
-            ImportError::new(&bag.path, format!("{topic}: message {k} cannot be decoded: {e}"))
+            ImportError::new(
+                &bag.path,
+                format!("{topic}: message {k} cannot be decoded: {e}"),
+            )
         })?;
         for t in tf.transforms {
             let parent = t.header.frame_id.trim_start_matches('/').to_string();

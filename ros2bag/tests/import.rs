@@ -104,9 +104,15 @@ fn assert_same(a: &Recording, b: &Recording, what: &str) {
                 wa.name
             );
         }
-        for (va, vb, c) in [(&a.x, &b.x, "x"), (&a.y, &b.y, "y"), (&a.theta, &b.theta, "theta")] {
+        for (va, vb, c) in [
+            (&a.x, &b.x, "x"),
+            (&a.y, &b.y, "y"),
+            (&a.theta, &b.theta, "theta"),
+        ] {
             match (va[i], vb[i]) {
-                (Some(p), Some(q)) => assert!((p - q).abs() <= 1e-9, "{what}: {c} row {i}: {p} vs {q}"),
+                (Some(p), Some(q)) => {
+                    assert!((p - q).abs() <= 1e-9, "{what}: {c} row {i}: {p} vs {q}")
+                }
                 (p, q) => assert_eq!(p.is_some(), q.is_some(), "{what}: {c} row {i} blank"),
             }
         }
@@ -150,10 +156,19 @@ fn real_squares_import_exactly_and_calibrate_the_same() {
 fn tf_and_odometry_poses_give_the_posestamped_recording() {
     let folder = "diff-square-run-01";
     let (robot, _, _) = real(folder);
-    let reference = import(&real_bag(folder, "posestamped", &[]), &robot, &opts("/mocap/pose"))
-        .unwrap()
-        .recording;
-    let odom = import(&real_bag(folder, "odometry", &[]), &robot, &opts("/mocap/odom")).unwrap();
+    let reference = import(
+        &real_bag(folder, "posestamped", &[]),
+        &robot,
+        &opts("/mocap/pose"),
+    )
+    .unwrap()
+    .recording;
+    let odom = import(
+        &real_bag(folder, "odometry", &[]),
+        &robot,
+        &opts("/mocap/odom"),
+    )
+    .unwrap();
     assert_same(&odom.recording, &reference, "odometry");
     let mut o = opts("/tf");
     o.pose_frame = Some("map".into());
@@ -191,12 +206,19 @@ fn synthetic_drive_interpolates_poses_and_converts_commands() {
     // The start frame is the first pose's (7 ms in, where the truth's frame is the first
     // joint instant's): compare increments from the first row with a pose.
     let first = rec.pose_rows().next().unwrap();
-    assert!(rec.t[first.0] > 0.006 && rec.t[first.0] <= 0.01 + 1e-9, "first pose row {}", rec.t[first.0]);
+    assert!(
+        rec.t[first.0] > 0.006 && rec.t[first.0] <= 0.01 + 1e-9,
+        "first pose row {}",
+        rec.t[first.0]
+    );
     assert_eq!(rec.x[0], None, "no extrapolation before the first pose");
     for i in 0..rec.len() {
         assert!((rec.t[i] - truth.t[i]).abs() <= 1e-9);
         for w in 0..2 {
-            assert_eq!(rec.wheels[w].enc.as_ref().unwrap()[i], truth.wheels[w].enc.as_ref().unwrap()[i]);
+            assert_eq!(
+                rec.wheels[w].enc.as_ref().unwrap()[i],
+                truth.wheels[w].enc.as_ref().unwrap()[i]
+            );
             let (c, ct) = (
                 rec.wheels[w].cmd.as_ref().unwrap()[i].unwrap(),
                 truth.wheels[w].cmd.as_ref().unwrap()[i].unwrap(),
@@ -212,7 +234,11 @@ fn synthetic_drive_interpolates_poses_and_converts_commands() {
             );
             let (dx, dy) = (truth.x[i].unwrap() - x0, truth.y[i].unwrap() - y0);
             let (c, s) = (t0.cos(), t0.sin());
-            let (tx, ty, tt) = (c * dx + s * dy, -s * dx + c * dy, truth.theta[i].unwrap() - t0);
+            let (tx, ty, tt) = (
+                c * dx + s * dy,
+                -s * dx + c * dy,
+                truth.theta[i].unwrap() - t0,
+            );
             // The start frame itself is interpolated (3 ms after the first pose... no:
             // the first pose row is at 10 ms, between poses at 7 and 37 ms).
             worst_p = worst_p.max((x - tx).hypot(y - ty));
@@ -220,11 +246,18 @@ fn synthetic_drive_interpolates_poses_and_converts_commands() {
             compared += 1;
         }
     }
-    assert!(compared > rec.len() * 9 / 10, "{compared} of {} rows have a pose", rec.len());
+    assert!(
+        compared > rec.len() * 9 / 10,
+        "{compared} of {} rows have a pose",
+        rec.len()
+    );
     // Each of the two poses compared (the row's and the start row's) errs by at most
     // the interpolation bound: 2 x 1.7e-5 m (and the start heading's error moves far
     // points by up to 5.7e-6 rad x the ~18 m travelled: 1e-4 m), 2 x 5.7e-6 rad.
-    assert!(worst_p <= 2.0 * 1.7e-5 + 18.0 * 5.7e-6, "worst position {worst_p}");
+    assert!(
+        worst_p <= 2.0 * 1.7e-5 + 18.0 * 5.7e-6,
+        "worst position {worst_p}"
+    );
     assert!(worst_th <= 2.0 * 5.7e-6, "worst heading {worst_th}");
     println!("synthetic: worst interpolated position {worst_p:.2e} m, heading {worst_th:.2e} rad");
 }
@@ -253,10 +286,16 @@ fn bag_without_the_pose_topic_lists_its_topics() {
     let bag = real_bag("diff-square-run-01", "none", &[]);
     let e = err_of(&bag, &robot, &opts("/mocap/pose"));
     assert!(e.contains("/mocap/pose"), "{e}");
-    assert!(e.contains("/joint_states") && e.contains("sensor_msgs/msg/JointState"), "{e}");
+    assert!(
+        e.contains("/joint_states") && e.contains("sensor_msgs/msg/JointState"),
+        "{e}"
+    );
     // A topic of a type that carries no pose is refused, naming the types that do.
     let e = err_of(&bag, &robot, &opts("/joint_states"));
-    assert!(e.contains("sensor_msgs/msg/JointState") && e.contains("geometry_msgs/msg/PoseStamped"), "{e}");
+    assert!(
+        e.contains("sensor_msgs/msg/JointState") && e.contains("geometry_msgs/msg/PoseStamped"),
+        "{e}"
+    );
 }
 
 #[test]
@@ -302,21 +341,38 @@ fn corrupted_chunk_names_its_offset_and_keeps_what_came_before() {
         .iter()
         .map(|v| v.as_u64().unwrap())
         .collect();
-    assert!(offsets.len() >= 4, "the bag has several chunks: {offsets:?}");
+    assert!(
+        offsets.len() >= 4,
+        "the bag has several chunks: {offsets:?}"
+    );
 
     let mut o = opts("/mocap/pose");
     let e = err_of(&bad, &robot, &o);
-    assert!(e.contains(&offset.to_string()), "the error names the chunk's offset {offset}: {e}");
+    assert!(
+        e.contains(&offset.to_string()),
+        "the error names the chunk's offset {offset}: {e}"
+    );
     o.keep_partial = true;
     let partial = import(&bad, &robot, &o).unwrap();
-    assert!(partial.notes.iter().any(|n| n.contains(&offset.to_string())), "{:?}", partial.notes);
+    assert!(
+        partial
+            .notes
+            .iter()
+            .any(|n| n.contains(&offset.to_string())),
+        "{:?}",
+        partial.notes
+    );
     o.keep_partial = false;
     let full = import(&good, &robot, &o).unwrap().recording;
     let p = &partial.recording;
     // Every joint message the writer put in a chunk before the damaged one is kept, and
     // none after it: the writer reports how many those are.
     let before = rep["joint_messages_before"].as_u64().unwrap() as usize;
-    assert!(before > 0 && before < full.len(), "{before} of {}", full.len());
+    assert!(
+        before > 0 && before < full.len(),
+        "{before} of {}",
+        full.len()
+    );
     assert_eq!(p.len(), before, "rows kept");
     let mut prefix = full.clone();
     for w in &mut prefix.wheels {
