@@ -131,6 +131,9 @@ fn real_squares_import_exactly_and_calibrate_the_same() {
         o.pose_frame = Some("map".into());
         let imp = import(&bag, &r, &o).unwrap_or_else(|e| panic!("{folder}: {e}"));
         assert_same(&imp.recording, &csv, folder);
+        // Motion capture has no jumps (part 3 of the issue must not flag a real square).
+        let j = imp.pose_jumps.as_ref().unwrap();
+        assert!(j.jumps.is_empty(), "{folder}: {:?}", j.jumps);
         from_csv.push((folder.to_string(), csv));
         from_bag.push((folder.to_string(), imp.recording));
         robot = Some(r);
@@ -398,4 +401,57 @@ fn corrupted_chunk_names_its_offset_and_keeps_what_came_before() {
     }
     q.notes.clear();
     assert_same(&q, &prefix, "partial vs prefix");
+}
+
+/// Part 3 of the issue: a SLAM-like pose stream (white noise 5 mm, 2.5 mrad per sample at
+/// 33 Hz) with two loop-closure corrections. The wheels say how far the body moved between
+/// two pose samples (their nominal-geometry error is ~0.1 mm per 30 ms step), so a step
+/// departing from them by 6 robust scales is a jump: 0.15 m and (0.10 m, 0.05 rad) are
+/// found at their times and sizes (each within 3 sigma of the step noise: 0.02 m,
+/// 0.011 rad), the rows interpolated across them are blank, and the same stream without
+/// the corrections has no jump (the threshold is > 10 sigma of the step noise: a false
+/// one has probability < 1e-20 per step).
+#[test]
+fn slam_jumps_are_reported_at_their_times() {
+    let (robot, _, dir) = real("diff-square-run-01");
+    let out = tmp("slam");
+    let robot_file = dir.join("robot.toml");
+    let bag = |name: &str, jumps: &[&str]| {
+        let b = out.join(name);
+        let mut a = vec![
+            "--robot",
+            robot_file.to_str().unwrap(),
+            "--synthetic",
+            "30",
+            "--pose-noise",
+            "0.005",
+        ];
+        for j in jumps {
+            a.extend(["--jump", j]);
+        }
+        let o = b.to_str().unwrap().to_string();
+        a.extend(["--out", &o]);
+        make_bag(&a);
+        b
+    };
+    let with = import(&bag("jumps", &["10:0.15:0:0", "20:0:-0.1:0.05"]), &robot, &opts("/mocap/pose")).unwrap();
+    let r = with.pose_jumps.as_ref().unwrap();
+    println!("jumps: {:?}", r);
+    assert_eq!(r.jumps.len(), 2, "{:?}", r.jumps);
+    let t0 = with.t0_ns;
+    for (j, (at, pos, head)) in r.jumps.iter().zip([(10.0, 0.15, 0.0), (20.0, 0.10, 0.05)]) {
+        let (from, to) = ((j.from_ns - t0) as f64 * 1e-9, (j.to_ns - t0) as f64 * 1e-9);
+        assert!(from < at && at <= to && to - from < 0.031, "jump at {at} s: {from}..{to}");
+        assert!((j.position_m - pos).abs() <= 0.02, "{pos} m: {}", j.position_m);
+        assert!((j.heading_rad - head).abs() <= 0.011, "{head} rad: {}", j.heading_rad);
+        let rec = &with.recording;
+        for i in 0..rec.len() {
+            if rec.t[i] > from + 1e-9 && rec.t[i] < to - 1e-9 {
+                assert_eq!(rec.x[i], None, "row at {} s is across the jump", rec.t[i]);
+            }
+        }
+    }
+    assert!(with.notes.iter().any(|n| n.contains("pose jump")), "{:?}", with.notes);
+    let without = import(&bag("clean", &[]), &robot, &opts("/mocap/pose")).unwrap();
+    assert!(without.pose_jumps.unwrap().jumps.is_empty());
 }

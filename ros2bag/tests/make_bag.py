@@ -164,6 +164,11 @@ def main():
     ap.add_argument('--out', required=True)
     ap.add_argument('--pose', default='posestamped', choices=['posestamped', 'odometry', 'tf', 'none'])
     ap.add_argument('--joint-suffix', default='_wheel_joint')
+    ap.add_argument('--pose-noise', type=float, default=0.0,
+                    help='synthetic: SLAM-like white noise on each pose, m (and the same in rad x 0.5)')
+    ap.add_argument('--jump', action='append', default=[],
+                    help='synthetic: T:DX:DY:DYAW, from T s on the poses are corrected by a loop closure '
+                         'that moves the robot by (DX, DY) and turns it by DYAW about itself')
     ap.add_argument('--compress', action='store_true', help='zstd chunks (as ros2 bag record)')
     ap.add_argument('--corrupt-chunk', type=int, help='overwrite the zstd frame of this chunk (0-based)')
     a = ap.parse_args()
@@ -200,10 +205,18 @@ def main():
         phi_l = phi_r = 0.0
         cmd = None
         truth = []
+        import random
+        rng = random.Random(7)
+        # [t, dx, dy, dyaw, x at t, y at t]: the centre is filled in when t is reached
+        jumps = [[float(v) for v in j.split(':')] + [None, None] for j in a.jump]
+        pending = sorted(range(len(jumps)), key=lambda i: jumps[i][0])
         for k in range(n + 1):
             t_ns = EPOCH_NS + k * 1_000_000
             t = k * dt
             v, w = 0.3, 0.5 * math.sin(0.1 * t)
+            while pending and t >= jumps[pending[0]][0]:
+                jumps[pending[0]][4:6] = [x, y]
+                pending.pop(0)
             if k % 50 == 0:
                 tw = TwistStamped(
                     header=header(t_ns, 'base_link'),
@@ -217,7 +230,18 @@ def main():
                 msgs.append((t_ns + RECEIVE_DELAY_NS, '/joint_states', JointState.__msgtype__, joint_msg(t_ns, names, pos)))
                 truth.append((t, cmd[0], cmd[1], enc[0], enc[1], x, y, th))
             if k % 30 == 7:
-                for topic, ty, m in pose_msgs(a.pose, t_ns, compose(MAP_OFFSET, (x, y, th))):
+                px, py, pth = x, y, th
+                for tj, jx, jy, jth, cx, cy in jumps:
+                    if t >= tj:
+                        # rotate about the robot's position at the jump, then shift
+                        c, s = math.cos(jth), math.sin(jth)
+                        rx, ry = px - cx, py - cy
+                        px, py, pth = cx + c * rx - s * ry + jx, cy + s * rx + c * ry + jy, pth + jth
+                if a.pose_noise > 0:
+                    px += rng.gauss(0, a.pose_noise)
+                    py += rng.gauss(0, a.pose_noise)
+                    pth += rng.gauss(0, 0.5 * a.pose_noise)
+                for topic, ty, m in pose_msgs(a.pose, t_ns, compose(MAP_OFFSET, (px, py, pth))):
                     msgs.append((t_ns + RECEIVE_DELAY_NS, topic, ty, m))
             if abs(w) > 1e-12:
                 x += v / w * (math.sin(th + w * dt) - math.sin(th))
