@@ -7,6 +7,7 @@ use crate::bag::Bag;
 use crate::commands::{commands, wheel_commands};
 use crate::error::ImportError;
 use crate::joints::{joint_series, to_counts};
+use crate::jumps::{find_jumps, JumpReport};
 use crate::messages::types;
 use crate::poses::{pose_series, PoseQuery};
 use crate::sync::{poses_at, to_start_frame};
@@ -76,7 +77,10 @@ pub struct Imported {
     pub rows_with_pose: usize,
     /// Largest distance of a joint position from a whole encoder count, counts.
     pub max_count_residual: f64,
-    /// What the reader should know (damage kept, dropped samples, rounding, tilt).
+    /// The pose stream's jumps against the wheel odometry (SLAM loop closures), with the
+    /// scatter of its steps; the rows interpolated across a jump are left blank.
+    pub pose_jumps: Option<JumpReport>,
+    /// What the reader should know (damage kept, dropped samples, rounding, tilt, jumps).
     pub notes: Vec<String>,
 }
 
@@ -181,8 +185,7 @@ pub fn import(path: &Path, robot: &Robot, o: &ImportOptions) -> Result<Imported,
     }
     let max_gap = (o.max_pose_gap_s * 1e9) as i64;
     let mut poses = poses_at(&ps, &js.stamps_ns, max_gap);
-    let rows_with_pose = poses.iter().flatten().count();
-    if rows_with_pose == 0 {
+    if poses.iter().flatten().next().is_none() {
         let span = |s: &[i64]| {
             format!(
                 "{:.3}..{:.3} s",
@@ -202,6 +205,41 @@ pub fn import(path: &Path, robot: &Robot, o: &ImportOptions) -> Result<Imported,
             ),
         ));
     }
+    // A jump is no motion: the rows between the two pose samples around it would be
+    // interpolated across it, so they stay blank.
+    let pose_jumps = find_jumps(robot, &js, &ps);
+    if let Some(r) = pose_jumps.as_ref().filter(|r| !r.jumps.is_empty()) {
+        for j in &r.jumps {
+            for (k, &t) in js.stamps_ns.iter().enumerate() {
+                if t > j.from_ns && t < j.to_ns {
+                    poses[k] = None;
+                }
+            }
+        }
+        let t0 = js.stamps_ns[0];
+        let list: Vec<String> = r
+            .jumps
+            .iter()
+            .map(|j| {
+                format!(
+                    "t = {:.3}..{:.3} s: {:.3} m, {:+.2} deg",
+                    (j.from_ns - t0) as f64 * 1e-9,
+                    (j.to_ns - t0) as f64 * 1e-9,
+                    j.position_m,
+                    j.heading_rad.to_degrees()
+                )
+            })
+            .collect();
+        notes.push(format!(
+            "{}: {} pose jump(s) against the wheel odometry (a SLAM loop closure or relocalisation; the pose steps scatter {:.1} mm, {:.2} deg otherwise), the rows across them left blank: {}",
+            o.pose_topic,
+            r.jumps.len(),
+            r.step_sigma_m * 1e3,
+            r.step_sigma_rad.to_degrees(),
+            list.join("; ")
+        ));
+    }
+    let rows_with_pose = poses.iter().flatten().count();
     to_start_frame(&mut poses);
 
     let cmds = if o.cmd_topic.is_some()
@@ -256,6 +294,7 @@ pub fn import(path: &Path, robot: &Robot, o: &ImportOptions) -> Result<Imported,
         pose_samples: ps.stamps_ns.len(),
         rows_with_pose,
         max_count_residual: max_res,
+        pose_jumps,
         notes,
     })
 }

@@ -6,13 +6,15 @@
 //! `sensor_msgs/msg/JointState` into encoder counts, [`poses`] and [`tf`] give the body
 //! pose from `PoseStamped`, `Odometry` or the tf tree, [`sync`] matches poses to the joint
 //! stream by time (interpolated, never extrapolated), [`commands`] turns `cmd_vel` into
-//! wheel commands and [`import`] puts them together.
+//! wheel commands, [`jumps`] finds the pose stream's jumps (SLAM loop closures) against
+//! the wheels and [`import`] puts them together.
 
 pub mod bag;
 pub mod commands;
 pub mod error;
 pub mod import;
 pub mod joints;
+pub mod jumps;
 pub mod messages;
 pub mod poses;
 pub mod sync;

@@ -40,9 +40,10 @@ pub fn to_start_frame(poses: &mut [Option<(f64, f64, f64)>]) {
     let (c, s) = (th0.cos(), th0.sin());
     for (x, y, th) in poses.iter_mut().flatten() {
         let (dx, dy) = (*x - x0, *y - y0);
-        *x = c * dx + s * dy;
-        *y = -s * dx + c * dy;
-        *th -= th0;
+        // `+ 0.0` writes the start's -0.0 as 0.
+        *x = c * dx + s * dy + 0.0;
+        *y = -s * dx + c * dy + 0.0;
+        *th = *th - th0 + 0.0;
     }
 }
 

@@ -3,7 +3,9 @@
 
 use crate::output::Output;
 use anyhow::{bail, Context, Result};
+use calib_core::robot::Robot;
 use clap::{Args, Subcommand};
+use formats::recording::Recording;
 use serde::Serialize;
 use std::path::{Path, PathBuf};
 
@@ -46,9 +48,9 @@ pub struct BagFlags {
     #[arg(long, default_value = "/joint_states")]
     pub joint_topic: String,
     /// The pose topic: geometry_msgs/msg/PoseStamped, PoseWithCovarianceStamped,
-    /// nav_msgs/msg/Odometry or tf2_msgs/msg/TFMessage (/tf).
+    /// nav_msgs/msg/Odometry or tf2_msgs/msg/TFMessage (/tf); required to read a bag.
     #[arg(long)]
-    pub pose_topic: String,
+    pub pose_topic: Option<String>,
     /// The fixed frame of the poses (map, world); required with tf.
     #[arg(long)]
     pub pose_frame: Option<String>,
@@ -94,10 +96,13 @@ impl BagFlags {
                 bail!("{f} {v}: must be a positive number of seconds");
             }
         }
+        let Some(pose_topic) = self.pose_topic.clone() else {
+            bail!("reading a ROS 2 bag needs --pose-topic (e.g. /mocap/pose, /odom or /tf)");
+        };
         Ok(ros2bag::ImportOptions {
             joints,
             joint_topic: self.joint_topic.clone(),
-            pose_topic: self.pose_topic.clone(),
+            pose_topic,
             pose_frame: self.pose_frame.clone(),
             base_frame: self.base_frame.clone(),
             tf_static_topic: self.tf_static_topic.clone(),
@@ -107,6 +112,22 @@ impl BagFlags {
             max_pose_gap_s: self.max_pose_gap,
             keep_partial: self.keep_partial,
         })
+    }
+}
+
+/// Whether `p` is a ROS 2 bag: an `.mcap` file or a folder with `metadata.yaml`.
+pub fn is_bag(p: &Path) -> bool {
+    (p.is_file() && p.extension().is_some_and(|e| e == "mcap"))
+        || (p.is_dir() && p.join("metadata.yaml").is_file())
+}
+
+/// A recording from a formats.md CSV file or a ROS 2 bag (read with `flags`): for the
+/// commands that take either (`calibrate`, `diagnose`). The import's notes go to stderr.
+pub fn load_recording(p: &Path, robot: &Robot, flags: &BagFlags) -> Result<Recording> {
+    if is_bag(p) {
+        Ok(ros2bag::load_bag_recording(p, robot, &flags.options()?)?)
+    } else {
+        Ok(Recording::load(p, robot)?)
     }
 }
 
