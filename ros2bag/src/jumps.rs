@@ -9,7 +9,9 @@
 //! of any pose sensor, so the comparison's scatter is the sensor's step noise. A step is a
 //! jump when its position or heading departure exceeds [`SIGMAS`] robust scales (1.4826 x
 //! the median absolute departure) and a floor ([`MIN_JUMP_M`], [`MIN_JUMP_RAD`]) that
-//! keeps a sub-millimetre motion-capture stream from flagging its own noise.
+//! keeps a sub-millimetre motion-capture stream from flagging its own noise, and stands
+//! out of its [`NEIGHBOURS`] steps on each side (twice their departure at least): a stream
+//! lagging the wheels departs on every step of a turn's onset, a jump on one step.
 
 use crate::joints::JointSeries;
 use crate::poses::PoseSeries;
@@ -20,6 +22,8 @@ use serde::Serialize;
 
 /// Robust sigmas a step must depart by to be a jump.
 pub const SIGMAS: f64 = 6.0;
+/// Steps on each side a jump must stand out of (half their departure at most).
+pub const NEIGHBOURS: usize = 5;
 /// Smallest position jump reported, m.
 pub const MIN_JUMP_M: f64 = 0.01;
 /// Smallest heading jump reported, rad (about 1 deg).
@@ -105,16 +109,28 @@ pub fn find_jumps(robot: &Robot, joints: &JointSeries, poses: &PoseSeries) -> Op
     }
     let sp = robust_sigma(&steps.iter().map(|s| s.2).collect::<Vec<_>>());
     let sh = robust_sigma(&steps.iter().map(|s| s.3).collect::<Vec<_>>());
-    let jumps = steps
-        .iter()
-        .filter(|s| {
-            (s.2 > SIGMAS * sp && s.2 > MIN_JUMP_M) || (s.3.abs() > SIGMAS * sh && s.3.abs() > MIN_JUMP_RAD)
+    // A jump is one step standing out of its neighbours; steps that depart together
+    // (a pose stream lagging the wheels while the robot starts or stops turning departs
+    // by the lag x the angular acceleration on every step of the turn's onset, with
+    // alternating signs when the lag jitters) are timing, not jumps.
+    let isolated = |s: usize, f: &dyn Fn(usize) -> f64| {
+        let lo = s.saturating_sub(NEIGHBOURS);
+        let hi = (s + NEIGHBOURS + 1).min(steps.len());
+        (lo..hi).all(|k| k == s || f(k) < 0.5 * f(s))
+    };
+    let pos = |k: usize| steps[k].2;
+    let head = |k: usize| steps[k].3.abs();
+    let jumps = (0..steps.len())
+        .filter(|&s| {
+            let p = pos(s) > SIGMAS * sp && pos(s) > MIN_JUMP_M && isolated(s, &pos);
+            let h = head(s) > SIGMAS * sh && head(s) > MIN_JUMP_RAD && isolated(s, &head);
+            p || h
         })
         .map(|s| Jump {
-            from_ns: poses.stamps_ns[s.0],
-            to_ns: poses.stamps_ns[s.1],
-            position_m: s.2,
-            heading_rad: s.3,
+            from_ns: poses.stamps_ns[steps[s].0],
+            to_ns: poses.stamps_ns[steps[s].1],
+            position_m: steps[s].2,
+            heading_rad: steps[s].3,
         })
         .collect();
     Some(JumpReport {
