@@ -101,7 +101,10 @@ pub fn find_jumps(robot: &Robot, joints: &JointSeries, poses: &PoseSeries) -> Op
             let (ox, oy) = (c * tw.vx - s * tw.vy, s * tw.vx + c * tw.vy);
             let th = poses.yaw[*j];
             let (dx, dy) = (poses.x[i] - poses.x[*j], poses.y[i] - poses.y[*j]);
-            let (mx, my) = (th.cos() * dx + th.sin() * dy, -th.sin() * dx + th.cos() * dy);
+            let (mx, my) = (
+                th.cos() * dx + th.sin() * dy,
+                -th.sin() * dx + th.cos() * dy,
+            );
             let dth = (poses.yaw[i] - poses.yaw[*j]) - tw.omega;
             steps.push((*j, i, (mx - ox).hypot(my - oy), dth));
         }

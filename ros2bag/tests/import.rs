@@ -434,16 +434,32 @@ fn slam_jumps_are_reported_at_their_times() {
         make_bag(&a);
         b
     };
-    let with = import(&bag("jumps", &["10:0.15:0:0", "20:0:-0.1:0.05"]), &robot, &opts("/mocap/pose")).unwrap();
+    let with = import(
+        &bag("jumps", &["10:0.15:0:0", "20:0:-0.1:0.05"]),
+        &robot,
+        &opts("/mocap/pose"),
+    )
+    .unwrap();
     let r = with.pose_jumps.as_ref().unwrap();
     println!("jumps: {:?}", r);
     assert_eq!(r.jumps.len(), 2, "{:?}", r.jumps);
     let t0 = with.t0_ns;
     for (j, (at, pos, head)) in r.jumps.iter().zip([(10.0, 0.15, 0.0), (20.0, 0.10, 0.05)]) {
         let (from, to) = ((j.from_ns - t0) as f64 * 1e-9, (j.to_ns - t0) as f64 * 1e-9);
-        assert!(from < at && at <= to && to - from < 0.031, "jump at {at} s: {from}..{to}");
-        assert!((j.position_m - pos).abs() <= 0.02, "{pos} m: {}", j.position_m);
-        assert!((j.heading_rad - head).abs() <= 0.011, "{head} rad: {}", j.heading_rad);
+        assert!(
+            from < at && at <= to && to - from < 0.031,
+            "jump at {at} s: {from}..{to}"
+        );
+        assert!(
+            (j.position_m - pos).abs() <= 0.02,
+            "{pos} m: {}",
+            j.position_m
+        );
+        assert!(
+            (j.heading_rad - head).abs() <= 0.011,
+            "{head} rad: {}",
+            j.heading_rad
+        );
         let rec = &with.recording;
         for i in 0..rec.len() {
             if rec.t[i] > from + 1e-9 && rec.t[i] < to - 1e-9 {
@@ -451,7 +467,11 @@ fn slam_jumps_are_reported_at_their_times() {
             }
         }
     }
-    assert!(with.notes.iter().any(|n| n.contains("pose jump")), "{:?}", with.notes);
+    assert!(
+        with.notes.iter().any(|n| n.contains("pose jump")),
+        "{:?}",
+        with.notes
+    );
     let without = import(&bag("clean", &[]), &robot, &opts("/mocap/pose")).unwrap();
     assert!(without.pose_jumps.unwrap().jumps.is_empty());
 }
