@@ -7,7 +7,7 @@
 //! pose from `PoseStamped`, `Odometry` or the tf tree, [`sync`] matches poses to the joint
 //! stream by time (interpolated, never extrapolated), [`commands`] turns `cmd_vel` into
 //! wheel commands, [`jumps`] finds the pose stream's jumps (SLAM loop closures) against
-//! the wheels and [`import`] puts them together.
+//! the wheels and [`mod@import`] puts them together.
 
 pub mod bag;
 pub mod commands;
