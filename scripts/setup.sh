@@ -10,5 +10,7 @@ if [ "${WHEELCAL_SETUP_APT:-0}" = "1" ] && command -v apt-get >/dev/null && [ "$
   apt-get update -qq
   apt-get install -y -qq qemu-system-arm binutils-arm-none-eabi
 fi
+# The ROS 2 bag tests write their bags with Python's rosbags (an independent writer).
+python3 -m pip install --quiet --disable-pip-version-check rosbags==0.11.9
 cargo fetch --locked
 echo "setup done: host crates test with 'cargo test', the firmware builds with 'cargo fw'"

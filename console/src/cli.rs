@@ -80,6 +80,9 @@ pub enum Command {
     /// Simulator tools.
     #[command(subcommand)]
     Sim(SimCmd),
+    /// Recordings from other tools' files (ROS 2 bags).
+    #[command(subcommand)]
+    Import(crate::commands::import::ImportCmd),
 }
 
 /// Arguments of `wheelcal diagnose`.
@@ -672,6 +675,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Diagnose(a) => diagnose::run(a, out),
         Command::Calibrate(a) => crate::calibrate_cmd::run(&a, out),
         Command::Sim(cmd) => sim::run(cmd, out),
+        Command::Import(cmd) => crate::commands::import::run(cmd, out),
     }
 }
 

@@ -4,6 +4,7 @@
 pub mod board;
 pub mod diagnose;
 pub mod factors;
+pub mod import;
 pub mod log;
 pub mod omni;
 pub mod program;

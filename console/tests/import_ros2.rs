@@ -1,0 +1,117 @@
+//! `wheelcal import ros2` as a ROS user runs it (the README's walk-through): a bag written
+//! by Python's rosbags from a real square imports to a folder whose recording.csv equals
+//! the original to the printed precision (counts exact, t and poses to 1e-9) and whose
+//! robot.toml is the robot file; an existing recording is not overwritten; a bad flag is
+//! a clear error. Needs python3 with rosbags (`bash scripts/setup.sh`): FAILS without.
+
+use formats::recording::Recording;
+use std::path::{Path, PathBuf};
+use std::process::Command;
+
+fn shared_real() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .map(|a| a.join("shared/real"))
+        .find(|d| d.exists())
+        .expect("../shared/real is needed beside the repository (CI clones it there)")
+}
+
+fn make_bag(robot: &Path, csv: &Path, out: &Path) {
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("../ros2bag/tests/make_bag.py");
+    let o = Command::new("python3")
+        .arg(script)
+        .args([
+            "--robot",
+            robot.to_str().unwrap(),
+            "--csv",
+            csv.to_str().unwrap(),
+        ])
+        .args(["--out", out.to_str().unwrap()])
+        .output()
+        .unwrap_or_else(|e| panic!("python3 cannot run ({e}): run `bash scripts/setup.sh`"));
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(
+        o.status.success(),
+        "make_bag.py failed (python3 with rosbags is needed: run `bash scripts/setup.sh`): {err}"
+    );
+}
+
+fn wheelcal(args: &[&str]) -> (bool, String, String) {
+    let o = Command::new(env!("CARGO_BIN_EXE_wheelcal"))
+        .args(args)
+        .output()
+        .unwrap();
+    (
+        o.status.success(),
+        String::from_utf8_lossy(&o.stdout).into_owned(),
+        String::from_utf8_lossy(&o.stderr).into_owned(),
+    )
+}
+
+#[test]
+fn import_ros2_writes_the_recording_folder() {
+    let run = shared_real().join("diff-square-run-04");
+    let tmp = std::env::temp_dir().join(format!("wheelcal-import-ros2-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(&tmp).unwrap();
+    let bag = tmp.join("square_bag");
+    make_bag(&run.join("robot.toml"), &run.join("recording.csv"), &bag);
+    let out = tmp.join("imported");
+    let robot = run.join("robot.toml");
+    let args = [
+        "import",
+        "ros2",
+        bag.to_str().unwrap(),
+        "--robot",
+        robot.to_str().unwrap(),
+        "--joint",
+        "left=left_wheel_joint",
+        "--joint",
+        "right=right_wheel_joint",
+        "--pose-topic",
+        "/mocap/pose",
+        "--pose-frame",
+        "map",
+        "--out",
+        out.to_str().unwrap(),
+        "--json",
+    ];
+    let (ok, stdout, stderr) = wheelcal(&args);
+    assert!(ok, "{stderr}");
+    let rep: serde_json::Value = serde_json::from_str(stdout.trim()).unwrap();
+    let r = formats::robot_file::load(&robot).unwrap();
+    let csv = Recording::load(&run.join("recording.csv"), &r).unwrap();
+    assert_eq!(rep["rows"].as_u64().unwrap() as usize, csv.len());
+    assert_eq!(rep["pose_frame"], "map");
+    let got = Recording::load(&out.join("recording.csv"), &r).unwrap();
+    assert_eq!(got.len(), csv.len());
+    for i in 0..csv.len() {
+        assert!((got.t[i] - csv.t[i]).abs() <= 1e-9);
+        for w in 0..2 {
+            assert_eq!(
+                got.wheels[w].enc.as_ref().unwrap()[i],
+                csv.wheels[w].enc.as_ref().unwrap()[i]
+            );
+        }
+        assert!((got.x[i].unwrap() - csv.x[i].unwrap()).abs() <= 1e-9);
+        assert!((got.y[i].unwrap() - csv.y[i].unwrap()).abs() <= 1e-9);
+        assert!((got.theta[i].unwrap() - csv.theta[i].unwrap()).abs() <= 1e-9);
+    }
+    assert_eq!(
+        std::fs::read(out.join("robot.toml")).unwrap(),
+        std::fs::read(&robot).unwrap()
+    );
+    // Run again: the recording is there, nothing is replaced without --force.
+    let before = std::fs::read(out.join("recording.csv")).unwrap();
+    let (ok, _, stderr) = wheelcal(&args);
+    assert!(
+        !ok && stderr.contains("exists") && stderr.contains("--force"),
+        "{stderr}"
+    );
+    assert_eq!(std::fs::read(out.join("recording.csv")).unwrap(), before);
+    // A --joint without '=' is refused with the expected form.
+    let mut bad = args.to_vec();
+    bad[6] = "left";
+    let (ok, _, stderr) = wheelcal(&bad);
+    assert!(!ok && stderr.contains("WHEEL=JOINT"), "{stderr}");
+}

@@ -1,0 +1,352 @@
+//! Reading a rosbag2 folder (`metadata.yaml` beside its `.mcap` files) or one `.mcap`
+//! file with the `mcap` crate: the topics it holds and the raw messages of the topics
+//! asked for.
+//!
+//! A damaged file is read up to the damage: with the file's summary (chunk index) the
+//! chunks are read in file order and the first one that fails names its byte offset;
+//! without a summary (a recording cut short) the records are read linearly up to the
+//! first that fails. What came before is kept; [`Bag::damage`] says where it stopped.
+
+use crate::error::ImportError;
+use serde::Deserialize;
+use std::collections::{BTreeMap, HashSet};
+use std::path::{Path, PathBuf};
+
+/// A topic in the bag.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Topic {
+    /// Topic name, e.g. `/joint_states`.
+    pub name: String,
+    /// ROS message type, e.g. `sensor_msgs/msg/JointState` (the channel's schema name).
+    pub msg_type: String,
+    /// Message encoding; rosbag2 writes `cdr`.
+    pub encoding: String,
+    /// Messages read on this topic.
+    pub count: usize,
+}
+
+/// One message as stored.
+#[derive(Debug, Clone, PartialEq)]
+pub struct RawMessage {
+    /// When the recorder received it (MCAP log time), ns since the Unix epoch.
+    pub log_time_ns: u64,
+    /// The serialised message (CDR with its 4-byte encapsulation header).
+    pub data: Vec<u8>,
+}
+
+/// Where reading stopped early.
+#[derive(Debug, Clone, PartialEq)]
+pub struct Damage {
+    /// The `.mcap` file.
+    pub file: PathBuf,
+    /// Byte offset of the chunk (or record) that could not be read, when known.
+    pub offset: Option<u64>,
+    /// What the `mcap` crate said.
+    pub message: String,
+    /// Messages read before it (all topics).
+    pub messages_before: usize,
+}
+
+impl std::fmt::Display for Damage {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        match self.offset {
+            Some(o) => write!(
+                f,
+                "{}: the chunk at byte offset {o} cannot be read ({}); {} messages before it were read",
+                self.file.display(),
+                self.message,
+                self.messages_before
+            ),
+            None => write!(
+                f,
+                "{}: reading stopped after {} messages ({}; the file has no summary to locate the damage)",
+                self.file.display(),
+                self.messages_before,
+                self.message
+            ),
+        }
+    }
+}
+
+/// A bag: its topics and the messages of the wanted topics, in file order.
+#[derive(Debug, Clone, Default)]
+pub struct Bag {
+    /// What was opened (folder or file).
+    pub path: PathBuf,
+    /// Its `.mcap` files, in order.
+    pub files: Vec<PathBuf>,
+    /// Every topic of every file.
+    pub topics: Vec<Topic>,
+    /// Messages of the wanted topics.
+    pub messages: BTreeMap<String, Vec<RawMessage>>,
+    /// Where reading stopped early, if it did.
+    pub damage: Option<Damage>,
+}
+
+#[derive(Deserialize)]
+struct Metadata {
+    rosbag2_bagfile_information: Info,
+}
+
+#[derive(Deserialize)]
+struct Info {
+    storage_identifier: String,
+    relative_file_paths: Vec<String>,
+    #[serde(default)]
+    compression_mode: Option<String>,
+}
+
+impl Bag {
+    /// Opens a rosbag2 folder or an `.mcap` file, keeping the messages of `wanted` topics
+    /// (all topics are listed).
+    pub fn open(path: &Path, wanted: &[&str]) -> Result<Bag, ImportError> {
+        let files = bag_files(path)?;
+        let mut bag = Bag {
+            path: path.to_path_buf(),
+            files: files.clone(),
+            ..Bag::default()
+        };
+        let wanted: HashSet<&str> = wanted.iter().copied().collect();
+        for f in &files {
+            let buf = std::fs::read(f)
+                .map_err(|e| ImportError::new(f, format!("cannot be read: {e}")))?;
+            read_file(f, &buf, &wanted, &mut bag)?;
+            if bag.damage.is_some() {
+                break;
+            }
+        }
+        Ok(bag)
+    }
+
+    /// The topic called `name`.
+    pub fn topic(&self, name: &str) -> Option<&Topic> {
+        self.topics.iter().find(|t| t.name == name)
+    }
+
+    /// Every topic as `name (type, N messages)`, one per line, for error messages.
+    pub fn describe_topics(&self) -> String {
+        if self.topics.is_empty() {
+            return "  (no topics)".into();
+        }
+        self.topics
+            .iter()
+            .map(|t| format!("  {} ({}, {} messages)", t.name, t.msg_type, t.count))
+            .collect::<Vec<_>>()
+            .join("\n")
+    }
+
+    /// Topics of one of `types`.
+    pub fn topics_of(&self, types: &[&str]) -> Vec<&Topic> {
+        self.topics
+            .iter()
+            .filter(|t| types.contains(&t.msg_type.as_str()))
+            .collect()
+    }
+
+    fn count(&mut self, topic: &str, msg_type: &str, encoding: &str) {
+        match self.topics.iter_mut().find(|t| t.name == topic) {
+            Some(t) => t.count += 1,
+            None => self.topics.push(Topic {
+                name: topic.to_string(),
+                msg_type: msg_type.to_string(),
+                encoding: encoding.to_string(),
+                count: 1,
+            }),
+        }
+    }
+
+    fn declare(&mut self, topic: &str, msg_type: &str, encoding: &str) {
+        if self.topic(topic).is_none() {
+            self.topics.push(Topic {
+                name: topic.to_string(),
+                msg_type: msg_type.to_string(),
+                encoding: encoding.to_string(),
+                count: 0,
+            });
+        }
+    }
+}
+
+/// The `.mcap` files of a bag folder (from its metadata.yaml) or the file itself.
+fn bag_files(path: &Path) -> Result<Vec<PathBuf>, ImportError> {
+    if path.is_file() {
+        return Ok(vec![path.to_path_buf()]);
+    }
+    if !path.is_dir() {
+        return Err(ImportError::new(
+            path,
+            "no such bag: give a rosbag2 folder (with metadata.yaml) or an .mcap file",
+        ));
+    }
+    let meta = path.join("metadata.yaml");
+    if !meta.is_file() {
+        let mcaps: Vec<String> = std::fs::read_dir(path)
+            .map(|d| {
+                d.filter_map(|e| e.ok())
+                    .map(|e| e.file_name().to_string_lossy().into_owned())
+                    .filter(|n| n.ends_with(".mcap"))
+                    .collect()
+            })
+            .unwrap_or_default();
+        let hint = if mcaps.is_empty() {
+            "and no .mcap file".to_string()
+        } else {
+            format!(
+                "(it has {}: give that file instead to import it without the folder's metadata)",
+                mcaps.join(", ")
+            )
+        };
+        return Err(ImportError::new(
+            path,
+            format!("not a rosbag2 folder: no metadata.yaml {hint}"),
+        ));
+    }
+    let text = std::fs::read_to_string(&meta)
+        .map_err(|e| ImportError::new(&meta, format!("cannot be read: {e}")))?;
+    let m: Metadata = serde_yaml::from_str(&text).map_err(|e| {
+        let at = e
+            .location()
+            .map(|l| format!(":{}:{}", l.line(), l.column()))
+            .unwrap_or_default();
+        ImportError::new(
+            format!("{}{at}", meta.display()),
+            format!("not a rosbag2 metadata file: {e}"),
+        )
+    })?;
+    let info = m.rosbag2_bagfile_information;
+    if info.storage_identifier != "mcap" {
+        return Err(ImportError::new(
+            &meta,
+            format!(
+                "storage '{}' is not read, only mcap (the default since ROS 2 Iron); convert the bag with `ros2 bag convert -i {} -o out.yaml` where out.yaml says `storage_id: mcap`",
+                info.storage_identifier,
+                path.display()
+            ),
+        ));
+    }
+    if info
+        .compression_mode
+        .as_deref()
+        .unwrap_or("")
+        .eq_ignore_ascii_case("file")
+    {
+        return Err(ImportError::new(
+            &meta,
+            "the bag's files are compressed whole (compression_mode FILE): decompress them first (`ros2 bag decompress`), or record with MCAP chunk compression instead",
+        ));
+    }
+    let files: Vec<PathBuf> = info
+        .relative_file_paths
+        .iter()
+        .map(|f| path.join(f))
+        .collect();
+    if files.is_empty() {
+        return Err(ImportError::new(
+            &meta,
+            "lists no files (relative_file_paths is empty)",
+        ));
+    }
+    for f in &files {
+        if !f.is_file() {
+            return Err(ImportError::new(
+                &meta,
+                format!("lists {} but the folder has no such file", f.display()),
+            ));
+        }
+    }
+    Ok(files)
+}
+
+fn read_file(
+    file: &Path,
+    buf: &[u8],
+    wanted: &HashSet<&str>,
+    bag: &mut Bag,
+) -> Result<(), ImportError> {
+    let before = bag.topics.iter().map(|t| t.count).sum::<usize>();
+    let summary = mcap::read::Summary::read(buf).ok().flatten();
+    match summary {
+        Some(s) if !s.chunk_indexes.is_empty() => {
+            for c in s.channels.values() {
+                let (ty, _) = channel_type(c);
+                bag.declare(&c.topic, &ty, &c.message_encoding);
+            }
+            let mut chunks = s.chunk_indexes.clone();
+            chunks.sort_by_key(|c| c.chunk_start_offset);
+            for idx in &chunks {
+                let damage = |e: &dyn std::fmt::Display, bag: &Bag| Damage {
+                    file: file.to_path_buf(),
+                    offset: Some(idx.chunk_start_offset),
+                    message: e.to_string(),
+                    messages_before: bag.topics.iter().map(|t| t.count).sum::<usize>() - before,
+                };
+                let stream = match s.stream_chunk(buf, idx) {
+                    Ok(st) => st,
+                    Err(e) => {
+                        bag.damage = Some(damage(&e, bag));
+                        return Ok(());
+                    }
+                };
+                // A chunk's messages are kept only when the whole chunk reads.
+                let mut got = Vec::new();
+                for m in stream {
+                    match m {
+                        Ok(m) => got.push(m),
+                        Err(e) => {
+                            bag.damage = Some(damage(&e, bag));
+                            return Ok(());
+                        }
+                    }
+                }
+                for m in got {
+                    keep(bag, wanted, &m);
+                }
+            }
+        }
+        _ => {
+            let stream = mcap::read::MessageStream::new_with_options(
+                buf,
+                mcap::read::Options::IgnoreEndMagic.into(),
+            )
+            .map_err(|e| ImportError::new(file, format!("not an MCAP file: {e}")))?;
+            for m in stream {
+                match m {
+                    Ok(m) => keep(bag, wanted, &m),
+                    Err(e) => {
+                        bag.damage = Some(Damage {
+                            file: file.to_path_buf(),
+                            offset: None,
+                            message: e.to_string(),
+                            messages_before: bag.topics.iter().map(|t| t.count).sum::<usize>()
+                                - before,
+                        });
+                        return Ok(());
+                    }
+                }
+            }
+        }
+    }
+    Ok(())
+}
+
+/// The channel's ROS type (schema name) and whether it had a schema.
+fn channel_type(c: &mcap::Channel<'_>) -> (String, bool) {
+    match &c.schema {
+        Some(s) => (s.name.clone(), true),
+        None => ("(no schema)".into(), false),
+    }
+}
+
+fn keep(bag: &mut Bag, wanted: &HashSet<&str>, m: &mcap::Message<'_>) {
+    let (ty, _) = channel_type(&m.channel);
+    bag.count(&m.channel.topic, &ty, &m.channel.message_encoding);
+    if wanted.contains(m.channel.topic.as_str()) {
+        bag.messages
+            .entry(m.channel.topic.clone())
+            .or_default()
+            .push(RawMessage {
+                log_time_ns: m.log_time,
+                data: m.data.to_vec(),
+            });
+    }
+}
