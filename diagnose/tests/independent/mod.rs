@@ -459,6 +459,12 @@ pub fn generate(g: &Gen) -> (Recording, Stats) {
                 kick_left = 0.0;
             }
         }
+        // Free (undriven) wheels roll with the ground: their encoders see the body's motion.
+        for i in 0..n {
+            if !driven[i] {
+                wheel[i] += contact(&truth[i], tw) / truth[i].r * dt;
+            }
+        }
         th += tw.2 * dt;
         let (c, sn) = (th.cos(), th.sin());
         x += (tw.0 * c - tw.1 * sn) * dt;
