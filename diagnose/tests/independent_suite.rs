@@ -334,3 +334,29 @@ fn generator_exercises_its_mechanisms() {
         }
     }
 }
+
+/// Prints one case's report, identification and candidates (`DIAG_CASE=name`).
+#[test]
+#[ignore]
+fn explain_independent_case() {
+    let filter = std::env::var("DIAG_CASE").unwrap_or_default();
+    for c in cases().iter().filter(|c| c.name.contains(filter.as_str())) {
+        let (rec, _) = generate(&c.gen);
+        let r = diagnose(&c.gen.robot, &rec, &Options::default()).unwrap();
+        println!("== {}\n{r}", c.name);
+        for t in &r.identification {
+            println!("  identified: {}", t.depends_on);
+        }
+        for x in &r.candidates {
+            println!(
+                "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
+                x.round,
+                format!("{:?}", x.effect),
+                x.delta_bic,
+                x.heldout_ratio,
+                x.parameters,
+                x.note
+            );
+        }
+    }
+}

@@ -16,7 +16,7 @@
 //!   wheels from the tyre model only; traction limited by the normal load on the driven
 //!   pair (leg posture); a caster that turns the body when the drive reverses;
 //! - sensing: pose at 30 Hz with 1 mm / 2 mrad white noise, encoder counts floored.
-#![allow(dead_code)]
+#![allow(dead_code, clippy::needless_range_loop)]
 
 use calib_core::robot::{Robot, RobotKind};
 use formats::recording::Recording;
