@@ -325,17 +325,18 @@ fn body_twist(p: &Prepared) -> Vec<(f64, f64, f64)> {
             0.0
         }
     };
+    // One row of the pseudo-inverse per body component, no allocation per row.
+    let mut s = vec![0.0; rows.len()];
     (0..n)
         .map(|k| {
-            let s = nalgebra::DVector::from_iterator(
-                rows.len(),
-                rows.iter().map(|(i, _, r)| rate(*i, k) * r),
-            );
-            let v = &pinv * s;
+            for (o, (i, _, r)) in s.iter_mut().zip(&rows) {
+                *o = rate(*i, k) * r;
+            }
+            let comp = |c: usize| -> f64 { (0..s.len()).map(|j| pinv[(c, j)] * s[j]).sum() };
             if omni {
-                (v[0], v[1], v[2])
+                (comp(0), comp(1), comp(2))
             } else {
-                (v[0], 0.0, v[1])
+                (comp(0), 0.0, comp(1))
             }
         })
         .collect()
