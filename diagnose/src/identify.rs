@@ -510,6 +510,77 @@ pub fn ground(p: &Prepared, e: &Eval) -> Vec<Term> {
         .collect()
 }
 
+/// Identification of the actuator stage's residual per compared wheel: increments of the
+/// encoder-minus-model travel over about a quarter second, against the wheel's own
+/// command (its sign over time, its travel, its change, its reversals) and time.
+pub fn actuator(ev: &crate::residuals::Evaluator, e: &Eval) -> Vec<Term> {
+    let p = ev.p;
+    let rows = &ev.act_rows;
+    if rows.len() < 8 * BLOCKS {
+        return Vec::new();
+    }
+    let mut iv = Vec::new();
+    let mut a = 0;
+    for b in 1..rows.len() {
+        if p.t[rows[b]] - p.t[rows[a]] >= 0.25 {
+            iv.push((a, b));
+            a = b;
+        }
+    }
+    let mut out = Vec::new();
+    for (i, res) in &e.act {
+        let w = &p.wheels[*i];
+        let Some(cmd) = &w.cmd else { continue };
+        let r = w.radius_m;
+        let dt = |k: usize| p.t[(k + 1).min(p.rows() - 1)] - p.t[k];
+        let col = |f: &dyn Fn(usize, usize) -> f64| -> Vec<f64> {
+            iv.iter().map(|&(a, b)| f(rows[a], rows[b])).collect()
+        };
+        let mut rev = vec![0.0; p.rows()];
+        let mut sign = 0.0;
+        for (k, c) in cmd.iter().enumerate() {
+            if c.abs() > 1e-6 {
+                if sign != 0.0 && c.signum() != sign {
+                    rev[k] = c.signum();
+                }
+                sign = c.signum();
+            }
+        }
+        let reg = |name: &str, words: &str, values: Vec<f64>| Regressor {
+            name: name.into(),
+            words: words.into(),
+            values,
+            nuisance: false,
+        };
+        let lib = vec![
+            reg("time", "elapsed time (drift)", col(&|a, b| p.t[b] - p.t[a])),
+            reg(
+                "sign_time",
+                "time spent turning, signed by the command",
+                col(&|a, b| (a..b).map(|k| cmd[k].signum() * dt(k)).sum()),
+            ),
+            reg(
+                "cmd_travel",
+                "commanded travel",
+                col(&|a, b| (a..b).map(|k| cmd[k] * r * dt(k)).sum()),
+            ),
+            reg(
+                "cmd_accel",
+                "change of the commanded speed",
+                col(&|a, b| (cmd[b] - cmd[a]) * r),
+            ),
+            reg(
+                "wheel_reversals",
+                "reversals of the wheel's command (signed)",
+                col(&|a, b| (a + 1..=b).map(|k| rev[k]).sum()),
+            ),
+        ];
+        let y: Vec<f64> = iv.iter().map(|&(a, b)| res[b] - res[a]).collect();
+        out.extend(identify(&format!("actuator_{}", w.name), &y, &lib));
+    }
+    out
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

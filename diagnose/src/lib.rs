@@ -225,8 +225,10 @@ pub fn diagnose(
     }
     // Identification (issue 19): what the nominal residual depends on, and what the
     // residual left after the findings still depends on.
-    let identification = identify::ground(&prepared, &sel.nominal_eval);
-    let left = identify::ground(&prepared, &sel.final_eval);
+    let mut identification = identify::ground(&prepared, &sel.nominal_eval);
+    identification.extend(identify::actuator(&ev, &sel.nominal_eval));
+    let mut left = identify::ground(&prepared, &sel.final_eval);
+    left.extend(identify::actuator(&ev, &sel.final_eval));
     let depends_on: Vec<String> = if !left.is_empty() || verdict != VERDICT_UNEXPLAINED {
         left.iter().map(|t| t.depends_on.clone()).collect()
     } else {
