@@ -32,6 +32,8 @@ pub struct ActuatorParams {
     pub quanta_rate_hz: Option<f64>,
     /// Missed steps by stalling: over the limit the wheel stops until the command rests.
     pub stall: bool,
+    /// Friction droop: every command loses this much rate in its sign (rad/s).
+    pub droop_rad_s: Option<f64>,
 }
 
 /// A stalled stepper re-locks when the command is back near rest (rad/s).
@@ -59,6 +61,7 @@ impl ActuatorParams {
             backlash_asymmetry: asym.map(|p| p[1]),
             quanta_rate_hz: quanta.map(|p| p[1]),
             stall: stall.is_some(),
+            droop_rad_s: m.get(Effect::FrictionDroop).map(|p| p[0]),
         }
     }
 }
@@ -81,6 +84,18 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
             ..*p
         };
         return simulate_wheel(t, &delayed, &q, out);
+    }
+    if let Some(d) = p.droop_rad_s {
+        // Droop: the loop settles short of every command by the friction over its gain.
+        let drooped: Vec<f64> = cmd
+            .iter()
+            .map(|c| c.signum() * (c.abs() - d).max(0.0))
+            .collect();
+        let q = ActuatorParams {
+            droop_rad_s: None,
+            ..*p
+        };
+        return simulate_wheel(t, &drooped, &q, out);
     }
     if p.quanta_rate_hz.is_some() || p.stall {
         return crate::mechanisms::simulate_stepper_losses(t, cmd, p, out);

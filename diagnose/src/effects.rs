@@ -84,6 +84,9 @@ pub enum Effect {
     LagDelay,
     /// motor_lag: slew-rate limit.
     LagSlew,
+    /// Coulomb friction against a velocity loop of finite gain (issue 19): every command
+    /// loses `droop_rad_s` in its sign, |w| = max(|cmd| - droop, 0).
+    FrictionDroop,
 }
 
 /// How a parameter is mapped to the optimiser's coordinate.
@@ -145,7 +148,7 @@ impl ParamSpec {
 
 impl Effect {
     /// Every effect: the catalogue's own first, then the mechanism variants.
-    pub const ALL: [Effect; 19] = [
+    pub const ALL: [Effect; 20] = [
         Effect::WheelDiameterMismatch,
         Effect::WheelbaseError,
         Effect::LongitudinalSlip,
@@ -165,6 +168,7 @@ impl Effect {
         Effect::MissedStall,
         Effect::LagDelay,
         Effect::LagSlew,
+        Effect::FrictionDroop,
     ];
 
     /// The catalogue effect this is a mechanism of (itself for the catalogue's own).
@@ -176,6 +180,7 @@ impl Effect {
             Effect::BacklashAsymmetric => Effect::Backlash,
             Effect::MissedQuanta | Effect::MissedStall => Effect::MissedSteps,
             Effect::LagDelay | Effect::LagSlew => Effect::MotorLag,
+            Effect::FrictionDroop => Effect::CoulombFriction,
             e => e,
         }
     }
@@ -202,6 +207,7 @@ impl Effect {
             Effect::MissedStall => "stall",
             Effect::LagDelay => "delay",
             Effect::LagSlew => "slew",
+            Effect::FrictionDroop => "droop",
         }
     }
 
@@ -296,6 +302,7 @@ impl Effect {
             }
             Effect::LagDelay => vec![ParamSpec::new("tau_s", Log, 1e-9, 1e-4, 2.0)],
             Effect::LagSlew => vec![ParamSpec::new("slew_rad_s2", Log, 1e9, 0.05, 1e4)],
+            Effect::FrictionDroop => vec![ParamSpec::new("droop_rad_s", Log, 1e-9, 1e-3, 50.0)],
         }
     }
 
@@ -371,6 +378,7 @@ impl Effect {
             Effect::MissedStall => singles(log_grid(1.0, 3000.0, 64)),
             Effect::LagDelay => singles(log_grid(0.003, 1.0, 12)),
             Effect::LagSlew => singles(log_grid(0.5, 200.0, 16)),
+            Effect::FrictionDroop => singles(log_grid(0.02, 20.0, 12)),
             // From the data: see `mechanisms::region_grid`.
             Effect::BumpsRegion => Vec::new(),
             Effect::FloorBumps => {

@@ -257,12 +257,17 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         let (c, s) = p.heading_cs_at_row[k];
         c * dx - s * dy
     };
-    for k in 0..n.saturating_sub(1) {
-        let dt = p.t[k + 1] - p.t[k];
+    // Steps between the ground rows (every pose row, at most 1 / GROUND_RATE_HZ apart);
+    // the rows between are interpolated (issue 19: counts are cumulative, so the coarser
+    // step loses no odometry, and the stage runs at a fraction of the cost).
+    let gr = &p.ground_rows;
+    for s_idx in 0..gr.len().saturating_sub(1) {
+        let (k, k_next) = (gr[s_idx], gr[s_idx + 1]);
+        let dt = p.t[k_next] - p.t[k];
         cache.update(p.leg_angles(k), mu.is_some());
         for (j, &i) in known.iter().enumerate() {
             let a = angles[i].expect("known wheels have angles");
-            inc[j] = a[k + 1] - a[k];
+            inc[j] = a[k_next] - a[k];
         }
         let mut d = if per_wheel {
             // Each wheel's travel at its contact: cables take their toll, traction bounds
@@ -277,7 +282,10 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
                 // The traction limit reacts to speed changes, and encoder quantisation
                 // makes per-sample speeds jitter by a count per sample: read the speed
                 // over three samples instead.
-                let (k1, k2) = (k.saturating_sub(1), (k + 2).min(n - 1));
+                let (k1, k2) = (
+                    gr[s_idx.saturating_sub(1)],
+                    gr[(s_idx + 2).min(gr.len() - 1)],
+                );
                 let span = p.t[k2] - p.t[k1];
                 for (j, &i) in known.iter().enumerate() {
                     let a = angles[i].expect("known wheels have angles");
@@ -358,26 +366,53 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
                 }
                 let crossed = crate::mechanisms::crossings(
                     world_x(k, wheels[j].2),
-                    world_x(k + 1, wheels[j].2),
+                    world_x(k_next, wheels[j].2),
                     spacing,
                     lo,
                     hi,
                 );
                 if crossed > 0.0 {
-                    owed[j] += crossed * loss * world_dir(k + 1, wheels[j].1).abs();
+                    owed[j] += crossed * loss * world_dir(k_next, wheels[j].1).abs();
                 }
             }
         }
-        out.x.push(pose.x);
-        out.y.push(pose.y);
-        out.theta.push(pose.theta);
-        out.step.push(d);
+        // Rows k+1 ..= k_next: linear in time between the step's ends (one row when the
+        // recording is not faster than the ground rate).
+        let (x0, y0, th0) = (
+            *out.x.last().expect("starts with a row"),
+            *out.y.last().expect("starts with a row"),
+            *out.theta.last().expect("starts with a row"),
+        );
+        for r in k + 1..=k_next {
+            let f = if dt > 0.0 {
+                (p.t[r] - p.t[k]) / dt
+            } else {
+                1.0
+            };
+            let g = if dt > 0.0 {
+                (p.t[r] - p.t[r - 1]) / dt
+            } else {
+                1.0
+            };
+            out.x.push(x0 + f * (pose.x - x0));
+            out.y.push(y0 + f * (pose.y - y0));
+            out.theta.push(th0 + f * (pose.theta - th0));
+            out.step.push(d.scale(g));
+        }
         for ((_, g), (a, (_, series))) in free
             .iter()
             .zip(free_angle.iter_mut().zip(out.free.iter_mut()))
         {
+            let a0 = *a;
             *a += g[0] * d.vx + g[1] * d.vy + g[2] * d.omega;
-            series.push(*a);
+            for r in k + 1..=k_next {
+                let f = if dt > 0.0 {
+                    (p.t[r] - p.t[k]) / dt
+                } else {
+                    1.0
+                };
+                series.push(a0 + f * (*a - a0));
+            }
         }
     }
 }

@@ -21,6 +21,7 @@ pub mod calibrate_plots;
 pub mod effects;
 pub mod fit;
 pub mod ground;
+pub mod identify;
 pub mod localisation;
 pub mod mechanisms;
 pub mod multi;
@@ -142,7 +143,12 @@ pub fn diagnose(
     let ev = Evaluator::new(&prepared);
     let sel = select::select(&ev, options.max_effects);
     let sig = windows::signals(&ev);
-    let windows = windows::locate(&ev, &sel.nominal_eval, &sel.final_eval, &sig);
+    let (windows, windows_total) = windows::bounded(windows::locate(
+        &ev,
+        &sel.nominal_eval,
+        &sel.final_eval,
+        &sig,
+    ));
 
     // Findings, best first (selection order).
     let mut findings = Vec::new();
@@ -189,7 +195,7 @@ pub fn diagnose(
 
     // Verdict: the finding explaining the largest share of the excess over noise, with
     // signatures naming effects no mechanism fits fully (issue 11).
-    let (verdict, explained_fraction) = select::verdict(&ev, &sel, &mut findings);
+    let (verdict, explained_fraction, implausible) = select::verdict(&ev, &sel, &mut findings);
     let rmse_stage = findings.first().map_or(Stage::Ground, |f| f.rmse_stage);
 
     // Geometry this recording cannot separate (from the whole-geometry fit of the
@@ -217,21 +223,19 @@ pub fn diagnose(
             f.effect
         ));
     }
-    // A finding outside its physical range is listed, never the verdict; so are floor
-    // bumps whose travel loss is not where the bumps are (a uniform loss is wheel scale).
-    let mut implausible = plausibility::check(&findings);
-    implausible.extend(plausibility::bumps_not_localised(
-        &ev, &sel.model, &findings,
-    ));
-    let verdict = if implausible.iter().any(|i| i.effect == verdict) {
-        findings
-            .iter()
-            .map(|f| f.effect.as_str())
-            .find(|e| *e != verdict && !implausible.iter().any(|i| i.effect == *e))
-            .unwrap_or(VERDICT_UNEXPLAINED)
-            .to_string()
+    // Identification (issue 19): what the nominal residual depends on, and what the
+    // residual left after the findings still depends on.
+    let mut identification = identify::ground(&prepared, &sel.nominal_eval);
+    identification.extend(identify::actuator(&ev, &sel.nominal_eval));
+    let mut left = identify::ground(&prepared, &sel.final_eval);
+    left.extend(identify::actuator(&ev, &sel.final_eval));
+    let depends_on: Vec<String> = if !left.is_empty() || verdict != VERDICT_UNEXPLAINED {
+        left.iter().map(|t| t.depends_on.clone()).collect()
     } else {
-        verdict
+        identification
+            .iter()
+            .map(|t| t.depends_on.clone())
+            .collect()
     };
     let plot = plot_data(&ev, &sel);
     let n_act = sel.nominal.n_act;
@@ -275,6 +279,9 @@ pub fn diagnose(
         implausible,
         not_separable,
         separation_advice,
+        identification,
+        depends_on,
+        windows_total,
     })
 }
 

@@ -75,6 +75,33 @@ pub struct Prepared {
     pub pose_at_row: Vec<(f64, f64, f64)>,
     /// Cosine and sine of that pose's heading.
     pub heading_cs_at_row: Vec<(f64, f64)>,
+    /// Rows the ground stage integrates between (issue 19): every pose row, the first and
+    /// the last, and enough others that no step is longer than 1 / [`GROUND_RATE_HZ`].
+    /// Encoder counts are cumulative, so a coarser step loses no odometry; rows between
+    /// are interpolated.
+    pub ground_rows: Vec<usize>,
+}
+
+/// Most ground-stage steps per second (issue 19: 100-200 rows/s lose no odometry).
+pub const GROUND_RATE_HZ: f64 = 100.0;
+
+/// The rows [`Prepared::ground_rows`] keeps.
+pub fn ground_rows(t: &[f64], pose_rows: &[usize], rate_hz: f64) -> Vec<usize> {
+    let n = t.len();
+    let mut out = Vec::new();
+    let mut poses = pose_rows.iter().peekable();
+    let min_dt = 1.0 / rate_hz - 1e-9;
+    for k in 0..n {
+        let pose = poses.peek().is_some_and(|&&r| r == k);
+        if pose {
+            poses.next();
+        }
+        let far = out.last().is_none_or(|&l: &usize| t[k] - t[l] >= min_dt);
+        if k == 0 || k + 1 == n || pose || far {
+            out.push(k);
+        }
+    }
+    out
 }
 
 /// Unwraps a heading series so consecutive samples differ by less than pi.
@@ -179,6 +206,7 @@ impl Prepared {
             })
             .collect();
         Prepared {
+            ground_rows: ground_rows(&rec.t, &poses.row, GROUND_RATE_HZ),
             pose_at_row,
             heading_cs_at_row,
             robot: robot.clone(),

@@ -152,6 +152,15 @@ pub struct Report {
     pub not_separable: Vec<[String; 2]>,
     /// For each such pair, `a / b: what would separate them`.
     pub separation_advice: Vec<String>,
+    /// Identification of the nominal model's residual (issue 19): the terms of the
+    /// physical regressor library that survive sparse selection on held-out blocks.
+    pub identification: Vec<crate::identify::Term>,
+    /// What the residual left after the findings depends on, in words (or, when nothing
+    /// explains it, what the nominal residual depends on): better than `unexplained`.
+    pub depends_on: Vec<String>,
+    /// Windows found (merged) before the list was bounded to the strongest
+    /// (`windows::MAX_LISTED`).
+    pub windows_total: usize,
 }
 
 impl Report {
@@ -192,6 +201,9 @@ impl fmt::Display for Report {
             self.robot, self.rows, self.pose_samples, self.duration_s
         )?;
         writeln!(f, "verdict: {}", self.verdict)?;
+        for d in &self.depends_on {
+            writeln!(f, "depends on: {d}")?;
+        }
         for a in &self.separation_advice {
             writeln!(f, "not separable: {a}")?;
         }
@@ -255,7 +267,12 @@ impl fmt::Display for Report {
                 writeln!(f, "     signature: {sig}")?;
             }
         }
-        writeln!(f, "windows: {}", self.windows.len())?;
+        writeln!(
+            f,
+            "windows: {} ({} listed)",
+            self.windows_total,
+            self.windows.len()
+        )?;
         for w in self.windows.iter().take(20) {
             writeln!(
                 f,

@@ -719,7 +719,7 @@ pub fn verdict(
     ev: &Evaluator,
     sel: &Selection,
     findings: &mut Vec<crate::report::Finding>,
-) -> (String, f64) {
+) -> (String, f64, Vec<crate::plausibility::Implausible>) {
     use crate::signature;
     use crate::{MIN_EXPLAINED, MISMATCH_CHI2, RESIDUAL_CHI2, WELL_EXPLAINED};
     let (mut excess0, mut excess1) = (0.0, 0.0);
@@ -847,7 +847,15 @@ pub fn verdict(
         }
     }
     findings.sort_by(|a, b| b.explained_share.total_cmp(&a.explained_share));
-    let top = findings.iter().find(|f| !f.implausible_sign);
+    // The verdict is decided here only (issue 19): a finding outside its physical range,
+    // or floor bumps whose loss is not where the bumps are, is listed, never the verdict.
+    let mut implausible = crate::plausibility::check(findings);
+    implausible.extend(crate::plausibility::bumps_not_localised(
+        ev, &sel.model, findings,
+    ));
+    let top = findings
+        .iter()
+        .find(|f| !f.implausible_sign && !implausible.iter().any(|i| i.effect == f.effect));
     let verdict = match top {
         None if mismatch => crate::VERDICT_UNEXPLAINED.to_string(),
         None => crate::VERDICT_NONE.to_string(),
@@ -872,7 +880,7 @@ pub fn verdict(
             f.residual_left_m = Some(f.rmse_after_m);
         }
     }
-    (verdict, explained_fraction)
+    (verdict, explained_fraction, implausible)
 }
 
 /// A finding named by its signature alone.

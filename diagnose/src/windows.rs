@@ -69,6 +69,9 @@ pub struct Signals {
     pub names: Vec<&'static str>,
     /// `[signal][row]`
     pub values: Vec<Vec<f64>>,
+    /// Per signal: mean of |value| over the recording and the spread of |value| about it
+    /// (computed once: every window compares its stretch with them).
+    pub abs_stats: Vec<(f64, f64)>,
 }
 
 /// Computes the signals windows are related to, per row (from the nominal odometry
@@ -161,7 +164,22 @@ pub fn signals(ev: &Evaluator) -> Signals {
     names.push("y_m");
     values.push(px);
     values.push(py);
-    Signals { names, values }
+    let abs_stats = values
+        .iter()
+        .map(|v| {
+            let all = v.iter().map(|x| x.abs()).sum::<f64>() / v.len().max(1) as f64;
+            let spread = (v.iter().map(|x| (x.abs() - all).powi(2)).sum::<f64>()
+                / v.len().max(1) as f64)
+                .sqrt()
+                .max(1e-12);
+            (all, spread)
+        })
+        .collect();
+    Signals {
+        names,
+        values,
+        abs_stats,
+    }
 }
 
 /// Intervals (row indices into the sample series) where |increment over lag| > band.
@@ -278,6 +296,52 @@ pub fn locate(ev: &Evaluator, nominal: &Eval, fitted: &Eval, sig: &Signals) -> V
     out
 }
 
+/// Most windows a report lists (the strongest, in time order); the count of all is kept.
+pub const MAX_LISTED: usize = 200;
+/// Windows of the same stage, axis and wheel closer than this are one window (s).
+pub const MERGE_GAP_S: f64 = 0.5;
+
+/// Windows merged (same stage, axis and wheel, overlapping or under [`MERGE_GAP_S`]
+/// apart: the stronger one's description, the union of the times) and bounded to the
+/// [`MAX_LISTED`] strongest, in time order; with the number of merged windows. A long
+/// recording with a residual out of the noise everywhere listed thousands (480 KB of a
+/// 458 KB report at 120,000 rows), which tells a reader no more than the strongest.
+pub fn bounded(mut ws: Vec<Window>) -> (Vec<Window>, usize) {
+    ws.sort_by(|a, b| {
+        (a.stage as u8, a.axis as u8, &a.wheel)
+            .cmp(&(b.stage as u8, b.axis as u8, &b.wheel))
+            .then(a.t_start_s.total_cmp(&b.t_start_s))
+    });
+    let mut merged: Vec<Window> = Vec::with_capacity(ws.len());
+    for w in ws {
+        if let Some(last) = merged.last_mut() {
+            if last.stage == w.stage
+                && last.axis == w.axis
+                && last.wheel == w.wheel
+                && w.t_start_s <= last.t_end_s + MERGE_GAP_S
+            {
+                let (start, end) = (last.t_start_s, last.t_end_s.max(w.t_end_s));
+                let explained = last.explained_by_fit && w.explained_by_fit;
+                if w.peak_sigma > last.peak_sigma {
+                    *last = w;
+                }
+                last.t_start_s = start;
+                last.t_end_s = end;
+                last.explained_by_fit = explained;
+                continue;
+            }
+        }
+        merged.push(w);
+    }
+    let total = merged.len();
+    if merged.len() > MAX_LISTED {
+        merged.sort_by(|a, b| b.peak_sigma.total_cmp(&a.peak_sigma));
+        merged.truncate(MAX_LISTED);
+    }
+    merged.sort_by(|a, b| a.t_start_s.total_cmp(&b.t_start_s));
+    (merged, total)
+}
+
 /// The wheel whose rolling constraint the window's body residual loads most.
 fn ground_wheel(ev: &Evaluator, e: &Eval, a: usize, b: usize, axis: Axis) -> Option<String> {
     let robot = &ev.p.robot;
@@ -340,7 +404,7 @@ fn describe(
 ) -> (BTreeMap<String, f64>, Option<String>) {
     let mut map = BTreeMap::new();
     let mut best: Option<(&str, f64)> = None;
-    for (name, v) in sig.names.iter().zip(&sig.values) {
+    for ((name, v), &(all, spread)) in sig.names.iter().zip(&sig.values).zip(&sig.abs_stats) {
         if v.is_empty() {
             continue;
         }
@@ -367,10 +431,6 @@ fn describe(
         if matches!(*name, "x_m" | "y_m" | "distance_m") {
             continue;
         }
-        let all = abs_mean(v);
-        let spread = (v.iter().map(|x| (x.abs() - all).powi(2)).sum::<f64>() / v.len() as f64)
-            .sqrt()
-            .max(1e-12);
         let inside = if *name == "reversals" {
             value / (b - a + 1) as f64
         } else {
@@ -387,6 +447,44 @@ fn describe(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    fn w(t0: f64, t1: f64, z: f64, wheel: &str) -> Window {
+        Window {
+            t_start_s: t0,
+            t_end_s: t1,
+            stage: Stage::Actuator,
+            axis: Axis::Longitudinal,
+            wheel: Some(wheel.into()),
+            peak_sigma: z,
+            explained_by_fit: true,
+            signals: BTreeMap::new(),
+            related_signal: None,
+        }
+    }
+
+    /// Neighbours of one wheel merge (the stronger one's peak, the union of times); other
+    /// wheels stay apart; beyond MAX_LISTED the strongest are listed and all counted.
+    #[test]
+    fn windows_merge_and_are_bounded() {
+        let (m, n) = bounded(vec![
+            w(0.0, 1.0, 3.0, "a"),
+            w(1.2, 2.0, 5.0, "a"),
+            w(1.1, 1.5, 4.0, "b"),
+            w(9.0, 9.5, 2.0, "a"),
+        ]);
+        assert_eq!(n, 3);
+        assert_eq!(
+            (m[0].t_start_s, m[0].t_end_s, m[0].peak_sigma),
+            (0.0, 2.0, 5.0)
+        );
+        assert_eq!(m[1].wheel.as_deref(), Some("b"));
+        let many: Vec<Window> = (0..1000)
+            .map(|k| w(k as f64, k as f64 + 0.2, k as f64, "a"))
+            .collect();
+        let (m, n) = bounded(many);
+        assert_eq!((m.len(), n), (MAX_LISTED, 1000));
+        assert_eq!(m[0].peak_sigma, (1000 - MAX_LISTED) as f64);
+    }
 
     #[test]
     fn peaks_are_where_the_residual_steps() {
