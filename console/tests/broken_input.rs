@@ -239,7 +239,7 @@ fn a_gap_is_reported_as_an_interval_with_its_count() {
     assert_eq!(glitch["parameters"]["missing_samples"], 400.0, "{glitch}");
     let gaps = glitch["gaps"].as_array().expect("gaps");
     assert_eq!(gaps.len(), 1, "{glitch}");
-    assert_eq!(gaps[0]["missing"], 400, "{glitch}");
+    assert_eq!(gaps[0]["missing"].as_f64(), Some(400.0), "{glitch}");
     // From the last row before (t = 9.995 s) to the first after (t = 12 s).
     let (a, b) = (
         gaps[0]["after_s"].as_f64().unwrap(),
@@ -364,12 +364,19 @@ fn endless_files_fail_fast_naming_the_file() {
         "test,path,length_m,x_err_m,y_err_m\numbmark,cw,1,0.01,0.02\numbmark,ccw,1,0.01,-0.02\n",
     )
     .unwrap();
+    let omni_runs = dir.join("omni-runs.csv");
+    let mut o = String::from("test,path,length_m,x_err_m,y_err_m\n");
+    for k in 0..3 {
+        let e = 0.001 * k as f64;
+        o.push_str(&format!("omni,4W-1,0.5,{},0.01\nomni,4W-2,0.5,0.012,{}\n", 0.003 + e, 0.004 - e));
+    }
+    std::fs::write(&omni_runs, o).unwrap();
     for dev in ["/dev/zero", "/dev/full"] {
         let cases: Vec<Vec<String>> = vec![
             vec!["diagnose".into(), "--robot".into(), dev.into(), "--recording".into(), recording.display().to_string()],
             vec!["diagnose".into(), "--robot".into(), robot_file.display().to_string(), "--recording".into(), dev.into()],
             vec!["umbmark".into(), "compute".into(), "--robot".into(), robot_file.display().to_string(), "--runs".into(), dev.into()],
-            vec!["omni".into(), "compute".into(), "--robot".into(), robot("omni4").display().to_string(), "--runs".into(), runs.display().to_string(), "--previous".into(), dev.into()],
+            vec!["omni".into(), "compute".into(), "--robot".into(), robot("omni4").display().to_string(), "--runs".into(), omni_runs.display().to_string(), "--previous".into(), dev.into()],
             vec!["factors".into(), "export".into(), "--ros2".into(), dir.join("r.yaml").display().to_string(), "--from".into(), dev.into()],
             vec!["sim-board".into(), "--robot".into(), robot_file.display().to_string(), "--link".into(), dir.join("b").display().to_string(), "--flash".into(), dev.into()],
         ];
