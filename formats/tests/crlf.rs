@@ -26,7 +26,15 @@ fn crlf_files_report_the_same_line_as_lf_files() {
         let e = RunsFile::parse(&text, Path::new("runs.csv")).unwrap_err();
         assert_eq!(e.line, Some(4), "{e}");
     }
-    let robot = "name = \"x\"\nkind = \"diff_drive\"\n\n[drive]\ntype = \"dc\"\nencoder_counts_per_rev = -5\n";
+    let wheel = |n: &str, a: i32, b: i32| {
+        format!("[[wheels]]\nname = \"{n}\"\nradius_m = 0.05\nalpha_deg = {a}\nl_m = 0.2\nbeta_deg = {b}\n")
+    };
+    let robot = format!(
+        "name = \"x\"\nkind = \"diff_drive\"\n\n[drive]\ntype = \"dc\"\nencoder_counts_per_rev = -5\n{}{}",
+        wheel("left", 90, 0),
+        wheel("right", -90, 180)
+    );
+    let robot = robot.as_str();
     for text in [robot.to_string(), crlf(robot)] {
         let e = formats::robot_file::parse(&text, Path::new("r.toml")).unwrap_err();
         assert_eq!(e.line, Some(6), "{e}");
