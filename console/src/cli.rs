@@ -25,6 +25,10 @@ pub struct Cli {
     /// One JSON object per result on stdout (human text otherwise).
     #[arg(long, global = true)]
     pub json: bool,
+    /// Write into folders wheelcal did not make and replace files of another kind (never
+    /// the command's own inputs).
+    #[arg(long, global = true)]
+    pub force: bool,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
@@ -612,6 +616,7 @@ impl Ctx {
 pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
     use crate::commands::{board, diagnose, factors, log, omni, program, sim, umbmark};
     let out = Output::from_flag(cli.json);
+    formats::safe_write::set_force(cli.force);
     match cli.command {
         Command::Info => board::info(ctx, out),
         Command::Factors(cmd) => factors::run(cmd, ctx, out),

@@ -146,7 +146,10 @@ fn assert_data_error(
         assert!(err.contains(w), "expected {w:?} in:\n{err}");
     }
     for bad in ["inf mm", "NaN", "panicked"] {
-        assert!(!err.contains(bad) && !out.contains(bad), "{bad} in:\n{out}\n{err}");
+        assert!(
+            !err.contains(bad) && !out.contains(bad),
+            "{bad} in:\n{out}\n{err}"
+        );
     }
 }
 
@@ -159,7 +162,9 @@ fn a_huge_cell_is_a_data_error_at_its_cell() {
     let (h, rows) = table(&rec);
     let robot_file = rec.join("robot.toml");
     // A pose row (every 10th row has one at 200 rows/s with a 20 Hz camera).
-    let k = (1000..).find(|&k| !rows[k][col(&h, "x")].is_empty()).unwrap();
+    let k = (1000..)
+        .find(|&k| !rows[k][col(&h, "x")].is_empty())
+        .unwrap();
     for (name, value) in [
         ("x", "1e300"),
         ("y", "-1e300"),
@@ -200,13 +205,7 @@ fn a_jump_in_time_no_run_holds_is_a_data_error() {
             row[0] = format!("{}", t + offset);
         }
         let f = write(&dir, &format!("{name}.csv"), &h, &r);
-        assert_data_error(
-            diagnose(&robot_file, &f),
-            &f,
-            from + 2,
-            Some(1),
-            &["jumps"],
-        );
+        assert_data_error(diagnose(&robot_file, &f), &f, from + 2, Some(1), &["jumps"]);
     }
 }
 
@@ -245,7 +244,10 @@ fn a_gap_is_reported_as_an_interval_with_its_count() {
         gaps[0]["after_s"].as_f64().unwrap(),
         gaps[0]["before_s"].as_f64().unwrap(),
     );
-    assert!((a - 9.995).abs() < 1e-9 && (b - 12.0).abs() < 1e-9, "{glitch}");
+    assert!(
+        (a - 9.995).abs() < 1e-9 && (b - 12.0).abs() < 1e-9,
+        "{glitch}"
+    );
 }
 
 /// Poses in millimetres (a 1 m square written as 1000): an RMSE of 1,105 m before.
@@ -368,17 +370,64 @@ fn endless_files_fail_fast_naming_the_file() {
     let mut o = String::from("test,path,length_m,x_err_m,y_err_m\n");
     for k in 0..3 {
         let e = 0.001 * k as f64;
-        o.push_str(&format!("omni,4W-1,0.5,{},0.01\nomni,4W-2,0.5,0.012,{}\n", 0.003 + e, 0.004 - e));
+        o.push_str(&format!(
+            "omni,4W-1,0.5,{},0.01\nomni,4W-2,0.5,0.012,{}\n",
+            0.003 + e,
+            0.004 - e
+        ));
     }
     std::fs::write(&omni_runs, o).unwrap();
     for dev in ["/dev/zero", "/dev/full"] {
         let cases: Vec<Vec<String>> = vec![
-            vec!["diagnose".into(), "--robot".into(), dev.into(), "--recording".into(), recording.display().to_string()],
-            vec!["diagnose".into(), "--robot".into(), robot_file.display().to_string(), "--recording".into(), dev.into()],
-            vec!["umbmark".into(), "compute".into(), "--robot".into(), robot_file.display().to_string(), "--runs".into(), dev.into()],
-            vec!["omni".into(), "compute".into(), "--robot".into(), robot("omni4").display().to_string(), "--runs".into(), omni_runs.display().to_string(), "--previous".into(), dev.into()],
-            vec!["factors".into(), "export".into(), "--ros2".into(), dir.join("r.yaml").display().to_string(), "--from".into(), dev.into()],
-            vec!["sim-board".into(), "--robot".into(), robot_file.display().to_string(), "--link".into(), dir.join("b").display().to_string(), "--flash".into(), dev.into()],
+            vec![
+                "diagnose".into(),
+                "--robot".into(),
+                dev.into(),
+                "--recording".into(),
+                recording.display().to_string(),
+            ],
+            vec![
+                "diagnose".into(),
+                "--robot".into(),
+                robot_file.display().to_string(),
+                "--recording".into(),
+                dev.into(),
+            ],
+            vec![
+                "umbmark".into(),
+                "compute".into(),
+                "--robot".into(),
+                robot_file.display().to_string(),
+                "--runs".into(),
+                dev.into(),
+            ],
+            vec![
+                "omni".into(),
+                "compute".into(),
+                "--robot".into(),
+                robot("omni4").display().to_string(),
+                "--runs".into(),
+                omni_runs.display().to_string(),
+                "--previous".into(),
+                dev.into(),
+            ],
+            vec![
+                "factors".into(),
+                "export".into(),
+                "--ros2".into(),
+                dir.join("r.yaml").display().to_string(),
+                "--from".into(),
+                dev.into(),
+            ],
+            vec![
+                "sim-board".into(),
+                "--robot".into(),
+                robot_file.display().to_string(),
+                "--link".into(),
+                dir.join("b").display().to_string(),
+                "--flash".into(),
+                dev.into(),
+            ],
         ];
         for args in cases {
             let mut c = wheelcal();
@@ -399,7 +448,15 @@ fn diagnose_shows_progress_within_two_seconds() {
     let dir = scratch("progress");
     let out = dir.join("long");
     let o = wheelcal()
-        .args(["sim", "record", "--seed", "5", "--duration", "3000", "--robot"])
+        .args([
+            "sim",
+            "record",
+            "--seed",
+            "5",
+            "--duration",
+            "3000",
+            "--robot",
+        ])
         .arg(robot("mobolab"))
         .arg("--out")
         .arg(&out)
@@ -426,6 +483,12 @@ fn diagnose_shows_progress_within_two_seconds() {
     let _ = child.kill();
     let _ = child.wait();
     assert!(matches!(got, Ok(1)), "no progress on stderr");
-    assert!(still_running, "diagnose ended before its first progress line");
-    assert!(took < Duration::from_millis(2500), "first progress after {took:?}");
+    assert!(
+        still_running,
+        "diagnose ended before its first progress line"
+    );
+    assert!(
+        took < Duration::from_millis(2500),
+        "first progress after {took:?}"
+    );
 }

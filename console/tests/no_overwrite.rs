@@ -17,7 +17,15 @@ use std::time::{Duration, Instant};
 fn run_folder(dir: &Path) -> PathBuf {
     let tmp = dir.join("made");
     let o = wheelcal()
-        .args(["sim", "record", "--seed", "2", "--umbmark-side", "1", "--robot"])
+        .args([
+            "sim",
+            "record",
+            "--seed",
+            "2",
+            "--umbmark-side",
+            "1",
+            "--robot",
+        ])
         .arg(robot("mobolab"))
         .arg("--out")
         .arg(&tmp)
@@ -62,7 +70,10 @@ fn refused(args: &[&str], dir: &Path, names: &str) {
     let o = wheelcal().args(args).stdin(Stdio::null()).output().unwrap();
     let all = text(&o);
     assert_eq!(o.status.code(), Some(1), "{args:?}:\n{all}");
-    assert!(all.contains(names), "{args:?}: expected {names:?} in:\n{all}");
+    assert!(
+        all.contains(names),
+        "{args:?}: expected {names:?} in:\n{all}"
+    );
     assert_eq!(snapshot(dir), before, "{args:?} changed {}", dir.display());
 }
 
@@ -83,12 +94,28 @@ fn reports_go_only_into_new_or_wheelcal_folders() {
     let (rob, rec) = (s(&run.join("robot.toml")), s(&run.join("recording.csv")));
     // Pointed at the run folder (an easy mistake): its nominal robot.toml is the input.
     refused(
-        &["calibrate", "--robot", &rob, "--recording", &rec, "--report", &s(&run)],
+        &[
+            "calibrate",
+            "--robot",
+            &rob,
+            "--recording",
+            &rec,
+            "--report",
+            &s(&run),
+        ],
         &run,
         &s(&run),
     );
     refused(
-        &["diagnose", "--robot", &rob, "--recording", &rec, "--report", &s(&run)],
+        &[
+            "diagnose",
+            "--robot",
+            &rob,
+            "--recording",
+            &rec,
+            "--report",
+            &s(&run),
+        ],
         &run,
         &s(&run),
     );
@@ -97,21 +124,55 @@ fn reports_go_only_into_new_or_wheelcal_folders() {
     std::fs::create_dir_all(&mine).unwrap();
     std::fs::write(mine.join("index.html"), "my page").unwrap();
     refused(
-        &["diagnose", "--robot", &rob, "--recording", &rec, "--report", &s(&mine)],
+        &[
+            "diagnose",
+            "--robot",
+            &rob,
+            "--recording",
+            &rec,
+            "--report",
+            &s(&mine),
+        ],
         &mine,
         "index.html",
     );
     // A new folder, then the same folder again (wheelcal made it).
     let fresh = dir.join("fresh");
     for _ in 0..2 {
-        ok(&["diagnose", "--robot", &rob, "--recording", &rec, "--report", &s(&fresh)]);
+        ok(&[
+            "diagnose",
+            "--robot",
+            &rob,
+            "--recording",
+            &rec,
+            "--report",
+            &s(&fresh),
+        ]);
         assert!(fresh.join("index.html").exists() && fresh.join("paths.mcap").exists());
     }
     // --force writes into the user's folder, but still not over an input.
-    ok(&["--force", "diagnose", "--robot", &rob, "--recording", &rec, "--report", &s(&mine)]);
+    ok(&[
+        "--force",
+        "diagnose",
+        "--robot",
+        &rob,
+        "--recording",
+        &rec,
+        "--report",
+        &s(&mine),
+    ]);
     assert_ne!(std::fs::read(mine.join("index.html")).unwrap(), b"my page");
     refused(
-        &["--force", "calibrate", "--robot", &rob, "--recording", &rec, "--report", &s(&run)],
+        &[
+            "--force",
+            "calibrate",
+            "--robot",
+            &rob,
+            "--recording",
+            &rec,
+            "--report",
+            &s(&run),
+        ],
         &run,
         "input",
     );
@@ -128,19 +189,43 @@ fn write_robot_never_replaces_an_input_or_another_kind_of_file() {
             if force {
                 args.push("--force");
             }
-            args.extend([cmd, "--robot", &rob, "--recording", &rec, "--write-robot", &rob]);
+            args.extend([
+                cmd,
+                "--robot",
+                &rob,
+                "--recording",
+                &rec,
+                "--write-robot",
+                &rob,
+            ]);
             refused(&args, &run, "input");
         }
         let notes = s(&run.join("notes.txt"));
         refused(
-            &[cmd, "--robot", &rob, "--recording", &rec, "--write-robot", &notes],
+            &[
+                cmd,
+                "--robot",
+                &rob,
+                "--recording",
+                &rec,
+                "--write-robot",
+                &notes,
+            ],
             &run,
             "notes.txt",
         );
         // A new file, then replacing the robot file it wrote.
         let out = dir.join(format!("{cmd}-fitted.toml"));
         for _ in 0..2 {
-            ok(&[cmd, "--robot", &rob, "--recording", &rec, "--write-robot", &s(&out)]);
+            ok(&[
+                cmd,
+                "--robot",
+                &rob,
+                "--recording",
+                &rec,
+                "--write-robot",
+                &s(&out),
+            ]);
             formats::robot_file::load(&out).expect("a robot file");
         }
     }
@@ -152,13 +237,31 @@ fn sim_record_never_writes_into_a_run_folder() {
     let run = run_folder(&dir);
     let m = s(&robot("mobolab"));
     refused(
-        &["sim", "record", "--robot", &m, "--duration", "5", "--out", &s(&run)],
+        &[
+            "sim",
+            "record",
+            "--robot",
+            &m,
+            "--duration",
+            "5",
+            "--out",
+            &s(&run),
+        ],
         &run,
         "recording.csv",
     );
     let fresh = dir.join("sim");
     for _ in 0..2 {
-        ok(&["sim", "record", "--robot", &m, "--duration", "5", "--out", &s(&fresh)]);
+        ok(&[
+            "sim",
+            "record",
+            "--robot",
+            &m,
+            "--duration",
+            "5",
+            "--out",
+            &s(&fresh),
+        ]);
     }
 }
 

@@ -66,7 +66,13 @@ fn named(stderr: &str) -> BTreeSet<u16> {
         .lines()
         .find(|l| l.contains("will evict trial(s)"))
         .map(|l| {
-            let ids = l.split("trial(s) ").nth(1).unwrap().split(" from").next().unwrap();
+            let ids = l
+                .split("trial(s) ")
+                .nth(1)
+                .unwrap()
+                .split(" from")
+                .next()
+                .unwrap();
             ids.split(", ").map(|s| s.trim().parse().unwrap()).collect()
         })
         .unwrap_or_default()
@@ -96,7 +102,14 @@ fn the_eviction_note_names_exactly_the_trials_that_go() {
     for run in 0..18 {
         let before = stored(&board);
         let (o, _, err) = board.run_text(&[
-            "run", "umbmark", "--dir", "cw", "--side", "4", "--log-rate", "1000",
+            "run",
+            "umbmark",
+            "--dir",
+            "cw",
+            "--side",
+            "4",
+            "--log-rate",
+            "1000",
         ]);
         assert!(o.status.success(), "{err}");
         let after = stored(&board);
@@ -114,6 +127,9 @@ fn the_eviction_note_names_exactly_the_trials_that_go() {
 
 fn start_board(dir: &Path, flash: &Path) -> Board {
     let link = dir.join("board");
+    // The last board was killed: its link is stale (and its pseudo-terminal number may
+    // be in use again).
+    let _ = std::fs::remove_file(&link);
     let child = wheelcal()
         .args(["sim-board", "--speed", "max", "--robot"])
         .arg(robot("mobolab"))
@@ -143,7 +159,9 @@ fn damaged_flash_files_read_as_corrupted() {
     {
         let board = start_board(&dir, &flash);
         for args in [
-            &["factors", "set", "--c-l", "1.01", "--c-r", "0.99", "--e-b", "1.02"][..],
+            &[
+                "factors", "set", "--c-l", "1.01", "--c-r", "0.99", "--e-b", "1.02",
+            ][..],
             &["factors", "save"],
         ] {
             let (o, _, err) = board.run_text(args);
@@ -170,17 +188,38 @@ fn damaged_flash_files_read_as_corrupted() {
         flipped[i] ^= 1 << (rnd() % 8);
     }
     let random: Vec<u8> = (0..good.len()).map(|_| rnd() as u8).collect();
-    let cases: [(&str, Vec<u8>); 4] = [
-        ("truncated", good[..good.len() / 2].to_vec()),
-        ("flipped bits", flipped),
-        ("random bytes", random),
-        ("double size", [good.clone(), good.clone()].concat()),
+    // Whether the saved factors may survive the damage: a file cut or grown after the
+    // saved item still holds it whole, and then `loaded` with exactly the saved factors
+    // is the truth; otherwise the loss must be reported. Never "none saved".
+    let cut_in_data = written[written.len() / 2];
+    let cases: [(&str, Vec<u8>, bool); 5] = [
+        ("truncated in the data", good[..cut_in_data].to_vec(), false),
+        (
+            "truncated after the data",
+            good[..good.len() / 2].to_vec(),
+            true,
+        ),
+        ("flipped bits", flipped, false),
+        ("random bytes", random, false),
+        ("double size", [good.clone(), good.clone()].concat(), true),
     ];
-    for (what, bytes) in cases {
+    for (what, bytes, may_survive) in cases {
         std::fs::write(&flash, &bytes).unwrap();
         let board = start_board(&dir, &flash);
         let v = info(&board);
-        assert_eq!(v["corrections_at_boot"], "corrupted", "{what}: {v}");
+        let state = v["corrections_at_boot"].as_str().unwrap().to_string();
+        if may_survive && state == "loaded" {
+            let (o, out, err) = board.run_text(&["--json", "factors", "get"]);
+            assert!(o.status.success(), "{err}");
+            let f: serde_json::Value = serde_json::from_str(&out).unwrap();
+            assert_eq!(
+                (&f["c_l"], &f["c_r"], &f["e_b"]),
+                (&1.01.into(), &0.99.into(), &1.02.into()),
+                "{what}: {f}"
+            );
+        } else {
+            assert_eq!(state, "corrupted", "{what}: {v}");
+        }
         drop(board);
         // A damaged file of another size is never rewritten.
         if bytes.len() != good.len() {
@@ -199,7 +238,15 @@ fn info(board: &Board) -> serde_json::Value {
 fn recording(dir: &Path) -> PathBuf {
     let out = dir.join("rec");
     let o = wheelcal()
-        .args(["sim", "record", "--seed", "4", "--umbmark-side", "1", "--robot"])
+        .args([
+            "sim",
+            "record",
+            "--seed",
+            "4",
+            "--umbmark-side",
+            "1",
+            "--robot",
+        ])
         .arg(robot("mobolab"))
         .args(["--effect", "wheel_diameter_mismatch=ed:1.004"])
         .arg("--out")
@@ -246,7 +293,10 @@ fn calibrate_results_export_to_ros2_and_say_where_they_came_from() {
         assert!((a - b).abs() < 1e-12, "{k}: {a} vs {b}");
     }
     let yaml = std::fs::read_to_string(&out).unwrap();
-    assert!(yaml.contains("calibration.json") && !yaml.contains("UMBmark"), "{yaml}");
+    assert!(
+        yaml.contains("calibration.json") && !yaml.contains("UMBmark"),
+        "{yaml}"
+    );
 }
 
 /// `log pull --out x.json` silently wrote CSV; `--out /dev/full` and stdout on
@@ -258,15 +308,28 @@ fn output_names_are_checked_and_failed_writes_name_their_file() {
     let (o, _, err) = board.run_text(&["run", "umbmark", "--dir", "cw", "--side", "0.5"]);
     assert!(o.status.success(), "{err}");
     let json = dir.join("x.json");
-    let (o, _, err) = board.run_text(&["log", "pull", "--trial", "1", "--out", &json.display().to_string()]);
+    let (o, _, err) = board.run_text(&[
+        "log",
+        "pull",
+        "--trial",
+        "1",
+        "--out",
+        &json.display().to_string(),
+    ]);
     assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(err.contains("x.json") && err.contains(".csv") && err.contains(".mcap"), "{err}");
+    assert!(
+        err.contains("x.json") && err.contains(".csv") && err.contains(".mcap"),
+        "{err}"
+    );
     assert!(!json.exists());
     let (o, _, err) = board.run_text(&["log", "pull", "--trial", "1", "--out", "/dev/full"]);
     assert_eq!(o.status.code(), Some(1), "{err}");
     assert!(err.contains("/dev/full"), "{err}");
     // Standard output on /dev/full.
-    let full = std::fs::OpenOptions::new().write(true).open("/dev/full").unwrap();
+    let full = std::fs::OpenOptions::new()
+        .write(true)
+        .open("/dev/full")
+        .unwrap();
     let o = wheelcal()
         .arg("--port")
         .arg(&board.link)
@@ -299,6 +362,9 @@ fn the_runs_check_names_the_radial_error() {
         .unwrap();
     let err = String::from_utf8_lossy(&o.stderr);
     assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(err.contains("runs.csv:2:") && err.contains("radial"), "{err}");
+    assert!(
+        err.contains("runs.csv:2:") && err.contains("radial"),
+        "{err}"
+    );
     assert!(!err.contains("column 'y_err_m'"), "{err}");
 }

@@ -175,7 +175,10 @@ fn duplicated_and_missing_samples_are_timed() {
     assert_eq!(a.duplicated_at_s, dup_t);
     assert_eq!(a.gaps.len(), 1, "{a}");
     assert_eq!(a.gaps[0].missing, 3.0, "{a}");
-    assert_eq!((a.gaps[0].after_s, a.gaps[0].before_s), (gap_after, gap_before));
+    assert_eq!(
+        (a.gaps[0].after_s, a.gaps[0].before_s),
+        (gap_after, gap_before)
+    );
     assert_eq!(a.parameters["missing_samples"], 3.0);
     assert_no_physics(&rep);
 }

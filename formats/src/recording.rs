@@ -177,14 +177,15 @@ impl Recording {
 
     /// Reads and checks a recording against the robot it was made with.
     pub fn load(path: &Path, robot: &Robot) -> Result<Self, RecordingError> {
-        let text = crate::text_file::read_capped(path, MAX_RECORDING_BYTES, "recording").map_err(
-            |e| RecordingError {
-                path: path.to_path_buf(),
-                line: None,
-                column: None,
-                message: e.0,
-            },
-        )?;
+        let text =
+            crate::text_file::read_capped(path, MAX_RECORDING_BYTES, "recording").map_err(|e| {
+                RecordingError {
+                    path: path.to_path_buf(),
+                    line: None,
+                    column: None,
+                    message: e.0,
+                }
+            })?;
         Self::parse(&text, path, robot)
     }
 
@@ -401,7 +402,11 @@ impl Recording {
                 return Err(err(
                     Some(line),
                     Some((t_col + 1, "t".into())),
-                    format!("time must increase strictly: {} after {}", short(t), short(last_t)),
+                    format!(
+                        "time must increase strictly: {} after {}",
+                        short(t),
+                        short(last_t)
+                    ),
                 ));
             }
             if last_t.is_finite() && t - last_t > MAX_GAP_S {

@@ -241,7 +241,10 @@ mod tests {
         assert!(!user.join(MARKER).exists());
         let file = d.join("file");
         std::fs::write(&file, "x").unwrap();
-        assert!(claim_dir(&file).unwrap_err().to_string().contains("not a folder"));
+        assert!(claim_dir(&file)
+            .unwrap_err()
+            .to_string()
+            .contains("not a folder"));
     }
 
     #[test]
@@ -258,7 +261,9 @@ mod tests {
         write_file(&g, b"hello", "text", |_| false).unwrap();
         assert_eq!(std::fs::read_to_string(&g).unwrap(), "hello");
         note_input(&g);
-        let e = write_file(&g, b"x", "text", |_| true).unwrap_err().to_string();
+        let e = write_file(&g, b"x", "text", |_| true)
+            .unwrap_err()
+            .to_string();
         assert!(e.contains("input"), "{e}");
         assert!(claim_dir(&d).unwrap_err().to_string().contains("input"));
         // No temporary file left behind.

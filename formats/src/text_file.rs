@@ -33,7 +33,10 @@ impl<'a> LineCounter<'a> {
             to += 1;
         }
         if to > self.at {
-            self.line += self.text[self.at..to].iter().filter(|&&b| b == b'\n').count();
+            self.line += self.text[self.at..to]
+                .iter()
+                .filter(|&&b| b == b'\n')
+                .count();
             self.at = to;
         }
         self.line
@@ -58,7 +61,8 @@ impl std::error::Error for ReadError {}
 /// within the first 64 KiB read past the fault.
 pub fn read_capped(path: &Path, max_bytes: u64, what: &str) -> Result<String, ReadError> {
     crate::safe_write::note_input(path);
-    let meta = std::fs::metadata(path).map_err(|e| ReadError(format!("cannot read {what}: {e}")))?;
+    let meta =
+        std::fs::metadata(path).map_err(|e| ReadError(format!("cannot read {what}: {e}")))?;
     if meta.is_dir() {
         return Err(ReadError(format!("is a folder, not a {what}")));
     }

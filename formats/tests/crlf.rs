@@ -14,14 +14,20 @@ fn crlf(s: &str) -> String {
 #[test]
 fn crlf_files_report_the_same_line_as_lf_files() {
     // Line 4 has a bad encoder cell in column 2.
-    let rec = "t,enc_left,enc_right,x,y,theta\n0,1,2,0,0,0\n0.1,2,3,,,\n0.2,x,4,,,\n0.3,4,5,0,0,0\n";
+    let rec =
+        "t,enc_left,enc_right,x,y,theta\n0,1,2,0,0,0\n0.1,2,3,,,\n0.2,x,4,,,\n0.3,4,5,0,0,0\n";
     let r = presets::mobolab();
     for text in [rec.to_string(), crlf(rec)] {
         let e = Recording::parse(&text, Path::new("r.csv"), &r).unwrap_err();
-        assert_eq!((e.line, e.column.as_ref().map(|c| c.0)), (Some(4), Some(2)), "{e}");
+        assert_eq!(
+            (e.line, e.column.as_ref().map(|c| c.0)),
+            (Some(4), Some(2)),
+            "{e}"
+        );
     }
     // A blank line before the bad row counts as a line too.
-    let runs = "test,path,length_m,x_err_m,y_err_m\numbmark,cw,1,0.01,0.02\n\numbmark,ccw,1,abc,0.02\n";
+    let runs =
+        "test,path,length_m,x_err_m,y_err_m\numbmark,cw,1,0.01,0.02\n\numbmark,ccw,1,abc,0.02\n";
     for text in [runs.to_string(), crlf(runs)] {
         let e = RunsFile::parse(&text, Path::new("runs.csv")).unwrap_err();
         assert_eq!(e.line, Some(4), "{e}");
