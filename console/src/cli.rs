@@ -573,9 +573,28 @@ pub fn main() -> ExitCode {
             ExitCode::from(130)
         }
         Err(e) => {
+            let e = name_the_port(e, &ctx);
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// An I/O failure on the open port (a broken pipe: the board or its cable went away)
+/// names the port, so a person with several boards knows which one.
+fn name_the_port(e: anyhow::Error, ctx: &Ctx) -> anyhow::Error {
+    let (Some(_), Some(port)) = (&ctx.client, &ctx.port) else {
+        return e;
+    };
+    let io = e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>().is_some()
+            || c.downcast_ref::<crate::client::ClientError>()
+                .is_some_and(|ce| matches!(ce, crate::client::ClientError::Io(_)))
+    });
+    if io && !format!("{e:#}").contains(port.as_str()) {
+        e.context(format!("port {port}"))
+    } else {
+        e
     }
 }
 

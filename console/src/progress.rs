@@ -19,10 +19,13 @@ struct State {
     done: bool,
 }
 
+/// The plain form's state, shared with its printing thread.
+type Shared = Arc<(Mutex<State>, Condvar)>;
+
 /// A progress indicator; [`Progress::finish`] (or dropping it) clears it.
 pub struct Progress {
     bar: Option<indicatif::ProgressBar>,
-    plain: Option<(Arc<(Mutex<State>, Condvar)>, std::thread::JoinHandle<()>)>,
+    plain: Option<(Shared, std::thread::JoinHandle<()>)>,
 }
 
 impl Progress {

@@ -368,3 +368,31 @@ fn the_runs_check_names_the_radial_error() {
     );
     assert!(!err.contains("column 'y_err_m'"), "{err}");
 }
+
+/// The board going away under a command said "serial I/O error: Broken pipe" without
+/// naming the port.
+#[test]
+fn a_port_that_breaks_is_named() {
+    let dir = scratch("broken-port");
+    let mut board = Board::start_at("mobolab", &dir, "1");
+    let mut child = wheelcal()
+        .arg("--port")
+        .arg(&board.link)
+        .args(["status", "--follow"])
+        .stdin(Stdio::null())
+        .stdout(Stdio::null())
+        .stderr(Stdio::piped())
+        .spawn()
+        .unwrap();
+    std::thread::sleep(Duration::from_millis(1500));
+    let _ = board.child.kill();
+    let _ = board.child.wait();
+    let Some(status) = wait(&mut child, Duration::from_secs(10)) else {
+        let _ = child.kill();
+        panic!("status --follow still running 10 s after its board went");
+    };
+    let out = child.wait_with_output().unwrap();
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert_eq!(status.code(), Some(1), "{err}");
+    assert!(err.contains(&board.link.display().to_string()), "{err}");
+}

@@ -71,12 +71,12 @@ pub fn check_runs(runs: &RunsFile, max_length_m: f64) -> Result<(), RunsError> {
                 r,
                 "",
                 format!(
-                    "radial end error sqrt(x_err_m^2 + y_err_m^2) = {} m (x_err_m {}, y_err_m {}) is larger than the {} m {}{hint}",
+                    "radial end error {} m is larger than the {} m {} (sqrt(x_err_m^2 + y_err_m^2) of x_err_m {}, y_err_m {}){hint}",
                     sane(err),
-                    sane(r.x_err_m),
-                    sane(r.y_err_m),
                     sane(path),
-                    path_word(r)
+                    path_word(r),
+                    sane(r.x_err_m),
+                    sane(r.y_err_m)
                 ),
             );
             e.column = None;
@@ -159,7 +159,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            s.starts_with("r.csv:2: radial end error") && !s.contains("column"),
+            s.starts_with("r.csv:2: radial end error") && !s.contains("column '"),
             "{s}"
         );
         assert!(
