@@ -411,7 +411,19 @@ pub fn eviction_forecast(
         },
     };
     let records = (prog.duration(limits) * 1.1 * f64::from(rate_hz)).ceil();
-    let needed = (records * f64::from(record_size)).min(f64::from(capacity));
+    // The log stores records compressed (about 4.3 bytes for a 32-byte two-wheel record):
+    // the size that counts is the one the board's own trials show, the largest of them
+    // (issue 23 §5: 32 bytes a record named trials that were never evicted). Without a
+    // trial to learn from, the uncompressed size bounds it.
+    let per_record = trials
+        .trials
+        .iter()
+        .filter(|t| t.records > 0)
+        .map(|t| f64::from(t.bytes) / f64::from(t.records))
+        .fold(None, |m: Option<f64>, v| Some(m.map_or(v, |m| m.max(v))))
+        .unwrap_or(f64::from(record_size))
+        .min(f64::from(record_size));
+    let needed = (records * per_record).min(f64::from(capacity));
     let mut used: f64 = trials.trials.iter().map(|t| f64::from(t.bytes)).sum();
     let mut gone = Vec::new();
     for t in &trials.trials {
@@ -629,6 +641,31 @@ pub fn pull_trial<L: Read + Write>(
     out: &Path,
     progress: impl FnMut(u64, u64),
 ) -> Result<PulledTrial> {
+    // The format follows the name: refuse a name that says another one (`x.json` got a
+    // CSV) before anything is transferred, and an existing file of another kind.
+    let ext = out
+        .extension()
+        .and_then(|e| e.to_str())
+        .map(str::to_ascii_lowercase);
+    let mcap = match ext.as_deref() {
+        Some("mcap") => true,
+        Some("csv") => false,
+        _ => bail!(
+            "--out {}: a trial is written as CSV (a name ending in .csv) or MCAP (.mcap)",
+            out.display()
+        ),
+    };
+    formats::safe_write::check_target(
+        out,
+        if mcap { "MCAP file" } else { "recording CSV" },
+        |head| {
+            if mcap {
+                head.starts_with(b"\x89MCAP")
+            } else {
+                head.starts_with(b"t,")
+            }
+        },
+    )?;
     let trials = c.trials()?;
     let info = trials
         .trials
@@ -643,17 +680,13 @@ pub fn pull_trial<L: Read + Write>(
         .with_context(|| format!("log transfer of trial {trial} failed"))?;
     let secs = t0.elapsed().as_secs_f64();
     let recs = decode_records(&info, &data).map_err(|e| anyhow::anyhow!(e))?;
-    if out
-        .extension()
-        .is_some_and(|e| e.eq_ignore_ascii_case("mcap"))
-    {
-        crate::mcap_out::write_trial(&info, &recs, out)?;
+    if mcap {
+        crate::mcap_out::write_trial(&info, &recs, out)
+            .with_context(|| format!("cannot write {}", out.display()))?;
     } else {
-        let file = std::fs::File::create(out)
-            .with_context(|| format!("cannot create {}", out.display()))?;
-        let mut w = std::io::BufWriter::new(file);
+        let mut w = Vec::new();
         records_to_csv(&robot, &info, &recs, &mut w)?;
-        w.flush()?;
+        formats::safe_write::replace_file(out, &w)?;
     }
     Ok(PulledTrial {
         trial,
@@ -758,6 +791,22 @@ mod boot_words {
         assert_eq!(f(&list(&many)), vec![1]);
         // No logging, no eviction.
         assert!(eviction_forecast(&list(&[cap]), cap, 32, &square, &limits, 0).is_empty());
+        // Compressed trials (43 bytes per 10 records): the run needs 4.3 / 32 of `need`,
+        // so a log with that much free keeps every trial.
+        let packed = |sizes: &[u32]| Trials {
+            trials: sizes
+                .iter()
+                .enumerate()
+                .map(|(i, &b)| TrialInfo {
+                    records: b * 10 / 43,
+                    ..trial(i as u16 + 1, b)
+                })
+                .collect(),
+            evicted: 0,
+        };
+        let small = need * 43 / 320 + need / 100;
+        assert!(f(&packed(&[cap - small])).is_empty());
+        assert_eq!(f(&packed(&[cap - small / 2])), vec![1]);
     }
 
     #[test]

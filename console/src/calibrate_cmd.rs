@@ -112,8 +112,13 @@ pub fn diagnose_many(a: &crate::cli::DiagnoseArgs, files: &[PathBuf], out: Outpu
         );
     }
     if let Some(p) = &a.write_robot {
-        std::fs::write(p, rep.geometry.robot_toml())
-            .with_context(|| format!("cannot write {}", p.display()))?;
+        formats::safe_write::write_file(
+            p,
+            rep.geometry.robot_toml().as_bytes(),
+            "robot description",
+            formats::safe_write::is_robot_file,
+        )
+        .with_context(|| format!("cannot write {}", p.display()))?;
         out.note(&format!("fitted robot: {}", p.display()));
     }
     out.emit(&rep, || rep.to_string())
@@ -206,8 +211,13 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         }
     })?;
     if let Some(p) = &a.write_robot {
-        std::fs::write(p, cal.robot_toml())
-            .with_context(|| format!("cannot write {}", p.display()))?;
+        formats::safe_write::write_file(
+            p,
+            cal.robot_toml().as_bytes(),
+            "robot description",
+            formats::safe_write::is_robot_file,
+        )
+        .with_context(|| format!("cannot write {}", p.display()))?;
         out.note(&format!("fitted robot: {}", p.display()));
     }
     if let Some(dir) = &a.report {
@@ -225,6 +235,7 @@ fn ros2_yaml(cal: &Calibration) -> Option<String> {
             ros2::diff_drive_yaml(
                 &ros2::DiffFactors { c_l, c_r, e_b },
                 "diff_drive_controller",
+                "a geometry fit by wheelcal calibrate",
             )
             .unwrap_or_else(|e| format!("# {e}\n")),
         ),
@@ -261,7 +272,7 @@ fn write_report(
     held: Option<&(String, Recording)>,
     dir: &Path,
 ) -> Result<()> {
-    std::fs::create_dir_all(dir)?;
+    formats::safe_write::claim_dir(dir)?;
     std::fs::write(
         dir.join("calibration.json"),
         serde_json::to_string_pretty(cal)?,

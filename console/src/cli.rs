@@ -25,6 +25,10 @@ pub struct Cli {
     /// One JSON object per result on stdout (human text otherwise).
     #[arg(long, global = true)]
     pub json: bool,
+    /// Write into folders wheelcal did not make and replace files of another kind (never
+    /// the command's own inputs).
+    #[arg(long, global = true)]
+    pub force: bool,
     /// What to do.
     #[command(subcommand)]
     pub command: Command,
@@ -614,9 +618,28 @@ pub fn main() -> ExitCode {
             ExitCode::from(130)
         }
         Err(e) => {
+            let e = name_the_port(e, &ctx);
             eprintln!("error: {e:#}");
             ExitCode::FAILURE
         }
+    }
+}
+
+/// An I/O failure on the open port (a broken pipe: the board or its cable went away)
+/// names the port, so a person with several boards knows which one.
+fn name_the_port(e: anyhow::Error, ctx: &Ctx) -> anyhow::Error {
+    let (Some(_), Some(port)) = (&ctx.client, &ctx.port) else {
+        return e;
+    };
+    let io = e.chain().any(|c| {
+        c.downcast_ref::<std::io::Error>().is_some()
+            || c.downcast_ref::<crate::client::ClientError>()
+                .is_some_and(|ce| matches!(ce, crate::client::ClientError::Io(_)))
+    });
+    if io && !format!("{e:#}").contains(port.as_str()) {
+        e.context(format!("port {port}"))
+    } else {
+        e
     }
 }
 
@@ -657,6 +680,7 @@ impl Ctx {
 pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
     use crate::commands::{board, diagnose, factors, log, omni, program, sim, umbmark};
     let out = Output::from_flag(cli.json);
+    formats::safe_write::set_force(cli.force);
     match cli.command {
         Command::Info => board::info(ctx, out),
         Command::Factors(cmd) => factors::run(cmd, ctx, out),

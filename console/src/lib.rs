@@ -13,6 +13,7 @@ pub mod flash;
 pub mod link;
 pub mod mcap_out;
 pub mod output;
+pub mod progress;
 pub mod repl;
 pub mod report;
 pub mod ros2;

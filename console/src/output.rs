@@ -28,6 +28,18 @@ impl Output {
         value: &T,
         human: impl FnOnce() -> String,
     ) -> anyhow::Result<()> {
+        // A reader that went away (`| head`) is not an error of ours.
+        self.emit_more(value, human).map(|_| ())
+    }
+
+    /// [`Output::emit`] for one result of a stream: `false` when the reader has gone
+    /// (a broken pipe, `| head -1`), so the stream ends and releases what it holds (the
+    /// port) instead of writing into nothing forever.
+    pub fn emit_more<T: Serialize>(
+        self,
+        value: &T,
+        human: impl FnOnce() -> String,
+    ) -> anyhow::Result<bool> {
         let text = match self {
             Output::Json => format!("{}\n", serde_json::to_string(value)?),
             Output::Human => human(),
@@ -35,9 +47,10 @@ impl Output {
         use std::io::Write;
         let mut out = std::io::stdout().lock();
         match out.write_all(text.as_bytes()).and_then(|_| out.flush()) {
-            // A reader that went away (`| head`) is not an error of ours.
-            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(()),
-            r => r.map_err(Into::into),
+            Ok(()) => Ok(true),
+            Err(e) if e.kind() == std::io::ErrorKind::BrokenPipe => Ok(false),
+            // Standard output is a file or device that failed (`> /dev/full`): say so.
+            Err(e) => Err(anyhow::anyhow!("cannot write to standard output: {e}")),
         }
     }
 
@@ -59,5 +72,44 @@ pub struct PointM {
 impl From<(f64, f64)> for PointM {
     fn from(p: (f64, f64)) -> Self {
         PointM { x_m: p.0, y_m: p.1 }
+    }
+}
+
+/// Whether a path where a Unix socket is about to be bound may be removed first: only a
+/// socket (a stale one, left by a process that died) is; a missing path needs nothing;
+/// anything else (a regular file, a folder, a link) is somebody's and is an error naming
+/// it (issue 23 §2: a regular file at the E-stop socket path was deleted). The E-stop relay
+/// calls this before it removes a stale socket.
+pub fn check_stale_socket(path: &std::path::Path) -> anyhow::Result<()> {
+    use std::os::unix::fs::FileTypeExt;
+    match std::fs::symlink_metadata(path) {
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(()),
+        Err(e) => Err(anyhow::anyhow!("cannot use {}: {e}", path.display())),
+        Ok(m) if m.file_type().is_socket() => Ok(()),
+        Ok(_) => Err(anyhow::anyhow!(
+            "{} exists and is not a socket: not removed (the E-stop relay needs that path; move the file away)",
+            path.display()
+        )),
+    }
+}
+
+#[cfg(test)]
+mod socket_tests {
+    #[test]
+    fn only_a_socket_may_be_removed() {
+        let d = std::env::temp_dir().join(format!("wheelcal-sock-{}", std::process::id()));
+        let _ = std::fs::remove_dir_all(&d);
+        std::fs::create_dir_all(&d).unwrap();
+        let p = d.join("x.sock");
+        super::check_stale_socket(&p).unwrap();
+        let l = std::os::unix::net::UnixListener::bind(&p).unwrap();
+        super::check_stale_socket(&p).unwrap();
+        drop(l);
+        std::fs::remove_file(&p).unwrap();
+        std::fs::write(&p, "my notes").unwrap();
+        let e = super::check_stale_socket(&p).unwrap_err().to_string();
+        assert!(e.contains("not a socket") && e.contains("x.sock"), "{e}");
+        assert_eq!(std::fs::read_to_string(&p).unwrap(), "my notes");
+        let _ = std::fs::remove_dir_all(&d);
     }
 }

@@ -53,13 +53,29 @@ pub fn truth_file_for(port: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
+/// Whether an existing file's first bytes are a truth file (empty, or JSON lines of
+/// [`TrialTruth`]): only such a file is emptied at start-up.
+pub fn is_truth_file(head: &[u8]) -> bool {
+    let Ok(text) = std::str::from_utf8(head) else {
+        return false;
+    };
+    let mut lines: Vec<&str> = text.lines().filter(|l| !l.trim().is_empty()).collect();
+    // The first MiB may cut the last line.
+    if head.len() >= 1 << 20 {
+        lines.pop();
+    }
+    lines
+        .iter()
+        .all(|l| serde_json::from_str::<TrialTruth>(l).is_ok())
+}
+
 /// Reads the true end errors recorded by a virtual board, in trial order.
 pub fn read_truths(file: &Path) -> Result<Vec<TrialTruth>> {
-    let text = match std::fs::read_to_string(file) {
-        Ok(t) => t,
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => return Ok(Vec::new()),
-        Err(e) => return Err(e).with_context(|| format!("cannot read {}", file.display())),
-    };
+    if !file.exists() {
+        return Ok(Vec::new());
+    }
+    let text = formats::text_file::read_capped(file, 64 << 20, "virtual board's truth file")
+        .map_err(|e| anyhow::anyhow!("{}: {e}", file.display()))?;
     text.lines()
         .enumerate()
         .filter(|(_, l)| !l.trim().is_empty())
@@ -96,24 +112,35 @@ pub fn run(
     ready: impl FnOnce(&SimBoardReady),
 ) -> Result<()> {
     let (robot, sim) = build_sim(opts)?;
-    let flash =
-        board_flash(opts.flash.clone()).context("cannot open the virtual board's flash file")?;
+    let flash = board_flash(opts.flash.clone()).map_err(|e| anyhow::anyhow!("--flash: {e}"))?;
+    if let Some(why) = flash.damaged() {
+        eprintln!("warning: --flash {why}");
+    }
     let mut board = VirtualBoard::boot(&robot, sim, flash).map_err(|e| anyhow::anyhow!("{e}"))?;
     let (mut master, slave) =
         serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
     use serialport::SerialPort;
     master.set_timeout(std::time::Duration::ZERO)?;
     let pty = slave.name().context("pseudo-terminal without a name")?;
-    if let Some(link) = &opts.link {
-        claim_link(link, Path::new(&pty))?;
-    }
     let truth_file = opts
         .truth
         .clone()
         .unwrap_or_else(|| truth_file_for(opts.link.as_deref().unwrap_or(Path::new(&pty))));
-    // Start each session with an empty truth file: trial numbers restart too.
-    std::fs::write(&truth_file, "")
-        .with_context(|| format!("cannot write {}", truth_file.display()))?;
+    // Start each session with an empty truth file (trial numbers restart too), but never
+    // empty a file that is not one; checked before the link is made, so a refusal
+    // leaves nothing behind.
+    let what = "virtual board's truth file";
+    formats::safe_write::check_target(&truth_file, what, is_truth_file)?;
+    if let Some(link) = &opts.link {
+        claim_link(link, Path::new(&pty))?;
+    }
+    if let Err(e) = formats::safe_write::write_file(&truth_file, b"", what, is_truth_file) {
+        if let Some(link) = &opts.link {
+            release_link(link, Path::new(&pty));
+        }
+        return Err(e)
+            .with_context(|| format!("cannot write the truth file {}", truth_file.display()));
+    }
     ready(&SimBoardReady {
         pty: pty.clone(),
         link: opts.link.as_ref().map(|l| l.display().to_string()),
@@ -150,10 +177,17 @@ pub fn claim_link(link: &Path, pty: &Path) -> Result<()> {
         Err(e) => return Err(e).with_context(|| format!("cannot use --link {}", link.display())),
         Ok(m) if m.file_type().is_symlink() => {
             let target = std::fs::read_link(link).unwrap_or_default();
-            let ours = target.starts_with("/dev/pts") || !target.exists();
-            if !ours {
+            // Only the stale link of a board that has gone: into /dev/pts, and the
+            // pseudo-terminal gone with it. A live one may be another board's.
+            let stale = target.starts_with("/dev/pts") && !target.exists();
+            if !stale && !formats::safe_write::force() {
+                let why = if target.starts_with("/dev/pts") {
+                    "a pseudo-terminal that exists (another virtual board may be using it)"
+                } else {
+                    "not a virtual board's pseudo-terminal"
+                };
                 bail!(
-                    "--link {} is a link to {}, not to a pseudo-terminal: not replaced (remove it or choose another path)",
+                    "--link {} is a link to {}, {why}: not replaced (remove it, choose another path, or --force)",
                     link.display(),
                     target.display()
                 );

@@ -367,7 +367,7 @@ pub fn board_params(robot: &Robot) -> Params {
 }
 
 /// A RAM flash for a board (or mirrored to `file`).
-pub fn board_flash(file: Option<std::path::PathBuf>) -> std::io::Result<RamFlash> {
+pub fn board_flash(file: Option<std::path::PathBuf>) -> Result<RamFlash, String> {
     match file {
         Some(f) => RamFlash::with_file(FLASH_PAGES, f),
         None => Ok(RamFlash::new(FLASH_PAGES)),

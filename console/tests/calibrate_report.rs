@@ -245,6 +245,9 @@ fn report_has_plots_index_and_mcap() {
         .collect();
     files.sort();
     let mut want = vec![
+        // The marker that the folder is wheelcal's (issue 23 §2: only such a folder is
+        // written into again).
+        formats::safe_write::MARKER,
         "calibration.json",
         "correlations.svg",
         "error_ccw.svg",

@@ -516,8 +516,8 @@ pub fn write_report_dir(r: &Report, dir: &Path) -> std::io::Result<()> {
         html.push_str(&format!("<h3>Actuator stage</h3><img src=\"{f}\">"));
     }
     html.push_str("</body></html>\n");
-    std::fs::write(dir.join("index.html"), html)?;
-    std::fs::write(dir.join("report.json"), r.to_json())?;
+    formats::safe_write::replace_file(&dir.join("index.html"), html.as_bytes())?;
+    formats::safe_write::replace_file(&dir.join("report.json"), r.to_json().as_bytes())?;
     Ok(())
 }
 

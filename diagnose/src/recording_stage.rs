@@ -4,7 +4,8 @@
 //!
 //! - `sample_glitch`: missing samples (a gap of whole row intervals in `t`) and duplicated
 //!   samples (a row repeating the previous one's encoders and pose while the robot moves
-//!   on both sides), with their times. Duplicated rows are dropped; gaps only reported
+//!   on both sides): gaps as intervals with their count, duplicates with their times.
+//!   Duplicated rows are dropped; gaps only reported
 //!   (encoders are cumulative, so a gap loses no travel).
 //! - `counts_per_rev_error` (`counts_ratio_<wheel>`: true over configured counts per
 //!   wheel revolution, snapped to p/q; `counts_ratio_raw_<wheel>` the raw estimate with
@@ -51,8 +52,9 @@ pub struct Artefact {
     /// ratio (`counts_ratio_raw_<wheel>`, from the scatter of its segments); the snapped
     /// fraction `counts_ratio_<wheel>` has none.
     pub uncertainties: BTreeMap<String, f64>,
-    /// Times of the missing samples (s).
-    pub missing_at_s: Vec<f64>,
+    /// The gaps in `t`, one interval each with its count of missing samples (a list of
+    /// every missing sample grew without bound on a jump in `t`).
+    pub gaps: Vec<Gap>,
     /// Times of the duplicated rows (s).
     pub duplicated_at_s: Vec<f64>,
     /// Whether the physics stages saw the recording with this artefact removed.
@@ -68,7 +70,7 @@ impl Artefact {
             id,
             parameters: BTreeMap::new(),
             uncertainties: BTreeMap::new(),
-            missing_at_s: vec![],
+            gaps: vec![],
             duplicated_at_s: vec![],
             removed: false,
             notes: vec![],
@@ -92,8 +94,17 @@ impl fmt::Display for Artefact {
             }
             s.join(", ")
         };
-        if !self.missing_at_s.is_empty() {
-            write!(f, " missing samples at {} s", times(&self.missing_at_s))?;
+        if !self.gaps.is_empty() {
+            let mut s: Vec<String> = self
+                .gaps
+                .iter()
+                .take(8)
+                .map(|g| format!("{:.3}-{:.3} s ({})", g.after_s, g.before_s, g.missing))
+                .collect();
+            if self.gaps.len() > 8 {
+                s.push(format!("... ({} gaps in all)", self.gaps.len()));
+            }
+            write!(f, " missing samples in {}", s.join(", "))?;
         }
         if !self.duplicated_at_s.is_empty() {
             write!(
@@ -142,6 +153,52 @@ pub fn analyse(robot: &Robot, rec: &Recording) -> RecordingStage {
     }
 }
 
+/// One gap in `t`: rows missing between two consecutive rows.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Gap {
+    /// Time of the last row before the gap (s).
+    pub after_s: f64,
+    /// Time of the first row after the gap (s).
+    pub before_s: f64,
+    /// Samples missing at the median row interval (a float: a jump in `t` of 1e300 s
+    /// misses more samples than any integer counts).
+    pub missing: f64,
+}
+
+/// The gaps in `t` (a step of at least 1.5 median row intervals) and the samples missing
+/// in all, in memory proportional to the number of rows whatever the steps' size.
+pub fn gaps(t: &[f64]) -> (Vec<Gap>, f64) {
+    if t.len() < 2 {
+        return (vec![], 0.0);
+    }
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    d.sort_by(|a, b| a.total_cmp(b));
+    let dt = d[d.len() / 2];
+    if !(dt > 0.0 && dt.is_finite()) {
+        return (vec![], 0.0);
+    }
+    gaps_at(t, dt)
+}
+
+fn gaps_at(t: &[f64], dt: f64) -> (Vec<Gap>, f64) {
+    let mut out = Vec::new();
+    let mut total = 0.0;
+    for w in t.windows(2) {
+        let steps = (w[1] - w[0]) / dt;
+        if steps >= 1.5 {
+            // A step beyond f64 (1e308 s over a millisecond) counts as the largest.
+            let missing = (steps.round() - 1.0).min(f64::MAX);
+            total += missing;
+            out.push(Gap {
+                after_s: w[0],
+                before_s: w[1],
+                missing,
+            });
+        }
+    }
+    (out, total)
+}
+
 /// Missing rows (gaps of >= 1.5 median intervals) and duplicated rows (dropped).
 fn sample_glitches(rec: &mut Recording) -> Option<Artefact> {
     let n = rec.len();
@@ -155,15 +212,8 @@ fn sample_glitches(rec: &mut Recording) -> Option<Artefact> {
         return None;
     }
     let mut a = Artefact::new("sample_glitch");
-    for k in 1..n {
-        let gap = (rec.t[k] - rec.t[k - 1]) / dt;
-        if gap >= 1.5 {
-            // One time per missing row.
-            for j in 1..gap.round() as usize {
-                a.missing_at_s.push(rec.t[k - 1] + j as f64 * dt);
-            }
-        }
-    }
+    let (gaps, missing) = gaps_at(&rec.t, dt);
+    a.gaps = gaps;
     let enc = |k: usize| -> Vec<Option<i64>> {
         rec.wheels
             .iter()
@@ -211,11 +261,10 @@ fn sample_glitches(rec: &mut Recording) -> Option<Artefact> {
             }
         }
     }
-    if a.missing_at_s.is_empty() && a.duplicated_at_s.is_empty() {
+    if a.gaps.is_empty() && a.duplicated_at_s.is_empty() {
         return None;
     }
-    a.parameters
-        .insert("missing_samples".into(), a.missing_at_s.len() as f64);
+    a.parameters.insert("missing_samples".into(), missing);
     a.parameters
         .insert("duplicated_samples".into(), a.duplicated_at_s.len() as f64);
     if dup.iter().any(|&x| x) {

@@ -183,7 +183,12 @@ pub fn write_robot(robot: &Robot, report: &Report, out: &Path) -> std::io::Resul
         robot.name, report.verdict
     );
     text.push_str(&formats::robot_file::to_toml(&fitted));
-    std::fs::write(out, text)
+    formats::safe_write::write_file(
+        out,
+        text.as_bytes(),
+        "robot description",
+        formats::safe_write::is_robot_file,
+    )
 }
 
 fn fmt_param(v: f64, s: Option<f64>) -> String {

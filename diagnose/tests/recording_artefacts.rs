@@ -131,8 +131,8 @@ fn duplicated_and_missing_samples_are_timed() {
         rec.theta[k] = rec.theta[k - 1];
     }
     let dup_t: Vec<f64> = stale.iter().map(|&k| rec.t[k]).collect();
-    // Rows 1000..1003 lost (3 samples).
-    let lost_t: Vec<f64> = (1000..1003).map(|k| rec.t[k]).collect();
+    // Rows 1000..1003 lost (3 samples): one gap from row 999's time to row 1003's.
+    let (gap_after, gap_before) = (rec.t[999], rec.t[1003]);
     let keep: Vec<bool> = (0..rec.len()).map(|k| !(1000..1003).contains(&k)).collect();
     let pick = |v: &mut Vec<Option<f64>>| {
         *v = v
@@ -173,11 +173,48 @@ fn duplicated_and_missing_samples_are_timed() {
     let rep = run(&r, &rec);
     let a = artefact(&rep, "sample_glitch");
     assert_eq!(a.duplicated_at_s, dup_t);
-    assert_eq!(a.missing_at_s.len(), 3);
-    for (m, l) in a.missing_at_s.iter().zip(&lost_t) {
-        assert!((m - l).abs() < 1e-6, "{m} vs {l}");
-    }
+    assert_eq!(a.gaps.len(), 1, "{a}");
+    assert_eq!(a.gaps[0].missing, 3.0, "{a}");
+    assert_eq!(
+        (a.gaps[0].after_s, a.gaps[0].before_s),
+        (gap_after, gap_before)
+    );
+    assert_eq!(a.parameters["missing_samples"], 3.0);
     assert_no_physics(&rep);
+}
+
+/// Issue 23 §3: a gap was listed one time per missing sample, so a jump in `t` to 1e6 s
+/// (2e8 samples at 200 rows/s) or 1e300 s grew without bound. Gaps are intervals with
+/// their count: each of these takes one entry whatever its length.
+#[test]
+fn gaps_of_any_length_are_one_interval_each() {
+    let r = robot();
+    for jump in [1e6, 1.7e9, 1e300] {
+        let mut rec = clean(&r).recording;
+        let dt = rec.t[1] - rec.t[0];
+        let n = rec.len();
+        if jump < 1e100 {
+            for t in rec.t.iter_mut().skip(n / 2) {
+                *t += jump;
+            }
+        } else {
+            // Only the last row: every later time would round to the same 1e300.
+            rec.t[n - 1] = jump;
+        }
+        let (gaps, missing) = diagnose::recording_stage::gaps(&rec.t);
+        assert_eq!(gaps.len(), 1, "{gaps:?}");
+        let expected = if jump < 1e100 {
+            // The step is dt + jump: jump / dt samples fit in it.
+            (jump / dt).round()
+        } else {
+            ((jump - rec.t[n - 2]) / dt).round() - 1.0
+        };
+        let got = missing;
+        assert!(
+            (got - expected).abs() <= 1e-9 * expected,
+            "{jump}: {got} vs {expected}"
+        );
+    }
 }
 
 #[test]

@@ -210,12 +210,16 @@ impl<'a> TrialLog<'a> {
         }
     }
 
-    /// Forgets every trial (not while one is recording: the caller checks).
+    /// Forgets every trial (not while one is recording: the caller checks). The eviction
+    /// count restarts too: it tells the host that older trials are missing from the list,
+    /// and after a clear none is (issue 23 §5: `log list` said the cleared trials "were
+    /// evicted").
     pub fn clear(&mut self) {
         self.block.take();
         self.trials.clear();
         self.head = self.tail;
         self.recording = false;
+        self.evicted_total = 0;
     }
 
     /// The stored trials' headers, oldest first, and the eviction count.
@@ -296,6 +300,22 @@ mod tests {
         }
         assert!(log.info(a).is_none());
         assert_eq!(log.evicted_total(), 1);
+        // A clear forgets the evictions with the trials: nothing older is missing.
+        let mut buf2 = [0u8; 100];
+        let mut other = TrialLog::new(&mut buf2);
+        start(&mut other);
+        for i in 0..16u8 {
+            other.append(&[i; 10]);
+        }
+        other.finish(TrialEnd::Completed);
+        start(&mut other);
+        for i in 0..6u8 {
+            other.append(&[i; 10]);
+        }
+        other.finish(TrialEnd::Completed);
+        assert_eq!(other.evicted_total(), 1);
+        other.clear();
+        assert_eq!((other.list().trials.len(), other.list().evicted), (0, 0));
         // b now fills the ring alone: further records are dropped, counted, never silent.
         assert!(!log.append(&[0xEE; 10]));
         assert!(!log.append(&[0xEE; 10]));

@@ -60,30 +60,68 @@ type Map<F> = MapStorage<u8, F, Cache<Uncached, Uncached, Uncached, u8>>;
 
 /// The persisted settings of one board.
 pub struct Store<F: NorFlash> {
-    map: Map<F>,
+    /// `None` only while [`Store::load`] reads the raw flash under it.
+    map: Option<Map<F>>,
+    range: Range<u32>,
     buf: [u8; BUF],
 }
 
 impl<F: NorFlash> Store<F> {
     /// A store on `range` (byte offsets within `flash`, whole erase pages, at least two).
     pub fn new(flash: F, range: Range<u32>) -> Result<Self, StoreError> {
-        let config = MapConfig::try_new(range).map_err(|_| StoreError::Config)?;
+        let config = MapConfig::try_new(range.clone()).map_err(|_| StoreError::Config)?;
         Ok(Store {
-            map: MapStorage::new(flash, config, Cache::new_uncached()),
+            map: Some(MapStorage::new(flash, config, Cache::new_uncached())),
+            range,
             buf: [0; BUF],
         })
     }
 
     /// Gives the flash back (tests reboot a board on the same flash).
     pub fn into_flash(self) -> F {
-        self.map.destroy().0
+        match self.map {
+            Some(m) => m.destroy().0,
+            None => unreachable!("the map is only taken inside load"),
+        }
     }
 
-    async fn fetch(&mut self, key: u8) -> Result<Option<&[u8]>, StoreError> {
-        match self.map.fetch_item::<&[u8]>(&mut self.buf, &key).await {
+    /// One item's bytes; on failure, what boot reports for it: data sequential-storage
+    /// finds corrupted is a lost value (`Invalid`), anything else a flash fault.
+    async fn fetch(&mut self, key: u8) -> Result<Option<&[u8]>, Stored> {
+        let Some(map) = self.map.as_mut() else {
+            return Err(Stored::StorageError);
+        };
+        match map.fetch_item::<&[u8]>(&mut self.buf, &key).await {
             Ok(v) => Ok(v),
-            Err(_) => Err(StoreError::Flash),
+            Err(sequential_storage::Error::Corrupted { .. }) => Err(Stored::Invalid),
+            Err(_) => Err(Stored::StorageError),
         }
+    }
+
+    /// Whether any byte of the store's range differs from the erased state (0xFF): a
+    /// flash that was never written is "none saved"; one with data but no readable
+    /// record of what was saved lost it (flipped bits, a damaged image).
+    async fn holds_data(&mut self) -> bool {
+        let Some(map) = self.map.take() else {
+            return false;
+        };
+        let (mut flash, cache) = map.destroy();
+        let mut chunk = [0u8; 64];
+        let mut written = false;
+        let mut at = self.range.start;
+        while at < self.range.end && !written {
+            let n = (chunk.len() as u32).min(self.range.end - at) as usize;
+            match flash.read(at, &mut chunk[..n]).await {
+                Ok(()) => written = chunk[..n].iter().any(|&b| b != 0xFF),
+                // An unreadable flash holds something we cannot use.
+                Err(_) => written = true,
+            }
+            at += n as u32;
+        }
+        if let Ok(config) = MapConfig::try_new(self.range.clone()) {
+            self.map = Some(MapStorage::new(flash, config, cache));
+        }
+        written
     }
 
     /// The keys ever saved (bit `1 << key`); 0 when the record is absent or unreadable.
@@ -99,8 +137,11 @@ impl<F: NorFlash> Store<F> {
     /// (corrupted), not `Missing`.
     pub async fn load(&mut self) -> Loaded {
         let saved = self.saved_mask().await;
+        // No readable record of saves on a flash that holds data: whatever was saved is
+        // lost, not absent (issue 23 §5: flipped bits and random bytes read "none saved").
+        let lost = saved == 0 && self.holds_data().await;
         let absent = |key: u8| {
-            if saved & (1 << key) != 0 {
+            if saved & (1 << key) != 0 || lost {
                 Stored::Invalid
             } else {
                 Stored::Missing
@@ -108,7 +149,7 @@ impl<F: NorFlash> Store<F> {
         };
         let (params, params_state) = match self.fetch(KEY_PARAMS).await {
             Ok(None) => (defaults::params(), absent(KEY_PARAMS)),
-            Err(_) => (defaults::params(), Stored::StorageError),
+            Err(state) => (defaults::params(), state),
             Ok(Some(b)) => {
                 match unpack::<Params>(b, FORMAT_PARAMS).filter(|p| p.validate().is_ok()) {
                     Some(p) => (p, Stored::Loaded),
@@ -118,7 +159,7 @@ impl<F: NorFlash> Store<F> {
         };
         let (corrections, corr_state) = match self.fetch(KEY_CORRECTIONS).await {
             Ok(None) => (Corrections::None, absent(KEY_CORRECTIONS)),
-            Err(_) => (Corrections::None, Stored::StorageError),
+            Err(state) => (Corrections::None, state),
             Ok(Some(b)) => {
                 match unpack::<Corrections>(b, FORMAT_CORRECTIONS)
                     .filter(|c| c.validate(&params.robot).is_ok())
@@ -150,14 +191,14 @@ impl<F: NorFlash> Store<F> {
         // The "ever saved" bit goes first: a save cut short after it reads as corrupted
         // (the save was lost), never as "nothing saved".
         let saved = self.saved_mask().await;
+        let Store { map, buf, .. } = self;
+        let map = map.as_mut().ok_or(StoreError::Flash)?;
         if saved & (1 << key) == 0 {
-            self.map
-                .store_item(&mut self.buf, &KEY_SAVED, &&[saved | (1 << key)][..])
+            map.store_item(buf, &KEY_SAVED, &&[saved | (1 << key)][..])
                 .await
                 .map_err(|_| StoreError::Flash)?;
         }
-        self.map
-            .store_item(&mut self.buf, &key, &&value[..len])
+        map.store_item(buf, &key, &&value[..len])
             .await
             .map_err(|_| StoreError::Flash)
     }

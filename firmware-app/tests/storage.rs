@@ -258,3 +258,49 @@ fn save_through_the_server_survives_a_reboot() {
         }
     );
 }
+
+/// Issue 23 §5: random bytes over a flash (a damaged image, a wrong file), or every
+/// written byte inverted at once, read "none saved": the saves' record was unreadable and
+/// the store took an unreadable record for no saves. A flash that holds data but no
+/// readable record is now corrupted (or a storage error), never "none saved"; a flash
+/// never written stays "none saved".
+#[test]
+fn damaged_flash_is_never_none_saved() {
+    let mut seed = 0x2545_f491_4f6c_dd1du64;
+    let mut next = move || {
+        seed ^= seed << 13;
+        seed ^= seed >> 7;
+        seed ^= seed << 17;
+        seed
+    };
+    let check = |f: Flash, what: &str| {
+        let l = block_on(store(f).load());
+        assert_eq!(l.corrections, Corrections::None, "{what}");
+        for state in [l.boot.corrections, l.boot.params] {
+            assert!(
+                matches!(state, Stored::Invalid | Stored::StorageError),
+                "{what}: {state:?}"
+            );
+        }
+    };
+    for trial in 0..50 {
+        let mut f = fresh();
+        for b in f.as_bytes_mut().iter_mut() {
+            *b = next() as u8;
+        }
+        check(f, &format!("random bytes #{trial}"));
+    }
+    // A saved calibration with every written byte inverted.
+    let mut s = store(fresh());
+    block_on(s.save(&PersistItem::Corrections(diff(1.01)))).unwrap();
+    let mut f = s.into_flash();
+    for b in f.as_bytes_mut().iter_mut().filter(|b| **b != 0xFF) {
+        *b = !*b;
+    }
+    let l = block_on(store(f).load());
+    assert_ne!(l.boot.corrections, Stored::Missing);
+    assert_ne!(l.boot.corrections, Stored::Loaded);
+    // Never written: none saved.
+    let l = block_on(store(fresh()).load());
+    assert_eq!(l.boot.corrections, Stored::Missing);
+}

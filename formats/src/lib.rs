@@ -7,3 +7,5 @@
 pub mod recording;
 pub mod robot_file;
 pub mod runs_file;
+pub mod safe_write;
+pub mod text_file;

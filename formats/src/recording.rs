@@ -75,6 +75,29 @@ impl fmt::Display for RecordingError {
 
 impl std::error::Error for RecordingError {}
 
+/// A recording larger than this is refused before it is parsed (the read is capped by the
+/// bytes actually read, so a device that never ends fails at once).
+pub const MAX_RECORDING_BYTES: u64 = 2 << 30;
+/// The pose columns' bound (m): a calibration run stays within a few hundred metres of
+/// its origin. A larger value is a unit mistake (millimetres) or a broken cell.
+pub const MAX_POSE_M: f64 = 500.0;
+/// Fastest body or wheel-rim speed (m/s) a recording may show: 108 km/h, beyond any robot
+/// these tools calibrate (the fastest in the papers drive below 2 m/s). Checked on the
+/// commanded wheel rates, on the encoders between samples, and on the pose between
+/// measurements.
+pub const MAX_SPEED_M_S: f64 = 30.0;
+/// Largest heading (rad): 1600 turns unwrapped.
+pub const MAX_HEADING_RAD: f64 = 1e4;
+/// Largest leg angle (rad): one turn either way. A vertical leg is pi/2; 90 is degrees.
+pub const MAX_LEG_RAD: f64 = std::f64::consts::TAU;
+/// Longest step in `t` between consecutive rows (s). No calibration run pauses for an
+/// hour; a longer step is a logger that changed clocks (t = 0, then Unix time) or a typo,
+/// and would make any gap analysis meaningless.
+pub const MAX_GAP_S: f64 = 3600.0;
+/// Pose travel (m) above which encoders that never change are an error, not a robot
+/// standing still.
+pub const STILL_ENCODER_TRAVEL_M: f64 = 0.1;
+
 #[derive(Clone, Copy, PartialEq)]
 enum Col {
     T,
@@ -154,12 +177,15 @@ impl Recording {
 
     /// Reads and checks a recording against the robot it was made with.
     pub fn load(path: &Path, robot: &Robot) -> Result<Self, RecordingError> {
-        let text = std::fs::read_to_string(path).map_err(|e| RecordingError {
-            path: path.to_path_buf(),
-            line: None,
-            column: None,
-            message: format!("cannot read recording: {e}"),
-        })?;
+        let text =
+            crate::text_file::read_capped(path, MAX_RECORDING_BYTES, "recording").map_err(|e| {
+                RecordingError {
+                    path: path.to_path_buf(),
+                    line: None,
+                    column: None,
+                    message: e.0,
+                }
+            })?;
         Self::parse(&text, path, robot)
     }
 
@@ -283,14 +309,25 @@ impl Recording {
 
         let mut record = csv::StringRecord::new();
         let mut last_t = f64::NEG_INFINITY;
+        let rim = |i: usize| robot.wheels[i].radius_m.abs();
+        let rad_per_count = robot.drive.rad_per_count();
+        // Per wheel, the last encoder sample (t, count); the last measured pose (t, x, y).
+        let mut last_enc: Vec<Option<(f64, i64)>> = vec![None; robot.wheels.len()];
+        let mut last_pose: Option<(f64, f64, f64)> = None;
+        let mut first_pose: Option<(f64, f64, f64)> = None;
+        let mut pose_travel = 0.0f64;
+        let mut enc_cells: Vec<(usize, usize, i64)> = Vec::new();
+        let t_col = cols.iter().position(|c| *c == Col::T).unwrap_or(0);
+        let mut lines = crate::text_file::LineCounter::new(text);
+        let x_col = cols.iter().position(|c| *c == Col::X).unwrap_or(0);
         loop {
-            let line = reader.position().line() as usize;
+            let line = lines.line_at(reader.position().byte());
             match reader.read_record(&mut record) {
                 Ok(false) => break,
                 Ok(true) => {}
                 Err(e) => return Err(err(Some(line), None, format!("malformed CSV row: {e}"))),
             }
-            let line = record.position().map_or(line, |p| p.line() as usize);
+            let line = record.position().map_or(line, |p| lines.line_at(p.byte()));
             if record.len() != headers.len() {
                 return Err(err(
                     Some(line),
@@ -305,6 +342,7 @@ impl Recording {
             let mut t = None;
             let mut pose = [None; 3];
             let mut legs = [None; 2];
+            enc_cells.clear();
             let row_index = rec.t.len();
             for (ci, (cell, col)) in record.iter().zip(&cols).enumerate() {
                 if *col == Col::Ignored {
@@ -328,6 +366,7 @@ impl Recording {
                     let series = rec.wheels[*i].enc.as_mut().expect("declared in the header");
                     series.resize(row_index, None);
                     series.push(Some(v));
+                    enc_cells.push((ci, *i, v));
                     continue;
                 }
                 let v: f64 = cell
@@ -339,6 +378,9 @@ impl Recording {
                         at(),
                         format!("must be a finite number, got '{cell}'"),
                     ));
+                }
+                if let Some(why) = implausible(*col, v, &rim) {
+                    return Err(err(Some(line), at(), why));
                 }
                 match col {
                     Col::T => t = Some(v),
@@ -357,11 +399,26 @@ impl Recording {
             }
             let t = t.expect("t column exists and is never blank");
             if t <= last_t {
-                let ci = cols.iter().position(|c| *c == Col::T).unwrap_or(0);
                 return Err(err(
                     Some(line),
-                    Some((ci + 1, "t".into())),
-                    format!("time must increase strictly: {t} after {last_t}"),
+                    Some((t_col + 1, "t".into())),
+                    format!(
+                        "time must increase strictly: {} after {}",
+                        short(t),
+                        short(last_t)
+                    ),
+                ));
+            }
+            if last_t.is_finite() && t - last_t > MAX_GAP_S {
+                return Err(err(
+                    Some(line),
+                    Some((t_col + 1, "t".into())),
+                    format!(
+                        "time jumps by {:.6e} s (from {} s on the row before to {} s): no run pauses for over {MAX_GAP_S} s; a logger that changed clocks (Unix time?) or a broken cell",
+                        t - last_t,
+                        short(last_t),
+                        short(t)
+                    ),
                 ));
             }
             if pose.iter().any(Option::is_some) && !pose.iter().all(Option::is_some) {
@@ -370,6 +427,52 @@ impl Recording {
                     None,
                     "x, y and theta must be all given or all blank".into(),
                 ));
+            }
+            // Speeds between samples: an encoder or pose step no robot makes in the time
+            // between two samples is a glitch (a wrapped counter, a swapped marker) or a
+            // unit mistake.
+            if let Some(rpc) = rad_per_count {
+                for &(ci, i, v) in &enc_cells {
+                    if let Some((t0, c0)) = last_enc[i] {
+                        let speed = (v as f64 - c0 as f64).abs() * rpc * rim(i) / (t - t0);
+                        if speed > MAX_SPEED_M_S {
+                            return Err(err(
+                                Some(line),
+                                Some((ci + 1, headers[ci].to_string())),
+                                format!(
+                                    "the encoder moves {} counts in {:.4} s since the sample before ({c0}), {speed:.3e} m/s at the wheel's rim (at most {MAX_SPEED_M_S} m/s): a glitch or a counter that wrapped",
+                                    v as i128 - c0 as i128,
+                                    t - t0
+                                ),
+                            ));
+                        }
+                    }
+                    last_enc[i] = Some((t, v));
+                }
+            }
+            if let [Some(x), Some(y), Some(_)] = pose {
+                if let Some((t0, x0, y0)) = last_pose {
+                    let step = (x - x0).hypot(y - y0);
+                    let speed = step / (t - t0);
+                    if speed > MAX_SPEED_M_S {
+                        let hint = if speed / 1000.0 <= MAX_SPEED_M_S {
+                            ": looks like millimetres (the pose columns are metres)"
+                        } else {
+                            ""
+                        };
+                        return Err(err(
+                            Some(line),
+                            Some((x_col + 1, "x".into())),
+                            format!(
+                                "the pose moves {step:.4} m in {:.4} s since the measurement before, {speed:.3e} m/s (at most {MAX_SPEED_M_S} m/s){hint}",
+                                t - t0
+                            ),
+                        ));
+                    }
+                    pose_travel += step;
+                }
+                last_pose = Some((t, x, y));
+                first_pose.get_or_insert((t, x, y));
             }
             last_t = t;
             rec.t.push(t);
@@ -404,6 +507,37 @@ impl Recording {
                 None,
                 None,
                 "no row has a measured pose (x, y, theta)".into(),
+            ));
+        }
+        // Encoders that never change while the body travels: unplugged, or the wrong
+        // columns. Only when every encoder column is still (one idle wheel is normal).
+        let enc_cols: Vec<(usize, &Vec<Option<i64>>)> = cols
+            .iter()
+            .enumerate()
+            .filter_map(|(ci, c)| match c {
+                Col::Enc(i) => rec.wheels[*i].enc.as_ref().map(|e| (ci, e)),
+                _ => None,
+            })
+            .filter(|(_, e)| e.iter().any(Option::is_some))
+            .collect();
+        let still = |e: &Vec<Option<i64>>| {
+            let mut v = e.iter().flatten();
+            let first = v.next();
+            v.all(|c| Some(c) == first)
+        };
+        if !enc_cols.is_empty()
+            && pose_travel > STILL_ENCODER_TRAVEL_M
+            && enc_cols.iter().all(|(_, e)| still(e))
+        {
+            let names: Vec<&str> = enc_cols.iter().map(|(ci, _)| &headers[*ci]).collect();
+            let ci = enc_cols[0].0;
+            return Err(err(
+                None,
+                Some((ci + 1, headers[ci].to_string())),
+                format!(
+                    "the encoders ({}) never change while the measured pose travels {pose_travel:.2} m: encoders unplugged, or the wrong columns",
+                    names.join(", ")
+                ),
             ));
         }
         Ok(rec)
@@ -464,6 +598,55 @@ impl Recording {
     pub fn save(&self, path: &Path) -> std::io::Result<()> {
         let file = std::fs::File::create(path)?;
         self.write_csv(std::io::BufWriter::new(file))
+    }
+}
+
+/// Why a finite cell `v` of column `col` is not a physical value, if it is not.
+fn implausible(col: Col, v: f64, rim: &dyn Fn(usize) -> f64) -> Option<String> {
+    match col {
+        Col::X | Col::Y if v.abs() > MAX_POSE_M => {
+            let hint = if v.abs() / 1000.0 <= MAX_POSE_M {
+                ": looks like millimetres (the pose columns are metres)"
+            } else {
+                ""
+            };
+            Some(format!(
+                "{} m is farther than a run goes (at most {MAX_POSE_M} m from the origin){hint}",
+                short(v)
+            ))
+        }
+        Col::Theta if v.abs() > MAX_HEADING_RAD => Some(format!(
+            "heading {} rad is over {} turns",
+            short(v),
+            (MAX_HEADING_RAD / std::f64::consts::TAU).round()
+        )),
+        Col::LegFront | Col::LegRear if v.abs() > MAX_LEG_RAD => {
+            let hint = if v.to_radians().abs() <= MAX_LEG_RAD {
+                format!(
+                    ": looks like degrees ({v} deg = {:.4} rad; leg angles are radians, a vertical leg is 1.5708)",
+                    v.to_radians()
+                )
+            } else {
+                String::new()
+            };
+            Some(format!("leg angle {} rad is more than a turn{hint}", short(v)))
+        }
+        Col::Cmd(i) if v.abs() * rim(i) > MAX_SPEED_M_S => Some(format!(
+            "{} rad/s is {:.3e} m/s at the wheel's rim: no motor of a robot this tool calibrates reaches it (at most {MAX_SPEED_M_S} m/s)",
+            short(v),
+            v.abs() * rim(i)
+        )),
+        _ => None,
+    }
+}
+
+/// A value as a person reads it: plain when moderate, in exponent form when huge or tiny
+/// (a 1e300 cell printed plainly is 300 digits).
+fn short(v: f64) -> String {
+    if v != 0.0 && !(1e-3..1e6).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
     }
 }
 

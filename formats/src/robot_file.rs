@@ -164,22 +164,13 @@ pub fn load(path: &Path) -> Result<Robot, RobotFileError> {
 
 /// A robot file's text, refused before reading when it is too large to be one.
 fn read(path: &Path) -> Result<String, RobotFileError> {
-    let size = std::fs::metadata(path).map(|m| m.len()).unwrap_or(0);
-    if size > MAX_FILE_BYTES {
-        return Err(RobotFileError {
+    crate::text_file::read_capped(path, MAX_FILE_BYTES, "robot description").map_err(|e| {
+        RobotFileError {
             path: path.to_path_buf(),
             line: None,
             column: None,
-            message: format!(
-                "{size} bytes is not a robot description (at most {MAX_FILE_BYTES} bytes)"
-            ),
-        });
-    }
-    std::fs::read_to_string(path).map_err(|e| RobotFileError {
-        path: path.to_path_buf(),
-        line: None,
-        column: None,
-        message: format!("cannot read robot file: {e}"),
+            message: e.0,
+        }
     })
 }
 

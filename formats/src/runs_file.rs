@@ -133,6 +133,9 @@ pub struct OmniPathRuns {
     pub runs: Vec<(f64, f64, Option<f64>)>,
 }
 
+/// A runs file larger than this is refused (a row per run: a few hundred bytes each).
+pub const MAX_FILE_BYTES: u64 = 16 << 20;
+
 const HEADER: [&str; 7] = [
     "test",
     "path",
@@ -163,12 +166,15 @@ impl RunsFile {
 
     /// Reads a runs file.
     pub fn load(path: &Path) -> Result<Self, RunsError> {
-        let text = std::fs::read_to_string(path).map_err(|e| RunsError {
-            path: path.to_path_buf(),
-            line: None,
-            column: None,
-            message: format!("cannot read runs file: {e}"),
-        })?;
+        let text =
+            crate::text_file::read_capped(path, MAX_FILE_BYTES, "runs file").map_err(|e| {
+                RunsError {
+                    path: path.to_path_buf(),
+                    line: None,
+                    column: None,
+                    message: e.0,
+                }
+            })?;
         Self::parse(&text, path)
     }
 
@@ -195,8 +201,9 @@ impl RunsFile {
             }
         }
         let mut record = csv::StringRecord::new();
+        let mut lines = crate::text_file::LineCounter::new(text);
         loop {
-            let line = reader.position().line() as usize;
+            let line = lines.line_at(reader.position().byte());
             match reader.read_record(&mut record) {
                 Ok(false) => break,
                 Ok(true) => {}
@@ -204,7 +211,7 @@ impl RunsFile {
                     return Err(file.error(Some(line), None, format!("malformed CSV row: {e}")))
                 }
             }
-            let line = record.position().map_or(line, |p| p.line() as usize);
+            let line = record.position().map_or(line, |p| lines.line_at(p.byte()));
             if record.iter().all(str::is_empty) {
                 continue;
             }

@@ -518,11 +518,15 @@ impl SimRecording {
             let path = path.to_path_buf();
             move |error| SimError::Io { path, error }
         };
-        std::fs::create_dir_all(dir).map_err(io(dir))?;
+        // Only into a new folder or one wheelcal made: never over a real run's files.
+        formats::safe_write::claim_dir(dir).map_err(io(dir))?;
         let p = dir.join("recording.csv");
-        self.recording.save(&p).map_err(io(&p))?;
+        let mut csv = Vec::new();
+        self.recording.write_csv(&mut csv).map_err(io(&p))?;
+        formats::safe_write::replace_file(&p, &csv).map_err(io(&p))?;
         let p = dir.join("robot.toml");
-        std::fs::write(&p, formats::robot_file::to_toml(&self.robot)).map_err(io(&p))?;
+        formats::safe_write::replace_file(&p, formats::robot_file::to_toml(&self.robot).as_bytes())
+            .map_err(io(&p))?;
         let p = dir.join("truth.csv");
         let mut s = String::from("t,x,y,theta,vx,vy,omega\n");
         for r in &self.truth {
@@ -531,11 +535,11 @@ impl SimRecording {
                 r.t, r.pose.x, r.pose.y, r.pose.theta, r.twist.vx, r.twist.vy, r.twist.omega
             ));
         }
-        std::fs::write(&p, s).map_err(io(&p))?;
+        formats::safe_write::replace_file(&p, s.as_bytes()).map_err(io(&p))?;
         let p = dir.join("effects.txt");
         let mut s: String = self.effects.iter().map(|e| format!("{e}\n")).collect();
         s.push_str(&format!("# seed {}\n", self.seed));
-        std::fs::write(&p, s).map_err(io(&p))?;
+        formats::safe_write::replace_file(&p, s.as_bytes()).map_err(io(&p))?;
         Ok(())
     }
 }

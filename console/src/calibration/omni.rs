@@ -144,8 +144,7 @@ pub fn factors_from_json(path: &std::path::Path) -> Result<Corrections> {
 
 fn omni_factors_from_json(path: &std::path::Path) -> Result<OmniFactors> {
     use anyhow::Context;
-    let text =
-        std::fs::read_to_string(path).with_context(|| format!("cannot read {}", path.display()))?;
+    let text = crate::ros2::read_json_text(path)?;
     let v: serde_json::Value =
         serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
     let f_lat = v
@@ -503,7 +502,7 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(
-            e.starts_with("r.csv:2: column 'x_err_m'") && e.contains("millimetres"),
+            e.starts_with("r.csv:2: radial end error") && e.contains("millimetres"),
             "{e}"
         );
         // 0.45 m short on 0.6 m passes the bounds but needs F_lon = 4: not recommended.

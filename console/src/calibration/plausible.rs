@@ -65,22 +65,22 @@ pub fn check_runs(runs: &RunsFile, max_length_m: f64) -> Result<(), RunsError> {
             } else {
                 String::new()
             };
-            let column = if r.x_err_m.abs() >= r.y_err_m.abs() {
-                "x_err_m"
-            } else {
-                "y_err_m"
-            };
-            return Err(row_error(
+            // The radial error of both columns, not one of them (issue 23 §5).
+            let mut e = row_error(
                 runs,
                 r,
-                column,
+                "",
                 format!(
-                    "end error {} m is larger than the {} m {}{hint}",
+                    "radial end error {} m is larger than the {} m {} (sqrt(x_err_m^2 + y_err_m^2) of x_err_m {}, y_err_m {}){hint}",
                     sane(err),
                     sane(path),
-                    path_word(r)
+                    path_word(r),
+                    sane(r.x_err_m),
+                    sane(r.y_err_m)
                 ),
-            ));
+            );
+            e.column = None;
+            return Err(e);
         }
         if let Some(t) = r.theta_err_rad {
             if t.abs() > core::f64::consts::TAU {
@@ -151,7 +151,17 @@ mod tests {
         // 32 mm typed as 32 on a 4 m square: 34 m off on a 4 m side, refused.
         let e = check_runs(&runs("umbmark,cw,4,32,-12,,\n"), 50.0).unwrap_err();
         let s = e.to_string();
-        assert!(s.starts_with("r.csv:2: column 'x_err_m'"), "{s}");
+        // The radial error of both columns is what is too large: named as such, with both
+        // values (issue 23 §5: it named y_err_m alone when y was the larger).
+        assert!(s.starts_with("r.csv:2: radial end error"), "{s}");
+        assert!(s.contains("x_err_m 32, y_err_m -12"), "{s}");
+        let s = check_runs(&runs("umbmark,cw,4,3,-16,,\n"), 50.0)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            s.starts_with("r.csv:2: radial end error") && !s.contains("column '"),
+            "{s}"
+        );
         assert!(
             s.contains("larger than the 4 m side") && s.contains("millimetres"),
             "{s}"

@@ -335,7 +335,7 @@ mod tests {
         }
         let runs = RunsFile::parse(&text, Path::new("r.csv")).unwrap();
         let e = compute(&presets::mobolab(), &runs).unwrap_err().to_string();
-        assert!(e.starts_with("r.csv:2: column 'x_err_m'"), "{e}");
+        assert!(e.starts_with("r.csv:2: radial end error"), "{e}");
         assert!(
             e.contains("larger than the 4 m side") && e.contains("millimetres"),
             "{e}"

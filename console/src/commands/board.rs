@@ -37,7 +37,9 @@ pub fn status(follow: bool, period_ms: u16, ctx: &mut Ctx, out: Output) -> Resul
     client.set_telemetry(period_ms.max(20))?;
     while !crate::stop::requested() {
         if let Some(s) = client.next_telemetry(Duration::from_millis(500))? {
-            out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))?;
+            if !out.emit_more(&s, || format!("{}\n", board_cmds::status_line(&s)))? {
+                break; // the reader has gone: stop the stream and free the port
+            }
         }
     }
     client.set_telemetry(0)?;

@@ -15,7 +15,7 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
     let recording = &files[0];
     let robot = robot_file::load(&a.robot)?;
     // Long work says so on stderr (a large recording reads and fits for a minute).
-    let busy = spinner(&format!("reading {}", recording.display()));
+    let busy = crate::progress::Progress::start(&format!("reading {}", recording.display()));
     let rec = formats::recording::Recording::load(recording, &robot)?;
     for n in &rec.notes {
         out.note(&format!("{}: {n}", recording.display()));
@@ -26,11 +26,12 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
     busy.set_message(format!("diagnosing {} rows", rec.len()));
     let rep =
         diagnose::diagnose(&robot, &rec, &opts).with_context(|| recording.display().to_string())?;
-    busy.finish_and_clear();
+    busy.finish();
     if let Some(dir) = &a.report {
         if !report::font_available() {
             bail!("plots need the DejaVu Sans font: apt-get install fonts-dejavu-core");
         }
+        formats::safe_write::claim_dir(dir)?;
         diagnose::plots::write_report_dir(&rep, dir)
             .with_context(|| format!("cannot write the report into {}", dir.display()))?;
         out.note(&format!("report: {}", dir.join("index.html").display()));
@@ -43,16 +44,4 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
         out.note(&format!("fitted robot: {}", p.display()));
     }
     out.emit(&rep, || rep.to_string())
-}
-
-/// A spinner with the elapsed time on stderr; hidden when stderr is not a terminal.
-fn spinner(msg: &str) -> indicatif::ProgressBar {
-    let b = indicatif::ProgressBar::new_spinner();
-    b.set_style(
-        indicatif::ProgressStyle::with_template("{spinner} {msg} ({elapsed})")
-            .unwrap_or_else(|_| indicatif::ProgressStyle::default_spinner()),
-    );
-    b.set_message(msg.to_string());
-    b.enable_steady_tick(std::time::Duration::from_millis(200));
-    b
 }

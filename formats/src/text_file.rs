@@ -1,0 +1,128 @@
+//! Reading a text input whatever the path names: the read is capped by the bytes actually
+//! read (a device such as `/dev/zero` reports a size of 0 and never ends), and binary data
+//! is refused at its first NUL byte instead of after reading it all.
+
+use std::io::Read;
+use std::path::Path;
+
+/// Line numbers of byte offsets, counted on `\n` only: the csv crate's own count takes a
+/// CR LF pair as two line ends' worth in places and named every line of an Excel or
+/// Windows file one too low. Offsets must be asked in increasing order (one pass).
+pub struct LineCounter<'a> {
+    text: &'a [u8],
+    at: usize,
+    line: usize,
+}
+
+impl<'a> LineCounter<'a> {
+    /// A counter over `text`, at line 1.
+    pub fn new(text: &'a str) -> Self {
+        LineCounter {
+            text: text.as_bytes(),
+            at: 0,
+            line: 1,
+        }
+    }
+
+    /// The 1-based line of the record starting at byte `offset` (not before the last
+    /// offset asked). The csv crate ends a record at the CR of a CR LF pair and puts the
+    /// next record's start on the LF: line-end bytes at the start are skipped.
+    pub fn line_at(&mut self, offset: u64) -> usize {
+        let mut to = (offset as usize).min(self.text.len());
+        while to < self.text.len() && matches!(self.text[to], b'\r' | b'\n') {
+            to += 1;
+        }
+        if to > self.at {
+            self.line += self.text[self.at..to]
+                .iter()
+                .filter(|&&b| b == b'\n')
+                .count();
+            self.at = to;
+        }
+        self.line
+    }
+}
+
+/// Why a text input could not be read; the message never names the path (the caller's
+/// error does, with its line and column conventions).
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReadError(pub String);
+
+impl std::fmt::Display for ReadError {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(&self.0)
+    }
+}
+
+impl std::error::Error for ReadError {}
+
+/// Reads at most `max_bytes` of UTF-8 text from `path`; `what` names the kind of file in
+/// messages ("robot file"). More bytes, a NUL byte or invalid UTF-8 are errors, found
+/// within the first 64 KiB read past the fault.
+pub fn read_capped(path: &Path, max_bytes: u64, what: &str) -> Result<String, ReadError> {
+    crate::safe_write::note_input(path);
+    let meta =
+        std::fs::metadata(path).map_err(|e| ReadError(format!("cannot read {what}: {e}")))?;
+    if meta.is_dir() {
+        return Err(ReadError(format!("is a folder, not a {what}")));
+    }
+    let file =
+        std::fs::File::open(path).map_err(|e| ReadError(format!("cannot read {what}: {e}")))?;
+    let mut limited = file.take(max_bytes + 1);
+    let mut buf: Vec<u8> = Vec::new();
+    let mut chunk = vec![0u8; 64 * 1024];
+    loop {
+        let n = match limited.read(&mut chunk) {
+            Ok(0) => break,
+            Ok(n) => n,
+            Err(e) if e.kind() == std::io::ErrorKind::Interrupted => continue,
+            Err(e) => return Err(ReadError(format!("cannot read {what}: {e}"))),
+        };
+        if let Some(i) = chunk[..n].iter().position(|&b| b == 0) {
+            return Err(ReadError(format!(
+                "binary data (a NUL byte at offset {}), not a {what}",
+                buf.len() + i
+            )));
+        }
+        buf.extend_from_slice(&chunk[..n]);
+        if buf.len() as u64 > max_bytes {
+            return Err(ReadError(format!(
+                "more than {max_bytes} bytes: a {what} has at most {max_bytes} bytes"
+            )));
+        }
+    }
+    String::from_utf8(buf).map_err(|e| {
+        ReadError(format!(
+            "not UTF-8 text (invalid byte at offset {}), not a {what}",
+            e.utf8_error().valid_up_to()
+        ))
+    })
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    #[test]
+    fn endless_devices_stop_at_the_cap_or_the_first_nul() {
+        for dev in ["/dev/zero", "/dev/full"] {
+            if Path::new(dev).exists() {
+                let e = read_capped(Path::new(dev), 1 << 20, "robot file").unwrap_err();
+                assert!(e.0.contains("NUL byte at offset 0"), "{e}");
+            }
+        }
+        let dir = std::env::temp_dir().join(format!("formats-capped-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let f = dir.join("big.txt");
+        std::fs::write(&f, "a".repeat(1001)).unwrap();
+        let e = read_capped(&f, 1000, "runs file").unwrap_err();
+        assert!(e.0.contains("more than 1000 bytes"), "{e}");
+        assert_eq!(read_capped(&f, 1001, "runs file").unwrap().len(), 1001);
+        std::fs::write(&f, [b'a', 0xff, b'b']).unwrap();
+        let e = read_capped(&f, 1000, "runs file").unwrap_err();
+        assert!(e.0.contains("offset 1"), "{e}");
+        let e = read_capped(&dir, 1000, "runs file").unwrap_err();
+        assert!(e.0.contains("folder"), "{e}");
+        let _ = std::fs::remove_dir_all(&dir);
+    }
+}
