@@ -180,17 +180,9 @@ fn start_relay(
 ) -> Result<Relay> {
     // A socket left by a holder that died is stale: nobody answers on it. Anything else
     // at that path is somebody's file: never deleted (no relay then).
-    if let Ok(meta) = std::fs::symlink_metadata(path) {
-        use std::os::unix::fs::FileTypeExt;
-        if !meta.file_type().is_socket() {
-            anyhow::bail!(
-                "{} is not a socket; not replacing it (the E-stop relay is off)",
-                path.display()
-            );
-        }
-        if UnixStream::connect(path).is_err() {
-            let _ = std::fs::remove_file(path);
-        }
+    crate::output::check_stale_socket(path)?;
+    if path.exists() && UnixStream::connect(path).is_err() {
+        let _ = std::fs::remove_file(path);
     }
     let listener =
         UnixListener::bind(path).with_context(|| format!("cannot listen on {}", path.display()))?;
