@@ -15,6 +15,8 @@
 //! is fitted. Every parameter has a plausible range; a value outside is listed
 //! `implausible` with what it most likely stands in for.
 
+pub mod proxy;
+
 use crate::fit;
 use crate::replay::unwrap_angles;
 use calib_core::correction::Corrections;
