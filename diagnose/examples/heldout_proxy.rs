@@ -6,7 +6,8 @@
 //!     cargo run --release -p diagnose --example heldout_proxy [-- OPTIONS]
 //!
 //! Options: `--sessions DIR` (default: `shared/real/sessions` beside the checkout),
-//! `--only S1,S2`, `--max-tests N`, `--json` (per-run numbers).
+//! `--only S1,S2`, `--max-tests N`, `--json` (per-run numbers), `--free-start`,
+//! `--robust` (calibrate's options).
 
 use diagnose::calibrate::{calibrate, proxy, CalOptions};
 use std::path::PathBuf;
@@ -31,7 +32,11 @@ fn main() {
         .as_ref()
         .map(|v| v.iter().map(|s| s.as_str()).collect());
     let max_tests = val("--max-tests").and_then(|s| s.parse().ok());
-    let opts = CalOptions::default();
+    let opts = CalOptions {
+        free_start: flag("--free-start"),
+        robust: flag("--robust"),
+        ..Default::default()
+    };
     let t0 = std::time::Instant::now();
     let res = proxy::run_diff(&dir, only_refs.as_deref(), max_tests, &|robot, recs| {
         let t = std::time::Instant::now();
@@ -46,6 +51,15 @@ fn main() {
                 .collect::<Vec<_>>()
                 .join(", ")
         );
+        if flag("--verbose") {
+            eprintln!("{c}");
+        }
+        for e in &c.events {
+            eprintln!(
+                "  event {} {} at {:.2} s for {:.2} s: {:+.3} rad",
+                e.recording, e.kind, e.t_s, e.duration_s, e.heading_rad
+            );
+        }
         Ok(c.fitted_robot)
     })
     .unwrap_or_else(|e| {

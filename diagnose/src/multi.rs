@@ -64,6 +64,7 @@ pub fn diagnose_many(
         None,
         &CalOptions {
             leave_one_out: recordings.len() >= 3,
+            free_start: true,
             ..CalOptions::default()
         },
     )?;
