@@ -1118,6 +1118,9 @@ pub struct Calibration {
     pub robot: String,
     /// What the fit minimised.
     pub objective: &'static str,
+    /// True when each recording's start pose and clocks were fitted (`--free-start`);
+    /// false when each was dead-reckoned from its first pose.
+    pub free_start: bool,
     /// The robust loss and its scale (`None`: squared loss).
     pub robust_loss: Option<String>,
     /// Events one geometry cannot explain, found, reported and kept out of the fit.
@@ -1433,8 +1436,8 @@ fn check_inputs(
     opts: &CalOptions,
 ) -> Result<(), CalibrateError> {
     if let Some((hn, hr)) = holdout {
-        if let Some((n, _)) = recordings.iter().find(|(n, r)| {
-            n == hn || (r.t == hr.t && r.x == hr.x && r.wheels.len() == hr.wheels.len())
+        if let Some((n, _)) = recordings.iter().find(|(_, r)| {
+            r.t == hr.t && r.x == hr.x && r.y == hr.y && r.theta == hr.theta && r.len() == hr.len()
         }) {
             return Err(CalibrateError {
                 recording: Some(hn.clone()),
@@ -1996,6 +1999,7 @@ pub fn calibrate(
     Ok(Calibration {
         robot: robot.name.to_string(),
         objective,
+        free_start: cfg.free_start,
         robust_loss,
         events,
         cv_by: cv_by.map(|c| c.name()),
