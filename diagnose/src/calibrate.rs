@@ -1399,9 +1399,26 @@ fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
         }
     }
     found.sort_by_key(|f| f.0);
+    // Two steps of opposite sign that undo each other within a few seconds: a clock
+    // leading the other through a turn, not a slip.
+    let mut merged: Vec<(usize, usize, f64, &'static str)> = vec![];
+    for f in found {
+        if let Some(last) = merged.last_mut() {
+            if last.3 == "slip"
+                && f.3 == "slip"
+                && t(f.0) - t(last.1) < 2.0 * EVENT_WINDOW_S
+                && last.2 * f.2 < 0.0
+                && (last.2 + f.2).abs() < 0.3 * last.2.abs().max(f.2.abs())
+            {
+                *last = (last.0, f.1, last.2, "time_lead");
+                continue;
+            }
+        }
+        merged.push(f);
+    }
     let mut out = vec![];
     let mut skip: Vec<(usize, usize)> = vec![];
-    for (a, b, h, kind) in found {
+    for (a, b, h, kind) in merged {
         let slip = kind == "slip";
         out.push(Event {
             recording: s.name.clone(),
@@ -1856,8 +1873,65 @@ pub fn calibrate(
                 distinct.len()
             ));
         }
+        // Dead reckoning (squared loss): each fold is one Gauss-Newton step from the full
+        // solution with the held-out recordings' rows taken out of the normal equations
+        // (no refit: CV costs next to nothing). Otherwise a refit from the full solution.
+        let gn = (!cfg.free_start && cfg.huber.is_none()).then(|| {
+            let r = p.residuals(&fitted.geom, &fitted.nuis, false);
+            let jac = &fitted.jac;
+            let mut h = jac.transpose() * jac;
+            let mut grad = jac.transpose() * nalgebra::DVector::from_column_slice(&r);
+            for (w, target, sigma) in &p.priors {
+                let v: f64 = w.iter().zip(&fitted.geom).map(|(a, b)| a * b).sum();
+                let pr = (v - target) / sigma * p.prior_scale;
+                for a in 0..g {
+                    grad[a] += w[a] / sigma * p.prior_scale * pr;
+                    for b in 0..g {
+                        h[(a, b)] += w[a] * w[b] / (sigma * sigma) * p.prior_scale * p.prior_scale;
+                    }
+                }
+            }
+            let mut at = vec![0usize];
+            for s in &series {
+                at.push(at.last().copied().unwrap_or(0) + 3 * s.samples.len());
+            }
+            (h, grad, r, at)
+        });
+        let (blo, bhi) = if p.plausible_bounds {
+            specs.iter().map(|s| s.plausible).unzip()
+        } else {
+            geom_bounds(&specs)
+        };
         let t0 = std::time::Instant::now();
         for (k, gname) in distinct.iter().enumerate().filter(|_| distinct.len() >= 2) {
+            if let Some((h, grad, r, at)) = &gn {
+                let (mut h, mut grad) = (h.clone(), grad.clone());
+                for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
+                    let ji = fitted.jac.rows(at[i], at[i + 1] - at[i]);
+                    h -= ji.transpose() * ji;
+                    grad -=
+                        ji.transpose() * nalgebra::DVector::from_column_slice(&r[at[i]..at[i + 1]]);
+                }
+                let step = h
+                    .lu()
+                    .solve(&(-grad))
+                    .unwrap_or_else(|| nalgebra::DVector::zeros(g));
+                let geom: Vec<f64> = (0..g)
+                    .map(|a| (fitted.geom[a] + step[a]).clamp(blo[a], bhi[a]))
+                    .collect();
+                let r = robot_with(robot, &specs, &geom);
+                for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
+                    leave_one_out.push(Heldout {
+                        name: series[i].name.clone(),
+                        group: Some(gname.clone()),
+                        rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
+                        rmse_after_m: dead_reckoning_rmse(&r, &series[i]).unwrap_or(f64::NAN),
+                        aligned_before_m: per_recording[i].aligned_before_m,
+                        aligned_after_m: aligned_rmse(robot, &specs, &geom, &series[i]),
+                    });
+                }
+                continue;
+            }
             if t0.elapsed().as_secs_f64() > 2.0 {
                 eprintln!(
                     "calibrate: cross-validation {}/{} ({:.1} s)",
