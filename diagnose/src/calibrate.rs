@@ -1348,6 +1348,21 @@ fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
         pre[j + 1] = pre[j] + e[j];
     }
     let mean = |a: usize, b: usize| (pre[b + 1] - pre[a]) / (b + 1 - a) as f64;
+    // What a geometry error makes of the same step: a wheelbase error grows with the
+    // heading turned, a diameter ratio with the distance driven. Both are regressed out
+    // (robustly) before a step counts as an event, so a geometry the event itself bent
+    // in the first fit does not hide it.
+    let mut dist = vec![0.0; n];
+    for j in 1..n {
+        dist[j] = dist[j - 1] + (s.px[j] - s.px[j - 1]).hypot(s.py[j] - s.py[j - 1]);
+    }
+    let (mut pth_pre, mut dist_pre) = (vec![0.0; n + 1], vec![0.0; n + 1]);
+    for j in 0..n {
+        pth_pre[j + 1] = pth_pre[j] + s.pth[j];
+        dist_pre[j + 1] = dist_pre[j] + dist[j];
+    }
+    let mean_of = |v: &[f64], a: usize, b: usize| (v[b + 1] - v[a]) / (b + 1 - a) as f64;
+    let mut reg = vec![(0.0, 0.0); n];
     let first_at = |t0: f64| (0..n).find(|&k| t(k) >= t0).unwrap_or(n - 1);
     let mut step = vec![0.0; n];
     let mut transient = vec![0.0; n];
@@ -1360,10 +1375,44 @@ fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
         after_end[j] = b1;
         let (m0, m1) = (mean(a0, j), mean(b, b1));
         step[j] = m1 - m0;
+        reg[j] = (
+            mean_of(&pth_pre, b, b1) - mean_of(&pth_pre, a0, j),
+            mean_of(&dist_pre, b, b1) - mean_of(&dist_pre, a0, j),
+        );
         transient[j] = (j..=b)
             .map(|k| e[k] - m0 - (m1 - m0) * (t(k) - t(j)) / (t(b) - t(j)).max(1e-9))
             .fold(0.0, |acc: f64, v| if v.abs() > acc.abs() { v } else { acc });
         turned[j] = (s.pth[b] - s.pth[j]).abs();
+    }
+    // Huber-weighted least squares of step on the two regressors, a few passes.
+    let mut coef = (0.0, 0.0);
+    for _ in 0..5 {
+        let res: Vec<f64> = (0..n)
+            .map(|j| step[j] - coef.0 * reg[j].0 - coef.1 * reg[j].1)
+            .collect();
+        let c = HUBER_K * robust_sigma(&res).max(1e-6);
+        let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for j in 0..n {
+            let w = if res[j].abs() <= c {
+                1.0
+            } else {
+                c / res[j].abs()
+            };
+            let (x, y) = reg[j];
+            a11 += w * x * x;
+            a12 += w * x * y;
+            a22 += w * y * y;
+            b1 += w * x * step[j];
+            b2 += w * y * step[j];
+        }
+        let det = a11 * a22 - a12 * a12;
+        if det.abs() < 1e-12 * (a11 * a22).max(1e-300) {
+            break;
+        }
+        coef = ((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det);
+    }
+    for j in 0..n {
+        step[j] -= coef.0 * reg[j].0 + coef.1 * reg[j].1;
     }
     let sigma = robust_sigma(&step);
     let thr = |j: usize| {
