@@ -429,4 +429,58 @@ mod tests {
         assert!(text.contains("recording.csv"), "{text}");
         std::fs::remove_dir_all(&d).ok();
     }
+
+    fn real_square() -> Option<PathBuf> {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .ancestors()
+            .map(|a| a.join("shared/real/diff-square-run-01"))
+            .find(|d| d.join("recording.csv").is_file())
+    }
+
+    #[test]
+    fn one_row_recording_names_the_file() {
+        let d = dir("onerow");
+        std::fs::write(d.join("robot.toml"), DIFF).unwrap();
+        std::fs::write(
+            d.join("recording.csv"),
+            "t,enc_left,enc_right,x,y,theta\n0,0,0,0,0,0\n",
+        )
+        .unwrap();
+        let e = run(&args(&d.join("robot.toml"), &d), Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(
+            text.contains(&d.join("recording.csv").display().to_string()) && text.contains("1 row"),
+            "{text}"
+        );
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn holdout_also_fitted_is_refused() {
+        let Some(sq) = real_square() else {
+            eprintln!("skipping: shared/real is absent");
+            return;
+        };
+        let mut a = args(&sq.join("robot.toml"), &sq);
+        a.holdout = Some(sq.join("recording.csv"));
+        let e = run(&a, Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(
+            text.contains("recording.csv") && text.contains("also fitted"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn marker_offset_on_a_differential_drive_is_an_error() {
+        let Some(sq) = real_square() else {
+            eprintln!("skipping: shared/real is absent");
+            return;
+        };
+        let mut a = args(&sq.join("robot.toml"), &sq);
+        a.marker_offset = true;
+        let e = run(&a, Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(text.contains("omni robots only"), "{text}");
+    }
 }

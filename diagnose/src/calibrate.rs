@@ -1450,20 +1450,34 @@ fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
     found.sort_by_key(|f| f.0);
     // Two steps of opposite sign that undo each other within a few seconds: a clock
     // leading the other through a turn, not a slip.
+    // (Transients between them belong to the same turn.)
     let mut merged: Vec<(usize, usize, f64, &'static str)> = vec![];
-    for f in found {
-        if let Some(last) = merged.last_mut() {
-            if last.3 == "slip"
-                && f.3 == "slip"
-                && t(f.0) - t(last.1) < 2.0 * EVENT_WINDOW_S
-                && last.2 * f.2 < 0.0
-                && (last.2 + f.2).abs() < 0.3 * last.2.abs().max(f.2.abs())
-            {
-                *last = (last.0, f.1, last.2, "time_lead");
-                continue;
+    let mut i = 0;
+    while i < found.len() {
+        let f = found[i];
+        if f.3 == "slip" {
+            let next = (i + 1..found.len()).find(|&j| found[j].3 == "slip");
+            if let Some(j) = next {
+                let g = found[j];
+                if t(g.0) - t(f.1) < 2.0 * EVENT_WINDOW_S
+                    && f.2 * g.2 < 0.0
+                    && (f.2 + g.2).abs() < 0.3 * f.2.abs().max(g.2.abs())
+                {
+                    let h = found[i..=j].iter().map(|x| x.2).fold(0.0, |acc: f64, v| {
+                        if v.abs() > acc.abs() {
+                            v
+                        } else {
+                            acc
+                        }
+                    });
+                    merged.push((f.0, g.1.max(f.1), h, "time_lead"));
+                    i = j + 1;
+                    continue;
+                }
             }
         }
         merged.push(f);
+        i += 1;
     }
     let mut out = vec![];
     let mut skip: Vec<(usize, usize)> = vec![];
@@ -1479,10 +1493,12 @@ fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
             handled: if slip {
                 "dead reckoning restarts from the measured pose after it"
             } else {
-                "its samples are not compared"
+                "reported only: the heading it leads by is given back when the turn ends"
             },
         });
-        skip.push((a, b));
+        if slip {
+            skip.push((a, b));
+        }
         if slip && !s.anchors.contains(&b) {
             s.anchors.push(b);
         }
