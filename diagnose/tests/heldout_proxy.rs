@@ -4,7 +4,8 @@
 //! parameters from the same session. Goal (issue 21): no session above the authors
 //! (ratio <= 1.0), geometric mean of the ratios <= 0.94. Skipped when the data are absent.
 //! Baseline (start pose and clocks fitted per recording, before issue 21): geometric mean
-//! 1.112, worst 1.259.
+//! 1.112, worst 1.259. With the dead-reckoning objective and events kept out: 1.004, worst
+//! 1.079 (the ignored whole-proxy test fails: the goal is not met).
 
 use diagnose::calibrate::{calibrate, proxy, CalOptions};
 use std::path::PathBuf;
@@ -27,7 +28,8 @@ fn train(
 }
 
 /// Fast subset: one two-run December session (the worst-transferring kind at baseline:
-/// 1.22) against 12 of its 46 test runs. Must not lose to the authors.
+/// 1.22; 1.18 on this subset) against 12 of its 46 test runs. Must not lose to the
+/// authors.
 #[test]
 fn one_december_session_transfers_no_worse_than_optiodom() {
     let Some(d) = dir() else { return };
