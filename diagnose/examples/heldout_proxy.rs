@@ -7,7 +7,7 @@
 //!
 //! Options: `--sessions DIR` (default: `shared/real/sessions` beside the checkout),
 //! `--only S1,S2`, `--max-tests N`, `--json` (per-run numbers), `--free-start`,
-//! `--robust` (calibrate's options).
+//! `--robust`, `--heading-lever M` (calibrate's options).
 
 use diagnose::calibrate::{calibrate, proxy, CalOptions};
 use std::path::PathBuf;
@@ -35,6 +35,7 @@ fn main() {
     let opts = CalOptions {
         free_start: flag("--free-start"),
         robust: flag("--robust"),
+        heading_lever_m: val("--heading-lever").and_then(|v| v.parse().ok()),
         ..Default::default()
     };
     let t0 = std::time::Instant::now();
