@@ -445,7 +445,7 @@ impl Series {
             let q = a.get(a.len() * 99 / 100).copied().unwrap_or(0.0);
             let thr = 20.0 * q.max(1e-9);
             let bad: Vec<usize> = (0..inc.len())
-                .filter(|&k| !(inc[k][w].abs() <= thr))
+                .filter(|&k| inc[k][w].abs() > thr || inc[k][w].is_nan())
                 .collect();
             for &k in &bad {
                 let good = |k: Option<usize>| k.filter(|k| !bad.contains(k)).map(|k| inc[k][w]);
@@ -481,7 +481,7 @@ impl Series {
             let dev = (px[j] - 0.5 * (px[j - 1] + px[j + 1]))
                 .hypot(py[j] - 0.5 * (py[j - 1] + py[j + 1]));
             let gap = (px[j + 1] - px[j - 1]).hypot(py[j + 1] - py[j - 1]);
-            if !(dev <= 0.05 || dev <= 5.0 * gap) {
+            if dev > 0.05 && dev > 5.0 * gap || dev.is_nan() {
                 glitches.push(Event {
                     recording: name.to_string(),
                     kind: "pose_glitch",
@@ -1570,7 +1570,8 @@ fn refuse_bad_fit(
         // One shared geometry need not help every recording (a run whose errors cancelled
         // with the nominal geometry gets worse: a note says so); several times worse is a
         // recording the geometry cannot explain (a glitch, another robot, other units).
-        if !(r.rmse_after_m <= WORSE_FACTOR * r.rmse_before_m + WORSE_MARGIN_M) {
+        let limit = WORSE_FACTOR * r.rmse_before_m + WORSE_MARGIN_M;
+        if r.rmse_after_m > limit || r.rmse_after_m.is_nan() {
             return Err(CalibrateError {
                 recording: Some(r.name.clone()),
                 message: format!(

@@ -222,6 +222,10 @@ pub fn sessions_dir(from: &Path) -> Option<PathBuf> {
         .find(|d| d.join("authors_params.json").is_file())
 }
 
+/// A training procedure: the nominal robot and the training recordings in, the fitted
+/// robot out.
+pub type Train<'a> = dyn Fn(&Robot, &[(String, Recording)]) -> Result<Robot, String> + 'a;
+
 /// Runs the proxy for the differential robot: every square session of `dir` (or those in
 /// `only`), trained by `train`, tested on its paired runs (at most `max_tests` of them,
 /// evenly spread, when given).
@@ -229,7 +233,7 @@ pub fn run_diff(
     dir: &Path,
     only: Option<&[&str]>,
     max_tests: Option<usize>,
-    train: &dyn Fn(&Robot, &[(String, Recording)]) -> Result<Robot, String>,
+    train: &Train<'_>,
 ) -> Result<Vec<SessionResult>, String> {
     let params: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.join("authors_params.json")).map_err(|e| e.to_string())?,
