@@ -9,7 +9,7 @@
 //!
 //! Metric: dead reckoning from the first row (motion capture is in the robot's start
 //! frame, the first pose is exactly (0, 0, 0)), RMS position error over every pose sample
-//! of a run ([`dead_reckoning_rmse`](super::dead_reckoning_rmse)).
+//! of a run ([`dead_reckoning_rmse`]).
 
 use super::{dead_reckoning_rmse, Series};
 use calib_core::robot::Robot;
