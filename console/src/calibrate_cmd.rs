@@ -8,7 +8,7 @@ use crate::ros2;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::Robot;
 use clap::Args;
-use diagnose::calibrate::{calibrate, CalOptions, Calibration, Factors};
+use diagnose::calibrate::{calibrate, CalOptions, Calibration, CvBy, Factors};
 use diagnose::calibrate_plots;
 use formats::recording::Recording;
 use formats::robot_file;
@@ -37,9 +37,28 @@ pub struct CalibrateArgs {
     /// Skip leave-one-out cross-validation.
     #[arg(long)]
     pub no_cross_validation: bool,
-    /// Also fit where motion capture tracks on the body (omni robots).
+    /// Also fit where motion capture tracks on the body (omni robots; an error on a
+    /// differential drive).
     #[arg(long)]
     pub marker_offset: bool,
+    /// Fit each recording's start pose, time offset and clock ratio (for recordings whose
+    /// frame is not the robot's start frame). Default: dead-reckon each recording from its
+    /// first measured pose, compared every 5 cm of travel.
+    #[arg(long)]
+    pub free_start: bool,
+    /// Huber's loss (scale: 1.345 robust sigmas of the squared-loss residuals) instead of
+    /// least squares.
+    #[arg(long)]
+    pub robust: bool,
+    /// Cross-validation: hold out each `run`, `session` (run folders
+    /// `<robot>-<path>-<session>-run-NN`) or `path-kind` (square, circular...) in turn
+    /// (default: run, unless --no-cross-validation).
+    #[arg(long, value_parser = ["run", "session", "path-kind"])]
+    pub cv: Option<String>,
+    /// Lever arm (m) at which heading errors count in the dead-reckoning objective
+    /// (default 0.1; 3 transferred better on real runs, see the README).
+    #[arg(long)]
+    pub heading_lever: Option<f64>,
 }
 
 /// Recording CSV files named by `p`: the file itself, `p/recording.csv`, or every
@@ -165,10 +184,26 @@ fn load(f: &Path, robot: &Robot, robot_path: &Path) -> Result<(String, Recording
 pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
     let robot = robot_file::load(&a.robot)?;
     let mut recs = Vec::new();
-    let mut paths = Vec::new();
+    let mut paths: Vec<PathBuf> = Vec::new();
     for p in &a.recording {
         for f in recording_files(p)? {
-            recs.push(load(&f, &robot, &a.robot)?);
+            let canon = std::fs::canonicalize(&f).unwrap_or_else(|_| f.clone());
+            if let Some(prev) = paths
+                .iter()
+                .find(|q| std::fs::canonicalize(q).unwrap_or_else(|_| (*q).clone()) == canon)
+            {
+                out.note(&format!(
+                    "warning: {} is given twice (also as {}): fitted once",
+                    f.display(),
+                    prev.display()
+                ));
+                continue;
+            }
+            let r = load(&f, &robot, &a.robot)?;
+            for n in &r.1.notes {
+                out.note(&format!("{}: {n}", f.display()));
+            }
+            recs.push(r);
             paths.push(f);
         }
     }
@@ -182,13 +217,28 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
                     f.len()
                 );
             }
+            let canon = std::fs::canonicalize(&f[0]).unwrap_or_else(|_| f[0].clone());
+            if paths
+                .iter()
+                .any(|q| std::fs::canonicalize(q).unwrap_or_else(|_| q.clone()) == canon)
+            {
+                bail!(
+                    "{}: --holdout names a recording that is also fitted: a held-out error needs a recording the fit did not see",
+                    f[0].display()
+                );
+            }
             Some(load(&f[0], &robot, &a.robot)?)
         }
         None => None,
     };
+    let cv = a.cv.as_deref().and_then(CvBy::parse);
     let opts = CalOptions {
-        leave_one_out: !a.no_cross_validation,
+        leave_one_out: !a.no_cross_validation && cv.is_none(),
         marker_offset: a.marker_offset,
+        free_start: a.free_start,
+        robust: a.robust,
+        cv: if a.no_cross_validation { None } else { cv },
+        heading_lever_m: a.heading_lever,
     };
     let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|e| {
         // Name the file, not only the short name.
@@ -324,6 +374,10 @@ mod tests {
             report: None,
             no_cross_validation: true,
             marker_offset: false,
+            free_start: false,
+            robust: false,
+            cv: None,
+            heading_lever: None,
         }
     }
 
@@ -391,5 +445,59 @@ mod tests {
         let text = format!("{e:#}");
         assert!(text.contains("recording.csv"), "{text}");
         std::fs::remove_dir_all(&d).ok();
+    }
+
+    fn real_square() -> Option<PathBuf> {
+        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+            .ancestors()
+            .map(|a| a.join("shared/real/diff-square-run-01"))
+            .find(|d| d.join("recording.csv").is_file())
+    }
+
+    #[test]
+    fn one_row_recording_names_the_file() {
+        let d = dir("onerow");
+        std::fs::write(d.join("robot.toml"), DIFF).unwrap();
+        std::fs::write(
+            d.join("recording.csv"),
+            "t,enc_left,enc_right,x,y,theta\n0,0,0,0,0,0\n",
+        )
+        .unwrap();
+        let e = run(&args(&d.join("robot.toml"), &d), Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(
+            text.contains(&d.join("recording.csv").display().to_string()) && text.contains("1 row"),
+            "{text}"
+        );
+        std::fs::remove_dir_all(&d).ok();
+    }
+
+    #[test]
+    fn holdout_also_fitted_is_refused() {
+        let Some(sq) = real_square() else {
+            eprintln!("skipping: shared/real is absent");
+            return;
+        };
+        let mut a = args(&sq.join("robot.toml"), &sq);
+        a.holdout = Some(sq.join("recording.csv"));
+        let e = run(&a, Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(
+            text.contains("recording.csv") && text.contains("also fitted"),
+            "{text}"
+        );
+    }
+
+    #[test]
+    fn marker_offset_on_a_differential_drive_is_an_error() {
+        let Some(sq) = real_square() else {
+            eprintln!("skipping: shared/real is absent");
+            return;
+        };
+        let mut a = args(&sq.join("robot.toml"), &sq);
+        a.marker_offset = true;
+        let e = run(&a, Output::Json).unwrap_err();
+        let text = format!("{e:#}");
+        assert!(text.contains("omni robots only"), "{text}");
     }
 }

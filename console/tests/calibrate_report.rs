@@ -275,13 +275,14 @@ fn report_has_plots_index_and_mcap() {
         let p = &cal["per_recording"][i];
         assert_eq!(p["name"], name);
         assert_eq!(p["pose_samples"].as_u64().unwrap() as usize, poses(name));
-        rmse.insert(
-            name,
-            (
-                p["rmse_before_m"].as_f64().unwrap(),
-                p["rmse_after_m"].as_f64().unwrap(),
-            ),
-        );
+        // Dead-reckoning fits (the default) are drawn dead-reckoned from the first pose;
+        // aligned fits (--free-start) as the fit placed them.
+        let (b, f) = if cal["free_start"].as_bool().unwrap() {
+            ("rmse_before_m", "rmse_after_m")
+        } else {
+            ("dead_reckoning_before_m", "dead_reckoning_after_m")
+        };
+        rmse.insert(name, (p[b].as_f64().unwrap(), p[f].as_f64().unwrap()));
     }
     let h = &cal["heldout"];
     rmse.insert(

@@ -15,6 +15,8 @@
 //! is fitted. Every parameter has a plausible range; a value outside is listed
 //! `implausible` with what it most likely stands in for.
 
+pub mod proxy;
+
 use crate::fit;
 use crate::replay::unwrap_angles;
 use calib_core::correction::Corrections;
@@ -32,8 +34,18 @@ use std::fmt;
 pub(crate) const RES_UNIT_M: f64 = 1e-3;
 /// Heading residuals count as position errors at this lever arm (m).
 const HEADING_LEVER_M: f64 = 0.1;
+/// Default lever arm (m) of the heading residuals in the dead-reckoning objective (as the
+/// aligned fit's). On the issue-21 proxy a longer lever transfers better (geometric mean
+/// ratio to OptiOdom for 0.1, 0.3, 1, 3, 10 m: 1.004, 0.997, 0.964, 0.940, 0.934), but at
+/// 3 m the heading gain dominates and scale/eb are reported not separable even on
+/// two-direction squares (sim and real): [`CalOptions::heading_lever_m`] sets it.
+pub const DR_HEADING_LEVER_M: f64 = 0.1;
 /// Least pose samples per recording.
 pub const MIN_POSES: usize = 20;
+/// The dead-reckoning objective compares positions every this much travel (m), turns in
+/// place counted as the arc the wheels' lever arm sweeps: standstill and slow corners do
+/// not outweigh distance (OptiOdom compares every 0.5 m).
+pub const SAMPLE_STEP_M: f64 = 0.05;
 /// |correlation| above which two parameters are reported not separable.
 pub const CORR_LIMIT: f64 = 0.95;
 
@@ -342,6 +354,41 @@ pub struct Series {
     /// Wheeled-legged robots: (front, rear) leg angles per row, rad; they move the wheel
     /// contacts along x, so the kinematics follow them.
     legs: Option<Vec<(f64, f64)>>,
+    /// Pose samples (indices into px...) the dead-reckoning objective compares: one every
+    /// [`SAMPLE_STEP_M`] of travel (turns in place counted at the wheels' lever arm).
+    pub(crate) samples: Vec<usize>,
+    /// Pose samples where dead reckoning restarts from the measured pose (the first one,
+    /// and the end of every event one geometry cannot explain).
+    pub(crate) anchors: Vec<usize>,
+    /// Single-sample glitches found while reading (replaced, reported as events).
+    pub(crate) glitches: Vec<Event>,
+}
+
+/// Pose samples one every `step` of travel (|dp| + lever |dtheta| between samples), the
+/// first and last included.
+fn distance_samples(px: &[f64], py: &[f64], pth: &[f64], lever: f64, step: f64) -> Vec<usize> {
+    let n = px.len();
+    let mut v = vec![0];
+    let mut d = 0.0;
+    let mut next = step;
+    for j in 1..n {
+        d += (px[j] - px[j - 1]).hypot(py[j] - py[j - 1]) + lever * (pth[j] - pth[j - 1]).abs();
+        if d >= next {
+            v.push(j);
+            next = d + step;
+        }
+    }
+    if n > 1 && *v.last().unwrap_or(&0) != n - 1 {
+        v.push(n - 1);
+    }
+    v
+}
+
+/// The lever arm at which a turn in place counts as travel: the mean wheel distance from
+/// the centre (half the separation of a differential drive).
+fn turn_lever(robot: &Robot) -> f64 {
+    let n = robot.wheels.len().max(1) as f64;
+    robot.wheels.iter().map(|w| w.l_m).sum::<f64>() / n
 }
 
 impl Series {
@@ -381,15 +428,86 @@ impl Series {
                     .collect::<Vec<f64>>(),
             );
         }
-        let inc = (0..n.saturating_sub(1))
+        if n < MIN_POSES {
+            return Err(err(format!(
+                "{n} row(s): calibrate needs a recording of motion, at least {MIN_POSES} rows with encoders and poses"
+            )));
+        }
+        let mut inc: Vec<Vec<f64>> = (0..n.saturating_sub(1))
             .map(|k| angles.iter().map(|a| a[k + 1] - a[k]).collect())
             .collect();
+        let mut glitches = Vec::new();
+        // One increment no motor makes (20 times the 99th percentile of the wheel's
+        // increments): a counter glitch, replaced by its neighbours' mean and reported.
+        for (w, wheel) in robot.wheels.iter().enumerate() {
+            let mut a: Vec<f64> = inc.iter().map(|v| v[w].abs()).collect();
+            a.sort_by(|x, y| x.total_cmp(y));
+            let q = a.get(a.len() * 99 / 100).copied().unwrap_or(0.0);
+            let thr = 20.0 * q.max(1e-9);
+            let bad: Vec<usize> = (0..inc.len())
+                .filter(|&k| inc[k][w].abs() > thr || inc[k][w].is_nan())
+                .collect();
+            for &k in &bad {
+                let good = |k: Option<usize>| k.filter(|k| !bad.contains(k)).map(|k| inc[k][w]);
+                let nb: Vec<f64> = [k.checked_sub(1), Some(k + 1).filter(|&k| k < inc.len())]
+                    .into_iter()
+                    .filter_map(good)
+                    .collect();
+                let v = inc[k][w];
+                inc[k][w] = nb.iter().sum::<f64>() / nb.len().max(1) as f64;
+                glitches.push(Event {
+                    recording: name.to_string(),
+                    kind: "encoder_glitch",
+                    t_s: rec.t[k + 1] - rec.t[0],
+                    duration_s: 0.0,
+                    heading_rad: 0.0,
+                    position_m: v * robot.wheels[w].radius_m,
+                    handled: "replaced by its neighbours' mean",
+                });
+                let _ = wheel;
+            }
+        }
         let (mut pose_row, mut px, mut py, mut pth) = (vec![], vec![], vec![], vec![]);
         for (i, x, y, th) in rec.pose_rows() {
             pose_row.push(i);
             px.push(x);
             py.push(y);
             pth.push(th);
+        }
+        // One pose sample far from both neighbours (which agree): a motion-capture glitch,
+        // dropped and reported.
+        let mut j = 1;
+        while j + 1 < px.len() {
+            let dev = (px[j] - 0.5 * (px[j - 1] + px[j + 1]))
+                .hypot(py[j] - 0.5 * (py[j - 1] + py[j + 1]));
+            let gap = (px[j + 1] - px[j - 1]).hypot(py[j + 1] - py[j - 1]);
+            if dev > 0.05 && dev > 5.0 * gap || dev.is_nan() {
+                glitches.push(Event {
+                    recording: name.to_string(),
+                    kind: "pose_glitch",
+                    t_s: rec.t[pose_row[j]] - rec.t[0],
+                    duration_s: 0.0,
+                    heading_rad: 0.0,
+                    position_m: dev,
+                    handled: "the sample is dropped",
+                });
+                for v in [&mut px, &mut py, &mut pth] {
+                    v.remove(j);
+                }
+                pose_row.remove(j);
+            } else {
+                j += 1;
+            }
+        }
+        let moved: f64 = px
+            .windows(2)
+            .zip(py.windows(2))
+            .map(|(a, b)| (a[1] - a[0]).hypot(b[1] - b[0]))
+            .sum();
+        if moved > 0.1 && angles.iter().all(|a| a.iter().all(|v| *v == 0.0)) {
+            return Err(err(format!(
+                "the poses move {moved:.2} m and no encoder moves: calibrate needs the wheels' counts"
+            )));
         }
         if pose_row.len() < MIN_POSES {
             return Err(err(format!(
@@ -411,6 +529,7 @@ impl Series {
         } else {
             None
         };
+        let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
         Ok(Series {
             name: name.to_string(),
             t: rec.t.clone(),
@@ -420,7 +539,22 @@ impl Series {
             py,
             pth,
             legs,
+            samples,
+            anchors: vec![0],
+            glitches,
         })
+    }
+
+    /// The start the dead-reckoning objective uses: the first measured pose, clocks as
+    /// recorded.
+    pub fn first_pose(&self) -> Nuisance {
+        Nuisance {
+            x0_m: self.px[0],
+            y0_m: self.py[0],
+            theta0_rad: self.pth[0],
+            time_offset_s: 0.0,
+            clock_ratio: 1.0,
+        }
     }
 
     /// Number of ground-truth pose samples.
@@ -553,6 +687,51 @@ pub(crate) fn residuals_into(
     }
 }
 
+/// Dead-reckoning residuals (ex, ey, lever * eth, in RES_UNIT_M) of one recording at its
+/// distance samples: the path integrated from the measured pose at each anchor (the first
+/// pose sample, and the end of each event), no start pose or clocks fitted.
+pub(crate) fn dr_residuals_into(
+    s: &Series,
+    path: &Path,
+    marker: (f64, f64),
+    lever: f64,
+    out: &mut Vec<f64>,
+) {
+    let mut seg = 0usize;
+    for &j in &s.samples {
+        while seg + 1 < s.anchors.len() && s.anchors[seg + 1] <= j {
+            seg += 1;
+        }
+        let a = s.anchors[seg];
+        let (ka, kj) = (s.pose_row[a], s.pose_row[j]);
+        let dth = s.pth[a] - path.th[ka];
+        let (c, sn) = (dth.cos(), dth.sin());
+        // Body position at the anchor from the measured marker position.
+        let (ca, sa) = (s.pth[a].cos(), s.pth[a].sin());
+        let bx = s.px[a] - (ca * marker.0 - sa * marker.1);
+        let by = s.py[a] - (sa * marker.0 + ca * marker.1);
+        let (dx, dy) = (path.x[kj] - path.x[ka], path.y[kj] - path.y[ka]);
+        let th = path.th[kj] + dth;
+        let (cm, sm) = (th.cos(), th.sin());
+        let wx = bx + c * dx - sn * dy + cm * marker.0 - sm * marker.1;
+        let wy = by + sn * dx + c * dy + sm * marker.0 + cm * marker.1;
+        out.push((wx - s.px[j]) / RES_UNIT_M);
+        out.push((wy - s.py[j]) / RES_UNIT_M);
+        out.push((th - s.pth[j]) * lever / RES_UNIT_M);
+    }
+}
+
+/// Huber's loss as a residual: sign(r) sqrt(2 rho(r)), so a least-squares solver
+/// minimises sum rho (quadratic within `c`, linear beyond).
+fn huber(r: f64, c: f64) -> f64 {
+    let a = r.abs();
+    if a <= c {
+        r
+    } else {
+        r.signum() * (c * (2.0 * a - c)).sqrt()
+    }
+}
+
 /// Position RMSE (m) from residuals laid out by `residuals_into`.
 fn position_rmse(r: &[f64]) -> f64 {
     let n = r.len() / 3;
@@ -598,6 +777,12 @@ struct Problem<'a> {
     cache: RefCell<(Vec<f64>, Vec<Path>)>,
     /// Bound the geometry to the plausible ranges (else 10 times wider).
     plausible_bounds: bool,
+    /// Fit each recording's start pose and clocks (else dead-reckon from the anchors).
+    free_start: bool,
+    /// Huber scale of the data residuals (residual units), when the loss is robust.
+    huber: Option<f64>,
+    /// Lever arm of the dead-reckoning heading residuals, m.
+    dr_lever: f64,
 }
 
 impl<'a> Problem<'a> {
@@ -622,6 +807,9 @@ impl<'a> Problem<'a> {
             priors,
             prior_scale: 1.0,
             plausible_bounds: false,
+            free_start: true,
+            huber: None,
+            dr_lever: DR_HEADING_LEVER_M,
             cache: RefCell::new((vec![f64::NAN], vec![Path::default(); series.len()])),
         }
     }
@@ -650,7 +838,7 @@ impl<'a> Problem<'a> {
     fn residuals(&self, geom: &[f64], nuis: &[f64], with_prior: bool) -> Vec<f64> {
         let mut out = Vec::new();
         if !self.paths(geom) {
-            let m: usize = self.series.iter().map(|s| 3 * s.pose_samples()).sum();
+            let m = self.data_len();
             return vec![1e12; m + if with_prior { self.priors.len() } else { 0 }];
         }
         let c = self.cache.borrow();
@@ -662,8 +850,12 @@ impl<'a> Problem<'a> {
         };
         let marker = (get(GeomKind::MarkerX), get(GeomKind::MarkerY));
         for (i, s) in self.series.iter().enumerate() {
-            let nu = Nuisance::from(&nuis[i * NUIS..(i + 1) * NUIS]);
-            residuals_into(s, &c.1[i], &nu, marker, &mut out);
+            if self.free_start {
+                let nu = Nuisance::from(&nuis[i * NUIS..(i + 1) * NUIS]);
+                residuals_into(s, &c.1[i], &nu, marker, &mut out);
+            } else {
+                dr_residuals_into(s, &c.1[i], marker, self.dr_lever, &mut out);
+            }
         }
         if with_prior {
             for (w, target, sigma) in &self.priors {
@@ -675,7 +867,16 @@ impl<'a> Problem<'a> {
     }
 
     fn data_len(&self) -> usize {
-        self.series.iter().map(|s| 3 * s.pose_samples()).sum()
+        self.series
+            .iter()
+            .map(|s| {
+                3 * if self.free_start {
+                    s.pose_samples()
+                } else {
+                    s.samples.len()
+                }
+            })
+            .sum()
     }
 }
 
@@ -727,20 +928,35 @@ fn solve(p: &Problem, geom0: &[f64], nuis0: &[f64], fit_geom: bool) -> Solved {
     } else {
         (nuis0.to_vec(), nlo, nhi)
     };
+    let m = p.data_len();
     let mut f = |x: &[f64]| -> Vec<f64> {
-        if fit_geom {
+        let mut r = if fit_geom {
             p.residuals(&x[..g], &x[g..], true)
         } else {
             p.residuals(geom0, x, false)
+        };
+        if let Some(c) = p.huber {
+            r[..m].iter_mut().for_each(|v| *v = huber(*v, c));
         }
+        r
     };
+    if x0.is_empty() {
+        // Nothing free (dead reckoning with the geometry given).
+        let data = p.residuals(geom0, nuis0, false);
+        return Solved {
+            geom: geom0.to_vec(),
+            nuis: nuis0.to_vec(),
+            jac: DMatrix::zeros(m, 0),
+            data_cost: data.iter().map(|v| v * v).sum(),
+            evaluations: 1,
+        };
+    }
     let (r, jac) = fit::levenberg_marquardt_jacobian(&mut f, &x0, &lo, &hi, 60);
     let (geom, nuis) = if fit_geom {
         (r.x[..g].to_vec(), r.x[g..].to_vec())
     } else {
         (geom0.to_vec(), r.x.clone())
     };
-    let m = p.data_len();
     let data = p.residuals(&geom, &nuis, false);
     let data_cost = data.iter().map(|v| v * v).sum();
     Solved {
@@ -752,8 +968,12 @@ fn solve(p: &Problem, geom0: &[f64], nuis0: &[f64], fit_geom: bool) -> Solved {
     }
 }
 
-/// Nuisance start: start pose at the first measured pose, clocks nominal.
-fn nuisance_start(series: &[Series]) -> Vec<f64> {
+/// Nuisance start: start pose at the first measured pose, clocks nominal (none when
+/// dead-reckoning: nothing per recording is fitted).
+fn nuisance_start(series: &[Series], free_start: bool) -> Vec<f64> {
+    if !free_start {
+        return vec![];
+    }
     series
         .iter()
         .flat_map(|s| {
@@ -826,10 +1046,18 @@ pub struct PerRecording {
     pub name: String,
     /// Its ground-truth pose samples.
     pub pose_samples: usize,
-    /// Nominal geometry, nuisance (start pose, clocks) fitted.
+    /// Pose samples the objective compared (every 5 cm of travel when dead-reckoning).
+    pub compared_samples: usize,
+    /// The fit's objective with the nominal geometry: position RMSE dead-reckoned from the
+    /// first pose at the compared samples (or with the start pose and clocks fitted,
+    /// `--free-start`), m.
     pub rmse_before_m: f64,
-    /// Fitted geometry, nuisance fitted.
+    /// The same with the fitted geometry, m.
     pub rmse_after_m: f64,
+    /// Start pose and clocks fitted (geometry as given), nominal geometry, m.
+    pub aligned_before_m: f64,
+    /// Start pose and clocks fitted, fitted geometry, m.
+    pub aligned_after_m: f64,
     /// Dead reckoning from the first measured pose, nominal and fitted geometry.
     pub dead_reckoning_before_m: f64,
     /// Dead reckoning from the first measured pose with the fitted geometry, m.
@@ -850,6 +1078,9 @@ pub struct PerRecording {
 pub struct Heldout {
     /// The recording's name as given.
     pub name: String,
+    /// The cross-validation group it was held out with (run, session or path kind).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub group: Option<String>,
     /// Dead reckoning with the nominal geometry, m.
     pub rmse_before_m: f64,
     /// Dead reckoning with the fitted geometry, m.
@@ -865,7 +1096,7 @@ pub struct Heldout {
 fn aligned_rmse(robot: &Robot, specs: &[ParamSpec], geom: &[f64], s: &Series) -> f64 {
     let one = [s.clone()];
     let p = Problem::new(robot, specs, &one);
-    let r = solve(&p, geom, &nuisance_start(&one), false);
+    let r = solve(&p, geom, &nuisance_start(&one, true), false);
     position_rmse(&p.residuals(geom, &r.nuis, false))
 }
 
@@ -900,6 +1131,17 @@ pub struct Implausible {
 pub struct Calibration {
     /// The robot's name.
     pub robot: String,
+    /// What the fit minimised.
+    pub objective: &'static str,
+    /// True when each recording's start pose and clocks were fitted (`--free-start`);
+    /// false when each was dead-reckoned from its first pose.
+    pub free_start: bool,
+    /// The robust loss and its scale (`None`: squared loss).
+    pub robust_loss: Option<String>,
+    /// Events one geometry cannot explain, found, reported and kept out of the fit.
+    pub events: Vec<Event>,
+    /// How cross-validation grouped the recordings (`run`, `session`, `path-kind`).
+    pub cv_by: Option<&'static str>,
     /// The recordings' names, in the order given.
     pub recordings: Vec<String>,
     /// The fitted geometry parameters (in [`param_specs`] order).
@@ -953,10 +1195,406 @@ pub struct Calibration {
 /// Options of [`calibrate`].
 #[derive(Debug, Clone, Default)]
 pub struct CalOptions {
-    /// Run leave-one-out cross-validation (when there are at least 2 recordings).
+    /// Run leave-one-out cross-validation (when there are at least 2 recordings): the
+    /// same as `cv: Some(CvBy::Run)`.
     pub leave_one_out: bool,
     /// Also fit where motion capture tracks on the body (omni robots).
     pub marker_offset: bool,
+    /// Fit each recording's start pose, time offset and clock ratio (for recordings whose
+    /// frame is not the robot's start frame); else dead-reckon from the first pose.
+    pub free_start: bool,
+    /// Huber's loss instead of least squares (dead-reckoning objective). Off by default:
+    /// on the issue-21 proxy it transferred worse (geometric mean ratio 1.041 against
+    /// 0.987 with squared loss, events kept out either way).
+    pub robust: bool,
+    /// Cross-validation: hold out whole runs, sessions or kinds of motion.
+    pub cv: Option<CvBy>,
+    /// Lever arm (m) of the heading residuals in the dead-reckoning objective (default
+    /// [`DR_HEADING_LEVER_M`]).
+    pub heading_lever_m: Option<f64>,
+}
+
+/// How cross-validation groups recordings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CvBy {
+    /// Each recording alone.
+    Run,
+    /// Recordings of one session (the name without its `-run-NN` suffix).
+    Session,
+    /// Recordings of one kind of motion (the name's second dash field:
+    /// `<robot>-<path>-<session>-run-NN`, e.g. square, circular, ivanjko).
+    PathKind,
+}
+
+impl CvBy {
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            CvBy::Run => "run",
+            CvBy::Session => "session",
+            CvBy::PathKind => "path-kind",
+        }
+    }
+
+    /// Parses `run`, `session` or `path-kind`.
+    pub fn parse(s: &str) -> Option<CvBy> {
+        match s {
+            "run" => Some(CvBy::Run),
+            "session" => Some(CvBy::Session),
+            "path-kind" | "path" => Some(CvBy::PathKind),
+            _ => None,
+        }
+    }
+
+    /// The group of a recording named `name` (a run folder's name, or a file name).
+    pub fn group(self, name: &str) -> String {
+        let base = name.trim_end_matches(".csv");
+        match self {
+            CvBy::Run => base.to_string(),
+            CvBy::Session => match base.rfind("-run-") {
+                Some(i) => base[..i].to_string(),
+                None => base.to_string(),
+            },
+            CvBy::PathKind => base.split('-').nth(1).unwrap_or(base).to_string(),
+        }
+    }
+}
+
+/// A fit that makes a recording more than this many times worse than nominal (plus
+/// [`WORSE_MARGIN_M`]) is refused, naming the recording.
+pub const WORSE_FACTOR: f64 = 3.0;
+/// See [`WORSE_FACTOR`], m.
+pub const WORSE_MARGIN_M: f64 = 0.01;
+
+/// Huber's loss switches from quadratic to linear at this many robust sigmas (1.345: 95 %
+/// efficiency on Gaussian residuals).
+pub const HUBER_K: f64 = 1.345;
+/// Least heading step (rad) across [`EVENT_WINDOW_S`] reported as a slip.
+pub const EVENT_MIN_RAD: f64 = 0.04;
+/// ... and at least this many robust sigmas of the recording's discrepancies.
+pub const EVENT_SIGMAS: f64 = 8.0;
+/// Window over which encoders and motion capture are compared for events, s.
+pub const EVENT_WINDOW_S: f64 = 3.0;
+/// Time on either side of an event window whose mean discrepancy sets the step, s.
+pub const EVENT_GUARD_S: f64 = 2.0;
+/// A step must also exceed this fraction of the heading turned in its window (a geometry
+/// error grows with the turn: 2 % is well beyond any fitted wheelbase's error).
+pub const EVENT_PER_TURN: f64 = 0.02;
+/// Least transient heading discrepancy (rad) reported as a clock leading for a moment
+/// (0.1 s at 1 rad/s).
+pub const EVENT_TRANSIENT_RAD: f64 = 0.08;
+
+/// An event one geometry cannot explain.
+#[derive(Debug, Clone, Serialize)]
+pub struct Event {
+    /// The recording.
+    pub recording: String,
+    /// `slip` (odometry and motion capture part for good), `time_lead` (they part and
+    /// meet again: one clock leads the other for a moment), `pose_glitch` (one pose
+    /// sample far from its neighbours), `encoder_glitch` (one increment no motor makes).
+    pub kind: &'static str,
+    /// Start, s since the recording's first row.
+    pub t_s: f64,
+    /// Duration, s.
+    pub duration_s: f64,
+    /// Heading odometry minus motion capture over the event, rad.
+    pub heading_rad: f64,
+    /// Position size of the event (a glitch's jump), m.
+    pub position_m: f64,
+    /// What the fit did with it.
+    pub handled: &'static str,
+}
+
+#[derive(Debug, Clone, Copy)]
+struct Cfg {
+    free_start: bool,
+    huber: Option<f64>,
+    dr_lever: f64,
+}
+
+impl Cfg {
+    fn apply(&self, p: &mut Problem) {
+        p.free_start = self.free_start;
+        p.huber = self.huber;
+        p.dr_lever = self.dr_lever;
+    }
+}
+
+/// 1.4826 x the median absolute residual (a robust standard deviation).
+fn robust_sigma(r: &[f64]) -> f64 {
+    let mut a: Vec<f64> = r
+        .iter()
+        .map(|v| v.abs())
+        .filter(|v| v.is_finite())
+        .collect();
+    if a.is_empty() {
+        return f64::NAN;
+    }
+    a.sort_by(|x, y| x.total_cmp(y));
+    1.4826 * a[a.len() / 2]
+}
+
+/// Heading discrepancies (odometry minus motion capture) over [`EVENT_WINDOW_S`] that no
+/// geometry explains: reported, and kept out of the fit (a slip restarts dead reckoning
+/// from the measured pose after it; a clock lead's samples are not compared).
+fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
+    let Ok(kin) = Kinematics::<f64>::new(robot, &Corrections::None) else {
+        return vec![];
+    };
+    let mut path = Path::default();
+    if !s.path(robot, &kin, &mut path) {
+        return vec![];
+    }
+    let n = s.pose_row.len();
+    let e: Vec<f64> = (0..n)
+        .map(|j| (path.th[s.pose_row[j]] - path.th[s.pose_row[0]]) - (s.pth[j] - s.pth[0]))
+        .collect();
+    let t = |j: usize| s.t[s.pose_row[j]];
+    // Window ends.
+    let mut end = vec![n - 1; n];
+    let mut k = 0;
+    for (j, e_j) in end.iter_mut().enumerate() {
+        k = k.max(j);
+        while k + 1 < n && t(k) - t(j) < EVENT_WINDOW_S {
+            k += 1;
+        }
+        *e_j = k;
+    }
+    // Mean discrepancy over EVENT_GUARD_S before each window and after it: a slip is a
+    // step that stays; one clock leading the other for a moment is a transient inside
+    // the window that the means on either side do not see.
+    let mut pre = vec![0.0; n + 1];
+    for j in 0..n {
+        pre[j + 1] = pre[j] + e[j];
+    }
+    let mean = |a: usize, b: usize| (pre[b + 1] - pre[a]) / (b + 1 - a) as f64;
+    // What a geometry error makes of the same step: a wheelbase error grows with the
+    // heading turned, a diameter ratio with the distance driven. Both are regressed out
+    // (robustly) before a step counts as an event, so a geometry the event itself bent
+    // in the first fit does not hide it.
+    let mut dist = vec![0.0; n];
+    for j in 1..n {
+        dist[j] = dist[j - 1] + (s.px[j] - s.px[j - 1]).hypot(s.py[j] - s.py[j - 1]);
+    }
+    let (mut pth_pre, mut dist_pre) = (vec![0.0; n + 1], vec![0.0; n + 1]);
+    for j in 0..n {
+        pth_pre[j + 1] = pth_pre[j] + s.pth[j];
+        dist_pre[j + 1] = dist_pre[j] + dist[j];
+    }
+    let mean_of = |v: &[f64], a: usize, b: usize| (v[b + 1] - v[a]) / (b + 1 - a) as f64;
+    let mut reg = vec![(0.0, 0.0); n];
+    let first_at = |t0: f64| (0..n).find(|&k| t(k) >= t0).unwrap_or(n - 1);
+    let mut step = vec![0.0; n];
+    let mut transient = vec![0.0; n];
+    let mut turned = vec![0.0; n];
+    let mut after_end = vec![n - 1; n];
+    for j in 0..n {
+        let b = end[j];
+        let a0 = first_at(t(j) - EVENT_GUARD_S);
+        let b1 = first_at(t(b) + EVENT_GUARD_S).max(b);
+        after_end[j] = b1;
+        let (m0, m1) = (mean(a0, j), mean(b, b1));
+        step[j] = m1 - m0;
+        reg[j] = (
+            mean_of(&pth_pre, b, b1) - mean_of(&pth_pre, a0, j),
+            mean_of(&dist_pre, b, b1) - mean_of(&dist_pre, a0, j),
+        );
+        transient[j] = (j..=b)
+            .map(|k| e[k] - m0 - (m1 - m0) * (t(k) - t(j)) / (t(b) - t(j)).max(1e-9))
+            .fold(0.0, |acc: f64, v| if v.abs() > acc.abs() { v } else { acc });
+        turned[j] = (s.pth[b] - s.pth[j]).abs();
+    }
+    // Huber-weighted least squares of step on the two regressors, a few passes.
+    let mut coef = (0.0, 0.0);
+    for _ in 0..5 {
+        let res: Vec<f64> = (0..n)
+            .map(|j| step[j] - coef.0 * reg[j].0 - coef.1 * reg[j].1)
+            .collect();
+        let c = HUBER_K * robust_sigma(&res).max(1e-6);
+        let (mut a11, mut a12, mut a22, mut b1, mut b2) = (0.0, 0.0, 0.0, 0.0, 0.0);
+        for j in 0..n {
+            let w = if res[j].abs() <= c {
+                1.0
+            } else {
+                c / res[j].abs()
+            };
+            let (x, y) = reg[j];
+            a11 += w * x * x;
+            a12 += w * x * y;
+            a22 += w * y * y;
+            b1 += w * x * step[j];
+            b2 += w * y * step[j];
+        }
+        let det = a11 * a22 - a12 * a12;
+        if det.abs() < 1e-12 * (a11 * a22).max(1e-300) {
+            break;
+        }
+        coef = ((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det);
+    }
+    for j in 0..n {
+        step[j] -= coef.0 * reg[j].0 + coef.1 * reg[j].1;
+    }
+    let sigma = robust_sigma(&step);
+    let thr = |j: usize| {
+        EVENT_MIN_RAD
+            .max(EVENT_SIGMAS * sigma)
+            .max(EVENT_PER_TURN * turned[j])
+    };
+    let mut found: Vec<(usize, usize, f64, &'static str)> = vec![];
+    for (vals, kind, limit) in [
+        (&step, "slip", None),
+        (&transient, "time_lead", Some(EVENT_TRANSIENT_RAD)),
+    ] {
+        let mut used = vec![false; n];
+        for f in &found {
+            for u in used.iter_mut().take(f.1 + 1).skip(f.0) {
+                *u = true;
+            }
+        }
+        loop {
+            let best = (0..n)
+                .filter(|&j| !used[j])
+                .max_by(|&a, &b| vals[a].abs().total_cmp(&vals[b].abs()));
+            let Some(j) = best.filter(|&j| vals[j].abs() > limit.unwrap_or_else(|| thr(j))) else {
+                break;
+            };
+            let (a, b) = (j, end[j]);
+            for (u, w) in used.iter_mut().enumerate() {
+                if end[u] >= a && u <= b {
+                    *w = true;
+                }
+            }
+            found.push((a, b, vals[j], kind));
+        }
+    }
+    found.sort_by_key(|f| f.0);
+    // Two steps of opposite sign that undo each other within a few seconds: a clock
+    // leading the other through a turn, not a slip.
+    // (Transients between them belong to the same turn.)
+    let mut merged: Vec<(usize, usize, f64, &'static str)> = vec![];
+    let mut i = 0;
+    while i < found.len() {
+        let f = found[i];
+        if f.3 == "slip" {
+            let next = (i + 1..found.len()).find(|&j| found[j].3 == "slip");
+            if let Some(j) = next {
+                let g = found[j];
+                if t(g.0) - t(f.1) < 2.0 * EVENT_WINDOW_S
+                    && f.2 * g.2 < 0.0
+                    && (f.2 + g.2).abs() < 0.3 * f.2.abs().max(g.2.abs())
+                {
+                    let h = found[i..=j].iter().map(|x| x.2).fold(0.0, |acc: f64, v| {
+                        if v.abs() > acc.abs() {
+                            v
+                        } else {
+                            acc
+                        }
+                    });
+                    merged.push((f.0, g.1.max(f.1), h, "time_lead"));
+                    i = j + 1;
+                    continue;
+                }
+            }
+        }
+        merged.push(f);
+        i += 1;
+    }
+    let mut out = vec![];
+    let mut skip: Vec<(usize, usize)> = vec![];
+    for (a, b, h, kind) in merged {
+        let slip = kind == "slip";
+        out.push(Event {
+            recording: s.name.clone(),
+            kind,
+            t_s: t(a) - s.t[0],
+            duration_s: t(b) - t(a),
+            heading_rad: h,
+            position_m: 0.0,
+            handled: if slip {
+                "dead reckoning restarts from the measured pose after it"
+            } else {
+                "reported only: the heading it leads by is given back when the turn ends"
+            },
+        });
+        if slip {
+            skip.push((a, b));
+        }
+        if slip && !s.anchors.contains(&b) {
+            s.anchors.push(b);
+        }
+    }
+    s.anchors.sort();
+    s.samples
+        .retain(|&j| !skip.iter().any(|&(a, b)| j > a && j < b));
+    out
+}
+
+/// Inputs `calibrate` refuses before fitting: a held-out recording that is also fitted,
+/// a marker offset on a drive without one.
+fn check_inputs(
+    robot: &Robot,
+    recordings: &[(String, Recording)],
+    holdout: Option<&(String, Recording)>,
+    opts: &CalOptions,
+) -> Result<(), CalibrateError> {
+    if let Some((hn, hr)) = holdout {
+        if let Some((n, _)) = recordings.iter().find(|(_, r)| {
+            r.t == hr.t && r.x == hr.x && r.y == hr.y && r.theta == hr.theta && r.len() == hr.len()
+        }) {
+            return Err(CalibrateError {
+                recording: Some(hn.clone()),
+                message: format!(
+                    "the held-out recording is also fitted (as {n}): a held-out error needs a recording the fit did not see"
+                ),
+            });
+        }
+    }
+    if opts.marker_offset && robot.kind != RobotKind::Omni {
+        return Err(CalibrateError {
+            recording: None,
+            message: "a marker offset is fitted for omni robots only: a differential drive's marker offset is not separable from its wheelbase and start heading (drop --marker-offset)".into(),
+        });
+    }
+    Ok(())
+}
+
+/// Refuses a fit that makes a recording clearly worse than nominal, or whose
+/// uncertainties are zero or infinite: the answer would be confident and wrong.
+fn refuse_bad_fit(
+    per: &[PerRecording],
+    specs: &[ParamSpec],
+    geom: &[f64],
+    cov: &DMatrix<f64>,
+) -> Result<(), CalibrateError> {
+    for r in per {
+        // One shared geometry need not help every recording (a run whose errors cancelled
+        // with the nominal geometry gets worse: a note says so); several times worse is a
+        // recording the geometry cannot explain (a glitch, another robot, other units).
+        let limit = WORSE_FACTOR * r.rmse_before_m + WORSE_MARGIN_M;
+        if r.rmse_after_m > limit || r.rmse_after_m.is_nan() {
+            return Err(CalibrateError {
+                recording: Some(r.name.clone()),
+                message: format!(
+                    "the fitted geometry makes this recording worse than nominal ({:.2} -> {:.2} mm): the recordings disagree, or this one holds an error no geometry explains; fit it apart or leave it out",
+                    r.rmse_before_m * 1e3,
+                    r.rmse_after_m * 1e3
+                ),
+            });
+        }
+    }
+    for (i, sp) in specs.iter().enumerate() {
+        let sg = cov[(i, i)].sqrt();
+        if !geom[i].is_finite() || !sg.is_finite() || sg <= 0.0 {
+            return Err(CalibrateError {
+                recording: per.first().map(|r| r.name.clone()).filter(|_| per.len() == 1),
+                message: format!(
+                    "{} = {} with uncertainty {sg}: the recordings do not determine it (do the encoders move?)",
+                    sp.name, geom[i]
+                ),
+            });
+        }
+    }
+    Ok(())
 }
 
 fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
@@ -984,10 +1622,12 @@ fn fit_specs(
     robot: &Robot,
     specs: &[ParamSpec],
     series: &[Series],
+    cfg: Cfg,
 ) -> (Solved, f64, DMatrix<f64>, usize) {
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
     let mut p = Problem::new(robot, specs, series);
-    let before = solve(&p, &nominal, &nuisance_start(series), false);
+    cfg.apply(&mut p);
+    let before = solve(&p, &nominal, &nuisance_start(series, cfg.free_start), false);
     p.prior_scale = noise_scale(&p, &before);
     let first = solve(&p, &nominal, &before.nuis, true);
     p.prior_scale = noise_scale(&p, &first);
@@ -1014,6 +1654,7 @@ fn choose_specs(
     robot: &Robot,
     series: &[Series],
     marker: bool,
+    cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
 ) -> Vec<ParamSpec> {
@@ -1022,8 +1663,8 @@ fn choose_specs(
         return full;
     }
     let roller = roller_specs(robot, marker);
-    let (f_full, var_full, _, r1) = fit_specs(robot, &full, series);
-    let (f_roller, _, cov_roller, r2) = fit_specs(robot, &roller, series);
+    let (f_full, var_full, _, r1) = fit_specs(robot, &full, series, cfg);
+    let (f_roller, _, cov_roller, r2) = fit_specs(robot, &roller, series, cfg);
     *runs += r1 + r2;
     let gi = roller
         .iter()
@@ -1079,19 +1720,62 @@ pub fn calibrate(
             message: "the robot's wheels cannot resolve the body twist".into(),
         });
     }
-    let series = recordings
+    check_inputs(robot, recordings, holdout, opts)?;
+    let mut series = recordings
         .iter()
         .map(|(n, r)| Series::new(n, robot, r))
         .collect::<Result<Vec<_>, _>>()?;
     let held = holdout.map(|(n, r)| Series::new(n, robot, r)).transpose()?;
     let mut notes = Vec::new();
     let mut runs = 0;
-    let specs = choose_specs(robot, &series, opts.marker_offset, &mut notes, &mut runs);
+    let mut cfg = Cfg {
+        free_start: opts.free_start,
+        huber: None,
+        dr_lever: opts.heading_lever_m.unwrap_or(DR_HEADING_LEVER_M),
+    };
+    // Events one geometry cannot explain (slips, motion capture leading the encoders,
+    // glitches): found on a first squared-loss fit, reported, and kept out of the fit
+    // (dead reckoning restarts from the measured pose after a slip; the samples inside an
+    // event are not compared).
+    let mut events: Vec<Event> = series.iter().flat_map(|s| s.glitches.clone()).collect();
+    if !cfg.free_start {
+        let specs0 = param_specs(robot, opts.marker_offset);
+        let (f0, ..) = fit_specs(robot, &specs0, &series, cfg);
+        let r0 = robot_with(robot, &specs0, &f0.geom);
+        for s in series.iter_mut() {
+            events.extend(detect_events(&r0, s));
+        }
+        if opts.robust {
+            // Huber's scale: HUBER_K robust sigmas (MAD) of the squared-loss residuals.
+            let (f1, ..) = fit_specs(robot, &specs0, &series, cfg);
+            let mut p1 = Problem::new(robot, &specs0, &series);
+            cfg.apply(&mut p1);
+            let r = p1.residuals(&f1.geom, &f1.nuis, false);
+            let sigma = robust_sigma(&r);
+            if sigma.is_finite() && sigma > 0.0 {
+                cfg.huber = Some(HUBER_K * sigma);
+            }
+        }
+    }
+    let specs = choose_specs(
+        robot,
+        &series,
+        opts.marker_offset,
+        cfg,
+        &mut notes,
+        &mut runs,
+    );
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
 
-    // Nominal geometry, nuisance fitted: the "before".
+    // Nominal geometry (nuisance fitted when free): the "before".
     let mut p = Problem::new(robot, &specs, &series);
-    let before = solve(&p, &nominal, &nuisance_start(&series), false);
+    cfg.apply(&mut p);
+    let before = solve(
+        &p,
+        &nominal,
+        &nuisance_start(&series, cfg.free_start),
+        false,
+    );
     let before_res = p.residuals(&nominal, &before.nuis, false);
     runs += before.evaluations;
 
@@ -1203,58 +1887,173 @@ pub fn calibrate(
     let mut per_recording = Vec::new();
     let mut offs = (0, 0);
     for (i, s) in series.iter().enumerate() {
-        let m = 3 * s.pose_samples();
+        let m = 3 * if cfg.free_start {
+            s.pose_samples()
+        } else {
+            s.samples.len()
+        };
         offs.1 = offs.0 + m;
+        let (rb, ra) = (
+            position_rmse(&before_res[offs.0..offs.1]),
+            position_rmse(&after_res[offs.0..offs.1]),
+        );
+        let (nu, nu_nom, sig_t, sig_c) = if cfg.free_start {
+            (
+                Nuisance::from(&fitted.nuis[i * NUIS..(i + 1) * NUIS]),
+                Nuisance::from(&before.nuis[i * NUIS..(i + 1) * NUIS]),
+                cov[(g + i * NUIS + 3, g + i * NUIS + 3)].max(0.0).sqrt(),
+                cov[(g + i * NUIS + 4, g + i * NUIS + 4)].max(0.0).sqrt(),
+            )
+        } else {
+            let a = s.first_pose();
+            (a, a, f64::NAN, f64::NAN)
+        };
+        let (ab, aa) = if cfg.free_start {
+            (rb, ra)
+        } else {
+            (
+                aligned_rmse(robot, &specs, &nominal, s),
+                aligned_rmse(robot, &specs, &fitted.geom, s),
+            )
+        };
         per_recording.push(PerRecording {
             name: s.name.clone(),
             pose_samples: s.pose_samples(),
-            rmse_before_m: position_rmse(&before_res[offs.0..offs.1]),
-            rmse_after_m: position_rmse(&after_res[offs.0..offs.1]),
+            compared_samples: m / 3,
+            rmse_before_m: rb,
+            rmse_after_m: ra,
             dead_reckoning_before_m: dead_reckoning_rmse(robot, s).unwrap_or(f64::NAN),
             dead_reckoning_after_m: dead_reckoning_rmse(&fitted_robot, s).unwrap_or(f64::NAN),
-            nuisance: Nuisance::from(&fitted.nuis[i * NUIS..(i + 1) * NUIS]),
-            nuisance_nominal: Nuisance::from(&before.nuis[i * NUIS..(i + 1) * NUIS]),
-            time_offset_sigma_s: cov[(g + i * NUIS + 3, g + i * NUIS + 3)].max(0.0).sqrt(),
-            clock_ratio_sigma: cov[(g + i * NUIS + 4, g + i * NUIS + 4)].max(0.0).sqrt(),
+            aligned_before_m: ab,
+            aligned_after_m: aa,
+            nuisance: nu,
+            nuisance_nominal: nu_nom,
+            time_offset_sigma_s: sig_t,
+            clock_ratio_sigma: sig_c,
         });
         offs.0 = offs.1;
     }
+    refuse_bad_fit(&per_recording, &specs, &fitted.geom, &cov)?;
     let heldout = held.as_ref().map(|h| Heldout {
         name: h.name.clone(),
+        group: None,
         rmse_before_m: dead_reckoning_rmse(robot, h).unwrap_or(f64::NAN),
         aligned_before_m: aligned_rmse(robot, &specs, &nominal, h),
         aligned_after_m: aligned_rmse(robot, &specs, &fitted.geom, h),
         rmse_after_m: dead_reckoning_rmse(&fitted_robot, h).unwrap_or(f64::NAN),
     });
 
-    // Leave one out: the same procedure (pairs pinned as in the joint fit) on the rest.
+    // Cross-validation: each group (run, session or path kind) held out in turn, the
+    // geometry refitted on the rest from the full solution (the same objective, loss,
+    // events and bounds), the held-out recordings dead-reckoned and aligned.
+    let cv_by = opts.cv.or(opts.leave_one_out.then_some(CvBy::Run));
     let mut leave_one_out = Vec::new();
-    if opts.leave_one_out && series.len() >= 2 {
-        for i in 0..series.len() {
-            let rest: Vec<Series> = series
-                .iter()
-                .enumerate()
-                .filter(|(j, _)| *j != i)
-                .map(|(_, s)| s.clone())
-                .collect();
+    if let Some(by) = cv_by {
+        let groups: Vec<String> = series.iter().map(|s| by.group(&s.name)).collect();
+        let mut distinct: Vec<String> = groups.clone();
+        distinct.sort();
+        distinct.dedup();
+        if distinct.len() < 2 {
+            notes.push(format!(
+                "cross-validation by {} needs at least two groups, found {}",
+                by.name(),
+                distinct.len()
+            ));
+        }
+        // Dead reckoning (squared loss): each fold is one Gauss-Newton step from the full
+        // solution with the held-out recordings' rows taken out of the normal equations
+        // (no refit: CV costs next to nothing). Otherwise a refit from the full solution.
+        let gn = (!cfg.free_start && cfg.huber.is_none()).then(|| {
+            let r = p.residuals(&fitted.geom, &fitted.nuis, false);
+            let jac = &fitted.jac;
+            let mut h = jac.transpose() * jac;
+            let mut grad = jac.transpose() * nalgebra::DVector::from_column_slice(&r);
+            for (w, target, sigma) in &p.priors {
+                let v: f64 = w.iter().zip(&fitted.geom).map(|(a, b)| a * b).sum();
+                let pr = (v - target) / sigma * p.prior_scale;
+                for a in 0..g {
+                    grad[a] += w[a] / sigma * p.prior_scale * pr;
+                    for b in 0..g {
+                        h[(a, b)] += w[a] * w[b] / (sigma * sigma) * p.prior_scale * p.prior_scale;
+                    }
+                }
+            }
+            let mut at = vec![0usize];
+            for s in &series {
+                at.push(at.last().copied().unwrap_or(0) + 3 * s.samples.len());
+            }
+            (h, grad, r, at)
+        });
+        let (blo, bhi) = if p.plausible_bounds {
+            specs.iter().map(|s| s.plausible).unzip()
+        } else {
+            geom_bounds(&specs)
+        };
+        let t0 = std::time::Instant::now();
+        for (k, gname) in distinct.iter().enumerate().filter(|_| distinct.len() >= 2) {
+            if let Some((h, grad, r, at)) = &gn {
+                let (mut h, mut grad) = (h.clone(), grad.clone());
+                for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
+                    let ji = fitted.jac.rows(at[i], at[i + 1] - at[i]);
+                    h -= ji.transpose() * ji;
+                    grad -=
+                        ji.transpose() * nalgebra::DVector::from_column_slice(&r[at[i]..at[i + 1]]);
+                }
+                let step = h
+                    .lu()
+                    .solve(&(-grad))
+                    .unwrap_or_else(|| nalgebra::DVector::zeros(g));
+                let geom: Vec<f64> = (0..g)
+                    .map(|a| (fitted.geom[a] + step[a]).clamp(blo[a], bhi[a]))
+                    .collect();
+                let r = robot_with(robot, &specs, &geom);
+                for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
+                    leave_one_out.push(Heldout {
+                        name: series[i].name.clone(),
+                        group: Some(gname.clone()),
+                        rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
+                        rmse_after_m: dead_reckoning_rmse(&r, &series[i]).unwrap_or(f64::NAN),
+                        aligned_before_m: per_recording[i].aligned_before_m,
+                        aligned_after_m: aligned_rmse(robot, &specs, &geom, &series[i]),
+                    });
+                }
+                continue;
+            }
+            if t0.elapsed().as_secs_f64() > 2.0 {
+                eprintln!(
+                    "calibrate: cross-validation {}/{} ({:.1} s)",
+                    k + 1,
+                    distinct.len(),
+                    t0.elapsed().as_secs_f64()
+                );
+            }
+            let keep: Vec<usize> = (0..series.len()).filter(|&j| &groups[j] != gname).collect();
+            let rest: Vec<Series> = keep.iter().map(|&j| series[j].clone()).collect();
             let mut q = Problem::new(robot, &specs, &rest);
+            cfg.apply(&mut q);
             q.priors = p.priors.clone();
             q.prior_scale = p.prior_scale;
             q.plausible_bounds = p.plausible_bounds;
-            let nuis: Vec<f64> = (0..series.len())
-                .filter(|j| *j != i)
-                .flat_map(|j| fitted.nuis[j * NUIS..(j + 1) * NUIS].to_vec())
-                .collect();
-            let f = solve(&q, &nominal, &nuis, true);
+            let nuis: Vec<f64> = if cfg.free_start {
+                keep.iter()
+                    .flat_map(|&j| fitted.nuis[j * NUIS..(j + 1) * NUIS].to_vec())
+                    .collect()
+            } else {
+                vec![]
+            };
+            let f = solve(&q, &fitted.geom, &nuis, true);
             runs += f.evaluations;
             let r = robot_with(robot, &specs, &f.geom);
-            leave_one_out.push(Heldout {
-                name: series[i].name.clone(),
-                rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
-                rmse_after_m: dead_reckoning_rmse(&r, &series[i]).unwrap_or(f64::NAN),
-                aligned_before_m: per_recording[i].rmse_before_m,
-                aligned_after_m: aligned_rmse(robot, &specs, &f.geom, &series[i]),
-            });
+            for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
+                leave_one_out.push(Heldout {
+                    name: series[i].name.clone(),
+                    group: Some(gname.clone()),
+                    rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
+                    rmse_after_m: dead_reckoning_rmse(&r, &series[i]).unwrap_or(f64::NAN),
+                    aligned_before_m: per_recording[i].aligned_before_m,
+                    aligned_after_m: aligned_rmse(robot, &specs, &f.geom, &series[i]),
+                });
+            }
         }
     }
     let mean = |f: &dyn Fn(&Heldout) -> f64| {
@@ -1347,8 +2146,24 @@ pub fn calibrate(
         }
     };
 
+    let objective = if cfg.free_start {
+        "aligned: start pose, time offset and clock ratio fitted per recording (--free-start)"
+    } else {
+        "dead reckoning from each recording's first measured pose, compared every 5 cm of travel (turns in place at the wheels' lever arm)"
+    };
+    let robust_loss = cfg.huber.map(|c| {
+        format!(
+            "Huber, quadratic within {:.2} mm ({HUBER_K} robust sigmas of the squared-loss residuals), linear beyond",
+            c * RES_UNIT_M * 1e3
+        )
+    });
     Ok(Calibration {
         robot: robot.name.to_string(),
+        objective,
+        free_start: cfg.free_start,
+        robust_loss,
+        events,
+        cv_by: cv_by.map(|c| c.name()),
         recordings: series.iter().map(|s| s.name.clone()).collect(),
         params,
         geometry,
@@ -1460,10 +2275,14 @@ impl fmt::Display for Calibration {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         writeln!(
             f,
-            "calibrate {}: {} recording(s), geometry shared, start pose and clocks per recording",
+            "calibrate {}: {} recording(s), geometry shared",
             self.robot,
             self.recordings.len()
         )?;
+        writeln!(f, "minimised: {}", self.objective)?;
+        if let Some(l) = &self.robust_loss {
+            writeln!(f, "loss: {l}")?;
+        }
         writeln!(f, "geometry:")?;
         for p in &self.params {
             let flag = if self.implausible.iter().any(|i| i.name == p.name) {
@@ -1505,21 +2324,53 @@ impl fmt::Display for Calibration {
         }
         writeln!(
             f,
-            "fit RMSE (start pose and clocks fitted): joint {} -> {}",
+            "fit RMSE (what was minimised): joint {} -> {}",
             mm(self.joint_rmse_before_m),
             mm(self.joint_rmse_after_m)
         )?;
+        writeln!(f, "per recording, nominal -> fitted: minimised; dead reckoning from the first pose (every pose sample); aligned (start pose and clocks fitted)")?;
         for r in &self.per_recording {
-            writeln!(
+            write!(
                 f,
-                "  {:<24} {} -> {}   dead reckoning {} -> {}   time_offset {:+.3} s, clock_ratio {:.4}",
+                "  {:<24} {} -> {}   dead reckoning {} -> {}   aligned {} -> {}",
                 r.name,
                 mm(r.rmse_before_m),
                 mm(r.rmse_after_m),
                 mm(r.dead_reckoning_before_m),
                 mm(r.dead_reckoning_after_m),
-                r.nuisance.time_offset_s,
-                r.nuisance.clock_ratio
+                mm(r.aligned_before_m),
+                mm(r.aligned_after_m),
+            )?;
+            if r.nuisance.time_offset_s != 0.0 || r.nuisance.clock_ratio != 1.0 {
+                write!(
+                    f,
+                    "   time_offset {:+.3} s, clock_ratio {:.4}",
+                    r.nuisance.time_offset_s, r.nuisance.clock_ratio
+                )?;
+            }
+            writeln!(f)?;
+            if r.rmse_after_m > r.rmse_before_m {
+                writeln!(
+                    f,
+                    "    worse than nominal with the shared geometry (its errors cancelled with the nominal one, or it disagrees with the others)"
+                )?;
+            }
+        }
+        for e in &self.events {
+            writeln!(
+                f,
+                "event {} {}: at {:.2} s for {:.2} s, heading {:+.3} rad (odometry minus motion capture){}; {}",
+                e.recording,
+                e.kind,
+                e.t_s,
+                e.duration_s,
+                e.heading_rad,
+                if e.position_m != 0.0 {
+                    format!(", size {:.4} m", e.position_m)
+                } else {
+                    String::new()
+                },
+                e.handled
             )?;
         }
         if let Some(h) = &self.heldout {
@@ -1534,7 +2385,7 @@ impl fmt::Display for Calibration {
             )?;
         }
         if !self.leave_one_out.is_empty() {
-            writeln!(f, "leave one out (fit on the rest; the one left out dead-reckoned, and aligned: start pose and clocks fitted):")?;
+            writeln!(f, "cross-validation by {} (fit on the rest; the held-out recordings dead-reckoned from their first pose, nominal -> fitted, and aligned: start pose and clocks fitted):", self.cv_by.unwrap_or("run"))?;
             for h in &self.leave_one_out {
                 writeln!(
                     f,

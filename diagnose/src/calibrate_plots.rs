@@ -2,11 +2,14 @@
 //! dead reckoning with the nominal and with the fitted geometry, and the position error
 //! over time; the parameters' correlation matrix; an index.html with the summary.
 //!
-//! The series are the ones the fit compared, not a re-derivation: each recording's dead
-//! reckoning is placed with the start pose and clocks [`calibrate`] fitted for it
-//! (nominal geometry: the nuisance of the "before" fit; fitted geometry: the nuisance of
-//! the joint fit) through the same residual code, so the RMS of an error series is the
-//! recording's `rmse_before_m` / `rmse_after_m`. A held-out recording is dead-reckoned
+//! The series are the fit's, not a re-derivation. With the default dead-reckoning
+//! objective each recording is dead-reckoned from its first measured pose at every pose
+//! sample, so the RMS of an error series is the recording's `dead_reckoning_before_m` /
+//! `dead_reckoning_after_m`. With `--free-start` each recording's dead reckoning is placed
+//! with the start pose and clocks [`calibrate`] fitted for it (nominal geometry: the
+//! nuisance of the "before" fit; fitted geometry: the nuisance of the joint fit) through
+//! the same residual code, so the RMS of an error series is the recording's
+//! `rmse_before_m` / `rmse_after_m`. A held-out recording is dead-reckoned
 //! from its first measured pose, as [`Heldout`]'s `rmse_before_m` / `rmse_after_m`.
 //!
 //! [`calibrate`]: crate::calibrate::calibrate

@@ -64,6 +64,7 @@ pub fn diagnose_many(
         None,
         &CalOptions {
             leave_one_out: recordings.len() >= 3,
+            free_start: true,
             ..CalOptions::default()
         },
     )?;
@@ -72,7 +73,11 @@ pub fn diagnose_many(
     for (i, (name, rec)) in recordings.iter().enumerate() {
         let per = &cal.per_recording[i];
         // Which geometry parameters this recording shows on its own.
-        let own = calibrate(robot, &recordings[i..=i], None, &CalOptions::default())?;
+        let own_opts = CalOptions {
+            free_start: true,
+            ..CalOptions::default()
+        };
+        let own = calibrate(robot, &recordings[i..=i], None, &own_opts)?;
         let geometry_evidence: Vec<String> = own
             .params
             .iter()

@@ -565,7 +565,11 @@ fn clocks(
     rec: &mut Recording,
 ) -> (Vec<Artefact>, Option<crate::calibrate::Calibration>) {
     let recs = [("recording".to_string(), rec.clone())];
-    let Ok(cal) = calibrate(robot, &recs, None, &CalOptions::default()) else {
+    let opts = CalOptions {
+        free_start: true,
+        ..Default::default()
+    };
+    let Ok(cal) = calibrate(robot, &recs, None, &opts) else {
         return (vec![], None);
     };
     let p = &cal.per_recording[0];

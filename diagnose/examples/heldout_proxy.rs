@@ -1,0 +1,75 @@
+//! Issue 21's held-out proxy on `shared/real/sessions/`: `calibrate` trained on each
+//! square session of the differential robot, its geometry dead-reckoned on the circles and
+//! Ivanjko paths of the nearest day, against the OptiOdom authors' parameters from the same
+//! session (see `diagnose::calibrate::proxy`). Prints a markdown table (the README's).
+//!
+//!     cargo run --release -p diagnose --example heldout_proxy [-- OPTIONS]
+//!
+//! Options: `--sessions DIR` (default: `shared/real/sessions` beside the checkout),
+//! `--only S1,S2`, `--max-tests N`, `--json` (per-run numbers), `--free-start`,
+//! `--robust`, `--heading-lever M` (calibrate's options).
+
+use diagnose::calibrate::{calibrate, proxy, CalOptions};
+use std::path::PathBuf;
+
+fn main() {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let val = |k: &str| {
+        args.iter()
+            .position(|a| a == k)
+            .and_then(|i| args.get(i + 1).cloned())
+    };
+    let flag = |k: &str| args.iter().any(|a| a == k);
+    let dir = val("--sessions")
+        .map(PathBuf::from)
+        .or_else(|| proxy::sessions_dir(&PathBuf::from(env!("CARGO_MANIFEST_DIR"))));
+    let Some(dir) = dir else {
+        eprintln!("shared/real/sessions is absent: give --sessions DIR");
+        std::process::exit(2);
+    };
+    let only: Option<Vec<String>> = val("--only").map(|s| s.split(',').map(String::from).collect());
+    let only_refs: Option<Vec<&str>> = only
+        .as_ref()
+        .map(|v| v.iter().map(|s| s.as_str()).collect());
+    let max_tests = val("--max-tests").and_then(|s| s.parse().ok());
+    let opts = CalOptions {
+        free_start: flag("--free-start"),
+        robust: flag("--robust"),
+        heading_lever_m: val("--heading-lever").and_then(|v| v.parse().ok()),
+        ..Default::default()
+    };
+    let t0 = std::time::Instant::now();
+    let res = proxy::run_diff(&dir, only_refs.as_deref(), max_tests, &|robot, recs| {
+        let t = std::time::Instant::now();
+        let c = calibrate(robot, recs, None, &opts).map_err(|e| e.to_string())?;
+        eprintln!(
+            "trained on {} recordings in {:.2} s: {}",
+            recs.len(),
+            t.elapsed().as_secs_f64(),
+            c.params
+                .iter()
+                .map(|p| format!("{} {:.5}", p.name, p.value))
+                .collect::<Vec<_>>()
+                .join(", ")
+        );
+        if flag("--verbose") {
+            eprintln!("{c}");
+        }
+        for e in &c.events {
+            eprintln!(
+                "  event {} {} at {:.2} s for {:.2} s: {:+.3} rad",
+                e.recording, e.kind, e.t_s, e.duration_s, e.heading_rad
+            );
+        }
+        Ok(c.fitted_robot)
+    })
+    .unwrap_or_else(|e| {
+        eprintln!("{e}");
+        std::process::exit(1)
+    });
+    if flag("--json") {
+        println!("{}", serde_json::to_string_pretty(&res).unwrap());
+    }
+    print!("{}", proxy::table(&res));
+    eprintln!("total {:.1} s", t0.elapsed().as_secs_f64());
+}

@@ -1,0 +1,289 @@
+//! The held-out proxy of issue 21 on `shared/real/sessions/` (the OptiOdom dataset): train
+//! on one square session of a robot, dead-reckon the circular and Ivanjko runs of the same
+//! robot on the nearest day from their first row, and compare with the OptiOdom authors'
+//! parameters fitted on the same training session, on the same runs.
+//!
+//! Pairing (nearest day with circles or Ivanjko paths, same robot): the 23 December 2020
+//! squares are tested on the 23 December circles and Ivanjko paths; the 23 June 2020
+//! squares on those of 25 June 2020 (there are none on 23 June).
+//!
+//! Metric: dead reckoning from the first row (motion capture is in the robot's start
+//! frame, the first pose is exactly (0, 0, 0)), RMS position error over every pose sample
+//! of a run ([`dead_reckoning_rmse`]).
+
+use super::{dead_reckoning_rmse, Series};
+use calib_core::robot::Robot;
+use formats::recording::Recording;
+use serde::Serialize;
+use std::collections::BTreeMap;
+use std::path::{Path, PathBuf};
+
+/// One run folder of the sessions directory: `<robot>-<path>-<session>-run-NN`.
+#[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
+pub struct RunDir {
+    /// Robot (`diff`, `omni3`, `omni4`).
+    pub robot: String,
+    /// Path kind (`square`, `circular`, `ivanjko`).
+    pub path: String,
+    /// Session id, DDMMYYYYhhmm.
+    pub session: String,
+    /// The folder's name.
+    pub folder: String,
+}
+
+impl RunDir {
+    /// Day of the session as (year, month, day).
+    pub fn day(&self) -> (u32, u32, u32) {
+        let n = |a: usize, b: usize| self.session.get(a..b).and_then(|s| s.parse().ok());
+        (
+            n(4, 8).unwrap_or(0),
+            n(2, 4).unwrap_or(0),
+            n(0, 2).unwrap_or(0),
+        )
+    }
+}
+
+/// Every run folder of `dir` whose name parses, sorted.
+pub fn list_runs(dir: &Path) -> std::io::Result<Vec<RunDir>> {
+    let mut v = Vec::new();
+    for e in std::fs::read_dir(dir)? {
+        let name = e?.file_name().to_string_lossy().to_string();
+        let parts: Vec<&str> = name.split('-').collect();
+        if parts.len() == 5 && parts[3] == "run" {
+            v.push(RunDir {
+                robot: parts[0].into(),
+                path: parts[1].into(),
+                session: parts[2].into(),
+                folder: name,
+            });
+        }
+    }
+    v.sort();
+    Ok(v)
+}
+
+fn day_number(d: (u32, u32, u32)) -> i64 {
+    // Good enough to find the nearest day (months as 31 days).
+    (d.0 as i64) * 372 + (d.1 as i64) * 31 + d.2 as i64
+}
+
+/// The test runs of a training session: the circular and Ivanjko runs of the same robot
+/// on the nearest day that has any.
+pub fn test_runs<'a>(all: &'a [RunDir], train: &RunDir) -> Vec<&'a RunDir> {
+    let tests: Vec<&RunDir> = all
+        .iter()
+        .filter(|r| r.robot == train.robot && (r.path == "circular" || r.path == "ivanjko"))
+        .collect();
+    let d0 = day_number(train.day());
+    let Some(best) = tests.iter().map(|r| (day_number(r.day()) - d0).abs()).min() else {
+        return vec![];
+    };
+    tests
+        .into_iter()
+        .filter(|r| (day_number(r.day()) - d0).abs() == best)
+        .collect()
+}
+
+/// The OptiOdom authors' differential-drive parameters for `session` and `path`
+/// (`diff-Sousa` of authors_params.json, the row fitted on all the session's runs): the
+/// nominal robot with D_L, D_R and b applied.
+pub fn authors_diff_robot(
+    params: &serde_json::Value,
+    nominal: &Robot,
+    session: &str,
+    path: &str,
+) -> Option<Robot> {
+    let row = params.get("diff-Sousa")?.as_array()?.iter().find(|r| {
+        r["session"].as_str() == Some(session)
+            && r["path"].as_str() == Some(path)
+            && r["note"].as_str() == Some("")
+    })?;
+    let (dr, dl, b) = (
+        row["D_R"].as_f64()?,
+        row["D_L"].as_f64()?,
+        row["b"].as_f64()?,
+    );
+    let mut r = nominal.clone();
+    for w in r.wheels.iter_mut() {
+        // Left is the +y wheel.
+        w.radius_m = if w.position().1 >= 0.0 { dl } else { dr } / 2.0;
+        w.l_m = b / 2.0;
+    }
+    Some(r)
+}
+
+/// Held-out errors of one training session.
+#[derive(Debug, Clone, Serialize)]
+pub struct SessionResult {
+    /// Training session id.
+    pub session: String,
+    /// Its runs (trained on).
+    pub train_runs: usize,
+    /// Test runs with their dead-reckoned RMS (m): ours, the authors'.
+    pub tests: Vec<(String, f64, f64)>,
+}
+
+fn median(v: &mut [f64]) -> f64 {
+    v.sort_by(|a, b| a.total_cmp(b));
+    let n = v.len();
+    if n == 0 {
+        f64::NAN
+    } else if n % 2 == 1 {
+        v[n / 2]
+    } else {
+        0.5 * (v[n / 2 - 1] + v[n / 2])
+    }
+}
+
+/// Mean, median and worst of a set of RMS values.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct Stats {
+    /// Mean, m.
+    pub mean: f64,
+    /// Median, m.
+    pub median: f64,
+    /// Worst, m.
+    pub worst: f64,
+}
+
+fn stats(v: impl Iterator<Item = f64>) -> Stats {
+    let mut v: Vec<f64> = v.collect();
+    let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
+    let worst = v.iter().copied().fold(f64::NAN, f64::max);
+    Stats {
+        mean,
+        median: median(&mut v),
+        worst,
+    }
+}
+
+impl SessionResult {
+    /// Ours: mean, median, worst over the test runs.
+    pub fn ours(&self) -> Stats {
+        stats(self.tests.iter().map(|t| t.1))
+    }
+    /// The authors': mean, median, worst over the test runs.
+    pub fn authors(&self) -> Stats {
+        stats(self.tests.iter().map(|t| t.2))
+    }
+    /// Mean ours over mean the authors'.
+    pub fn ratio(&self) -> f64 {
+        self.ours().mean / self.authors().mean
+    }
+}
+
+/// Geometric mean of the sessions' ratios.
+pub fn geometric_mean_ratio(r: &[SessionResult]) -> f64 {
+    (r.iter().map(|s| s.ratio().ln()).sum::<f64>() / r.len().max(1) as f64).exp()
+}
+
+/// A markdown table of the results (mm), with the geometric mean of the ratios.
+pub fn table(r: &[SessionResult]) -> String {
+    let mut s = String::from(
+        "| training session | runs | test runs | ours mean / median / worst (mm) | authors mean / median / worst (mm) | ratio |\n|---|---|---|---|---|---|\n",
+    );
+    for x in r {
+        let (o, a) = (x.ours(), x.authors());
+        s.push_str(&format!(
+            "| {} | {} | {} | {:.1} / {:.1} / {:.1} | {:.1} / {:.1} / {:.1} | {:.3} |\n",
+            x.session,
+            x.train_runs,
+            x.tests.len(),
+            o.mean * 1e3,
+            o.median * 1e3,
+            o.worst * 1e3,
+            a.mean * 1e3,
+            a.median * 1e3,
+            a.worst * 1e3,
+            x.ratio()
+        ));
+    }
+    let worst = r.iter().map(|x| x.ratio()).fold(f64::NAN, f64::max);
+    s.push_str(&format!(
+        "\ngeometric mean of the ratios {:.3}, worst {:.3}\n",
+        geometric_mean_ratio(r),
+        worst
+    ));
+    s
+}
+
+/// Loads a run folder's robot and recording.
+pub fn load_run(dir: &Path, folder: &str) -> Result<(Robot, Recording), String> {
+    let d = dir.join(folder);
+    let robot = formats::robot_file::load(&d.join("robot.toml")).map_err(|e| e.to_string())?;
+    let rec = Recording::load(&d.join("recording.csv"), &robot).map_err(|e| e.to_string())?;
+    Ok((robot, rec))
+}
+
+/// The sessions folder beside a checkout (`shared/real/sessions`), if present.
+pub fn sessions_dir(from: &Path) -> Option<PathBuf> {
+    from.ancestors()
+        .map(|a| a.join("shared/real/sessions"))
+        .find(|d| d.join("authors_params.json").is_file())
+}
+
+/// A training procedure: the nominal robot and the training recordings in, the fitted
+/// robot out.
+pub type Train<'a> = dyn Fn(&Robot, &[(String, Recording)]) -> Result<Robot, String> + 'a;
+
+/// Runs the proxy for the differential robot: every square session of `dir` (or those in
+/// `only`), trained by `train`, tested on its paired runs (at most `max_tests` of them,
+/// evenly spread, when given).
+pub fn run_diff(
+    dir: &Path,
+    only: Option<&[&str]>,
+    max_tests: Option<usize>,
+    train: &Train<'_>,
+) -> Result<Vec<SessionResult>, String> {
+    let params: serde_json::Value = serde_json::from_str(
+        &std::fs::read_to_string(dir.join("authors_params.json")).map_err(|e| e.to_string())?,
+    )
+    .map_err(|e| e.to_string())?;
+    let all = list_runs(dir).map_err(|e| e.to_string())?;
+    let mut sessions: BTreeMap<String, Vec<&RunDir>> = BTreeMap::new();
+    for r in all
+        .iter()
+        .filter(|r| r.robot == "diff" && r.path == "square")
+    {
+        if only.is_none_or(|o| o.contains(&r.session.as_str())) {
+            sessions.entry(r.session.clone()).or_default().push(r);
+        }
+    }
+    let mut test_cache: BTreeMap<String, Series> = BTreeMap::new();
+    let mut out = Vec::new();
+    for (session, runs) in sessions {
+        let mut robot = None;
+        let mut recs = Vec::new();
+        for r in &runs {
+            let (rb, rec) = load_run(dir, &r.folder)?;
+            robot.get_or_insert(rb);
+            recs.push((r.folder.clone(), rec));
+        }
+        let nominal = robot.ok_or("no run")?;
+        let ours = train(&nominal, &recs)?;
+        let authors = authors_diff_robot(&params, &nominal, &session, "square")
+            .ok_or_else(|| format!("no authors' parameters for square {session}"))?;
+        let mut tests = test_runs(&all, runs[0]);
+        if let Some(m) = max_tests.filter(|m| *m < tests.len()) {
+            let step = tests.len() as f64 / m as f64;
+            tests = (0..m).map(|i| tests[(i as f64 * step) as usize]).collect();
+        }
+        let mut res = Vec::new();
+        for t in tests {
+            if !test_cache.contains_key(&t.folder) {
+                let (rb, rec) = load_run(dir, &t.folder)?;
+                let s = Series::new(&t.folder, &rb, &rec).map_err(|e| e.to_string())?;
+                test_cache.insert(t.folder.clone(), s);
+            }
+            let s = &test_cache[&t.folder];
+            let e = |r: &Robot| dead_reckoning_rmse(r, s).unwrap_or(f64::NAN);
+            res.push((t.folder.clone(), e(&ours), e(&authors)));
+        }
+        out.push(SessionResult {
+            session,
+            train_runs: runs.len(),
+            tests: res,
+        });
+    }
+    Ok(out)
+}
