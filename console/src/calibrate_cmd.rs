@@ -17,11 +17,12 @@ use std::path::{Path, PathBuf};
 /// Arguments of `wheelcal calibrate`.
 #[derive(Debug, Args)]
 pub struct CalibrateArgs {
-    /// Robot description (formats.md §1): the nominal geometry.
+    /// Robot description (docs/formats.md §1): the nominal geometry.
     #[arg(long)]
     pub robot: PathBuf,
-    /// Recording with motion-capture poses (formats.md §2): a CSV file, a run folder
-    /// holding recording.csv, or a directory of run folders; repeatable.
+    /// Recording with motion-capture poses (docs/formats.md §2): a CSV file, a run folder
+    /// holding recording.csv, a directory of run folders, or a ROS 2 bag (with
+    /// `--pose-topic`); repeatable.
     #[arg(long, required = true)]
     pub recording: Vec<PathBuf>,
     /// A recording kept out of the fit: its dead-reckoning RMSE before and after.
@@ -59,12 +60,15 @@ pub struct CalibrateArgs {
     /// (default 0.1; 3 transferred better on real runs, see the README).
     #[arg(long)]
     pub heading_lever: Option<f64>,
+    /// How to read recordings given as ROS 2 bags.
+    #[command(flatten)]
+    pub bag: crate::commands::import::BagFlags,
 }
 
 /// Recording CSV files named by `p`: the file itself, `p/recording.csv`, or every
 /// `recording.csv` one level down (sorted).
 pub fn recording_files(p: &Path) -> Result<Vec<PathBuf>> {
-    if p.is_file() {
+    if p.is_file() || crate::commands::import::is_bag(p) {
         return Ok(vec![p.to_path_buf()]);
     }
     if !p.is_dir() {
@@ -109,7 +113,7 @@ pub fn diagnose_many(a: &crate::cli::DiagnoseArgs, files: &[PathBuf], out: Outpu
     let robot = robot_file::load(&a.robot)?;
     let recs = files
         .iter()
-        .map(|f| load(f, &robot, &a.robot))
+        .map(|f| load(f, &robot, &a.robot, &a.bag))
         .collect::<Result<Vec<_>>>()?;
     let opts = diagnose::Options {
         max_effects: a.max_effects.into(),
@@ -157,7 +161,12 @@ fn short_name(f: &Path) -> String {
 
 /// Loads a recording against `robot`; a robot.toml beside it naming another robot is an
 /// error naming both files.
-fn load(f: &Path, robot: &Robot, robot_path: &Path) -> Result<(String, Recording)> {
+fn load(
+    f: &Path,
+    robot: &Robot,
+    robot_path: &Path,
+    bag: &crate::commands::import::BagFlags,
+) -> Result<(String, Recording)> {
     if let Some(beside) = f
         .parent()
         .map(|d| d.join("robot.toml"))
@@ -176,7 +185,7 @@ fn load(f: &Path, robot: &Robot, robot_path: &Path) -> Result<(String, Recording
             }
         }
     }
-    let rec = Recording::load(f, robot)?;
+    let rec = crate::commands::import::load_recording(f, robot, bag)?;
     Ok((short_name(f), rec))
 }
 
@@ -199,7 +208,7 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
                 ));
                 continue;
             }
-            let r = load(&f, &robot, &a.robot)?;
+            let r = load(&f, &robot, &a.robot, &a.bag)?;
             for n in &r.1.notes {
                 out.note(&format!("{}: {n}", f.display()));
             }
@@ -227,7 +236,7 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
                     f[0].display()
                 );
             }
-            Some(load(&f[0], &robot, &a.robot)?)
+            Some(load(&f[0], &robot, &a.robot, &a.bag)?)
         }
         None => None,
     };
@@ -322,16 +331,19 @@ fn write_report(
     held: Option<&(String, Recording)>,
     dir: &Path,
 ) -> Result<()> {
-    formats::safe_write::claim_dir(dir)?;
-    std::fs::write(
-        dir.join("calibration.json"),
-        serde_json::to_string_pretty(cal)?,
+    use formats::safe_write::{claim_dir, replace_file};
+    // A folder the tool made (or a new one); each file through a temporary and a rename,
+    // so a failed write leaves the previous report's file whole.
+    claim_dir(dir)?;
+    replace_file(
+        &dir.join("calibration.json"),
+        serde_json::to_string_pretty(cal)?.as_bytes(),
     )?;
     let summary = human(cal);
-    std::fs::write(dir.join("summary.txt"), &summary)?;
-    std::fs::write(dir.join("robot.toml"), cal.robot_toml())?;
+    replace_file(&dir.join("summary.txt"), summary.as_bytes())?;
+    replace_file(&dir.join("robot.toml"), cal.robot_toml().as_bytes())?;
     if let Some(y) = ros2_yaml(cal) {
-        std::fs::write(dir.join("ros2.yaml"), y)?;
+        replace_file(&dir.join("ros2.yaml"), y.as_bytes())?;
     }
     let series = calibrate_plots::calibration_series(cal, robot, recs, held)
         .map_err(|e| anyhow::anyhow!("{e}"))?;

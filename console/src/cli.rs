@@ -95,8 +95,9 @@ pub struct DiagnoseArgs {
     /// Robot description (docs/formats.md §1).
     #[arg(long)]
     pub robot: PathBuf,
-    /// Recording (docs/formats.md §2): a CSV file or a run folder; repeatable, or a directory
-    /// of run folders: several recordings are diagnosed jointly (shared geometry).
+    /// Recording (docs/formats.md §2): a CSV file, a run folder or a ROS 2 bag (with
+    /// `--pose-topic`); repeatable, or a directory of run folders: several recordings are
+    /// diagnosed jointly (shared geometry).
     #[arg(long, required = true)]
     pub recording: Vec<PathBuf>,
     /// Write an HTML report with plots into this directory.
@@ -108,6 +109,9 @@ pub struct DiagnoseArgs {
     /// Most effects to combine in one explanation (1 to 4).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=4))]
     pub max_effects: u8,
+    /// How to read recordings given as ROS 2 bags.
+    #[command(flatten)]
+    pub bag: crate::commands::import::BagFlags,
 }
 
 /// Subcommands of `wheelcal sim`.

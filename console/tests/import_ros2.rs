@@ -115,3 +115,103 @@ fn import_ros2_writes_the_recording_folder() {
     let (ok, _, stderr) = wheelcal(&bad);
     assert!(!ok && stderr.contains("WHEEL=JOINT"), "{stderr}");
 }
+
+/// `calibrate` and `diagnose` read a bag directly with the import's flags: the geometry
+/// fitted from two real squares given as bags equals the one from their CSV recordings
+/// (to 1e-9: the same rows), and diagnose gives the same verdict and RMSE.
+#[test]
+fn calibrate_and_diagnose_take_a_bag_directly() {
+    let real = shared_real();
+    let tmp = std::env::temp_dir().join(format!("wheelcal-bag-direct-{}", std::process::id()));
+    let _ = std::fs::remove_dir_all(&tmp);
+    std::fs::create_dir_all(&tmp).unwrap();
+    let robot = real.join("diff-square-run-01/robot.toml");
+    let mut bags = Vec::new();
+    for run in ["diff-square-run-01", "diff-square-run-04"] {
+        let bag = tmp.join(run);
+        make_bag(
+            &real.join(run).join("robot.toml"),
+            &real.join(run).join("recording.csv"),
+            &bag,
+        );
+        bags.push(bag);
+    }
+    let robot_s = robot.to_str().unwrap();
+    let geometry = |recs: &[&Path], bag_flags: &[&str]| -> serde_json::Value {
+        let mut args = vec![
+            "--json",
+            "calibrate",
+            "--robot",
+            robot_s,
+            "--no-cross-validation",
+        ];
+        for r in recs {
+            args.extend(["--recording", r.to_str().unwrap()]);
+        }
+        args.extend(bag_flags);
+        let (ok, out, err) = wheelcal(&args);
+        assert!(ok, "{err}");
+        let v: serde_json::Value = serde_json::from_str(&out).expect("calibrate JSON");
+        v["geometry"].clone()
+    };
+    let from_bags = geometry(
+        &[bags[0].as_path(), bags[1].as_path()],
+        &["--pose-topic", "/mocap/pose"],
+    );
+    let csv = [
+        real.join("diff-square-run-01"),
+        real.join("diff-square-run-04"),
+    ];
+    let from_csv = geometry(&[csv[0].as_path(), csv[1].as_path()], &[]);
+    let values = |g: &serde_json::Value| -> Vec<f64> {
+        let mut v = Vec::new();
+        collect_numbers(g, &mut v);
+        v
+    };
+    let (a, b) = (values(&from_bags), values(&from_csv));
+    assert!(
+        !a.is_empty() && a.len() == b.len(),
+        "{from_bags} vs {from_csv}"
+    );
+    for (x, y) in a.iter().zip(&b) {
+        assert!(
+            (x - y).abs() <= 1e-9 * y.abs().max(1.0),
+            "{from_bags} vs {from_csv}"
+        );
+    }
+    // diagnose, one bag: the same verdict and RMSEs as its CSV.
+    let diag = |rec: &Path, flags: &[&str]| -> serde_json::Value {
+        let mut args = vec!["--json", "diagnose", "--robot", robot_s, "--recording"];
+        args.push(rec.to_str().unwrap());
+        args.extend(flags);
+        let (ok, out, err) = wheelcal(&args);
+        assert!(ok, "{err}");
+        serde_json::from_str(&out).expect("diagnose JSON")
+    };
+    let d_bag = diag(&bags[0], &["--pose-topic", "/mocap/pose"]);
+    let d_csv = diag(&csv[0], &[]);
+    assert_eq!(d_bag["verdict"], d_csv["verdict"]);
+    for k in ["rmse_nominal_m", "rmse_final_m"] {
+        let (x, y) = (d_bag[k].as_f64().unwrap(), d_csv[k].as_f64().unwrap());
+        assert!((x - y).abs() <= 1e-9, "{k}: {x} vs {y}");
+    }
+    // A bag without --pose-topic is a clear error, not a guess.
+    let (ok, _, err) = wheelcal(&[
+        "diagnose",
+        "--robot",
+        robot_s,
+        "--recording",
+        bags[0].to_str().unwrap(),
+    ]);
+    assert!(!ok && err.contains("pose-topic"), "{err}");
+    let _ = std::fs::remove_dir_all(&tmp);
+}
+
+fn collect_numbers(v: &serde_json::Value, out: &mut Vec<f64>) {
+    match v {
+        serde_json::Value::Number(n) => out.extend(n.as_f64()),
+        serde_json::Value::Array(a) => a.iter().for_each(|x| collect_numbers(x, out)),
+        serde_json::Value::Object(o) => o.values().for_each(|x| collect_numbers(x, out)),
+        _ => {}
+    }
+}

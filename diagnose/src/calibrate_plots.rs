@@ -545,7 +545,7 @@ pub fn write_calibration_figures(
         files.push(ef);
     }
     html.push_str("</body></html>\n");
-    std::fs::write(dir.join("index.html"), html)?;
+    formats::safe_write::replace_file(&dir.join("index.html"), html.as_bytes())?;
     files.push("index.html".into());
     Ok(files)
 }

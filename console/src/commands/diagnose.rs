@@ -16,7 +16,7 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
     let robot = robot_file::load(&a.robot)?;
     // Long work says so on stderr (a large recording reads and fits for a minute).
     let busy = crate::progress::Progress::start(&format!("reading {}", recording.display()));
-    let rec = formats::recording::Recording::load(recording, &robot)?;
+    let rec = crate::commands::import::load_recording(recording, &robot, &a.bag)?;
     for n in &rec.notes {
         out.note(&format!("{}: {n}", recording.display()));
     }
