@@ -390,7 +390,19 @@ mod tests {
             robust: false,
             cv: None,
             heading_lever: None,
+            bag: default_bag_flags(),
         }
+    }
+
+    /// The bag flags as clap fills them when none is given.
+    fn default_bag_flags() -> crate::commands::import::BagFlags {
+        use clap::Parser;
+        #[derive(Parser)]
+        struct Only {
+            #[command(flatten)]
+            bag: crate::commands::import::BagFlags,
+        }
+        Only::parse_from(["wheelcal"]).bag
     }
 
     #[test]
