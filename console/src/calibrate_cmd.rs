@@ -189,6 +189,96 @@ fn load(
     Ok((short_name(f), rec))
 }
 
+/// Travel by motion capture over travel by the nominal odometry of `robot`: about 1 (the
+/// robot's scale, within a few percent) for a recording of this robot, far from it for a
+/// recording of another robot given without its robot.toml. `None` where it cannot tell:
+/// legs (the kinematics follow them), mecanum rollers (the real mecanum sessions' ratio
+/// ranges from 1.37 to 2.01 with the motion: roller slip), no encoder scale, or under 1 m
+/// of travel.
+fn travel_ratio(robot: &Robot, rec: &Recording) -> Option<f64> {
+    let rollers = robot
+        .wheels
+        .iter()
+        .any(|w| w.gamma_rad.abs() > 1f64.to_radians());
+    if robot.legs.is_some() || rollers {
+        return None;
+    }
+    let rpc = robot.drive.rad_per_count()?;
+    let kin = calib_core::kinematics::Kinematics::<f64>::new(robot, &calib_core::Corrections::None)
+        .ok()?;
+    let counts_at = |k: usize| -> Option<Vec<i64>> {
+        rec.wheels
+            .iter()
+            .map(|w| w.enc.as_ref().and_then(|e| e.get(k).copied().flatten()))
+            .collect()
+    };
+    let (mut odo, mut mocap) = (0.0, 0.0);
+    let mut prev: Option<Vec<i64>> = None;
+    let mut prev_pose: Option<(f64, f64)> = None;
+    let mut dphi = vec![0.0; rec.wheels.len()];
+    for k in 0..rec.t.len() {
+        if let Some(c) = counts_at(k) {
+            if let Some(p) = &prev {
+                for (i, d) in dphi.iter_mut().enumerate() {
+                    *d = (c[i] - p[i]) as f64 * rpc;
+                }
+                let d = kin.forward(&dphi);
+                odo += d.vx.hypot(d.vy);
+            }
+            prev = Some(c);
+        }
+        if let (Some(x), Some(y)) = (rec.x[k], rec.y[k]) {
+            if let Some((px, py)) = prev_pose {
+                mocap += (x - px).hypot(y - py);
+            }
+            prev_pose = Some((x, y));
+        }
+    }
+    (odo >= 1.0 && mocap >= 1.0).then(|| mocap / odo)
+}
+
+/// Recordings of this robot agree on [`travel_ratio`] within this fraction of their
+/// median: twice the plausible scale range (+-5 %), above what slip or path kind change
+/// (all 164 real runs of the differential robot and all 67 of the three-wheel omni, squares,
+/// circles and Ivanjko paths together, pass).
+const MIXED_ROBOT_TOLERANCE: f64 = 0.10;
+
+/// Refuses a set of recordings one of which moves a different distance per encoder count
+/// than the others: another robot's bare CSV (no robot.toml beside it to compare) would
+/// otherwise be fitted as this robot's, with a confident, wrong geometry.
+fn refuse_mixed_robots(robot: &Robot, recs: &[(&Path, &Recording)]) -> Result<()> {
+    let ratios: Vec<(&Path, f64)> = recs
+        .iter()
+        .filter_map(|(p, r)| travel_ratio(robot, r).map(|q| (*p, q)))
+        .collect();
+    if ratios.len() < 2 {
+        return Ok(());
+    }
+    let mut sorted: Vec<f64> = ratios.iter().map(|(_, q)| *q).collect();
+    sorted.sort_by(f64::total_cmp);
+    let m = sorted.len();
+    let median = if m % 2 == 1 {
+        sorted[m / 2]
+    } else {
+        0.5 * (sorted[m / 2 - 1] + sorted[m / 2])
+    };
+    let odd: Vec<String> = ratios
+        .iter()
+        .filter(|(_, q)| (q / median - 1.0).abs() > MIXED_ROBOT_TOLERANCE)
+        .map(|(p, q)| format!("{} ({q:.3})", p.display()))
+        .collect();
+    if !odd.is_empty() {
+        bail!(
+            "{}: motion capture over odometry travel differs by more than {:.0} % from the \
+             recordings' median {median:.3}: a recording of another robot (give it with its \
+             robot.toml beside it), or encoder counts of another resolution; not fitted",
+            odd.join(", "),
+            MIXED_ROBOT_TOLERANCE * 100.0
+        );
+    }
+    Ok(())
+}
+
 /// Runs `wheelcal calibrate`: fits the robot's geometry to the recordings and prints or writes the result.
 pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
     let robot = robot_file::load(&a.robot)?;
@@ -240,6 +330,17 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         }
         None => None,
     };
+    let all: Vec<(&Path, &Recording)> = paths
+        .iter()
+        .map(PathBuf::as_path)
+        .zip(recs.iter().map(|(_, r)| r))
+        .chain(
+            held.as_ref()
+                .zip(a.holdout.as_deref())
+                .map(|((_, r), p)| (p, r)),
+        )
+        .collect();
+    refuse_mixed_robots(&robot, &all)?;
     let cv = a.cv.as_deref().and_then(CvBy::parse);
     let opts = CalOptions {
         leave_one_out: !a.no_cross_validation && cv.is_none(),

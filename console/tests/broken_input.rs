@@ -492,3 +492,67 @@ fn diagnose_shows_progress_within_two_seconds() {
         "first progress after {took:?}"
     );
 }
+
+/// The real squares, beside this repository (CI clones ../shared there).
+fn shared_real() -> PathBuf {
+    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
+        .ancestors()
+        .map(|a| a.join("shared/real"))
+        .find(|d| d.exists())
+        .expect("../shared/real is needed beside the repository")
+}
+
+/// Issue 23 §4: a bare CSV of another robot (no robot.toml beside it to compare) mixed in
+/// with this robot's recordings was fitted as this robot's. Its travel per encoder count
+/// differs: another robot's CSV (here square 04 with counts of a 1.3x finer encoder) is
+/// refused, naming the file; the robot's own squares 01 and 04 still calibrate, and a
+/// recording given twice is fitted once with a warning.
+#[test]
+fn another_robots_bare_csv_is_refused_by_name() {
+    let real = shared_real();
+    let dir = scratch("mixed-robots");
+    let (header, rows) = table(&real.join("diff-square-run-04"));
+    let (l, r) = (col(&header, "enc_left"), col(&header, "enc_right"));
+    let scaled: Vec<Vec<String>> = rows
+        .into_iter()
+        .map(|mut row| {
+            for c in [l, r] {
+                if let Ok(v) = row[c].parse::<f64>() {
+                    row[c] = format!("{}", (v * 1.3).round() as i64);
+                }
+            }
+            row
+        })
+        .collect();
+    // A bare CSV: no robot.toml beside it.
+    let bare = write(&dir, "other.csv", &header, &scaled);
+    let robot_file = real.join("diff-square-run-01/robot.toml");
+    let run01 = real.join("diff-square-run-01");
+    let run04 = real.join("diff-square-run-04");
+    let calibrate = |recs: &[&Path]| {
+        let mut c = wheelcal();
+        c.args(["calibrate", "--no-cross-validation", "--robot"])
+            .arg(&robot_file);
+        for r in recs {
+            c.arg("--recording").arg(r);
+        }
+        let o = c.output().expect("runs");
+        (
+            o.status.code(),
+            String::from_utf8_lossy(&o.stderr).into_owned(),
+        )
+    };
+    let (code, err) = calibrate(&[&run01, &run04, &bare]);
+    assert_eq!(code, Some(1), "{err}");
+    assert!(
+        err.contains(&bare.display().to_string()) && err.contains("another robot"),
+        "{err}"
+    );
+    assert!(
+        !err.contains("diff-square-run-01 ("),
+        "named this robot's run: {err}"
+    );
+    let (code, err) = calibrate(&[&run01, &run04, &run04]);
+    assert_eq!(code, Some(0), "{err}");
+    assert!(err.contains("is given twice"), "{err}");
+}
