@@ -556,3 +556,39 @@ fn another_robots_bare_csv_is_refused_by_name() {
     assert_eq!(code, Some(0), "{err}");
     assert!(err.contains("is given twice"), "{err}");
 }
+
+/// Issue 23 §5: `calibrate` never printed the "ignored unknown column" note the file
+/// format asks for. A real square with an extra `battery_v` column calibrates as before,
+/// and the note names the file and the column.
+#[test]
+fn calibrate_notes_an_ignored_column() {
+    let real = shared_real();
+    let dir = scratch("unknown-column");
+    let (mut header, rows) = table(&real.join("diff-square-run-01"));
+    header.push("battery_v".into());
+    let rows: Vec<Vec<String>> = rows
+        .into_iter()
+        .map(|mut r| {
+            r.push("12.6".into());
+            r
+        })
+        .collect();
+    let extra = write(&dir, "extra.csv", &header, &rows);
+    let o = wheelcal()
+        .args(["calibrate", "--no-cross-validation", "--robot"])
+        .arg(real.join("diff-square-run-01/robot.toml"))
+        .arg("--recording")
+        .arg(&extra)
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert!(o.status.success(), "{err}");
+    assert!(
+        err.contains(&format!(
+            "{}: ignored unknown column 'battery_v' (column {})",
+            extra.display(),
+            header.len()
+        )),
+        "{err}"
+    );
+}
