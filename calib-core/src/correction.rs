@@ -17,6 +17,10 @@ pub const FACTOR_MIN: f64 = 0.5;
 /// Factors above this are rejected (see [`FACTOR_MIN`]).
 pub const FACTOR_MAX: f64 = 2.0;
 
+/// A skid-steer robot's E_b may reach this: its effective separation is 1.5-2x the track
+/// ([Mandow et al.]; Husky ships 1.875), so [`FACTOR_MAX`] would refuse every real one.
+pub const SKID_EB_MAX: f64 = 3.0;
+
 /// The correction factors a board stores.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Corrections {
@@ -51,7 +55,7 @@ pub enum CorrectionError {
         /// Wheel index for per-wheel factors (`f_lat`), `None` otherwise.
         index: Option<usize>,
     },
-    /// Factor outside [0.5, 2.0].
+    /// Factor outside [0.5, max].
     OutOfRange {
         /// Name of the factor.
         name: &'static str,
@@ -59,6 +63,9 @@ pub enum CorrectionError {
         index: Option<usize>,
         /// The rejected value.
         value: f64,
+        /// The upper bound that applied ([`FACTOR_MAX`], or [`SKID_EB_MAX`] for a
+        /// skid-steer robot's E_b).
+        max: f64,
     },
     /// Omni factors need one f_lat per wheel.
     WrongWheelCount {
@@ -86,9 +93,14 @@ impl fmt::Display for CorrectionError {
                 at(f, name, index)?;
                 write!(f, " must be a finite number")
             }
-            CorrectionError::OutOfRange { name, index, value } => {
+            CorrectionError::OutOfRange {
+                name,
+                index,
+                value,
+                max,
+            } => {
                 at(f, name, index)?;
-                write!(f, " = {value} is outside [{FACTOR_MIN}, {FACTOR_MAX}]")
+                write!(f, " = {value} is outside [{FACTOR_MIN}, {max}]")
             }
             CorrectionError::WrongWheelCount { expected, got } => {
                 write!(f, "f_lat needs one factor per wheel: {expected}, got {got}")
@@ -115,6 +127,23 @@ pub fn check(name: &'static str, index: Option<usize>, v: f64) -> Result<(), Cor
             name,
             index,
             value: v,
+            max: FACTOR_MAX,
+        });
+    }
+    Ok(())
+}
+
+/// [`check`] with another upper bound (a skid-steer robot's E_b: [`SKID_EB_MAX`]).
+pub fn check_within(name: &'static str, v: f64, min: f64, max: f64) -> Result<(), CorrectionError> {
+    if !v.is_finite() {
+        return Err(CorrectionError::NotFinite { name, index: None });
+    }
+    if !(min..=max).contains(&v) {
+        return Err(CorrectionError::OutOfRange {
+            name,
+            index: None,
+            value: v,
+            max,
         });
     }
     Ok(())
@@ -136,7 +165,11 @@ impl Corrections {
                 }
                 check("c_l", None, *c_l)?;
                 check("c_r", None, *c_r)?;
-                check("e_b", None, *e_b)
+                if robot.kind == RobotKind::SkidSteer {
+                    check_within("e_b", *e_b, FACTOR_MIN, SKID_EB_MAX)
+                } else {
+                    check("e_b", None, *e_b)
+                }
             }
             Corrections::Omni { f_lat, f_lon } => {
                 if robot.kind != RobotKind::Omni {
@@ -162,9 +195,7 @@ impl Corrections {
         match self {
             Corrections::None => 1.0,
             Corrections::DiffDrive { c_l, c_r, .. } => {
-                // The left wheel is the one on the +y side of the body.
-                let (_, y) = robot.wheels[i].position();
-                if y >= 0.0 {
+                if robot.wheels[i].is_left() {
                     *c_l
                 } else {
                     *c_r
@@ -253,7 +284,32 @@ mod tests {
             Err(CorrectionError::OutOfRange {
                 name: "c_l",
                 index: None,
-                value: 2.5
+                value: 2.5,
+                max: FACTOR_MAX,
+            })
+        );
+        // A skid-steer robot's E_b may reach SKID_EB_MAX (a long-wheelbase rover reaches
+        // 2.4); a differential drive's may not.
+        let skid = presets::skid4("rover", 0.1, 0.4, 0.31, Default::default());
+        let husky = Corrections::DiffDrive {
+            c_l: 1.0,
+            c_r: 1.0,
+            e_b: 2.4,
+        };
+        assert_eq!(husky.validate(&skid), Ok(()));
+        assert!(husky.validate(&dd).is_err());
+        let wide = Corrections::DiffDrive {
+            c_l: 1.0,
+            c_r: 1.0,
+            e_b: 3.5,
+        };
+        assert_eq!(
+            wide.validate(&skid),
+            Err(CorrectionError::OutOfRange {
+                name: "e_b",
+                index: None,
+                value: 3.5,
+                max: SKID_EB_MAX,
             })
         );
         let nan = Corrections::DiffDrive {

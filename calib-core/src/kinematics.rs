@@ -216,6 +216,25 @@ mod tests {
     }
 
     #[test]
+    fn skid_steer_drives_each_side_together() {
+        // Track 0.4 m, r = 0.1 m: a twist (0.5 m/s, 1 rad/s) asks (0.5 -+ 0.2) / 0.1 of
+        // each side's wheels; with E_b = 1.6 the lever is 0.32 m.
+        let r = presets::skid4("rover", 0.1, 0.4, 0.31, Default::default());
+        let k = Kinematics::<f64>::new(&r, &Corrections::None).unwrap();
+        let w = k.inverse(&Twist::new(0.5, 0.0, 1.0));
+        assert!(close(w[0], 3.0, 1e-12) && close(w[1], 3.0, 1e-12));
+        assert!(close(w[2], 7.0, 1e-12) && close(w[3], 7.0, 1e-12));
+        let c = Corrections::DiffDrive { c_l: 1.0, c_r: 1.0, e_b: 1.6 };
+        let k = Kinematics::<f64>::new(&r, &c).unwrap();
+        let w = k.inverse(&Twist::new(0.5, 0.0, 1.0));
+        assert!(close(w[0], 1.8, 1e-12) && close(w[3], 8.2, 1e-12), "{w:?}");
+        // Forward: the sliding rows of the front and rear wheels disagree in a turn, but
+        // at weight 1e-3 they move omega by ~1e-6 relative.
+        let t = k.forward(&w);
+        assert!(close(t.vx, 0.5, 1e-9) && close(t.omega, 1.0, 1e-5) && t.vy.abs() < 1e-9, "{t:?}");
+    }
+
+    #[test]
     fn omni4_paths_use_two_wheels() {
         // [Redundant omni]: path 4W-1 (along x) turns wheels 1 and 3 only; 4W-2 (along y)
         // wheels 2 and 4.

@@ -28,6 +28,11 @@ pub enum RobotKind {
     /// The planar wheeled-legged robot of [Korayem et al.]: standard wheels whose contact
     /// points move with the leg angles.
     WheeledLegged,
+    /// Skid-steer: two or more standard wheels on each side, each side driven together
+    /// (Husky, Jackal, most 4WD rovers). It turns by skidding, so its effective wheel
+    /// separation is well above the track ([Mandow et al.]); it drives and dead-reckons as
+    /// a differential drive whose E_b carries that.
+    SkidSteer,
 }
 
 impl RobotKind {
@@ -42,6 +47,7 @@ impl RobotKind {
             RobotKind::DiffDrive => "diff_drive",
             RobotKind::Omni => "omni",
             RobotKind::WheeledLegged => "wheeled_legged",
+            RobotKind::SkidSteer => "skid_steer",
         }
     }
 }
@@ -128,6 +134,19 @@ impl Wheel {
         )
     }
 
+    /// Borenstein's left wheel: the one on the +y side of the body (y >= 0). Every left /
+    /// right split (c_L and c_R, E_d) uses this rule.
+    pub fn is_left(&self) -> bool {
+        self.position().1 >= 0.0
+    }
+
+    /// A standard wheel whose rolling direction is the body's +-x axis (a skid-steer or
+    /// differential-drive wheel), within 1e-6 rad.
+    pub fn rolls_along_body_x(&self) -> bool {
+        let r = self.rolling_row();
+        self.gamma_rad.abs() < 1e-6 && r[1].abs() < 1e-6
+    }
+
     /// Siegwart's rolling row [sin(a+b+g), -cos(a+b+g), -l cos(b+g)]: dotted with the body
     /// twist it gives r cos(g) phidot.
     pub fn rolling_row(&self) -> [f64; 3] {
@@ -188,7 +207,7 @@ impl Legs {
 pub struct Robot {
     /// Free-text robot name (truncated to 32 characters).
     pub name: String<32>,
-    /// Differential drive, omni or wheeled-legged.
+    /// Differential drive, omni, wheeled-legged or skid-steer.
     pub kind: RobotKind,
     /// Motor, gearing and encoder.
     pub drive: Drive,
@@ -273,6 +292,17 @@ pub enum Problem {
     SingularJacobian,
     /// Legs given for a robot that is not wheeled_legged, or missing for one that is.
     LegsMismatch,
+    /// A skid-steer robot needs at least two wheels on each side; the counts given
+    /// (left = +y, right = -y).
+    SkidSteerSides {
+        /// Wheels with y > 0.
+        left: u32,
+        /// Wheels with y < 0.
+        right: u32,
+    },
+    /// A skid-steer wheel must be a standard wheel rolling along the body's x axis
+    /// (alpha + beta = +-90 deg, gamma = 0).
+    NotAlongBodyX,
     /// Wrong number of wheels for the kind (a differential drive has 2).
     WrongWheelCount {
         /// The robot kind.
@@ -320,6 +350,14 @@ impl fmt::Display for RobotError {
             Problem::LegsMismatch => write!(
                 f,
                 "[legs] is required for kind = \"wheeled_legged\" and not allowed otherwise"
+            ),
+            Problem::SkidSteerSides { left, right } => write!(
+                f,
+                "kind \"skid_steer\" needs at least 2 wheels on each side, got {left} left (y > 0) and {right} right (y < 0)"
+            ),
+            Problem::NotAlongBodyX => write!(
+                f,
+                "a skid-steer wheel rolls along the body's x axis: alpha + beta must be +-90 deg and gamma 0"
             ),
             Problem::WrongWheelCount { kind, expected, got } => write!(
                 f,
@@ -427,8 +465,29 @@ impl Robot {
                     problem: Problem::RollerParallelToAxle,
                 });
             }
+            if kind == RobotKind::SkidSteer && !w.rolls_along_body_x() {
+                return Err(RobotError {
+                    wheel: who,
+                    field: Field::BetaDeg,
+                    problem: Problem::NotAlongBodyX,
+                });
+            }
             // Capacity checked above.
             let _ = list.push(w.clone());
+        }
+        if kind == RobotKind::SkidSteer {
+            let side = |left: bool| {
+                list.iter()
+                    .filter(|w| if left { w.is_left() } else { w.position().1 < 0.0 })
+                    .count() as u32
+            };
+            let (left, right) = (side(true), side(false));
+            if left < 2 || right < 2 {
+                return Err(RobotError::robot(
+                    Field::Wheels,
+                    Problem::SkidSteerSides { left, right },
+                ));
+            }
         }
         let robot = Robot {
             name: robot_name,
@@ -563,6 +622,25 @@ pub mod presets {
             .expect("preset geometry is valid")
     }
 
+    /// A four-wheel skid-steer robot: wheels at (+-wheelbase/2, +-track/2), each rolling
+    /// along body x (beta = 90 deg - alpha, so positive rates drive forward), order
+    /// front_left, rear_left, front_right, rear_right.
+    pub fn skid4(name: &str, radius_m: f64, track_m: f64, wheelbase_m: f64, drive: Drive) -> Robot {
+        let at = |n: &str, x: f64, y: f64| {
+            let alpha = libm::atan2(y, x).to_degrees();
+            wheel(n, radius_m, alpha, libm::hypot(x, y), 90.0 - alpha, true)
+        };
+        let (a, b) = (wheelbase_m / 2.0, track_m / 2.0);
+        let wheels = [
+            at("front_left", a, b),
+            at("rear_left", -a, b),
+            at("front_right", a, -b),
+            at("rear_right", -a, -b),
+        ];
+        Robot::new(name, RobotKind::SkidSteer, drive, &wheels, None)
+            .expect("preset geometry is valid")
+    }
+
     /// The four-wheel omni robot of [Redundant omni]: wheels at alpha 90, 180, 270, 0 deg,
     /// r = 0.03 m, l = 0.035 m, 480-ppr encoders.
     pub fn omni4() -> Robot {
@@ -638,6 +716,30 @@ mod tests {
             (e.field, e.problem),
             (Field::GammaDeg, Problem::RollerParallelToAxle)
         );
+    }
+
+    #[test]
+    fn skid_steer_needs_two_wheels_a_side_rolling_along_x() {
+        let r = skid4("rover", 0.1, 0.4, 0.31, Drive::default());
+        assert_eq!(r.wheels.iter().filter(|w| w.is_left()).count(), 2);
+        for w in &r.wheels {
+            // Every wheel's rolling row is [1, 0, -y]: positive rates drive forward.
+            let (_, y) = w.position();
+            let row = w.rolling_row();
+            assert!((row[0] - 1.0).abs() < 1e-12 && row[1].abs() < 1e-12);
+            assert!((row[2] + y).abs() < 1e-12, "{row:?} at y {y}");
+        }
+        let three = &r.wheels[..3];
+        let e = Robot::new("x", RobotKind::SkidSteer, Drive::default(), three, None).unwrap_err();
+        assert_eq!(e.problem, Problem::SkidSteerSides { left: 2, right: 1 });
+        let mut text = heapless::String::<200>::new();
+        core::fmt::write(&mut text, format_args!("{e}")).unwrap();
+        assert!(text.contains("2 left (y > 0) and 1 right"), "{text}");
+        let mut turned = r.wheels.clone();
+        turned[2].beta_rad += 0.1;
+        let e = Robot::new("x", RobotKind::SkidSteer, Drive::default(), &turned, None).unwrap_err();
+        assert_eq!(e.problem, Problem::NotAlongBodyX);
+        assert_eq!(e.wheel.map(|(i, _)| i), Some(2));
     }
 
     #[test]

@@ -157,7 +157,8 @@ fn rejected_requests_change_nothing_and_say_why() {
         r == Rejection::InvalidCorrections(CorrectionFault::OutOfRange {
             factor: Factor::CL,
             index: None,
-            value: 2.5
+            value: 2.5,
+            max: 2.0,
         }),
         "{r:?}"
     );

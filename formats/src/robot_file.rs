@@ -214,11 +214,12 @@ pub fn parse(text: &str, path: &Path) -> Result<Robot, RobotFileError> {
         "diff_drive" => RobotKind::DiffDrive,
         "omni" => RobotKind::Omni,
         "wheeled_legged" => RobotKind::WheeledLegged,
+        "skid_steer" => RobotKind::SkidSteer,
         other => {
             return Err(at(
                 Some(file.kind.span()),
                 format!(
-                    "kind: unknown kind \"{other}\" (expected diff_drive, omni or wheeled_legged)"
+                    "kind: unknown kind \"{other}\" (expected diff_drive, omni, wheeled_legged or skid_steer)"
                 ),
             ))
         }

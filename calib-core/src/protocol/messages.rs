@@ -420,7 +420,7 @@ pub enum CorrectionFault {
         /// Its wheel index (from 0) for per-wheel factors.
         index: Option<u8>,
     },
-    /// A factor outside [0.5, 2.0].
+    /// A factor outside [0.5, max].
     OutOfRange {
         /// Which factor.
         factor: Factor,
@@ -428,6 +428,8 @@ pub enum CorrectionFault {
         index: Option<u8>,
         /// The value refused.
         value: f64,
+        /// The upper bound that applied (2.0; 3.0 for a skid-steer robot's E_b).
+        max: f64,
     },
     /// Per-wheel factors for another number of wheels.
     WrongWheelCount {
@@ -454,10 +456,16 @@ impl From<&CorrectionError> for CorrectionFault {
                 factor: Factor::from_name(name),
                 index: idx(index),
             },
-            CorrectionError::OutOfRange { name, index, value } => CorrectionFault::OutOfRange {
+            CorrectionError::OutOfRange {
+                name,
+                index,
+                value,
+                max,
+            } => CorrectionFault::OutOfRange {
                 factor: Factor::from_name(name),
                 index: idx(index),
                 value: *value,
+                max: *max,
             },
             CorrectionError::WrongWheelCount { expected, got } => {
                 CorrectionFault::WrongWheelCount {
@@ -482,10 +490,12 @@ impl fmt::Display for CorrectionFault {
                 factor,
                 index,
                 value,
+                max,
             } => CorrectionError::OutOfRange {
                 name: factor.as_str(),
                 index: index.map(usize::from),
                 value,
+                max,
             },
             CorrectionFault::WrongWheelCount { expected, got } => {
                 CorrectionError::WrongWheelCount {

@@ -271,6 +271,7 @@ fn build_response(which: u8, v: f32, data: &[u8], x: u32) -> Response<'_> {
                 factor: Factor::FLat,
                 index: Some((x % 8) as u8),
                 value: v as f64,
+                max: 2.0,
             }),
             2 => Rejection::InvalidParams(ParamsFault::Setting {
                 index: (x % 14) as u8,
@@ -727,7 +728,7 @@ fn schema_golden() {
     std::println!("golden {golden:#010x}, fingerprint {SCHEMA_FINGERPRINT:#010x}");
     assert_eq!(
         (golden, SCHEMA_FINGERPRINT),
-        (0x3299cb83, 0xb2d278ee),
+        (0x25c56738, 0xcd3fb99b),
         "message types changed: record the new values (and bump PROTOCOL_VERSION if needed)"
     );
 }
@@ -930,8 +931,12 @@ fn structured_rejections_golden_and_words() {
                 factor: Factor::FLat,
                 index: Some(2),
                 value: 2.5,
+                max: 2.0,
             }),
-            &[0x01, 0x01, 0x03, 0x01, 0x02, 0, 0, 0, 0, 0, 0, 0x04, 0x40],
+            &[
+                0x01, 0x01, 0x03, 0x01, 0x02, 0, 0, 0, 0, 0, 0, 0x04, 0x40, 0, 0, 0, 0, 0, 0, 0,
+                0x40,
+            ],
             "invalid corrections: f_lat[2] = 2.5 is outside [0.5, 2]",
         ),
         (

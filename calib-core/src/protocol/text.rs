@@ -70,14 +70,19 @@ impl fmt::Display for CorrectionText<'_> {
                 at(f, name, index)?;
                 f.write_str(" must be a finite number")
             }
-            CorrectionError::OutOfRange { name, index, value } => {
+            CorrectionError::OutOfRange {
+                name,
+                index,
+                value,
+                max,
+            } => {
                 at(f, name, index)?;
                 write!(
                     f,
                     " = {} is outside [{}, {}]",
                     Num(*value),
                     Num(crate::correction::FACTOR_MIN),
-                    Num(crate::correction::FACTOR_MAX)
+                    Num(*max)
                 )
             }
             CorrectionError::WrongWheelCount { expected, got } => {
@@ -116,6 +121,11 @@ impl fmt::Display for RobotText<'_> {
             Problem::TooManyWheels(n) => write!(f, "at most {MAX_WHEELS} wheels, got {n}"),
             Problem::SingularJacobian => f.write_str("the wheels cannot resolve (vx, vy, omega)"),
             Problem::LegsMismatch => f.write_str("[legs] only and always for wheeled_legged"),
+            Problem::SkidSteerSides { left, right } => write!(
+                f,
+                "skid_steer needs 2 wheels a side, got {left} left and {right} right"
+            ),
+            Problem::NotAlongBodyX => f.write_str("a skid-steer wheel rolls along body x"),
             Problem::WrongWheelCount {
                 kind,
                 expected,
