@@ -55,6 +55,9 @@ pub struct Geometry {
     hold: [[f64; 3]; 3],
     /// Wheels whose motor is off this tick (bit i), besides those free in the file.
     pub off_mask: u32,
+    /// A skid-steer robot: the body moves where the contacts' friction balances
+    /// ([`crate::skid`]), not with the least-squares twist.
+    pub skid_steer: bool,
 }
 
 impl Geometry {
@@ -119,6 +122,7 @@ impl Geometry {
             gain,
             hold,
             off_mask,
+            skid_steer: robot.kind == RobotKind::SkidSteer,
         })
     }
 

@@ -48,6 +48,8 @@ pub struct GroundParams {
     pub travel_noise_m_per_sqrt_m: f64,
     /// Mechanisms of the traction and side-slip effects (issue 11).
     pub mech: crate::effects::MechanismFaults,
+    /// Tyre friction of a skid-steer robot's contacts.
+    pub tyre: crate::skid::Tyre,
 }
 
 /// The body's state on the ground.
@@ -137,7 +139,11 @@ impl Ground {
             toward_zero(self.wheel_twist.omega, COAST_DECEL_RAD_S2),
         );
         let prev = self.wheel_twist;
-        self.wheel_twist = geom.twist_from_contacts(&self.contacts, &coast);
+        self.wheel_twist = if geom.skid_steer {
+            params.tyre.balance(geom, &self.contacts, &coast)
+        } else {
+            geom.twist_from_contacts(&self.contacts, &coast)
+        };
         if let (Some(mu), Mechanism::Body) = (params.mu, params.mech.slip) {
             // The body's linear acceleration is bounded (its heading is not).
             let a = mu * crate::G * params.driven_load_share * dt;

@@ -58,6 +58,7 @@ pub mod motor;
 pub mod record;
 pub mod robot;
 pub mod sensors;
+pub mod skid;
 pub mod stepper;
 pub mod surface;
 
@@ -70,6 +71,7 @@ pub use record::{
 
 pub use actuator::WheelInput;
 pub use robot::{EncoderMount, SimConfig, SimRobot};
+pub use skid::Tyre;
 pub use sensors::{ImuConfig, VisionConfig};
 pub use surface::{CableStrip, Patch, Surface, Tilt};
 

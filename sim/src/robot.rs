@@ -53,6 +53,8 @@ pub struct SimConfig {
     pub leg_rear_rad: f64,
     /// Start the 16-bit counters at random values (as hardware does) rather than 0.
     pub random_counter_start: bool,
+    /// Tyre-ground friction of a skid-steer robot (other kinds ignore it).
+    pub tyre: crate::skid::Tyre,
 }
 
 impl Default for SimConfig {
@@ -67,6 +69,7 @@ impl Default for SimConfig {
             leg_front_rad: std::f64::consts::FRAC_PI_2,
             leg_rear_rad: std::f64::consts::FRAC_PI_2,
             random_counter_start: true,
+            tyre: crate::skid::Tyre::default(),
         }
     }
 }
@@ -135,6 +138,7 @@ impl SimRobot {
         faults.validate(n)?;
         cfg.vision.validate()?;
         cfg.imu.validate()?;
+        cfg.tyre.validate()?;
         for (field, v) in [
             ("start.x", cfg.start.x),
             ("start.y", cfg.start.y),
@@ -194,6 +198,7 @@ impl SimRobot {
                 .driven_load_share
                 .unwrap_or_else(|| driven_load_share(nominal, legs.0, legs.1)),
             side_slip_s: faults.side_slip_s,
+            tyre: cfg.tyre,
             travel_noise_m_per_sqrt_m: faults.travel_noise_m_per_sqrt_m,
             mech: faults.mech,
         };
