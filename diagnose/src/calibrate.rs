@@ -73,6 +73,13 @@ pub enum GeomKind {
     MarkerX,
     /// Where motion capture tracks, body frame y, m (see `MarkerX`).
     MarkerY,
+    /// Skid-steer: how much E_b grows from a turn in place to a wide arc, the tracks'
+    /// ICRs moving with the turn radius: E_b(rho) = eb + eb_arc (1 - rho)^2, rho =
+    /// |d_r - d_l| / (|d_r| + |d_l|) (1 in place, 0 straight).
+    EbArc,
+    /// Skid-steer: longitudinal position of the ICRs ([Mandow et al.]'s x_ICR), m; the
+    /// body's sideways speed is -x_ICR omega.
+    IcrX,
 }
 
 /// A parameter's description: name, null value, plausible range and what a value
@@ -111,6 +118,17 @@ fn spec(
         stands_for,
     }
 }
+
+/// A skid-steer robot's E_b: its effective separation is 1 to 3 times the track
+/// ([`calib_core::correction::SKID_EB_MAX`]).
+pub const SKID_EB_RANGE: (f64, f64) = (1.0, calib_core::correction::SKID_EB_MAX);
+/// Skid-steer: change of E_b from a turn in place to a wide arc.
+pub const EB_ARC_RANGE: f64 = 0.5;
+/// Skid-steer: longitudinal ICR offset, m (a load far forward or back).
+pub const ICR_X_RANGE: f64 = 0.05;
+const EB_ARC_STANDS: &str = "tyres whose lateral grip builds up with the slip angle (ICRs that move with the turn radius)";
+const ICR_X_STANDS: &str = "the load far forward or back of the wheels' centre";
+const SKID_EB_STANDS: &str = "a wrong track in the robot file, or tracks that turn without skidding";
 
 /// Tyre radius: within a few per cent of nominal (wear, pressure, load).
 pub const RADIUS_RANGE: f64 = 0.05;
@@ -186,34 +204,71 @@ pub fn param_specs(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
     // right wheel size and a track, not four radii (consistent wheels are averaged).
     let left_right = (robot.kind == RobotKind::DiffDrive && robot.wheels.len() == 2)
         || robot.kind == RobotKind::WheeledLegged;
-    if left_right {
-        return vec![
-            spec(
-                GeomKind::Scale,
-                "scale".into(),
-                "wheel_scale",
-                1.0,
-                RADIUS_RANGE,
-                SCALE_STANDS,
-            ),
-            spec(
-                GeomKind::Ed,
-                "ed".into(),
-                "wheel_diameter_mismatch",
-                1.0,
-                ED_RANGE,
-                ED_STANDS,
-            ),
-            spec(
-                GeomKind::Eb,
-                "eb".into(),
-                "wheelbase_error",
-                1.0,
-                BASE_RANGE,
-                EB_STANDS,
-            ),
-        ];
+    if robot.kind == RobotKind::SkidSteer {
+        let mut v = param_specs_left_right();
+        v[2].plausible = SKID_EB_RANGE;
+        v[2].stands_for = SKID_EB_STANDS;
+        return v;
     }
+    if left_right {
+        return param_specs_left_right();
+    }
+    param_specs_wheels(robot, marker)
+}
+
+/// A skid-steer robot's turn-radius model: [`param_specs`] plus the E_b law and the
+/// longitudinal ICR offset of [Mandow et al.].
+pub fn skid_law_specs(robot: &Robot) -> Vec<ParamSpec> {
+    let mut v = param_specs(robot, false);
+    v.push(spec(
+        GeomKind::EbArc,
+        "eb_arc".into(),
+        "wheelbase_error",
+        0.0,
+        EB_ARC_RANGE,
+        EB_ARC_STANDS,
+    ));
+    v.push(spec(
+        GeomKind::IcrX,
+        "icr_x_m".into(),
+        "wheelbase_error",
+        0.0,
+        ICR_X_RANGE,
+        ICR_X_STANDS,
+    ));
+    v
+}
+
+fn param_specs_left_right() -> Vec<ParamSpec> {
+    vec![
+        spec(
+            GeomKind::Scale,
+            "scale".into(),
+            "wheel_scale",
+            1.0,
+            RADIUS_RANGE,
+            SCALE_STANDS,
+        ),
+        spec(
+            GeomKind::Ed,
+            "ed".into(),
+            "wheel_diameter_mismatch",
+            1.0,
+            ED_RANGE,
+            ED_STANDS,
+        ),
+        spec(
+            GeomKind::Eb,
+            "eb".into(),
+            "wheelbase_error",
+            1.0,
+            BASE_RANGE,
+            EB_STANDS,
+        ),
+    ]
+}
+
+fn param_specs_wheels(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
     let marker_specs = [
         spec(
             GeomKind::MarkerX,
@@ -303,7 +358,7 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
             GeomKind::Alpha(i) => da[i] += x,
             GeomKind::L(i) => ls[i] *= x,
             GeomKind::Gamma => dg += x,
-            GeomKind::MarkerX | GeomKind::MarkerY => {}
+            GeomKind::MarkerX | GeomKind::MarkerY | GeomKind::EbArc | GeomKind::IcrX => {}
         }
     }
     let mut r = base.clone();
@@ -316,6 +371,87 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
         }
     }
     r
+}
+
+/// A skid-steer robot's turn-radius law (zero for every other robot, and for a
+/// skid-steer robot whose ICRs stay put).
+#[derive(Debug, Clone, Copy, PartialEq, Default)]
+pub struct SkidLaw {
+    /// eb_arc / eb: relative growth of the separation from a turn in place to a wide arc.
+    pub arc_rel: f64,
+    /// Longitudinal ICR offset, m.
+    pub icr_x_m: f64,
+}
+
+impl SkidLaw {
+    /// The law in `values` (in `specs` order).
+    pub fn of(specs: &[ParamSpec], values: &[f64]) -> SkidLaw {
+        let get = |k: GeomKind| specs.iter().position(|s| s.kind == k).map(|i| values[i]);
+        let eb = get(GeomKind::Eb).unwrap_or(1.0);
+        SkidLaw {
+            arc_rel: get(GeomKind::EbArc).unwrap_or(0.0) / eb,
+            icr_x_m: get(GeomKind::IcrX).unwrap_or(0.0),
+        }
+    }
+}
+
+/// Rows either side over which a skid-steer recording's turn ratio rho is smoothed
+/// (0.1 s at 200 rows/s): one encoder count makes a row's own ratio noisy at low speed.
+const RHO_HALF_WINDOW: usize = 20;
+
+/// Per increment, rho = |d_r - d_l| / (|d_r| + |d_l|) of the sides' travel (nominal
+/// radii), smoothed over [`RHO_HALF_WINDOW`] rows either side.
+fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
+    let side = |k: usize, left: bool| {
+        let (mut sum, mut n) = (0.0, 0.0);
+        for (w, d) in robot.wheels.iter().zip(&inc[k]) {
+            if w.is_left() == left {
+                sum += w.radius_m * d;
+                n += 1.0;
+            }
+        }
+        sum / f64::max(n, 1.0)
+    };
+    let m = inc.len();
+    let (mut pl, mut pr) = (vec![0.0; m + 1], vec![0.0; m + 1]);
+    for k in 0..m {
+        pl[k + 1] = pl[k] + side(k, true);
+        pr[k + 1] = pr[k] + side(k, false);
+    }
+    (0..m)
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(RHO_HALF_WINDOW), (k + RHO_HALF_WINDOW + 1).min(m));
+            let (dl, dr) = (pl[b] - pl[a], pr[b] - pr[a]);
+            let den = dl.abs() + dr.abs();
+            if den > 0.0 {
+                (dr - dl).abs() / den
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// One step of a skid-steer robot: each side's mean travel, the separation of `robot`
+/// (E_b applied) widened by the law at this turn ratio, the sideways speed of the ICR
+/// offset.
+fn skid_step(robot: &Robot, law: &SkidLaw, rho: f64, inc: &[f64]) -> calib_core::kinematics::Twist<f64> {
+    let (mut l, mut r, mut nl, mut nr, mut half) = (0.0, 0.0, 0.0, 0.0, 0.0);
+    for (w, d) in robot.wheels.iter().zip(inc) {
+        let (_, y) = w.position();
+        half += y.abs();
+        if w.is_left() {
+            l += w.radius_m * d;
+            nl += 1.0;
+        } else {
+            r += w.radius_m * d;
+            nr += 1.0;
+        }
+    }
+    let (l, r) = (l / f64::max(nl, 1.0), r / f64::max(nr, 1.0));
+    let half = half / robot.wheels.len().max(1) as f64 * (1.0 + law.arc_rel * (1.0 - rho).powi(2));
+    let dth = (r - l) / (2.0 * half);
+    calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)
 }
 
 /// Why calibration cannot run.
@@ -354,6 +490,8 @@ pub struct Series {
     /// Wheeled-legged robots: (front, rear) leg angles per row, rad; they move the wheel
     /// contacts along x, so the kinematics follow them.
     legs: Option<Vec<(f64, f64)>>,
+    /// Skid-steer robots: turn ratio rho per increment ([`turn_ratio`]).
+    rho: Option<Vec<f64>>,
     /// Pose samples (indices into px...) the dead-reckoning objective compares: one every
     /// [`SAMPLE_STEP_M`] of travel (turns in place counted at the wheels' lever arm).
     pub(crate) samples: Vec<usize>,
@@ -530,6 +668,7 @@ impl Series {
             None
         };
         let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
+        let rho = (robot.kind == RobotKind::SkidSteer).then(|| turn_ratio(robot, &inc));
         Ok(Series {
             name: name.to_string(),
             t: rec.t.clone(),
@@ -539,6 +678,7 @@ impl Series {
             py,
             pth,
             legs,
+            rho,
             samples,
             anchors: vec![0],
             glitches,
@@ -557,6 +697,23 @@ impl Series {
         }
     }
 
+    /// Skid-steer: (sum of w, sum of w (1 - rho)^2) over the increments, w = |d_r - d_l|
+    /// the turn of each (nominal radii): the weights that average the E_b law over how the
+    /// recording turns. (0, 0) for other robots.
+    pub(crate) fn turn_weighted_arc_term(&self, robot: &Robot) -> (f64, f64) {
+        let Some(rho) = &self.rho else {
+            return (0.0, 0.0);
+        };
+        let (mut sw, mut st) = (0.0, 0.0);
+        for (inc, &rho) in self.inc.iter().zip(rho) {
+            let t = skid_step(robot, &SkidLaw::default(), rho, inc);
+            let w = t.omega.abs();
+            sw += w;
+            st += w * (1.0 - rho).powi(2);
+        }
+        (sw, st)
+    }
+
     /// Number of ground-truth pose samples.
     pub fn pose_samples(&self) -> usize {
         self.pose_row.len()
@@ -567,9 +724,27 @@ impl Series {
     /// kinematics follow the leg angles (rebuilt only when they move). False when the
     /// wheels cannot resolve the body twist at some leg pose.
     pub(crate) fn path(&self, robot: &Robot, kin: &Kinematics<f64>, out: &mut Path) -> bool {
+        self.path_with(robot, kin, &SkidLaw::default(), out)
+    }
+
+    /// [`Series::path`] with a skid-steer robot's turn-radius law.
+    pub(crate) fn path_with(
+        &self,
+        robot: &Robot,
+        kin: &Kinematics<f64>,
+        law: &SkidLaw,
+        out: &mut Path,
+    ) -> bool {
         out.clear();
         let mut p = Pose::new(0.0, 0.0, 0.0);
         out.push(p);
+        if let Some(rho) = &self.rho {
+            for (inc, &rho) in self.inc.iter().zip(rho) {
+                p = integrate_arc(p, &skid_step(robot, law, rho, inc));
+                out.push(p);
+            }
+            return true;
+        }
         let Some(legs) = &self.legs else {
             for inc in &self.inc {
                 p = integrate_arc(p, &kin.forward(inc));
@@ -745,9 +920,25 @@ fn position_rmse(r: &[f64]) -> f64 {
 /// Dead reckoning from the first measured pose with the given robot and no fitted
 /// nuisance: the prediction a user gets (OptiOdom's held-out measure). Position RMSE, m.
 pub fn dead_reckoning_rmse(robot: &Robot, s: &Series) -> Option<f64> {
+    dead_reckoning_rmse_with(robot, &SkidLaw::default(), s)
+}
+
+/// [`dead_reckoning_rmse`] of the geometry `values` (in `specs` order) of `base`, a
+/// skid-steer robot's turn-radius law included.
+pub fn fitted_dead_reckoning_rmse(
+    base: &Robot,
+    specs: &[ParamSpec],
+    values: &[f64],
+    s: &Series,
+) -> f64 {
+    let r = robot_with(base, specs, values);
+    dead_reckoning_rmse_with(&r, &SkidLaw::of(specs, values), s).unwrap_or(f64::NAN)
+}
+
+fn dead_reckoning_rmse_with(robot: &Robot, law: &SkidLaw, s: &Series) -> Option<f64> {
     let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
     let mut path = Path::default();
-    if !s.path(robot, &kin, &mut path) {
+    if !s.path_with(robot, &kin, law, &mut path) {
         return None;
     }
     let k0 = s.pose_row[0];
@@ -820,12 +1011,13 @@ impl<'a> Problem<'a> {
             return true;
         }
         let r = robot_with(self.robot, self.specs, geom);
+        let law = SkidLaw::of(self.specs, geom);
         let Ok(kin) = Kinematics::<f64>::new(&r, &Corrections::None) else {
             c.0 = vec![f64::NAN];
             return false;
         };
         for (s, p) in self.series.iter().zip(c.1.iter_mut()) {
-            if !s.path(&r, &kin, p) {
+            if !s.path_with(&r, &kin, &law, p) {
                 c.0 = vec![f64::NAN];
                 return false;
             }
@@ -1659,6 +1851,9 @@ fn choose_specs(
     runs: &mut usize,
 ) -> Vec<ParamSpec> {
     let full = param_specs(robot, marker);
+    if robot.kind == RobotKind::SkidSteer {
+        return choose_skid_specs(robot, series, cfg, notes, runs);
+    }
     if !is_mecanum(robot) {
         return full;
     }
@@ -1698,6 +1893,74 @@ fn choose_specs(
             "mecanum: {why}; per-wheel angles, distances and radii are fitted (in the kinematics a wheel's roller angle is a combination of them)"
         ));
         full
+    }
+}
+
+/// Held-out improvement the skid-steer turn-radius law must bring to be kept: its mean
+/// leave-one-recording-out dead-reckoning error at most this share of the constant-E_b
+/// model's.
+pub const SKID_LAW_HOLDOUT_RATIO: f64 = 0.95;
+
+/// A skid-steer robot's model: constant E_b, or the turn-radius law of [Mandow et al.]
+/// when it holds out. Each recording in turn is left out, both models are fitted on the
+/// rest and dead-reckon it; the law is kept when its mean held-out error is at most
+/// [`SKID_LAW_HOLDOUT_RATIO`] of the constant model's and one of its two parameters is
+/// significant (3 sigma) on all the data. Says which and why, with the figures.
+fn choose_skid_specs(
+    robot: &Robot,
+    series: &[Series],
+    cfg: Cfg,
+    notes: &mut Vec<String>,
+    runs: &mut usize,
+) -> Vec<ParamSpec> {
+    let base = param_specs(robot, false);
+    let law = skid_law_specs(robot);
+    if series.len() < 2 {
+        notes.push(
+            "skid-steer: one recording cannot cross-validate a turn-radius law; a constant effective separation (E_b) is fitted".into(),
+        );
+        return base;
+    }
+    let (f_law, _, cov_law, r0) = fit_specs(robot, &law, series, cfg);
+    *runs += r0;
+    let (mut e_base, mut e_law) = (0.0, 0.0);
+    for i in 0..series.len() {
+        let rest: Vec<Series> = (0..series.len())
+            .filter(|&j| j != i)
+            .map(|j| series[j].clone())
+            .collect();
+        let (fb, _, _, rb) = fit_specs(robot, &base, &rest, cfg);
+        let (fl, _, _, rl) = fit_specs(robot, &law, &rest, cfg);
+        *runs += rb + rl;
+        e_base += fitted_dead_reckoning_rmse(robot, &base, &fb.geom, &series[i]);
+        e_law += fitted_dead_reckoning_rmse(robot, &law, &fl.geom, &series[i]);
+    }
+    let n = series.len() as f64;
+    let (e_base, e_law) = (e_base / n, e_law / n);
+    let at = |k: GeomKind| law.iter().position(|s| s.kind == k).unwrap_or(0);
+    let (ia, ix) = (at(GeomKind::EbArc), at(GeomKind::IcrX));
+    let sd = |i: usize| cov_law[(i, i)].max(0.0).sqrt();
+    let (arc, s_arc, x, s_x) = (f_law.geom[ia], sd(ia), f_law.geom[ix], sd(ix));
+    let significant = arc.abs() >= 3.0 * s_arc || x.abs() >= 3.0 * s_x;
+    let holds = e_law.is_finite() && e_law <= SKID_LAW_HOLDOUT_RATIO * e_base;
+    let figures = format!(
+        "eb_arc {arc:+.3} ± {s_arc:.3}, icr_x {:+.1} ± {:.1} mm; leave-one-recording-out dead reckoning {:.1} mm with the law, {:.1} mm with a constant E_b",
+        x * 1e3,
+        s_x * 1e3,
+        e_law * 1e3,
+        e_base * 1e3
+    );
+    if significant && holds {
+        notes.push(format!(
+            "skid-steer: the tracks' ICRs move with the turn radius and the law holds out ({figures}): the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b)"
+        ));
+        law
+    } else {
+        notes.push(format!(
+            "skid-steer: a constant effective separation explains the data ({figures}; the law is kept only when significant and at most {:.0} % of the constant model's held-out error)",
+            SKID_LAW_HOLDOUT_RATIO * 100.0
+        ));
+        base
     }
 }
 
@@ -1923,7 +2186,7 @@ pub fn calibrate(
             rmse_before_m: rb,
             rmse_after_m: ra,
             dead_reckoning_before_m: dead_reckoning_rmse(robot, s).unwrap_or(f64::NAN),
-            dead_reckoning_after_m: dead_reckoning_rmse(&fitted_robot, s).unwrap_or(f64::NAN),
+            dead_reckoning_after_m: fitted_dead_reckoning_rmse(robot, &specs, &fitted.geom, s),
             aligned_before_m: ab,
             aligned_after_m: aa,
             nuisance: nu,
@@ -1940,7 +2203,7 @@ pub fn calibrate(
         rmse_before_m: dead_reckoning_rmse(robot, h).unwrap_or(f64::NAN),
         aligned_before_m: aligned_rmse(robot, &specs, &nominal, h),
         aligned_after_m: aligned_rmse(robot, &specs, &fitted.geom, h),
-        rmse_after_m: dead_reckoning_rmse(&fitted_robot, h).unwrap_or(f64::NAN),
+        rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, &fitted.geom, h),
     });
 
     // Cross-validation: each group (run, session or path kind) held out in turn, the
@@ -2006,13 +2269,12 @@ pub fn calibrate(
                 let geom: Vec<f64> = (0..g)
                     .map(|a| (fitted.geom[a] + step[a]).clamp(blo[a], bhi[a]))
                     .collect();
-                let r = robot_with(robot, &specs, &geom);
                 for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
                     leave_one_out.push(Heldout {
                         name: series[i].name.clone(),
                         group: Some(gname.clone()),
                         rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
-                        rmse_after_m: dead_reckoning_rmse(&r, &series[i]).unwrap_or(f64::NAN),
+                        rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, &geom, &series[i]),
                         aligned_before_m: per_recording[i].aligned_before_m,
                         aligned_after_m: aligned_rmse(robot, &specs, &geom, &series[i]),
                     });
@@ -2043,13 +2305,12 @@ pub fn calibrate(
             };
             let f = solve(&q, &fitted.geom, &nuis, true);
             runs += f.evaluations;
-            let r = robot_with(robot, &specs, &f.geom);
             for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
                 leave_one_out.push(Heldout {
                     name: series[i].name.clone(),
                     group: Some(gname.clone()),
                     rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
-                    rmse_after_m: dead_reckoning_rmse(&r, &series[i]).unwrap_or(f64::NAN),
+                    rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, &f.geom, &series[i]),
                     aligned_before_m: per_recording[i].aligned_before_m,
                     aligned_after_m: aligned_rmse(robot, &specs, &f.geom, &series[i]),
                 });
@@ -2107,17 +2368,31 @@ pub fn calibrate(
         })
         .collect();
     let factors = if specs.iter().any(|s| s.kind == GeomKind::Ed) {
-        let scale = |k: GeomKind| {
+        let scale_or = |k: GeomKind, or: f64| {
             specs
                 .iter()
                 .position(|s| s.kind == k)
-                .map_or(1.0, |i| fitted.geom[i])
+                .map_or(or, |i| fitted.geom[i])
         };
+        let scale = |k: GeomKind| scale_or(k, 1.0);
         let (sc, ed, eb) = (
             scale(GeomKind::Scale),
             scale(GeomKind::Ed),
             scale(GeomKind::Eb),
         );
+        // A skid-steer turn-radius law is more than the board (or ROS 2's
+        // diff_drive_controller) applies: they get E_b at the recordings' mean turn,
+        // weighted by how much each row turns.
+        let law_arc = scale_or(GeomKind::EbArc, 0.0);
+        let (mut sw, mut st) = (0.0, 0.0);
+        if law_arc != 0.0 {
+            for s in &series {
+                let (w, t) = s.turn_weighted_arc_term(robot);
+                sw += w;
+                st += t;
+            }
+        }
+        let eb = if sw > 0.0 { eb + law_arc * st / sw } else { eb };
         Factors::Diff {
             c_l: sc * 2.0 / (ed + 1.0),
             c_r: sc * 2.0 * ed / (ed + 1.0),
