@@ -224,14 +224,21 @@ mod tests {
         let w = k.inverse(&Twist::new(0.5, 0.0, 1.0));
         assert!(close(w[0], 3.0, 1e-12) && close(w[1], 3.0, 1e-12));
         assert!(close(w[2], 7.0, 1e-12) && close(w[3], 7.0, 1e-12));
-        let c = Corrections::DiffDrive { c_l: 1.0, c_r: 1.0, e_b: 1.6 };
+        let c = Corrections::DiffDrive {
+            c_l: 1.0,
+            c_r: 1.0,
+            e_b: 1.6,
+        };
         let k = Kinematics::<f64>::new(&r, &c).unwrap();
         let w = k.inverse(&Twist::new(0.5, 0.0, 1.0));
         assert!(close(w[0], 1.8, 1e-12) && close(w[3], 8.2, 1e-12), "{w:?}");
         // Forward: the sliding rows of the front and rear wheels disagree in a turn, but
         // at weight 1e-3 they move omega by ~1e-6 relative.
         let t = k.forward(&w);
-        assert!(close(t.vx, 0.5, 1e-9) && close(t.omega, 1.0, 1e-5) && t.vy.abs() < 1e-9, "{t:?}");
+        assert!(
+            close(t.vx, 0.5, 1e-9) && close(t.omega, 1.0, 1e-5) && t.vy.abs() < 1e-9,
+            "{t:?}"
+        );
     }
 
     #[test]

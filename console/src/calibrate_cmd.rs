@@ -393,7 +393,19 @@ fn ros2_yaml(cal: &Calibration) -> Option<String> {
         // Factors the board would refuse are not exported (the text says why not).
         Factors::Diff { c_l, c_r, e_b } => Some(
             ros2::diff_drive_yaml(
-                &ros2::DiffFactors { c_l, c_r, e_b },
+                &ros2::DiffFactors {
+                    c_l,
+                    c_r,
+                    e_b,
+                    skid_steer: (cal.kind == "skid_steer").then(|| {
+                        let get = |n: &str| cal.params.iter().find(|p| p.name == n);
+                        ros2::SkidNote {
+                            law: get("eb_arc")
+                                .zip(get("eb"))
+                                .map(|(a, b)| (b.value, a.value)),
+                        }
+                    }),
+                },
                 "diff_drive_controller",
                 "a geometry fit by wheelcal calibrate",
             )

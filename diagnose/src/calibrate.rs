@@ -126,9 +126,11 @@ pub const SKID_EB_RANGE: (f64, f64) = (1.0, calib_core::correction::SKID_EB_MAX)
 pub const EB_ARC_RANGE: f64 = 0.5;
 /// Skid-steer: longitudinal ICR offset, m (a load far forward or back).
 pub const ICR_X_RANGE: f64 = 0.05;
-const EB_ARC_STANDS: &str = "tyres whose lateral grip builds up with the slip angle (ICRs that move with the turn radius)";
+const EB_ARC_STANDS: &str =
+    "tyres whose lateral grip builds up with the slip angle (ICRs that move with the turn radius)";
 const ICR_X_STANDS: &str = "the load far forward or back of the wheels' centre";
-const SKID_EB_STANDS: &str = "a wrong track in the robot file, or tracks that turn without skidding";
+const SKID_EB_STANDS: &str =
+    "a wrong track in the robot file, or tracks that turn without skidding";
 
 /// Tyre radius: within a few per cent of nominal (wear, pressure, load).
 pub const RADIUS_RANGE: f64 = 0.05;
@@ -420,7 +422,10 @@ fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
     }
     (0..m)
         .map(|k| {
-            let (a, b) = (k.saturating_sub(RHO_HALF_WINDOW), (k + RHO_HALF_WINDOW + 1).min(m));
+            let (a, b) = (
+                k.saturating_sub(RHO_HALF_WINDOW),
+                (k + RHO_HALF_WINDOW + 1).min(m),
+            );
             let (dl, dr) = (pl[b] - pl[a], pr[b] - pr[a]);
             let den = dl.abs() + dr.abs();
             if den > 0.0 {
@@ -435,7 +440,12 @@ fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
 /// One step of a skid-steer robot: each side's mean travel, the separation of `robot`
 /// (E_b applied) widened by the law at this turn ratio, the sideways speed of the ICR
 /// offset.
-fn skid_step(robot: &Robot, law: &SkidLaw, rho: f64, inc: &[f64]) -> calib_core::kinematics::Twist<f64> {
+fn skid_step(
+    robot: &Robot,
+    law: &SkidLaw,
+    rho: f64,
+    inc: &[f64],
+) -> calib_core::kinematics::Twist<f64> {
     let (mut l, mut r, mut nl, mut nr, mut half) = (0.0, 0.0, 0.0, 0.0, 0.0);
     for (w, d) in robot.wheels.iter().zip(inc) {
         let (_, y) = w.position();
@@ -1323,6 +1333,8 @@ pub struct Implausible {
 pub struct Calibration {
     /// The robot's name.
     pub robot: String,
+    /// The robot's kind (`diff_drive`, `skid_steer`...): which factors and ranges apply.
+    pub kind: &'static str,
     /// What the fit minimised.
     pub objective: &'static str,
     /// True when each recording's start pose and clocks were fitted (`--free-start`);
@@ -2434,6 +2446,7 @@ pub fn calibrate(
     });
     Ok(Calibration {
         robot: robot.name.to_string(),
+        kind: robot.kind.as_str(),
         objective,
         free_start: cfg.free_start,
         robust_loss,

@@ -48,7 +48,13 @@ fn param<'a>(c: &'a Calibration, name: &str) -> Option<&'a diagnose::calibrate::
 
 #[test]
 fn friction_circle_gives_a_constant_separation_of_1_6() {
-    let c = calibrate(&rover4(), &runs(Tyre::default()), None, &CalOptions::default()).unwrap();
+    let c = calibrate(
+        &rover4(),
+        &runs(Tyre::default()),
+        None,
+        &CalOptions::default(),
+    )
+    .unwrap();
     eprintln!("{c}");
     let want = 1.0 + (0.31f64 / 0.40).powi(2);
     let eb = param(&c, "eb").expect("eb fitted");
@@ -61,7 +67,9 @@ fn friction_circle_gives_a_constant_separation_of_1_6() {
     assert!(eb.sigma < 0.01, "eb sigma {}\n{c}", eb.sigma);
     assert!(param(&c, "eb_arc").is_none(), "a law reported\n{c}");
     assert!(
-        c.notes.iter().any(|n| n.contains("constant effective separation")),
+        c.notes
+            .iter()
+            .any(|n| n.contains("constant effective separation")),
         "{:?}",
         c.notes
     );

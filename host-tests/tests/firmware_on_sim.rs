@@ -195,3 +195,66 @@ fn corrected_umbmark_square_lands_where_calib_core_predicts() {
         "the residual error should be measurable: {px} {py}"
     );
 }
+
+#[test]
+fn skid_steer_board_drives_each_side_together_and_turns_with_its_e_b() {
+    // rover4 (skid-steer, track 0.40 m, wheelbase 0.31 m) with friction-circle tyres turns
+    // at an effective separation of 1 + (0.31 / 0.40)^2 = 1.600625 times the track. The
+    // board drives it as a differential drive, each side's two wheels together; with
+    // E_b = 1.600625 stored, its 1 m UMBmark square closes, and the robot's own odometry
+    // agrees with the truth.
+    let want = 1.0 + (0.31f64 / 0.40).powi(2);
+    let run = |e_b: f64| {
+        let mut b = board("rover4.toml", sim::Faults::none(4));
+        request(
+            &mut b,
+            Request::SetCorrections(Corrections::DiffDrive {
+                c_l: 1.0,
+                c_r: 1.0,
+                e_b,
+            }),
+        );
+        request(
+            &mut b,
+            Request::RunProgram {
+                program: ProgramSpec::Umbmark {
+                    side_m: 1.0,
+                    dir: Direction::Ccw,
+                },
+                log_rate_hz: 10,
+                link_timeout_ms: 0,
+            },
+        );
+        let mut n = 0;
+        let mut side_gap: f64 = 0.0;
+        while b.truths().is_empty() && n < 200_000 {
+            b.step(&mut Quiet);
+            // Front and rear wheel of each side are commanded alike every tick.
+            let inp = b.hw.inputs();
+            for (a, c) in [(0, 1), (2, 3)] {
+                if let (sim::WheelInput::Duty(x), sim::WheelInput::Duty(y)) = (inp[a], inp[c]) {
+                    side_gap = side_gap.max((x - y).abs());
+                }
+            }
+            n += 1;
+        }
+        (b.truths()[0], side_gap)
+    };
+    let (t, gap) = run(want);
+    // A rate-controlled pair on one axle differs by what each PI loop sees of its own
+    // encoder: within 5 % duty.
+    assert!(gap < 0.05, "duty gap between wheels of one side {gap}");
+    // With the effective separation right, the square's end error is the control's and
+    // the encoders' (a few mm per corner), not the 38 % heading error of nominal.
+    let miss = t.true_x_m.hypot(t.true_y_m);
+    assert!(
+        miss < 0.03,
+        "end {miss} m from the start with E_b = {want}: {t:?}"
+    );
+    let odo = t.x_err_m.hypot(t.y_err_m);
+    assert!(odo < 0.03, "odometry {odo} m off the truth: {t:?}");
+    // Nominal E_b: the wheels turn the body 62 % of each 90 degrees.
+    let (t0, _) = run(1.0);
+    let miss0 = t0.true_x_m.hypot(t0.true_y_m);
+    assert!(miss0 > 0.5, "nominal E_b should miss badly: {miss0} m");
+}

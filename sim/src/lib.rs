@@ -71,8 +71,8 @@ pub use record::{
 
 pub use actuator::WheelInput;
 pub use robot::{EncoderMount, SimConfig, SimRobot};
-pub use skid::Tyre;
 pub use sensors::{ImuConfig, VisionConfig};
+pub use skid::Tyre;
 pub use surface::{CableStrip, Patch, Surface, Tilt};
 
 /// Standard gravity, m/s^2 (traction limits).

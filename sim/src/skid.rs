@@ -112,7 +112,9 @@ impl Tyre {
             acc.g[a] += n * (gx * dx[a] + gy * dy[a]);
             for b in 0..3 {
                 acc.h[a][b] += n
-                    * (hxx * dx[a] * dx[b] + hxy * (dx[a] * dy[b] + dy[a] * dx[b]) + hyy * dy[a] * dy[b]);
+                    * (hxx * dx[a] * dx[b]
+                        + hxy * (dx[a] * dy[b] + dy[a] * dx[b])
+                        + hyy * dy[a] * dy[b]);
             }
         }
     }
@@ -198,7 +200,13 @@ mod tests {
         // Equal loads and a friction circle: the moment balance of the four contacts puts
         // the ICRs at (1 + (0.31 / 0.40)^2) = 1.600625 times half the track.
         let want = 1.0 + (0.31f64 / 0.40).powi(2);
-        for (vl, vr) in [(-0.3, 0.3), (0.0, 0.3), (0.1, 0.3), (0.25, 0.3), (0.29, 0.3)] {
+        for (vl, vr) in [
+            (-0.3, 0.3),
+            (0.0, 0.3),
+            (0.1, 0.3),
+            (0.25, 0.3),
+            (0.29, 0.3),
+        ] {
             let (c, t) = chi(Tyre::default(), vl, vr);
             assert!((c - want).abs() < 2e-3, "({vl}, {vr}): chi {c} vs {want}");
             // Symmetric contacts: no sideways speed.

@@ -64,12 +64,12 @@ fn export(a: ExportArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
             format!("the factors in {}", p.display()),
         ),
         (None, Some(c_l), Some(c_r), Some(e_b)) => (
-            ros2::DiffFactors { c_l, c_r, e_b },
+            ros2::DiffFactors::diff(c_l, c_r, e_b),
             "factors given on the command line".to_string(),
         ),
         (None, None, None, None) => match ctx.client()?.corrections()? {
             calib_core::Corrections::DiffDrive { c_l, c_r, e_b } => (
-                ros2::DiffFactors { c_l, c_r, e_b },
+                ros2::DiffFactors::diff(c_l, c_r, e_b),
                 "the board's active factors".to_string(),
             ),
             other => bail!(
