@@ -73,9 +73,12 @@ impl Tyre {
         Ok(())
     }
 
-    /// Potential, gradient and Hessian (over the twist) of one contact with slip (sx, sy),
-    /// lateral position y and longitudinal position x, rolling speed u, load share n.
-    fn contact(&self, sx: f64, sy: f64, x: f64, y: f64, u: f64, n: f64, acc: &mut Acc) {
+    /// Adds the potential, gradient and Hessian (over the twist `q`) of one contact at
+    /// (x, y) whose wheel surface moves at v along x, with load share n.
+    fn contact(&self, q: &[f64; 3], (x, y, v): (f64, f64, f64), n: f64, acc: &mut Acc) {
+        let sx = q[0] - q[2] * y - v;
+        let sy = q[1] + q[2] * x;
+        let u = v.abs() + SPEED_FLOOR_M_S;
         // d(sx)/d(twist) = (1, 0, -y), d(sy)/d(twist) = (0, 1, x).
         let dx = [1.0, 0.0, -y];
         let dy = [0.0, 1.0, x];
@@ -136,10 +139,8 @@ impl Tyre {
         let n = 1.0 / wheels.len() as f64;
         let eval = |q: &[f64; 3]| {
             let mut acc = Acc::default();
-            for &(x, y, v) in &wheels {
-                let sx = q[0] - q[2] * y - v;
-                let sy = q[1] + q[2] * x;
-                self.contact(sx, sy, x, y, v.abs() + SPEED_FLOOR_M_S, n, &mut acc);
+            for &w in &wheels {
+                self.contact(q, w, n, &mut acc);
             }
             acc
         };
