@@ -106,6 +106,9 @@ pub struct Faults {
     pub duplicate: f64,
     /// Probability per write of cutting the rest of that write off.
     pub truncate: f64,
+    /// The writer stalls once, before its write number `.0` (from 0), for `.1`: a console
+    /// suspended or starved of CPU while a program runs.
+    pub stall: Option<(u64, Duration)>,
 }
 
 impl Faults {
@@ -116,6 +119,14 @@ impl Faults {
 
     fn active(&self) -> bool {
         self.drop > 0.0 || self.flip > 0.0 || self.duplicate > 0.0 || self.truncate > 0.0
+    }
+
+    /// Writes a stall of `after_writes` writes then `for_` long (see [`Faults::stall`]).
+    pub fn stall(after_writes: u64, for_: Duration) -> Self {
+        Faults {
+            stall: Some((after_writes, for_)),
+            ..Faults::none()
+        }
     }
 }
 
@@ -138,10 +149,17 @@ struct FaultyTx {
     faults: Faults,
     rng: ChaCha8Rng,
     counts: std::sync::Arc<std::sync::Mutex<FaultCounts>>,
+    writes: u64,
 }
 
 impl FaultyTx {
     fn send(&mut self, data: &[u8]) {
+        if let Some((at, d)) = self.faults.stall {
+            if self.writes == at {
+                std::thread::sleep(d);
+            }
+        }
+        self.writes += 1;
         if !self.faults.active() {
             let _ = self.tx.send(data.to_vec());
             return;
@@ -211,6 +229,7 @@ pub fn memory_pair(to_board: Faults, to_host: Faults, seed: u64) -> (MemoryEnd, 
             faults: to_board,
             rng: ChaCha8Rng::seed_from_u64(seed),
             counts: hc.clone(),
+            writes: 0,
         },
         rx: hrx,
         buf: Default::default(),
@@ -223,6 +242,7 @@ pub fn memory_pair(to_board: Faults, to_host: Faults, seed: u64) -> (MemoryEnd, 
             faults: to_host,
             rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5eed),
             counts: bc.clone(),
+            writes: 0,
         },
         rx: brx,
         buf: Default::default(),

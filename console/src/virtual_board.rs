@@ -288,11 +288,14 @@ impl VirtualBoard {
         let mut host_heard = Instant::now();
         while !stop() {
             let flat_out = speed.is_infinite() && self.busy();
+            // Every byte from the host counts, busy or idle: a program started after a
+            // quiet spell (the host thinking between runs) must not begin with its silence
+            // already counted against the failsafe.
+            let mut listening = Listening {
+                inner: &mut *stream,
+                heard: false,
+            };
             if flat_out {
-                let mut listening = Listening {
-                    inner: &mut *stream,
-                    heard: false,
-                };
                 for _ in 0..200 {
                     self.step(&mut listening);
                 }
@@ -313,13 +316,16 @@ impl VirtualBoard {
                     sim_us_at_start + (wall_ref.elapsed().as_secs_f64() * pace * 1e6) as u64;
                 let mut n = 0;
                 while self.now_us < due_us && n < 5000 {
-                    self.step(stream);
+                    self.step(&mut listening);
                     n += 1;
                 }
                 if n == 0 {
                     // Still answer requests promptly while waiting for the next tick.
-                    self.serve_bytes(stream);
+                    self.serve_bytes(&mut listening);
                     std::thread::sleep(Duration::from_micros(300));
+                }
+                if listening.heard {
+                    host_heard = Instant::now();
                 }
             }
             while reported < self.truths.len() {

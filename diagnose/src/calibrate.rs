@@ -508,9 +508,22 @@ pub struct Series {
     /// Pose samples where dead reckoning restarts from the measured pose (the first one,
     /// and the end of every event one geometry cannot explain).
     pub(crate) anchors: Vec<usize>,
-    /// Single-sample glitches found while reading (replaced, reported as events).
+    /// Single-sample glitches and pose jumps found while reading (reported as events).
     pub(crate) glitches: Vec<Event>,
+    /// Pose noise per sample (m) the poses' steps show against the wheels', from their
+    /// median departure; `None` when too few samples.
+    pub pose_noise_m: Option<f64>,
 }
+
+/// Robust sigmas a pose step must depart from the wheels' step by to be a jump.
+pub const JUMP_SIGMAS: f64 = 6.0;
+/// Pose steps on each side a jump must stand out of (twice their departure).
+pub const JUMP_NEIGHBOURS: usize = 5;
+/// Smallest position jump, m: keeps a sub-millimetre motion-capture stream from
+/// flagging its own noise.
+pub const JUMP_MIN_M: f64 = 0.01;
+/// Smallest heading jump, rad (1 deg).
+pub const JUMP_MIN_RAD: f64 = 0.0175;
 
 /// Pose samples one every `step` of travel (|dp| + lever |dtheta| between samples), the
 /// first and last included.
@@ -679,7 +692,7 @@ impl Series {
         };
         let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
         let rho = (robot.kind == RobotKind::SkidSteer).then(|| turn_ratio(robot, &inc));
-        Ok(Series {
+        let mut s = Series {
             name: name.to_string(),
             t: rec.t.clone(),
             inc,
@@ -692,7 +705,75 @@ impl Series {
             samples,
             anchors: vec![0],
             glitches,
-        })
+            pose_noise_m: None,
+        };
+        s.find_pose_jumps(robot);
+        Ok(s)
+    }
+
+    /// Pose jumps (a SLAM trajectory closing a loop or relocalising): a step of the pose
+    /// stream that departs from the wheels' step over the same interval by more than
+    /// [`JUMP_SIGMAS`] robust scales and a floor ([`JUMP_MIN_M`], [`JUMP_MIN_RAD`]), and
+    /// stands out of its [`JUMP_NEIGHBOURS`] steps on each side (twice their departure):
+    /// reported, and dead reckoning restarts from the measured pose after each, so a jump
+    /// weighs as one sample, not as an offset on everything after it. Also estimates the
+    /// pose noise per sample from the same departures.
+    fn find_pose_jumps(&mut self, robot: &Robot) {
+        let Ok(kin) = Kinematics::<f64>::new(robot, &Corrections::None) else {
+            return;
+        };
+        let mut path = Path::default();
+        if !self.path(robot, &kin, &mut path) || self.pose_row.len() < 2 * JUMP_NEIGHBOURS + 2 {
+            return;
+        }
+        let n = self.pose_row.len();
+        let (mut dp, mut dh) = (vec![0.0; n], vec![0.0; n]);
+        for j in 1..n {
+            let (k0, k1) = (self.pose_row[j - 1], self.pose_row[j]);
+            // The wheels' step, turned into the measured frame at the step's start.
+            let rot = self.pth[j - 1] - path.th[k0];
+            let (c, sn) = (rot.cos(), rot.sin());
+            let (ox, oy) = (path.x[k1] - path.x[k0], path.y[k1] - path.y[k0]);
+            let (wx, wy) = (c * ox - sn * oy, sn * ox + c * oy);
+            dp[j] = (self.px[j] - self.px[j - 1] - wx).hypot(self.py[j] - self.py[j - 1] - wy);
+            dh[j] = (self.pth[j] - self.pth[j - 1]) - (path.th[k1] - path.th[k0]);
+        }
+        let median = |v: &[f64]| {
+            let mut a: Vec<f64> = v[1..].iter().map(|x| x.abs()).collect();
+            a.sort_by(|x, y| x.total_cmp(y));
+            a[a.len() / 2]
+        };
+        let (mp, mh) = (median(&dp), median(&dh));
+        // A step's departure is the difference of two samples' noise: per axis sqrt(2)
+        // sigma, and its length Rayleigh-distributed with median sqrt(2 ln 2) times that.
+        self.pose_noise_m = Some(mp / (2.0 * std::f64::consts::LN_2).sqrt() / 2f64.sqrt());
+        let (lim_p, lim_h) = (
+            (JUMP_SIGMAS * 1.4826 * mp).max(JUMP_MIN_M),
+            (JUMP_SIGMAS * 1.4826 * mh).max(JUMP_MIN_RAD),
+        );
+        for j in 1..n {
+            let around = |v: &[f64]| {
+                (j.saturating_sub(JUMP_NEIGHBOURS).max(1)..(j + JUMP_NEIGHBOURS + 1).min(n))
+                    .filter(|&k| k != j)
+                    .map(|k| v[k].abs())
+                    .fold(0.0, f64::max)
+            };
+            let pos = dp[j] > lim_p && dp[j] > 2.0 * around(&dp);
+            let head = dh[j].abs() > lim_h && dh[j].abs() > 2.0 * around(&dh);
+            if !(pos || head) {
+                continue;
+            }
+            self.glitches.push(Event {
+                recording: self.name.clone(),
+                kind: "pose_jump",
+                t_s: self.t[self.pose_row[j]] - self.t[0],
+                duration_s: self.t[self.pose_row[j]] - self.t[self.pose_row[j - 1]],
+                heading_rad: dh[j],
+                position_m: dp[j],
+                handled: "dead reckoning restarts from the measured pose after it",
+            });
+            self.anchors.push(j);
+        }
     }
 
     /// The start the dead-reckoning objective uses: the first measured pose, clocks as
@@ -1495,7 +1576,8 @@ pub struct Event {
     pub recording: String,
     /// `slip` (odometry and motion capture part for good), `time_lead` (they part and
     /// meet again: one clock leads the other for a moment), `pose_glitch` (one pose
-    /// sample far from its neighbours), `encoder_glitch` (one increment no motor makes).
+    /// sample far from its neighbours), `encoder_glitch` (one increment no motor makes),
+    /// `pose_jump` (the pose stream jumps against the wheels: a SLAM loop closure).
     pub kind: &'static str,
     /// Start, s since the recording's first row.
     pub t_s: f64,
@@ -2105,8 +2187,22 @@ pub fn calibrate(
             }
         }
     }
+    // What the uncertainties assume of the poses: motion capture is sub-millimetre, a
+    // SLAM trajectory centimetres, and the stated sigmas scale with it.
+    let noise: Vec<f64> = series.iter().filter_map(|s| s.pose_noise_m).collect();
+    let pose_noise = (!noise.is_empty())
+        .then(|| format!(
+            "; the poses scatter {:.1} mm per sample about the wheels' steps (median over the recordings), and the fit's residuals {:.1} mm RMS",
+            1e3 * {
+                let mut v = noise.clone();
+                v.sort_by(|a, b| a.total_cmp(b));
+                v[v.len() / 2]
+            },
+            position_rmse(&p.residuals(&fitted.geom, &fitted.nuis, false)) * 1e3
+        ))
+        .unwrap_or_default();
     notes.push(format!(
-        "uncertainties count the residuals' autocorrelation (variance x{inflation:.0})"
+        "uncertainties count the residuals' autocorrelation (variance x{inflation:.0}){pose_noise}"
     ));
     // What the data ask for outside the physical ranges is reported, and the geometry
     // is refitted within them: an implausible value stands in for something else and

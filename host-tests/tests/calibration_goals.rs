@@ -363,3 +363,126 @@ fn omni_second_pass_composes_with_the_first_factors() {
         );
     }
 }
+
+#[test]
+fn a_run_cut_by_the_link_failsafe_is_run_again_not_recorded() {
+    // The console stalls for 1.5 s (suspended, or starved of CPU) while the first square
+    // runs: the board's link failsafe (0.5 s) cuts the program. The cut run must not enter
+    // the runs file as a measurement (its "end error" is wherever the robot stopped); the
+    // procedure says so and runs it again, and ends with exactly the runs asked for, every
+    // one a closed 0.5 m square (end error under 10 cm on this robot, against ~0.5 m for
+    // a square cut a quarter of the way round).
+    use calib_core::odometry::Pose;
+    use std::time::Duration;
+    use wheelcal::calibration::procedure::{self, Kind, Measure, Options, TruthChannel};
+    use wheelcal::link::Faults;
+    use wheelcal::virtual_board::InProcessBoard;
+
+    struct Said<'a, 'b>(&'a mut TruthChannel<'b>, Vec<String>);
+    impl Measure for Said<'_, '_> {
+        fn say(&mut self, text: &str) {
+            self.1.push(text.to_string());
+        }
+        fn ready(&mut self, _: &str) -> anyhow::Result<()> {
+            Ok(())
+        }
+        fn end_error(
+            &mut self,
+            trial: u16,
+            odo: Pose<f32>,
+            direction_rad: f64,
+            what: &str,
+        ) -> anyhow::Result<(f64, f64, Option<f64>)> {
+            self.0.end_error(trial, odo, direction_rad, what)
+        }
+    }
+
+    let r = robot("mobolab.toml");
+    let sim = sim::SimRobot::new(
+        &r,
+        faults(1.003, 1.01),
+        sim::Surface::flat(),
+        sim::SimConfig::default(),
+    )
+    .unwrap();
+    // Paced at 4x real time, a 0.5 m square takes ~2.5 s of wall time and the console
+    // polls every 50 ms (0.2 s of board time, inside the 0.5 s failsafe): the host's write
+    // 30 falls inside the first run, and its 1.5 s stall is 6 s of board time.
+    let stall = Faults::stall(30, Duration::from_millis(1500));
+    let mut board = InProcessBoard::start_paced(&r, sim, stall, Faults::none(), 3, 4.0).unwrap();
+    let c = &mut board.client;
+    c.hello().unwrap();
+    let runs = temp_runs("link-lost");
+    let _ = std::fs::remove_file(&runs);
+    let opts = Options {
+        kind: Kind::Umbmark,
+        side_m: 0.5,
+        length_m: 0.5,
+        runs: 2,
+        after_runs: 0,
+        runs_file: runs.clone(),
+        auto_measure: None,
+        report: None,
+        after: false,
+        second_pass: false,
+        idle_wheels: Default::default(),
+    };
+    let mut m = Said(
+        &mut TruthChannel {
+            rx: &board.truths,
+            seen: Vec::new(),
+            progress: None,
+        },
+        vec![],
+    );
+    procedure::run(c, &opts, &mut m).unwrap();
+    let cut = m.1.iter().filter(|s| s.contains("cut short")).count();
+    assert_eq!(cut, 1, "{:#?}", m.1);
+    let all = RunsFile::load(&runs).unwrap();
+    assert_eq!(all.rows.len(), 4);
+    for row in &all.rows {
+        let e = row.x_err_m.hypot(row.y_err_m);
+        assert!(e < 0.1, "a recorded run ended {e} m off: {row:?}");
+    }
+}
+
+#[test]
+fn a_program_started_after_a_quiet_spell_is_not_cut() {
+    // The virtual board flat out judges the host's silence on the wall clock. It used to
+    // count only what arrived while a program ran, so a program started after the host
+    // had been quiet for over 250 ms (thinking between two runs) began with its silence
+    // already spent: unless the first status poll came within ~2 ms (0.5 s of board time
+    // flat out), the failsafe cut it. Under load (a loaded 2-core CI machine) that made
+    // the guided procedures record cut runs as measurements.
+    use std::time::Duration;
+    use wheelcal::board_cmds;
+    use wheelcal::link::Faults;
+    use wheelcal::virtual_board::InProcessBoard;
+    let r = robot("mobolab.toml");
+    let sim = sim::SimRobot::new(
+        &r,
+        faults(1.0, 1.0),
+        sim::Surface::flat(),
+        Default::default(),
+    )
+    .unwrap();
+    let mut board = InProcessBoard::start(&r, sim, Faults::none(), Faults::none(), 4).unwrap();
+    let c = &mut board.client;
+    c.hello().unwrap();
+    for _ in 0..2 {
+        let limit = board_cmds::run_umbmark(
+            c,
+            calib_core::motion::Direction::Cw,
+            1.0,
+            10,
+            calib_core::protocol::DEFAULT_LINK_TIMEOUT_MS,
+        )
+        .unwrap();
+        // The first poll 100 ms after the start: inside the 250 ms the board counts a
+        // host it just heard as alive, but 0.5 s of board time has long passed flat out.
+        std::thread::sleep(Duration::from_millis(100));
+        let end = board_cmds::wait_program(c, limit + Duration::from_secs(60), |_| {}).unwrap();
+        assert_eq!(end.stop, calib_core::protocol::StopReason::ProgramDone);
+        std::thread::sleep(Duration::from_millis(1000));
+    }
+}

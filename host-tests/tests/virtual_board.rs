@@ -133,6 +133,7 @@ fn faulty_link_never_corrupts_and_transfers_or_fails_clearly() {
         flip: 0.002,
         duplicate: 0.002,
         truncate: 0.02,
+        stall: None,
     };
     let mut b = start("omni4.toml", SimFaults::none(4), f, f, 11);
     let c = &mut b.client;

@@ -13,7 +13,7 @@ use crate::virtual_board::TrialTruth;
 use anyhow::{bail, Context, Result};
 use calib_core::motion::{Direction, OmniPath};
 use calib_core::odometry::Pose;
-use calib_core::protocol::DEFAULT_LINK_TIMEOUT_MS;
+use calib_core::protocol::{StopReason, DEFAULT_LINK_TIMEOUT_MS};
 use calib_core::robot::RobotKind;
 use calib_core::Corrections;
 use formats::runs_file::{Phase, RunRow, RunsFile, TestKind};
@@ -524,17 +524,35 @@ fn run_phase<L: Read + Write>(
                 k + 1,
                 runs
             );
-            m.ready(&what)?;
-            m.say(&format!("{what}: running"));
-            let limit = match t {
-                Trial::Square(d) => {
-                    board_cmds::run_umbmark(c, d, length, 10, DEFAULT_LINK_TIMEOUT_MS)?
-                }
-                Trial::Path(p, idle) => {
-                    board_cmds::run_omni(c, p, length, idle, 10, DEFAULT_LINK_TIMEOUT_MS)?
+            let mut attempt = 0;
+            let end = loop {
+                m.ready(&what)?;
+                m.say(&format!("{what}: running"));
+                let limit = match t {
+                    Trial::Square(d) => {
+                        board_cmds::run_umbmark(c, d, length, 10, DEFAULT_LINK_TIMEOUT_MS)?
+                    }
+                    Trial::Path(p, idle) => {
+                        board_cmds::run_omni(c, p, length, idle, 10, DEFAULT_LINK_TIMEOUT_MS)?
+                    }
+                };
+                let end = board_cmds::wait_program(c, limit + Duration::from_secs(60), |_| {})?;
+                // Only a run that reached the path's end is a measurement: a cut one would
+                // enter the statistics as a huge "error".
+                match end.stop {
+                    StopReason::ProgramDone => break end,
+                    StopReason::LinkLost if attempt < LINK_LOST_RETRIES => {
+                        attempt += 1;
+                        m.say(&format!(
+                            "{what}: cut short, this console was silent for over {DEFAULT_LINK_TIMEOUT_MS} ms (the board's link failsafe); not recorded: put the robot back at the start, it runs again"
+                        ));
+                    }
+                    other => bail!(
+                        "{what} ended before the path's end ({}): not recorded; the runs so far are kept, start the procedure again to resume",
+                        stop_words(other)
+                    ),
                 }
             };
-            let end = board_cmds::wait_program(c, limit + Duration::from_secs(60), |_| {})?;
             let trial = c
                 .trials()?
                 .trials
@@ -579,6 +597,22 @@ fn run_phase<L: Read + Write>(
         }
     }
     Ok(())
+}
+
+/// Runs cut by the link failsafe that are run again before the procedure gives up.
+const LINK_LOST_RETRIES: usize = 2;
+
+/// Why a program stopped, in words.
+fn stop_words(s: StopReason) -> &'static str {
+    match s {
+        StopReason::None => "not stopped",
+        StopReason::Request => "stopped on request",
+        StopReason::EStop => "emergency stop",
+        StopReason::CommandTimeout => "command timeout",
+        StopReason::Fault => "a fault; `wheelcal status` names it",
+        StopReason::ProgramDone => "done",
+        StopReason::LinkLost => "the link failsafe cut it: the console was silent too long",
+    }
 }
 
 #[cfg(test)]
