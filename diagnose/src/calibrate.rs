@@ -2190,17 +2190,17 @@ pub fn calibrate(
     // What the uncertainties assume of the poses: motion capture is sub-millimetre, a
     // SLAM trajectory centimetres, and the stated sigmas scale with it.
     let noise: Vec<f64> = series.iter().filter_map(|s| s.pose_noise_m).collect();
-    let pose_noise = (!noise.is_empty())
-        .then(|| format!(
+    let pose_noise = if noise.is_empty() {
+        String::new()
+    } else {
+        let mut v = noise.clone();
+        v.sort_by(|a, b| a.total_cmp(b));
+        format!(
             "; the poses scatter {:.1} mm per sample about the wheels' steps (median over the recordings), and the fit's residuals {:.1} mm RMS",
-            1e3 * {
-                let mut v = noise.clone();
-                v.sort_by(|a, b| a.total_cmp(b));
-                v[v.len() / 2]
-            },
+            1e3 * v[v.len() / 2],
             position_rmse(&p.residuals(&fitted.geom, &fitted.nuis, false)) * 1e3
-        ))
-        .unwrap_or_default();
+        )
+    };
     notes.push(format!(
         "uncertainties count the residuals' autocorrelation (variance x{inflation:.0}){pose_noise}"
     ));
