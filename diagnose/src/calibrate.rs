@@ -513,17 +513,28 @@ pub struct Series {
     /// Pose noise per sample (m) the poses' steps show against the wheels', from their
     /// median departure; `None` when too few samples.
     pub pose_noise_m: Option<f64>,
+    /// Pose indices where the pose stream jumps (the first sample after each).
+    pub(crate) jumps: Vec<usize>,
 }
 
-/// Robust sigmas a pose step must depart from the wheels' step by to be a jump.
+/// Separates a recording's name from the number of its part after a pose jump.
+pub const PART_SEP: &str = "#";
+
+/// Poses scattering more than this per sample (m) are SLAM-like (motion capture scatters
+/// well under a millimetre): calibrate then fits each recording's start pose, because dead
+/// reckoning from one noisy pose would tilt the whole recording.
+pub const NOISY_POSES_M: f64 = 0.002;
+
+/// A pose jump's position step, in medians of the windowed steps (a Rayleigh median is
+/// 1.18 sigma: about 7 sigma).
 pub const JUMP_SIGMAS: f64 = 6.0;
-/// Pose steps on each side a jump must stand out of (twice their departure).
-pub const JUMP_NEIGHBOURS: usize = 5;
+/// Pose samples averaged on each side of a candidate jump.
+pub const JUMP_WINDOW: usize = 10;
+/// Share of a jump's windowed step its single step must carry (a slip spreads it).
+pub const JUMP_ONE_STEP: f64 = 0.5;
 /// Smallest position jump, m: keeps a sub-millimetre motion-capture stream from
 /// flagging its own noise.
 pub const JUMP_MIN_M: f64 = 0.01;
-/// Smallest heading jump, rad (1 deg).
-pub const JUMP_MIN_RAD: f64 = 0.0175;
 
 /// Pose samples one every `step` of travel (|dp| + lever |dtheta| between samples), the
 /// first and last included.
@@ -706,61 +717,114 @@ impl Series {
             anchors: vec![0],
             glitches,
             pose_noise_m: None,
+            jumps: vec![],
         };
         s.find_pose_jumps(robot);
         Ok(s)
     }
 
-    /// Pose jumps (a SLAM trajectory closing a loop or relocalising): a step of the pose
-    /// stream that departs from the wheels' step over the same interval by more than
-    /// [`JUMP_SIGMAS`] robust scales and a floor ([`JUMP_MIN_M`], [`JUMP_MIN_RAD`]), and
-    /// stands out of its [`JUMP_NEIGHBOURS`] steps on each side (twice their departure):
-    /// reported, and dead reckoning restarts from the measured pose after each, so a jump
-    /// weighs as one sample, not as an offset on everything after it. Also estimates the
-    /// pose noise per sample from the same departures.
+    /// Pose jumps (a SLAM trajectory closing a loop or relocalising): the poses' position
+    /// offset from the wheels (accumulated over the pose steps) steps by more than the
+    /// noise allows. The offset's mean over the [`JUMP_WINDOW`] samples after each sample
+    /// is compared with its mean over the ones before (averaging beats the per-sample
+    /// noise down; geometry drifts far less within a few samples); a step larger than
+    /// [`JUMP_SIGMAS`] times the median step (about 7 sigma) and than [`JUMP_MIN_M`], at
+    /// its local maximum, made mostly in one sample step ([`JUMP_ONE_STEP`]), is a jump.
+    /// Only in SLAM-like pose streams (noisier than [`NOISY_POSES_M`]). It is reported, and dead reckoning restarts from the measured
+    /// pose after it, so a jump weighs as one sample, not as an offset on everything after
+    /// it. Also estimates the pose noise per sample from single steps of the poses
+    /// against the wheels'.
     fn find_pose_jumps(&mut self, robot: &Robot) {
         let Ok(kin) = Kinematics::<f64>::new(robot, &Corrections::None) else {
             return;
         };
         let mut path = Path::default();
-        if !self.path(robot, &kin, &mut path) || self.pose_row.len() < 2 * JUMP_NEIGHBOURS + 2 {
+        let n = self.pose_row.len();
+        if !self.path(robot, &kin, &mut path) || n < 2 * JUMP_WINDOW + 2 {
             return;
         }
-        let n = self.pose_row.len();
-        let (mut dp, mut dh) = (vec![0.0; n], vec![0.0; n]);
+        // Offset of the poses from the wheels, accumulated step by step: each step of the
+        // wheels turned into the frame of the measured heading at its start, so a heading
+        // error of the geometry does not swing the offset around.
+        let mut off = vec![(0.0, 0.0, 0.0); n];
         for j in 1..n {
             let (k0, k1) = (self.pose_row[j - 1], self.pose_row[j]);
-            // The wheels' step, turned into the measured frame at the step's start.
             let rot = self.pth[j - 1] - path.th[k0];
             let (c, sn) = (rot.cos(), rot.sin());
             let (ox, oy) = (path.x[k1] - path.x[k0], path.y[k1] - path.y[k0]);
-            let (wx, wy) = (c * ox - sn * oy, sn * ox + c * oy);
-            dp[j] = (self.px[j] - self.px[j - 1] - wx).hypot(self.py[j] - self.py[j - 1] - wy);
-            dh[j] = (self.pth[j] - self.pth[j - 1]) - (path.th[k1] - path.th[k0]);
+            off[j] = (
+                off[j - 1].0 + self.px[j] - self.px[j - 1] - (c * ox - sn * oy),
+                off[j - 1].1 + self.py[j] - self.py[j - 1] - (sn * ox + c * oy),
+                off[j - 1].2 + (self.pth[j] - self.pth[j - 1]) - (path.th[k1] - path.th[k0]),
+            );
         }
-        let median = |v: &[f64]| {
-            let mut a: Vec<f64> = v[1..].iter().map(|x| x.abs()).collect();
+        let median = |mut a: Vec<f64>| {
             a.sort_by(|x, y| x.total_cmp(y));
             a[a.len() / 2]
         };
-        let (mp, mh) = (median(&dp), median(&dh));
-        // A step's departure is the difference of two samples' noise: per axis sqrt(2)
-        // sigma, and its length Rayleigh-distributed with median sqrt(2 ln 2) times that.
-        self.pose_noise_m = Some(mp / (2.0 * std::f64::consts::LN_2).sqrt() / 2f64.sqrt());
-        let (lim_p, lim_h) = (
-            (JUMP_SIGMAS * 1.4826 * mp).max(JUMP_MIN_M),
-            (JUMP_SIGMAS * 1.4826 * mh).max(JUMP_MIN_RAD),
-        );
-        for j in 1..n {
-            let around = |v: &[f64]| {
-                (j.saturating_sub(JUMP_NEIGHBOURS).max(1)..(j + JUMP_NEIGHBOURS + 1).min(n))
-                    .filter(|&k| k != j)
-                    .map(|k| v[k].abs())
-                    .fold(0.0, f64::max)
-            };
-            let pos = dp[j] > lim_p && dp[j] > 2.0 * around(&dp);
-            let head = dh[j].abs() > lim_h && dh[j].abs() > 2.0 * around(&dh);
-            if !(pos || head) {
+        // Per-sample noise: a single step's departure is the difference of two samples'
+        // noise, per axis sqrt(2) sigma, its length Rayleigh with median sqrt(2 ln 2) x that.
+        let steps: Vec<f64> = (1..n)
+            .map(|j| (off[j].0 - off[j - 1].0).hypot(off[j].1 - off[j - 1].1))
+            .collect();
+        let noise = median(steps) / (2.0 * std::f64::consts::LN_2).sqrt() / 2f64.sqrt();
+        self.pose_noise_m = Some(noise);
+        if noise <= NOISY_POSES_M {
+            // Motion capture does not close loops. What looks like a jump in it is the
+            // end of a turn giving back the heading the poses led by (the real squares'
+            // run 02 at 17.5 s), which the event detection handles.
+            return;
+        }
+        let w = JUMP_WINDOW;
+        let mut pre = vec![(0.0, 0.0, 0.0); n + 1];
+        for j in 0..n {
+            pre[j + 1] = (
+                pre[j].0 + off[j].0,
+                pre[j].1 + off[j].1,
+                pre[j].2 + off[j].2,
+            );
+        }
+        let mean = |a: usize, b: usize| {
+            let k = (b - a) as f64;
+            (
+                (pre[b].0 - pre[a].0) / k,
+                (pre[b].1 - pre[a].1) / k,
+                (pre[b].2 - pre[a].2) / k,
+            )
+        };
+        // step[j]: mean of samples j..j+w minus mean of j-w..j.
+        let mut dp = vec![0.0; n];
+        let mut dh = vec![0.0; n];
+        for j in w..=n - w {
+            let (a, b) = (mean(j - w, j), mean(j, j + w));
+            dp[j] = (b.0 - a.0).hypot(b.1 - a.1);
+            dh[j] = b.2 - a.2;
+        }
+        let lim_p = (JUMP_SIGMAS * median(dp[w..=n - w].to_vec())).max(JUMP_MIN_M);
+        // A jump happens between two samples: its single step carries at least
+        // JUMP_ONE_STEP of the windowed step. A wheel slip (or a pose stream lagging the
+        // wheels) spreads the same offset over the many steps of a turn.
+        let one = |j: usize| {
+            (
+                (off[j].0 - off[j - 1].0).hypot(off[j].1 - off[j - 1].1),
+                (off[j].2 - off[j - 1].2).abs(),
+            )
+        };
+        // Position only: a heading step of a degree or two between two samples is what a
+        // turn in place does to any pose stream that leads or lags the wheels a little
+        // (the real squares show several per turn); a map correction moves the position.
+        let score = |j: usize| {
+            if one(j).0 >= JUMP_ONE_STEP * dp[j] {
+                dp[j] / lim_p
+            } else {
+                0.0
+            }
+        };
+        for j in w..=n - w {
+            let sj = score(j);
+            let local_max = (j.saturating_sub(w).max(w)..=(j + w).min(n - w))
+                .all(|k| k == j || score(k) < sj || (score(k) == sj && k > j));
+            if sj <= 1.0 || !local_max {
                 continue;
             }
             self.glitches.push(Event {
@@ -770,10 +834,73 @@ impl Series {
                 duration_s: self.t[self.pose_row[j]] - self.t[self.pose_row[j - 1]],
                 heading_rad: dh[j],
                 position_m: dp[j],
-                handled: "dead reckoning restarts from the measured pose after it",
+                handled: "the recording is split there and each part fitted from its own start",
             });
-            self.anchors.push(j);
+            self.jumps.push(j);
         }
+    }
+
+    /// The recording cut at its pose jumps: each part has its own start (an anchor in
+    /// the dead-reckoning objective, a fitted start pose with `--free-start`). The rows
+    /// between a jump's two pose samples belong to neither. Parts after the first are
+    /// named `<name>#2`, `<name>#3`... ([`CvBy::group`] keeps them with the first); a part
+    /// with fewer than [`MIN_POSES`] pose samples is dropped.
+    pub(crate) fn split_at_jumps(self, robot: &Robot) -> Vec<Series> {
+        if self.jumps.is_empty() {
+            return vec![self];
+        }
+        let mut cuts = vec![(0usize, 0usize)]; // (first pose index, first row)
+        for &j in &self.jumps {
+            cuts.push((j, self.pose_row[j]));
+        }
+        let n_pose = self.pose_row.len();
+        let mut out = Vec::new();
+        for (k, &(p0, r0)) in cuts.iter().enumerate() {
+            let (p1, r1) = match cuts.get(k + 1) {
+                // This part ends at the pose sample before the jump.
+                Some(&(pj, _)) => (pj, self.pose_row[pj - 1] + 1),
+                None => (n_pose, self.t.len()),
+            };
+            if p1 - p0 < MIN_POSES {
+                continue;
+            }
+            let rows = r0..r1;
+            let (px, py, pth) = (
+                self.px[p0..p1].to_vec(),
+                self.py[p0..p1].to_vec(),
+                self.pth[p0..p1].to_vec(),
+            );
+            let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
+            out.push(Series {
+                name: if k == 0 {
+                    self.name.clone()
+                } else {
+                    format!("{}{PART_SEP}{}", self.name, k + 1)
+                },
+                t: self.t[rows.clone()].to_vec(),
+                inc: self.inc[r0..r1 - 1].to_vec(),
+                pose_row: self.pose_row[p0..p1].iter().map(|r| r - r0).collect(),
+                px,
+                py,
+                pth,
+                legs: self.legs.as_ref().map(|l| l[rows.clone()].to_vec()),
+                rho: self.rho.as_ref().map(|r| r[r0..r1 - 1].to_vec()),
+                samples,
+                anchors: vec![0],
+                glitches: if k == 0 {
+                    self.glitches.clone()
+                } else {
+                    vec![]
+                },
+                pose_noise_m: self.pose_noise_m,
+                jumps: vec![],
+            });
+        }
+        if out.is_empty() {
+            // Every part too short: fitted whole, the jump reported.
+            return vec![self];
+        }
+        out
     }
 
     /// The start the dead-reckoning objective uses: the first measured pose, clocks as
@@ -1533,6 +1660,8 @@ impl CvBy {
 
     /// The group of a recording named `name` (a run folder's name, or a file name).
     pub fn group(self, name: &str) -> String {
+        // The parts of a recording split at a pose jump stay together.
+        let name = name.split(PART_SEP).next().unwrap_or(name);
         let base = name.trim_end_matches(".csv");
         match self {
             CvBy::Run => base.to_string(),
@@ -2078,10 +2207,14 @@ pub fn calibrate(
         });
     }
     check_inputs(robot, recordings, holdout, opts)?;
-    let mut series = recordings
+    let series = recordings
         .iter()
         .map(|(n, r)| Series::new(n, robot, r))
         .collect::<Result<Vec<_>, _>>()?;
+    let mut series: Vec<Series> = series
+        .into_iter()
+        .flat_map(|s| s.split_at_jumps(robot))
+        .collect();
     let held = holdout.map(|(n, r)| Series::new(n, robot, r)).transpose()?;
     let mut notes = Vec::new();
     let mut runs = 0;
@@ -2090,6 +2223,21 @@ pub fn calibrate(
         huber: None,
         dr_lever: opts.heading_lever_m.unwrap_or(DR_HEADING_LEVER_M),
     };
+    // SLAM-like poses: dead reckoning from one pose sample of centimetre noise tilts the
+    // whole recording (measured on the simulator: scale, E_d and E_b 8-11 sigma off), so
+    // the start pose is fitted from all samples instead.
+    let mut noise: Vec<f64> = series.iter().filter_map(|s| s.pose_noise_m).collect();
+    noise.sort_by(|a, b| a.total_cmp(b));
+    if let Some(&median_noise) = noise.get(noise.len() / 2) {
+        if median_noise > NOISY_POSES_M && !cfg.free_start {
+            cfg.free_start = true;
+            notes.push(format!(
+                "the poses scatter {:.1} mm per sample (SLAM-like, above {:.0} mm): each recording's start pose and clocks are fitted (as --free-start), since dead reckoning from one noisy pose would tilt the whole recording",
+                median_noise * 1e3,
+                NOISY_POSES_M * 1e3
+            ));
+        }
+    }
     // Events one geometry cannot explain (slips, motion capture leading the encoders,
     // glitches): found on a first squared-loss fit, reported, and kept out of the fit
     // (dead reckoning restarts from the measured pose after a slip; the samples inside an
