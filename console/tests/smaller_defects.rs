@@ -396,3 +396,29 @@ fn a_port_that_breaks_is_named() {
     assert_eq!(status.code(), Some(1), "{err}");
     assert!(err.contains(&board.link.display().to_string()), "{err}");
 }
+
+/// UMBmark on a skid-steer robot: its closed form assumes errors of a few per cent, and
+/// such a robot's E_b is 1.5-2; the refusal says to use `calibrate` instead.
+#[test]
+fn umbmark_refuses_a_skid_steer_robot_and_names_calibrate() {
+    let dir = scratch("skid-umbmark");
+    let runs = dir.join("runs.csv");
+    std::fs::write(
+        &runs,
+        "test,path,length_m,x_err_m,y_err_m\numbmark,cw,1,0.01,0.02\numbmark,cw,1,0.01,0.02\numbmark,ccw,1,0.01,0.02\numbmark,ccw,1,0.01,0.02\n",
+    )
+    .unwrap();
+    let o = Command::new(env!("CARGO_BIN_EXE_wheelcal"))
+        .args(["umbmark", "compute", "--robot"])
+        .arg(robot("rover4"))
+        .arg("--runs")
+        .arg(&runs)
+        .output()
+        .unwrap();
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("skid_steer") && err.contains("wheelcal calibrate"),
+        "{err}"
+    );
+}

@@ -317,6 +317,9 @@ pub fn run<L: Read + Write>(
     let robot = c.params()?.robot;
     let (test, trials, length) = match opts.kind {
         Kind::Umbmark => {
+            if robot.kind == RobotKind::SkidSteer {
+                bail!("{SKID_UMBMARK}");
+            }
             if robot.kind != RobotKind::DiffDrive {
                 bail!("the board's robot is {}: UMBmark is for differential drives (use `wheelcal omni run`)", robot.kind.as_str());
             }
@@ -598,6 +601,9 @@ fn run_phase<L: Read + Write>(
     }
     Ok(())
 }
+
+/// Why UMBmark refuses a skid-steer robot, and what to do instead.
+pub const SKID_UMBMARK: &str = "the board's robot is skid_steer: UMBmark's closed form assumes errors of a few per cent, and a skid-steer robot's effective separation is 1.5-2 times its track (a 90-degree corner turns 45-60 degrees); record a few minutes of squares and arcs with poses and run `wheelcal calibrate`, then `wheelcal factors set` with its E_b";
 
 /// Runs cut by the link failsafe that are run again before the procedure gives up.
 const LINK_LOST_RETRIES: usize = 2;

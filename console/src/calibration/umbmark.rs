@@ -199,6 +199,12 @@ pub fn compute_limited(robot: &Robot, runs: &RunsFile, max_length_m: f64) -> Res
 }
 
 fn compute_unchecked(robot: &Robot, runs: &RunsFile) -> Result<UmbmarkReport> {
+    if robot.kind == RobotKind::SkidSteer {
+        bail!(
+            "UMBmark's closed form assumes errors of a few per cent; robot '{}' is skid_steer, whose effective separation is 1.5-2 times its track: use `wheelcal calibrate` on recordings with poses",
+            robot.name
+        );
+    }
     if robot.kind != RobotKind::DiffDrive {
         bail!(
             "UMBmark calibrates differential drives; robot '{}' is {} (use `wheelcal omni compute` for omni robots)",
