@@ -478,13 +478,7 @@ impl Robot {
         if kind == RobotKind::SkidSteer {
             let side = |left: bool| {
                 list.iter()
-                    .filter(|w| {
-                        if left {
-                            w.is_left()
-                        } else {
-                            w.position().1 < 0.0
-                        }
-                    })
+                    .filter(|w| if left { w.is_left() } else { !w.is_left() })
                     .count() as u32
             };
             let (left, right) = (side(true), side(false));

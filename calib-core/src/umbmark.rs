@@ -240,9 +240,22 @@ fn check_geometry(side_m: f64, wheelbase_m: f64) -> Result<(), UmbmarkError> {
     Ok(())
 }
 
-/// Wheel multipliers (c_L, c_R) for a diameter ratio E_d, keeping the mean diameter.
-fn wheel_factors(ed: f64) -> (f64, f64) {
-    (2.0 / (ed + 1.0), 2.0 / (1.0 / ed + 1.0))
+/// Borenstein's split of a diameter ratio E_d = D_R / D_L into the wheel multipliers
+/// (c_L, c_R) = (2 / (E_d + 1), 2 E_d / (E_d + 1)): the mean diameter is kept. The one
+/// definition every crate uses (sim's faults, diagnose's geometry, calibrate's factors).
+pub fn wheel_factors(ed: f64) -> (f64, f64) {
+    (2.0 / (ed + 1.0), 2.0 * ed / (ed + 1.0))
+}
+
+/// The multiplier [`wheel_factors`] gives `wheel`: c_L on the left ([`crate::robot::Wheel::is_left`]),
+/// c_R on the right.
+pub fn wheel_factor(wheel: &crate::robot::Wheel, ed: f64) -> f64 {
+    let (c_l, c_r) = wheel_factors(ed);
+    if wheel.is_left() {
+        c_l
+    } else {
+        c_r
+    }
 }
 
 /// Measured statistics shared by both estimators.
@@ -555,6 +568,18 @@ pub fn exact_fit(
 mod tests {
     extern crate std;
     use super::*;
+
+    #[test]
+    fn ed_split_keeps_the_mean_and_the_ratio() {
+        // Borenstein: D_R / D_L = E_d, (D_R + D_L) / 2 nominal; the left wheel is +y.
+        for ed in [0.97, 0.999, 1.0, 1.006, 1.03] {
+            let (l, r) = wheel_factors(ed);
+            assert!((r / l - ed).abs() < 1e-12 && (0.5 * (l + r) - 1.0).abs() < 1e-12);
+            let robot = crate::robot::presets::mobolab();
+            assert_eq!(wheel_factor(&robot.wheels[0], ed), l);
+            assert_eq!(wheel_factor(&robot.wheels[1], ed), r);
+        }
+    }
 
     const L: f64 = 4.0;
     const B: f64 = 0.34;

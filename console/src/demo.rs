@@ -116,14 +116,15 @@ pub fn run(
             robot.kind.as_str()
         );
     }
-    // Hidden errors of the size 000 reports (E_max,sys of 30 to 100 mm on 4 m).
+    // Hidden errors of the size [Measuring errors] reports (E_max,sys of 30 to 100 mm on 4 m).
     let mut rng = rand_chacha::ChaCha8Rng::seed_from_u64(seed);
     let sign = |r: &mut rand_chacha::ChaCha8Rng| if r.random_bool(0.5) { 1.0 } else { -1.0 };
     let true_ed = 1.0 + sign(&mut rng) * rng.random_range(0.002..0.006);
     let true_eb = 1.0 + sign(&mut rng) * rng.random_range(0.01..0.03);
     let mut faults = sim::Faults::none(2);
     // E_d = D_R / D_L with the mean diameter kept.
-    faults.radius_scale = vec![2.0 / (true_ed + 1.0), 2.0 * true_ed / (true_ed + 1.0)];
+    let (c_l, c_r) = calib_core::umbmark::wheel_factors(true_ed);
+    faults.radius_scale = vec![c_l, c_r];
     faults.wheelbase_scale = true_eb;
     faults.travel_noise_m_per_sqrt_m = DEMO_ROUGHNESS;
     let rep = umbmark_on_virtual_board(&robot, faults, seed, runs, side, report, runs, progress)?;

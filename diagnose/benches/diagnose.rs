@@ -1,5 +1,5 @@
 //! Bench binary (not criterion: one run takes seconds): diagnoses a 10-minute, 200 Hz
-//! recording of 001's 4-wheel omni robot (120,000 rows, 30 Hz vision) simulated by the
+//! recording of [Redundant omni]'s 4-wheel omni robot (120,000 rows, 30 Hz vision) simulated by the
 //! `sim` crate with two wheel radius errors and motor lag hidden in it, and prints the
 //! wall time of each run.
 //!

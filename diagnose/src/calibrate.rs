@@ -347,12 +347,7 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
             GeomKind::Scale => rs.iter_mut().for_each(|r| *r *= x),
             GeomKind::Ed => {
                 for (i, w) in base.wheels.iter().enumerate() {
-                    // Left is the +y wheel (as calib-core's Corrections).
-                    rs[i] *= if w.position().1 >= 0.0 {
-                        2.0 / (x + 1.0)
-                    } else {
-                        2.0 * x / (x + 1.0)
-                    };
+                    rs[i] *= calib_core::umbmark::wheel_factor(w, x);
                 }
             }
             GeomKind::Eb => ls.iter_mut().for_each(|l| *l *= x),
@@ -2649,9 +2644,10 @@ pub fn calibrate(
             }
         }
         let eb = if sw > 0.0 { eb + law_arc * st / sw } else { eb };
+        let (c_l, c_r) = calib_core::umbmark::wheel_factors(ed);
         Factors::Diff {
-            c_l: sc * 2.0 / (ed + 1.0),
-            c_r: sc * 2.0 * ed / (ed + 1.0),
+            c_l: sc * c_l,
+            c_r: sc * c_r,
             e_b: eb,
         }
     } else {

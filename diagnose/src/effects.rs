@@ -185,45 +185,48 @@ impl Effect {
         }
     }
 
-    /// The mechanism's name (as the sim crate's `mechanism:<name>`).
+    /// The mechanism's name (as the sim crate's `mechanism:<name>`), from the one
+    /// catalogue table ([`formats::catalogue`]).
     pub fn mechanism(self) -> &'static str {
+        use formats::catalogue as c;
         match self {
             Effect::WheelDiameterMismatch | Effect::WheelbaseError | Effect::WheelScale => {
-                "geometry"
+                c::GEOMETRY
             }
-            Effect::LongitudinalSlip => "wheel",
-            Effect::LateralSlip => "linear",
-            Effect::FloorBumps => "whole",
-            Effect::Backlash => "symmetric",
-            Effect::MissedSteps => "pull_out",
-            Effect::MotorLag => "first_order",
-            Effect::CoulombFriction => "dead_band",
-            Effect::SlipBody => "body",
-            Effect::SlipCreep => "creep",
-            Effect::LateralSaturating => "saturating",
-            Effect::BumpsRegion => "region",
-            Effect::BacklashAsymmetric => "asymmetric",
-            Effect::MissedQuanta => "quanta",
-            Effect::MissedStall => "stall",
-            Effect::LagDelay => "delay",
-            Effect::LagSlew => "slew",
-            Effect::FrictionDroop => "droop",
+            Effect::LongitudinalSlip => c::MECH_WHEEL.0,
+            Effect::LateralSlip => c::MECH_LINEAR.0,
+            Effect::FloorBumps => c::MECH_WHOLE.0,
+            Effect::Backlash => c::MECH_SYMMETRIC.0,
+            Effect::MissedSteps => c::MECH_PULL_OUT.0,
+            Effect::MotorLag => c::MECH_FIRST_ORDER.0,
+            Effect::CoulombFriction => c::MECH_DEAD_BAND.0,
+            Effect::SlipBody => c::MECH_BODY.0,
+            Effect::SlipCreep => c::MECH_CREEP.0,
+            Effect::LateralSaturating => c::MECH_SATURATING.0,
+            Effect::BumpsRegion => c::MECH_REGION.0,
+            Effect::BacklashAsymmetric => c::MECH_ASYMMETRIC.0,
+            Effect::MissedQuanta => c::MECH_QUANTA.0,
+            Effect::MissedStall => c::MECH_STALL.0,
+            Effect::LagDelay => c::MECH_DELAY.0,
+            Effect::LagSlew => c::MECH_SLEW.0,
+            Effect::FrictionDroop => c::MECH_DROOP.0,
         }
     }
 
-    /// The catalogue id.
+    /// The catalogue id ([`formats::catalogue`]).
     pub fn id(self) -> &'static str {
+        use formats::catalogue as c;
         match self {
-            Effect::WheelDiameterMismatch => "wheel_diameter_mismatch",
-            Effect::WheelbaseError => "wheelbase_error",
-            Effect::LongitudinalSlip => "longitudinal_slip",
-            Effect::LateralSlip => "lateral_slip",
-            Effect::FloorBumps => "floor_bumps",
-            Effect::Backlash => "backlash",
-            Effect::MissedSteps => "missed_steps",
-            Effect::MotorLag => "motor_lag",
-            Effect::CoulombFriction => "coulomb_friction",
-            Effect::WheelScale => "wheel_scale",
+            Effect::WheelDiameterMismatch => c::WHEEL_DIAMETER_MISMATCH,
+            Effect::WheelbaseError => c::WHEELBASE_ERROR,
+            Effect::LongitudinalSlip => c::LONGITUDINAL_SLIP,
+            Effect::LateralSlip => c::LATERAL_SLIP,
+            Effect::FloorBumps => c::FLOOR_BUMPS,
+            Effect::Backlash => c::BACKLASH,
+            Effect::MissedSteps => c::MISSED_STEPS,
+            Effect::MotorLag => c::MOTOR_LAG,
+            Effect::CoulombFriction => c::COULOMB_FRICTION,
+            Effect::WheelScale => c::WHEEL_SCALE,
             e => e.base().id(),
         }
     }
@@ -439,11 +442,7 @@ impl Model {
                 // Borenstein: ed = D_right / D_left with the mean diameter kept.
                 let ed = p[0];
                 for (i, w) in robot.wheels.iter().enumerate() {
-                    scales[i] = if w.position().1 >= 0.0 {
-                        2.0 / (ed + 1.0)
-                    } else {
-                        2.0 * ed / (ed + 1.0)
-                    };
+                    scales[i] = calib_core::umbmark::wheel_factor(w, ed);
                 }
             } else {
                 for (s, v) in scales.iter_mut().zip(p) {

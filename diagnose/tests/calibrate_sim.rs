@@ -272,7 +272,7 @@ fn mecanum_mounting_errors_keep_the_per_wheel_model() {
     assert!(c.joint_rmse_after_m < 2e-3, "{c}");
 }
 
-/// 002's wheeled-legged robot with its legs sweeping (the wheel contacts move along x
+/// [Korayem et al.]'s wheeled-legged robot with its legs sweeping (the wheel contacts move along x
 /// with them): wheel scale, left/right ratio and track recovered from a free run, the
 /// kinematics following the recorded leg angles. (Four radii are not identifiable: the
 /// encoders of consistent wheels on one side are averaged, so only scale and ed are.)

@@ -269,7 +269,7 @@ fn cases() -> Vec<Case> {
             ("wheelbase_error", "eb", 0.97, 0.004, false),
         ],
     );
-    // 002's wheeled-legged robot: front pair driven, rear pair free (their encoders see
+    // [Korayem et al.]'s wheeled-legged robot: front pair driven, rear pair free (their encoders see
     // the ground), legs sweeping so the load on the driven wheels changes; the traction
     // limit follows the leg angles by moment balance.
     for mu in [0.06, 0.1] {

@@ -1,7 +1,7 @@
 //! Counts the instructions of firmware-app's control tick for four DC wheels on a
 //! Cortex-M4F (QEMU mps2-an386, semihosting); `run.sh` builds, runs and counts.
 //!
-//! The robot is 001's four-wheel omni robot (DC drive, 480-ppr encoders) with omni
+//! The robot is [Redundant omni]'s four-wheel omni robot (DC drive, 480-ppr encoders) with omni
 //! corrections, driving a 0.5 m translate and then a 6 rad turn in place, logging a trial at
 //! 100 Hz: the tick reads four encoders, extends them, estimates rates, samples the
 //! program's f64 trapezoid (every tenth tick), inverse and forward kinematics, odometry,

@@ -4,6 +4,7 @@
 //! They live apart from calib-core because they need std, csv and toml, while calib-core
 //! is the `no_std` core the firmware links. Every error names the file, line and column.
 
+pub mod catalogue;
 pub mod recording;
 pub mod robot_file;
 pub mod runs_file;

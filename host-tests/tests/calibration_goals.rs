@@ -1,5 +1,5 @@
 //! Issue 6's goals, measured on virtual boards (firmware application + simulator):
-//! UMBmark on 000's three robots improves E_max,sys at least 10x and ends within 1.5x of
+//! UMBmark on [Measuring errors]'s three robots improves E_max,sys at least 10x and ends within 1.5x of
 //! the non-systematic floor; the procedure resumes without losing runs; a failed
 //! computation uploads nothing.
 
@@ -19,7 +19,8 @@ fn robot(name: &str) -> calib_core::Robot {
 
 fn faults(ed: f64, eb: f64) -> sim::Faults {
     let mut f = sim::Faults::none(2);
-    f.radius_scale = vec![2.0 / (ed + 1.0), 2.0 * ed / (ed + 1.0)];
+    let (l, r) = calib_core::umbmark::wheel_factors(ed);
+    f.radius_scale = vec![l, r];
     f.wheelbase_scale = eb;
     f.travel_noise_m_per_sqrt_m = DEMO_ROUGHNESS;
     f
@@ -46,7 +47,7 @@ fn mean_e_max_sys(cw: &[wheelcal::output::PointM], ccw: &[wheelcal::output::Poin
 
 #[test]
 fn umbmark_reaches_ten_x_and_the_noise_floor_on_000s_robots() {
-    // Errors of the size 000 measured and larger; calibration from 5 runs per direction as
+    // Errors of the size [Measuring errors] measured and larger; calibration from 5 runs per direction as
     // in the paper; after it, 15 runs per direction. The floor: the same robot with
     // perfect geometry under the same floor roughness, 15 runs per direction.
     let mut table = String::from(
@@ -246,9 +247,9 @@ fn a_stopped_procedure_resumes_without_losing_runs() {
 #[test]
 fn omni_procedure_over_cables_improves_at_least_80_percent() {
     // The guided omni procedure end to end (board, protocol, truth, compute, upload,
-    // after runs) on 001's robot with wheels 1 % to 3 % off their nominal radius, over
+    // after runs) on [Redundant omni]'s robot with wheels 1 % to 3 % off their nominal radius, over
     // cables every 30 mm costing 0.8 mm of travel per crossing (world-fixed, across x:
-    // 4W-1 crosses them). Ten runs per path before and after, as in 001 (Table II: 80 %).
+    // 4W-1 crosses them). Ten runs per path before and after, as in [Redundant omni] (Table II: 80 %).
     // Measured: 42.3 mm -> 5.5 mm, 87 %.
     use wheelcal::calibration::procedure::{Kind, ProcedureReport};
     let r = robot("omni4.toml");

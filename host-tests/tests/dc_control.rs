@@ -11,7 +11,7 @@ use host_tests::robot;
 use sim::{Effect, SimConfig, SimRobot, Surface, WheelInput};
 use std::f64::consts::TAU;
 
-/// Drives 001's 4W-1 path (1 m) with PI-controlled DC motors; returns (true x, odometry
+/// Drives [Redundant omni]'s 4W-1 path (1 m) with PI-controlled DC motors; returns (true x, odometry
 /// x, worst wheel-rate tracking error in the cruise, rad/s).
 fn pi_run(effects: &[Effect]) -> (f64, f64, f64) {
     let r = robot("omni4");

@@ -43,7 +43,7 @@ fn request(b: &mut VirtualBoard, r: Request) {
 
 #[test]
 fn dc_wheels_track_the_profile_within_two_percent() {
-    // 001's omni robot with the simulator's DC motors (inertia, friction, back-EMF),
+    // [Redundant omni]'s omni robot with the simulator's DC motors (inertia, friction, back-EMF),
     // closed by the firmware's PI loops: a 1 m path along x, wheels 1 and 3 cruising at
     // 0.3 m/s / 0.03 m = 10 rad/s.
     let mut b = board("omni4.toml", sim::Faults::none(4));
@@ -142,13 +142,14 @@ fn corrected_umbmark_square_lands_where_calib_core_predicts() {
     // truth to correction, and calib-core's exact square model must predict the end error.
     let (ed, eb) = (1.006, 1.04);
     let mut f = sim::Faults::none(2);
-    f.radius_scale = vec![2.0 / (ed + 1.0), 2.0 * ed / (ed + 1.0)];
+    let (l, r) = calib_core::umbmark::wheel_factors(ed);
+    f.radius_scale = vec![l, r];
     f.wheelbase_scale = eb;
     let mut b = board("mobolab.toml", f);
     let (ed_c, eb_c) = (1.002, 1.02);
     let corr = Corrections::DiffDrive {
-        c_l: 2.0 / (ed_c + 1.0),
-        c_r: 2.0 / (1.0 / ed_c + 1.0),
+        c_l: calib_core::umbmark::wheel_factors(ed_c).0,
+        c_r: calib_core::umbmark::wheel_factors(ed_c).1,
         e_b: eb_c,
     };
     request(&mut b, Request::SetCorrections(corr));

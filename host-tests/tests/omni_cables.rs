@@ -1,6 +1,6 @@
-//! 001's redundant 4-wheel omni robot over 5 mm cables every 30 mm: ten runs on each of
+//! [Redundant omni]'s redundant 4-wheel omni robot over 5 mm cables every 30 mm: ten runs on each of
 //! paths 4W-1 and 4W-2, factors F_lat / F_lon from calib_core::omni_cal, ten runs again
-//! with the factors in the Jacobian (001 eq. 6), improvement of the mean radial error.
+//! with the factors in the Jacobian ([Redundant omni] eq. 6), improvement of the mean radial error.
 
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
@@ -14,12 +14,12 @@ use rand_chacha::ChaCha8Rng;
 use sim::{Effect, SimConfig, SimRobot, Surface, WheelInput};
 use std::f64::consts::{FRAC_PI_2, TAU};
 
-/// Path length: 001 does not give it; 1.5 m over cables every 30 mm is 50 crossings.
+/// Path length: [Redundant omni] does not give it; 1.5 m over cables every 30 mm is 50 crossings.
 const LENGTH_M: f64 = 1.5;
 const RUNS: usize = 10;
 
 fn limits() -> ProfileLimits {
-    // 001's robot tops out at 9.75 m/min = 0.1625 m/s.
+    // [Redundant omni]'s robot tops out at 9.75 m/min = 0.1625 m/s.
     ProfileLimits {
         v_max: 0.15,
         a_max: 0.3,
@@ -37,7 +37,7 @@ fn path_direction(p: OmniPath) -> f64 {
 
 /// One run: the wheels a path does not use are switched off (001: "the actuators of
 /// wheels 1 and 3 are turned off" on 4W-2); odometry from the driven wheels' encoders
-/// along the commanded direction (no sideways motion assumed, as 001's path model).
+/// along the commanded direction (no sideways motion assumed, as [Redundant omni]'s path model).
 /// Returns the error (true minus odometry, path start frame) with the heading error.
 fn run(sim: &mut SimRobot, corr: &Corrections, path: OmniPath, start: Pose<f64>) -> OmniRun {
     let r = sim.nominal().clone();
@@ -151,9 +151,9 @@ fn radial(runs: &[OmniRun]) -> Vec<f64> {
 #[test]
 fn cable_strip_errors_improve_at_least_80_percent() {
     let r = robot("omni4");
-    // The cables cost 1.8 mm of travel each (50 crossings: ~90 mm short, 001's 91.72 mm
+    // The cables cost 1.8 mm of travel each (50 crossings: ~90 mm short, [Redundant omni]'s 91.72 mm
     // mean error); the wheels differ by a few tenths of a percent in effective radius
-    // (001's F_lat = 1.08 .. 0.96 shows they differ), which curves each path; the floor
+    // ([Redundant omni]'s F_lat = 1.08 .. 0.96 shows they differ), which curves each path; the floor
     // adds a 0.2 mm/sqrt(m) random walk per wheel.
     let effects = [
         Effect::parse("floor_bumps=spacing_m:0.03,loss_m:0.0018").unwrap(),
@@ -235,7 +235,7 @@ fn cable_strip_errors_improve_at_least_80_percent() {
     // F_lon makes up the lost 6 % of travel: 1 / (1 - 0.06) = 1.064, within the scatter of
     // the crossing count (+-1 of 50: 2 %) and the radius mix (0.15 %).
     assert!((c.f_lon - 1.064).abs() < 0.01, "f_lon {}", c.f_lon);
-    // 001 reports 80 %; the remaining error here is the non-systematic part only.
+    // [Redundant omni] reports 80 %; the remaining error here is the non-systematic part only.
     assert!(improvement >= 80.0, "improvement {improvement} %");
 }
 

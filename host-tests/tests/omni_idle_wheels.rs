@@ -1,4 +1,4 @@
-//! Issue 12: idle wheels held or released on the omni paths. 001's four-wheel robot over
+//! Issue 12: idle wheels held or released on the omni paths. [Redundant omni]'s four-wheel robot over
 //! its cable strip, with per-wheel radius errors of a few per cent, on a virtual board
 //! (the firmware's application on the simulator). The guided procedure runs in each mode;
 //! factors from `omni compute` in the matching mode cut the mean radial error, and factors
@@ -8,7 +8,7 @@
 //! (released) and 99.2 % (held), the wrong mode 0.3 % and 0.1 %. Over cables costing
 //! 0.5 mm of travel per crossing: 87.2 % and 79.8 % (matching) against -13.5 % and -16.0 %
 //! (wrong). What remains over cables (3.8-3.9 mm) is the crossings' run-to-run scatter,
-//! which no per-wheel factor can remove (001 reports 80 % over its cables); the issue's
+//! which no per-wheel factor can remove ([Redundant omni] reports 80 % over its cables); the issue's
 //! 90 % over cables is not reached in this simulator.
 
 use calib_core::protocol::IdleWheels;
@@ -32,7 +32,7 @@ fn runs_file(name: &str) -> PathBuf {
     d.join("runs.csv")
 }
 
-/// The robot of 001 with wheels 4 %, -2 %, 3 % and -3 % off their nominal radius, over
+/// The robot of [Redundant omni] with wheels 4 %, -2 %, 3 % and -3 % off their nominal radius, over
 /// cables every 30 mm costing `cable_loss_m` of travel per crossing (0: a flat floor).
 fn board(seed: u64, cable_loss_m: f64) -> InProcessBoard {
     let r = robot();
@@ -171,7 +171,7 @@ fn flat_floor_matching_mode_cuts_the_error_95_percent_and_the_wrong_mode_does_no
     check_both_modes(0.0, 95.0);
 }
 
-/// Over 001's cables (0.5 mm per crossing): the crossings' scatter stays.
+/// Over [Redundant omni]'s cables (0.5 mm per crossing): the crossings' scatter stays.
 #[test]
 fn over_cables_matching_mode_cuts_the_error_75_percent_and_the_wrong_mode_does_not() {
     check_both_modes(0.0005, 75.0);

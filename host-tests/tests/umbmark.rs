@@ -1,4 +1,4 @@
-//! UMBmark (000 sec. 6.2, Borenstein & Feng 1996) on 000's three stepper differential
+//! UMBmark ([Measuring errors] sec. 6.2, Borenstein & Feng 1996) on [Measuring errors]'s three stepper differential
 //! drives: seeded wheel-diameter and wheelbase errors plus random floor roughness, five cw
 //! and five ccw 4 m squares driven by calib-core's motion program with its odometry,
 //! factors from calib_core::umbmark, then five and five again with the factors applied.
@@ -80,7 +80,8 @@ fn table(ed_range: (f64, f64), eb_range: (f64, f64), seed: u64) -> Vec<Row> {
         let eb: f64 = rng.random_range(eb_range.0..eb_range.1);
         let mut faults = Faults::none(2);
         // Borenstein's E_d = D_R / D_L with the mean diameter nominal (left is wheel 0).
-        faults.radius_scale = vec![2.0 / (ed + 1.0), 2.0 * ed / (ed + 1.0)];
+        let (c_l, c_r) = calib_core::umbmark::wheel_factors(ed);
+        faults.radius_scale = vec![c_l, c_r];
         faults.wheelbase_scale = eb;
         // Non-systematic: floor roughness, a 0.2 mm/sqrt(m) random walk of each wheel's
         // travel (about 0.8 mm per wheel over a 16 m square).
@@ -136,7 +137,7 @@ fn table(ed_range: (f64, f64), eb_range: (f64, f64), seed: u64) -> Vec<Row> {
 fn umbmark_improves_e_max_sys_tenfold_with_large_errors() {
     // E_d 1.003-1.01, E_b 1.02-1.05: end errors of a metre or more.
     for (name, _, eb, before, cf, ex) in table((1.003, 1.01), (1.02, 1.05), 100) {
-        // 000 Table 1 reports 5x to 11x on real robots; here the systematic part is fully
+        // [Measuring errors] Table 1 reports 5x to 11x on real robots; here the systematic part is fully
         // modelled, so the exact fit must do at least 10x. Borenstein's closed form is
         // first order in alpha = pi/2 (1 - 1/E_b): with E_b = 1.04, alpha = 0.06 rad and
         // the neglected second-order terms (alpha^2 ~ 4e-3 of 16 m) leave decimetres, so
@@ -148,7 +149,7 @@ fn umbmark_improves_e_max_sys_tenfold_with_large_errors() {
 
 #[test]
 fn umbmark_improves_e_max_sys_tenfold_with_000_sized_errors() {
-    // E_d 1.0005-1.0015, E_b 1.002-1.005: E_max,sys of order 0.1-0.3 m, as 000 Table 1
+    // E_d 1.0005-1.0015, E_b 1.002-1.005: E_max,sys of order 0.1-0.3 m, as [Measuring errors] Table 1
     // (97 mm before); both estimates must improve it at least 10x.
     for (name, _, _, before, cf, ex) in table((1.0005, 1.0015), (1.002, 1.005), 200) {
         assert!(before / ex >= 10.0, "{name}: {before} -> {ex}");

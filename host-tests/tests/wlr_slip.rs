@@ -1,4 +1,4 @@
-//! 002's wheeled-legged robot in the accelerated straight run with the rear legs sweeping
+//! [Korayem et al.]'s wheeled-legged robot in the accelerated straight run with the rear legs sweeping
 //! from 30 to 150 deg (front legs fixed at 30 deg, front wheels driven, rear wheels free):
 //! the no-slip kinematic model (the driven wheels' encoders through a differential-drive
 //! model of the front pair) against the simulated truth, with and without slip.
@@ -128,11 +128,11 @@ fn slip_makes_the_no_slip_model_miss_by_percent_and_centimetres() {
     );
     // Four revolutions of a 34 mm wheel: 0.8545 m predicted (to an encoder count).
     assert!((with.predicted_m - 4.0 * TAU * 0.034).abs() < 1e-3);
-    // 002 reports 5 to 11.5 %; by hand: lost distance = v^2/2 (1/a_body - 1/a_wheel) =
+    // [Korayem et al.] reports 5 to 11.5 %; by hand: lost distance = v^2/2 (1/a_body - 1/a_wheel) =
     // 0.26 (1/0.8.. - 1/1.36) = 5-7 % of 0.85 m, less what the stop gives back. Asked:
     // "several percent", 3 % to 15 %.
     assert!(err > 0.03 && err < 0.15, "error {err}");
-    // 002 reports 1.1 to 5.2 cm of lateral deviation; asked: 1 to 6 cm.
+    // [Korayem et al.] reports 1.1 to 5.2 cm of lateral deviation; asked: 1 to 6 cm.
     assert!(
         with.lateral_m > 0.01 && with.lateral_m < 0.06,
         "lateral {}",

@@ -8,6 +8,7 @@
 
 use crate::surface::{CableStrip, Surface, Tilt};
 use calib_core::robot::{DriveType, Robot, RobotKind};
+use formats::catalogue as cat;
 use std::fmt;
 
 /// One effect of the catalogue (plus `tilted_floor`, deliberately outside it).
@@ -117,19 +118,7 @@ pub enum Effect {
     },
 }
 
-/// The catalogue ids, in issue 7's order, plus the out-of-catalogue control.
-pub const EFFECT_IDS: [&str; 10] = [
-    "wheel_diameter_mismatch",
-    "wheelbase_error",
-    "longitudinal_slip",
-    "lateral_slip",
-    "floor_bumps",
-    "backlash",
-    "missed_steps",
-    "motor_lag",
-    "coulomb_friction",
-    "tilted_floor",
-];
+pub use formats::catalogue::EFFECT_IDS;
 
 /// How an effect comes about: every catalogue effect has several physical mechanisms
 /// (issue 11), chosen with `mechanism:<name>` in the effect string.
@@ -172,25 +161,54 @@ pub enum Mechanism {
 }
 
 impl Mechanism {
-    /// (name, effect id) of every mechanism.
+    /// (mechanism, name, effect id) of every mechanism the simulator makes, from the one
+    /// catalogue table ([`formats::catalogue`]).
     pub const ALL: [(Mechanism, &'static str, &'static str); 17] = [
-        (Mechanism::Wheel, "wheel", "longitudinal_slip"),
-        (Mechanism::Body, "body", "longitudinal_slip"),
-        (Mechanism::Creep, "creep", "longitudinal_slip"),
-        (Mechanism::Linear, "linear", "lateral_slip"),
-        (Mechanism::Saturating, "saturating", "lateral_slip"),
-        (Mechanism::Whole, "whole", "floor_bumps"),
-        (Mechanism::Region, "region", "floor_bumps"),
-        (Mechanism::Irregular, "irregular", "floor_bumps"),
-        (Mechanism::Symmetric, "symmetric", "backlash"),
-        (Mechanism::Asymmetric, "asymmetric", "backlash"),
-        (Mechanism::PullOut, "pull_out", "missed_steps"),
-        (Mechanism::Quanta, "quanta", "missed_steps"),
-        (Mechanism::Stall, "stall", "missed_steps"),
-        (Mechanism::FirstOrder, "first_order", "motor_lag"),
-        (Mechanism::Delay, "delay", "motor_lag"),
-        (Mechanism::Slew, "slew", "motor_lag"),
-        (Mechanism::DeadBand, "dead_band", "coulomb_friction"),
+        (Mechanism::Wheel, cat::MECH_WHEEL.0, cat::MECH_WHEEL.1),
+        (Mechanism::Body, cat::MECH_BODY.0, cat::MECH_BODY.1),
+        (Mechanism::Creep, cat::MECH_CREEP.0, cat::MECH_CREEP.1),
+        (Mechanism::Linear, cat::MECH_LINEAR.0, cat::MECH_LINEAR.1),
+        (
+            Mechanism::Saturating,
+            cat::MECH_SATURATING.0,
+            cat::MECH_SATURATING.1,
+        ),
+        (Mechanism::Whole, cat::MECH_WHOLE.0, cat::MECH_WHOLE.1),
+        (Mechanism::Region, cat::MECH_REGION.0, cat::MECH_REGION.1),
+        (
+            Mechanism::Irregular,
+            cat::MECH_IRREGULAR.0,
+            cat::MECH_IRREGULAR.1,
+        ),
+        (
+            Mechanism::Symmetric,
+            cat::MECH_SYMMETRIC.0,
+            cat::MECH_SYMMETRIC.1,
+        ),
+        (
+            Mechanism::Asymmetric,
+            cat::MECH_ASYMMETRIC.0,
+            cat::MECH_ASYMMETRIC.1,
+        ),
+        (
+            Mechanism::PullOut,
+            cat::MECH_PULL_OUT.0,
+            cat::MECH_PULL_OUT.1,
+        ),
+        (Mechanism::Quanta, cat::MECH_QUANTA.0, cat::MECH_QUANTA.1),
+        (Mechanism::Stall, cat::MECH_STALL.0, cat::MECH_STALL.1),
+        (
+            Mechanism::FirstOrder,
+            cat::MECH_FIRST_ORDER.0,
+            cat::MECH_FIRST_ORDER.1,
+        ),
+        (Mechanism::Delay, cat::MECH_DELAY.0, cat::MECH_DELAY.1),
+        (Mechanism::Slew, cat::MECH_SLEW.0, cat::MECH_SLEW.1),
+        (
+            Mechanism::DeadBand,
+            cat::MECH_DEAD_BAND.0,
+            cat::MECH_DEAD_BAND.1,
+        ),
     ];
 
     /// The name used in `--effect ID=...,mechanism:NAME`.
@@ -904,12 +922,7 @@ impl Faults {
                         }
                         // Borenstein: the mean diameter stays nominal, D_R / D_L = ed.
                         for (i, w) in robot.wheels.iter().enumerate() {
-                            let left = w.position().1 >= 0.0;
-                            f.radius_scale[i] *= if left {
-                                2.0 / (ed + 1.0)
-                            } else {
-                                2.0 * ed / (ed + 1.0)
-                            };
+                            f.radius_scale[i] *= calib_core::umbmark::wheel_factor(w, *ed);
                         }
                     }
                     for (name, s) in radius_scale {
@@ -1150,7 +1163,7 @@ mod tests {
             ..Default::default()
         };
         let mut sim = crate::SimRobot::with_effects(&r, &[e], Surface::flat(), cfg).unwrap();
-        let left = r.wheels.iter().position(|w| w.position().1 >= 0.0).unwrap();
+        let left = r.wheels.iter().position(|w| w.is_left()).unwrap();
         for k in 0..ticks {
             let (l, rr) = rates(k);
             let mut inp = [crate::WheelInput::Rate(rr), crate::WheelInput::Rate(rr)];

@@ -1,5 +1,5 @@
-//! `wheelcal omni compute`: 001's lateral (F_lat) and longitudinal (F_lon) factors from
-//! straight-path runs, with the radial error statistics of 001's Table II.
+//! `wheelcal omni compute`: [Redundant omni]'s lateral (F_lat) and longitudinal (F_lon) factors from
+//! straight-path runs, with the radial error statistics of [Redundant omni]'s Table II.
 
 use anyhow::{anyhow, bail, Result};
 use calib_core::motion::OmniPath;
@@ -12,7 +12,7 @@ use serde::Serialize;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
 
-/// Statistics of one path's runs in one phase (001 Table II, Fig. 5).
+/// Statistics of one path's runs in one phase ([Redundant omni] Table II, Fig. 5).
 #[derive(Debug, Clone, Serialize)]
 pub struct PathStats {
     /// Path name as in the runs file.
@@ -46,12 +46,12 @@ pub struct OmniReport {
     pub f_lat: Vec<f64>,
     /// Common multiplier that makes it go the full length.
     pub f_lon: f64,
-    /// 001's eq. 5 per path (with formats.md's sign convention), for comparison.
+    /// [Redundant omni]'s eq. 5 per path (with formats.md's sign convention), for comparison.
     pub f_lon_eq5: Vec<f64>,
     /// Effective velocity ratio of each wheel (actual / nominal travel); `null` for wheels
     /// no path drives.
     pub wheel_ratio: Vec<Option<f64>>,
-    /// Mean radial error of the 'before' runs (001 eq. 7).
+    /// Mean radial error of the 'before' runs ([Redundant omni] eq. 7).
     pub mean_radial_error_m: f64,
     /// Statistics of each path's `before` runs.
     pub before: Vec<PathStats>,
@@ -59,7 +59,7 @@ pub struct OmniReport {
     pub after: Vec<PathStats>,
     /// Mean radial error of the 'after' runs, m, when there are any.
     pub mean_radial_error_after_m: Option<f64>,
-    /// 001 eq. 8, percent.
+    /// [Redundant omni] eq. 8, percent.
     pub improvement_index_percent: Option<f64>,
     /// Second pass: the factors in force while these runs were measured, and the
     /// secondary factors the runs give; `f_lat`/`f_lon` above are then their composition.
@@ -77,7 +77,7 @@ pub struct OmniFactors {
     pub f_lon: f64,
 }
 
-/// A second pass (001): runs measured with `previous` factors in force give secondary
+/// A second pass ([Redundant omni]): runs measured with `previous` factors in force give secondary
 /// factors; the board then needs their composition ([`Corrections::compose`]).
 pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniReport> {
     let Corrections::Omni {

@@ -6,11 +6,11 @@ use calib_core::correction;
 use formats::runs_file::{RunRow, RunsError, RunsFile, TestKind};
 
 /// Default longest path (UMBmark side or omni straight path) a runs file may name, m:
-/// five times the largest square 000 drives (10 m would already be a hall).
+/// five times the largest square [Measuring errors] drives (10 m would already be a hall).
 pub const DEFAULT_MAX_LENGTH_M: f64 = 50.0;
 
 /// The largest end error a calibratable run can have: the straight path for omni (the
-/// robot cannot end farther off than it drove), one side for UMBmark (000's robots end
+/// robot cannot end farther off than it drove), one side for UMBmark ([Measuring errors]'s robots end
 /// 1-3 % of the side off; a whole side off needs factors far outside what a board
 /// accepts, and is what millimetres typed into the metre columns look like).
 fn path_length_m(r: &RunRow) -> f64 {

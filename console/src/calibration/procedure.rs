@@ -25,9 +25,9 @@ use std::time::Duration;
 /// Which procedure to run.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Kind {
-    /// UMBmark squares on a differential drive (000).
+    /// UMBmark squares on a differential drive ([Measuring errors]).
     Umbmark,
-    /// Straight paths on an omnidirectional robot (001).
+    /// Straight paths on an omnidirectional robot ([Redundant omni]).
     Omni,
 }
 
@@ -52,7 +52,7 @@ pub struct Options {
     pub report: Option<PathBuf>,
     /// Also run the after trials once the factors are uploaded.
     pub after: bool,
-    /// 001's second pass: measure with the board's current factors in force and compose
+    /// [Redundant omni]'s second pass: measure with the board's current factors in force and compose
     /// the secondary factors with them (the factors are remembered beside the runs file,
     /// so a resumed second pass composes with the same ones).
     pub second_pass: bool,
@@ -570,7 +570,7 @@ fn run_phase<L: Read + Write>(
                     uy.atan2(ux)
                 }
             };
-            // UMBmark measures against the board's odometry (Borenstein). 001's omni method
+            // UMBmark measures against the board's odometry (Borenstein). [Redundant omni]'s omni method
             // corrects the wheel commands and measures against the commanded end point:
             // on a redundant robot the odometry partly follows a deviation (the unused,
             // free-rolling wheels' encoders see it), which would hide half of it.

@@ -1,5 +1,5 @@
 //! `wheelcal umbmark compute`: Borenstein's closed form and the exact-model fit, with the
-//! statistics of 000 (centroids, spreads, probability of ending within 3 cm).
+//! statistics of [Measuring errors] (centroids, spreads, probability of ending within 3 cm).
 
 use crate::output::PointM;
 use anyhow::{bail, Context, Result};
@@ -10,7 +10,7 @@ use formats::runs_file::{Phase, RunsFile, UmbmarkRuns};
 use serde::Serialize;
 use std::fmt::Write;
 
-/// Radius of 000's convergence measure: probability of ending within 3 cm of the centroid.
+/// Radius of [Measuring errors]'s convergence measure: probability of ending within 3 cm of the centroid.
 pub const CONVERGENCE_RADIUS_M: f64 = 0.03;
 
 /// Factors of one estimator.
@@ -110,7 +110,7 @@ pub struct UmbmarkReport {
     pub r_cg_ccw_m: f64,
     /// Which estimator the top-level factors come from (always "exact").
     pub recommended: &'static str,
-    /// Borenstein's closed-form estimate (000), for comparison.
+    /// Borenstein's closed-form estimate ([Measuring errors]), for comparison.
     pub closed_form: Estimate,
     /// The exact-model fit's estimate (the recommended one).
     pub exact: Estimate,
@@ -124,9 +124,9 @@ pub struct UmbmarkReport {
     pub e_max_sys_before_m: f64,
     /// E_max,sys of the `after` runs, m, when there are any.
     pub e_max_sys_after_m: Option<f64>,
-    /// E_max,sys before / after (000 Table 1's "improvement").
+    /// E_max,sys before / after ([Measuring errors] Table 1's "improvement").
     pub improvement: Option<f64>,
-    /// 000 eq. 19: (before - after) / before.
+    /// [Measuring errors] eq. 19: (before - after) / before.
     pub p_e: Option<f64>,
 }
 

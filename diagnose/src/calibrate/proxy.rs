@@ -106,7 +106,7 @@ pub fn authors_diff_robot(
     let mut r = nominal.clone();
     for w in r.wheels.iter_mut() {
         // Left is the +y wheel.
-        w.radius_m = if w.position().1 >= 0.0 { dl } else { dr } / 2.0;
+        w.radius_m = if w.is_left() { dl } else { dr } / 2.0;
         w.l_m = b / 2.0;
     }
     Some(r)

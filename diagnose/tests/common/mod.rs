@@ -141,11 +141,7 @@ pub fn generate(cfg: &Config) -> Generated {
         match tr {
             Truth::Ed(ed) => {
                 for w in true_robot.wheels.iter_mut() {
-                    w.radius_m *= if w.position().1 >= 0.0 {
-                        2.0 / (ed + 1.0)
-                    } else {
-                        2.0 * ed / (ed + 1.0)
-                    };
+                    w.radius_m *= calib_core::umbmark::wheel_factor(w, *ed);
                 }
             }
             Truth::RadiusScales(s) => {

@@ -1,0 +1,120 @@
+//! The effect catalogue's names, the one table the simulator (which makes the effects) and
+//! diagnose (which names them) both read: an effect id or mechanism name written anywhere
+//! else is a copy that can drift.
+//!
+//! An effect is what a recording shows (a wheel diameter mismatch, floor bumps...); a
+//! mechanism is how it comes about (floor bumps from cables over the whole floor, or only
+//! in a strip). `docs/formats.md` §4 lists them for users.
+
+/// Left and right wheels of different diameters (Borenstein's E_d).
+pub const WHEEL_DIAMETER_MISMATCH: &str = "wheel_diameter_mismatch";
+/// Actual wheelbase unlike the nominal (Borenstein's E_b).
+pub const WHEELBASE_ERROR: &str = "wheelbase_error";
+/// The wheels' travel exceeds the body's when accelerating (traction).
+pub const LONGITUDINAL_SLIP: &str = "longitudinal_slip";
+/// The body slides sideways in turns.
+pub const LATERAL_SLIP: &str = "lateral_slip";
+/// Cables or seams that each cost a wheel some travel as it crosses.
+pub const FLOOR_BUMPS: &str = "floor_bumps";
+/// Play between motor and wheel, lost after each reversal.
+pub const BACKLASH: &str = "backlash";
+/// A stepper's rotor falling behind its steps.
+pub const MISSED_STEPS: &str = "missed_steps";
+/// The wheel rate lagging the command.
+pub const MOTOR_LAG: &str = "motor_lag";
+/// Friction that costs a DC wheel speed (a dead band, or a droop at every command).
+pub const COULOMB_FRICTION: &str = "coulomb_friction";
+/// Not in the catalogue: a control effect the simulator can make and diagnose must not
+/// name as any of the above (a constant drift while moving).
+pub const TILTED_FLOOR: &str = "tilted_floor";
+/// Diagnose's one-parameter alternative to a diameter mismatch: every wheel's diameter off
+/// by the same factor.
+pub const WHEEL_SCALE: &str = "wheel_scale";
+
+/// The catalogue's effects in its order, then the control.
+pub const EFFECT_IDS: [&str; 10] = [
+    WHEEL_DIAMETER_MISMATCH,
+    WHEELBASE_ERROR,
+    LONGITUDINAL_SLIP,
+    LATERAL_SLIP,
+    FLOOR_BUMPS,
+    BACKLASH,
+    MISSED_STEPS,
+    MOTOR_LAG,
+    COULOMB_FRICTION,
+    TILTED_FLOOR,
+];
+
+/// The mechanism of the geometry effects (they have no other).
+pub const GEOMETRY: &str = "geometry";
+
+/// A mechanism: (name in `mechanism:<name>`, its effect id).
+pub type Mech = (&'static str, &'static str);
+
+/// longitudinal_slip: per-wheel traction limit.
+pub const MECH_WHEEL: Mech = ("wheel", LONGITUDINAL_SLIP);
+/// longitudinal_slip: a bound on the body's linear acceleration.
+pub const MECH_BODY: Mech = ("body", LONGITUDINAL_SLIP);
+/// longitudinal_slip: slip proportional to the drive force.
+pub const MECH_CREEP: Mech = ("creep", LONGITUDINAL_SLIP);
+/// lateral_slip: v_y = -k v_x omega.
+pub const MECH_LINEAR: Mech = ("linear", LATERAL_SLIP);
+/// lateral_slip: slip speed saturating.
+pub const MECH_SATURATING: Mech = ("saturating", LATERAL_SLIP);
+/// floor_bumps: cables over the whole floor.
+pub const MECH_WHOLE: Mech = ("whole", FLOOR_BUMPS);
+/// floor_bumps: cables only in a strip or patch of the floor.
+pub const MECH_REGION: Mech = ("region", FLOOR_BUMPS);
+/// floor_bumps: irregular spacing.
+pub const MECH_IRREGULAR: Mech = ("irregular", FLOOR_BUMPS);
+/// backlash: the same play both ways.
+pub const MECH_SYMMETRIC: Mech = ("symmetric", BACKLASH);
+/// backlash: different loss on the two reversal directions.
+pub const MECH_ASYMMETRIC: Mech = ("asymmetric", BACKLASH);
+/// missed_steps: rotor pull-out dynamics.
+pub const MECH_PULL_OUT: Mech = ("pull_out", MISSED_STEPS);
+/// missed_steps: random quanta of four full steps.
+pub const MECH_QUANTA: Mech = ("quanta", MISSED_STEPS);
+/// missed_steps: a full stall until the command rests.
+pub const MECH_STALL: Mech = ("stall", MISSED_STEPS);
+/// motor_lag: a first-order lag.
+pub const MECH_FIRST_ORDER: Mech = ("first_order", MOTOR_LAG);
+/// motor_lag: a transport delay.
+pub const MECH_DELAY: Mech = ("delay", MOTOR_LAG);
+/// motor_lag: a slew-rate limit.
+pub const MECH_SLEW: Mech = ("slew", MOTOR_LAG);
+/// coulomb_friction: a dead band around zero command.
+pub const MECH_DEAD_BAND: Mech = ("dead_band", COULOMB_FRICTION);
+/// coulomb_friction: a constant speed lost at every command (a velocity loop's finite gain).
+pub const MECH_DROOP: Mech = ("droop", COULOMB_FRICTION);
+
+/// Every mechanism. The first listed for an effect is its default.
+pub const MECHANISMS: [Mech; 18] = [
+    MECH_WHEEL,
+    MECH_BODY,
+    MECH_CREEP,
+    MECH_LINEAR,
+    MECH_SATURATING,
+    MECH_WHOLE,
+    MECH_REGION,
+    MECH_IRREGULAR,
+    MECH_SYMMETRIC,
+    MECH_ASYMMETRIC,
+    MECH_PULL_OUT,
+    MECH_QUANTA,
+    MECH_STALL,
+    MECH_FIRST_ORDER,
+    MECH_DELAY,
+    MECH_SLEW,
+    MECH_DEAD_BAND,
+    MECH_DROOP,
+];
+
+/// The name of mechanism `name` of effect `id` as it appears in [`MECHANISMS`] (a
+/// `&'static str` for callers that built the pair from input), if it is listed.
+pub fn mechanism(id: &str, name: &str) -> Option<&'static str> {
+    MECHANISMS
+        .iter()
+        .find(|(m, e)| *m == name && *e == id)
+        .map(|(m, _)| *m)
+}
