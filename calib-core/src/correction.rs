@@ -7,6 +7,7 @@
 //! what "applied consistently" means: the robot is commanded and dead-reckoned with the
 //! geometry it really has.
 
+use crate::num::Num;
 use crate::robot::{Robot, RobotKind, MAX_WHEELS};
 use core::fmt;
 use heapless::Vec;
@@ -100,7 +101,13 @@ impl fmt::Display for CorrectionError {
                 max,
             } => {
                 at(f, name, index)?;
-                write!(f, " = {value} is outside [{FACTOR_MIN}, {max}]")
+                write!(
+                    f,
+                    " = {} is outside [{}, {}]",
+                    Num(*value),
+                    Num(FACTOR_MIN),
+                    Num(*max)
+                )
             }
             CorrectionError::WrongWheelCount { expected, got } => {
                 write!(f, "f_lat needs one factor per wheel: {expected}, got {got}")

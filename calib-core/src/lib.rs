@@ -11,6 +11,7 @@ extern crate std;
 pub mod correction;
 pub mod kinematics;
 pub mod linalg;
+pub mod num;
 pub mod omni_cal;
 pub mod protocol;
 pub mod robot;

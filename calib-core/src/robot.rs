@@ -333,8 +333,8 @@ impl fmt::Display for RobotError {
         write!(f, "{}: ", self.field.key())?;
         match self.problem {
             Problem::NotFinite => write!(f, "must be a finite number"),
-            Problem::NotPositive(v) => write!(f, "must be positive, got {v}"),
-            Problem::Negative(v) => write!(f, "must not be negative, got {v}"),
+            Problem::NotPositive(v) => write!(f, "must be positive, got {}", crate::num::Num(v)),
+            Problem::Negative(v) => write!(f, "must not be negative, got {}", crate::num::Num(v)),
             Problem::RollerParallelToAxle => write!(
                 f,
                 "cos(gamma) = 0: rollers parallel to the axle cannot drive (use gamma 0 or 45 deg)"
@@ -516,7 +516,7 @@ impl Robot {
     /// rank 3, so encoders determine the body twist.
     pub fn resolves_body_twist(&self) -> bool {
         crate::kinematics::normal_matrix_determinant(self, &crate::correction::Corrections::none())
-            .map(|(det, scale)| det.abs() > 1e-9 * scale)
+            .map(|(det, scale)| det.abs() > crate::linalg::SINGULAR_RATIO * scale)
             .unwrap_or(false)
     }
 

@@ -94,18 +94,32 @@ pub enum ClientError {
 impl fmt::Display for ClientError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ClientError::NoAnswer { port, tries, bad_frames } => {
+            ClientError::NoAnswer {
+                port,
+                tries,
+                bad_frames,
+            } => {
                 write!(f, "no answer from {port} after {tries} tries")?;
                 if *bad_frames > 0 {
-                    write!(f, " ({bad_frames} damaged frames: check the baud rate and cable)")
+                    write!(
+                        f,
+                        " ({bad_frames} damaged frames: check the baud rate and cable)"
+                    )
                 } else {
                     write!(f, " (is the board powered and running wheelcal firmware, and the baud rate right?)")
                 }
             }
-            ClientError::ProtocolMismatch { board_version, board_schema, firmware } => write!(
+            ClientError::ProtocolMismatch {
+                board_version,
+                board_schema,
+                firmware,
+            } => write!(
                 f,
-                "protocol mismatch: the board ({firmware}) speaks protocol v{board_version} (schema {board_schema:08x}), \
-                 this wheelcal speaks v{PROTOCOL_VERSION} (schema {SCHEMA_FINGERPRINT:08x}): update the firmware or wheelcal so they match"
+                "{} (board firmware {firmware}): update the firmware or wheelcal so they match",
+                Rejection::ProtocolMismatch {
+                    board_version: *board_version,
+                    board_schema: *board_schema,
+                }
             ),
             ClientError::Rejected(r) => write!(f, "the board refused: {r}"),
             ClientError::Unexpected(what) => write!(f, "unexpected answer from the board: {what}"),

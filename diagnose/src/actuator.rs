@@ -138,7 +138,7 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
                 let e = if last_tau_dt.0 == dt {
                     last_tau_dt.1
                 } else {
-                    let e = (-dt / tau.max(1e-9)).exp();
+                    let e = (-dt / tau.max(crate::MIN_DT_S)).exp();
                     last_tau_dt = (dt, e);
                     e
                 };
@@ -162,7 +162,7 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
                 // a. Integrated exactly for a ramp that may reach the demand mid-interval.
                 let mut demand = c;
                 if let Some(tau) = tau {
-                    let e = (-dt / tau.max(1e-9)).exp();
+                    let e = (-dt / tau.max(crate::MIN_DT_S)).exp();
                     demand = c + (rate - c) * e;
                 }
                 let gap = demand - rate;
@@ -222,7 +222,8 @@ impl Rotor {
         for i in 0..n {
             let mut c = c0 + (c1 - c0) * (i as f64 + 0.5) / n as f64;
             if let Some(tau) = tau {
-                self.lag_rate += (c - self.lag_rate) * (1.0 - (-h / tau.max(1e-9)).exp());
+                self.lag_rate +=
+                    (c - self.lag_rate) * (1.0 - (-h / tau.max(crate::MIN_DT_S)).exp());
                 c = self.lag_rate;
             }
             let e = self.commanded - self.lost - self.pos;

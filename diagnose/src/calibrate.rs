@@ -40,6 +40,9 @@ const HEADING_LEVER_M: f64 = 0.1;
 /// 3 m the heading gain dominates and scale/eb are reported not separable even on
 /// two-direction squares (sim and real): [`CalOptions::heading_lever_m`] sets it.
 pub const DR_HEADING_LEVER_M: f64 = 0.1;
+/// Smallest 99th-percentile increment the encoder-glitch threshold scales from (rad): a
+/// wheel that never moves has none, and any count is then a glitch candidate.
+const MIN_INCREMENT_RAD: f64 = 1e-9;
 /// Least pose samples per recording.
 pub const MIN_POSES: usize = 20;
 /// The dead-reckoning objective compares positions every this much travel (m), turns in
@@ -48,6 +51,12 @@ pub const MIN_POSES: usize = 20;
 pub const SAMPLE_STEP_M: f64 = 0.05;
 /// |correlation| above which two parameters are reported not separable.
 pub const CORR_LIMIT: f64 = 0.95;
+/// Two parameters correlated above this whose uncertainty exceeds their value (and
+/// [`MATERIAL_SHARE`] of the plausible half-range) are reported not separable too.
+pub const WEAK_CORR: f64 = 0.5;
+/// Share of a parameter's plausible half-range below which an uncertainty is immaterial:
+/// a parameter fitted 0 ± 0.0002 is known, not lost.
+pub const MATERIAL_SHARE: f64 = 0.1;
 
 /// One geometry parameter of the fit.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
@@ -610,7 +619,7 @@ impl Series {
             let mut a: Vec<f64> = inc.iter().map(|v| v[w].abs()).collect();
             a.sort_by(|x, y| x.total_cmp(y));
             let q = a.get(a.len() * 99 / 100).copied().unwrap_or(0.0);
-            let thr = 20.0 * q.max(1e-9);
+            let thr = 20.0 * q.max(MIN_INCREMENT_RAD);
             let bad: Vec<usize> = (0..inc.len())
                 .filter(|&k| inc[k][w].abs() > thr || inc[k][w].is_nan())
                 .collect();
@@ -1285,9 +1294,21 @@ impl<'a> Problem<'a> {
     }
 }
 
+/// A fitted time offset beyond this (s) is reported implausible: loggers of one rig are
+/// synchronised to well under half a second.
+pub const PLAUSIBLE_TIME_OFFSET_S: f64 = 0.5;
+/// A clock ratio further than this from 1 is reported implausible (crystals agree to
+/// 1e-4; 5 % means resampled or mis-stamped poses).
+pub const PLAUSIBLE_CLOCK_DRIFT: f64 = 0.05;
+/// Search bounds of the per-recording nuisance (x0, y0, theta0 in m and rad, time offset
+/// in s, clock ratio): far outside the plausible values, so an implausible one is seen
+/// and reported rather than clamped.
+const NUISANCE_LO: [f64; NUIS] = [-10.0, -10.0, -10.0, -2.0, 0.8];
+/// Upper search bounds of the nuisance (see [`NUISANCE_LO`]).
+const NUISANCE_HI: [f64; NUIS] = [10.0, 10.0, 10.0, 2.0, 1.25];
+
 fn nuisance_bounds(n: usize) -> (Vec<f64>, Vec<f64>) {
-    let lo = [-10.0, -10.0, -10.0, -2.0, 0.8];
-    let hi = [10.0, 10.0, 10.0, 2.0, 1.25];
+    let (lo, hi) = (NUISANCE_LO, NUISANCE_HI);
     (
         (0..n).flat_map(|_| lo).collect(),
         (0..n).flat_map(|_| hi).collect(),
@@ -1810,7 +1831,7 @@ fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
             mean_of(&dist_pre, b, b1) - mean_of(&dist_pre, a0, j),
         );
         transient[j] = (j..=b)
-            .map(|k| e[k] - m0 - (m1 - m0) * (t(k) - t(j)) / (t(b) - t(j)).max(1e-9))
+            .map(|k| e[k] - m0 - (m1 - m0) * (t(k) - t(j)) / (t(b) - t(j)).max(crate::MIN_DT_S))
             .fold(0.0, |acc: f64, v| if v.abs() > acc.abs() { v } else { acc });
         turned[j] = (s.pth[b] - s.pth[j]).abs();
     }
@@ -2304,10 +2325,10 @@ pub fn calibrate(
             // "Uncertainty larger than the value" counts only when the uncertainty is material
             // against the plausible range: a parameter fitted 0 ± 0.0002 is known, not lost.
             let (ra, rb) = (
-                0.1 * (specs[a].plausible.1 - specs[a].nominal),
-                0.1 * (specs[b].plausible.1 - specs[b].nominal),
+                MATERIAL_SHARE * (specs[a].plausible.1 - specs[a].nominal),
+                MATERIAL_SHARE * (specs[b].plausible.1 - specs[b].nominal),
             );
-            let weak = c.abs() > 0.5 && (sa > da.max(ra) || sb > db.max(rb));
+            let weak = c.abs() > WEAK_CORR && (sa > da.max(ra) || sb > db.max(rb));
             if c.abs() > CORR_LIMIT || weak {
                 // Well-determined direction of the 2x2 block: the eigenvector with the
                 // smaller variance.
@@ -2588,20 +2609,20 @@ pub fn calibrate(
     let mut implausible = implausible;
     for pr in &per_recording {
         let nu = pr.nuisance;
-        if nu.time_offset_s.abs() > 0.5 {
+        if nu.time_offset_s.abs() > PLAUSIBLE_TIME_OFFSET_S {
             implausible.push(Implausible {
                 name: format!("{}: time_offset_s", pr.name),
                 value: nu.time_offset_s,
-                plausible: (-0.5, 0.5),
+                plausible: (-PLAUSIBLE_TIME_OFFSET_S, PLAUSIBLE_TIME_OFFSET_S),
                 stands_for:
                     "a t column that does not match the encoders (check the logger's clock)".into(),
             });
         }
-        if (nu.clock_ratio - 1.0).abs() > 0.05 {
+        if (nu.clock_ratio - 1.0).abs() > PLAUSIBLE_CLOCK_DRIFT {
             implausible.push(Implausible {
                 name: format!("{}: clock_ratio", pr.name),
                 value: nu.clock_ratio,
-                plausible: (0.95, 1.05),
+                plausible: (1.0 - PLAUSIBLE_CLOCK_DRIFT, 1.0 + PLAUSIBLE_CLOCK_DRIFT),
                 stands_for: "resampled or mis-stamped ground truth".into(),
             });
         }

@@ -20,8 +20,8 @@ use crate::calibrate::{
     Series, RES_UNIT_M,
 };
 use crate::plots::{
-    draw_legend, esc, path_chart_titled, plot_box, register_font, split_for_legend, time_chart,
-    Layout, LegendMark, PixelBox, BLUE, FONT_PATHS, ORANGE,
+    draw_legend, esc, path_chart_titled, plot_box, split_for_legend, time_chart, Layout,
+    LegendMark, PixelBox, BLUE, ORANGE,
 };
 use crate::report::PlotData;
 use crate::Stage;
@@ -495,12 +495,7 @@ pub fn write_calibration_figures(
     summary: &str,
     dir: &Path,
 ) -> std::io::Result<Vec<String>> {
-    if !register_font() {
-        return Err(std::io::Error::other(format!(
-            "plots need the DejaVu Sans font (looked in {}): apt-get install fonts-dejavu-core",
-            FONT_PATHS.join(", ")
-        )));
-    }
+    crate::plots::require_font()?;
     std::fs::create_dir_all(dir)?;
     let mut files = Vec::new();
     let mut html = format!(

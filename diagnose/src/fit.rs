@@ -21,6 +21,10 @@ pub struct FitResult {
     pub evaluations: usize,
 }
 
+/// Least Levenberg-Marquardt damping: below it a step is Gauss-Newton's to 1e-9
+/// relative, and the damping can still grow back within a few rejected steps.
+const MIN_LAMBDA: f64 = 1e-9;
+
 /// Minimises the sum of squares of `f(x)` from `x0` within `[lo, hi]`.
 pub fn levenberg_marquardt(
     f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
@@ -80,7 +84,7 @@ pub fn levenberg_marquardt_jacobian(
                 x = xn;
                 r = rn;
                 cost = cn;
-                lambda = (lambda * 0.3).max(1e-9);
+                lambda = (lambda * 0.3).max(MIN_LAMBDA);
                 improved = true;
                 if rel < 1e-7 {
                     improved = false; // converged

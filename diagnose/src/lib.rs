@@ -97,6 +97,9 @@ impl std::error::Error for DiagnoseError {}
 
 /// Least pose samples for the ground stage to say anything (start pose takes 3 numbers).
 pub const MIN_POSE_SAMPLES: usize = 8;
+/// Shortest time step divided by (s): two rows a nanosecond apart are one instant
+/// written twice, and a rate over them must stay finite rather than blow up.
+pub const MIN_DT_S: f64 = 1e-9;
 
 /// Diagnoses a recording of `robot`.
 pub fn diagnose(

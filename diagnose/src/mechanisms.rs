@@ -128,11 +128,11 @@ pub fn simulate_stepper_losses(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: 
         // Commanded acceleration where the command changes (the larger of the two sides,
         // so a ramp's first row counts).
         let back = if k > 0 {
-            (cmd[k] - cmd[k - 1]) / (t[k] - t[k - 1]).max(1e-9)
+            (cmd[k] - cmd[k - 1]) / (t[k] - t[k - 1]).max(crate::MIN_DT_S)
         } else {
             0.0
         };
-        let fwd = (cmd[k + 1] - cmd[k]) / dt.max(1e-9);
+        let fwd = (cmd[k + 1] - cmd[k]) / dt.max(crate::MIN_DT_S);
         let over = back.abs().max(fwd.abs()) > a_max && c != 0.0;
         let inc = if p.stall {
             if over {
@@ -165,6 +165,7 @@ pub fn simulate_stepper_losses(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: 
 pub fn side_slip(m: &Model, d: &Twist<f64>, dt: f64) -> f64 {
     let dt = dt.max(1e-12);
     if let Some(p) = m.get(Effect::LateralSaturating) {
+        // A saturation speed of a nanometre per second is no side slip at all.
         let (k, sat) = (p[0], p[1].max(1e-9));
         let v = k * (d.vx / dt) * (d.omega / dt);
         return -sat * (v / sat).tanh() * dt;
@@ -284,9 +285,9 @@ pub fn slip_angles(
             let mut c = 0.0;
             let mut pos = src[0];
             for k in 0..n - 1 {
-                let dt = (p.t[k + 1] - p.t[k]).max(1e-9);
+                let dt = (p.t[k + 1] - p.t[k]).max(crate::MIN_DT_S);
                 let want = (src[k + 1] - src[k]) / dt;
-                let e = (-dt / tc.max(1e-9)).exp();
+                let e = (-dt / tc.max(crate::MIN_DT_S)).exp();
                 pos += want * dt + (c - want) * tc * (1.0 - e);
                 c = want + (c - want) * e;
                 a[k + 1] = pos;
@@ -307,7 +308,7 @@ pub fn slip_angles(
         // Body velocity from the wheels, over three rows (encoder quantisation).
         let vel = |k: usize, inc: &mut [f64], out: &[Option<Vec<f64>>]| -> Twist<f64> {
             let (k1, k2) = (k.saturating_sub(1), (k + 2).min(n - 1));
-            let span = (p.t[k2] - p.t[k1]).max(1e-9);
+            let span = (p.t[k2] - p.t[k1]).max(crate::MIN_DT_S);
             for (j, &i) in known.iter().enumerate() {
                 let a = out[i].as_ref().expect("known");
                 inc[j] = (a[k2] - a[k1]) / span;
@@ -318,7 +319,7 @@ pub fn slip_angles(
         let mut shift = vec![0.0; m_w];
         let src = out.clone();
         for k in 0..n - 1 {
-            let dt = (p.t[k + 1] - p.t[k]).max(1e-9);
+            let dt = (p.t[k + 1] - p.t[k]).max(crate::MIN_DT_S);
             let want = vel(k, &mut inc, &src);
             let a = (mu * crate::replay::G * p.driven_share[k]).max(1e-12) * dt;
             let (vx0, vy0) = *v.get_or_insert((want.vx, want.vy));

@@ -441,15 +441,22 @@ pub fn register_font() -> bool {
     })
 }
 
+/// [`register_font`], or the error every report gives without the font: where it was
+/// looked for and the package that installs it.
+pub fn require_font() -> std::io::Result<()> {
+    if register_font() {
+        return Ok(());
+    }
+    Err(std::io::Error::other(format!(
+        "plots need the DejaVu Sans font (looked in {}): apt-get install fonts-dejavu-core",
+        FONT_PATHS.join(", ")
+    )))
+}
+
 /// Writes `r` into `dir` (created if missing): the SVG plots, `index.html` with the
 /// summary and `report.json`. Fails when the DejaVu Sans font the plots need is missing.
 pub fn write_report_dir(r: &Report, dir: &Path) -> std::io::Result<()> {
-    if !register_font() {
-        return Err(std::io::Error::other(format!(
-            "plots need the DejaVu Sans font (looked in {}): apt-get install fonts-dejavu-core",
-            FONT_PATHS.join(", ")
-        )));
-    }
+    require_font()?;
     std::fs::create_dir_all(dir)?;
     let err = |e: Box<dyn std::error::Error>| std::io::Error::other(e.to_string());
     let p = &r.plot;

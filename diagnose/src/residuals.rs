@@ -276,7 +276,7 @@ impl<'a> Evaluator<'a> {
             p.t.first().copied().unwrap_or(0.0),
             p.t.last().copied().unwrap_or(0.0),
         );
-        let block_len = ((t1 - t0) / BLOCKS).max(1e-9);
+        let block_len = ((t1 - t0) / BLOCKS).max(crate::MIN_DT_S);
         let block = |row: usize| (((p.t[row] - t0) / block_len).floor() as i64 % 2) as u8;
         let pose_block = p.poses.row.iter().map(|&r| block(r)).collect();
         let act_block = act_rows.iter().map(|&r| block(r)).collect();

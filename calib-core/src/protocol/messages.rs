@@ -505,7 +505,7 @@ impl fmt::Display for CorrectionFault {
             }
             CorrectionFault::WrongKind { robot } => CorrectionError::WrongKind { robot },
         };
-        CorrectionText(&e).fmt(f)
+        e.fmt(f)
     }
 }
 
@@ -583,7 +583,7 @@ impl fmt::Display for ParamsFault {
                     field: *field,
                     problem: *problem,
                 };
-                write!(f, "robot: {}", RobotText(&e))
+                write!(f, "robot: {e}")
             }
             ParamsFault::Setting {
                 index,

@@ -56,7 +56,7 @@ use crate::motion::{Direction, OmniPath, ProfileLimits, Segment, MAX_SEGMENTS};
 use crate::odometry::Pose;
 pub use crate::omni_cal::IdleWheels;
 use crate::robot::{DriveType, Robot, RobotError, RobotKind, MAX_WHEELS};
-use core::fmt::{self, Write as _};
+use core::fmt;
 use heapless::{String, Vec};
 use serde::{Deserialize, Serialize};
 
@@ -66,13 +66,12 @@ mod messages;
 mod params;
 #[cfg(test)]
 mod tests;
-mod text;
 
+pub use crate::num::Num;
 pub use frame::*;
 pub use log::*;
 pub use messages::*;
 pub use params::*;
-pub use text::*;
 
 /// Bumped on any incompatible change of the messages or framing.
 pub const PROTOCOL_VERSION: u16 = 4;
@@ -129,8 +128,6 @@ pub const MAX_LOG_CHUNK: usize = 992;
 pub const MAX_TRIALS: usize = 8;
 /// Length of the firmware version text.
 pub const FIRMWARE_LEN: usize = 24;
-/// Length of a rejection's explanation.
-pub const REASON_LEN: usize = 96;
 
 const CRC32: crc::Crc<u32> = crc::Crc::<u32>::new(&crc::CRC_32_ISO_HDLC);
 const SEQ_LEN: usize = 2;

@@ -85,7 +85,7 @@ pub enum ParamsError {
 impl fmt::Display for ParamsError {
     fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
         match self {
-            ParamsError::Robot(e) => write!(f, "robot: {}", RobotText(e)),
+            ParamsError::Robot(e) => write!(f, "robot: {e}"),
             ParamsError::Setting {
                 name,
                 min,

@@ -2,8 +2,7 @@
 
 use crate::cli::DiagnoseArgs;
 use crate::output::Output;
-use crate::report;
-use anyhow::{bail, Context, Result};
+use anyhow::{Context, Result};
 use formats::robot_file;
 
 /// Where simulation and recording part, and the physics left out.
@@ -28,9 +27,7 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
         diagnose::diagnose(&robot, &rec, &opts).with_context(|| recording.display().to_string())?;
     busy.finish();
     if let Some(dir) = &a.report {
-        if !report::font_available() {
-            bail!("plots need the DejaVu Sans font: apt-get install fonts-dejavu-core");
-        }
+        diagnose::plots::require_font()?;
         formats::safe_write::claim_dir(dir)?;
         diagnose::plots::write_report_dir(&rep, dir)
             .with_context(|| format!("cannot write the report into {}", dir.display()))?;

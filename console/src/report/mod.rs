@@ -22,12 +22,7 @@ pub fn font_available() -> bool {
 
 /// Renders a figure as `<name>.svg` and (font permitting) `<name>.png` in `dir`.
 pub fn save_figure(fig: &dyn Figure, dir: &Path, name: &str) -> Result<PathBuf> {
-    if !font_available() {
-        anyhow::bail!(
-            "plots need the DejaVu Sans font (looked in {}): apt-get install fonts-dejavu-core",
-            diagnose::plots::FONT_PATHS.join(", ")
-        );
-    }
+    diagnose::plots::require_font()?;
     let (w, h) = fig.size();
     let svg = dir.join(format!("{name}.svg"));
     {
