@@ -168,7 +168,8 @@ pub enum FactorsCmd {
     Export(ExportArgs),
 }
 
-/// Arguments of `wheelcal factors set`; only the factors given are changed.
+/// Arguments of `wheelcal factors set`: only the factors given change, the others keep
+/// the board's current values (nominal where it holds none).
 #[derive(Debug, Args)]
 pub struct SetArgs {
     /// Differential drive: left wheel radius multiplier c_L.

@@ -568,11 +568,6 @@ impl<L: Read + Write> Client<L> {
             }
         }
     }
-
-    /// Gives the link back (to reconnect or close).
-    pub fn into_link(self) -> L {
-        self.link
-    }
 }
 
 /// A complete frame: its sequence number and content, or why it was damaged.

@@ -130,25 +130,11 @@ impl Faults {
     }
 }
 
-/// Counts of what a faulty direction did.
-#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
-pub struct FaultCounts {
-    /// Bytes dropped.
-    pub dropped: u64,
-    /// Bytes with a bit flipped.
-    pub flipped: u64,
-    /// Bytes sent twice.
-    pub duplicated: u64,
-    /// Writes cut short.
-    pub truncated: u64,
-}
-
 /// The writing half of one direction: applies faults, then sends.
 struct FaultyTx {
     tx: Sender<Vec<u8>>,
     faults: Faults,
     rng: ChaCha8Rng,
-    counts: std::sync::Arc<std::sync::Mutex<FaultCounts>>,
     writes: u64,
 }
 
@@ -165,36 +151,25 @@ impl FaultyTx {
             return;
         }
         let mut out = Vec::with_capacity(data.len() + 4);
-        let mut c = FaultCounts::default();
         for &b in data {
             if self
                 .rng
                 .random_bool(self.faults.truncate.min(1.0) / data.len().max(1) as f64)
             {
-                c.truncated += 1;
                 break;
             }
             if self.rng.random_bool(self.faults.drop.min(1.0)) {
-                c.dropped += 1;
                 continue;
             }
             let b = if self.rng.random_bool(self.faults.flip.min(1.0)) {
-                c.flipped += 1;
                 b ^ (1 << self.rng.random_range(0..8))
             } else {
                 b
             };
             out.push(b);
             if self.rng.random_bool(self.faults.duplicate.min(1.0)) {
-                c.duplicated += 1;
                 out.push(b);
             }
-        }
-        if let Ok(mut t) = self.counts.lock() {
-            t.dropped += c.dropped;
-            t.flipped += c.flipped;
-            t.duplicated += c.duplicated;
-            t.truncated += c.truncated;
         }
         let _ = self.tx.send(out);
     }
@@ -206,14 +181,6 @@ pub struct MemoryEnd {
     rx: Receiver<Vec<u8>>,
     buf: std::collections::VecDeque<u8>,
     read_timeout: Duration,
-    counts: std::sync::Arc<std::sync::Mutex<FaultCounts>>,
-}
-
-impl MemoryEnd {
-    /// What the faults did to the bytes this end sent.
-    pub fn fault_counts(&self) -> FaultCounts {
-        self.counts.lock().map(|c| *c).unwrap_or_default()
-    }
 }
 
 /// A duplex in-memory link: `(host end, board end)`; `to_board` and `to_host` are the
@@ -221,33 +188,27 @@ impl MemoryEnd {
 pub fn memory_pair(to_board: Faults, to_host: Faults, seed: u64) -> (MemoryEnd, MemoryEnd) {
     let (htx, brx) = channel();
     let (btx, hrx) = channel();
-    let hc = std::sync::Arc::new(std::sync::Mutex::new(FaultCounts::default()));
-    let bc = std::sync::Arc::new(std::sync::Mutex::new(FaultCounts::default()));
     let host = MemoryEnd {
         tx: FaultyTx {
             tx: htx,
             faults: to_board,
             rng: ChaCha8Rng::seed_from_u64(seed),
-            counts: hc.clone(),
             writes: 0,
         },
         rx: hrx,
         buf: Default::default(),
         read_timeout: Duration::from_millis(5),
-        counts: hc,
     };
     let board = MemoryEnd {
         tx: FaultyTx {
             tx: btx,
             faults: to_host,
             rng: ChaCha8Rng::seed_from_u64(seed ^ 0x5eed),
-            counts: bc.clone(),
             writes: 0,
         },
         rx: brx,
         buf: Default::default(),
         read_timeout: Duration::ZERO,
-        counts: bc,
     };
     (host, board)
 }

@@ -14,11 +14,6 @@ use crate::replay::Prepared;
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
 
-/// The mechanism a plain catalogue fit stands for.
-pub fn default_name(e: Effect) -> &'static str {
-    e.mechanism()
-}
-
 /// Integral of a command from t[0] to `tau` (0 before t[0]: the robot was at rest), held
 /// between rows or linear between them. `j` is a monotone search hint.
 fn command_integral(

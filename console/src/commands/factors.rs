@@ -26,8 +26,18 @@ fn get(ctx: &mut Ctx, out: Output) -> Result<()> {
 
 /// Sets the active factors (the board validates them).
 fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
-    let c = board_cmds::corrections_from_args(a.c_l, a.c_r, a.e_b, a.f_lat.as_deref(), a.f_lon)?;
     let client = ctx.client()?;
+    let current = client.corrections()?;
+    let n = client.params()?.robot.wheels.len();
+    let c = board_cmds::merge_corrections(
+        &current,
+        n,
+        a.c_l,
+        a.c_r,
+        a.e_b,
+        a.f_lat.as_deref(),
+        a.f_lon,
+    )?;
     client.set_corrections(c)?;
     let f = FactorsView::from(&client.corrections()?);
     out.emit(&f, || {
