@@ -85,6 +85,11 @@ fn reply(r: Response<'_>) -> Result<Handled<'_>, Rejection> {
     Ok(Handled::Reply(r))
 }
 
+/// The plain acknowledgement.
+fn ok() -> Result<Handled<'static>, Rejection> {
+    reply(Response::Ok)
+}
+
 #[derive(Debug, Clone)]
 enum Motion {
     Idle,
@@ -619,6 +624,8 @@ impl<'a> App<'a> {
         }
     }
 
+    /// One request, dispatched to the phase that serves it: the handshake, stored values
+    /// (corrections and parameters), motion, telemetry, the trial log.
     fn handle_inner(&mut self, req: Request) -> Result<Handled<'_>, Rejection> {
         if self.peer_compatible == Some(false) && !matches!(req, Request::Hello { .. }) {
             return Err(Rejection::ProtocolMismatch {
@@ -630,115 +637,45 @@ impl<'a> App<'a> {
             Request::Hello {
                 protocol_version,
                 schema,
-            } => {
-                let ok = protocol_version == PROTOCOL_VERSION && schema == SCHEMA_FINGERPRINT;
-                self.peer_compatible = Some(ok);
-                reply(Response::Hello {
-                    protocol_version: PROTOCOL_VERSION,
-                    schema: SCHEMA_FINGERPRINT,
-                    firmware: firmware(),
-                    compatible: ok,
-                })
-            }
+            } => reply(self.hello(protocol_version, schema)),
             Request::GetInfo => reply(Response::Info(self.info())),
             Request::GetCorrections => reply(Response::Corrections(self.corrections.clone())),
-            Request::SetCorrections(c) => {
-                self.set_corrections(c)?;
-                reply(Response::Ok)
-            }
+            Request::SetCorrections(c) => self.set_corrections(c).and_then(|_| ok()),
             Request::SaveCorrections => {
-                // A flash erase stalls the CPU: only with the motors stopped.
-                if self.moving() {
-                    return Err(Rejection::Busy);
-                }
-                Ok(Handled::Persist(PersistItem::Corrections(
-                    self.corrections.clone(),
-                )))
+                self.persist(PersistItem::Corrections(self.corrections.clone()))
             }
-            Request::ResetCorrections => {
-                self.set_corrections(Corrections::None)?;
-                reply(Response::Ok)
-            }
+            Request::ResetCorrections => self.set_corrections(Corrections::None).and_then(|_| ok()),
             Request::GetParams => reply(Response::Params(self.params.clone())),
-            Request::SetParams(p) => {
-                self.set_params(p)?;
-                reply(Response::Ok)
-            }
-            Request::SaveParams => {
-                if self.moving() {
-                    return Err(Rejection::Busy);
-                }
-                Ok(Handled::Persist(PersistItem::Params(self.params.clone())))
-            }
-            Request::ResetParams => {
-                self.set_params(defaults::params())?;
-                reply(Response::Ok)
-            }
+            Request::SetParams(p) => self.set_params(p).and_then(|_| ok()),
+            Request::SaveParams => self.persist(PersistItem::Params(self.params.clone())),
+            Request::ResetParams => self.set_params(defaults::params()).and_then(|_| ok()),
             Request::Drive { twist, timeout_ms } => {
-                self.motion_allowed()?;
-                if matches!(self.motion, Motion::Program(..)) {
-                    return Err(Rejection::Busy);
-                }
-                let target = self.checked_twist(twist)?;
-                let max = self.params.safety.command_timeout_ms;
-                let t = if timeout_ms == 0 {
-                    max
-                } else {
-                    timeout_ms.min(max)
-                };
-                self.motion = Motion::Drive {
-                    target,
-                    deadline_us: self.now_us + t as u64 * 1000,
-                };
-                reply(Response::Ok)
+                self.drive(twist, timeout_ms).and_then(|_| ok())
             }
             Request::RunProgram {
                 program,
                 log_rate_hz,
                 link_timeout_ms,
-            } => {
-                if link_timeout_ms != 0 && link_timeout_ms < MIN_LINK_TIMEOUT_MS {
-                    return Err(Rejection::InvalidProgram(ProgramError::LinkTimeout {
-                        ms: link_timeout_ms,
-                    }));
-                }
-                self.start_program(program, log_rate_hz)?;
-                self.link_timeout_us = link_timeout_ms as u64 * 1000;
-                reply(Response::Ok)
-            }
+            } => self
+                .run_program(program, log_rate_hz, link_timeout_ms)
+                .and_then(|_| ok()),
             Request::Stop => {
-                // Controlled: the idle slew ramps the twist down at the limits.
-                if matches!(self.motion, Motion::Program(..)) {
-                    self.log.finish(TrialEnd::Stopped);
-                }
-                if !matches!(self.motion, Motion::Idle) {
-                    self.stop = StopReason::Request;
-                }
-                self.motion = Motion::Idle;
-                reply(Response::Ok)
+                self.stop_request();
+                ok()
             }
             Request::EStop => {
                 self.estop = true;
                 self.cut(StopReason::EStop, TrialEnd::EStop);
-                reply(Response::Ok)
+                ok()
             }
             Request::ClearFault => {
-                self.estop = false;
-                self.fault = None;
-                for w in self.wheels.iter_mut() {
-                    w.halt();
-                }
-                reply(Response::Ok)
+                self.clear_fault();
+                ok()
             }
             Request::GetStatus => reply(Response::Status(self.status())),
             Request::SetTelemetry { period_ms } => {
-                self.telemetry_us = if period_ms == 0 {
-                    0
-                } else {
-                    period_ms.max(10) as u64 * 1000
-                };
-                self.next_telemetry_us = self.now_us;
-                reply(Response::Ok)
+                self.set_telemetry(period_ms);
+                ok()
             }
             Request::ListTrials => reply(Response::Trials(self.log.list())),
             Request::ReadLog {
@@ -761,9 +698,98 @@ impl<'a> App<'a> {
                     return Err(Rejection::Busy);
                 }
                 self.log.clear();
-                reply(Response::Ok)
+                ok()
             }
         }
+    }
+
+    /// The handshake: the host's protocol version and schema decide whether any other
+    /// request is served.
+    fn hello(&mut self, protocol_version: u16, schema: u32) -> Response<'static> {
+        let ok = protocol_version == PROTOCOL_VERSION && schema == SCHEMA_FINGERPRINT;
+        self.peer_compatible = Some(ok);
+        Response::Hello {
+            protocol_version: PROTOCOL_VERSION,
+            schema: SCHEMA_FINGERPRINT,
+            firmware: firmware(),
+            compatible: ok,
+        }
+    }
+
+    /// A save to flash, handed to the link layer: a flash erase stalls the CPU, so only
+    /// with the motors stopped.
+    fn persist(&self, item: PersistItem) -> Result<Handled<'static>, Rejection> {
+        if self.moving() {
+            return Err(Rejection::Busy);
+        }
+        Ok(Handled::Persist(item))
+    }
+
+    /// A twist command, held until `timeout_ms` (capped by the safety setting).
+    fn drive(&mut self, twist: Twist<f32>, timeout_ms: u16) -> Result<(), Rejection> {
+        self.motion_allowed()?;
+        if matches!(self.motion, Motion::Program(..)) {
+            return Err(Rejection::Busy);
+        }
+        let target = self.checked_twist(twist)?;
+        let max = self.params.safety.command_timeout_ms;
+        let t = if timeout_ms == 0 {
+            max
+        } else {
+            timeout_ms.min(max)
+        };
+        self.motion = Motion::Drive {
+            target,
+            deadline_us: self.now_us + t as u64 * 1000,
+        };
+        Ok(())
+    }
+
+    /// A test path with its log rate and host-link failsafe.
+    fn run_program(
+        &mut self,
+        program: ProgramSpec,
+        log_rate_hz: u16,
+        link_timeout_ms: u16,
+    ) -> Result<(), Rejection> {
+        if link_timeout_ms != 0 && link_timeout_ms < MIN_LINK_TIMEOUT_MS {
+            return Err(Rejection::InvalidProgram(ProgramError::LinkTimeout {
+                ms: link_timeout_ms,
+            }));
+        }
+        self.start_program(program, log_rate_hz)?;
+        self.link_timeout_us = link_timeout_ms as u64 * 1000;
+        Ok(())
+    }
+
+    /// A controlled stop: the idle slew ramps the twist down at the limits.
+    fn stop_request(&mut self) {
+        if matches!(self.motion, Motion::Program(..)) {
+            self.log.finish(TrialEnd::Stopped);
+        }
+        if !matches!(self.motion, Motion::Idle) {
+            self.stop = StopReason::Request;
+        }
+        self.motion = Motion::Idle;
+    }
+
+    /// Unlatches an E-stop or fault; the wheels start from rest.
+    fn clear_fault(&mut self) {
+        self.estop = false;
+        self.fault = None;
+        for w in self.wheels.iter_mut() {
+            w.halt();
+        }
+    }
+
+    /// Status pushed every `period_ms` (0 off, at least 10 ms).
+    fn set_telemetry(&mut self, period_ms: u16) {
+        self.telemetry_us = if period_ms == 0 {
+            0
+        } else {
+            period_ms.max(10) as u64 * 1000
+        };
+        self.next_telemetry_us = self.now_us;
     }
 
     fn checked_twist(&self, t: Twist<f32>) -> Result<Twist<f32>, Rejection> {
