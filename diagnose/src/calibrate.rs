@@ -2093,6 +2093,9 @@ fn choose_specs(
     if robot.kind == RobotKind::SkidSteer {
         return choose_skid_specs(robot, series, cfg, notes, runs);
     }
+    if robot.kind == RobotKind::Omni && series.len() >= 2 {
+        return climb_ladder(robot, series, marker, cfg, notes, runs);
+    }
     if !is_mecanum(robot) {
         return full;
     }
@@ -2133,6 +2136,195 @@ fn choose_specs(
         ));
         full
     }
+}
+
+/// A rung of the ladder is adequate when its held-out error is within this share of the
+/// best rung's: a model with more parameters must buy more than 3 % to be chosen.
+pub const LADDER_TOLERANCE: f64 = 0.03;
+/// Most folds the ladder's held-out comparison uses.
+pub const LADDER_FOLDS: usize = 5;
+/// A mecanum wheel's effective radius: the rollers' contact moves with the direction of
+/// travel, and real mecanum robots dead-reckon with radii 5-12 % off the hub's (the
+/// real mecanum squares want 67 mm on a 60 mm wheel).
+pub const MECANUM_RADIUS_RANGE: f64 = 0.15;
+
+/// The models an omni robot's calibration climbs, simplest first: one common scale; a
+/// common scale and wheel distance; per-wheel radii and a common distance; per-wheel
+/// radii, angles and distances; on a mecanum robot, per-wheel radii and one roller angle.
+pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)> {
+    let mecanum = is_mecanum(robot);
+    let mut scale = spec(
+        GeomKind::Scale,
+        "scale".into(),
+        "wheel_scale",
+        1.0,
+        if mecanum {
+            MECANUM_RADIUS_RANGE
+        } else {
+            RADIUS_RANGE
+        },
+        SCALE_STANDS,
+    );
+    if mecanum {
+        scale.stands_for = "the rollers' effective radius, or a wrong nominal diameter";
+    }
+    let distance = spec(
+        GeomKind::Eb,
+        "l_scale".into(),
+        "wheelbase_error",
+        1.0,
+        BASE_RANGE,
+        L_STANDS,
+    );
+    let full = param_specs(robot, marker);
+    let markers: Vec<ParamSpec> = full
+        .iter()
+        .filter(|s| matches!(s.kind, GeomKind::MarkerX | GeomKind::MarkerY))
+        .cloned()
+        .collect();
+    let radii: Vec<ParamSpec> = full
+        .iter()
+        .filter(|s| matches!(s.kind, GeomKind::Radius(_)))
+        .cloned()
+        .map(|mut s| {
+            if mecanum {
+                s.plausible = (1.0 - MECANUM_RADIUS_RANGE, 1.0 + MECANUM_RADIUS_RANGE);
+            }
+            s
+        })
+        .collect();
+    let with_markers = |mut v: Vec<ParamSpec>| {
+        v.extend(markers.iter().cloned());
+        v
+    };
+    let mut rungs = vec![
+        ("common scale", with_markers(vec![scale.clone()])),
+        (
+            "common scale and wheel distance",
+            with_markers(vec![scale, distance.clone()]),
+        ),
+        ("per-wheel radii and a common wheel distance", {
+            let mut v = radii.clone();
+            v.push(distance);
+            with_markers(v)
+        }),
+        ("per-wheel radii, angles and distances", {
+            let mut f = full.clone();
+            for s in f.iter_mut() {
+                if let Some(r) = radii.iter().find(|r| r.kind == s.kind) {
+                    s.plausible = r.plausible;
+                }
+            }
+            f
+        }),
+    ];
+    if mecanum {
+        rungs.push((
+            "per-wheel radii and one roller angle",
+            roller_specs(robot, marker)
+                .into_iter()
+                .map(|mut s| {
+                    if let Some(r) = radii.iter().find(|r| r.kind == s.kind) {
+                        s.plausible = r.plausible;
+                    }
+                    s
+                })
+                .collect(),
+        ));
+    }
+    rungs
+}
+
+/// Parsimony for an omni robot: each model of [`ladder`] is fitted with each recording
+/// left out in turn and dead-reckons it; the simplest model within
+/// [`LADDER_TOLERANCE`] of the best held-out error is kept, unless its fit on all the data
+/// leaves a parameter outside its plausible range (the model or the range is then
+/// wrong: said, and the next adequate model tried). Says which and why, with figures.
+fn climb_ladder(
+    robot: &Robot,
+    series: &[Series],
+    marker: bool,
+    cfg: Cfg,
+    notes: &mut Vec<String>,
+    runs: &mut usize,
+) -> Vec<ParamSpec> {
+    let rungs = ladder(robot, marker);
+    let n = series.len();
+    // At most LADDER_FOLDS folds (recording j in fold j mod k): 44 recordings times five
+    // models left out one by one took six minutes.
+    let k = n.min(LADDER_FOLDS);
+    let mut errors = Vec::new();
+    for (_, specs) in &rungs {
+        let mut e = 0.0;
+        for fold in 0..k {
+            let rest: Vec<Series> = (0..n)
+                .filter(|&j| j % k != fold)
+                .map(|j| series[j].clone())
+                .collect();
+            let (f, _, _, r) = fit_specs(robot, specs, &rest, cfg);
+            *runs += r;
+            for j in (0..n).filter(|&j| j % k == fold) {
+                e += fitted_dead_reckoning_rmse(robot, specs, &f.geom, &series[j]);
+            }
+        }
+        errors.push(e / n as f64);
+    }
+    let best = errors
+        .iter()
+        .copied()
+        .filter(|e| e.is_finite())
+        .fold(f64::INFINITY, f64::min);
+    let table = rungs
+        .iter()
+        .zip(&errors)
+        .map(|((name, specs), e)| format!("{name} ({} parameters) {:.1} mm", specs.len(), e * 1e3))
+        .collect::<Vec<_>>()
+        .join("; ");
+    let mut skipped = Vec::new();
+    for ((name, specs), e) in rungs.iter().zip(&errors) {
+        if !(e.is_finite() && *e <= (1.0 + LADDER_TOLERANCE) * best) {
+            continue;
+        }
+        let (f, _, _, r) = fit_specs(robot, specs, series, cfg);
+        *runs += r;
+        let edge: Vec<String> = specs
+            .iter()
+            .zip(&f.geom)
+            .filter(|(s, v)| **v < s.plausible.0 || **v > s.plausible.1)
+            .map(|(s, v)| format!("{} {v:.4}", s.name))
+            .collect();
+        if !edge.is_empty() {
+            skipped.push(format!(
+                "{name} wants {} outside the plausible range",
+                edge.join(", ")
+            ));
+            continue;
+        }
+        let why = if skipped.is_empty() {
+            String::new()
+        } else {
+            format!(" ({}: the next model is tried)", skipped.join("; "))
+        };
+        notes.push(format!(
+            "model ladder, held-out dead reckoning by recording ({k} folds): {table}; kept: {name}, the simplest within {:.0} % of the best{why}",
+            LADDER_TOLERANCE * 100.0
+        ));
+        return specs.clone();
+    }
+    // Every adequate model wants an implausible value: the best one is fitted, its
+    // implausible values reported (the model or the range is wrong).
+    let (name, specs) = rungs
+        .iter()
+        .zip(&errors)
+        .filter(|(_, e)| e.is_finite())
+        .min_by(|a, b| a.1.total_cmp(b.1))
+        .map(|(r, _)| r.clone())
+        .unwrap_or_else(|| ("full", param_specs(robot, marker)));
+    notes.push(format!(
+        "model ladder, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values outside the plausible ranges ({}): the best, {name}, is fitted and its implausible values are listed",
+        skipped.join("; ")
+    ));
+    specs
 }
 
 /// Held-out improvement the skid-steer turn-radius law must bring to be kept: its mean

@@ -565,3 +565,61 @@ fn single_sample_glitches_are_reported_not_fitted() {
         );
     }
 }
+
+/// The model ladder on omni robots (three 40 s runs of free motion): a robot whose wheels
+/// are all 3 % large keeps the one-parameter model, recovered within 4 sigma; a robot
+/// with wheels of different sizes climbs to per-wheel radii, each recovered within 4
+/// sigma. A model with more parameters is chosen only when it holds out.
+#[test]
+fn omni_ladder_keeps_the_simplest_model_that_holds_out() {
+    let nominal = robot("omni3");
+    let runs = |truth: &Robot| -> Vec<(String, Recording)> {
+        (0..3)
+            .map(|i| (format!("run{i}"), random(truth, 40.0, 30 + i).recording))
+            .collect()
+    };
+    let specs = param_specs(&nominal, false);
+    // All three radii 3 % large, nothing else.
+    let common = robot_with(
+        &nominal,
+        &specs,
+        &[1.03, 1.03, 1.03, 0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+    );
+    let c = calibrate(&nominal, &runs(&common), None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    assert!(
+        c.notes.iter().any(|n| n.contains("kept: common scale,")),
+        "{:?}",
+        c.notes
+    );
+    assert_eq!(c.params.len(), 1, "{c}");
+    let p = &c.params[0];
+    // Floor 0.1 %: what the simulator does that a rigid model does not (as above).
+    assert!((p.value - 1.03).abs() <= 4.0 * p.sigma + 1e-3, "{c}");
+    // Radii 2 % apart.
+    let radii = [1.02, 0.99, 1.0];
+    let uneven = robot_with(
+        &nominal,
+        &specs,
+        &[radii[0], radii[1], radii[2], 0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+    );
+    let c = calibrate(&nominal, &runs(&uneven), None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    assert!(
+        !c.notes.iter().any(|n| n.contains("kept: common scale")),
+        "{:?}",
+        c.notes
+    );
+    for (i, r) in radii.iter().enumerate() {
+        let p = c
+            .params
+            .iter()
+            .find(|p| p.name == format!("radius_scale_{}", nominal.wheels[i].name))
+            .unwrap_or_else(|| panic!("no radius for wheel {i}\n{c}"));
+        assert!(
+            (p.value - r).abs() <= 4.0 * p.sigma + 1e-3,
+            "{}\n{c}",
+            p.name
+        );
+    }
+}
