@@ -227,18 +227,26 @@ pub fn param_specs(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
     param_specs_wheels(robot, marker)
 }
 
-/// A skid-steer robot's turn-radius model: [`param_specs`] plus the E_b law and the
-/// longitudinal ICR offset of [Mandow et al.].
-pub fn skid_law_specs(robot: &Robot) -> Vec<ParamSpec> {
+/// The turn-radius model of a robot with a left and a right side: [`param_specs`] plus
+/// the E_b law; a skid-steer robot also gets the longitudinal ICR offset of
+/// [Mandow et al.] (a two-wheel robot cannot slide sideways).
+pub fn turn_law_specs(robot: &Robot) -> Vec<ParamSpec> {
     let mut v = param_specs(robot, false);
     v.push(spec(
         GeomKind::EbArc,
         "eb_arc".into(),
         "wheelbase_error",
         0.0,
-        EB_ARC_RANGE,
+        if robot.kind == RobotKind::SkidSteer {
+            EB_ARC_RANGE
+        } else {
+            DIFF_EB_ARC_RANGE
+        },
         EB_ARC_STANDS,
     ));
+    if robot.kind != RobotKind::SkidSteer {
+        return v;
+    }
     v.push(spec(
         GeomKind::IcrX,
         "icr_x_m".into(),
@@ -706,7 +714,8 @@ impl Series {
             None
         };
         let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
-        let rho = (robot.kind == RobotKind::SkidSteer).then(|| turn_ratio(robot, &inc));
+        let rho = matches!(robot.kind, RobotKind::SkidSteer | RobotKind::DiffDrive)
+            .then(|| turn_ratio(robot, &inc));
         let mut s = Series {
             name: name.to_string(),
             t: rec.t.clone(),
@@ -936,6 +945,24 @@ impl Series {
         (sw, st)
     }
 
+    /// (turning on arcs, all turning): the heading the wheels turn (nominal geometry) in
+    /// rows whose turn ratio rho is between [`ARC_RHO`] bounds, and in all rows. (0, 0)
+    /// for robots without sides.
+    pub(crate) fn arc_turning(&self, robot: &Robot) -> (f64, f64) {
+        let Some(rho) = &self.rho else {
+            return (0.0, 0.0);
+        };
+        let (mut arcs, mut all) = (0.0, 0.0);
+        for (inc, &rho) in self.inc.iter().zip(rho) {
+            let d = skid_step(robot, &SkidLaw::default(), rho, inc).omega.abs();
+            all += d;
+            if (ARC_RHO.0..=ARC_RHO.1).contains(&rho) {
+                arcs += d;
+            }
+        }
+        (arcs, all)
+    }
+
     /// Number of ground-truth pose samples.
     pub fn pose_samples(&self) -> usize {
         self.pose_row.len()
@@ -960,7 +987,10 @@ impl Series {
         out.clear();
         let mut p = Pose::new(0.0, 0.0, 0.0);
         out.push(p);
-        if let Some(rho) = &self.rho {
+        // A skid-steer robot always steps by its sides; a differential drive only with a
+        // law (otherwise its exact kinematics, the same to rounding).
+        let sides = robot.kind == RobotKind::SkidSteer || *law != SkidLaw::default();
+        if let (Some(rho), true) = (&self.rho, sides) {
             for (inc, &rho) in self.inc.iter().zip(rho) {
                 p = integrate_arc(p, &skid_step(robot, law, rho, inc));
                 out.push(p);
@@ -2090,8 +2120,10 @@ fn choose_specs(
     runs: &mut usize,
 ) -> Vec<ParamSpec> {
     let full = param_specs(robot, marker);
-    if robot.kind == RobotKind::SkidSteer {
-        return choose_skid_specs(robot, series, cfg, notes, runs);
+    if robot.kind == RobotKind::SkidSteer
+        || (robot.kind == RobotKind::DiffDrive && robot.wheels.len() == 2)
+    {
+        return choose_turn_law(robot, series, cfg, notes, runs);
     }
     if robot.kind == RobotKind::Omni && series.len() >= 2 {
         return climb_ladder(robot, series, marker, cfg, notes, runs);
@@ -2327,68 +2359,117 @@ fn climb_ladder(
     specs
 }
 
-/// Held-out improvement the skid-steer turn-radius law must bring to be kept: its mean
-/// leave-one-recording-out dead-reckoning error at most this share of the constant-E_b
-/// model's.
+/// Turn ratios that count as arcs (rho = 1 is a turn in place, 0 a straight line).
+pub const ARC_RHO: (f64, f64) = (0.1, 0.8);
+/// A turn-radius law needs the recordings to turn on arcs for at least this share of
+/// their turning: squares turn only in place, and a law fitted to them extrapolates
+/// (measured: on one real square session, eb_arc 0.33 ± 0.08 held out on its squares
+/// and made the circles nine times worse). Real squares turn 0-4 % on arcs (the starts
+/// and ends of turns), the simulator's free motion 24 %.
+pub const MIN_ARC_SHARE: f64 = 0.15;
+/// A differential drive's separation may depend on the turn by this much (tyre scrub).
+pub const DIFF_EB_ARC_RANGE: f64 = 0.1;
+
+/// Held-out improvement a turn-radius law must bring to be kept: its mean held-out
+/// dead-reckoning error at most this share of the constant-E_b model's.
 pub const SKID_LAW_HOLDOUT_RATIO: f64 = 0.95;
 
-/// A skid-steer robot's model: constant E_b, or the turn-radius law of [Mandow et al.]
-/// when it holds out. Each recording in turn is left out, both models are fitted on the
-/// rest and dead-reckon it; the law is kept when its mean held-out error is at most
-/// [`SKID_LAW_HOLDOUT_RATIO`] of the constant model's and one of its two parameters is
-/// significant (3 sigma) on all the data. Says which and why, with the figures.
-fn choose_skid_specs(
+/// A differential or skid-steer robot's model: constant E_b, or the turn-radius law
+/// ([Mandow et al.]'s moving ICRs on a skid-steer robot, tyre scrub on a differential
+/// drive) when it holds out. The recordings are split into at most [`LADDER_FOLDS`]
+/// folds; both models are fitted without each fold and dead-reckon it; the law is kept
+/// when its mean held-out error is at most [`SKID_LAW_HOLDOUT_RATIO`] of the constant
+/// model's and one of its parameters is significant (3 sigma) on all the data. Says
+/// which and why, with the figures.
+fn choose_turn_law(
     robot: &Robot,
     series: &[Series],
     cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
 ) -> Vec<ParamSpec> {
+    let skid = robot.kind == RobotKind::SkidSteer;
+    let who = if skid { "skid-steer" } else { "turn law" };
     let base = param_specs(robot, false);
-    let law = skid_law_specs(robot);
+    let law = turn_law_specs(robot);
     if series.len() < 2 {
-        notes.push(
-            "skid-steer: one recording cannot cross-validate a turn-radius law; a constant effective separation (E_b) is fitted".into(),
-        );
+        if skid {
+            notes.push(format!(
+                "{who}: one recording cannot cross-validate a turn-radius law; a constant effective separation (E_b) is fitted"
+            ));
+        }
+        return base;
+    }
+    let (arcs, all) = series.iter().fold((0.0, 0.0), |(a, b), s| {
+        let (x, y) = s.arc_turning(robot);
+        (a + x, b + y)
+    });
+    let share = if all > 0.0 { arcs / all } else { 0.0 };
+    if share < MIN_ARC_SHARE {
+        notes.push(format!(
+            "{who}: the recordings turn on arcs for {:.0} % of their turning (the rest in place), under the {:.0} % a turn-radius law needs: a constant effective separation (E_b) is fitted; record arcs of several radii to test one",
+            share * 100.0,
+            MIN_ARC_SHARE * 100.0
+        ));
         return base;
     }
     let (f_law, _, cov_law, r0) = fit_specs(robot, &law, series, cfg);
     *runs += r0;
+    let n = series.len();
+    let k = n.min(LADDER_FOLDS);
     let (mut e_base, mut e_law) = (0.0, 0.0);
-    for i in 0..series.len() {
-        let rest: Vec<Series> = (0..series.len())
-            .filter(|&j| j != i)
+    for fold in 0..k {
+        let rest: Vec<Series> = (0..n)
+            .filter(|&j| j % k != fold)
             .map(|j| series[j].clone())
             .collect();
         let (fb, _, _, rb) = fit_specs(robot, &base, &rest, cfg);
         let (fl, _, _, rl) = fit_specs(robot, &law, &rest, cfg);
         *runs += rb + rl;
-        e_base += fitted_dead_reckoning_rmse(robot, &base, &fb.geom, &series[i]);
-        e_law += fitted_dead_reckoning_rmse(robot, &law, &fl.geom, &series[i]);
+        for j in (0..n).filter(|&j| j % k == fold) {
+            e_base += fitted_dead_reckoning_rmse(robot, &base, &fb.geom, &series[j]);
+            e_law += fitted_dead_reckoning_rmse(robot, &law, &fl.geom, &series[j]);
+        }
     }
-    let n = series.len() as f64;
-    let (e_base, e_law) = (e_base / n, e_law / n);
-    let at = |k: GeomKind| law.iter().position(|s| s.kind == k).unwrap_or(0);
-    let (ia, ix) = (at(GeomKind::EbArc), at(GeomKind::IcrX));
+    let (e_base, e_law) = (e_base / n as f64, e_law / n as f64);
+    let at = |k: GeomKind| law.iter().position(|s| s.kind == k);
     let sd = |i: usize| cov_law[(i, i)].max(0.0).sqrt();
-    let (arc, s_arc, x, s_x) = (f_law.geom[ia], sd(ia), f_law.geom[ix], sd(ix));
-    let significant = arc.abs() >= 3.0 * s_arc || x.abs() >= 3.0 * s_x;
-    let holds = e_law.is_finite() && e_law <= SKID_LAW_HOLDOUT_RATIO * e_base;
-    let figures = format!(
-        "eb_arc {arc:+.3} ± {s_arc:.3}, icr_x {:+.1} ± {:.1} mm; leave-one-recording-out dead reckoning {:.1} mm with the law, {:.1} mm with a constant E_b",
-        x * 1e3,
-        s_x * 1e3,
+    let ia = at(GeomKind::EbArc).unwrap_or(0);
+    let (arc, s_arc) = (f_law.geom[ia], sd(ia));
+    let mut significant = arc.abs() >= 3.0 * s_arc;
+    let mut figures = format!("eb_arc {arc:+.4} ± {s_arc:.4}");
+    if let Some(ix) = at(GeomKind::IcrX) {
+        let (x, s_x) = (f_law.geom[ix], sd(ix));
+        significant |= x.abs() >= 3.0 * s_x;
+        figures.push_str(&format!(", icr_x {:+.1} ± {:.1} mm", x * 1e3, s_x * 1e3));
+    }
+    figures.push_str(&format!(
+        "; held-out dead reckoning by recording ({k} folds) {:.1} mm with the law, {:.1} mm with a constant E_b",
         e_law * 1e3,
         e_base * 1e3
-    );
-    if significant && holds {
+    ));
+    let holds = e_law.is_finite() && e_law <= SKID_LAW_HOLDOUT_RATIO * e_base;
+    let plausible = law[ia].plausible;
+    let in_range = (plausible.0..=plausible.1).contains(&arc);
+    if !in_range {
+        figures.push_str(&format!(
+            "; eb_arc is outside its plausible {:+.2}..{:+.2}",
+            plausible.0, plausible.1
+        ));
+    }
+    if significant && holds && in_range {
+        let what = if skid {
+            "the tracks' ICRs move with the turn radius"
+        } else {
+            "the effective wheelbase depends on how the robot turns (tyre scrub)"
+        };
         notes.push(format!(
-            "skid-steer: the tracks' ICRs move with the turn radius and the law holds out ({figures}): the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b)"
+            "{who}: {what} and the law holds out ({figures}): the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn)"
         ));
         law
     } else {
         notes.push(format!(
-            "skid-steer: a constant effective separation explains the data ({figures}; the law is kept only when significant and at most {:.0} % of the constant model's held-out error)",
+            "{who}: a constant effective separation explains the data ({figures}; the law is kept only when significant and at most {:.0} % of the constant model's held-out error)",
             SKID_LAW_HOLDOUT_RATIO * 100.0
         ));
         base
@@ -2587,7 +2668,33 @@ pub fn calibrate(
         corr = correlations(&cov, g);
     }
     let after_res = p.residuals(&fitted.geom, &fitted.nuis, false);
-    let fitted_robot = robot_with(robot, &specs, &fitted.geom);
+    let mut fitted_robot = robot_with(robot, &specs, &fitted.geom);
+    // A turn-radius law is more than a robot file, the board or ROS 2's
+    // diff_drive_controller express: they all get E_b at the recordings' mean turn,
+    // weighted by how much each row turns.
+    let law_arc = specs
+        .iter()
+        .position(|s| s.kind == GeomKind::EbArc)
+        .map_or(0.0, |i| fitted.geom[i]);
+    let mut law_eb_shift = 0.0;
+    if law_arc != 0.0 {
+        let (mut sw, mut st) = (0.0, 0.0);
+        for s in &series {
+            let (w, t) = s.turn_weighted_arc_term(robot);
+            sw += w;
+            st += t;
+        }
+        if sw > 0.0 {
+            law_eb_shift = law_arc * st / sw;
+            let eb = specs
+                .iter()
+                .position(|s| s.kind == GeomKind::Eb)
+                .map_or(1.0, |i| fitted.geom[i]);
+            for w in fitted_robot.wheels.iter_mut() {
+                w.l_m *= (eb + law_eb_shift) / eb;
+            }
+        }
+    }
 
     // Unconstrained directions: eigenvectors of the correlation matrix with tiny
     // eigenvalues.
@@ -2844,19 +2951,8 @@ pub fn calibrate(
             scale(GeomKind::Ed),
             scale(GeomKind::Eb),
         );
-        // A skid-steer turn-radius law is more than the board (or ROS 2's
-        // diff_drive_controller) applies: they get E_b at the recordings' mean turn,
-        // weighted by how much each row turns.
-        let law_arc = scale_or(GeomKind::EbArc, 0.0);
-        let (mut sw, mut st) = (0.0, 0.0);
-        if law_arc != 0.0 {
-            for s in &series {
-                let (w, t) = s.turn_weighted_arc_term(robot);
-                sw += w;
-                st += t;
-            }
-        }
-        let eb = if sw > 0.0 { eb + law_arc * st / sw } else { eb };
+        // With a turn-radius law: E_b at the recordings' mean turn (as the robot file).
+        let eb = eb + law_eb_shift;
         let (c_l, c_r) = calib_core::umbmark::wheel_factors(ed);
         Factors::Diff {
             c_l: sc * c_l,

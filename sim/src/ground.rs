@@ -50,6 +50,9 @@ pub struct GroundParams {
     pub mech: crate::effects::MechanismFaults,
     /// Tyre friction of a skid-steer robot's contacts.
     pub tyre: crate::skid::Tyre,
+    /// Growth of a wheeled robot's effective separation from a turn in place to a wide
+    /// arc (wide tyres' contact moving across the tread); 0 for none.
+    pub turn_scrub: f64,
 }
 
 /// The body's state on the ground.
@@ -154,7 +157,26 @@ impl Ground {
                 self.wheel_twist.vy = prev.vy + dy * a / d;
             }
         }
-        let w = self.wheel_twist;
+        let mut w = self.wheel_twist;
+        if params.turn_scrub != 0.0 && !geom.skid_steer {
+            // Wide tyres: the contact patches sit at the inner edges in a turn in place and
+            // roll on their centres on a straight line, so the effective separation grows
+            // by `turn_scrub` (1 - rho)^2 from the first to the second.
+            let (mut l, mut r, mut nl, mut nr) = (0.0, 0.0, 0.0, 0.0);
+            for (g, c) in geom.wheels.iter().zip(&self.contacts) {
+                if g.driven && g.y >= 0.0 {
+                    l += c;
+                    nl += 1.0;
+                } else if g.driven {
+                    r += c;
+                    nr += 1.0;
+                }
+            }
+            let (l, r) = (l / f64::max(nl, 1.0), r / f64::max(nr, 1.0));
+            let den = l.abs() + r.abs();
+            let rho = if den > 0.0 { (r - l).abs() / den } else { 1.0 };
+            w.omega /= 1.0 + params.turn_scrub * (1.0 - rho).powi(2);
+        }
         let side = match params.mech.lateral {
             Mechanism::Saturating if params.mech.lateral_sat_m_s.is_finite() => {
                 let s = params.mech.lateral_sat_m_s;

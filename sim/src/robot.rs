@@ -55,6 +55,10 @@ pub struct SimConfig {
     pub random_counter_start: bool,
     /// Tyre-ground friction of a skid-steer robot (other kinds ignore it).
     pub tyre: crate::skid::Tyre,
+    /// Growth of the effective separation from a turn in place to a wide arc (wide
+    /// tyres): E_b(rho) = E_b (1 + turn_scrub (1 - rho)^2), rho = |v_r - v_l| /
+    /// (|v_r| + |v_l|). 0: the separation does not depend on the turn.
+    pub turn_scrub: f64,
 }
 
 impl Default for SimConfig {
@@ -70,6 +74,7 @@ impl Default for SimConfig {
             leg_rear_rad: std::f64::consts::FRAC_PI_2,
             random_counter_start: true,
             tyre: crate::skid::Tyre::default(),
+            turn_scrub: 0.0,
         }
     }
 }
@@ -139,6 +144,7 @@ impl SimRobot {
         cfg.vision.validate()?;
         cfg.imu.validate()?;
         cfg.tyre.validate()?;
+        crate::error::check_range("turn_scrub", cfg.turn_scrub, -0.5, 0.5)?;
         for (field, v) in [
             ("start.x", cfg.start.x),
             ("start.y", cfg.start.y),
@@ -199,6 +205,7 @@ impl SimRobot {
                 .unwrap_or_else(|| driven_load_share(nominal, legs.0, legs.1)),
             side_slip_s: faults.side_slip_s,
             tyre: cfg.tyre,
+            turn_scrub: cfg.turn_scrub,
             travel_noise_m_per_sqrt_m: faults.travel_noise_m_per_sqrt_m,
             mech: faults.mech,
         };
