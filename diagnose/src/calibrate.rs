@@ -2267,6 +2267,34 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
     rungs
 }
 
+/// Mean held-out dead-reckoning RMSE of the model `specs`: the recordings split into at
+/// most [`LADDER_FOLDS`] folds (recording j in fold j mod k; 44 recordings left out one
+/// by one for five models took six minutes), the model fitted without each fold and
+/// dead-reckoning it from each recording's first pose.
+fn heldout_error(
+    robot: &Robot,
+    specs: &[ParamSpec],
+    series: &[Series],
+    cfg: Cfg,
+    runs: &mut usize,
+) -> f64 {
+    let n = series.len();
+    let k = n.min(LADDER_FOLDS);
+    let mut e = 0.0;
+    for fold in 0..k {
+        let rest: Vec<Series> = (0..n)
+            .filter(|&j| j % k != fold)
+            .map(|j| series[j].clone())
+            .collect();
+        let (f, _, _, r) = fit_specs(robot, specs, &rest, cfg);
+        *runs += r;
+        for j in (0..n).filter(|&j| j % k == fold) {
+            e += fitted_dead_reckoning_rmse(robot, specs, &f.geom, &series[j]);
+        }
+    }
+    e / n as f64
+}
+
 /// Parsimony for an omni robot: each model of [`ladder`] is fitted with each recording
 /// left out in turn and dead-reckons it; the simplest model within
 /// [`LADDER_TOLERANCE`] of the best held-out error is kept, unless its fit on all the data
@@ -2281,26 +2309,11 @@ fn climb_ladder(
     runs: &mut usize,
 ) -> Vec<ParamSpec> {
     let rungs = ladder(robot, marker);
-    let n = series.len();
-    // At most LADDER_FOLDS folds (recording j in fold j mod k): 44 recordings times five
-    // models left out one by one took six minutes.
-    let k = n.min(LADDER_FOLDS);
-    let mut errors = Vec::new();
-    for (_, specs) in &rungs {
-        let mut e = 0.0;
-        for fold in 0..k {
-            let rest: Vec<Series> = (0..n)
-                .filter(|&j| j % k != fold)
-                .map(|j| series[j].clone())
-                .collect();
-            let (f, _, _, r) = fit_specs(robot, specs, &rest, cfg);
-            *runs += r;
-            for j in (0..n).filter(|&j| j % k == fold) {
-                e += fitted_dead_reckoning_rmse(robot, specs, &f.geom, &series[j]);
-            }
-        }
-        errors.push(e / n as f64);
-    }
+    let k = series.len().min(LADDER_FOLDS);
+    let errors: Vec<f64> = rungs
+        .iter()
+        .map(|(_, specs)| heldout_error(robot, specs, series, cfg, runs))
+        .collect();
     let best = errors
         .iter()
         .copied()
@@ -2415,23 +2428,9 @@ fn choose_turn_law(
     }
     let (f_law, _, cov_law, r0) = fit_specs(robot, &law, series, cfg);
     *runs += r0;
-    let n = series.len();
-    let k = n.min(LADDER_FOLDS);
-    let (mut e_base, mut e_law) = (0.0, 0.0);
-    for fold in 0..k {
-        let rest: Vec<Series> = (0..n)
-            .filter(|&j| j % k != fold)
-            .map(|j| series[j].clone())
-            .collect();
-        let (fb, _, _, rb) = fit_specs(robot, &base, &rest, cfg);
-        let (fl, _, _, rl) = fit_specs(robot, &law, &rest, cfg);
-        *runs += rb + rl;
-        for j in (0..n).filter(|&j| j % k == fold) {
-            e_base += fitted_dead_reckoning_rmse(robot, &base, &fb.geom, &series[j]);
-            e_law += fitted_dead_reckoning_rmse(robot, &law, &fl.geom, &series[j]);
-        }
-    }
-    let (e_base, e_law) = (e_base / n as f64, e_law / n as f64);
+    let k = series.len().min(LADDER_FOLDS);
+    let e_base = heldout_error(robot, &base, series, cfg, runs);
+    let e_law = heldout_error(robot, &law, series, cfg, runs);
     let at = |k: GeomKind| law.iter().position(|s| s.kind == k);
     let sd = |i: usize| cov_law[(i, i)].max(0.0).sqrt();
     let ia = at(GeomKind::EbArc).unwrap_or(0);
