@@ -1,9 +1,9 @@
 //! Single board requests: `info`, `drive`, `status`, `stop`, `estop`, `clear-fault`.
 
+use crate::args::DriveArgs;
 use crate::board_cmds;
-use crate::cli::Ctx;
-use crate::cli::DriveArgs;
 use crate::output::Output;
+use crate::session::Ctx;
 use anyhow::Result;
 use calib_core::Twist;
 use std::time::Duration;

@@ -1,10 +1,10 @@
 //! `wheelcal factors get|set|save|reset|export`.
 
+use crate::args::{ExportArgs, FactorsCmd, SetArgs};
 use crate::board_cmds::{self, FactorsView};
-use crate::cli::Ctx;
-use crate::cli::{ExportArgs, FactorsCmd, SetArgs};
 use crate::output::Output;
 use crate::ros2;
+use crate::session::Ctx;
 use anyhow::{bail, Context, Result};
 
 /// Dispatches `factors` subcommands.

@@ -1,9 +1,9 @@
 //! `wheelcal log list|pull|clear`.
 
+use crate::args::LogCmd;
 use crate::board_cmds;
-use crate::cli::Ctx;
-use crate::cli::LogCmd;
 use crate::output::Output;
+use crate::session::Ctx;
 use anyhow::Result;
 use std::path::PathBuf;
 

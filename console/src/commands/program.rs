@@ -1,9 +1,9 @@
 //! `wheelcal run umbmark|omni`: one test path on the board.
 
+use crate::args::RunCmd;
 use crate::board_cmds;
-use crate::cli::Ctx;
-use crate::cli::RunCmd;
 use crate::output::Output;
+use crate::session::Ctx;
 use anyhow::Result;
 
 /// Starts the program (validated first) and, unless --no-wait, follows it to its end.
