@@ -3,7 +3,7 @@
 //! over these modules so the host tests drive the same code.
 
 pub mod args;
-pub mod board_cmds;
+pub mod board;
 pub mod calibration;
 pub mod cli;
 pub mod client;

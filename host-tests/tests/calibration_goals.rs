@@ -456,7 +456,7 @@ fn a_program_started_after_a_quiet_spell_is_not_cut() {
     // flat out), the failsafe cut it. Under load (a loaded 2-core CI machine) that made
     // the guided procedures record cut runs as measurements.
     use std::time::Duration;
-    use wheelcal::board_cmds;
+    use wheelcal::board;
     use wheelcal::link::Faults;
     use wheelcal::virtual_board::InProcessBoard;
     let r = robot("mobolab.toml");
@@ -471,7 +471,7 @@ fn a_program_started_after_a_quiet_spell_is_not_cut() {
     let c = &mut board.client;
     c.hello().unwrap();
     for _ in 0..2 {
-        let limit = board_cmds::run_umbmark(
+        let limit = board::run_umbmark(
             c,
             calib_core::motion::Direction::Cw,
             1.0,
@@ -482,7 +482,7 @@ fn a_program_started_after_a_quiet_spell_is_not_cut() {
         // The first poll 100 ms after the start: inside the 250 ms the board counts a
         // host it just heard as alive, but 0.5 s of board time has long passed flat out.
         std::thread::sleep(Duration::from_millis(100));
-        let end = board_cmds::wait_program(c, limit + Duration::from_secs(60), |_| {}).unwrap();
+        let end = board::wait_program(c, limit + Duration::from_secs(60), |_| {}).unwrap();
         assert_eq!(end.stop, calib_core::protocol::StopReason::ProgramDone);
         std::thread::sleep(Duration::from_millis(1000));
     }

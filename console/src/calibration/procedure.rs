@@ -7,7 +7,7 @@
 //! lose power) and start the same command later without losing what was measured.
 
 use super::{omni, umbmark};
-use crate::board_cmds;
+use crate::board;
 use crate::client::Client;
 use crate::virtual_board::TrialTruth;
 use anyhow::{bail, Context, Result};
@@ -405,7 +405,7 @@ pub fn run<L: Read + Write>(
             c.set_corrections(p.clone())?;
             m.say(&format!(
                 "second pass: measuring with {}",
-                board_cmds::FactorsView::from(p).human().trim()
+                board::FactorsView::from(p).human().trim()
             ));
         } else {
             c.reset_corrections()?;
@@ -454,8 +454,8 @@ pub fn run<L: Read + Write>(
         Some(p) => p.compose(&corrections).with_context(|| {
             format!(
                 "cannot compose the board's factors ({}) with ({}): they do not fit this procedure",
-                crate::board_cmds::factors_text(p),
-                crate::board_cmds::factors_text(&corrections)
+                crate::board::factors_text(p),
+                crate::board::factors_text(&corrections)
             )
         })?,
         None => corrections,
@@ -468,7 +468,7 @@ pub fn run<L: Read + Write>(
     c.save_corrections()?;
     m.say(&format!(
         "factors uploaded and saved: {}",
-        board_cmds::FactorsView::from(&corrections).human().trim()
+        board::FactorsView::from(&corrections).human().trim()
     ));
     if opts.after {
         run_phase(
@@ -533,13 +533,13 @@ fn run_phase<L: Read + Write>(
                 m.say(&format!("{what}: running"));
                 let limit = match t {
                     Trial::Square(d) => {
-                        board_cmds::run_umbmark(c, d, length, 10, DEFAULT_LINK_TIMEOUT_MS)?
+                        board::run_umbmark(c, d, length, 10, DEFAULT_LINK_TIMEOUT_MS)?
                     }
                     Trial::Path(p, idle) => {
-                        board_cmds::run_omni(c, p, length, idle, 10, DEFAULT_LINK_TIMEOUT_MS)?
+                        board::run_omni(c, p, length, idle, 10, DEFAULT_LINK_TIMEOUT_MS)?
                     }
                 };
-                let end = board_cmds::wait_program(c, limit + Duration::from_secs(60), |_| {})?;
+                let end = board::wait_program(c, limit + Duration::from_secs(60), |_| {})?;
                 // Only a run that reached the path's end is a measurement: a cut one would
                 // enter the statistics as a huge "error".
                 match end.stop {
