@@ -169,8 +169,7 @@ pub fn umbmark_on_virtual_board(
             seed,
             ..SimConfig::default()
         },
-    )
-    .map_err(|e| anyhow::anyhow!("{e}"))?;
+    )?;
     match procedure_on_virtual_board(
         robot,
         sim,
@@ -200,8 +199,7 @@ pub fn procedure_on_virtual_board(
     progress: bool,
 ) -> Result<ProcedureReport> {
     let seed = RUN_ID.fetch_add(1, Ordering::Relaxed);
-    let mut board = InProcessBoard::start(robot, sim, Faults::none(), Faults::none(), seed)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut board = InProcessBoard::start(robot, sim, Faults::none(), Faults::none(), seed)?;
     let dir =
         std::env::temp_dir().join(format!("wheelcal-procedure-{}-{seed}", std::process::id()));
     std::fs::create_dir_all(&dir)?;

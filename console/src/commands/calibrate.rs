@@ -176,8 +176,8 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         cv: if a.no_cross_validation { None } else { cv },
         heading_lever_m: a.heading_lever,
     };
-    let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|e| {
-        // Name the file, not only the short name.
+    let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|mut e| {
+        // Name the file, not only the short name; the error stays the calibration's.
         let file = e
             .recording
             .as_ref()
@@ -191,10 +191,10 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
                     .clone()
                     .and(a.holdout.as_ref().map(|h| h.display().to_string()))
             });
-        match file {
-            Some(f) => anyhow::anyhow!("{f}: {}", e.message),
-            None => anyhow::anyhow!("{e}"),
+        if file.is_some() {
+            e.recording = file;
         }
+        e
     })?;
     if let Some(p) = &a.write_robot {
         formats::safe_write::write_file(
@@ -284,8 +284,7 @@ fn write_report(
     if let Some(y) = ros2_yaml(cal) {
         replace_file(&dir.join("ros2.yaml"), y.as_bytes())?;
     }
-    let series = calibrate_plots::calibration_series(cal, robot, recs, held)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let series = calibrate_plots::calibration_series(cal, robot, recs, held)?;
     calibrate_plots::write_calibration_figures(cal, &series, &summary, dir)?;
     let names: Vec<[String; 3]> = series
         .iter()
@@ -367,6 +366,12 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("motion capture"), "{text}");
+        // The calibration's own error, not its text: a caller can still tell what failed.
+        assert!(
+            e.downcast_ref::<diagnose::calibrate::CalibrateError>()
+                .is_some_and(|c| c.recording.is_some()),
+            "{e:?}"
+        );
         std::fs::remove_dir_all(&d).ok();
     }
 

@@ -57,16 +57,17 @@ fn diagnose_many(a: &DiagnoseArgs, files: &[PathBuf], out: Output) -> Result<()>
     let opts = diagnose::Options {
         max_effects: a.max_effects.into(),
     };
-    let rep = diagnose::multi::diagnose_many(&robot, &recs, &opts).map_err(|e| {
+    let rep = diagnose::multi::diagnose_many(&robot, &recs, &opts).map_err(|mut e| {
+        // Name the file, not only the short name; the error stays the diagnosis's.
         let file = e
             .recording
             .as_ref()
             .and_then(|n| recs.iter().position(|(r, _)| r == n))
             .map(|i| files[i].display().to_string());
-        match file {
-            Some(f) => anyhow::anyhow!("{f}: {}", e.message),
-            None => anyhow::anyhow!("{e}"),
+        if file.is_some() {
+            e.recording = file;
         }
+        e
     })?;
     if a.report.is_some() {
         out.note(
