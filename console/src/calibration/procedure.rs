@@ -419,17 +419,15 @@ pub fn run<L: Read + Write>(
                 "path"
             }
         ));
-        run_phase(
-            c,
-            opts.runs,
-            &opts.runs_file,
-            m,
-            &trials,
+        let plan = PhasePlan {
+            runs: opts.runs,
+            runs_file: &opts.runs_file,
+            trials: &trials,
             test,
             length,
-            Phase::Before,
-            &|t| have(Phase::Before, t),
-        )?;
+            phase: Phase::Before,
+        };
+        run_phase(c, m, plan, &|t| have(Phase::Before, t))?;
     }
     let runs = RunsFile::load(&opts.runs_file)?;
     let corrections = match opts.kind {
@@ -471,17 +469,15 @@ pub fn run<L: Read + Write>(
         board::FactorsView::from(&corrections).human().trim()
     ));
     if opts.after {
-        run_phase(
-            c,
-            opts.after_runs,
-            &opts.runs_file,
-            m,
-            &trials,
+        let plan = PhasePlan {
+            runs: opts.after_runs,
+            runs_file: &opts.runs_file,
+            trials: &trials,
             test,
             length,
-            Phase::After,
-            &|t| have(Phase::After, t),
-        )?;
+            phase: Phase::After,
+        };
+        run_phase(c, m, plan, &|t| have(Phase::After, t))?;
     }
     let runs = RunsFile::load(&opts.runs_file)?;
     let rep = match opts.kind {
@@ -506,18 +502,40 @@ pub fn run<L: Read + Write>(
     Ok(rep)
 }
 
-#[allow(clippy::too_many_arguments)]
+/// What one phase (before or after calibration) runs, in one value instead of a long
+/// argument list to [`run_phase`].
+#[derive(Debug, Clone, Copy)]
+struct PhasePlan<'a> {
+    /// Runs per direction (UMBmark) or per path (omni).
+    runs: usize,
+    /// Where each measured run is appended, so a stopped procedure resumes.
+    runs_file: &'a Path,
+    /// The squares or paths, in the order they run.
+    trials: &'a [Trial],
+    /// Which calibration the runs belong to.
+    test: TestKind,
+    /// The square's side (UMBmark) or the path length (omni), metres.
+    length: f64,
+    /// Before or after the factors were applied.
+    phase: Phase,
+}
+
+/// Runs one phase: for each trial, the runs `have` says are still missing, each measured
+/// by `m` and appended to the runs file.
 fn run_phase<L: Read + Write>(
     c: &mut Client<L>,
-    runs: usize,
-    runs_file: &Path,
     m: &mut dyn Measure,
-    trials: &[Trial],
-    test: TestKind,
-    length: f64,
-    phase: Phase,
+    plan: PhasePlan<'_>,
     have: &dyn Fn(Trial) -> usize,
 ) -> Result<()> {
+    let PhasePlan {
+        runs,
+        runs_file,
+        trials,
+        test,
+        length,
+        phase,
+    } = plan;
     for &t in trials {
         for k in have(t)..runs {
             let what = format!(
