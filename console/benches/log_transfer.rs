@@ -11,7 +11,7 @@ use calib_core::protocol::{record_size, ProgramSpec};
 use formats::robot_file;
 use std::path::Path;
 use std::time::{Duration, Instant};
-use wheelcal::board_cmds::records_to_csv;
+use wheelcal::board::records_to_csv;
 use wheelcal::client::decode_records;
 use wheelcal::link::Faults;
 use wheelcal::virtual_board::InProcessBoard;
@@ -39,7 +39,7 @@ fn trial(robot_name: &str, what: &str, program: ProgramSpec) -> f64 {
     c.hello().unwrap();
     c.run_program(program, 1000, calib_core::protocol::DEFAULT_LINK_TIMEOUT_MS)
         .unwrap();
-    wheelcal::board_cmds::wait_program(c, Duration::from_secs(600), |_| {}).unwrap();
+    wheelcal::board::wait_program(c, Duration::from_secs(600), |_| {}).unwrap();
     let info = c.trials().unwrap().trials.last().unwrap().clone();
     let (rx0, tx0) = (c.stats.bytes_received, c.stats.bytes_sent);
     let t0 = Instant::now();

@@ -127,7 +127,14 @@ pub fn run(
     faults.radius_scale = vec![c_l, c_r];
     faults.wheelbase_scale = true_eb;
     faults.travel_noise_m_per_sqrt_m = DEMO_ROUGHNESS;
-    let rep = umbmark_on_virtual_board(&robot, faults, seed, runs, side, report, runs, progress)?;
+    let run = VirtualRun {
+        runs,
+        length: side,
+        report,
+        after_runs: runs,
+        progress,
+    };
+    let rep = umbmark_on_virtual_board(&robot, faults, seed, run)?;
     let after = rep
         .e_max_sys_after_m
         .context("the after runs are missing")?;
@@ -148,18 +155,30 @@ pub fn run(
     })
 }
 
+/// How a procedure runs on a virtual board: the settings [`umbmark_on_virtual_board`]
+/// and [`procedure_on_virtual_board`] share, in one value instead of a long argument
+/// list whose numbers are easy to swap.
+#[derive(Debug, Clone, Copy)]
+pub struct VirtualRun<'a> {
+    /// Runs per direction (UMBmark) or per path (omni) before calibration.
+    pub runs: usize,
+    /// The square's side (UMBmark) or the path length (omni), metres.
+    pub length: f64,
+    /// Write the HTML report into this directory.
+    pub report: Option<&'a Path>,
+    /// Runs per direction or path after calibration (0: none).
+    pub after_runs: usize,
+    /// Show a progress bar on stderr.
+    pub progress: bool,
+}
+
 /// Runs the UMBmark procedure (auto-measured) on a virtual board simulating `robot` with
-/// `faults`, with `after_runs` runs per direction after calibration (0: none).
-#[allow(clippy::too_many_arguments)]
+/// `faults` (noise seeded with `seed`), as `run` says.
 pub fn umbmark_on_virtual_board(
     robot: &calib_core::Robot,
     faults: sim::Faults,
     seed: u64,
-    runs: usize,
-    side: f64,
-    report: Option<&Path>,
-    after_runs: usize,
-    progress: bool,
+    run: VirtualRun<'_>,
 ) -> Result<UmbmarkReport> {
     let sim = SimRobot::new(
         robot,
@@ -169,39 +188,30 @@ pub fn umbmark_on_virtual_board(
             seed,
             ..SimConfig::default()
         },
-    )
-    .map_err(|e| anyhow::anyhow!("{e}"))?;
-    match procedure_on_virtual_board(
-        robot,
-        sim,
-        Kind::Umbmark,
-        runs,
-        side,
-        report,
-        after_runs,
-        progress,
-    )? {
+    )?;
+    match procedure_on_virtual_board(robot, sim, Kind::Umbmark, run)? {
         ProcedureReport::Umbmark(rep) => Ok(*rep),
         ProcedureReport::Omni(_) => bail!("the procedure returned an omni result"),
     }
 }
 
-/// Runs a guided procedure, auto-measured, on a virtual board around `sim`: `length` is
-/// the square's side (UMBmark) or the path length (omni).
-#[allow(clippy::too_many_arguments)]
+/// Runs a guided procedure, auto-measured, on a virtual board around `sim`, as `run`
+/// says.
 pub fn procedure_on_virtual_board(
     robot: &calib_core::Robot,
     sim: SimRobot,
     kind: Kind,
-    runs: usize,
-    length: f64,
-    report: Option<&Path>,
-    after_runs: usize,
-    progress: bool,
+    run: VirtualRun<'_>,
 ) -> Result<ProcedureReport> {
+    let VirtualRun {
+        runs,
+        length,
+        report,
+        after_runs,
+        progress,
+    } = run;
     let seed = RUN_ID.fetch_add(1, Ordering::Relaxed);
-    let mut board = InProcessBoard::start(robot, sim, Faults::none(), Faults::none(), seed)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut board = InProcessBoard::start(robot, sim, Faults::none(), Faults::none(), seed)?;
     let dir =
         std::env::temp_dir().join(format!("wheelcal-procedure-{}-{seed}", std::process::id()));
     std::fs::create_dir_all(&dir)?;

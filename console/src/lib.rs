@@ -2,8 +2,8 @@
 //! serial client, the virtual board and the diagnose command. The binary is a thin shell
 //! over these modules so the host tests drive the same code.
 
-pub mod board_cmds;
-pub mod calibrate_cmd;
+pub mod args;
+pub mod board;
 pub mod calibration;
 pub mod cli;
 pub mod client;
@@ -14,9 +14,11 @@ pub mod link;
 pub mod mcap_out;
 pub mod output;
 pub mod progress;
+pub mod recordings;
 pub mod repl;
 pub mod report;
 pub mod ros2;
+pub mod session;
 pub mod sim_board;
 pub mod stop;
 pub mod virtual_board;

@@ -3,7 +3,8 @@
 //! cw --side 2`, ...), run on one open connection; history is kept in
 //! `~/.wheelcal_history` and Tab completes command names.
 
-use crate::cli::{run as run_command, Cli, Ctx};
+use crate::args::{Cli, Command};
+use crate::session::Ctx;
 use anyhow::Result;
 use clap::{CommandFactory, Parser};
 use rustyline::completion::{Completer, Pair};
@@ -97,8 +98,12 @@ impl Highlighter for Completion {}
 impl Validator for Completion {}
 impl Helper for Completion {}
 
-/// Runs the prompt until `quit` or end of input.
-pub fn run(ctx: &mut Ctx, json: bool) -> Result<()> {
+/// Runs one parsed command line on the session: the dispatcher, passed in by the caller
+/// so this module does not depend on it (it is the dispatcher that runs the console).
+pub type RunCommand = fn(Cli, &mut Ctx) -> Result<()>;
+
+/// Runs the prompt until `quit` or end of input; each line goes to `run_command`.
+pub fn run(ctx: &mut Ctx, json: bool, run_command: RunCommand) -> Result<()> {
     let mut rl: Editor<Completion, rustyline::history::DefaultHistory> = Editor::new()?;
     rl.set_helper(Some(Completion::new()));
     let history =
@@ -134,7 +139,7 @@ pub fn run(ctx: &mut Ctx, json: bool) -> Result<()> {
                 argv.extend(words);
                 match Cli::try_parse_from(&argv) {
                     Ok(cli) => {
-                        if matches!(cli.command, crate::cli::Command::Console) {
+                        if matches!(cli.command, Command::Console) {
                             eprintln!("already in the console");
                             continue;
                         }

@@ -92,16 +92,15 @@ pub fn build_sim(opts: &SimBoardOptions) -> Result<(calib_core::Robot, SimRobot)
     let effects = opts
         .effects
         .iter()
-        .map(|e| Effect::parse(e).map_err(|err| anyhow::anyhow!("--effect {e}: {err}")))
+        .map(|e| Effect::parse(e).with_context(|| format!("--effect {e}")))
         .collect::<Result<Vec<_>>>()?;
-    let (mut faults, surface) = sim::Faults::from_effects(&robot, &effects, Surface::flat())
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let (mut faults, surface) = sim::Faults::from_effects(&robot, &effects, Surface::flat())?;
     faults.travel_noise_m_per_sqrt_m = opts.roughness;
     let cfg = SimConfig {
         seed: opts.seed,
         ..SimConfig::default()
     };
-    let sim = SimRobot::new(&robot, faults, surface, cfg).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let sim = SimRobot::new(&robot, faults, surface, cfg)?;
     Ok((robot, sim))
 }
 
@@ -116,7 +115,7 @@ pub fn run(
     if let Some(why) = flash.damaged() {
         eprintln!("warning: --flash {why}");
     }
-    let mut board = VirtualBoard::boot(&robot, sim, flash).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let mut board = VirtualBoard::boot(&robot, sim, flash)?;
     let (mut master, slave) =
         serialport::TTYPort::pair().context("cannot create a pseudo-terminal")?;
     use serialport::SerialPort;

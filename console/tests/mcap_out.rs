@@ -61,12 +61,12 @@ fn a_pulled_trial_as_mcap_has_one_channel_per_signal_group() {
         calib_core::protocol::DEFAULT_LINK_TIMEOUT_MS,
     )
     .unwrap();
-    wheelcal::board_cmds::wait_program(c, Duration::from_secs(120), |_| {}).unwrap();
+    wheelcal::board::wait_program(c, Duration::from_secs(120), |_| {}).unwrap();
     let dir = std::env::temp_dir().join(format!("wheelcal-mcap-{}", std::process::id()));
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("trial.mcap");
     let info = c.trials().unwrap().trials.last().unwrap().clone();
-    let pulled = wheelcal::board_cmds::pull_trial(c, info.id, &out, |_, _| {}).unwrap();
+    let pulled = wheelcal::board::pull_trial(c, info.id, &out, |_, _| {}).unwrap();
     let (_, topics) = read(&out);
     let names: Vec<&str> = topics.keys().map(|s| s.as_str()).collect();
     let mut want = TRIAL_TOPICS.to_vec();

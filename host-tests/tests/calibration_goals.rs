@@ -6,7 +6,7 @@
 use formats::robot_file;
 use formats::runs_file::{Phase, RunsFile};
 use std::path::{Path, PathBuf};
-use wheelcal::demo::{umbmark_on_virtual_board, DEMO_ROUGHNESS};
+use wheelcal::demo::{umbmark_on_virtual_board, VirtualRun, DEMO_ROUGHNESS};
 
 fn robot(name: &str) -> calib_core::Robot {
     robot_file::load(
@@ -63,11 +63,16 @@ fn umbmark_reaches_ten_x_and_the_noise_floor_on_000s_robots() {
     {
         let r = robot(name);
         let seed = 100 + i as u64;
-        let rep =
-            umbmark_on_virtual_board(&r, faults(ed, eb), seed, 5, 4.0, None, 15, false).unwrap();
+        let run = |runs, after_runs| VirtualRun {
+            runs,
+            length: 4.0,
+            report: None,
+            after_runs,
+            progress: false,
+        };
+        let rep = umbmark_on_virtual_board(&r, faults(ed, eb), seed, run(5, 15)).unwrap();
         let perfect =
-            umbmark_on_virtual_board(&r, faults(1.0, 1.0), seed + 50, 15, 4.0, None, 0, false)
-                .unwrap();
+            umbmark_on_virtual_board(&r, faults(1.0, 1.0), seed + 50, run(15, 0)).unwrap();
         let a = rep.after.as_ref().unwrap();
         let after = mean_e_max_sys(&a.cw.points, &a.ccw.points);
         let floor = mean_e_max_sys(&perfect.before.cw.points, &perfect.before.ccw.points);
@@ -270,9 +275,14 @@ fn omni_procedure_over_cables_improves_at_least_80_percent() {
         },
     )
     .unwrap();
-    let rep =
-        wheelcal::demo::procedure_on_virtual_board(&r, s, Kind::Omni, 10, 0.6, None, 10, false)
-            .unwrap();
+    let run = wheelcal::demo::VirtualRun {
+        runs: 10,
+        length: 0.6,
+        report: None,
+        after_runs: 10,
+        progress: false,
+    };
+    let rep = wheelcal::demo::procedure_on_virtual_board(&r, s, Kind::Omni, run).unwrap();
     let ProcedureReport::Omni(o) = rep else {
         panic!("omni expected")
     };
@@ -456,7 +466,7 @@ fn a_program_started_after_a_quiet_spell_is_not_cut() {
     // flat out), the failsafe cut it. Under load (a loaded 2-core CI machine) that made
     // the guided procedures record cut runs as measurements.
     use std::time::Duration;
-    use wheelcal::board_cmds;
+    use wheelcal::board;
     use wheelcal::link::Faults;
     use wheelcal::virtual_board::InProcessBoard;
     let r = robot("mobolab.toml");
@@ -471,7 +481,7 @@ fn a_program_started_after_a_quiet_spell_is_not_cut() {
     let c = &mut board.client;
     c.hello().unwrap();
     for _ in 0..2 {
-        let limit = board_cmds::run_umbmark(
+        let limit = board::run_umbmark(
             c,
             calib_core::motion::Direction::Cw,
             1.0,
@@ -482,7 +492,7 @@ fn a_program_started_after_a_quiet_spell_is_not_cut() {
         // The first poll 100 ms after the start: inside the 250 ms the board counts a
         // host it just heard as alive, but 0.5 s of board time has long passed flat out.
         std::thread::sleep(Duration::from_millis(100));
-        let end = board_cmds::wait_program(c, limit + Duration::from_secs(60), |_| {}).unwrap();
+        let end = board::wait_program(c, limit + Duration::from_secs(60), |_| {}).unwrap();
         assert_eq!(end.stop, calib_core::protocol::StopReason::ProgramDone);
         std::thread::sleep(Duration::from_millis(1000));
     }

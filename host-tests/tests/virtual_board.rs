@@ -203,12 +203,12 @@ fn pulling_a_running_trial_says_partial() {
     let t = c.trials().unwrap().trials.last().unwrap().clone();
     assert_eq!(t.end, TrialEnd::Running, "{t:?}");
     let file = std::env::temp_dir().join(format!("partial-{}.csv", std::process::id()));
-    let r = wheelcal::board_cmds::pull_trial(c, t.id, &file, |_, _| {}).unwrap();
+    let r = wheelcal::board::pull_trial(c, t.id, &file, |_, _| {}).unwrap();
     assert!(r.partial && r.records > 0, "{r:?}");
     assert!(r.warnings().contains("PARTIAL"), "{}", r.warnings());
     c.stop().unwrap();
     wait_idle(c, Duration::from_secs(30));
-    let r = wheelcal::board_cmds::pull_trial(c, t.id, &file, |_, _| {}).unwrap();
+    let r = wheelcal::board::pull_trial(c, t.id, &file, |_, _| {}).unwrap();
     let _ = std::fs::remove_file(&file);
     assert!(!r.partial && !r.warnings().contains("PARTIAL"), "{r:?}");
 }

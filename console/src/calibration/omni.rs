@@ -87,7 +87,7 @@ pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniR
     else {
         bail!(
             "the previous factors are not omni factors: {}",
-            crate::board_cmds::factors_text(previous)
+            crate::board::factors_text(previous)
         );
     };
     let secondary = Corrections::Omni {

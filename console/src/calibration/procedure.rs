@@ -7,7 +7,7 @@
 //! lose power) and start the same command later without losing what was measured.
 
 use super::{omni, umbmark};
-use crate::board_cmds;
+use crate::board;
 use crate::client::Client;
 use crate::virtual_board::TrialTruth;
 use anyhow::{bail, Context, Result};
@@ -405,7 +405,7 @@ pub fn run<L: Read + Write>(
             c.set_corrections(p.clone())?;
             m.say(&format!(
                 "second pass: measuring with {}",
-                board_cmds::FactorsView::from(p).human().trim()
+                board::FactorsView::from(p).human().trim()
             ));
         } else {
             c.reset_corrections()?;
@@ -419,17 +419,15 @@ pub fn run<L: Read + Write>(
                 "path"
             }
         ));
-        run_phase(
-            c,
-            opts.runs,
-            &opts.runs_file,
-            m,
-            &trials,
+        let plan = PhasePlan {
+            runs: opts.runs,
+            runs_file: &opts.runs_file,
+            trials: &trials,
             test,
             length,
-            Phase::Before,
-            &|t| have(Phase::Before, t),
-        )?;
+            phase: Phase::Before,
+        };
+        run_phase(c, m, plan, &|t| have(Phase::Before, t))?;
     }
     let runs = RunsFile::load(&opts.runs_file)?;
     let corrections = match opts.kind {
@@ -454,8 +452,8 @@ pub fn run<L: Read + Write>(
         Some(p) => p.compose(&corrections).with_context(|| {
             format!(
                 "cannot compose the board's factors ({}) with ({}): they do not fit this procedure",
-                crate::board_cmds::factors_text(p),
-                crate::board_cmds::factors_text(&corrections)
+                crate::board::factors_text(p),
+                crate::board::factors_text(&corrections)
             )
         })?,
         None => corrections,
@@ -468,20 +466,18 @@ pub fn run<L: Read + Write>(
     c.save_corrections()?;
     m.say(&format!(
         "factors uploaded and saved: {}",
-        board_cmds::FactorsView::from(&corrections).human().trim()
+        board::FactorsView::from(&corrections).human().trim()
     ));
     if opts.after {
-        run_phase(
-            c,
-            opts.after_runs,
-            &opts.runs_file,
-            m,
-            &trials,
+        let plan = PhasePlan {
+            runs: opts.after_runs,
+            runs_file: &opts.runs_file,
+            trials: &trials,
             test,
             length,
-            Phase::After,
-            &|t| have(Phase::After, t),
-        )?;
+            phase: Phase::After,
+        };
+        run_phase(c, m, plan, &|t| have(Phase::After, t))?;
     }
     let runs = RunsFile::load(&opts.runs_file)?;
     let rep = match opts.kind {
@@ -506,18 +502,40 @@ pub fn run<L: Read + Write>(
     Ok(rep)
 }
 
-#[allow(clippy::too_many_arguments)]
+/// What one phase (before or after calibration) runs, in one value instead of a long
+/// argument list to [`run_phase`].
+#[derive(Debug, Clone, Copy)]
+struct PhasePlan<'a> {
+    /// Runs per direction (UMBmark) or per path (omni).
+    runs: usize,
+    /// Where each measured run is appended, so a stopped procedure resumes.
+    runs_file: &'a Path,
+    /// The squares or paths, in the order they run.
+    trials: &'a [Trial],
+    /// Which calibration the runs belong to.
+    test: TestKind,
+    /// The square's side (UMBmark) or the path length (omni), metres.
+    length: f64,
+    /// Before or after the factors were applied.
+    phase: Phase,
+}
+
+/// Runs one phase: for each trial, the runs `have` says are still missing, each measured
+/// by `m` and appended to the runs file.
 fn run_phase<L: Read + Write>(
     c: &mut Client<L>,
-    runs: usize,
-    runs_file: &Path,
     m: &mut dyn Measure,
-    trials: &[Trial],
-    test: TestKind,
-    length: f64,
-    phase: Phase,
+    plan: PhasePlan<'_>,
     have: &dyn Fn(Trial) -> usize,
 ) -> Result<()> {
+    let PhasePlan {
+        runs,
+        runs_file,
+        trials,
+        test,
+        length,
+        phase,
+    } = plan;
     for &t in trials {
         for k in have(t)..runs {
             let what = format!(
@@ -533,13 +551,13 @@ fn run_phase<L: Read + Write>(
                 m.say(&format!("{what}: running"));
                 let limit = match t {
                     Trial::Square(d) => {
-                        board_cmds::run_umbmark(c, d, length, 10, DEFAULT_LINK_TIMEOUT_MS)?
+                        board::run_umbmark(c, d, length, 10, DEFAULT_LINK_TIMEOUT_MS)?
                     }
                     Trial::Path(p, idle) => {
-                        board_cmds::run_omni(c, p, length, idle, 10, DEFAULT_LINK_TIMEOUT_MS)?
+                        board::run_omni(c, p, length, idle, 10, DEFAULT_LINK_TIMEOUT_MS)?
                     }
                 };
-                let end = board_cmds::wait_program(c, limit + Duration::from_secs(60), |_| {})?;
+                let end = board::wait_program(c, limit + Duration::from_secs(60), |_| {})?;
                 // Only a run that reached the path's end is a measurement: a cut one would
                 // enter the statistics as a huge "error".
                 match end.stop {

@@ -141,9 +141,9 @@ fn runs_of(v: &[(f64, f64)]) -> Vec<Run> {
 
 fn direction_stats(runs: &[(f64, f64)]) -> Result<DirectionStats> {
     let r = runs_of(runs);
-    let c = umbmark::centroid(&r).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let sx = stats::sample_std_dev_by(&r, |p| p.x_err_m).map_err(|e| anyhow::anyhow!("{e}"))?;
-    let sy = stats::sample_std_dev_by(&r, |p| p.y_err_m).map_err(|e| anyhow::anyhow!("{e}"))?;
+    let c = umbmark::centroid(&r)?;
+    let sx = stats::sample_std_dev_by(&r, |p| p.x_err_m)?;
+    let sy = stats::sample_std_dev_by(&r, |p| p.y_err_m)?;
     // A zero spread (identical runs) means every run is at the centroid.
     let p = if sx > 0.0 && sy > 0.0 {
         stats::probability_within_radius(sx, sy, CONVERGENCE_RADIUS_M).unwrap_or(f64::NAN)

@@ -1,29 +1,29 @@
 //! Single board requests: `info`, `drive`, `status`, `stop`, `estop`, `clear-fault`.
 
-use crate::board_cmds;
-use crate::cli::Ctx;
-use crate::cli::DriveArgs;
+use crate::args::DriveArgs;
+use crate::board;
 use crate::output::Output;
+use crate::session::Ctx;
 use anyhow::Result;
 use calib_core::Twist;
 use std::time::Duration;
 
 /// `wheelcal info`.
 pub fn info(ctx: &mut Ctx, out: Output) -> Result<()> {
-    let r = board_cmds::info(ctx.client()?)?;
+    let r = board::info(ctx.client()?)?;
     out.emit(&r, || r.human())
 }
 
 /// `wheelcal drive`: the twist for a while, then stop (Ctrl-C stops at once).
 pub fn drive(a: DriveArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
     let client = ctx.client()?;
-    board_cmds::drive_for(
+    board::drive_for(
         client,
         Twist::new(a.vx, a.vy, a.omega),
         Duration::from_secs_f64(a.duration),
     )?;
     let s = client.status()?;
-    out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))
+    out.emit(&s, || format!("{}\n", board::status_line(&s)))
 }
 
 /// `wheelcal status [--follow]`.
@@ -31,13 +31,13 @@ pub fn status(follow: bool, period_ms: u16, ctx: &mut Ctx, out: Output) -> Resul
     let client = ctx.client()?;
     if !follow {
         let s = client.status()?;
-        return out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)));
+        return out.emit(&s, || format!("{}\n", board::status_line(&s)));
     }
     let _guard = crate::stop::Guard::new();
     client.set_telemetry(period_ms.max(20))?;
     while !crate::stop::requested() {
         if let Some(s) = client.next_telemetry(Duration::from_millis(500))? {
-            if !out.emit_more(&s, || format!("{}\n", board_cmds::status_line(&s)))? {
+            if !out.emit_more(&s, || format!("{}\n", board::status_line(&s)))? {
                 break; // the reader has gone: stop the stream and free the port
             }
         }

@@ -1,10 +1,10 @@
 //! `wheelcal factors get|set|save|reset|export`.
 
-use crate::board_cmds::{self, FactorsView};
-use crate::cli::Ctx;
-use crate::cli::{ExportArgs, FactorsCmd, SetArgs};
+use crate::args::{ExportArgs, FactorsCmd, SetArgs};
+use crate::board::{self, FactorsView};
 use crate::output::Output;
 use crate::ros2;
+use crate::session::Ctx;
 use anyhow::{bail, Context, Result};
 
 /// Dispatches `factors` subcommands.
@@ -29,7 +29,7 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
     let client = ctx.client()?;
     let current = client.corrections()?;
     let n = client.params()?.robot.wheels.len();
-    let c = board_cmds::merge_corrections(
+    let c = board::merge_corrections(
         &current,
         n,
         a.c_l,
@@ -84,7 +84,7 @@ fn export(a: ExportArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
             ),
             other => bail!(
                 "the board's factors are not differential-drive factors: {}",
-                board_cmds::factors_text(&other)
+                board::factors_text(&other)
             ),
         },
         _ => bail!(

@@ -1,9 +1,9 @@
 //! `wheelcal log list|pull|clear`.
 
-use crate::board_cmds;
-use crate::cli::Ctx;
-use crate::cli::LogCmd;
+use crate::args::LogCmd;
+use crate::board;
 use crate::output::Output;
+use crate::session::Ctx;
 use anyhow::Result;
 use std::path::PathBuf;
 
@@ -18,7 +18,7 @@ pub fn run(cmd: LogCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
 
 /// The trials on the board.
 fn list(ctx: &mut Ctx, out: Output) -> Result<()> {
-    let t = board_cmds::trial_list(&ctx.client()?.trials()?);
+    let t = board::trial_list(&ctx.client()?.trials()?);
     out.emit(&t, || t.human())
 }
 
@@ -36,7 +36,7 @@ fn pull(trial: u16, file: PathBuf, ctx: &mut Ctx, out: Output) -> Result<()> {
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     bar.set_message(format!("trial {trial}"));
-    let r = board_cmds::pull_trial(client, trial, &file, |done, total| {
+    let r = board::pull_trial(client, trial, &file, |done, total| {
         bar.set_length(total);
         bar.set_position(done);
     });

@@ -1,69 +1,15 @@
 //! One module per command: `cli::run` only dispatches here, so a new command is a new
-//! module and one match arm.
+//! module and one match arm. The modules take their arguments from [`crate::args`] and
+//! the connection from [`crate::session`], never from the dispatcher.
 
 pub mod board;
+pub mod calibrate;
 pub mod diagnose;
 pub mod factors;
 pub mod import;
 pub mod log;
 pub mod omni;
+pub mod procedure;
 pub mod program;
 pub mod sim;
 pub mod umbmark;
-
-use crate::calibration::procedure;
-use crate::cli::{Ctx, ProcedureArgs};
-use crate::output::Output;
-use crate::sim_board;
-use anyhow::Result;
-
-/// `umbmark run` / `omni run`: the guided procedure on a board.
-fn procedure(a: &ProcedureArgs, kind: procedure::Kind, ctx: &mut Ctx, out: Output) -> Result<()> {
-    let port = ctx.port.clone().unwrap_or_default();
-    let opts = procedure_options(a, &port, kind)?;
-    let rep = procedure::run(ctx.client()?, &opts, measure_for(&opts).as_mut())?;
-    out.emit(&rep, || rep.human())
-}
-
-/// A person with a tape measure, or the virtual board's truth with --auto-measure.
-fn measure_for(opts: &procedure::Options) -> Box<dyn procedure::Measure> {
-    match &opts.auto_measure {
-        Some(file) => Box::new(procedure::TruthFile {
-            file: file.clone(),
-            quiet: false,
-        }),
-        None => Box::new(procedure::Terminal),
-    }
-}
-
-fn procedure_options(
-    a: &ProcedureArgs,
-    port: &str,
-    kind: procedure::Kind,
-) -> Result<procedure::Options> {
-    let idle_wheels = match kind {
-        procedure::Kind::Omni => crate::calibration::omni::idle_wheels_for(
-            a.idle.idle_wheels.map(Into::into),
-            &a.runs_file,
-            a.robot.as_deref().unwrap_or(std::path::Path::new("")),
-        )?,
-        procedure::Kind::Umbmark => Default::default(),
-    };
-    Ok(procedure::Options {
-        idle_wheels,
-        kind,
-        side_m: a.side,
-        length_m: a.length,
-        runs: a.runs,
-        after_runs: a.after_runs.unwrap_or(a.runs),
-        runs_file: a.runs_file.clone(),
-        auto_measure: a.auto_measure.then(|| {
-            a.truth
-                .clone()
-                .unwrap_or_else(|| sim_board::truth_file_for(std::path::Path::new(port)))
-        }),
-        report: a.report.clone(),
-        after: !a.no_after,
-        second_pass: a.second_pass,
-    })
-}

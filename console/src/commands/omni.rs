@@ -1,10 +1,10 @@
 //! `wheelcal omni compute|run`.
 
+use crate::args::{OmniCmd, OmniComputeArgs};
 use crate::calibration::{omni, procedure};
-use crate::cli::Ctx;
-use crate::cli::{OmniCmd, OmniComputeArgs};
 use crate::output::Output;
 use crate::report;
+use crate::session::Ctx;
 use anyhow::Result;
 use formats::robot_file;
 use formats::runs_file::RunsFile;
@@ -13,7 +13,7 @@ use formats::runs_file::RunsFile;
 pub fn run(cmd: OmniCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
     match cmd {
         OmniCmd::Compute(a) => compute(a, out),
-        OmniCmd::Run(a) => super::procedure(&a, procedure::Kind::Omni, ctx, out),
+        OmniCmd::Run(a) => super::procedure::run(&a, procedure::Kind::Omni, ctx, out),
     }
 }
 

@@ -1,9 +1,9 @@
 //! `wheelcal run umbmark|omni`: one test path on the board.
 
-use crate::board_cmds;
-use crate::cli::Ctx;
-use crate::cli::RunCmd;
+use crate::args::RunCmd;
+use crate::board;
 use crate::output::Output;
+use crate::session::Ctx;
 use anyhow::Result;
 
 /// Starts the program (validated first) and, unless --no-wait, follows it to its end.
@@ -14,7 +14,7 @@ pub fn run(cmd: RunCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
     let client = ctx.client()?;
     let (no_wait, limit) = match cmd {
         RunCmd::Umbmark { dir, side, run } => {
-            let limit = board_cmds::run_umbmark(client, dir.into(), side, run.log_rate, link_ms)?;
+            let limit = board::run_umbmark(client, dir.into(), side, run.log_rate, link_ms)?;
             (run.no_wait, limit)
         }
         RunCmd::Omni {
@@ -24,8 +24,7 @@ pub fn run(cmd: RunCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
             idle,
         } => {
             let idle = idle.idle_wheels.map(Into::into).unwrap_or_default();
-            let limit =
-                board_cmds::run_omni(client, path.into(), length, idle, run.log_rate, link_ms)?;
+            let limit = board::run_omni(client, path.into(), length, idle, run.log_rate, link_ms)?;
             (run.no_wait, limit)
         }
     };
@@ -33,14 +32,14 @@ pub fn run(cmd: RunCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
         client.status()?
     } else {
         let human = out == Output::Human;
-        board_cmds::wait_program(client, limit, |s| {
+        board::wait_program(client, limit, |s| {
             if human {
-                eprint!("\r{}", board_cmds::status_line(s));
+                eprint!("\r{}", board::status_line(s));
             }
         })?
     };
     if out == Output::Human {
         eprintln!();
     }
-    out.emit(&s, || format!("{}\n", board_cmds::status_line(&s)))
+    out.emit(&s, || format!("{}\n", board::status_line(&s)))
 }

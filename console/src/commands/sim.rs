@@ -1,6 +1,6 @@
 //! `wheelcal sim-board`, `wheelcal sim record` and `wheelcal demo`.
 
-use crate::cli::{DemoArgs, SimBoardArgs, SimCmd, SimRecordArgs};
+use crate::args::{DemoArgs, SimBoardArgs, SimCmd, SimRecordArgs};
 use crate::demo;
 use crate::output::Output;
 use crate::sim_board::{self, SimBoardOptions};

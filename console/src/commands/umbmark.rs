@@ -1,10 +1,10 @@
 //! `wheelcal umbmark compute|run`.
 
+use crate::args::{ComputeArgs, UmbmarkCmd};
 use crate::calibration::{procedure, umbmark};
-use crate::cli::Ctx;
-use crate::cli::{ComputeArgs, UmbmarkCmd};
 use crate::output::Output;
 use crate::report;
+use crate::session::Ctx;
 use anyhow::Result;
 use formats::robot_file;
 use formats::runs_file::RunsFile;
@@ -13,7 +13,7 @@ use formats::runs_file::RunsFile;
 pub fn run(cmd: UmbmarkCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
     match cmd {
         UmbmarkCmd::Compute(a) => compute(a, out),
-        UmbmarkCmd::Run(a) => super::procedure(&a, procedure::Kind::Umbmark, ctx, out),
+        UmbmarkCmd::Run(a) => super::procedure::run(&a, procedure::Kind::Umbmark, ctx, out),
     }
 }
 

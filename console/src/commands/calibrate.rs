@@ -1,193 +1,19 @@
 //! `wheelcal calibrate`: the robot's geometry from whole trajectories with ground truth.
-//! A thin shell over `diagnose::calibrate`: gathers recordings (files, run folders or a
-//! directory of run folders), prints or writes the result.
+//! A thin shell over `diagnose::calibrate`: gathers recordings ([`crate::recordings`]),
+//! refuses another robot's among them, prints or writes the result.
 
+use crate::args::CalibrateArgs;
 use crate::mcap_out::{write_paths_under, PathSeries};
 use crate::output::Output;
+use crate::recordings::{load, recording_files};
 use crate::ros2;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::Robot;
-use clap::Args;
 use diagnose::calibrate::{calibrate, CalOptions, Calibration, CvBy, Factors};
 use diagnose::calibrate_plots;
 use formats::recording::Recording;
 use formats::robot_file;
 use std::path::{Path, PathBuf};
-
-/// Arguments of `wheelcal calibrate`.
-#[derive(Debug, Args)]
-pub struct CalibrateArgs {
-    /// Robot description (docs/formats.md §1): the nominal geometry.
-    #[arg(long)]
-    pub robot: PathBuf,
-    /// Recording with motion-capture poses (docs/formats.md §2): a CSV file, a run folder
-    /// holding recording.csv, a directory of run folders, or a ROS 2 bag (with
-    /// `--pose-topic`); repeatable.
-    #[arg(long, required = true)]
-    pub recording: Vec<PathBuf>,
-    /// A recording kept out of the fit: its dead-reckoning RMSE before and after.
-    #[arg(long)]
-    pub holdout: Option<PathBuf>,
-    /// Write the robot description with all fitted geometry.
-    #[arg(long)]
-    pub write_robot: Option<PathBuf>,
-    /// Write calibration.json, summary.txt, robot.toml (and ros2.yaml), per-recording
-    /// path and error plots, a correlation plot, index.html and paths.mcap into this folder.
-    #[arg(long)]
-    pub report: Option<PathBuf>,
-    /// Skip leave-one-out cross-validation.
-    #[arg(long)]
-    pub no_cross_validation: bool,
-    /// Also fit where motion capture tracks on the body (omni robots; an error on a
-    /// differential drive).
-    #[arg(long)]
-    pub marker_offset: bool,
-    /// Fit each recording's start pose, time offset and clock ratio (for recordings whose
-    /// frame is not the robot's start frame). Default: dead-reckon each recording from its
-    /// first measured pose, compared every 5 cm of travel.
-    #[arg(long)]
-    pub free_start: bool,
-    /// Huber's loss (scale: 1.345 robust sigmas of the squared-loss residuals) instead of
-    /// least squares.
-    #[arg(long)]
-    pub robust: bool,
-    /// Cross-validation: hold out each `run`, `session` (run folders
-    /// `<robot>-<path>-<session>-run-NN`) or `path-kind` (square, circular...) in turn
-    /// (default: run, unless --no-cross-validation).
-    #[arg(long, value_parser = ["run", "session", "path-kind"])]
-    pub cv: Option<String>,
-    /// Lever arm (m) at which heading errors count in the dead-reckoning objective
-    /// (default 0.1; 3 transferred better on real runs, see the README).
-    #[arg(long)]
-    pub heading_lever: Option<f64>,
-    /// How to read recordings given as ROS 2 bags.
-    #[command(flatten)]
-    pub bag: crate::commands::import::BagFlags,
-}
-
-/// Recording CSV files named by `p`: the file itself, `p/recording.csv`, or every
-/// `recording.csv` one level down (sorted).
-pub fn recording_files(p: &Path) -> Result<Vec<PathBuf>> {
-    if p.is_file() || crate::commands::import::is_bag(p) {
-        return Ok(vec![p.to_path_buf()]);
-    }
-    if !p.is_dir() {
-        bail!("{}: no such recording file or folder", p.display());
-    }
-    let own = p.join("recording.csv");
-    if own.is_file() {
-        return Ok(vec![own]);
-    }
-    let mut v: Vec<PathBuf> = std::fs::read_dir(p)
-        .with_context(|| format!("cannot read {}", p.display()))?
-        .filter_map(|e| e.ok().map(|e| e.path()))
-        .filter_map(|d| {
-            if d.is_dir() && d.join("recording.csv").is_file() {
-                Some(d.join("recording.csv"))
-            } else if d.extension().is_some_and(|x| x == "csv") {
-                Some(d)
-            } else {
-                None
-            }
-        })
-        .collect();
-    v.sort();
-    if v.is_empty() {
-        bail!("{}: holds no recording.csv", p.display());
-    }
-    Ok(v)
-}
-
-/// Every recording file named by `paths` (see [`recording_files`]).
-pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
-    let mut v = Vec::new();
-    for p in paths {
-        v.extend(recording_files(p)?);
-    }
-    Ok(v)
-}
-
-/// `wheelcal diagnose` with several recordings: shared geometry, per-recording nuisance,
-/// each recording diagnosed against the shared geometry.
-pub fn diagnose_many(a: &crate::cli::DiagnoseArgs, files: &[PathBuf], out: Output) -> Result<()> {
-    let robot = robot_file::load(&a.robot)?;
-    let recs = files
-        .iter()
-        .map(|f| load(f, &robot, &a.robot, &a.bag))
-        .collect::<Result<Vec<_>>>()?;
-    let opts = diagnose::Options {
-        max_effects: a.max_effects.into(),
-    };
-    let rep = diagnose::multi::diagnose_many(&robot, &recs, &opts).map_err(|e| {
-        let file = e
-            .recording
-            .as_ref()
-            .and_then(|n| recs.iter().position(|(r, _)| r == n))
-            .map(|i| files[i].display().to_string());
-        match file {
-            Some(f) => anyhow::anyhow!("{f}: {}", e.message),
-            None => anyhow::anyhow!("{e}"),
-        }
-    })?;
-    if a.report.is_some() {
-        out.note(
-            "--report with several recordings: see calibrate --report (plots are per recording)",
-        );
-    }
-    if let Some(p) = &a.write_robot {
-        formats::safe_write::write_file(
-            p,
-            rep.geometry.robot_toml().as_bytes(),
-            "robot description",
-            formats::safe_write::is_robot_file,
-        )
-        .with_context(|| format!("cannot write {}", p.display()))?;
-        out.note(&format!("fitted robot: {}", p.display()));
-    }
-    out.emit(&rep, || rep.to_string())
-}
-
-/// A short name: the run folder for `.../run/recording.csv`, else the file name.
-fn short_name(f: &Path) -> String {
-    let file = f
-        .file_name()
-        .map(|s| s.to_string_lossy().to_string())
-        .unwrap_or_default();
-    match f.parent().and_then(|d| d.file_name()) {
-        Some(d) if file == "recording.csv" => d.to_string_lossy().to_string(),
-        _ => file,
-    }
-}
-
-/// Loads a recording against `robot`; a robot.toml beside it naming another robot is an
-/// error naming both files.
-fn load(
-    f: &Path,
-    robot: &Robot,
-    robot_path: &Path,
-    bag: &crate::commands::import::BagFlags,
-) -> Result<(String, Recording)> {
-    if let Some(beside) = f
-        .parent()
-        .map(|d| d.join("robot.toml"))
-        .filter(|p| p.is_file())
-    {
-        if let Ok(other) = robot_file::load(&beside) {
-            if other.name != robot.name {
-                bail!(
-                    "{}: recorded with robot '{}' ({}), but --robot {} is '{}'",
-                    f.display(),
-                    other.name,
-                    beside.display(),
-                    robot_path.display(),
-                    robot.name
-                );
-            }
-        }
-    }
-    let rec = crate::commands::import::load_recording(f, robot, bag)?;
-    Ok((short_name(f), rec))
-}
 
 /// Travel by motion capture over travel by the nominal odometry of `robot`: about 1 (the
 /// robot's scale, within a few percent) for a recording of this robot, far from it for a
@@ -350,8 +176,8 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         cv: if a.no_cross_validation { None } else { cv },
         heading_lever_m: a.heading_lever,
     };
-    let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|e| {
-        // Name the file, not only the short name.
+    let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|mut e| {
+        // Name the file, not only the short name; the error stays the calibration's.
         let file = e
             .recording
             .as_ref()
@@ -365,10 +191,10 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
                     .clone()
                     .and(a.holdout.as_ref().map(|h| h.display().to_string()))
             });
-        match file {
-            Some(f) => anyhow::anyhow!("{f}: {}", e.message),
-            None => anyhow::anyhow!("{e}"),
+        if file.is_some() {
+            e.recording = file;
         }
+        e
     })?;
     if let Some(p) = &a.write_robot {
         formats::safe_write::write_file(
@@ -458,8 +284,7 @@ fn write_report(
     if let Some(y) = ros2_yaml(cal) {
         replace_file(&dir.join("ros2.yaml"), y.as_bytes())?;
     }
-    let series = calibrate_plots::calibration_series(cal, robot, recs, held)
-        .map_err(|e| anyhow::anyhow!("{e}"))?;
+    let series = calibrate_plots::calibration_series(cal, robot, recs, held)?;
     calibrate_plots::write_calibration_figures(cal, &series, &summary, dir)?;
     let names: Vec<[String; 3]> = series
         .iter()
@@ -508,12 +333,12 @@ mod tests {
     }
 
     /// The bag flags as clap fills them when none is given.
-    fn default_bag_flags() -> crate::commands::import::BagFlags {
+    fn default_bag_flags() -> crate::args::BagFlags {
         use clap::Parser;
         #[derive(Parser)]
         struct Only {
             #[command(flatten)]
-            bag: crate::commands::import::BagFlags,
+            bag: crate::args::BagFlags,
         }
         Only::parse_from(["wheelcal"]).bag
     }
@@ -541,6 +366,12 @@ mod tests {
             "{text}"
         );
         assert!(text.contains("motion capture"), "{text}");
+        // The calibration's own error, not its text: a caller can still tell what failed.
+        assert!(
+            e.downcast_ref::<diagnose::calibrate::CalibrateError>()
+                .is_some_and(|c| c.recording.is_some()),
+            "{e:?}"
+        );
         std::fs::remove_dir_all(&d).ok();
     }
 

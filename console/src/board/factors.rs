@@ -1,0 +1,173 @@
+//! The board's correction factors as people read and give them: the JSON/text view,
+//! `factors set`'s merge with the board's current factors, the factors in words.
+
+use anyhow::{bail, Result};
+use calib_core::robot::MAX_WHEELS;
+use calib_core::Corrections;
+use serde::Serialize;
+
+/// Corrections in the JSON and text forms people read.
+#[derive(Debug, Clone, Serialize)]
+#[serde(tag = "kind", rename_all = "snake_case")]
+pub enum FactorsView {
+    /// Nominal geometry, no corrections.
+    None,
+    /// Differential drive (Borenstein & Feng).
+    DiffDrive {
+        /// Left wheel's effective radius / nominal radius.
+        c_l: f64,
+        /// Right wheel's effective radius / nominal radius.
+        c_r: f64,
+        /// Actual wheelbase / nominal wheelbase.
+        e_b: f64,
+    },
+    /// Omnidirectional robot.
+    Omni {
+        /// Lateral factor per wheel, in the robot's wheel order.
+        f_lat: Vec<f64>,
+        /// Longitudinal factor common to all wheels.
+        f_lon: f64,
+    },
+}
+
+impl From<&Corrections> for FactorsView {
+    fn from(c: &Corrections) -> Self {
+        match c {
+            Corrections::None => FactorsView::None,
+            Corrections::DiffDrive { c_l, c_r, e_b } => FactorsView::DiffDrive {
+                c_l: *c_l,
+                c_r: *c_r,
+                e_b: *e_b,
+            },
+            Corrections::Omni { f_lat, f_lon } => FactorsView::Omni {
+                f_lat: f_lat.to_vec(),
+                f_lon: *f_lon,
+            },
+        }
+    }
+}
+
+impl FactorsView {
+    /// The factors as one text line.
+    pub fn human(&self) -> String {
+        match self {
+            FactorsView::None => "no corrections (nominal geometry)\n".into(),
+            FactorsView::DiffDrive { c_l, c_r, e_b } => {
+                format!("c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6}\n")
+            }
+            FactorsView::Omni { f_lat, f_lon } => format!(
+                "F_lat = [{}]  F_lon = {f_lon:.6}\n",
+                f_lat
+                    .iter()
+                    .map(|v| format!("{v:.6}"))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            ),
+        }
+    }
+}
+
+/// The factors `factors set` asks for: the board's `current` factors with the ones given
+/// replaced (nominal where the board holds none or the other kind, `n_wheels` F_lat of 1
+/// for an omni robot; the board refuses factors of the wrong kind in its own words).
+/// Differential and omni factors do not mix, and at least one factor must be given.
+pub fn merge_corrections(
+    current: &Corrections,
+    n_wheels: usize,
+    c_l: Option<f64>,
+    c_r: Option<f64>,
+    e_b: Option<f64>,
+    f_lat: Option<&[f64]>,
+    f_lon: Option<f64>,
+) -> Result<Corrections> {
+    let diff = c_l.is_some() || c_r.is_some() || e_b.is_some();
+    let omni = f_lat.is_some() || f_lon.is_some();
+    match (diff, omni) {
+        (false, false) => bail!(
+            "give the factors to change: --c-l, --c-r, --e-b (differential drive) or --f-lat, --f-lon (omni)"
+        ),
+        (true, true) => {
+            bail!("differential (--c-l, --c-r, --e-b) and omni (--f-lat, --f-lon) factors do not mix")
+        }
+        (true, false) => {
+            // Factors of the other kind on the board: nominal here, and the board refuses
+            // differential factors on an omni robot in its own words.
+            let (l, r, b) = match current {
+                Corrections::DiffDrive { c_l, c_r, e_b } => (*c_l, *c_r, *e_b),
+                _ => (1.0, 1.0, 1.0),
+            };
+            Ok(Corrections::DiffDrive {
+                c_l: c_l.unwrap_or(l),
+                c_r: c_r.unwrap_or(r),
+                e_b: e_b.unwrap_or(b),
+            })
+        }
+        (false, true) => {
+            let (lat, lon) = match current {
+                Corrections::Omni { f_lat, f_lon } => (f_lat.to_vec(), *f_lon),
+                _ => (vec![1.0; n_wheels], 1.0),
+            };
+            let lat = f_lat.map(<[f64]>::to_vec).unwrap_or(lat);
+            let f_lat = heapless::Vec::from_slice(&lat)
+                .map_err(|_| anyhow::anyhow!("at most {MAX_WHEELS} F_lat factors"))?;
+            Ok(Corrections::Omni {
+                f_lat,
+                f_lon: f_lon.unwrap_or(lon),
+            })
+        }
+    }
+}
+
+/// A board's factors in words for messages (`c_L = 1.000000  c_R = ...`).
+pub fn factors_text(c: &Corrections) -> String {
+    FactorsView::from(c).human().trim_end().to_string()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// `factors set --e-b 1.6` keeps the board's c_L and c_R (the help's promise); an
+    /// omni robot with no factors gets F_lat 1 for the wheels not given.
+    #[test]
+    fn only_the_factors_given_change() {
+        let cur = Corrections::DiffDrive {
+            c_l: 0.998,
+            c_r: 1.002,
+            e_b: 1.01,
+        };
+        let m = merge_corrections(&cur, 2, None, None, Some(1.6), None, None).unwrap();
+        assert_eq!(
+            m,
+            Corrections::DiffDrive {
+                c_l: 0.998,
+                c_r: 1.002,
+                e_b: 1.6
+            }
+        );
+        let m =
+            merge_corrections(&Corrections::None, 2, Some(1.01), None, None, None, None).unwrap();
+        assert_eq!(
+            m,
+            Corrections::DiffDrive {
+                c_l: 1.01,
+                c_r: 1.0,
+                e_b: 1.0
+            }
+        );
+        let m =
+            merge_corrections(&Corrections::None, 4, None, None, None, None, Some(0.94)).unwrap();
+        match m {
+            Corrections::Omni { f_lat, f_lon } => {
+                assert_eq!(f_lat.as_slice(), &[1.0; 4]);
+                assert_eq!(f_lon, 0.94);
+            }
+            other => panic!("{other:?}"),
+        }
+        // Mixing kinds or nothing given: refused, saying why.
+        let e = merge_corrections(&cur, 2, Some(1.0), None, None, None, Some(1.0)).unwrap_err();
+        assert!(e.to_string().contains("do not mix"), "{e}");
+        let e = merge_corrections(&cur, 2, None, None, None, None, None).unwrap_err();
+        assert!(e.to_string().contains("give the factors"), "{e}");
+    }
+}

@@ -1,0 +1,110 @@
+//! Finding and reading the recordings a command is given: a CSV file, a run folder
+//! holding recording.csv, a directory of run folders, or a ROS 2 bag. Shared by
+//! `calibrate` and `diagnose`, so both accept the same paths in the same way.
+
+use crate::args::BagFlags;
+use anyhow::{bail, Context, Result};
+use calib_core::robot::Robot;
+use formats::recording::Recording;
+use formats::robot_file;
+use std::path::{Path, PathBuf};
+
+/// Whether `p` is a ROS 2 bag: an `.mcap` file or a folder with `metadata.yaml`.
+pub fn is_bag(p: &Path) -> bool {
+    (p.is_file() && p.extension().is_some_and(|e| e == "mcap"))
+        || (p.is_dir() && p.join("metadata.yaml").is_file())
+}
+
+/// A recording from a formats.md CSV file or a ROS 2 bag (read with `flags`): for the
+/// commands that take either (`calibrate`, `diagnose`). The import's notes go to stderr.
+pub fn load_recording(p: &Path, robot: &Robot, flags: &BagFlags) -> Result<Recording> {
+    if is_bag(p) {
+        Ok(ros2bag::load_bag_recording(p, robot, &flags.options()?)?)
+    } else {
+        Ok(Recording::load(p, robot)?)
+    }
+}
+
+/// Recording CSV files named by `p`: the file itself, `p/recording.csv`, or every
+/// `recording.csv` one level down (sorted).
+pub fn recording_files(p: &Path) -> Result<Vec<PathBuf>> {
+    if p.is_file() || is_bag(p) {
+        return Ok(vec![p.to_path_buf()]);
+    }
+    if !p.is_dir() {
+        bail!("{}: no such recording file or folder", p.display());
+    }
+    let own = p.join("recording.csv");
+    if own.is_file() {
+        return Ok(vec![own]);
+    }
+    let mut v: Vec<PathBuf> = std::fs::read_dir(p)
+        .with_context(|| format!("cannot read {}", p.display()))?
+        .filter_map(|e| e.ok().map(|e| e.path()))
+        .filter_map(|d| {
+            if d.is_dir() && d.join("recording.csv").is_file() {
+                Some(d.join("recording.csv"))
+            } else if d.extension().is_some_and(|x| x == "csv") {
+                Some(d)
+            } else {
+                None
+            }
+        })
+        .collect();
+    v.sort();
+    if v.is_empty() {
+        bail!("{}: holds no recording.csv", p.display());
+    }
+    Ok(v)
+}
+
+/// Every recording file named by `paths` (see [`recording_files`]).
+pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
+    let mut v = Vec::new();
+    for p in paths {
+        v.extend(recording_files(p)?);
+    }
+    Ok(v)
+}
+
+/// A short name: the run folder for `.../run/recording.csv`, else the file name.
+pub fn short_name(f: &Path) -> String {
+    let file = f
+        .file_name()
+        .map(|s| s.to_string_lossy().to_string())
+        .unwrap_or_default();
+    match f.parent().and_then(|d| d.file_name()) {
+        Some(d) if file == "recording.csv" => d.to_string_lossy().to_string(),
+        _ => file,
+    }
+}
+
+/// Loads a recording against `robot`; a robot.toml beside it naming another robot is an
+/// error naming both files.
+pub fn load(
+    f: &Path,
+    robot: &Robot,
+    robot_path: &Path,
+    bag: &BagFlags,
+) -> Result<(String, Recording)> {
+    if let Some(beside) = f
+        .parent()
+        .map(|d| d.join("robot.toml"))
+        .filter(|p| p.is_file())
+    {
+        if let Ok(other) = robot_file::load(&beside) {
+            if other.name != robot.name {
+                bail!(
+                    "{}: recorded with robot '{}' ({}), but --robot {} is '{}'",
+                    f.display(),
+                    other.name,
+                    beside.display(),
+                    robot_path.display(),
+                    robot.name
+                );
+            }
+        }
+    }
+    let rec = load_recording(f, robot, bag)?;
+    Ok((short_name(f), rec))
+}
