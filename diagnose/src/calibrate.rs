@@ -2295,8 +2295,8 @@ fn heldout_error(
     e / n as f64
 }
 
-/// Parsimony for an omni robot: each model of [`ladder`] is fitted with each recording
-/// left out in turn and dead-reckons it; the simplest model within
+/// Parsimony for an omni robot: each model of [`ladder`] is judged by its held-out
+/// dead reckoning ([`heldout_error`]); the simplest model within
 /// [`LADDER_TOLERANCE`] of the best held-out error is kept, unless its fit on all the data
 /// leaves a parameter outside its plausible range (the model or the range is then
 /// wrong: said, and the next adequate model tried). Says which and why, with figures.
