@@ -188,7 +188,7 @@ pub fn diagnose(
             delta_bic: st.delta_bic,
             heldout_ratio: st.heldout_ratio,
             mechanism: e.mechanism().to_string(),
-            fit: "full".into(),
+            fit: report::Fit::Full,
             explained_share: 0.0,
             signature: None,
             residual_left_m: None,

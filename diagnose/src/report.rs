@@ -11,6 +11,26 @@ use std::collections::BTreeMap;
 use std::fmt;
 use std::path::Path;
 
+/// How far a finding's mechanism explains its effect.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum Fit {
+    /// The mechanism's model explains the effect.
+    Full,
+    /// The effect was named from its signature in the residuals and no mechanism fits it
+    /// fully.
+    Partial,
+}
+
+impl std::fmt::Display for Fit {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        f.write_str(match self {
+            Fit::Full => "full",
+            Fit::Partial => "partial",
+        })
+    }
+}
+
 /// One named effect with its fitted parameters.
 #[derive(Debug, Clone, Serialize)]
 pub struct Finding {
@@ -38,9 +58,8 @@ pub struct Finding {
     pub heldout_ratio: f64,
     /// The mechanism that fitted best (issue 11), e.g. `wheel`, `body`, `creep`.
     pub mechanism: String,
-    /// `full` when the mechanism's model explains the effect, `partial` when the effect
-    /// was named from its signature in the residuals and no mechanism fits it fully.
-    pub fit: String,
+    /// How far the mechanism's model explains the effect.
+    pub fit: Fit,
     /// Share of the excess over noise this finding explains (0..1); findings are
     /// ordered by it.
     pub explained_share: f64,

@@ -11,6 +11,7 @@
 
 use crate::effects::{Effect, Model, ParamSpec, Stage};
 use crate::fit::levenberg_marquardt;
+use crate::report::Fit;
 use crate::residuals::{Eval, Evaluator, Fold, StageRss};
 use serde::Serialize;
 
@@ -875,8 +876,8 @@ pub fn verdict(
     };
     // A named effect whose fit leaves the residual far outside the noise is partial.
     for f in findings.iter_mut() {
-        if f.signature.is_some() && worst_final > RESIDUAL_CHI2 && f.fit == "full" {
-            f.fit = "partial".into();
+        if f.signature.is_some() && worst_final > RESIDUAL_CHI2 && f.fit == Fit::Full {
+            f.fit = Fit::Partial;
             f.residual_left_m = Some(f.rmse_after_m);
         }
     }
@@ -904,7 +905,7 @@ fn partial(
         delta_bic: f64::NAN,
         heldout_ratio: f64::NAN,
         mechanism: mechanism.into(),
-        fit: "partial".into(),
+        fit: Fit::Partial,
         explained_share: share.clamp(0.0, 1.0),
         signature: Some(signature),
         residual_left_m: Some(after),
