@@ -280,7 +280,9 @@ fn ctrl_c_in_the_console_stops_a_drive_and_returns_to_the_prompt() {
         (a.0 - b.0).hypot(a.1 - b.1) < 1e-3,
         "still moving after standstill was reported: {a:?} -> {b:?}"
     );
-    assert!(a.0 > 0.05 && a.0 < 0.4, "drove {} m", a.0);
+    // At least 2 cm: the drive had started (on a loaded machine the console's start
+    // takes part of the 0.8 s: 4.5 cm was measured once under load).
+    assert!(a.0 > 0.02 && a.0 < 0.4, "drove {} m", a.0);
     p.send_line("quit").unwrap();
     let _ = p.expect(Eof);
 }
