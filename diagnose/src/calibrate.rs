@@ -387,22 +387,21 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
     r
 }
 
-/// A skid-steer robot's turn-radius law (zero for every other robot, and for a
-/// skid-steer robot whose ICRs stay put).
+/// A turn-radius law (zero when the separation does not depend on the turn).
 #[derive(Debug, Clone, Copy, PartialEq, Default)]
-pub struct SkidLaw {
+pub struct TurnLaw {
     /// eb_arc / eb: relative growth of the separation from a turn in place to a wide arc.
     pub arc_rel: f64,
     /// Longitudinal ICR offset, m.
     pub icr_x_m: f64,
 }
 
-impl SkidLaw {
+impl TurnLaw {
     /// The law in `values` (in `specs` order).
-    pub fn of(specs: &[ParamSpec], values: &[f64]) -> SkidLaw {
+    pub fn of(specs: &[ParamSpec], values: &[f64]) -> TurnLaw {
         let get = |k: GeomKind| specs.iter().position(|s| s.kind == k).map(|i| values[i]);
         let eb = get(GeomKind::Eb).unwrap_or(1.0);
-        SkidLaw {
+        TurnLaw {
             arc_rel: get(GeomKind::EbArc).unwrap_or(0.0) / eb,
             icr_x_m: get(GeomKind::IcrX).unwrap_or(0.0),
         }
@@ -416,21 +415,12 @@ const RHO_HALF_WINDOW: usize = 20;
 /// Per increment, rho = |d_r - d_l| / (|d_r| + |d_l|) of the sides' travel (nominal
 /// radii), smoothed over [`RHO_HALF_WINDOW`] rows either side.
 fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
-    let side = |k: usize, left: bool| {
-        let (mut sum, mut n) = (0.0, 0.0);
-        for (w, d) in robot.wheels.iter().zip(&inc[k]) {
-            if w.is_left() == left {
-                sum += w.radius_m * d;
-                n += 1.0;
-            }
-        }
-        sum / f64::max(n, 1.0)
-    };
     let m = inc.len();
     let (mut pl, mut pr) = (vec![0.0; m + 1], vec![0.0; m + 1]);
     for k in 0..m {
-        pl[k + 1] = pl[k] + side(k, true);
-        pr[k + 1] = pr[k] + side(k, false);
+        let (l, r) = side_travel(robot, &inc[k]);
+        pl[k + 1] = pl[k] + l;
+        pr[k + 1] = pr[k] + r;
     }
     (0..m)
         .map(|k| {
@@ -449,19 +439,10 @@ fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// One step of a skid-steer robot: each side's mean travel, the separation of `robot`
-/// (E_b applied) widened by the law at this turn ratio, the sideways speed of the ICR
-/// offset.
-fn skid_step(
-    robot: &Robot,
-    law: &SkidLaw,
-    rho: f64,
-    inc: &[f64],
-) -> calib_core::kinematics::Twist<f64> {
-    let (mut l, mut r, mut nl, mut nr, mut half) = (0.0, 0.0, 0.0, 0.0, 0.0);
+/// Mean travel of the left and the right wheels over one increment (m).
+fn side_travel(robot: &Robot, inc: &[f64]) -> (f64, f64) {
+    let (mut l, mut r, mut nl, mut nr) = (0.0, 0.0, 0.0, 0.0);
     for (w, d) in robot.wheels.iter().zip(inc) {
-        let (_, y) = w.position();
-        half += y.abs();
         if w.is_left() {
             l += w.radius_m * d;
             nl += 1.0;
@@ -470,8 +451,37 @@ fn skid_step(
             nr += 1.0;
         }
     }
-    let (l, r) = (l / f64::max(nl, 1.0), r / f64::max(nr, 1.0));
-    let half = half / robot.wheels.len().max(1) as f64 * (1.0 + law.arc_rel * (1.0 - rho).powi(2));
+    (l / f64::max(nl, 1.0), r / f64::max(nr, 1.0))
+}
+
+/// How a recording turns: the side-travel difference |d_r - d_l| summed over all rows, over
+/// the rows on arcs ([`ARC_RHO`]), and weighted by (1 - rho)^2 (what averages the E_b law
+/// over the recording's turning).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Turning {
+    pub(crate) all: f64,
+    pub(crate) arcs: f64,
+    pub(crate) arc_term: f64,
+}
+
+/// One step of a robot driven by its sides (skid-steer, or a differential drive with a
+/// turn law): each side's mean travel, the separation of `robot`
+/// (E_b applied) widened by the law at this turn ratio, the sideways speed of the ICR
+/// offset.
+fn skid_step(
+    robot: &Robot,
+    law: &TurnLaw,
+    rho: f64,
+    inc: &[f64],
+) -> calib_core::kinematics::Twist<f64> {
+    let (l, r) = side_travel(robot, inc);
+    let half = robot
+        .wheels
+        .iter()
+        .map(|w| w.position().1.abs())
+        .sum::<f64>()
+        / robot.wheels.len().max(1) as f64
+        * (1.0 + law.arc_rel * (1.0 - rho).powi(2));
     let dth = (r - l) / (2.0 * half);
     calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)
 }
@@ -928,39 +938,23 @@ impl Series {
         }
     }
 
-    /// Skid-steer: (sum of w, sum of w (1 - rho)^2) over the increments, w = |d_r - d_l|
-    /// the turn of each (nominal radii): the weights that average the E_b law over how the
-    /// recording turns. (0, 0) for other robots.
-    pub(crate) fn turn_weighted_arc_term(&self, robot: &Robot) -> (f64, f64) {
+    /// How the recording turns, from the wheels (nominal geometry): [`Turning`]. All
+    /// zero for robots without sides.
+    pub(crate) fn turning(&self, robot: &Robot) -> Turning {
+        let mut t = Turning::default();
         let Some(rho) = &self.rho else {
-            return (0.0, 0.0);
+            return t;
         };
-        let (mut sw, mut st) = (0.0, 0.0);
         for (inc, &rho) in self.inc.iter().zip(rho) {
-            let t = skid_step(robot, &SkidLaw::default(), rho, inc);
-            let w = t.omega.abs();
-            sw += w;
-            st += w * (1.0 - rho).powi(2);
-        }
-        (sw, st)
-    }
-
-    /// (turning on arcs, all turning): the heading the wheels turn (nominal geometry) in
-    /// rows whose turn ratio rho is between [`ARC_RHO`] bounds, and in all rows. (0, 0)
-    /// for robots without sides.
-    pub(crate) fn arc_turning(&self, robot: &Robot) -> (f64, f64) {
-        let Some(rho) = &self.rho else {
-            return (0.0, 0.0);
-        };
-        let (mut arcs, mut all) = (0.0, 0.0);
-        for (inc, &rho) in self.inc.iter().zip(rho) {
-            let d = skid_step(robot, &SkidLaw::default(), rho, inc).omega.abs();
-            all += d;
+            let (l, r) = side_travel(robot, inc);
+            let d = (r - l).abs();
+            t.all += d;
+            t.arc_term += d * (1.0 - rho).powi(2);
             if (ARC_RHO.0..=ARC_RHO.1).contains(&rho) {
-                arcs += d;
+                t.arcs += d;
             }
         }
-        (arcs, all)
+        t
     }
 
     /// Number of ground-truth pose samples.
@@ -973,7 +967,7 @@ impl Series {
     /// kinematics follow the leg angles (rebuilt only when they move). False when the
     /// wheels cannot resolve the body twist at some leg pose.
     pub(crate) fn path(&self, robot: &Robot, kin: &Kinematics<f64>, out: &mut Path) -> bool {
-        self.path_with(robot, kin, &SkidLaw::default(), out)
+        self.path_with(robot, kin, &TurnLaw::default(), out)
     }
 
     /// [`Series::path`] with a skid-steer robot's turn-radius law.
@@ -981,7 +975,7 @@ impl Series {
         &self,
         robot: &Robot,
         kin: &Kinematics<f64>,
-        law: &SkidLaw,
+        law: &TurnLaw,
         out: &mut Path,
     ) -> bool {
         out.clear();
@@ -989,7 +983,7 @@ impl Series {
         out.push(p);
         // A skid-steer robot always steps by its sides; a differential drive only with a
         // law (otherwise its exact kinematics, the same to rounding).
-        let sides = robot.kind == RobotKind::SkidSteer || *law != SkidLaw::default();
+        let sides = robot.kind == RobotKind::SkidSteer || *law != TurnLaw::default();
         if let (Some(rho), true) = (&self.rho, sides) {
             for (inc, &rho) in self.inc.iter().zip(rho) {
                 p = integrate_arc(p, &skid_step(robot, law, rho, inc));
@@ -1172,7 +1166,7 @@ fn position_rmse(r: &[f64]) -> f64 {
 /// Dead reckoning from the first measured pose with the given robot and no fitted
 /// nuisance: the prediction a user gets (OptiOdom's held-out measure). Position RMSE, m.
 pub fn dead_reckoning_rmse(robot: &Robot, s: &Series) -> Option<f64> {
-    dead_reckoning_rmse_with(robot, &SkidLaw::default(), s)
+    dead_reckoning_rmse_with(robot, &TurnLaw::default(), s)
 }
 
 /// [`dead_reckoning_rmse`] of the geometry `values` (in `specs` order) of `base`, a
@@ -1184,10 +1178,10 @@ pub fn fitted_dead_reckoning_rmse(
     s: &Series,
 ) -> f64 {
     let r = robot_with(base, specs, values);
-    dead_reckoning_rmse_with(&r, &SkidLaw::of(specs, values), s).unwrap_or(f64::NAN)
+    dead_reckoning_rmse_with(&r, &TurnLaw::of(specs, values), s).unwrap_or(f64::NAN)
 }
 
-fn dead_reckoning_rmse_with(robot: &Robot, law: &SkidLaw, s: &Series) -> Option<f64> {
+fn dead_reckoning_rmse_with(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<f64> {
     let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
     let mut path = Path::default();
     if !s.path_with(robot, &kin, law, &mut path) {
@@ -1263,7 +1257,7 @@ impl<'a> Problem<'a> {
             return true;
         }
         let r = robot_with(self.robot, self.specs, geom);
-        let law = SkidLaw::of(self.specs, geom);
+        let law = TurnLaw::of(self.specs, geom);
         let Ok(kin) = Kinematics::<f64>::new(&r, &Corrections::None) else {
             c.0 = vec![f64::NAN];
             return false;
@@ -2385,13 +2379,13 @@ pub const DIFF_EB_ARC_RANGE: f64 = 0.1;
 
 /// Held-out improvement a turn-radius law must bring to be kept: its mean held-out
 /// dead-reckoning error at most this share of the constant-E_b model's.
-pub const SKID_LAW_HOLDOUT_RATIO: f64 = 0.95;
+pub const TURN_LAW_HOLDOUT_RATIO: f64 = 0.95;
 
 /// A differential or skid-steer robot's model: constant E_b, or the turn-radius law
 /// ([Mandow et al.]'s moving ICRs on a skid-steer robot, tyre scrub on a differential
 /// drive) when it holds out. The recordings are split into at most [`LADDER_FOLDS`]
 /// folds; both models are fitted without each fold and dead-reckon it; the law is kept
-/// when its mean held-out error is at most [`SKID_LAW_HOLDOUT_RATIO`] of the constant
+/// when its mean held-out error is at most [`TURN_LAW_HOLDOUT_RATIO`] of the constant
 /// model's and one of its parameters is significant (3 sigma) on all the data. Says
 /// which and why, with the figures.
 fn choose_turn_law(
@@ -2414,8 +2408,8 @@ fn choose_turn_law(
         return base;
     }
     let (arcs, all) = series.iter().fold((0.0, 0.0), |(a, b), s| {
-        let (x, y) = s.arc_turning(robot);
-        (a + x, b + y)
+        let t = s.turning(robot);
+        (a + t.arcs, b + t.all)
     });
     let share = if all > 0.0 { arcs / all } else { 0.0 };
     if share < MIN_ARC_SHARE {
@@ -2447,7 +2441,7 @@ fn choose_turn_law(
         e_law * 1e3,
         e_base * 1e3
     ));
-    let holds = e_law.is_finite() && e_law <= SKID_LAW_HOLDOUT_RATIO * e_base;
+    let holds = e_law.is_finite() && e_law <= TURN_LAW_HOLDOUT_RATIO * e_base;
     let plausible = law[ia].plausible;
     let in_range = (plausible.0..=plausible.1).contains(&arc);
     if !in_range {
@@ -2469,7 +2463,7 @@ fn choose_turn_law(
     } else {
         notes.push(format!(
             "{who}: a constant effective separation explains the data ({figures}; the law is kept only when significant and at most {:.0} % of the constant model's held-out error)",
-            SKID_LAW_HOLDOUT_RATIO * 100.0
+            TURN_LAW_HOLDOUT_RATIO * 100.0
         ));
         base
     }
@@ -2679,9 +2673,9 @@ pub fn calibrate(
     if law_arc != 0.0 {
         let (mut sw, mut st) = (0.0, 0.0);
         for s in &series {
-            let (w, t) = s.turn_weighted_arc_term(robot);
-            sw += w;
-            st += t;
+            let t = s.turning(robot);
+            sw += t.all;
+            st += t.arc_term;
         }
         if sw > 0.0 {
             law_eb_shift = law_arc * st / sw;

@@ -173,34 +173,42 @@ fn a_failed_computation_uploads_nothing() {
     assert_eq!(RunsFile::load(&runs).unwrap().rows.len(), 6);
 }
 
+/// The person at the robot in the procedures below: ready at once, keeps what the
+/// procedure says, measures with the simulator's truth `left` times, then walks away
+/// (stdin closed).
+struct Person<'a, 'b> {
+    truth: &'a mut wheelcal::calibration::procedure::TruthChannel<'b>,
+    said: Vec<String>,
+    left: usize,
+}
+
+impl wheelcal::calibration::procedure::Measure for Person<'_, '_> {
+    fn say(&mut self, text: &str) {
+        self.said.push(text.to_string());
+    }
+    fn ready(&mut self, _: &str) -> anyhow::Result<()> {
+        Ok(())
+    }
+    fn end_error(
+        &mut self,
+        trial: u16,
+        odo: calib_core::odometry::Pose<f32>,
+        direction_rad: f64,
+        what: &str,
+    ) -> anyhow::Result<(f64, f64, Option<f64>)> {
+        if self.left == 0 {
+            anyhow::bail!("no more input");
+        }
+        self.left -= 1;
+        self.truth.end_error(trial, odo, direction_rad, what)
+    }
+}
+
 #[test]
 fn a_stopped_procedure_resumes_without_losing_runs() {
-    use calib_core::odometry::Pose;
-    use wheelcal::calibration::procedure::{self, Kind, Measure, Options, TruthChannel};
+    use wheelcal::calibration::procedure::{self, Kind, Options, TruthChannel};
     use wheelcal::link::Faults;
     use wheelcal::virtual_board::InProcessBoard;
-
-    /// Measures `left` runs, then the person walks away (stdin closed).
-    struct Quits<'a, 'b>(&'a mut TruthChannel<'b>, usize);
-    impl Measure for Quits<'_, '_> {
-        fn say(&mut self, _: &str) {}
-        fn ready(&mut self, _: &str) -> anyhow::Result<()> {
-            Ok(())
-        }
-        fn end_error(
-            &mut self,
-            trial: u16,
-            odo: Pose<f32>,
-            direction_rad: f64,
-            what: &str,
-        ) -> anyhow::Result<(f64, f64, Option<f64>)> {
-            if self.1 == 0 {
-                anyhow::bail!("no more input");
-            }
-            self.1 -= 1;
-            self.0.end_error(trial, odo, direction_rad, what)
-        }
-    }
 
     let r = robot("mobolab.toml");
     let sim = sim::SimRobot::new(
@@ -234,7 +242,13 @@ fn a_stopped_procedure_resumes_without_losing_runs() {
         progress: None,
     };
     // Stop after 4 measured runs: 3 cw and 1 ccw are kept.
-    assert!(procedure::run(c, &opts, &mut Quits(&mut truth, 4)).is_err());
+    // Measures 4 runs, then the person walks away (stdin closed).
+    let mut quits = Person {
+        truth: &mut truth,
+        said: vec![],
+        left: 4,
+    };
+    assert!(procedure::run(c, &opts, &mut quits).is_err());
     let kept = RunsFile::load(&runs).unwrap();
     assert_eq!(kept.rows.len(), 4);
     // Resume: only the missing 2 ccw before-runs and the 6 after-runs are run.
@@ -383,30 +397,10 @@ fn a_run_cut_by_the_link_failsafe_is_run_again_not_recorded() {
     // procedure says so and runs it again, and ends with exactly the runs asked for, every
     // one a closed 0.5 m square (end error under 10 cm on this robot, against ~0.5 m for
     // a square cut a quarter of the way round).
-    use calib_core::odometry::Pose;
     use std::time::Duration;
-    use wheelcal::calibration::procedure::{self, Kind, Measure, Options, TruthChannel};
+    use wheelcal::calibration::procedure::{self, Kind, Options, TruthChannel};
     use wheelcal::link::Faults;
     use wheelcal::virtual_board::InProcessBoard;
-
-    struct Said<'a, 'b>(&'a mut TruthChannel<'b>, Vec<String>);
-    impl Measure for Said<'_, '_> {
-        fn say(&mut self, text: &str) {
-            self.1.push(text.to_string());
-        }
-        fn ready(&mut self, _: &str) -> anyhow::Result<()> {
-            Ok(())
-        }
-        fn end_error(
-            &mut self,
-            trial: u16,
-            odo: Pose<f32>,
-            direction_rad: f64,
-            what: &str,
-        ) -> anyhow::Result<(f64, f64, Option<f64>)> {
-            self.0.end_error(trial, odo, direction_rad, what)
-        }
-    }
 
     let r = robot("mobolab.toml");
     let sim = sim::SimRobot::new(
@@ -438,17 +432,18 @@ fn a_run_cut_by_the_link_failsafe_is_run_again_not_recorded() {
         second_pass: false,
         idle_wheels: Default::default(),
     };
-    let mut m = Said(
-        &mut TruthChannel {
+    let mut m = Person {
+        truth: &mut TruthChannel {
             rx: &board.truths,
             seen: Vec::new(),
             progress: None,
         },
-        vec![],
-    );
+        said: vec![],
+        left: usize::MAX,
+    };
     procedure::run(c, &opts, &mut m).unwrap();
-    let cut = m.1.iter().filter(|s| s.contains("cut short")).count();
-    assert_eq!(cut, 1, "{:#?}", m.1);
+    let cut = m.said.iter().filter(|s| s.contains("cut short")).count();
+    assert_eq!(cut, 1, "{:#?}", m.said);
     let all = RunsFile::load(&runs).unwrap();
     assert_eq!(all.rows.len(), 4);
     for row in &all.rows {
