@@ -226,8 +226,8 @@ async fn serial(app: &'static SharedApp, mut uart: BufferedUart<'static>) {
 
 /// The protocol over USB CDC-ACM.
 #[embassy_executor::task]
-async fn usb_link(app: &'static SharedApp, mut cdc: CdcAcmClass<'static, UsbDriver>) {
-    link::serve(app, &mut cdc, 2).await
+async fn usb_link(app: &'static SharedApp, cdc: CdcAcmClass<'static, UsbDriver>) {
+    link::serve(app, &mut link::UsbPort(cdc), 2).await
 }
 
 /// The USB device stack (enumeration, control requests, suspend).
