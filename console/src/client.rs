@@ -614,15 +614,61 @@ impl From<Response<'_>> for Incoming {
     }
 }
 
+/// Why a trial's log could not be decoded.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum LogError {
+    /// The trial says it has more wheels than any robot may.
+    TooManyWheels {
+        /// The trial's id.
+        trial: u16,
+        /// Its wheel count.
+        wheels: u8,
+    },
+    /// Blocks were damaged or the data ends inside one.
+    Damaged {
+        /// The trial's id.
+        trial: u16,
+        /// Blocks whose check failed.
+        bad_blocks: u32,
+        /// Records in them.
+        lost_records: u32,
+        /// Bytes after the last whole block.
+        trailing: u32,
+    },
+}
+
+impl fmt::Display for LogError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            LogError::TooManyWheels { trial, wheels } => {
+                write!(f, "trial {trial}: {wheels} wheels is too many")
+            }
+            LogError::Damaged {
+                trial,
+                bad_blocks,
+                lost_records,
+                trailing,
+            } => write!(
+                f,
+                "trial {trial}: {bad_blocks} damaged log blocks ({lost_records} records), {trailing} bytes cut short"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for LogError {}
+
 /// Decodes a trial's log blocks; errors when a block is damaged or the data is cut short
 /// (use [`decode_records_lossy`] to keep the intact blocks).
-pub fn decode_records(info: &TrialInfo, data: &[u8]) -> Result<Vec<Record>, String> {
+pub fn decode_records(info: &TrialInfo, data: &[u8]) -> Result<Vec<Record>, LogError> {
     let (recs, s) = decode_records_lossy(info, data)?;
     if s.bad_blocks > 0 || s.trailing > 0 {
-        return Err(format!(
-            "trial {}: {} damaged log blocks ({} records), {} bytes cut short",
-            info.id, s.bad_blocks, s.lost_records, s.trailing
-        ));
+        return Err(LogError::Damaged {
+            trial: info.id,
+            bad_blocks: s.bad_blocks,
+            lost_records: s.lost_records,
+            trailing: s.trailing,
+        });
     }
     Ok(recs)
 }
@@ -631,10 +677,13 @@ pub fn decode_records(info: &TrialInfo, data: &[u8]) -> Result<Vec<Record>, Stri
 pub fn decode_records_lossy(
     info: &TrialInfo,
     data: &[u8],
-) -> Result<(Vec<Record>, protocol::BlockSummary), String> {
+) -> Result<(Vec<Record>, protocol::BlockSummary), LogError> {
     let n = info.wheel_count as usize;
     if n > calib_core::robot::MAX_WHEELS {
-        return Err(format!("trial {}: {n} wheels is too many", info.id));
+        return Err(LogError::TooManyWheels {
+            trial: info.id,
+            wheels: info.wheel_count,
+        });
     }
     let mut recs = Vec::with_capacity(info.records as usize);
     let s = protocol::decode_blocks(n, data, |r| recs.push(r));

@@ -78,7 +78,7 @@ impl From<(f64, f64)> for PointM {
 /// Whether a path where a Unix socket is about to be bound may be removed first: only a
 /// socket (a stale one, left by a process that died) is; a missing path needs nothing;
 /// anything else (a regular file, a folder, a link) is somebody's and is an error naming
-/// it (issue 23 §2: a regular file at the E-stop socket path was deleted). The E-stop relay
+/// it (a regular file at the E-stop socket path was deleted). The E-stop relay
 /// calls this before it removes a stale socket.
 pub fn check_stale_socket(path: &std::path::Path) -> anyhow::Result<()> {
     use std::os::unix::fs::FileTypeExt;

@@ -1,5 +1,5 @@
 //! Progress of long work on stderr, whatever stderr is: a spinner on a terminal, and
-//! plain lines on a pipe or a log file (a silent minute reads as a hang; issue 23 §3's
+//! plain lines on a pipe or a log file (a silent minute reads as a hang: a
 //! 505 MB recording printed nothing for 600 s). The plain form says what it is doing one
 //! second into a stage, then every 10 s, so short runs stay quiet.
 

@@ -157,11 +157,19 @@ pub struct VirtualBoard {
 
 /// Something went wrong setting the board up.
 #[derive(Debug)]
-pub struct BoardError(pub String);
+pub enum BoardError {
+    /// The flash image file could not be read or made (the message names the file).
+    FlashFile(String),
+    /// The store on the flash could not be opened.
+    Store(firmware_app::StoreError),
+}
 
 impl std::fmt::Display for BoardError {
     fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
-        f.write_str(&self.0)
+        match self {
+            BoardError::FlashFile(m) => f.write_str(m),
+            BoardError::Store(e) => write!(f, "flash store: {e:?}"),
+        }
     }
 }
 impl std::error::Error for BoardError {}
@@ -172,8 +180,7 @@ impl VirtualBoard {
     /// and saved once); stored values win over it, as on a real board.
     pub fn boot(robot: &Robot, sim: SimRobot, flash: RamFlash) -> Result<Self, BoardError> {
         let range = 0..flash.len() as u32;
-        let mut store =
-            Store::new(flash, range).map_err(|e| BoardError(format!("flash store: {e:?}")))?;
+        let mut store = Store::new(flash, range).map_err(BoardError::Store)?;
         let loaded = embassy_futures::block_on(store.load());
         let mut params = loaded.params.clone();
         let mut boot = loaded.boot;
@@ -416,7 +423,7 @@ impl InProcessBoard {
         speed: f64,
     ) -> Result<Self, BoardError> {
         use std::sync::atomic::Ordering;
-        let flash = board_flash(None).map_err(|e| BoardError(e.to_string()))?;
+        let flash = board_flash(None).map_err(BoardError::FlashFile)?;
         let mut board = VirtualBoard::boot(robot, sim, flash)?;
         let (host, mut end) = crate::link::memory_pair(to_board, to_host, seed);
         let stop = std::sync::Arc::new(std::sync::atomic::AtomicBool::new(false));

@@ -1,6 +1,6 @@
 //! What a person does at the robot, through real processes and pseudo-terminals: the
 //! `wheelcal` binary against a `wheelcal sim-board` process, typed answers at the
-//! procedure's prompt, signals. Each test is a regression test of issue 13.
+//! procedure's prompt, signals. Each test is a regression test of a problem met at a real robot.
 
 mod common;
 

@@ -1,4 +1,4 @@
-//! `wheelcal calibrate --report DIR` end to end (issue 10): the folder holds the named
+//! `wheelcal calibrate --report DIR` end to end: the folder holds the named
 //! files, the SVGs are well-formed XML with one polyline vertex per pose sample, and
 //! paths.mcap reads back with `/<recording>/measured|nominal|fitted` carrying every pose
 //! sample, the measured poses unchanged and the fitted error at the fit's RMSE.
@@ -245,7 +245,7 @@ fn report_has_plots_index_and_mcap() {
         .collect();
     files.sort();
     let mut want = vec![
-        // The marker that the folder is wheelcal's (issue 23 §2: only such a folder is
+        // The marker that the folder is wheelcal's (only such a folder is
         // written into again).
         formats::safe_write::MARKER,
         "calibration.json",

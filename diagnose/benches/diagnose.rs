@@ -39,8 +39,8 @@ fn main() {
             "run {run}: {dt:.2} s, verdict {}, findings {:?}, ground RMSE {:.2} -> {:.2} mm, model runs {} ground + {} actuator",
             r.verdict,
             r.findings.iter().map(|f| f.effect.as_str()).collect::<Vec<_>>(),
-            r.rmse_nominal_m * 1e3,
-            r.rmse_final_m * 1e3,
+            r.rmse.ground.before_m * 1e3,
+            r.rmse.ground.after_m * 1e3,
             r.model_runs_ground,
             r.model_runs_actuator
         );

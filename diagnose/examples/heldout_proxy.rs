@@ -48,7 +48,7 @@ fn main() {
             t.elapsed().as_secs_f64(),
             c.params
                 .iter()
-                .map(|p| format!("{} {:.5}", p.name, p.value))
+                .map(|p| format!("{} {:.5}", p.spec.name, p.value))
                 .collect::<Vec<_>>()
                 .join(", ")
         );

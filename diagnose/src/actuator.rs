@@ -23,7 +23,7 @@ pub struct ActuatorParams {
     /// Read commands as samples of a signal that varies linearly between rows (the
     /// controller ran faster than the log) instead of values held until the next row.
     pub linear: bool,
-    /// Mechanism variants (issue 11): transport delay of the command, s.
+    /// Mechanism variants: transport delay of the command, s.
     pub delay_s: Option<f64>,
     /// Asymmetric backlash: play taken up turning forward is b (1 + a), backward b (1 - a).
     pub backlash_asymmetry: Option<f64>,

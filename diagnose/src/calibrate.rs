@@ -35,7 +35,7 @@ pub(crate) const RES_UNIT_M: f64 = 1e-3;
 /// Heading residuals count as position errors at this lever arm (m).
 const HEADING_LEVER_M: f64 = 0.1;
 /// Default lever arm (m) of the heading residuals in the dead-reckoning objective (as the
-/// aligned fit's). On the issue-21 proxy a longer lever transfers better (geometric mean
+/// aligned fit's). On the held-out proxy a longer lever transfers better (geometric mean
 /// ratio to OptiOdom for 0.1, 0.3, 1, 3, 10 m: 1.004, 0.997, 0.964, 0.940, 0.934), but at
 /// 3 m the heading gain dominates and scale/eb are reported not separable even on
 /// two-direction squares (sim and real): [`CalOptions::heading_lever_m`] sets it.
@@ -1437,18 +1437,13 @@ fn nuisance_start(series: &[Series], free_start: bool) -> Vec<f64> {
 /// One fitted geometry parameter.
 #[derive(Debug, Clone, Serialize)]
 pub struct FittedParam {
-    /// The parameter's name (as [`ParamSpec::name`]).
-    pub name: String,
-    /// Catalogue effect the parameter belongs to.
-    pub effect: &'static str,
+    /// What the parameter is: name, effect, nominal value, plausible range.
+    #[serde(flatten)]
+    pub spec: ParamSpec,
     /// Fitted value.
     pub value: f64,
     /// One standard deviation, residual autocorrelation counted.
     pub sigma: f64,
-    /// Value in the nominal geometry.
-    pub nominal: f64,
-    /// Physical range (low, high).
-    pub plausible: (f64, f64),
 }
 
 /// Fitted geometry of one wheel.
@@ -1596,10 +1591,9 @@ pub struct Calibration {
     pub cv_by: Option<&'static str>,
     /// The recordings' names, in the order given.
     pub recordings: Vec<String>,
-    /// The fitted geometry parameters (in [`param_specs`] order).
+    /// The fitted geometry parameters (in [`param_specs`] order), each with its
+    /// description (which model was kept).
     pub params: Vec<FittedParam>,
-    /// Each wheel's fitted geometry, in the robot's wheel order.
-    pub geometry: Vec<WheelGeometry>,
     /// The fitted geometry as firmware correction factors.
     pub factors: Factors,
     /// Each recording's fit, in the order given.
@@ -1611,22 +1605,15 @@ pub struct Calibration {
     pub joint_rmse_after_m: f64,
     /// The prediction of the held-out recording, when one was given.
     pub heldout: Option<Heldout>,
-    /// Leave one recording out: fit on the rest, dead-reckon the one left out.
-    pub leave_one_out: Vec<Heldout>,
-    /// Mean of `leave_one_out`'s `rmse_before_m` (`None` without leave-one-out), m.
-    pub leave_one_out_mean_before_m: Option<f64>,
-    /// Mean of `leave_one_out`'s `rmse_after_m`, m.
-    pub leave_one_out_mean_after_m: Option<f64>,
-    /// Mean of `leave_one_out`'s `aligned_before_m`, m.
-    pub leave_one_out_aligned_before_m: Option<f64>,
-    /// Mean of `leave_one_out`'s `aligned_after_m`, m.
-    pub leave_one_out_aligned_after_m: Option<f64>,
+    /// Cross-validation: fit on the rest, dead-reckon each group left out.
+    #[serde(flatten)]
+    pub leave_one_out: HeldoutTable,
     /// Correlations between the geometry parameters (params order).
     pub correlations: Vec<Vec<f64>>,
-    /// Pairs the data do not separate, by name (the issue's JSON shape).
-    pub not_separable: Vec<[String; 2]>,
-    /// The same pairs with their correlation, identifiable combination and advice.
-    pub inseparable: Vec<Inseparable>,
+    /// Pairs the data do not separate, with their correlation, identifiable combination
+    /// and advice.
+    #[serde(flatten)]
+    pub inseparable: Inseparables,
     /// Directions over the geometry the data leave unconstrained (unit vectors).
     pub unconstrained: Vec<Vec<(String, f64)>>,
     /// Values the data ask for outside their physical range (the geometry is then
@@ -1636,12 +1623,135 @@ pub struct Calibration {
     pub notes: Vec<String>,
     /// Model evaluations the whole fit took.
     pub model_runs: usize,
-    /// The robot with the fitted geometry applied.
-    #[serde(skip)]
+    /// The robot with the fitted geometry applied; the JSON gives each wheel's fitted
+    /// geometry (`geometry`).
+    #[serde(rename = "geometry", serialize_with = "serialize_geometry")]
     pub fitted_robot: Robot,
-    /// The fitted parameters' descriptions, in `params` order (which model was kept).
-    #[serde(skip)]
-    pub specs: Vec<ParamSpec>,
+}
+
+impl Calibration {
+    /// Each wheel's fitted geometry, in the robot's wheel order.
+    pub fn geometry(&self) -> Vec<WheelGeometry> {
+        wheel_geometry(&self.fitted_robot)
+    }
+
+    /// The fitted parameters' descriptions, in `params` order.
+    pub fn specs(&self) -> Vec<ParamSpec> {
+        self.params.iter().map(|p| p.spec.clone()).collect()
+    }
+
+    /// The fitted parameter named `name`.
+    pub fn param(&self, name: &str) -> Option<&FittedParam> {
+        self.params.iter().find(|p| p.spec.name == name)
+    }
+}
+
+/// Each wheel's geometry in `robot`, in its wheel order.
+fn wheel_geometry(robot: &Robot) -> Vec<WheelGeometry> {
+    robot
+        .wheels
+        .iter()
+        .map(|w| WheelGeometry {
+            name: w.name.to_string(),
+            radius_m: w.radius_m,
+            l_m: w.l_m,
+            alpha_deg: w.alpha_rad.to_degrees(),
+            gamma_deg: w.gamma_rad.to_degrees(),
+        })
+        .collect()
+}
+
+fn serialize_geometry<S: serde::Serializer>(robot: &Robot, s: S) -> Result<S::Ok, S::Error> {
+    wheel_geometry(robot).serialize(s)
+}
+
+/// The held-out recordings of cross-validation. The JSON gives the table
+/// (`leave_one_out`) and its column means (`leave_one_out_mean_before_m`,
+/// `leave_one_out_mean_after_m`, `leave_one_out_aligned_before_m`,
+/// `leave_one_out_aligned_after_m`; `null` without cross-validation).
+#[derive(Debug, Clone, Default)]
+pub struct HeldoutTable(pub Vec<Heldout>);
+
+/// Column means of a [`HeldoutTable`], m.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeldoutMeans {
+    /// Dead reckoning with the nominal geometry.
+    pub before_m: f64,
+    /// Dead reckoning with the fitted geometry.
+    pub after_m: f64,
+    /// Aligned (start pose and clocks fitted), nominal geometry.
+    pub aligned_before_m: f64,
+    /// Aligned, fitted geometry.
+    pub aligned_after_m: f64,
+}
+
+impl HeldoutTable {
+    /// The column means, `None` without cross-validation.
+    pub fn means(&self) -> Option<HeldoutMeans> {
+        let n = self.0.len() as f64;
+        let mean = |f: fn(&Heldout) -> f64| self.0.iter().map(f).sum::<f64>() / n;
+        (!self.0.is_empty()).then(|| HeldoutMeans {
+            before_m: mean(|h| h.rmse_before_m),
+            after_m: mean(|h| h.rmse_after_m),
+            aligned_before_m: mean(|h| h.aligned_before_m),
+            aligned_after_m: mean(|h| h.aligned_after_m),
+        })
+    }
+}
+
+impl Serialize for HeldoutTable {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let m = self.means();
+        let mut map = s.serialize_map(Some(5))?;
+        map.serialize_entry("leave_one_out", &self.0)?;
+        map.serialize_entry("leave_one_out_mean_before_m", &m.map(|m| m.before_m))?;
+        map.serialize_entry("leave_one_out_mean_after_m", &m.map(|m| m.after_m))?;
+        map.serialize_entry(
+            "leave_one_out_aligned_before_m",
+            &m.map(|m| m.aligned_before_m),
+        )?;
+        map.serialize_entry(
+            "leave_one_out_aligned_after_m",
+            &m.map(|m| m.aligned_after_m),
+        )?;
+        map.end()
+    }
+}
+
+/// Geometry pairs the data do not separate. The JSON gives the pairs by name
+/// (`not_separable`) and in full (`inseparable`: correlation, the combination the data
+/// fix, and what would separate them).
+#[derive(Debug, Clone, Default)]
+pub struct Inseparables(pub Vec<Inseparable>);
+
+impl Inseparables {
+    /// Whether `param` is one side of a pair the data cannot separate.
+    pub fn involves(&self, param: &str) -> bool {
+        self.0.iter().any(|i| i.params.iter().any(|p| p == param))
+    }
+
+    /// The pairs by name.
+    pub fn pairs(&self) -> Vec<&[String; 2]> {
+        self.0.iter().map(|i| &i.params).collect()
+    }
+
+    /// `a / b: what would separate them`, one line per pair.
+    pub fn advice(&self) -> impl Iterator<Item = String> + '_ {
+        self.0
+            .iter()
+            .map(|i| format!("{} / {}: {}", i.params[0], i.params[1], i.advice))
+    }
+}
+
+impl Serialize for Inseparables {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = s.serialize_map(Some(2))?;
+        map.serialize_entry("not_separable", &self.pairs())?;
+        map.serialize_entry("inseparable", &self.0)?;
+        map.end()
+    }
 }
 
 /// Options of [`calibrate`].
@@ -1656,7 +1766,7 @@ pub struct CalOptions {
     /// frame is not the robot's start frame); else dead-reckon from the first pose.
     pub free_start: bool,
     /// Huber's loss instead of least squares (dead-reckoning objective). Off by default:
-    /// on the issue-21 proxy it transferred worse (geometric mean ratio 1.041 against
+    /// on the held-out proxy it transferred worse (geometric mean ratio 1.041 against
     /// 0.987 with squared loss, events kept out either way).
     pub robust: bool,
     /// Cross-validation: hold out whole runs, sessions or kinds of motion.
@@ -2881,21 +2991,14 @@ pub fn calibrate(
             }
         }
     }
-    let mean = |f: &dyn Fn(&Heldout) -> f64| {
-        (!leave_one_out.is_empty())
-            .then(|| leave_one_out.iter().map(f).sum::<f64>() / leave_one_out.len() as f64)
-    };
 
     let params: Vec<FittedParam> = specs
         .iter()
         .enumerate()
         .map(|(i, s)| FittedParam {
-            name: s.name.clone(),
-            effect: s.effect,
+            spec: s.clone(),
             value: fitted.geom[i],
             sigma: cov[(i, i)].max(0.0).sqrt(),
-            nominal: s.nominal,
-            plausible: s.plausible,
         })
         .collect();
     let mut implausible = implausible;
@@ -2920,17 +3023,6 @@ pub fn calibrate(
         }
     }
 
-    let geometry = fitted_robot
-        .wheels
-        .iter()
-        .map(|w| WheelGeometry {
-            name: w.name.to_string(),
-            radius_m: w.radius_m,
-            l_m: w.l_m,
-            alpha_deg: w.alpha_rad.to_degrees(),
-            gamma_deg: w.gamma_rad.to_degrees(),
-        })
-        .collect();
     let factors = if specs.iter().any(|s| s.kind == GeomKind::Ed) {
         let scale_or = |k: GeomKind, or: f64| {
             specs
@@ -2996,26 +3088,19 @@ pub fn calibrate(
         cv_by: cv_by.map(|c| c.name()),
         recordings: series.iter().map(|s| s.name.clone()).collect(),
         params,
-        geometry,
         factors,
         joint_rmse_before_m: position_rmse(&before_res),
         joint_rmse_after_m: position_rmse(&after_res),
         per_recording,
         heldout,
-        leave_one_out_mean_before_m: mean(&|h| h.rmse_before_m),
-        leave_one_out_mean_after_m: mean(&|h| h.rmse_after_m),
-        leave_one_out_aligned_before_m: mean(&|h| h.aligned_before_m),
-        leave_one_out_aligned_after_m: mean(&|h| h.aligned_after_m),
-        leave_one_out,
+        leave_one_out: HeldoutTable(leave_one_out),
         correlations: corr,
-        not_separable: insep.iter().map(|i| i.params.clone()).collect(),
-        inseparable: insep,
+        inseparable: Inseparables(insep),
         unconstrained,
         implausible,
         notes,
         model_runs: runs,
         fitted_robot,
-        specs,
     })
 }
 
@@ -3115,7 +3200,7 @@ impl fmt::Display for Calibration {
         }
         writeln!(f, "geometry:")?;
         for p in &self.params {
-            let flag = if self.implausible.iter().any(|i| i.name == p.name) {
+            let flag = if self.implausible.iter().any(|i| i.name == p.spec.name) {
                 "  (unbounded: implausible, see below)"
             } else {
                 ""
@@ -3123,10 +3208,15 @@ impl fmt::Display for Calibration {
             writeln!(
                 f,
                 "  {:<24} {:.5} ± {:.5}  (nominal {}, plausible {:.4}..{:.4}){flag}",
-                p.name, p.value, p.sigma, p.nominal, p.plausible.0, p.plausible.1
+                p.spec.name,
+                p.value,
+                p.sigma,
+                p.spec.nominal,
+                p.spec.plausible.0,
+                p.spec.plausible.1
             )?;
         }
-        for w in &self.geometry {
+        for w in &self.geometry() {
             write!(
                 f,
                 "  wheel {:<8} radius {:.5} m, l {:.5} m, alpha {:.3} deg",
@@ -3214,9 +3304,9 @@ impl fmt::Display for Calibration {
                 mm(h.aligned_after_m)
             )?;
         }
-        if !self.leave_one_out.is_empty() {
+        if !self.leave_one_out.0.is_empty() {
             writeln!(f, "cross-validation by {} (fit on the rest; the held-out recordings dead-reckoned from their first pose, nominal -> fitted, and aligned: start pose and clocks fitted):", self.cv_by.unwrap_or("run"))?;
-            for h in &self.leave_one_out {
+            for h in &self.leave_one_out.0 {
                 writeln!(
                     f,
                     "  {:<24} {} -> {}   aligned {} -> {}",
@@ -3227,23 +3317,18 @@ impl fmt::Display for Calibration {
                     mm(h.aligned_after_m)
                 )?;
             }
-            if let (Some(a), Some(b), Some(c), Some(d)) = (
-                self.leave_one_out_mean_before_m,
-                self.leave_one_out_mean_after_m,
-                self.leave_one_out_aligned_before_m,
-                self.leave_one_out_aligned_after_m,
-            ) {
+            if let Some(m) = self.leave_one_out.means() {
                 writeln!(
                     f,
                     "  mean                     {} -> {}   aligned {} -> {}",
-                    mm(a),
-                    mm(b),
-                    mm(c),
-                    mm(d)
+                    mm(m.before_m),
+                    mm(m.after_m),
+                    mm(m.aligned_before_m),
+                    mm(m.aligned_after_m)
                 )?;
             }
         }
-        if self.inseparable.is_empty() {
+        if self.inseparable.0.is_empty() {
             writeln!(
                 f,
                 "identifiability: every parameter is separable from these recordings"
@@ -3252,7 +3337,7 @@ impl fmt::Display for Calibration {
         // Many pairs (a 4-wheel per-wheel model) would bury the summary: the strongest
         // few in words, the rest named; the JSON keeps every one.
         const SHOWN: usize = 6;
-        let mut order: Vec<&Inseparable> = self.inseparable.iter().collect();
+        let mut order: Vec<&Inseparable> = self.inseparable.0.iter().collect();
         order.sort_by(|a, b| b.correlation.abs().total_cmp(&a.correlation.abs()));
         for i in order.iter().take(SHOWN) {
             writeln!(

@@ -162,7 +162,7 @@ pub fn calibration_series(
             cal.robot, robot.name
         )));
     }
-    let specs = &cal.specs;
+    let specs = &cal.specs();
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
     let geom: Vec<f64> = cal.params.iter().map(|p| p.value).collect();
     let at = |k: GeomKind| {
@@ -347,7 +347,7 @@ pub fn correlation_chart<DB: DrawingBackend>(
         .params
         .iter()
         .enumerate()
-        .map(|(i, p)| format!("{}  {}", i + 1, p.name))
+        .map(|(i, p)| format!("{}  {}", i + 1, p.spec.name))
         .collect();
     let label_w = row_labels
         .iter()
@@ -380,8 +380,9 @@ pub fn correlation_chart<DB: DrawingBackend>(
         ..Layout::default()
     };
     let separable = |a: usize, b: usize| {
-        let (na, nb) = (&cal.params[a].name, &cal.params[b].name);
-        !cal.not_separable
+        let (na, nb) = (&cal.params[a].spec.name, &cal.params[b].spec.name);
+        !cal.inseparable
+            .pairs()
             .iter()
             .any(|p| (&p[0] == na && &p[1] == nb) || (&p[0] == nb && &p[1] == na))
     };

@@ -64,7 +64,7 @@ pub enum Effect {
     /// diameter, worn tyres, a gear ratio off by a little). With `ed` and `eb`, D_L, D_R
     /// and b are all free.
     WheelScale,
-    // Mechanism variants (issue 11): the same catalogue effect made another way. Each
+    // Mechanism variants: the same catalogue effect made another way. Each
     // reports its catalogue id and its own `mechanism`.
     /// longitudinal_slip: a bound on the body's linear acceleration (heading free).
     SlipBody,
@@ -84,7 +84,7 @@ pub enum Effect {
     LagDelay,
     /// motor_lag: slew-rate limit.
     LagSlew,
-    /// Coulomb friction against a velocity loop of finite gain (issue 19): every command
+    /// Coulomb friction against a velocity loop of finite gain: every command
     /// loses `droop_rad_s` in its sign, |w| = max(|cmd| - droop, 0).
     FrictionDroop,
 }

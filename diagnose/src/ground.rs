@@ -210,7 +210,7 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         scales_known = known.iter().map(|&i| scales[i]).collect();
     }
     let mu = model.get(Effect::LongitudinalSlip).map(|v| v[0]);
-    // Mechanism variants (issue 11) live in `mechanisms`.
+    // Mechanism variants live in `mechanisms`.
     let side = (model.get(Effect::LateralSlip).is_some()
         || model.get(Effect::LateralSaturating).is_some())
     .then_some(());
@@ -258,7 +258,7 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         c * dx - s * dy
     };
     // Steps between the ground rows (every pose row, at most 1 / GROUND_RATE_HZ apart);
-    // the rows between are interpolated (issue 19: counts are cumulative, so the coarser
+    // the rows between are interpolated (counts are cumulative, so the coarser
     // step loses no odometry, and the stage runs at a fraction of the cost).
     let gr = &p.ground_rows;
     for s_idx in 0..gr.len().saturating_sub(1) {

@@ -1,4 +1,4 @@
-//! Identification (issue 19): what a stage's residual depends on, before any mechanism is
+//! Identification: what a stage's residual depends on, before any mechanism is
 //! fitted. The residual's increments over short intervals are regressed on a library of
 //! physical regressors (commanded speed and its sign, reversals, acceleration, turn,
 //! position on the floor, leg posture, time), each integrated over the same intervals,

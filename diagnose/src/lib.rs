@@ -36,7 +36,7 @@ pub mod signature;
 pub mod windows;
 
 pub use effects::{Effect, Model, Stage};
-pub use report::{write_robot, Finding, Report};
+pub use report::{write_robot, Finding, Report, Verdict};
 pub use windows::{Axis, Window};
 
 use calib_core::robot::Robot;
@@ -197,42 +197,35 @@ pub fn diagnose(
     }
 
     // Verdict: the finding explaining the largest share of the excess over noise, with
-    // signatures naming effects no mechanism fits fully (issue 11).
+    // signatures naming effects no mechanism fits fully.
     let (verdict, explained_fraction, implausible) = select::verdict(&ev, &sel, &mut findings);
     let rmse_stage = findings.first().map_or(Stage::Ground, |f| f.rmse_stage);
 
     // Geometry this recording cannot separate (from the whole-geometry fit of the
     // recording stage), said next to any finding that names one side of it.
-    let (not_separable, separation_advice) = stage
-        .geometry
-        .as_ref()
-        .map(|c| {
-            (
-                c.not_separable.clone(),
-                c.inseparable
-                    .iter()
-                    .map(|i| format!("{} / {}: {}", i.params[0], i.params[1], i.advice))
-                    .collect::<Vec<_>>(),
-            )
-        })
-        .unwrap_or_default();
-    if let Some(f) = findings.iter().find(|f| {
-        f.parameters
-            .keys()
-            .any(|p| not_separable.iter().any(|pair| pair.contains(p)))
-    }) {
+    let separability = report::Separability(
+        stage
+            .geometry
+            .as_ref()
+            .map(|c| c.inseparable.clone())
+            .unwrap_or_default(),
+    );
+    if let Some(f) = findings
+        .iter()
+        .find(|f| f.parameters.keys().any(|p| separability.0.involves(p)))
+    {
         notes.push(format!(
             "{} is one of several geometry explanations this recording cannot tell apart (not_separable)",
             f.effect
         ));
     }
-    // Identification (issue 19): what the nominal residual depends on, and what the
+    // Identification: what the nominal residual depends on, and what the
     // residual left after the findings still depends on.
     let mut identification = identify::ground(&prepared, &sel.nominal_eval);
     identification.extend(identify::actuator(&ev, &sel.nominal_eval));
     let mut left = identify::ground(&prepared, &sel.final_eval);
     left.extend(identify::actuator(&ev, &sel.final_eval));
-    let depends_on: Vec<String> = if !left.is_empty() || verdict != VERDICT_UNEXPLAINED {
+    let depends_on: Vec<String> = if !left.is_empty() || verdict != Verdict::Unexplained {
         left.iter().map(|t| t.depends_on.clone()).collect()
     } else {
         identification
@@ -250,23 +243,21 @@ pub fn diagnose(
         verdict,
         findings,
         windows,
-        rmse_nominal_m: sel.nominal.ground_rmse(),
-        rmse_final_m: sel.final_rss.ground_rmse(),
         heading_rmse_nominal_rad: (sel.nominal.heading / sel.nominal.n_pose.max(1) as f64).sqrt(),
         heading_rmse_final_rad: (sel.final_rss.heading / sel.final_rss.n_pose.max(1) as f64).sqrt(),
-        actuator_rmse_nominal_m: (n_act > 0).then(|| sel.nominal.actuator_rmse()),
-        actuator_rmse_final_m: (n_act > 0).then(|| sel.final_rss.actuator_rmse()),
         noise: ev.noise,
         explained_fraction,
         rmse_stage,
-        ground_rmse: report::StageRmse {
-            before_m: sel.nominal.ground_rmse(),
-            after_m: sel.final_rss.ground_rmse(),
+        rmse: report::Rmses {
+            ground: report::StageRmse {
+                before_m: sel.nominal.ground_rmse(),
+                after_m: sel.final_rss.ground_rmse(),
+            },
+            actuator: (n_act > 0).then(|| report::StageRmse {
+                before_m: sel.nominal.actuator_rmse(),
+                after_m: sel.final_rss.actuator_rmse(),
+            }),
         },
-        actuator_rmse: (n_act > 0).then(|| report::StageRmse {
-            before_m: sel.nominal.actuator_rmse(),
-            after_m: sel.final_rss.actuator_rmse(),
-        }),
         start_pose: [
             sel.final_eval.start.0,
             sel.final_eval.start.1,
@@ -280,8 +271,7 @@ pub fn diagnose(
         plot,
         recording_artefacts: stage.artefacts,
         implausible,
-        not_separable,
-        separation_advice,
+        separability,
         identification,
         depends_on,
         windows_total,

@@ -1,4 +1,4 @@
-//! Mechanism families (issue 11): every catalogue effect can come about in more than one
+//! Mechanism families: every catalogue effect can come about in more than one
 //! physical way. Each mechanism is a variant of [`Effect`] (its [`Effect::base`] is the
 //! catalogue effect, [`Effect::mechanism`] its name), fitted like any candidate; the
 //! selection keeps the one the data favour and never two of the same catalogue effect.

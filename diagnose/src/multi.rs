@@ -25,7 +25,7 @@ pub struct RecordingResult {
     /// Ground RMSE with the shared geometry, m.
     pub rmse_shared_geometry_m: f64,
     /// Diagnosis of what the shared geometry leaves in this recording.
-    pub verdict: String,
+    pub verdict: crate::Verdict,
     /// The effects found against the shared geometry.
     pub findings: Vec<Finding>,
     /// Ground RMSE with the shared geometry and those findings, m.
@@ -81,9 +81,9 @@ pub fn diagnose_many(
         let geometry_evidence: Vec<String> = own
             .params
             .iter()
-            .filter(|p| (p.value - p.nominal).abs() > 3.0 * p.sigma)
-            .filter(|p| !own.not_separable.iter().any(|pair| pair.contains(&p.name)))
-            .map(|p| p.name.clone())
+            .filter(|p| (p.value - p.spec.nominal).abs() > 3.0 * p.sigma)
+            .filter(|p| !own.inseparable.involves(&p.spec.name))
+            .map(|p| p.spec.name.clone())
             .collect();
         for g in &geometry_evidence {
             carried_by.entry(g.clone()).or_default().push(name.clone());
@@ -113,7 +113,7 @@ pub fn diagnose_many(
             rmse_shared_geometry_m: per.rmse_after_m,
             verdict: rep.verdict.clone(),
             findings: rep.findings.clone(),
-            rmse_final_m: rep.rmse_final_m,
+            rmse_final_m: rep.rmse.ground.after_m,
             geometry_evidence,
         });
     }

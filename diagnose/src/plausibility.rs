@@ -76,7 +76,7 @@ pub fn check(findings: &[Finding]) -> Vec<Implausible> {
     out
 }
 
-// Floor bumps must be localised in space (issue 10: "bumps only where the residual is
+// Floor bumps must be localised in space ("bumps only where the residual is
 // localised in space"); the test itself is `crate::localisation`.
 
 /// Parameter name under which a `floor_bumps` finding's localisation is listed: the

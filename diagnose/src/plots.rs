@@ -348,7 +348,6 @@ fn shade_windows<DB: DrawingBackend>(
 
 /// A time plot (residuals over time, windows of `stage` shaded) on any backend; the
 /// legend stands in a column right of the chart.
-#[allow(clippy::too_many_arguments)]
 pub fn time_chart<DB: DrawingBackend>(
     windows: &[Window],
     root: &DrawingArea<DB, Shift>,
@@ -513,7 +512,7 @@ pub fn write_report_dir(r: &Report, dir: &Path) -> std::io::Result<()> {
     html.push_str(&format!(
         "<h1>wheelcal diagnose: {}</h1><h2>Verdict: {}</h2><pre>{}</pre>",
         esc(&r.robot),
-        esc(&r.verdict),
+        esc(r.verdict.as_str()),
         esc(&r.to_string())
     ));
     for (f, title) in &images {

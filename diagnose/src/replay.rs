@@ -75,14 +75,14 @@ pub struct Prepared {
     pub pose_at_row: Vec<(f64, f64, f64)>,
     /// Cosine and sine of that pose's heading.
     pub heading_cs_at_row: Vec<(f64, f64)>,
-    /// Rows the ground stage integrates between (issue 19): every pose row, the first and
+    /// Rows the ground stage integrates between: every pose row, the first and
     /// the last, and enough others that no step is longer than 1 / [`GROUND_RATE_HZ`].
     /// Encoder counts are cumulative, so a coarser step loses no odometry; rows between
     /// are interpolated.
     pub ground_rows: Vec<usize>,
 }
 
-/// Most ground-stage steps per second (issue 19: 100-200 rows/s lose no odometry).
+/// Most ground-stage steps per second (100-200 rows/s lose no odometry).
 pub const GROUND_RATE_HZ: f64 = 100.0;
 
 /// The rows [`Prepared::ground_rows`] keeps.

@@ -1,12 +1,14 @@
 //! The diagnosis as data: serialised for `--json` (formats.md §4 field names), printed
 //! as a human summary, and applied to a robot file for `--write-robot`.
 
+use crate::calibrate::Inseparables;
 use crate::effects::{Model, Stage};
 use crate::residuals::Noise;
 use crate::select::Candidate;
 use crate::windows::Window;
 use calib_core::robot::Robot;
-use serde::Serialize;
+use serde::ser::SerializeMap;
+use serde::{Serialize, Serializer};
 use std::collections::BTreeMap;
 use std::fmt;
 use std::path::Path;
@@ -56,7 +58,7 @@ pub struct Finding {
     pub delta_bic: f64,
     /// Held-out sum of squares with the effect over without it.
     pub heldout_ratio: f64,
-    /// The mechanism that fitted best (issue 11), e.g. `wheel`, `body`, `creep`.
+    /// The mechanism that fitted best, e.g. `wheel`, `body`, `creep`.
     pub mechanism: String,
     /// How far the mechanism's model explains the effect.
     pub fit: Fit,
@@ -79,6 +81,97 @@ pub struct StageRmse {
     pub before_m: f64,
     /// RMSE of the final model (nominal plus the findings), m.
     pub after_m: f64,
+}
+
+/// Both stages' RMSE before and after, stored once. The JSON gives them as objects
+/// (`ground_rmse`, `actuator_rmse`) and, as it always has, flat (`rmse_nominal_m`,
+/// `rmse_final_m`, `actuator_rmse_nominal_m`, `actuator_rmse_final_m`).
+#[derive(Debug, Clone, Copy)]
+pub struct Rmses {
+    /// The ground stage: position error at the pose samples.
+    pub ground: StageRmse,
+    /// The actuator stage (only with commands and encoders): wheel-surface error.
+    pub actuator: Option<StageRmse>,
+}
+
+impl Serialize for Rmses {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let mut m = s.serialize_map(Some(6))?;
+        m.serialize_entry("rmse_nominal_m", &self.ground.before_m)?;
+        m.serialize_entry("rmse_final_m", &self.ground.after_m)?;
+        m.serialize_entry(
+            "actuator_rmse_nominal_m",
+            &self.actuator.map(|a| a.before_m),
+        )?;
+        m.serialize_entry("actuator_rmse_final_m", &self.actuator.map(|a| a.after_m))?;
+        m.serialize_entry("ground_rmse", &self.ground)?;
+        m.serialize_entry("actuator_rmse", &self.actuator)?;
+        m.end()
+    }
+}
+
+/// Geometry pairs the recording cannot separate (from the whole-geometry fit of its
+/// recording stage). The JSON gives the pairs (`not_separable`) and, for each, what
+/// would separate them (`separation_advice`: `a / b: advice`).
+#[derive(Debug, Clone, Default)]
+pub struct Separability(pub Inseparables);
+
+impl Serialize for Separability {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        let advice: Vec<String> = self.0.advice().collect();
+        let mut m = s.serialize_map(Some(2))?;
+        m.serialize_entry("not_separable", &self.0.pairs())?;
+        m.serialize_entry("separation_advice", &advice)?;
+        m.end()
+    }
+}
+
+/// What the diagnosis concludes. In the JSON and the summary: the effect's catalogue id,
+/// `none` or `unexplained`.
+#[derive(Debug, Clone, PartialEq, Eq)]
+pub enum Verdict {
+    /// The recording stays within its noise of the nominal model.
+    None,
+    /// The recording leaves the noise and no finding explains enough of it.
+    Unexplained,
+    /// The finding explaining the largest share of the excess, by its effect id.
+    Effect(String),
+}
+
+impl Verdict {
+    /// The verdict as the JSON writes it.
+    pub fn as_str(&self) -> &str {
+        match self {
+            Verdict::None => crate::VERDICT_NONE,
+            Verdict::Unexplained => crate::VERDICT_UNEXPLAINED,
+            Verdict::Effect(id) => id,
+        }
+    }
+}
+
+impl fmt::Display for Verdict {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        f.write_str(self.as_str())
+    }
+}
+
+impl Serialize for Verdict {
+    fn serialize<S: Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        s.serialize_str(self.as_str())
+    }
+}
+
+/// Tests and callers compare a verdict with an effect id.
+impl PartialEq<&str> for Verdict {
+    fn eq(&self, other: &&str) -> bool {
+        self.as_str() == *other
+    }
+}
+
+impl PartialEq<str> for Verdict {
+    fn eq(&self, other: &str) -> bool {
+        self.as_str() == other
+    }
 }
 
 /// Series kept for plots (not serialised).
@@ -118,34 +211,25 @@ pub struct Report {
     /// Time from the first to the last row, s.
     pub duration_s: f64,
     /// A catalogue id, `none` or `unexplained`.
-    pub verdict: String,
+    pub verdict: Verdict,
     /// The effects found, the one explaining the largest share of the excess first.
     pub findings: Vec<Finding>,
     /// Where the residual leaves the noise band.
     pub windows: Vec<Window>,
-    /// Ground-stage position RMSE of the nominal and the final model, m.
-    pub rmse_nominal_m: f64,
-    /// Ground-stage position RMSE of the final model, m.
-    pub rmse_final_m: f64,
     /// Heading RMSE of the nominal model, rad.
     pub heading_rmse_nominal_rad: f64,
     /// Heading RMSE of the final model, rad.
     pub heading_rmse_final_rad: f64,
-    /// Actuator-stage RMSE (when commands and encoders exist), m at the wheel surface.
-    pub actuator_rmse_nominal_m: Option<f64>,
-    /// Actuator-stage RMSE of the final model, m at the wheel surface.
-    pub actuator_rmse_final_m: Option<f64>,
     /// Noise levels estimated from the data.
     pub noise: Noise,
     /// Fraction of the residual beyond the noise that the findings explain (0..1).
     pub explained_fraction: f64,
-    /// The stage on which the verdict's improvement is measured (issue 11): the
+    /// The stage on which the verdict's improvement is measured: the
     /// verdict's evidence stage; `rmse_nominal_m`/`rmse_final_m` are the ground stage's.
     pub rmse_stage: Stage,
-    /// Both stages' RMSE before and after (actuator: only with commands and encoders).
-    pub ground_rmse: StageRmse,
-    /// The actuator stage's RMSE before and after (only with commands and encoders).
-    pub actuator_rmse: Option<StageRmse>,
+    /// Both stages' RMSE before and after.
+    #[serde(flatten)]
+    pub rmse: Rmses,
     /// Estimated start pose (x, y, theta) of the final model.
     pub start_pose: [f64; 3],
     /// Every effect tried, for transparency.
@@ -168,10 +252,9 @@ pub struct Report {
     /// Findings whose parameters leave their physical range (never the verdict).
     pub implausible: Vec<crate::plausibility::Implausible>,
     /// Geometry parameter pairs this recording cannot separate, and what would.
-    pub not_separable: Vec<[String; 2]>,
-    /// For each such pair, `a / b: what would separate them`.
-    pub separation_advice: Vec<String>,
-    /// Identification of the nominal model's residual (issue 19): the terms of the
+    #[serde(flatten)]
+    pub separability: Separability,
+    /// Identification of the nominal model's residual: the terms of the
     /// physical regressor library that survive sparse selection on held-out blocks.
     pub identification: Vec<crate::identify::Term>,
     /// What the residual left after the findings depends on, in words (or, when nothing
@@ -228,7 +311,7 @@ impl fmt::Display for Report {
         for d in &self.depends_on {
             writeln!(f, "depends on: {d}")?;
         }
-        for a in &self.separation_advice {
+        for a in self.separability.0.advice() {
             writeln!(f, "not separable: {a}")?;
         }
         for i in &self.implausible {
@@ -250,17 +333,17 @@ impl fmt::Display for Report {
         writeln!(
             f,
             "ground RMSE: {:.2} mm nominal -> {:.2} mm fitted (noise {:.2} mm, {:.4} rad)",
-            self.rmse_nominal_m * 1e3,
-            self.rmse_final_m * 1e3,
+            self.rmse.ground.before_m * 1e3,
+            self.rmse.ground.after_m * 1e3,
             self.noise.pose_sigma_m * 1e3,
             self.noise.heading_sigma_rad
         )?;
-        if let (Some(a), Some(b)) = (self.actuator_rmse_nominal_m, self.actuator_rmse_final_m) {
+        if let Some(a) = self.rmse.actuator {
             writeln!(
                 f,
                 "actuator RMSE: {:.3} mm nominal -> {:.3} mm fitted (noise {:.3} mm)",
-                a * 1e3,
-                b * 1e3,
+                a.before_m * 1e3,
+                a.after_m * 1e3,
                 self.noise.actuator_sigma_m * 1e3
             )?;
         }

@@ -11,7 +11,7 @@
 
 use crate::effects::{Effect, Model, ParamSpec, Stage};
 use crate::fit::levenberg_marquardt;
-use crate::report::Fit;
+use crate::report::{Fit, Verdict};
 use crate::residuals::{Eval, Evaluator, Fold, StageRss};
 use serde::Serialize;
 
@@ -720,7 +720,7 @@ pub fn verdict(
     ev: &Evaluator,
     sel: &Selection,
     findings: &mut Vec<crate::report::Finding>,
-) -> (String, f64, Vec<crate::plausibility::Implausible>) {
+) -> (Verdict, f64, Vec<crate::plausibility::Implausible>) {
     use crate::signature;
     use crate::{MIN_EXPLAINED, MISMATCH_CHI2, RESIDUAL_CHI2, WELL_EXPLAINED};
     let (mut excess0, mut excess1) = (0.0, 0.0);
@@ -848,7 +848,7 @@ pub fn verdict(
         }
     }
     findings.sort_by(|a, b| b.explained_share.total_cmp(&a.explained_share));
-    // The verdict is decided here only (issue 19): a finding outside its physical range,
+    // The verdict is decided here only: a finding outside its physical range,
     // or floor bumps whose loss is not where the bumps are, is listed, never the verdict.
     let mut implausible = crate::plausibility::check(findings);
     implausible.extend(crate::plausibility::bumps_not_localised(
@@ -858,21 +858,19 @@ pub fn verdict(
         .iter()
         .find(|f| !f.implausible_sign && !implausible.iter().any(|i| i.effect == f.effect));
     let verdict = match top {
-        None if mismatch => crate::VERDICT_UNEXPLAINED.to_string(),
-        None => crate::VERDICT_NONE.to_string(),
-        Some(f) if f.signature.is_some() => f.effect.clone(),
-        Some(_) if mismatch && explained_fraction < MIN_EXPLAINED => {
-            crate::VERDICT_UNEXPLAINED.to_string()
-        }
+        None if mismatch => Verdict::Unexplained,
+        None => Verdict::None,
+        Some(f) if f.signature.is_some() => Verdict::Effect(f.effect.clone()),
+        Some(_) if mismatch && explained_fraction < MIN_EXPLAINED => Verdict::Unexplained,
         // A fit that leaves the residual far outside the noise must explain nearly all
         // of it to be the answer: an effect can bend an out-of-catalogue drift a long way
         // with implausible parameters.
         Some(_)
             if mismatch && worst_final > RESIDUAL_CHI2 && explained_fraction < WELL_EXPLAINED =>
         {
-            crate::VERDICT_UNEXPLAINED.to_string()
+            Verdict::Unexplained
         }
-        Some(f) => f.effect.clone(),
+        Some(f) => Verdict::Effect(f.effect.clone()),
     };
     // A named effect whose fit leaves the residual far outside the noise is partial.
     for f in findings.iter_mut() {

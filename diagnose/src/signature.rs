@@ -1,4 +1,4 @@
-//! Signatures (issue 11): before any parametric fit, what each effect does to the
+//! Signatures: before any parametric fit, what each effect does to the
 //! residuals, looked for directly. A clear signature names an effect even when no
 //! mechanism fits it fully (the finding then says `"fit": "partial"`), and a residual with
 //! no signature of drift at all is noise, however coloured.

@@ -368,7 +368,7 @@ fn ground_wheel(ev: &Evaluator, e: &Eval, a: usize, b: usize, axis: Axis) -> Opt
 
 /// Rows where the residual changes most within samples a..=b (steps of at least half
 /// the window's largest): what the robot does there is what relates to the residual, not
-/// what it does on average including rest (issue 11).
+/// what it does on average including rest.
 fn peak_rows(series: &[f64], rows: &[usize], a: usize, b: usize) -> Vec<usize> {
     let b = b
         .min(series.len().saturating_sub(1))

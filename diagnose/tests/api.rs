@@ -1,4 +1,4 @@
-//! The interface the console wraps: `--json` fields (issue 7), the human summary, the
+//! The interface the console wraps: `--json` fields, the human summary, the
 //! report directory and `--write-robot`.
 
 use calib_core::robot::{presets, Drive};
@@ -73,4 +73,79 @@ fn json_has_the_issue_fields_and_write_robot_applies_the_fit() {
         );
     }
     let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Values the JSON gives twice (flat and as objects, pairs and advice, table and means,
+/// wheel geometry) are stored once and derived when serialised: each copy must equal its
+/// source exactly.
+#[test]
+fn json_copies_are_derived_from_one_stored_value() {
+    let (robot, rec) = ed_recording();
+    let r = diagnose(&robot, &rec, &Options::default()).unwrap();
+    let v: serde_json::Value = serde_json::from_str(&r.to_json()).unwrap();
+    assert_eq!(v["rmse_nominal_m"], v["ground_rmse"]["before_m"]);
+    assert_eq!(v["rmse_final_m"], v["ground_rmse"]["after_m"]);
+    // serde_json reads a float back to within an ulp or two.
+    let same = |j: &serde_json::Value, x: f64| (j.as_f64().unwrap() - x).abs() <= 1e-12 * x.abs();
+    assert!(same(&v["rmse_nominal_m"], r.rmse.ground.before_m));
+    let act = r
+        .rmse
+        .actuator
+        .expect("commands and encoders were recorded");
+    assert!(same(&v["actuator_rmse_nominal_m"], act.before_m));
+    assert_eq!(v["actuator_rmse_final_m"], v["actuator_rmse"]["after_m"]);
+    assert_eq!(v["verdict"], r.verdict.as_str());
+    assert_eq!(
+        v["not_separable"].as_array().unwrap().len(),
+        v["separation_advice"].as_array().unwrap().len()
+    );
+
+    // Calibrate: three recordings, cross-validated by run.
+    let recs: Vec<_> = (0..3)
+        .map(|seed| {
+            let mut cfg = RecordConfig::default();
+            cfg.sim.seed = 20 + seed;
+            cfg.row_rate_hz = 50.0;
+            let motion = Motion::Random(RandomMotion {
+                duration_s: 20.0,
+                ..RandomMotion::default()
+            });
+            let effects = [Effect::parse("wheel_diameter_mismatch=ed:1.01").unwrap()];
+            let rec = record(&robot, &effects, Surface::flat(), &motion, &cfg)
+                .unwrap()
+                .recording;
+            (format!("run{seed}"), rec)
+        })
+        .collect();
+    let opts = diagnose::calibrate::CalOptions {
+        leave_one_out: true,
+        ..Default::default()
+    };
+    let c = diagnose::calibrate::calibrate(&robot, &recs, None, &opts).unwrap();
+    let v: serde_json::Value = serde_json::to_value(&c).unwrap();
+    let table = v["leave_one_out"].as_array().unwrap();
+    assert_eq!(table.len(), 3);
+    let mean_after = table
+        .iter()
+        .map(|h| h["rmse_after_m"].as_f64().unwrap())
+        .sum::<f64>()
+        / 3.0;
+    assert!(same(&v["leave_one_out_mean_after_m"], mean_after));
+    let means = c.leave_one_out.means().unwrap();
+    assert!(same(
+        &v["leave_one_out_aligned_before_m"],
+        means.aligned_before_m
+    ));
+    assert_eq!(
+        v["not_separable"].as_array().unwrap().len(),
+        v["inseparable"].as_array().unwrap().len()
+    );
+    let geometry = v["geometry"].as_array().unwrap();
+    for (g, w) in geometry.iter().zip(&c.fitted_robot.wheels) {
+        assert!(same(&g["radius_m"], w.radius_m));
+    }
+    for (p, q) in v["params"].as_array().unwrap().iter().zip(&c.params) {
+        assert_eq!(p["name"], q.spec.name.as_str());
+        assert!(same(&p["nominal"], q.spec.nominal));
+    }
 }

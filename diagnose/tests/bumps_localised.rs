@@ -1,4 +1,4 @@
-//! Floor bumps must be localised in space (issue 10, plausibility: "bumps only where the
+//! Floor bumps must be localised in space (plausibility: "bumps only where the
 //! residual is localised in space"). A uniform loss of travel (wheels smaller than
 //! nominal, uniform slip) is not floor bumps, however well a bumps model bends to fit it;
 //! a cable strip in one stretch of the floor is, with its bounds.

@@ -1,4 +1,4 @@
-//! The series and figures of `calibrate --report` (issue 10): the plotted errors are the
+//! The series and figures of `calibrate --report`: the plotted errors are the
 //! ones the fit compared (their RMS is the calibration's own RMSE per recording), and no
 //! legend covers a plotted point or cell.
 
@@ -191,7 +191,7 @@ fn no_legend_covers_data() {
     big.params = (0..g)
         .map(|i| {
             let mut p = c.params[0].clone();
-            p.name = format!("alpha_offset_rad_w{i}");
+            p.spec.name = format!("alpha_offset_rad_w{i}");
             p
         })
         .collect();
@@ -208,7 +208,15 @@ fn no_legend_covers_data() {
                 .collect()
         })
         .collect();
-    big.not_separable = vec![[big.params[0].name.clone(), big.params[1].name.clone()]];
+    big.inseparable = diagnose::calibrate::Inseparables(vec![diagnose::calibrate::Inseparable {
+        params: [
+            big.params[0].spec.name.clone(),
+            big.params[1].spec.name.clone(),
+        ],
+        correlation: 0.97,
+        identifiable: [std::f64::consts::FRAC_1_SQRT_2; 2],
+        advice: "drive the other way".into(),
+    }]);
     for (what, cal) in [("diff", &c), ("omni", &big)] {
         let n = cal.params.len();
         let mut svg = String::new();
@@ -280,6 +288,6 @@ fn real_omni3_with_marker_offset_series_are_what_the_fit_compared() {
         ..CalOptions::default()
     };
     let c = calibrate(&robot, &recs, None, &opts).unwrap();
-    assert!(c.params.iter().any(|p| p.name == "marker_x_m"));
+    assert!(c.params.iter().any(|p| p.spec.name == "marker_x_m"));
     check_consistent(&c, &robot, &recs, None);
 }

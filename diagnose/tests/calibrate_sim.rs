@@ -1,4 +1,4 @@
-//! `calibrate` on simulated recordings with known geometry (issue 10): every robot in
+//! `calibrate` on simulated recordings with known geometry: every robot in
 //! robots/ that calibrate supports gets its geometry back within the fit's stated
 //! uncertainty; one-direction squares report E_d / E_b not separable, both directions
 //! separate them; recording artefacts (time offset, clock rate) are fitted as recording
@@ -50,7 +50,7 @@ fn assert_recovered(c: &Calibration, truth: &[f64], floor: f64) {
         assert!(
             (p.value - t).abs() <= 4.0 * p.sigma + floor,
             "{}: fitted {} ± {}, true {}\n{c}",
-            p.name,
+            p.spec.name,
             p.value,
             p.sigma,
             t
@@ -71,7 +71,11 @@ fn differential_robots_recovered_from_both_directions() {
             .map(|(i, d)| (format!("{d:?}"), square(&actual, d, 3 + i as u64).recording))
             .collect();
         let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
-        assert!(c.not_separable.is_empty(), "{name}: {:?}", c.not_separable);
+        assert!(
+            c.inseparable.pairs().is_empty(),
+            "{name}: {:?}",
+            c.inseparable.pairs()
+        );
         assert!(c.implausible.is_empty(), "{name}: {:?}", c.implausible);
         assert_recovered(&c, &truth, 1e-3);
         assert!(
@@ -82,7 +86,7 @@ fn differential_robots_recovered_from_both_directions() {
 }
 
 /// With the start pose fitted (`--free-start`), one square's start heading trades against
-/// E_d and E_b: reported not separable. Dead-reckoned from the known start (issue 21's
+/// E_d and E_b: reported not separable. Dead-reckoned from the known start (the
 /// default) the same square separates them: E_d bends the straight legs from the first
 /// metre, E_b only turns at the corners; both come back within the fit's uncertainty.
 #[test]
@@ -95,9 +99,9 @@ fn one_direction_reports_ed_eb_not_separable() {
         let recs = vec![("one".to_string(), square(&actual, d, 5).recording)];
         let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
         assert!(
-            c.not_separable.is_empty(),
+            c.inseparable.pairs().is_empty(),
             "{d:?}: {:?}\n{c}",
-            c.not_separable
+            c.inseparable.pairs()
         );
         assert_recovered(&c, &truth, 1e-3);
         let free = CalOptions {
@@ -106,9 +110,12 @@ fn one_direction_reports_ed_eb_not_separable() {
         };
         let c = calibrate(&nominal, &recs, None, &free).unwrap();
         assert!(
-            c.not_separable.iter().any(|p| p[0] == "ed" && p[1] == "eb"),
+            c.inseparable
+                .pairs()
+                .iter()
+                .any(|p| p[0] == "ed" && p[1] == "eb"),
             "{d:?}: {:?}\n{c}",
-            c.not_separable
+            c.inseparable.pairs()
         );
     }
 }
@@ -145,13 +152,18 @@ fn omni_robots_recovered_from_free_motion() {
         if n == 3 {
             // Three wheels: the nine parameters map one to one onto the kinematics.
             for (p, t) in c.params.iter().zip(&truth) {
-                assert!((p.value - t).abs() < 2e-3, "{}: {} vs {t}", p.name, p.value);
+                assert!(
+                    (p.value - t).abs() < 2e-3,
+                    "{}: {} vs {t}",
+                    p.spec.name,
+                    p.value
+                );
             }
         } else {
             // Four wheels: consistent encoders fix only 9 of the 12 numbers (any J' with
             // pinv(J') J = I fits); that must be said, not guessed.
             assert!(
-                !c.unconstrained.is_empty() || !c.not_separable.is_empty(),
+                !c.unconstrained.is_empty() || !c.inseparable.pairs().is_empty(),
                 "{c}"
             );
         }
@@ -223,11 +235,11 @@ fn mecanum_roller_angle_is_fitted_when_the_data_ask() {
     let g = c
         .params
         .iter()
-        .find(|p| p.name == "roller_angle_offset_rad")
+        .find(|p| p.spec.name == "roller_angle_offset_rad")
         .unwrap();
     assert!((g.value.to_degrees() - 2.0).abs() < 0.2, "{c}");
     // The fitted robot carries the roller angle: |gamma| 47 degrees on every wheel.
-    for w in &c.geometry {
+    for w in &c.geometry() {
         assert!(
             (w.gamma_deg.abs() - 47.0).abs() < 0.2,
             "{}: {}",
@@ -260,7 +272,9 @@ fn mecanum_mounting_errors_keep_the_per_wheel_model() {
     let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
     println!("{c}");
     assert!(
-        c.params.iter().all(|p| p.name != "roller_angle_offset_rad"),
+        c.params
+            .iter()
+            .all(|p| p.spec.name != "roller_angle_offset_rad"),
         "{c}"
     );
     assert!(
@@ -299,7 +313,7 @@ fn wheeled_legged_recovered_with_moving_legs() {
     let cal = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
     println!("{cal}");
     assert!(cal.implausible.is_empty(), "{:?}\n{cal}", cal.implausible);
-    assert!(cal.not_separable.is_empty(), "{cal}");
+    assert!(cal.inseparable.pairs().is_empty(), "{cal}");
     assert_recovered(&cal, &truth, 2e-3);
     // Down to the simulated motion-capture noise (1 mm per axis).
     assert!(cal.joint_rmse_after_m < 2e-3, "{cal}");
@@ -496,7 +510,7 @@ fn slip_at_start_is_reported_and_does_not_bend_the_geometry() {
         assert!(
             (p.value - p0.value).abs() <= 2.0 * p0.sigma,
             "{}: {} with the slip, {} ± {} without",
-            p.name,
+            p.spec.name,
             p.value,
             p0.value,
             p0.sigma
@@ -558,7 +572,7 @@ fn single_sample_glitches_are_reported_not_fitted() {
         assert!(
             (p.value - p0.value).abs() <= p0.sigma,
             "{}: {} with the glitches, {} ± {} clean",
-            p.name,
+            p.spec.name,
             p.value,
             p0.value,
             p0.sigma
@@ -614,12 +628,12 @@ fn omni_ladder_keeps_the_simplest_model_that_holds_out() {
         let p = c
             .params
             .iter()
-            .find(|p| p.name == format!("radius_scale_{}", nominal.wheels[i].name))
+            .find(|p| p.spec.name == format!("radius_scale_{}", nominal.wheels[i].name))
             .unwrap_or_else(|| panic!("no radius for wheel {i}\n{c}"));
         assert!(
             (p.value - r).abs() <= 4.0 * p.sigma + 1e-3,
             "{}\n{c}",
-            p.name
+            p.spec.name
         );
     }
 }
@@ -651,12 +665,12 @@ fn turn_dependent_separation_is_found_and_not_invented() {
     let arc = c
         .params
         .iter()
-        .find(|p| p.name == "eb_arc")
+        .find(|p| p.spec.name == "eb_arc")
         .unwrap_or_else(|| panic!("no law\n{c}"));
     assert!((arc.value - 0.04).abs() <= 4.0 * arc.sigma + 0.01, "{c}");
     let c = calibrate(&nominal, &runs(0.0), None, &CalOptions::default()).unwrap();
     println!("{c}");
-    assert!(c.params.iter().all(|p| p.name != "eb_arc"), "{c}");
+    assert!(c.params.iter().all(|p| p.spec.name != "eb_arc"), "{c}");
     assert!(
         c.notes
             .iter()

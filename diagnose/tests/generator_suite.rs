@@ -310,15 +310,15 @@ fn run(case: &Case) -> Outcome {
         "findings {:?} params {:?} rmse {:.2}->{:.2} mm expl {:.2} windows {}",
         found,
         r.findings.iter().map(|f| &f.parameters).collect::<Vec<_>>(),
-        r.rmse_nominal_m * 1e3,
-        r.rmse_final_m * 1e3,
+        r.rmse.ground.before_m * 1e3,
+        r.rmse.ground.after_m * 1e3,
         r.explained_fraction,
         r.windows.len()
     );
     Outcome {
         name: case.name.clone(),
         expected: expected_verdict.to_string(),
-        got: r.verdict.clone(),
+        got: r.verdict.to_string(),
         ok: problems.is_empty(),
         detail: if problems.is_empty() {
             detail

@@ -1,9 +1,9 @@
 //! Issue 21's held-out proxy on `shared/real/sessions/` (see `diagnose::calibrate::proxy`):
 //! the geometry `calibrate` fits on a square session, dead-reckoned from the first row on
 //! the circles and Ivanjko paths of the nearest day, against the OptiOdom authors'
-//! parameters from the same session. Goal (issue 21): no session above the authors
+//! parameters from the same session. Goal: no session above the authors
 //! (ratio <= 1.0), geometric mean of the ratios <= 0.94. Skipped when the data are absent.
-//! Baseline (start pose and clocks fitted per recording, before issue 21): geometric mean
+//! Baseline (start pose and clocks fitted per recording, as first built): geometric mean
 //! 1.112, worst 1.259. With the dead-reckoning objective and events kept out: 1.004, worst
 //! 1.079 (the ignored whole-proxy test fails: the goal is not met).
 

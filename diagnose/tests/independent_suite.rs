@@ -1,4 +1,4 @@
-//! The independent suite of issue 19: recordings from a generator with its own physics
+//! The independent suite: recordings from a generator with its own physics
 //! (`independent/mod.rs`: not the `sim` crate's effects, not diagnose's models) and with
 //! mechanisms neither crate has: speed droop friction, gear play that differs per wheel
 //! with a small diameter mismatch, one omni wheel mounted at another angle, one omni wheel
@@ -9,7 +9,7 @@
 //! physics).
 //!
 //! Seeds, cases and tolerances were fixed in the commit that added this file, before any
-//! diagnose change of issue 19. Each case states the expected verdict, the mechanism where
+//! diagnose change. Each case states the expected verdict, the mechanism where
 //! it matters and its parameters with tolerances from the physics (a wheel mounting angle
 //! to 0.5 degrees, a distance to 1.5 %, a diameter ratio to 0.15 %, a slip or friction
 //! coefficient to 20-30 %, floor bounds to 10 cm). The first and current scores are in the
@@ -277,10 +277,10 @@ fn run(case: &Case) -> Outcome {
             .map(|f| format!("{}/{}({})", f.effect, f.mechanism, f.fit))
             .collect::<Vec<_>>(),
         r.findings.iter().map(|f| &f.parameters).collect::<Vec<_>>(),
-        r.rmse_nominal_m * 1e3,
-        r.rmse_final_m * 1e3,
-        r.actuator_rmse_nominal_m.unwrap_or(0.0) * 1e3,
-        r.actuator_rmse_final_m.unwrap_or(0.0) * 1e3,
+        r.rmse.ground.before_m * 1e3,
+        r.rmse.ground.after_m * 1e3,
+        r.rmse.actuator.map_or(0.0, |a| a.before_m) * 1e3,
+        r.rmse.actuator.map_or(0.0, |a| a.after_m) * 1e3,
     );
     Outcome {
         name: case.name.to_string(),
@@ -316,7 +316,7 @@ fn independent_mechanisms() {
 }
 
 /// The wheeled-legged posture slip, found two rounds ago and `unexplained` since: the
-/// regression check of issue 19. Still failing: identification names it (along-track
+/// regression check. Still failing: identification names it (along-track
 /// error that follows acceleration: longitudinal slip), but diagnose's traction model
 /// bounds each driven wheel's contact speed (yaw changes included) and its body-bound
 /// mechanism needs every wheel driven, while this robot's rear wheels are free; the fit

@@ -1,4 +1,4 @@
-//! The third suite (issue 11): the same physics made by other mechanisms. Every catalogue
+//! The third suite: the same physics made by other mechanisms. Every catalogue
 //! effect under every mechanism the sim crate has (`mechanism:<name>`), random parameters
 //! and trajectories, pairs of effects, and noise-only controls with harder noise
 //! (coloured motion-capture noise, jittered sample times, gaps in the pose stream) that
@@ -572,15 +572,15 @@ fn run(case: &Case) -> Outcome {
             .map(|f| format!("{}/{}({})", f.effect, f.mechanism, f.fit))
             .collect::<Vec<_>>(),
         r.findings.iter().map(|f| &f.parameters).collect::<Vec<_>>(),
-        r.rmse_nominal_m * 1e3,
-        r.rmse_final_m * 1e3,
-        r.actuator_rmse_nominal_m.unwrap_or(0.0) * 1e3,
-        r.actuator_rmse_final_m.unwrap_or(0.0) * 1e3,
+        r.rmse.ground.before_m * 1e3,
+        r.rmse.ground.after_m * 1e3,
+        r.rmse.actuator.map_or(0.0, |a| a.before_m) * 1e3,
+        r.rmse.actuator.map_or(0.0, |a| a.after_m) * 1e3,
     );
     Outcome {
         name: case.name.clone(),
         truth: case.truth.clone(),
-        got: r.verdict.clone(),
+        got: r.verdict.to_string(),
         control: case.verdict == "none",
         verdict_ok,
         full_ok: problems.is_empty(),

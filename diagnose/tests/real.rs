@@ -34,8 +34,8 @@ fn diff_square_fit_improves() {
     assert!(
         r.explained_fraction >= diagnose::MIN_EXPLAINED,
         "{} -> {}: {}",
-        r.rmse_nominal_m,
-        r.rmse_final_m,
+        r.rmse.ground.before_m,
+        r.rmse.ground.after_m,
         r.explained_fraction
     );
     // The recording stage finds the one-row misalignment of poses and encoders (the
@@ -53,10 +53,10 @@ fn omni3_square_fit_improves() {
     };
     assert!(!r.findings.is_empty(), "a systematic error is found");
     assert!(
-        r.rmse_final_m < 0.5 * r.rmse_nominal_m,
+        r.rmse.ground.after_m < 0.5 * r.rmse.ground.before_m,
         "{} -> {}",
-        r.rmse_nominal_m,
-        r.rmse_final_m
+        r.rmse.ground.before_m,
+        r.rmse.ground.after_m
     );
     // w3 17 % larger is no tyre: listed implausible (it stands in for the wheel angles
     // a radius-only fit lacks), never the verdict.
@@ -104,7 +104,7 @@ fn real_runs_have_no_counts_error() {
     }
 }
 
-// ---- calibrate: the six squares jointly (issue 10) ----
+// ---- calibrate: the six squares jointly ----
 
 use diagnose::calibrate::{calibrate, CalOptions, Calibration};
 
@@ -139,7 +139,7 @@ const SQUARES: [&str; 6] = [
 ];
 
 fn param(c: &Calibration, name: &str) -> f64 {
-    c.params.iter().find(|p| p.name == name).unwrap().value
+    c.params.iter().find(|p| p.spec.name == name).unwrap().value
 }
 
 #[test]
@@ -154,7 +154,11 @@ fn six_squares_give_one_plausible_geometry() {
     let c = calibrate(&robot, &recs, None, &opts).unwrap();
     println!("{c}");
     // cw and ccw together separate E_d from E_b.
-    assert!(c.not_separable.is_empty(), "{:?}", c.not_separable);
+    assert!(
+        c.inseparable.pairs().is_empty(),
+        "{:?}",
+        c.inseparable.pairs()
+    );
     assert!(c.implausible.is_empty(), "{:?}", c.implausible);
     // UMBmark over the same six squares (end points only) gives E_d ~ 0.9990 and
     // E_b ~ 1.008 (data README): the whole-trajectory fit must agree on E_d to 0.1 %
@@ -179,11 +183,12 @@ fn six_squares_give_one_plausible_geometry() {
     // clocks fitted) at least twice as well as the nominal, and dead reckoning improves
     // on average.
     let (b, a) = (
-        c.leave_one_out_aligned_before_m.unwrap(),
-        c.leave_one_out_aligned_after_m.unwrap(),
+        c.leave_one_out.means().unwrap().aligned_before_m,
+        c.leave_one_out.means().unwrap().aligned_after_m,
     );
     assert!(a < 0.5 * b, "{b} -> {a}");
-    assert!(c.leave_one_out_mean_after_m.unwrap() < c.leave_one_out_mean_before_m.unwrap());
+    let m = c.leave_one_out.means().unwrap();
+    assert!(m.after_m < m.before_m);
 }
 
 /// With each run's start pose fitted (`--free-start`), one direction cannot separate E_d
@@ -201,13 +206,14 @@ fn one_direction_cannot_separate_ed_from_eb() {
         };
         let c = calibrate(&robot, &recs, None, &free).unwrap();
         assert!(
-            c.not_separable
+            c.inseparable
+                .pairs()
                 .iter()
                 .any(|p| p.contains(&"ed".to_string()) && p.contains(&"eb".to_string())),
             "{runs:?}: {:?}",
-            c.not_separable
+            c.inseparable.pairs()
         );
-        let i = &c.inseparable[0];
+        let i = &c.inseparable.0[0];
         assert!(i.advice.contains("other way"), "{}", i.advice);
     }
 }
@@ -221,14 +227,14 @@ fn omni3_geometry_is_plausible() {
     println!("{c}");
     for p in &c.params {
         assert!(
-            p.value >= p.plausible.0 - 1e-9 && p.value <= p.plausible.1 + 1e-9,
+            p.value >= p.spec.plausible.0 - 1e-9 && p.value <= p.spec.plausible.1 + 1e-9,
             "{}: {}",
-            p.name,
+            p.spec.name,
             p.value
         );
     }
     // One square cannot pin nine wheel parameters: what it cannot tell is said.
-    assert!(!c.not_separable.is_empty());
+    assert!(!c.inseparable.pairs().is_empty());
     // Within the plausible ranges the fit still removes most of the error (the 3.6 %
     // over-rotation of the data README).
     assert!(c.joint_rmse_after_m < 0.5 * c.joint_rmse_before_m);
@@ -279,13 +285,11 @@ fn one_square_says_ed_and_eb_are_not_separable() {
         return;
     };
     assert!(
-        r.not_separable
-            .iter()
-            .any(|p| p.contains(&"ed".to_string()) && p.contains(&"eb".to_string())),
+        r.separability.0.involves("ed") && r.separability.0.involves("eb"),
         "{:?}",
-        r.not_separable
+        r.separability.0.pairs()
     );
-    assert!(r.separation_advice.iter().any(|a| a.contains("other way")));
+    assert!(r.separability.0.advice().any(|a| a.contains("other way")));
 }
 
 /// A lab floor has no cables: on the six squares any `floor_bumps` finding (the ccw

@@ -1,4 +1,4 @@
-//! The recording stage (issue 10 §4): artefacts of how a run was logged are found, fitted
+//! The recording stage: artefacts of how a run was logged are found, fitted
 //! and reported under their own catalogue ids, removed before the physics is judged, and
 //! never reported as physics. Each case is a clean simulated run of the mobolab robot
 //! (no physical effect hidden) with one logging artefact put in.

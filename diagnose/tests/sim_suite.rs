@@ -366,16 +366,16 @@ fn run(case: &Case) -> Outcome {
         "{:?} {:?} ground {:.2}->{:.2} mm, actuator {:.3}->{:.3} mm, windows {}",
         found,
         r.findings.iter().map(|f| &f.parameters).collect::<Vec<_>>(),
-        r.rmse_nominal_m * 1e3,
-        r.rmse_final_m * 1e3,
-        r.actuator_rmse_nominal_m.unwrap_or(0.0) * 1e3,
-        r.actuator_rmse_final_m.unwrap_or(0.0) * 1e3,
+        r.rmse.ground.before_m * 1e3,
+        r.rmse.ground.after_m * 1e3,
+        r.rmse.actuator.map_or(0.0, |a| a.before_m) * 1e3,
+        r.rmse.actuator.map_or(0.0, |a| a.after_m) * 1e3,
         r.windows.len()
     );
     Outcome {
         name: case.name.clone(),
         expected: expected.to_string(),
-        got: r.verdict.clone(),
+        got: r.verdict.to_string(),
         ok: problems.is_empty(),
         detail: if problems.is_empty() {
             detail

@@ -42,7 +42,7 @@ fn runs(tyre: Tyre) -> Vec<(String, Recording)> {
 }
 
 fn param<'a>(c: &'a Calibration, name: &str) -> Option<&'a diagnose::calibrate::FittedParam> {
-    c.params.iter().find(|p| p.name == name)
+    c.params.iter().find(|p| p.spec.name == name)
 }
 
 #[test]

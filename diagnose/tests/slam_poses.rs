@@ -123,7 +123,7 @@ fn a_slam_jump_is_reported_and_costs_one_sample() {
         assert!(
             (p.value - t).abs() <= 3.0 * p.sigma,
             "{}: {} ± {}, true {t}\n{clean}",
-            p.name,
+            p.spec.name,
             p.value,
             p.sigma
         );
@@ -132,7 +132,7 @@ fn a_slam_jump_is_reported_and_costs_one_sample() {
         assert!(
             (p.value - q.value).abs() <= 2.0 * q.sigma.max(p.sigma),
             "{}: {} with the jump, {} ± {} without\n{jumped}",
-            p.name,
+            p.spec.name,
             p.value,
             q.value,
             q.sigma

@@ -212,7 +212,7 @@ impl<'a> TrialLog<'a> {
 
     /// Forgets every trial (not while one is recording: the caller checks). The eviction
     /// count restarts too: it tells the host that older trials are missing from the list,
-    /// and after a clear none is (issue 23 §5: `log list` said the cleared trials "were
+    /// and after a clear none is (`log list` said the cleared trials "were
     /// evicted").
     pub fn clear(&mut self) {
         self.block.take();

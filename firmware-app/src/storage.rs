@@ -138,7 +138,7 @@ impl<F: NorFlash> Store<F> {
     pub async fn load(&mut self) -> Loaded {
         let saved = self.saved_mask().await;
         // No readable record of saves on a flash that holds data: whatever was saved is
-        // lost, not absent (issue 23 §5: flipped bits and random bytes read "none saved").
+        // lost, not absent (flipped bits and random bytes read "none saved").
         let lost = saved == 0 && self.holds_data().await;
         let absent = |key: u8| {
             if saved & (1 << key) != 0 || lost {

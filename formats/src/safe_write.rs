@@ -1,4 +1,4 @@
-//! Writing without losing a user's file (issue 23 §2). Every command that writes follows
+//! Writing without losing a user's file. Every command that writes follows
 //! one rule:
 //!
 //! - a folder is written into only when it is new, empty, or one wheelcal made (it holds

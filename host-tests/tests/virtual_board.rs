@@ -8,7 +8,7 @@ use formats::robot_file;
 use sim::{Faults as SimFaults, SimConfig, SimRobot, Surface};
 use std::path::Path;
 use std::time::{Duration, Instant};
-use wheelcal::client::{decode_records, Client, ClientError};
+use wheelcal::client::{decode_records, Client, ClientError, LogError};
 use wheelcal::link::{Faults, MemoryEnd};
 use wheelcal::virtual_board::InProcessBoard;
 
@@ -102,6 +102,20 @@ fn info_factors_program_and_log() {
     assert_eq!(data.len() as u32, t.bytes);
     let recs = decode_records(&t, &data).unwrap();
     assert_eq!(recs.len() as u32, t.records);
+    // A transfer cut 5 bytes short: the last block is incomplete, its bytes are counted
+    // as trailing and no other block is lost.
+    match decode_records(&t, &data[..data.len() - 5]) {
+        Err(LogError::Damaged {
+            trial,
+            bad_blocks: 0,
+            trailing,
+            ..
+        }) => {
+            assert_eq!(trial, t.id);
+            assert!(trailing > 0 && (trailing as usize) < data.len());
+        }
+        other => panic!("a cut transfer decoded as {other:?}"),
+    }
     // The program's duration at 50 Hz: four 1 m legs and four 90 deg turns.
     let last = recs.last().unwrap();
     // The log's last odometry pose is the board's odometry at the end (f32 rounding).

@@ -148,7 +148,7 @@ fn real_squares_import_exactly_and_calibrate_the_same() {
         assert!(
             (p.value - q.value).abs() <= 1e-4,
             "{}: csv {} bag {}",
-            p.name,
+            p.spec.name,
             p.value,
             q.value
         );

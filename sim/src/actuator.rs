@@ -110,7 +110,7 @@ impl Actuator {
         }
     }
 
-    /// Uses the effects' mechanisms (issue 11); `seed` drives the random step drops.
+    /// Uses the effects' mechanisms; `seed` drives the random step drops.
     pub fn with_mechanisms(mut self, mech: &MechanismFaults, seed: u64) -> Self {
         self.mech = *mech;
         self.rng = seed | 1;

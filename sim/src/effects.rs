@@ -1,4 +1,4 @@
-//! The diagnose catalogue (issue 7) as data: [`Effect`] with exactly the catalogue's
+//! The diagnose catalogue as data: [`Effect`] with exactly the catalogue's
 //! parameter names, a parser for `ID=name:value,name:value` strings (the `--effect`
 //! argument of `wheelcal sim record`), and [`Faults`], the per-robot numbers the simulator
 //! runs with once the effects are folded in.
@@ -120,8 +120,8 @@ pub enum Effect {
 
 pub use formats::catalogue::EFFECT_IDS;
 
-/// How an effect comes about: every catalogue effect has several physical mechanisms
-/// (issue 11), chosen with `mechanism:<name>` in the effect string.
+/// How an effect comes about: every catalogue effect has several physical mechanisms,
+/// chosen with `mechanism:<name>` in the effect string.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash)]
 pub enum Mechanism {
     /// longitudinal_slip: per-wheel traction limit.
@@ -837,7 +837,7 @@ pub struct Faults {
     /// Non-systematic floor roughness: each wheel's travel gets a random walk of this
     /// many metres per square-root metre travelled.
     pub travel_noise_m_per_sqrt_m: f64,
-    /// The mechanisms of the effects above (issue 11) and their extra parameters.
+    /// The mechanisms of the effects above and their extra parameters.
     pub mech: MechanismFaults,
 }
 

@@ -46,7 +46,7 @@ pub struct GroundParams {
     pub side_slip_s: f64,
     /// Random walk of each wheel's travel, metres per square-root metre travelled.
     pub travel_noise_m_per_sqrt_m: f64,
-    /// Mechanisms of the traction and side-slip effects (issue 11).
+    /// Mechanisms of the traction and side-slip effects.
     pub mech: crate::effects::MechanismFaults,
     /// Tyre friction of a skid-steer robot's contacts.
     pub tyre: crate::skid::Tyre,

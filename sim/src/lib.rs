@@ -6,7 +6,7 @@
 //! separately so tests can compare.
 //!
 //! Layers, one module each:
-//! - [`effects`]: the diagnose catalogue (issue 7) as an [`Effect`] enum with a parser for
+//! - [`effects`]: the diagnose catalogue as an [`Effect`] enum with a parser for
 //!   `ID=name:value,...` strings, folded into [`Faults`] and a [`Surface`];
 //! - [`motor`] (DC: duty -> voltage -> torque), [`stepper`] (steps, pull-out), [`actuator`]
 //!   (one wheel: input -> motor angle -> backlash -> wheel angle);

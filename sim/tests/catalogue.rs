@@ -1,4 +1,4 @@
-//! Every effect of the diagnose catalogue (issue 7) is simulatable from its `--effect`
+//! Every effect of the diagnose catalogue is simulatable from its `--effect`
 //! string and acts in the stage the catalogue puts it in: ground effects move the body
 //! but leave the encoders exactly as commanded; actuator effects change the encoders.
 

@@ -180,7 +180,7 @@ pub fn eviction_forecast(
     let records = (prog.duration(limits) * 1.1 * f64::from(rate_hz)).ceil();
     // The log stores records compressed (about 4.3 bytes for a 32-byte two-wheel record):
     // the size that counts is the one the board's own trials show, the largest of them
-    // (issue 23 §5: 32 bytes a record named trials that were never evicted). Without a
+    // (32 bytes a record named trials that were never evicted). Without a
     // trial to learn from, the uncompressed size bounds it.
     let per_record = trials
         .trials

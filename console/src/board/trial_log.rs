@@ -219,7 +219,7 @@ pub fn pull_trial<L: Read + Write>(
         .pull_log(trial, Vec::new(), progress)
         .with_context(|| format!("log transfer of trial {trial} failed"))?;
     let secs = t0.elapsed().as_secs_f64();
-    let recs = decode_records(&info, &data).map_err(|e| anyhow::anyhow!(e))?;
+    let recs = decode_records(&info, &data)?;
     if mcap {
         crate::mcap_out::write_trial(&info, &recs, out)
             .with_context(|| format!("cannot write {}", out.display()))?;

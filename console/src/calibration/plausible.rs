@@ -65,7 +65,7 @@ pub fn check_runs(runs: &RunsFile, max_length_m: f64) -> Result<(), RunsError> {
             } else {
                 String::new()
             };
-            // The radial error of both columns, not one of them (issue 23 §5).
+            // The radial error of both columns, not one of them.
             let mut e = row_error(
                 runs,
                 r,
@@ -152,7 +152,7 @@ mod tests {
         let e = check_runs(&runs("umbmark,cw,4,32,-12,,\n"), 50.0).unwrap_err();
         let s = e.to_string();
         // The radial error of both columns is what is too large: named as such, with both
-        // values (issue 23 §5: it named y_err_m alone when y was the larger).
+        // values (it named y_err_m alone when y was the larger).
         assert!(s.starts_with("r.csv:2: radial end error"), "{s}");
         assert!(s.contains("x_err_m 32, y_err_m -12"), "{s}");
         let s = check_runs(&runs("umbmark,cw,4,3,-16,,\n"), 50.0)

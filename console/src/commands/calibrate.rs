@@ -224,7 +224,7 @@ fn ros2_yaml(cal: &Calibration) -> Option<String> {
                     c_r,
                     e_b,
                     skid_steer: (cal.kind == "skid_steer").then(|| {
-                        let get = |n: &str| cal.params.iter().find(|p| p.name == n);
+                        let get = |n: &str| cal.params.iter().find(|p| p.spec.name == n);
                         ros2::SkidNote {
                             law: get("eb_arc")
                                 .zip(get("eb"))

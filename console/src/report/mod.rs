@@ -164,7 +164,7 @@ mod tests {
     }
 }
 
-/// "No legend, label or annotation may cover a data point" (issue 12): every report figure
+/// "No legend, label or annotation may cover a data point": every report figure
 /// is drawn with data of the kind that used to sit under the legend, and its layout (the
 /// legend's and the points' pixel boxes, from the drawing's own coordinate mapping) must
 /// show no overlap.

@@ -1,4 +1,4 @@
-//! The held-out proxy of issue 21 on `shared/real/sessions/` (the OptiOdom dataset): train
+//! The held-out proxy on `shared/real/sessions/` (the OptiOdom dataset): train
 //! on one square session of a robot, dead-reckon the circular and Ivanjko runs of the same
 //! robot on the nearest day from their first row, and compare with the OptiOdom authors'
 //! parameters fitted on the same training session, on the same runs.

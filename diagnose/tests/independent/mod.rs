@@ -1,4 +1,4 @@
-//! The independent generator of issue 19: its own small physics, written apart from the
+//! The independent generator: its own small physics, written apart from the
 //! `sim` crate's effects and from diagnose's models, with mechanisms neither has. It
 //! writes a formats.md recording as CSV text and reads it back with the project's parser,
 //! so what diagnose sees is exactly what a user's file would give it.
