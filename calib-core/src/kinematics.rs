@@ -8,7 +8,7 @@
 //! exactly; Swedish wheels do not have one.
 
 use crate::correction::Corrections;
-use crate::linalg::{det3, inverse3};
+use crate::linalg::inverse3;
 use crate::robot::{Robot, MAX_WHEELS};
 use num_traits::Float;
 
@@ -72,67 +72,6 @@ pub struct Kinematics<T> {
     pinv: [[T; MAX_WHEELS]; 3],
 }
 
-/// Weight of a standard wheel's sliding constraint relative to its rolling constraint.
-///
-/// Small on purpose: the sliding rows only have to pin down what the rolling rows cannot
-/// see (a differential drive's sideways velocity). A skid-steered robot with four standard
-/// wheels ([Korayem et al.]'s wheeled-legged robot) can only turn by skidding, so its sliding
-/// constraints contradict each other while turning; weighted equally they would shrink the
-/// turn rate the wheels measure. Weighted 1e-3, they move the estimate by ~1e-6 relative.
-const SLIDING_WEIGHT: f64 = 1e-3;
-
-/// Rows of the stacked constraint system in f64: rolling rows in rad/m, sliding rows
-/// scaled by SLIDING_WEIGHT / r.
-fn constraint_rows(
-    robot: &Robot,
-    corr: &Corrections,
-) -> ([[f64; 3]; MAX_WHEELS], [[f64; 3]; MAX_WHEELS], usize) {
-    let n = robot.wheels.len();
-    let mut rolling = [[0.0; 3]; MAX_WHEELS];
-    let mut sliding = [[0.0; 3]; MAX_WHEELS];
-    let lb = corr.wheelbase_scale();
-    for (i, w) in robot.wheels.iter().enumerate() {
-        let r = w.radius_m * corr.radius_scale(robot, i);
-        let mut wheel = w.clone();
-        wheel.l_m *= lb;
-        let k = 1.0 / (r * libm::cos(w.gamma_rad));
-        let row = wheel.rolling_row();
-        rolling[i] = [row[0] * k, row[1] * k, row[2] * k];
-        let s = wheel.sliding_row();
-        let ks = SLIDING_WEIGHT / r;
-        sliding[i] = [s[0] * ks, s[1] * ks, s[2] * ks];
-    }
-    (rolling, sliding, n)
-}
-
-fn normal_matrix(
-    robot: &Robot,
-    corr: &Corrections,
-) -> ([[f64; 3]; 3], [[f64; 3]; MAX_WHEELS], usize) {
-    let (rolling, sliding, n) = constraint_rows(robot, corr);
-    let mut m = [[0.0; 3]; 3];
-    let use_sliding = robot.kind.wheels_have_sliding_constraint();
-    for i in 0..n {
-        for a in 0..3 {
-            for b in 0..3 {
-                m[a][b] += rolling[i][a] * rolling[i][b];
-                if use_sliding {
-                    m[a][b] += sliding[i][a] * sliding[i][b];
-                }
-            }
-        }
-    }
-    (m, rolling, n)
-}
-
-/// Determinant of the normal matrix and a scale to compare it against (product of its
-/// diagonal), for the rank check in [`Robot::new`].
-pub(crate) fn normal_matrix_determinant(robot: &Robot, corr: &Corrections) -> Option<(f64, f64)> {
-    let (m, _, _) = normal_matrix(robot, corr);
-    let scale = m[0][0] * m[1][1] * m[2][2];
-    (scale.is_finite() && scale > 0.0).then(|| (det3(&m), scale))
-}
-
 /// The robot's geometry cannot resolve the body twist.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub struct SingularGeometry;
@@ -140,7 +79,11 @@ pub struct SingularGeometry;
 impl<T: Float> Kinematics<T> {
     /// Kinematics of `robot` with `corr` applied (use [`Corrections::None`] for nominal).
     pub fn new(robot: &Robot, corr: &Corrections) -> Result<Self, SingularGeometry> {
-        let (m, rolling, n) = normal_matrix(robot, corr);
+        let n = robot.wheels.len();
+        let (m, rolling) = robot.normal_matrix(
+            |i| robot.wheels[i].radius_m * corr.radius_scale(robot, i),
+            corr.wheelbase_scale(),
+        );
         let inv = inverse3(&m).ok_or(SingularGeometry)?;
         let cast = |v: f64| T::from(v).unwrap_or_else(T::zero);
         let mut jacobian = [[T::zero(); 3]; MAX_WHEELS];

@@ -11,6 +11,15 @@ use serde::{Deserialize, Serialize};
 /// wheeled-legged robot of [Korayem et al.] have four; eight leaves room without making the
 /// firmware's tables large).
 pub const MAX_WHEELS: usize = 8;
+
+/// Weight of a standard wheel's sliding constraint relative to its rolling constraint.
+///
+/// Small on purpose: the sliding rows only have to pin down what the rolling rows cannot
+/// see (a differential drive's sideways velocity). A skid-steered robot with four standard
+/// wheels ([Korayem et al.]'s wheeled-legged robot) can only turn by skidding, so its sliding
+/// constraints contradict each other while turning; weighted equally they would shrink the
+/// turn rate the wheels measure. Weighted 1e-3, they move the estimate by ~1e-6 relative.
+pub const SLIDING_WEIGHT: f64 = 1e-3;
 /// Longest wheel name, in bytes.
 pub const NAME_LEN: usize = 16;
 
@@ -156,6 +165,22 @@ impl Wheel {
             -libm::cos(abg),
             -self.l_m * libm::cos(self.beta_rad + self.gamma_rad),
         ]
+    }
+
+    /// The wheel's rows in the stacked constraint system for effective radius `r` and its
+    /// distance scaled by `l_scale`: the rolling row in rad/m (divided by r cos gamma),
+    /// and the sliding row weighted by [`SLIDING_WEIGHT`] / r.
+    pub fn constraint_rows(&self, r: f64, l_scale: f64) -> ([f64; 3], [f64; 3]) {
+        let mut wheel = self.clone();
+        wheel.l_m *= l_scale;
+        let k = 1.0 / (r * libm::cos(self.gamma_rad));
+        let row = wheel.rolling_row();
+        let s = wheel.sliding_row();
+        let ks = SLIDING_WEIGHT / r;
+        (
+            [row[0] * k, row[1] * k, row[2] * k],
+            [s[0] * ks, s[1] * ks, s[2] * ks],
+        )
     }
 
     /// The sliding row [cos(a+b), sin(a+b), l sin b] of a standard wheel: its dot product
@@ -515,9 +540,38 @@ impl Robot {
     /// True when the stacked rolling (and, for standard wheels, sliding) constraints have
     /// rank 3, so encoders determine the body twist.
     pub fn resolves_body_twist(&self) -> bool {
-        crate::kinematics::normal_matrix_determinant(self, &crate::correction::Corrections::none())
-            .map(|(det, scale)| det.abs() > crate::linalg::SINGULAR_RATIO * scale)
-            .unwrap_or(false)
+        let (m, _) = self.normal_matrix(|i| self.wheels[i].radius_m, 1.0);
+        let scale = m[0][0] * m[1][1] * m[2][2];
+        scale.is_finite()
+            && scale > 0.0
+            && crate::linalg::det3(&m).abs() > crate::linalg::SINGULAR_RATIO * scale
+    }
+
+    /// The stacked constraint system's normal matrix (rolling rows, plus the sliding rows
+    /// where the kind has them) and the rolling rows, in f64, with wheel `i`'s effective
+    /// radius `radius(i)` and every wheel distance scaled by `l_scale` (how corrections
+    /// enter). Kinematics inverts it; [`Robot::new`] checks its rank.
+    pub fn normal_matrix(
+        &self,
+        radius: impl Fn(usize) -> f64,
+        l_scale: f64,
+    ) -> ([[f64; 3]; 3], [[f64; 3]; MAX_WHEELS]) {
+        let mut rolling = [[0.0; 3]; MAX_WHEELS];
+        let mut m = [[0.0; 3]; 3];
+        let use_sliding = self.kind.wheels_have_sliding_constraint();
+        for (i, w) in self.wheels.iter().enumerate() {
+            let (roll, slide) = w.constraint_rows(radius(i), l_scale);
+            rolling[i] = roll;
+            for a in 0..3 {
+                for b in 0..3 {
+                    m[a][b] += roll[a] * roll[b];
+                    if use_sliding {
+                        m[a][b] += slide[a] * slide[b];
+                    }
+                }
+            }
+        }
+        (m, rolling)
     }
 
     /// Half the wheel separation of a differential drive (the `l` of either wheel).

@@ -289,7 +289,7 @@ pub fn write_robot(robot: &Robot, report: &Report, out: &Path) -> std::io::Resul
         out,
         text.as_bytes(),
         "robot description",
-        formats::safe_write::is_robot_file,
+        formats::robot_file::is_robot_file,
     )
 }
 

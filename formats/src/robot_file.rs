@@ -383,6 +383,14 @@ pub fn to_toml(robot: &Robot) -> String {
     s
 }
 
+/// Accepts an existing robot description: what `safe_write` may replace with a fitted
+/// robot.
+pub fn is_robot_file(head: &[u8]) -> bool {
+    std::str::from_utf8(head)
+        .ok()
+        .is_some_and(|t| parse(t, Path::new("")).is_ok())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;

@@ -208,13 +208,6 @@ pub fn replace_file(path: &Path, bytes: &[u8]) -> io::Result<()> {
     Ok(())
 }
 
-/// Accepts an existing robot description (a fitted robot replaces an older one).
-pub fn is_robot_file(head: &[u8]) -> bool {
-    std::str::from_utf8(head)
-        .ok()
-        .is_some_and(|t| crate::robot_file::parse(t, Path::new("")).is_ok())
-}
-
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -252,9 +245,14 @@ mod tests {
         let d = scratch("files");
         let f = d.join("out.toml");
         std::fs::write(&f, "my notes").unwrap();
-        let e = write_file(&f, b"x", "robot description", is_robot_file)
-            .unwrap_err()
-            .to_string();
+        let e = write_file(
+            &f,
+            b"x",
+            "robot description",
+            crate::robot_file::is_robot_file,
+        )
+        .unwrap_err()
+        .to_string();
         assert!(e.contains("not a robot description"), "{e}");
         assert_eq!(std::fs::read_to_string(&f).unwrap(), "my notes");
         let g = d.join("new.txt");

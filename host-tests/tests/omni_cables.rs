@@ -225,7 +225,7 @@ fn cable_strip_errors_improve_at_least_80_percent() {
         }
     }
     println!(
-        "both  BF {:.2} mm -> AF {:.2} mm: improvement {improvement:.1} % (001 Table II: 91.72 -> 15.43 mm, 80 %)",
+        "both  BF {:.2} mm -> AF {:.2} mm: improvement {improvement:.1} % ([Redundant omni] Table II: 91.72 -> 15.43 mm, 80 %)",
         mean_b * 1e3,
         mean_a * 1e3
     );

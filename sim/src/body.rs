@@ -16,10 +16,8 @@
 
 use crate::SimError;
 use calib_core::kinematics::Twist;
-use calib_core::robot::{Robot, RobotKind, Wheel};
+use calib_core::robot::{Robot, RobotKind, Wheel, SLIDING_WEIGHT};
 
-/// Weight of a standard wheel's sliding constraint relative to rolling (as calib-core).
-const SLIDING_WEIGHT: f64 = 1e-3;
 /// Squared weight of the pull towards the previous twist (inertia in free directions).
 const INERTIA_WEIGHT2: f64 = 1e-14;
 

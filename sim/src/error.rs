@@ -1,6 +1,6 @@
 //! One error type for everything the simulator refuses: user input never panics.
 
-use crate::effects::EffectError;
+use formats::catalogue::EFFECT_IDS;
 use std::fmt;
 
 /// Why a simulation could not be built or run.
@@ -97,3 +97,78 @@ pub(crate) fn check_range(field: &'static str, v: f64, lo: f64, hi: f64) -> Resu
     }
     Ok(())
 }
+
+/// A bad effect string or parameter.
+#[derive(Debug, Clone, PartialEq)]
+pub enum EffectError {
+    /// An id not in the catalogue ([`EFFECT_IDS`]).
+    UnknownEffect(String),
+    /// A parameter the effect does not have.
+    UnknownParameter {
+        /// The effect's id.
+        effect: String,
+        /// The parameter's name.
+        name: String,
+    },
+    /// `name:value` without a colon, or a value that is not a number.
+    Malformed {
+        /// The offending text.
+        text: String,
+        /// What is wrong with it.
+        reason: String,
+    },
+    /// A value outside what is physically possible.
+    OutOfRange {
+        /// The effect's id.
+        effect: &'static str,
+        /// The parameter's name.
+        name: String,
+        /// The value given.
+        value: f64,
+        /// What the value must be (e.g. "within [0.5, 2]").
+        expected: &'static str,
+    },
+    /// A required parameter is missing.
+    MissingParameter {
+        /// The effect's id.
+        effect: &'static str,
+        /// The parameter's name.
+        name: &'static str,
+    },
+    /// `radius_scale_<wheel>` names a wheel the robot does not have.
+    UnknownWheel {
+        /// The wheel name given.
+        name: String,
+    },
+}
+
+impl fmt::Display for EffectError {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        match self {
+            EffectError::UnknownEffect(id) => write!(
+                f,
+                "unknown effect '{id}' (known: {})",
+                EFFECT_IDS.join(", ")
+            ),
+            EffectError::UnknownParameter { effect, name } => {
+                write!(f, "effect {effect}: unknown parameter '{name}'")
+            }
+            EffectError::Malformed { text, reason } => write!(f, "'{text}': {reason}"),
+            EffectError::OutOfRange {
+                effect,
+                name,
+                value,
+                expected,
+            } => write!(f, "effect {effect}: {name} = {value} must be {expected}"),
+            EffectError::MissingParameter { effect, name } => {
+                write!(f, "effect {effect}: parameter {name} is required")
+            }
+            EffectError::UnknownWheel { name } => write!(
+                f,
+                "effect wheel_diameter_mismatch: the robot has no wheel '{name}'"
+            ),
+        }
+    }
+}
+
+impl std::error::Error for EffectError {}

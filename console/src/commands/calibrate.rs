@@ -201,7 +201,7 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
             p,
             cal.robot_toml().as_bytes(),
             "robot description",
-            formats::safe_write::is_robot_file,
+            formats::robot_file::is_robot_file,
         )
         .with_context(|| format!("cannot write {}", p.display()))?;
         out.note(&format!("fitted robot: {}", p.display()));

@@ -79,7 +79,7 @@ fn diagnose_many(a: &DiagnoseArgs, files: &[PathBuf], out: Output) -> Result<()>
             p,
             rep.geometry.robot_toml().as_bytes(),
             "robot description",
-            formats::safe_write::is_robot_file,
+            formats::robot_file::is_robot_file,
         )
         .with_context(|| format!("cannot write {}", p.display()))?;
         out.note(&format!("fitted robot: {}", p.display()));
