@@ -102,6 +102,29 @@ pub const PHYSICS: &[(&str, &str, &str)] = &[
     ),
 ];
 
+/// The catalogue effects the surviving terms name (by the first word of their physics:
+/// `floor` is the floor bumps' family), each once, in the terms' order.
+pub fn named_effects(terms: &[Term]) -> Vec<crate::effects::Effect> {
+    use crate::effects::Effect;
+    let mut out: Vec<Effect> = Vec::new();
+    for t in terms {
+        let Some(word) = t.physics.as_deref().and_then(|p| p.split(' ').next()) else {
+            continue;
+        };
+        let effect = if word == "floor" {
+            Some(Effect::FloorBumps)
+        } else {
+            Effect::ALL
+                .into_iter()
+                .find(|e| e.base() == *e && e.id() == word)
+        };
+        if let Some(e) = effect.filter(|e| !out.contains(e)) {
+            out.push(e);
+        }
+    }
+    out
+}
+
 /// The physics a (target, regressor) pair maps to.
 pub fn physics_of(target: &str, regressor: &str) -> Option<&'static str> {
     PHYSICS

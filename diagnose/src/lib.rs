@@ -144,7 +144,16 @@ pub fn diagnose(
         notes.push("no commands: actuator effects cannot be tested".into());
     }
     let ev = Evaluator::new(&prepared);
-    let sel = select::select(&ev, options.max_effects);
+    // Identification of the nominal residual: what it depends on, before any fit. The
+    // selection fits the other mechanisms of the effects it names.
+    let nominal_eval = ev.evaluate(&Model::default(), residuals::Fold::All);
+    let mut identification = identify::ground(&prepared, &nominal_eval);
+    identification.extend(identify::actuator(&ev, &nominal_eval));
+    let sel = select::select(
+        &ev,
+        options.max_effects,
+        &identify::named_effects(&identification),
+    );
     let sig = windows::signals(&ev);
     let (windows, windows_total) = windows::bounded(windows::locate(
         &ev,
@@ -221,8 +230,6 @@ pub fn diagnose(
     }
     // Identification: what the nominal residual depends on, and what the
     // residual left after the findings still depends on.
-    let mut identification = identify::ground(&prepared, &sel.nominal_eval);
-    identification.extend(identify::actuator(&ev, &sel.nominal_eval));
     let mut left = identify::ground(&prepared, &sel.final_eval);
     left.extend(identify::actuator(&ev, &sel.final_eval));
     let depends_on: Vec<String> = if !left.is_empty() || verdict != Verdict::Unexplained {

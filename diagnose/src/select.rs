@@ -337,7 +337,15 @@ fn delta_bic(ev: &Evaluator, base: &Eval, cand: &Eval, k: usize, stage: Stage) -
 }
 
 /// Runs the selection.
-pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
+/// A default mechanism whose BIC gain is at least this share of the best default's in
+/// its stage has its other mechanisms fitted too (a default far behind the best cannot
+/// become the round's choice by changing mechanism; it is tried again next round).
+pub const VARIANT_SHARE: f64 = 0.01;
+
+/// Forward selection over the catalogue. `identified`: the catalogue effects that
+/// identification of the nominal residual names ([`crate::identify::named_effects`]);
+/// their other mechanisms are fitted whatever their default's score.
+pub fn select(ev: &Evaluator, max_effects: usize, identified: &[Effect]) -> Selection {
     let robot = &ev.p.robot;
     let has_cmd = ev.p.has_commands();
     let mut model = Model::default();
@@ -411,21 +419,41 @@ pub fn select(ev: &Evaluator, max_effects: usize) -> Selection {
         // its default does not apply here. Keeps the larger catalogue's cost near the old.
         let (defaults, variants): (Vec<_>, Vec<_>) =
             todo.into_iter().partition(|(e, _)| e.base() == *e);
-        let mut leaning: Vec<Effect> = Vec::new();
+        // Identify before fitting the other mechanisms. A variant is fitted when
+        // identification names its family; when its default lowers the BIC by at least
+        // `VARIANT_SHARE` of the most any default of its stage does; when its stage leaves
+        // the noise and no default brings it back; or when its default does not apply.
+        let mut scored: Vec<(Effect, f64, Option<f64>)> = Vec::new();
         for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &defaults) {
             let k = e.params(robot).len();
-            if delta_bic(ev, &base_eval, &ce, k, evidence_stage(ev, e)) < 0.0 {
-                leaning.push(e);
-            }
+            let stage = evidence_stage(ev, e);
+            let d = delta_bic(ev, &base_eval, &ce, k, stage);
+            let left = stage_chi2(ev, &ev.rss(&ce, Fold::All), stage);
+            scored.push((e, d, left));
             fitted.push((e, m, sig, ce));
         }
         let base_rss = ev.rss(&base_eval, Fold::All);
+        let worth = |e: Effect| -> bool {
+            let stage = evidence_stage(ev, e);
+            let same: Vec<&(Effect, f64, Option<f64>)> = scored
+                .iter()
+                .filter(|x| evidence_stage(ev, x.0) == stage)
+                .collect();
+            let best = same.iter().map(|x| x.1).fold(0.0, f64::min);
+            let leans = same
+                .iter()
+                .any(|x| x.0 == e.base() && x.1 < 0.0 && x.1 <= VARIANT_SHARE * best);
+            let mismatch_left = stage_chi2(ev, &base_rss, stage)
+                .is_some_and(|c| c > crate::MISMATCH_CHI2)
+                && same
+                    .iter()
+                    .all(|x| x.2.is_none_or(|c| c > crate::MISMATCH_CHI2));
+            leans || mismatch_left || identified.contains(&e.base())
+        };
         let variants: Vec<_> = variants
             .into_iter()
             .filter(|(e, _)| {
-                leaning.contains(&e.base())
-                    || stage_chi2(ev, &base_rss, e.stage())
-                        .is_some_and(|c| c > crate::MISMATCH_CHI2)
+                worth(*e)
                     || !defaults.iter().any(|(d, _)| *d == e.base())
                         && !fitted.iter().any(|f| f.0 == e.base())
             })
