@@ -101,10 +101,22 @@ pub const MIN_POSE_SAMPLES: usize = 8;
 /// written twice, and a rate over them must stay finite rather than blow up.
 pub const MIN_DT_S: f64 = 1e-9;
 
-/// Diagnoses a recording of `robot`.
+/// Diagnoses a recording of `robot` (a copy of it is corrected and replayed; use
+/// [`diagnose_owned`] to hand the recording over and keep one copy in memory).
 pub fn diagnose(
     robot: &Robot,
     recording: &Recording,
+    options: &Options,
+) -> Result<Report, DiagnoseError> {
+    diagnose_owned(robot, recording.clone(), options)
+}
+
+/// Diagnoses a recording of `robot`, taking it over: its logging artefacts are removed in
+/// place, and it is dropped once replayed (memory is then bounded by the replay's
+/// columns, not the file's).
+pub fn diagnose_owned(
+    robot: &Robot,
+    recording: Recording,
     options: &Options,
 ) -> Result<Report, DiagnoseError> {
     if recording.len() < 3 {
@@ -127,9 +139,14 @@ pub fn diagnose(
     }
     // Recording artefacts first: found, reported apart and removed before the physics.
     let stage = recording_stage::analyse(robot, recording);
-    let recording = &stage.corrected;
-    let prepared = replay::Prepared::new(robot, recording);
-    let mut notes = recording.notes.clone();
+    let recording_stage::RecordingStage {
+        artefacts,
+        corrected,
+        geometry,
+    } = stage;
+    let prepared = replay::Prepared::new(robot, &corrected);
+    let mut notes = corrected.notes.clone();
+    drop(corrected);
     if prepared.poses.len() < MIN_POSE_SAMPLES && !prepared.has_actuator_stage() {
         return Err(DiagnoseError::NotEnoughData(format!(
             "{} pose samples and no wheel with both a command and an encoder (need {} pose samples or an actuator stage)",
@@ -213,8 +230,7 @@ pub fn diagnose(
     // Geometry this recording cannot separate (from the whole-geometry fit of the
     // recording stage), said next to any finding that names one side of it.
     let separability = report::Separability(
-        stage
-            .geometry
+        geometry
             .as_ref()
             .map(|c| c.inseparable.clone())
             .unwrap_or_default(),
@@ -276,7 +292,7 @@ pub fn diagnose(
         model_runs_actuator: ev.runs.get().1,
         model: sel.model.clone(),
         plot,
-        recording_artefacts: stage.artefacts,
+        recording_artefacts: artefacts,
         implausible,
         separability,
         identification,

@@ -137,9 +137,9 @@ pub struct RecordingStage {
 }
 
 /// Runs the recording stage on `rec` of `robot`.
-pub fn analyse(robot: &Robot, rec: &Recording) -> RecordingStage {
+pub fn analyse(robot: &Robot, rec: Recording) -> RecordingStage {
     let mut artefacts = Vec::new();
-    let mut cur = rec.clone();
+    let mut cur = rec;
     if let Some(a) = sample_glitches(&mut cur) {
         artefacts.push(a);
     }

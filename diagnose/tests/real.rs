@@ -92,7 +92,7 @@ fn real_runs_have_no_counts_error() {
                 w.name
             );
         }
-        let stage = diagnose::recording_stage::analyse(&robot, &rec);
+        let stage = diagnose::recording_stage::analyse(&robot, rec.clone());
         assert!(
             !stage
                 .artefacts

@@ -112,6 +112,28 @@ enum Col {
 }
 
 impl Recording {
+    /// Releases the columns' spare capacity.
+    pub fn shrink_to_fit(&mut self) {
+        self.t.shrink_to_fit();
+        self.x.shrink_to_fit();
+        self.y.shrink_to_fit();
+        self.theta.shrink_to_fit();
+        for legs in [&mut self.leg_front, &mut self.leg_rear]
+            .into_iter()
+            .flatten()
+        {
+            legs.shrink_to_fit();
+        }
+        for w in &mut self.wheels {
+            if let Some(c) = &mut w.cmd {
+                c.shrink_to_fit();
+            }
+            if let Some(e) = &mut w.enc {
+                e.shrink_to_fit();
+            }
+        }
+    }
+
     /// An empty recording with the robot's wheels and the given columns present.
     pub fn new(robot: &Robot, with_cmd: bool, with_enc: bool) -> Self {
         let legs = robot.kind == RobotKind::WheeledLegged;
@@ -502,6 +524,9 @@ impl Recording {
                 "empty recording: a header but no rows".into(),
             ));
         }
+        // The columns grew by doubling; a long recording would otherwise hold up to twice
+        // its size for as long as it is kept.
+        rec.shrink_to_fit();
         if rec.pose_rows().next().is_none() {
             return Err(err(
                 None,

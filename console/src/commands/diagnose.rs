@@ -26,8 +26,8 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
         max_effects: a.max_effects.into(),
     };
     busy.set_message(format!("diagnosing {} rows", rec.len()));
-    let rep =
-        diagnose::diagnose(&robot, &rec, &opts).with_context(|| recording.display().to_string())?;
+    let rep = diagnose::diagnose_owned(&robot, rec, &opts)
+        .with_context(|| recording.display().to_string())?;
     busy.finish();
     if let Some(dir) = &a.report {
         diagnose::plots::require_font()?;
