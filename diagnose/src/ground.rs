@@ -233,12 +233,12 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
     let mut cache = KinCache::new(&robot, scales_known, eb);
     let mut pose = Pose::new(0.0, 0.0, 0.0);
     let mut heading = Heading::new();
-    // One entry per ground row (the rows between are interpolated, not stored).
-    let steps = p.ground_rows.len();
-    out.x.reserve(steps);
-    out.y.reserve(steps);
-    out.theta.reserve(steps);
-    out.step.reserve(steps);
+    // One entry per row: the ground rows' steps, the rows between interpolated.
+    let n = p.rows();
+    out.x.reserve(n);
+    out.y.reserve(n);
+    out.theta.reserve(n);
+    out.step.reserve(n);
     out.x.push(0.0);
     out.y.push(0.0);
     out.theta.push(0.0);
