@@ -245,13 +245,37 @@ pub fn region_seeds(ev: &crate::residuals::Evaluator, model: &Model) -> Vec<Vec<
     g
 }
 
-/// Whether a mechanism variant can act on this recording: the traction variants that
-/// rewrite wheel angles need every wheel driven (no free wheel reports the body).
+/// Whether a mechanism variant can act on this recording. Creep rewrites the driven
+/// wheels' angles and needs every wheel driven (a free wheel would report the body). The
+/// body bound needs every wheel's angles, and, with free wheels, driven wheels that
+/// resolve the body twist on their own (what the drive asks for).
 pub fn applies(p: &Prepared, e: Effect) -> bool {
+    let all_driven = p.robot.wheels.iter().all(|w| w.driven);
+    let all_known = p.wheels.iter().all(|w| w.enc_rad.is_some());
     match e {
-        Effect::SlipBody | Effect::SlipCreep => p.robot.wheels.iter().all(|w| w.driven),
+        Effect::SlipCreep => all_driven,
+        Effect::SlipBody => all_driven || (all_known && driven_kinematics(&p.robot).is_some()),
         _ => true,
     }
+}
+
+/// The driven wheels' kinematics (indices into the robot's wheels), when they resolve the
+/// body twist on their own.
+fn driven_kinematics(robot: &calib_core::Robot) -> Option<(Kinematics<f64>, Vec<usize>)> {
+    let idx: Vec<usize> = (0..robot.wheels.len())
+        .filter(|&i| robot.wheels[i].driven)
+        .collect();
+    if idx.is_empty() {
+        return None;
+    }
+    let mut sub = robot.clone();
+    sub.wheels.clear();
+    for &i in &idx {
+        let _ = sub.wheels.push(robot.wheels[i].clone());
+    }
+    Kinematics::<f64>::new(&sub, &Corrections::None)
+        .ok()
+        .map(|k| (k, idx))
 }
 
 /// The wheel angles the ground stage should use under the body-bound or creep forms of
@@ -292,6 +316,10 @@ pub fn slip_angles(
     if let Some(mu) = body {
         let known: Vec<usize> = (0..out.len()).filter(|&i| out[i].is_some()).collect();
         if known.len() != robot.wheels.len() {
+            return Some(out);
+        }
+        if !robot.wheels.iter().all(|w| w.driven) {
+            body_bound_with_free_wheels(p, &robot, mu, &mut out);
             return Some(out);
         }
         let Ok(kin) = Kinematics::<f64>::new(&robot, &Corrections::None) else {
@@ -339,6 +367,71 @@ pub fn slip_angles(
         }
     }
     Some(out)
+}
+
+/// The body bound on a robot with free wheels: the driven wheels say what the drive asks
+/// of the body; its linear velocity follows at most `mu g` times the driven wheels'
+/// share of the weight per second (the yaw rate as asked), and every wheel's angle is
+/// then what that body motion makes of it. The free wheels' encoders, which roll with
+/// the body, are compared with those angles by the ground stage, not used to drive it.
+fn body_bound_with_free_wheels(
+    p: &Prepared,
+    robot: &calib_core::Robot,
+    mu: f64,
+    out: &mut [Option<Vec<f64>>],
+) {
+    let Some((drive, idx)) = driven_kinematics(robot) else {
+        return;
+    };
+    let Ok(all) = Kinematics::<f64>::new(robot, &Corrections::None) else {
+        return;
+    };
+    let n = p.rows();
+    let src: Vec<Vec<f64>> = idx
+        .iter()
+        .map(|&i| out[i].clone().expect("every wheel has angles"))
+        .collect();
+    let mut rates = vec![0.0; idx.len()];
+    // What the drive asks, over three rows (encoder quantisation).
+    let asked = |k: usize, rates: &mut [f64]| -> Twist<f64> {
+        let (k1, k2) = (k.saturating_sub(1), (k + 2).min(n - 1));
+        let span = (p.t[k2] - p.t[k1]).max(crate::MIN_DT_S);
+        for (r, a) in rates.iter_mut().zip(&src) {
+            *r = (a[k2] - a[k1]) / span;
+        }
+        drive.forward(rates)
+    };
+    let (mut dw, mut dw_body) = (vec![0.0; robot.wheels.len()], vec![0.0; robot.wheels.len()]);
+    let mut angle: Vec<f64> = out
+        .iter()
+        .map(|a| a.as_ref().map_or(0.0, |a| a[0]))
+        .collect();
+    let mut v: Option<(f64, f64)> = None;
+    for k in 0..n - 1 {
+        let dt = (p.t[k + 1] - p.t[k]).max(crate::MIN_DT_S);
+        let want = asked(k, &mut rates);
+        let a = (mu * crate::replay::G * p.driven_share[k]).max(1e-12) * dt;
+        let (vx0, vy0) = *v.get_or_insert((want.vx, want.vy));
+        let (dx, dy) = (want.vx - vx0, want.vy - vy0);
+        let d = dx.hypot(dy);
+        let f = if d > a { a / d } else { 1.0 };
+        let (vx1, vy1) = (vx0 + dx * f, vy0 + dy * f);
+        v = Some((vx1, vy1));
+        // The driven wheels keep their own increments less what the body did not follow;
+        // the free wheels roll with the body.
+        let body = Twist::new(0.5 * (vx0 + vx1) * dt, 0.5 * (vy0 + vy1) * dt, 0.0);
+        let lag = Twist::new(body.vx - want.vx * dt, body.vy - want.vy * dt, 0.0);
+        all.inverse_into(&lag, &mut dw);
+        all.inverse_into(&Twist::new(body.vx, body.vy, want.omega * dt), &mut dw_body);
+        for (i, a) in out.iter_mut().enumerate() {
+            let Some(a) = a else { continue };
+            angle[i] += match idx.iter().position(|&x| x == i) {
+                Some(j) => src[j][k + 1] - src[j][k] + dw[i],
+                None => dw_body[i],
+            };
+            a[k + 1] = angle[i];
+        }
+    }
 }
 
 #[cfg(test)]
