@@ -4,6 +4,8 @@
 //!
 //! A command is held from its row to the next, as a controller's set-point is.
 
+pub mod variants;
+
 use crate::effects::{Effect, Model};
 
 /// Parameters of the actuator effects in a model, with "absent" as `None`.
@@ -77,7 +79,7 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
         // Transport delay: the wheel turns as the command did `delay` earlier (at rest
         // before the recording). Exact for held commands: the delayed command's mean over
         // each row interval from the integral of the held command.
-        let delayed = crate::mechanisms::delay_commands(t, cmd, delay, p.linear);
+        let delayed = variants::delay_commands(t, cmd, delay, p.linear);
         let q = ActuatorParams {
             delay_s: None,
             linear: false,
@@ -98,7 +100,7 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
         return simulate_wheel(t, &drooped, &q, out);
     }
     if p.quanta_rate_hz.is_some() || p.stall {
-        return crate::mechanisms::simulate_stepper_losses(t, cmd, p, out);
+        return variants::simulate_stepper_losses(t, cmd, p, out);
     }
     out.reserve(n);
     out.push(0.0);
@@ -112,7 +114,7 @@ pub fn simulate_wheel(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: &mut Vec<
     };
     let mut last_tau_dt = (f64::NAN, 0.0);
     let mut stepper = Rotor::default();
-    let mut play = crate::mechanisms::Play::default();
+    let mut play = variants::Play::default();
     for k in 0..n - 1 {
         let dt = t[k + 1] - t[k];
         let (c0, c1) = if p.linear {

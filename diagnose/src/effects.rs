@@ -382,7 +382,7 @@ impl Effect {
             Effect::LagDelay => singles(log_grid(0.003, 1.0, 12)),
             Effect::LagSlew => singles(log_grid(0.5, 200.0, 16)),
             Effect::FrictionDroop => singles(log_grid(0.02, 20.0, 12)),
-            // From the data: see `mechanisms::region_grid`.
+            // From the data: see `select::region_grid`.
             Effect::BumpsRegion => Vec::new(),
             Effect::FloorBumps => {
                 let mut g = Vec::new();

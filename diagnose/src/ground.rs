@@ -5,6 +5,8 @@
 //! The nominal model is what the firmware's odometry does: least-squares forward
 //! kinematics of all wheels, integrated per sample.
 
+pub mod variants;
+
 use crate::effects::{Effect, Model};
 use crate::replay::{Prepared, G};
 use calib_core::correction::Corrections;
@@ -209,11 +211,11 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         scales_known = known.iter().map(|&i| scales[i]).collect();
     }
     let mu = model.get(Effect::LongitudinalSlip).map(|v| v[0]);
-    // Mechanism variants live in `mechanisms`.
+    // Mechanism variants live in `variants`.
     let side = (model.get(Effect::LateralSlip).is_some()
         || model.get(Effect::LateralSaturating).is_some())
     .then_some(());
-    let bumps = crate::mechanisms::cables(model);
+    let bumps = variants::cables(model);
     let per_wheel = mu.is_some() || bumps.is_some();
     // Effective radii and body-frame rolling directions and positions of the known wheels.
     let wheels: Vec<ContactWheel> = robot
@@ -354,7 +356,7 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         };
         if side.is_some() {
             // v_y = -k v_x omega (or its saturating form), as a displacement.
-            d.vy += crate::mechanisms::side_slip(model, &d, dt);
+            d.vy += variants::side_slip(model, &d, dt);
         }
         heading.advance(&mut pose, &d);
         if let Some((spacing, loss, lo, hi)) = bumps {
@@ -365,7 +367,7 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
                 if !wheels[j].3 {
                     continue;
                 }
-                let crossed = crate::mechanisms::crossings(
+                let crossed = variants::crossings(
                     world_x(k, wheels[j].2),
                     world_x(k_next, wheels[j].2),
                     spacing,

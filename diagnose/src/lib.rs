@@ -1,17 +1,25 @@
 //! Diagnose: finds where a model of the robot and a recording of it part, names the
 //! physics the model left out, fits it and shows the fit improve.
 //!
-//! 1. Replay (`replay`, `actuator`, `ground`): the recording runs through the nominal
-//!    model in two stages, commands -> wheel motion (against the encoders) and wheel motion
-//!    -> body motion (against the measured poses, and against the encoders of free-spinning
-//!    wheels, which roll with the body); nuisances (start pose, encoder offsets) are solved
-//!    for every evaluation (`residuals`). Whether logged commands are held values or
-//!    samples of a faster loop is decided on the data.
-//! 2. Locate (`windows`): windows where the residual leaves the noise band, by stage,
-//!    body axis and wheel, with what the robot was doing there.
-//! 3. Name (`effects`, `fit`, `select`): each catalogue effect is fitted as an augmentation
-//!    of the model; greedy forward selection by information criterion and held-out error.
-//! 4. Show (`report`, `plots`): RMSE before and after, parameters with uncertainty, plots.
+//! The pipeline, in layers (each module imports only those below it;
+//! `host-tests/tests/layering.rs` checks the crates without a module circle):
+//!
+//! 1. Recording (`recording_stage`): logging artefacts (sample glitches, counts per
+//!    revolution, clocks) are found, reported and removed before any physics is judged.
+//! 2. Replay per stage (`replay`, `actuator` with its `variants`, `ground` with its
+//!    `variants`): commands -> wheel motion (against the encoders) and wheel motion ->
+//!    body motion (against the measured poses, and against the encoders of free wheels,
+//!    which roll with the body).
+//! 3. Residuals (`residuals`): nuisances (start pose, encoder offsets) solved for every
+//!    evaluation; noise levels; folds of time for held-out checks.
+//! 4. Identification (`identify`): what the nominal residual depends on, over a library
+//!    of physical regressors, by sparse regression held out on blocks of time.
+//! 5. Fits and selection (`effects`, `fit`, `select`, `signature`, `localisation`):
+//!    catalogue effects fitted as augmentations of the model, their other mechanisms only
+//!    where identification or the default's score asks; greedy forward selection by
+//!    information criterion and held-out error; the verdict is decided once, there.
+//! 6. Findings and report (`finding`, `plausibility`, `windows`, `report`, `plots`):
+//!    RMSE before and after, parameters with uncertainty, windows, plots.
 //!
 //! The entry point is [`diagnose`]; the console's `wheelcal diagnose` is a thin wrapper.
 
@@ -19,11 +27,11 @@ pub mod actuator;
 pub mod calibrate;
 pub mod calibrate_plots;
 pub mod effects;
+pub mod finding;
 pub mod fit;
 pub mod ground;
 pub mod identify;
 pub mod localisation;
-pub mod mechanisms;
 pub mod multi;
 pub mod plausibility;
 pub mod plots;
@@ -36,7 +44,8 @@ pub mod signature;
 pub mod windows;
 
 pub use effects::{Effect, Model, Stage};
-pub use report::{write_robot, Finding, Report, Verdict};
+pub use finding::{Finding, Verdict};
+pub use report::{write_robot, Report};
 pub use windows::{Axis, Window};
 
 use calib_core::robot::Robot;
@@ -214,7 +223,7 @@ pub fn diagnose_owned(
             delta_bic: st.delta_bic,
             heldout_ratio: st.heldout_ratio,
             mechanism: e.mechanism().to_string(),
-            fit: report::Fit::Full,
+            fit: finding::Fit::Full,
             explained_share: 0.0,
             signature: None,
             residual_left_m: None,

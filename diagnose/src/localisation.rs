@@ -38,7 +38,7 @@
 //! x) passes as well.
 
 use crate::effects::{Effect, Model};
-use crate::report::Finding;
+use crate::finding::Finding;
 use crate::residuals::{ar1_inflation, lag1_autocorrelation, robust_sigma, Evaluator};
 use nalgebra::{DMatrix, DVector};
 
@@ -100,7 +100,7 @@ pub fn floor_bumps(ev: &Evaluator, model: &Model, finding: &Finding) -> Option<L
     if finding.effect != Effect::FloorBumps.id() {
         return None;
     }
-    let Some((_, _, lo, hi)) = crate::mechanisms::cables(model) else {
+    let Some((_, _, lo, hi)) = crate::ground::variants::cables(model) else {
         return region_signature(ev, model, finding);
     };
     let t = travel(ev, model);

@@ -3,7 +3,7 @@
 //! so it is listed `implausible` (with that guess) and never becomes the verdict.
 
 use crate::calibrate::{ALPHA_RANGE, BASE_RANGE, ED_RANGE, GAMMA_RANGE, RADIUS_RANGE};
-use crate::Finding;
+use crate::finding::Finding;
 use serde::Serialize;
 
 /// A fitted parameter outside its physical range.

@@ -383,7 +383,7 @@ impl<'a> Evaluator<'a> {
         self.runs.set((g + 1, a));
         let mut path = Path::default();
         // Traction slip by the body-bound or creep mechanisms rewrites the wheel angles.
-        let slipped = crate::mechanisms::slip_angles(self.p, m, &angles);
+        let slipped = crate::ground::variants::slip_angles(self.p, m, &angles);
         let angles: Vec<Option<&[f64]>> = match &slipped {
             Some(v) => v.iter().map(|a| a.as_deref()).collect(),
             None => angles,

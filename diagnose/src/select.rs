@@ -10,8 +10,8 @@
 //! let any effect that bends the drift a little look significant.
 
 use crate::effects::{Effect, Model, ParamSpec, Stage};
+use crate::finding::{Finding, Fit, Verdict};
 use crate::fit::levenberg_marquardt;
-use crate::report::{Fit, Verdict};
 use crate::residuals::{Eval, Evaluator, Fold, StageRss};
 use serde::Serialize;
 
@@ -99,6 +99,61 @@ fn stage_rmse(r: &StageRss, s: Stage) -> f64 {
         Stage::Ground => r.ground_rmse(),
         Stage::Actuator => r.actuator_rmse(),
     }
+}
+
+/// Starting grid of the region mechanism: bounds from where the measured path went
+/// (quantiles of world x), spacing and loss per metre as the whole-floor grid.
+fn region_grid(p: &crate::replay::Prepared) -> Vec<Vec<f64>> {
+    let mut xs: Vec<f64> = p.pose_at_row.iter().map(|q| q.0).collect();
+    if xs.is_empty() {
+        return Vec::new();
+    }
+    xs.sort_by(|a, b| a.total_cmp(b));
+    let q = |f: f64| xs[((xs.len() - 1) as f64 * f) as usize];
+    let cuts: Vec<f64> = [0.0, 0.25, 0.5, 0.75, 1.0].iter().map(|&f| q(f)).collect();
+    let mut g = Vec::new();
+    for i in 0..cuts.len() {
+        for j in i + 1..cuts.len() {
+            if i == 0 && j == cuts.len() - 1 {
+                continue; // the whole floor is the other mechanism
+            }
+            for s in [0.02, 0.05] {
+                for frac in [0.005, 0.02] {
+                    g.push(vec![s, s * frac, cuts[i] - 0.05, cuts[j] + 0.05]);
+                }
+            }
+        }
+    }
+    g
+}
+
+/// Starting points of the region mechanism from the region signature of the residual
+/// left by `model` ([`crate::signature::region_loss`]): its stretch of world x, at the
+/// grid's spacings with the losses per crossing the signature's loss per metre asks (the
+/// quantile grid's losses stop at 2 % of the spacing). The bounds are then scanned
+/// (below), but from a start whose loss is near the data's.
+fn region_seeds(ev: &Evaluator, model: &Model) -> Vec<Vec<f64>> {
+    let Some(r) = crate::signature::region_loss(ev, model) else {
+        return Vec::new();
+    };
+    if !(r.loss_per_m > 0.0 && r.loss_per_m.is_finite() && r.end_m > r.start_m) {
+        return Vec::new();
+    }
+    // A cable takes its toll along the wheel's rolling direction's share of the
+    // crossing, and the wheel crosses at all in proportion to its travel along x: the
+    // loss per metre rolled is about half the loss per metre across the cables.
+    let mut g = Vec::new();
+    for s in [0.02, 0.05] {
+        for k in [1.0, 2.0, 4.0] {
+            g.push(vec![
+                s,
+                (k * s * r.loss_per_m).clamp(1e-6, 0.05),
+                r.start_m,
+                r.end_m,
+            ]);
+        }
+    }
+    g
 }
 
 /// Fits the parameters of `effects` (all others fixed as in `base`) on a fold.
@@ -391,13 +446,13 @@ pub fn select(ev: &Evaluator, max_effects: usize, identified: &[Effect]) -> Sele
                 !model.effects.iter().any(|(x, _)| x.base() == e.base())
                     && !rejected.contains(&e)
                     && e.applies(robot, has_cmd)
-                    && crate::mechanisms::applies(ev.p, e)
+                    && crate::ground::variants::applies(ev.p, e)
                     && !reused.iter().any(|r| r.0 == e)
             })
             .map(|e| {
                 let grid = if e == Effect::BumpsRegion {
-                    let mut g = crate::mechanisms::region_seeds(ev, &model);
-                    g.extend(crate::mechanisms::region_grid(ev.p));
+                    let mut g = region_seeds(ev, &model);
+                    g.extend(region_grid(ev.p));
                     g
                 } else {
                     e.start_grid(robot)
@@ -747,7 +802,7 @@ fn stage_chi2(ev: &Evaluator, r: &StageRss, s: Stage) -> Option<f64> {
 pub fn verdict(
     ev: &Evaluator,
     sel: &Selection,
-    findings: &mut Vec<crate::report::Finding>,
+    findings: &mut Vec<Finding>,
 ) -> (Verdict, f64, Vec<crate::plausibility::Implausible>) {
     use crate::signature;
     use crate::{MIN_EXPLAINED, MISMATCH_CHI2, RESIDUAL_CHI2, WELL_EXPLAINED};
@@ -919,8 +974,8 @@ fn partial(
     after: f64,
     share: f64,
     signature: String,
-) -> crate::report::Finding {
-    crate::report::Finding {
+) -> Finding {
+    Finding {
         effect: effect.into(),
         stage,
         rmse_stage: stage,

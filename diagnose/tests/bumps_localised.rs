@@ -111,7 +111,7 @@ fn bumps_finding(m: &Model) -> Finding {
         delta_bic: f64::NAN,
         heldout_ratio: f64::NAN,
         mechanism: "whole".into(),
-        fit: diagnose::report::Fit::Full,
+        fit: diagnose::finding::Fit::Full,
         explained_share: 0.0,
         signature: None,
         residual_left_m: None,
