@@ -391,13 +391,12 @@ fn delta_bic(ev: &Evaluator, base: &Eval, cand: &Eval, k: usize, stage: Stage) -
     total + k as f64 * n_penalty.ln()
 }
 
-/// Runs the selection.
 /// A default mechanism whose BIC gain is at least this share of the best default's in
-/// its stage has its other mechanisms fitted too (a default far behind the best cannot
-/// become the round's choice by changing mechanism; it is tried again next round).
+/// its stage has its other mechanisms fitted too. One far behind the best is unlikely to
+/// become the round's choice by changing mechanism, and is tried again next round.
 pub const VARIANT_SHARE: f64 = 0.01;
 
-/// Forward selection over the catalogue. `identified`: the catalogue effects that
+/// Runs the selection: forward selection over the catalogue. `identified`: the catalogue effects that
 /// identification of the nominal residual names ([`crate::identify::named_effects`]);
 /// their other mechanisms are fitted whatever their default's score.
 pub fn select(ev: &Evaluator, max_effects: usize, identified: &[Effect]) -> Selection {
@@ -474,36 +473,23 @@ pub fn select(ev: &Evaluator, max_effects: usize, identified: &[Effect]) -> Sele
         // its default does not apply here. Keeps the larger catalogue's cost near the old.
         let (defaults, variants): (Vec<_>, Vec<_>) =
             todo.into_iter().partition(|(e, _)| e.base() == *e);
-        // Identify before fitting the other mechanisms. A variant is fitted when
-        // identification names its family; when its default lowers the BIC by at least
-        // `VARIANT_SHARE` of the most any default of its stage does; when its stage leaves
-        // the noise and no default brings it back; or when its default does not apply.
-        let mut scored: Vec<(Effect, f64, Option<f64>)> = Vec::new();
+        // Identify before fitting the other mechanisms (`variant_worth_fitting`).
+        let mut scored: Vec<DefaultScore> = Vec::new();
         for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &defaults) {
             let k = e.params(robot).len();
             let stage = evidence_stage(ev, e);
-            let d = delta_bic(ev, &base_eval, &ce, k, stage);
-            let left = stage_chi2(ev, &ev.rss(&ce, Fold::All), stage);
-            scored.push((e, d, left));
+            scored.push(DefaultScore {
+                effect: e,
+                stage,
+                delta_bic: delta_bic(ev, &base_eval, &ce, k, stage),
+                chi2_left: stage_chi2(ev, &ev.rss(&ce, Fold::All), stage),
+            });
             fitted.push((e, m, sig, ce));
         }
         let base_rss = ev.rss(&base_eval, Fold::All);
-        let worth = |e: Effect| -> bool {
-            let stage = evidence_stage(ev, e);
-            let same: Vec<&(Effect, f64, Option<f64>)> = scored
-                .iter()
-                .filter(|x| evidence_stage(ev, x.0) == stage)
-                .collect();
-            let best = same.iter().map(|x| x.1).fold(0.0, f64::min);
-            let leans = same
-                .iter()
-                .any(|x| x.0 == e.base() && x.1 < 0.0 && x.1 <= VARIANT_SHARE * best);
-            let mismatch_left = stage_chi2(ev, &base_rss, stage)
-                .is_some_and(|c| c > crate::MISMATCH_CHI2)
-                && same
-                    .iter()
-                    .all(|x| x.2.is_none_or(|c| c > crate::MISMATCH_CHI2));
-            leans || mismatch_left || identified.contains(&e.base())
+        let base_chi2 = |s: Stage| stage_chi2(ev, &base_rss, s);
+        let worth = |e: Effect| {
+            variant_worth_fitting(e, evidence_stage(ev, e), &scored, base_chi2, identified)
         };
         let variants: Vec<_> = variants
             .into_iter()
@@ -660,6 +646,44 @@ pub fn select(ev: &Evaluator, max_effects: usize, identified: &[Effect]) -> Sele
         nominal_eval,
         final_eval: base_eval,
     }
+}
+
+/// A default mechanism's fit in this round: its BIC change and the chi-square per
+/// residual it leaves in its evidence stage.
+#[derive(Debug, Clone, Copy)]
+pub struct DefaultScore {
+    /// The catalogue effect (its default mechanism).
+    pub effect: Effect,
+    /// Its evidence stage.
+    pub stage: Stage,
+    /// BIC change when added (negative favours it).
+    pub delta_bic: f64,
+    /// Chi-square per residual of the stage with it added.
+    pub chi2_left: Option<f64>,
+}
+
+/// Whether the other mechanism `variant` (evidence stage `stage`) is worth fitting this
+/// round: identification names its family; or its default lowers the BIC by at least
+/// [`VARIANT_SHARE`] of the most any default of its stage does; or its stage leaves the
+/// noise (`base_chi2` above [`crate::MISMATCH_CHI2`]) and no default of that stage
+/// brings it back.
+pub fn variant_worth_fitting(
+    variant: Effect,
+    stage: Stage,
+    defaults: &[DefaultScore],
+    base_chi2: impl Fn(Stage) -> Option<f64>,
+    identified: &[Effect],
+) -> bool {
+    let same: Vec<&DefaultScore> = defaults.iter().filter(|x| x.stage == stage).collect();
+    let best = same.iter().map(|x| x.delta_bic).fold(0.0, f64::min);
+    let leans = same.iter().any(|x| {
+        x.effect == variant.base() && x.delta_bic < 0.0 && x.delta_bic <= VARIANT_SHARE * best
+    });
+    let mismatch_left = base_chi2(stage).is_some_and(|c| c > crate::MISMATCH_CHI2)
+        && same
+            .iter()
+            .all(|x| x.chi2_left.is_none_or(|c| c > crate::MISMATCH_CHI2));
+    leans || mismatch_left || identified.contains(&variant.base())
 }
 
 /// Fits each candidate effect on top of `base`, spread over the machine's cores (each
@@ -991,5 +1015,87 @@ fn partial(
         signature: Some(signature),
         residual_left_m: Some(after),
         implausible_sign: false,
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn score(effect: Effect, stage: Stage, delta_bic: f64, chi2_left: f64) -> DefaultScore {
+        DefaultScore {
+            effect,
+            stage,
+            delta_bic,
+            chi2_left: Some(chi2_left),
+        }
+    }
+
+    /// A diameter mismatch that explains the ground stage: floor bumps lean a little
+    /// (-138 against -523,000), so their region mechanism waits; the stage is back in
+    /// the noise, so no other ground mechanism is needed this round.
+    #[test]
+    fn a_dominant_default_spares_the_far_behind_variants() {
+        let d = [
+            score(
+                Effect::WheelDiameterMismatch,
+                Stage::Ground,
+                -523_000.0,
+                1.1,
+            ),
+            score(Effect::FloorBumps, Stage::Ground, -138.0, 900.0),
+            score(Effect::LongitudinalSlip, Stage::Ground, -313.0, 900.0),
+        ];
+        let chi2 = |_: Stage| Some(950.0);
+        for v in [Effect::BumpsRegion, Effect::SlipBody, Effect::SlipCreep] {
+            assert!(
+                !variant_worth_fitting(v, Stage::Ground, &d, chi2, &[]),
+                "{v:?}"
+            );
+        }
+        // ... unless identification names the family.
+        assert!(variant_worth_fitting(
+            Effect::BumpsRegion,
+            Stage::Ground,
+            &d,
+            chi2,
+            &[Effect::FloorBumps]
+        ));
+    }
+
+    /// Body-bound slip: the wheel mechanism leans weakly (-6 against the best -24.5 of the
+    /// ground stage); its variants are fitted. Actuator scores do not set the ground bar.
+    #[test]
+    fn a_leaning_default_within_its_stage_opens_its_variants() {
+        let d = [
+            score(Effect::LateralSlip, Stage::Ground, -24.5, 40.0),
+            score(Effect::LongitudinalSlip, Stage::Ground, -6.0, 45.0),
+            score(Effect::MotorLag, Stage::Actuator, -1571.8, 1.0),
+        ];
+        let chi2 = |s: Stage| Some(if s == Stage::Ground { 50.0 } else { 1.0 });
+        assert!(variant_worth_fitting(
+            Effect::SlipBody,
+            Stage::Ground,
+            &d,
+            chi2,
+            &[]
+        ));
+        // The stage is out of the noise and no default brings it back: every ground
+        // variant is tried, region bumps included.
+        assert!(variant_worth_fitting(
+            Effect::BumpsRegion,
+            Stage::Ground,
+            &d,
+            chi2,
+            &[]
+        ));
+        // The actuator stage is in the noise and backlash does not lean: not tried.
+        assert!(!variant_worth_fitting(
+            Effect::BacklashAsymmetric,
+            Stage::Actuator,
+            &d,
+            chi2,
+            &[]
+        ));
     }
 }
