@@ -34,6 +34,9 @@ impl fmt::Display for Stage {
     }
 }
 
+/// Largest single-wheel mounting angle error tried, rad (about 11 degrees).
+pub const SINGLE_WHEEL_ANGLE_RAD: f64 = 0.2;
+
 /// A catalogue effect.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Hash, Serialize, PartialOrd, Ord)]
 #[serde(rename_all = "snake_case")]
@@ -87,6 +90,12 @@ pub enum Effect {
     /// Coulomb friction against a velocity loop of finite gain: every command
     /// loses `droop_rad_s` in its sign, |w| = max(|cmd| - droop, 0).
     FrictionDroop,
+    /// One omni wheel (by index) mounted at an angle off its nominal `alpha` by
+    /// `alpha_offset_rad`: the geometry's one-parameter alternative to every radius.
+    WheelAngle(u8),
+    /// One omni wheel (by index) mounted with its distance from the centre scaled by
+    /// `l_scale`: the one-parameter alternative to a wheelbase error of every wheel.
+    WheelPosition(u8),
 }
 
 /// How a parameter is mapped to the optimiser's coordinate.
@@ -181,6 +190,8 @@ impl Effect {
             Effect::MissedQuanta | Effect::MissedStall => Effect::MissedSteps,
             Effect::LagDelay | Effect::LagSlew => Effect::MotorLag,
             Effect::FrictionDroop => Effect::CoulombFriction,
+            // A single omni wheel's mounting: another way the geometry is off.
+            Effect::WheelAngle(_) | Effect::WheelPosition(_) => Effect::WheelDiameterMismatch,
             e => e,
         }
     }
@@ -190,9 +201,11 @@ impl Effect {
     pub fn mechanism(self) -> &'static str {
         use formats::catalogue as c;
         match self {
-            Effect::WheelDiameterMismatch | Effect::WheelbaseError | Effect::WheelScale => {
-                c::GEOMETRY
-            }
+            Effect::WheelDiameterMismatch
+            | Effect::WheelbaseError
+            | Effect::WheelScale
+            | Effect::WheelAngle(_)
+            | Effect::WheelPosition(_) => c::GEOMETRY,
             Effect::LongitudinalSlip => c::MECH_WHEEL.0,
             Effect::LateralSlip => c::MECH_LINEAR.0,
             Effect::FloorBumps => c::MECH_WHOLE.0,
@@ -227,6 +240,8 @@ impl Effect {
             Effect::MotorLag => c::MOTOR_LAG,
             Effect::CoulombFriction => c::COULOMB_FRICTION,
             Effect::WheelScale => c::WHEEL_SCALE,
+            Effect::WheelAngle(_) => c::WHEEL_ANGLE_ERROR,
+            Effect::WheelPosition(_) => c::WHEEL_POSITION_ERROR,
             e => e.base().id(),
         }
     }
@@ -306,6 +321,49 @@ impl Effect {
             Effect::LagDelay => vec![ParamSpec::new("tau_s", Log, 1e-9, 1e-4, 2.0)],
             Effect::LagSlew => vec![ParamSpec::new("slew_rad_s2", Log, 1e9, 0.05, 1e4)],
             Effect::FrictionDroop => vec![ParamSpec::new("droop_rad_s", Log, 1e-9, 1e-3, 50.0)],
+            Effect::WheelAngle(i) => {
+                let name = robot.wheels.get(i as usize).map_or("", |w| w.name.as_str());
+                vec![ParamSpec::new(
+                    &format!("alpha_offset_rad_{name}"),
+                    Linear,
+                    0.0,
+                    -SINGLE_WHEEL_ANGLE_RAD,
+                    SINGLE_WHEEL_ANGLE_RAD,
+                )]
+            }
+            Effect::WheelPosition(i) => {
+                let name = robot.wheels.get(i as usize).map_or("", |w| w.name.as_str());
+                vec![ParamSpec::new(
+                    &format!("l_scale_{name}"),
+                    Linear,
+                    1.0,
+                    0.8,
+                    1.25,
+                )]
+            }
+        }
+    }
+
+    /// The effects worth trying on `robot`: the catalogue's, and on omni robots (three
+    /// wheels or more) one mounting angle and one wheel distance per wheel.
+    pub fn candidates(robot: &Robot) -> Vec<Effect> {
+        let mut out = Effect::ALL.to_vec();
+        if matches!(robot.kind, RobotKind::Omni) && robot.wheels.len() >= 3 {
+            for i in 0..robot.wheels.len() as u8 {
+                out.push(Effect::WheelAngle(i));
+                out.push(Effect::WheelPosition(i));
+            }
+        }
+        out
+    }
+
+    /// A number unique to the effect (wheel included), for cache keys.
+    pub fn code(self) -> f64 {
+        let per_wheel = |base: f64, i: u8| base + f64::from(i);
+        match self {
+            Effect::WheelAngle(i) => per_wheel(100.0, i),
+            Effect::WheelPosition(i) => per_wheel(200.0, i),
+            e => Effect::ALL.iter().position(|x| *x == e).unwrap_or(99) as f64,
         }
     }
 
@@ -382,6 +440,8 @@ impl Effect {
             Effect::LagDelay => singles(log_grid(0.003, 1.0, 12)),
             Effect::LagSlew => singles(log_grid(0.5, 200.0, 16)),
             Effect::FrictionDroop => singles(log_grid(0.02, 20.0, 12)),
+            Effect::WheelAngle(_) => vec![vec![0.0]],
+            Effect::WheelPosition(_) => vec![vec![1.0]],
             // From the data: see `select::region_grid`.
             Effect::BumpsRegion => Vec::new(),
             Effect::FloorBumps => {
@@ -457,13 +517,38 @@ impl Model {
         (scales, eb)
     }
 
-    /// The robot with the fitted geometry applied (radii, wheel distances).
+    /// The robot with the fitted geometry applied (radii, wheel distances, a single
+    /// wheel's mounting).
     pub fn apply_geometry(&self, robot: &Robot) -> Robot {
         let (scales, eb) = self.geometry(robot);
-        let mut out = robot.clone();
+        let mut out = self.apply_mounting(robot);
         for (w, s) in out.wheels.iter_mut().zip(scales) {
             w.radius_m *= s;
             w.l_m *= eb;
+        }
+        out
+    }
+
+    /// `robot` with the single-wheel mounting effects applied (angle offset, distance
+    /// scale); the other geometry stays nominal.
+    pub fn apply_mounting(&self, robot: &Robot) -> Robot {
+        let mut out = robot.clone();
+        for (e, p) in &self.effects {
+            match *e {
+                Effect::WheelAngle(i) => {
+                    if let (Some(w), Some(v)) = (out.wheels.get_mut(i as usize), p.first()) {
+                        // Moving the wheel round the centre keeps its rolling direction
+                        // relative to the radius (beta), as a misplaced mount does.
+                        w.alpha_rad += v;
+                    }
+                }
+                Effect::WheelPosition(i) => {
+                    if let (Some(w), Some(v)) = (out.wheels.get_mut(i as usize), p.first()) {
+                        w.l_m *= v;
+                    }
+                }
+                _ => {}
+            }
         }
         out
     }

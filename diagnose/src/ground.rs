@@ -198,8 +198,9 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
         v.push(0.0);
         out.free.push((*i, v));
     }
-    // Wheels without any angle series must not vote in the least squares.
-    let mut robot = p.robot.clone();
+    // Wheels without any angle series must not vote in the least squares. A single
+    // wheel's mounting error moves that wheel.
+    let mut robot = model.apply_mounting(&p.robot);
     let known: Vec<usize> = (0..angles.len()).filter(|&i| angles[i].is_some()).collect();
     let mut scales_known = scales.clone();
     if known.len() < robot.wheels.len() {

@@ -27,7 +27,7 @@ pub fn range(parameter: &str) -> Option<((f64, f64), &'static str)> {
     if parameter.starts_with("radius_scale_") || parameter == "scale" {
         return Some((
             around(1.0, RADIUS_RANGE),
-            "wheel mounting angles or positions the catalogue did not fit (wheel_angle_error, wheel_position_error: try `wheelcal calibrate`), a wrong counts per revolution, or slip",
+            "the mounting angles or positions of several wheels (diagnose tries one wheel at a time; `wheelcal calibrate` fits them all), a wrong counts per revolution, or slip",
         ));
     }
     if parameter.starts_with("alpha_offset_rad_") {

@@ -152,17 +152,18 @@ const MAX_ACT_ROWS: usize = 6000;
 const BLOCKS: f64 = 10.0;
 
 fn key(m: &Model, stage: Stage, with_actuator: bool) -> Vec<f64> {
+    let mut effects: Vec<&(Effect, Vec<f64>)> = m
+        .effects
+        .iter()
+        .filter(|(e, _)| e.stage() == stage || (with_actuator && e.stage() == Stage::Actuator))
+        .collect();
+    effects.sort_by(|a, b| a.0.code().total_cmp(&b.0.code()));
     let mut k = Vec::new();
-    for e in Effect::ALL {
-        if e.stage() == stage || (with_actuator && e.stage() == Stage::Actuator) {
-            match m.get(e) {
-                Some(p) => {
-                    k.push(e as u8 as f64);
-                    k.extend_from_slice(p);
-                }
-                None => k.push(-1.0),
-            }
-        }
+    for (e, p) in effects {
+        // The code, the parameter count and the values: no two models share a key.
+        k.push(e.code());
+        k.push(p.len() as f64);
+        k.extend_from_slice(p);
     }
     k
 }

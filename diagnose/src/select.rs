@@ -438,7 +438,7 @@ pub fn select(ev: &Evaluator, max_effects: usize, identified: &[Effect]) -> Sele
                 }
             }
         }
-        let todo: Vec<(Effect, Vec<Vec<f64>>)> = Effect::ALL
+        let todo: Vec<(Effect, Vec<Vec<f64>>)> = Effect::candidates(robot)
             .into_iter()
             .filter(|&e| {
                 // One mechanism per catalogue effect.

@@ -31,6 +31,13 @@ pub const TILTED_FLOOR: &str = "tilted_floor";
 /// by the same factor.
 pub const WHEEL_SCALE: &str = "wheel_scale";
 
+/// Diagnose's one-parameter alternative to every omni wheel's radius: one wheel mounted
+/// at an angle off its nominal one.
+pub const WHEEL_ANGLE_ERROR: &str = "wheel_angle_error";
+/// Diagnose's one-parameter alternative to a wheelbase error of every wheel: one omni
+/// wheel mounted nearer to or further from the centre.
+pub const WHEEL_POSITION_ERROR: &str = "wheel_position_error";
+
 /// The catalogue's effects in its order, then the control.
 pub const EFFECT_IDS: [&str; 10] = [
     WHEEL_DIAMETER_MISMATCH,
