@@ -79,6 +79,8 @@ pub enum Effect {
     BumpsRegion,
     /// backlash: different play taken up on forward and backward reversals.
     BacklashAsymmetric,
+    /// backlash: each wheel's own play (`backlash_rad_<wheel>`).
+    BacklashPerWheel,
     /// missed_steps: quanta of one electrical cycle while over the acceleration limit.
     MissedQuanta,
     /// missed_steps: full stall over the limit until the command rests.
@@ -157,7 +159,7 @@ impl ParamSpec {
 
 impl Effect {
     /// Every effect: the catalogue's own first, then the mechanism variants.
-    pub const ALL: [Effect; 20] = [
+    pub const ALL: [Effect; 21] = [
         Effect::WheelDiameterMismatch,
         Effect::WheelbaseError,
         Effect::LongitudinalSlip,
@@ -173,6 +175,7 @@ impl Effect {
         Effect::LateralSaturating,
         Effect::BumpsRegion,
         Effect::BacklashAsymmetric,
+        Effect::BacklashPerWheel,
         Effect::MissedQuanta,
         Effect::MissedStall,
         Effect::LagDelay,
@@ -186,7 +189,7 @@ impl Effect {
             Effect::SlipBody | Effect::SlipCreep => Effect::LongitudinalSlip,
             Effect::LateralSaturating => Effect::LateralSlip,
             Effect::BumpsRegion => Effect::FloorBumps,
-            Effect::BacklashAsymmetric => Effect::Backlash,
+            Effect::BacklashAsymmetric | Effect::BacklashPerWheel => Effect::Backlash,
             Effect::MissedQuanta | Effect::MissedStall => Effect::MissedSteps,
             Effect::LagDelay | Effect::LagSlew => Effect::MotorLag,
             Effect::FrictionDroop => Effect::CoulombFriction,
@@ -218,6 +221,7 @@ impl Effect {
             Effect::LateralSaturating => c::MECH_SATURATING.0,
             Effect::BumpsRegion => c::MECH_REGION.0,
             Effect::BacklashAsymmetric => c::MECH_ASYMMETRIC.0,
+            Effect::BacklashPerWheel => c::MECH_PER_WHEEL.0,
             Effect::MissedQuanta => c::MECH_QUANTA.0,
             Effect::MissedStall => c::MECH_STALL.0,
             Effect::LagDelay => c::MECH_DELAY.0,
@@ -307,6 +311,13 @@ impl Effect {
                 ParamSpec::new("start_m", Linear, -1e3, -1e3, 1e3),
                 ParamSpec::new("end_m", Linear, 1e3, -1e3, 1e3),
             ],
+            Effect::BacklashPerWheel => robot
+                .wheels
+                .iter()
+                .map(|w| {
+                    ParamSpec::new(&format!("backlash_rad_{}", w.name), Log, 1e-9, 1e-4, 1.0)
+                })
+                .collect(),
             Effect::BacklashAsymmetric => vec![
                 ParamSpec::new("backlash_rad", Log, 1e-9, 1e-4, 1.0),
                 ParamSpec::new("asymmetry", Linear, 0.0, -0.95, 0.95),
@@ -418,6 +429,10 @@ impl Effect {
                 }
                 g
             }
+            Effect::BacklashPerWheel => log_grid(0.002, 0.5, 10)
+                .into_iter()
+                .map(|b| vec![b; n])
+                .collect(),
             Effect::BacklashAsymmetric => {
                 let mut g = Vec::new();
                 for b in log_grid(0.002, 0.5, 10) {

@@ -341,14 +341,26 @@ impl<'a> Evaluator<'a> {
             params.step_cycle_rad =
                 Some(4.0 * std::f64::consts::TAU / (d.steps_per_rev as f64 * d.gear_ratio));
         }
+        // Each wheel's own play, when the model has it per wheel.
+        let per_wheel = m.get(Effect::BacklashPerWheel);
         let v: Vec<Option<Vec<f64>>> = self
             .p
             .wheels
             .iter()
-            .map(|w| {
+            .enumerate()
+            .map(|(i, w)| {
                 w.cmd.as_ref().map(|c| {
                     let mut out = Vec::new();
-                    simulate_wheel(&self.p.t, c, &params, &mut out);
+                    match per_wheel.and_then(|b| b.get(i)) {
+                        Some(&b) => {
+                            let own = ActuatorParams {
+                                backlash_rad: Some(b),
+                                ..params
+                            };
+                            simulate_wheel(&self.p.t, c, &own, &mut out);
+                        }
+                        None => simulate_wheel(&self.p.t, c, &params, &mut out),
+                    }
                     out
                 })
             })

@@ -78,6 +78,8 @@ pub const MECH_IRREGULAR: Mech = ("irregular", FLOOR_BUMPS);
 pub const MECH_SYMMETRIC: Mech = ("symmetric", BACKLASH);
 /// backlash: different loss on the two reversal directions.
 pub const MECH_ASYMMETRIC: Mech = ("asymmetric", BACKLASH);
+/// backlash: each wheel its own play.
+pub const MECH_PER_WHEEL: Mech = ("per_wheel", BACKLASH);
 /// missed_steps: rotor pull-out dynamics.
 pub const MECH_PULL_OUT: Mech = ("pull_out", MISSED_STEPS);
 /// missed_steps: random quanta of four full steps.
@@ -96,7 +98,7 @@ pub const MECH_DEAD_BAND: Mech = ("dead_band", COULOMB_FRICTION);
 pub const MECH_DROOP: Mech = ("droop", COULOMB_FRICTION);
 
 /// Every mechanism. The first listed for an effect is its default.
-pub const MECHANISMS: [Mech; 18] = [
+pub const MECHANISMS: [Mech; 19] = [
     MECH_WHEEL,
     MECH_BODY,
     MECH_CREEP,
@@ -107,6 +109,7 @@ pub const MECHANISMS: [Mech; 18] = [
     MECH_IRREGULAR,
     MECH_SYMMETRIC,
     MECH_ASYMMETRIC,
+    MECH_PER_WHEEL,
     MECH_PULL_OUT,
     MECH_QUANTA,
     MECH_STALL,
