@@ -314,9 +314,7 @@ impl Effect {
             Effect::BacklashPerWheel => robot
                 .wheels
                 .iter()
-                .map(|w| {
-                    ParamSpec::new(&format!("backlash_rad_{}", w.name), Log, 1e-9, 1e-4, 1.0)
-                })
+                .map(|w| ParamSpec::new(&format!("backlash_rad_{}", w.name), Log, 1e-9, 1e-4, 1.0))
                 .collect(),
             Effect::BacklashAsymmetric => vec![
                 ParamSpec::new("backlash_rad", Log, 1e-9, 1e-4, 1.0),
