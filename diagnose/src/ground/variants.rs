@@ -142,13 +142,7 @@ pub fn slip_angles(
         for k in 0..n - 1 {
             let dt = (p.t[k + 1] - p.t[k]).max(crate::MIN_DT_S);
             let want = vel(k, &mut inc, &src);
-            let a = (mu * crate::replay::G * p.driven_share[k]).max(1e-12) * dt;
-            let (vx0, vy0) = *v.get_or_insert((want.vx, want.vy));
-            let (dx, dy) = (want.vx - vx0, want.vy - vy0);
-            let d = dx.hypot(dy);
-            let f = if d > a { a / d } else { 1.0 };
-            let (vx1, vy1) = (vx0 + dx * f, vy0 + dy * f);
-            v = Some((vx1, vy1));
+            let ((vx0, vy0), (vx1, vy1)) = follow(&mut v, &want, mu * p.driven_share[k], dt);
             // Body displacement lost (or gained) this row against what the wheels say.
             let diff = Twist::new(
                 (0.5 * (vx0 + vx1) - want.vx) * dt,
@@ -165,6 +159,25 @@ pub fn slip_angles(
         }
     }
     Some(out)
+}
+
+/// One row of the body bound: the body's linear velocity `v` (the asked one at the first
+/// row) moves towards what the wheels ask by at most `mu_share` g dt. Returns the
+/// velocity at the row's start and end.
+fn follow(
+    v: &mut Option<(f64, f64)>,
+    want: &Twist<f64>,
+    mu_share: f64,
+    dt: f64,
+) -> ((f64, f64), (f64, f64)) {
+    let a = (mu_share * crate::replay::G).max(1e-12) * dt;
+    let (vx0, vy0) = *v.get_or_insert((want.vx, want.vy));
+    let (dx, dy) = (want.vx - vx0, want.vy - vy0);
+    let d = dx.hypot(dy);
+    let f = if d > a { a / d } else { 1.0 };
+    let end = (vx0 + dx * f, vy0 + dy * f);
+    *v = Some(end);
+    ((vx0, vy0), end)
 }
 
 /// The body bound on a robot with free wheels: the driven wheels say what the drive asks
@@ -208,13 +221,7 @@ fn body_bound_with_free_wheels(
     for k in 0..n - 1 {
         let dt = (p.t[k + 1] - p.t[k]).max(crate::MIN_DT_S);
         let want = asked(k, &mut rates);
-        let a = (mu * crate::replay::G * p.driven_share[k]).max(1e-12) * dt;
-        let (vx0, vy0) = *v.get_or_insert((want.vx, want.vy));
-        let (dx, dy) = (want.vx - vx0, want.vy - vy0);
-        let d = dx.hypot(dy);
-        let f = if d > a { a / d } else { 1.0 };
-        let (vx1, vy1) = (vx0 + dx * f, vy0 + dy * f);
-        v = Some((vx1, vy1));
+        let ((vx0, vy0), (vx1, vy1)) = follow(&mut v, &want, mu * p.driven_share[k], dt);
         // The driven wheels keep their own increments less what the body did not follow;
         // the free wheels roll with the body.
         let body = Twist::new(0.5 * (vx0 + vx1) * dt, 0.5 * (vy0 + vy1) * dt, 0.0);
