@@ -16,6 +16,7 @@
 //! `implausible` with what it most likely stands in for.
 
 pub mod proxy;
+mod step;
 
 use crate::fit;
 use crate::replay::unwrap_angles;
@@ -28,6 +29,7 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use serde::Serialize;
 use std::cell::RefCell;
 use std::fmt;
+use step::Stepper;
 
 /// Unit of the position residuals (m): only scales the cost, uncertainties use the
 /// observed scatter.
@@ -416,9 +418,10 @@ const RHO_HALF_WINDOW: usize = 20;
 /// radii), smoothed over [`RHO_HALF_WINDOW`] rows either side.
 fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
     let m = inc.len();
+    let sides = Sides::new(robot);
     let (mut pl, mut pr) = (vec![0.0; m + 1], vec![0.0; m + 1]);
     for k in 0..m {
-        let (l, r) = side_travel(robot, &inc[k]);
+        let (l, r) = sides.travel(&inc[k]);
         pl[k + 1] = pl[k] + l;
         pr[k + 1] = pr[k] + r;
     }
@@ -439,19 +442,70 @@ fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// Mean travel of the left and the right wheels over one increment (m).
-fn side_travel(robot: &Robot, inc: &[f64]) -> (f64, f64) {
-    let (mut l, mut r, mut nl, mut nr) = (0.0, 0.0, 0.0, 0.0);
-    for (w, d) in robot.wheels.iter().zip(inc) {
-        if w.is_left() {
-            l += w.radius_m * d;
-            nl += 1.0;
-        } else {
-            r += w.radius_m * d;
-            nr += 1.0;
+/// A robot's sides as the stepping needs them, computed once per geometry (the wheels'
+/// sides and the mean half separation take trigonometry): [`Sides::travel`] and
+/// [`Sides::step`] give the same values, to the bit, as computing them per row.
+#[derive(Debug, Clone)]
+pub(crate) struct Sides {
+    /// Per wheel: on the left side, and its radius (m).
+    wheels: Vec<(bool, f64)>,
+    /// Left and right wheel counts, at least 1.
+    counts: (f64, f64),
+    /// Mean |y| of the wheels (half the separation, E_b applied), m.
+    half: f64,
+}
+
+impl Sides {
+    pub(crate) fn new(robot: &Robot) -> Sides {
+        let wheels: Vec<(bool, f64)> = robot
+            .wheels
+            .iter()
+            .map(|w| (w.is_left(), w.radius_m))
+            .collect();
+        let nl = wheels.iter().filter(|w| w.0).count() as f64;
+        let nr = wheels.len() as f64 - nl;
+        let half = robot
+            .wheels
+            .iter()
+            .map(|w| w.position().1.abs())
+            .sum::<f64>()
+            / robot.wheels.len().max(1) as f64;
+        Sides {
+            wheels,
+            counts: (f64::max(nl, 1.0), f64::max(nr, 1.0)),
+            half,
         }
     }
-    (l / f64::max(nl, 1.0), r / f64::max(nr, 1.0))
+
+    /// Mean travel of the left and the right wheels over one increment (m).
+    #[inline]
+    pub(crate) fn travel(&self, inc: &[f64]) -> (f64, f64) {
+        let (mut l, mut r) = (0.0, 0.0);
+        for (&(left, radius), d) in self.wheels.iter().zip(inc) {
+            if left {
+                l += radius * d;
+            } else {
+                r += radius * d;
+            }
+        }
+        (l / self.counts.0, r / self.counts.1)
+    }
+
+    /// One step of a robot driven by its sides (skid-steer, or a differential drive with
+    /// a turn law): each side's mean travel, the separation (E_b applied) widened by the
+    /// law at this turn ratio, the sideways speed of the ICR offset.
+    #[inline]
+    pub(crate) fn step(
+        &self,
+        law: &TurnLaw,
+        rho: f64,
+        inc: &[f64],
+    ) -> calib_core::kinematics::Twist<f64> {
+        let (l, r) = self.travel(inc);
+        let half = self.half * (1.0 + law.arc_rel * (1.0 - rho).powi(2));
+        let dth = (r - l) / (2.0 * half);
+        calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)
+    }
 }
 
 /// How a recording turns: the side-travel difference |d_r - d_l| summed over all rows, over
@@ -462,28 +516,6 @@ pub(crate) struct Turning {
     pub(crate) all: f64,
     pub(crate) arcs: f64,
     pub(crate) arc_term: f64,
-}
-
-/// One step of a robot driven by its sides (skid-steer, or a differential drive with a
-/// turn law): each side's mean travel, the separation of `robot`
-/// (E_b applied) widened by the law at this turn ratio, the sideways speed of the ICR
-/// offset.
-fn skid_step(
-    robot: &Robot,
-    law: &TurnLaw,
-    rho: f64,
-    inc: &[f64],
-) -> calib_core::kinematics::Twist<f64> {
-    let (l, r) = side_travel(robot, inc);
-    let half = robot
-        .wheels
-        .iter()
-        .map(|w| w.position().1.abs())
-        .sum::<f64>()
-        / robot.wheels.len().max(1) as f64
-        * (1.0 + law.arc_rel * (1.0 - rho).powi(2));
-    let dth = (r - l) / (2.0 * half);
-    calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)
 }
 
 /// Why calibration cannot run.
@@ -513,8 +545,11 @@ pub struct Series {
     pub name: String,
     /// Time of each row, s.
     pub t: Vec<f64>,
-    /// Per row, per wheel: angle increment to the next row (rad).
-    inc: Vec<Vec<f64>>,
+    /// Per row, per wheel: angle increment to the next row (rad), row after row
+    /// ([`Series::wheels`] values a row).
+    inc: Vec<f64>,
+    /// Wheels per row of `inc`.
+    wheels: usize,
     pub(crate) pose_row: Vec<usize>,
     pub(crate) px: Vec<f64>,
     pub(crate) py: Vec<f64>,
@@ -726,10 +761,12 @@ impl Series {
         let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
         let rho = matches!(robot.kind, RobotKind::SkidSteer | RobotKind::DiffDrive)
             .then(|| turn_ratio(robot, &inc));
+        let wheels = robot.wheels.len();
         let mut s = Series {
             name: name.to_string(),
             t: rec.t.clone(),
-            inc,
+            inc: inc.concat(),
+            wheels,
             pose_row,
             px,
             py,
@@ -901,7 +938,8 @@ impl Series {
                     format!("{}{PART_SEP}{}", self.name, k + 1)
                 },
                 t: self.t[rows.clone()].to_vec(),
-                inc: self.inc[r0..r1 - 1].to_vec(),
+                inc: self.inc[r0 * self.wheels..(r1 - 1) * self.wheels].to_vec(),
+                wheels: self.wheels,
                 pose_row: self.pose_row[p0..p1].iter().map(|r| r - r0).collect(),
                 px,
                 py,
@@ -945,8 +983,9 @@ impl Series {
         let Some(rho) = &self.rho else {
             return t;
         };
-        for (inc, &rho) in self.inc.iter().zip(rho) {
-            let (l, r) = side_travel(robot, inc);
+        let sides = Sides::new(robot);
+        for (inc, &rho) in self.incs().zip(rho) {
+            let (l, r) = sides.travel(inc);
             let d = (r - l).abs();
             t.all += d;
             t.arc_term += d * (1.0 - rho).powi(2);
@@ -955,6 +994,11 @@ impl Series {
             }
         }
         t
+    }
+
+    /// The wheel increments, row after row.
+    fn incs(&self) -> std::slice::ChunksExact<'_, f64> {
+        self.inc.chunks_exact(self.wheels.max(1))
     }
 
     /// Number of ground-truth pose samples.
@@ -978,28 +1022,34 @@ impl Series {
         law: &TurnLaw,
         out: &mut Path,
     ) -> bool {
+        self.path_by(robot, &Stepper::new(robot, kin, law), out)
+    }
+
+    /// [`Series::path_with`] with the stepping of `robot` at its geometry prepared.
+    pub(crate) fn path_by(&self, robot: &Robot, stepper: &Stepper, out: &mut Path) -> bool {
         out.clear();
+        let rows = self.t.len();
+        out.x.reserve(rows);
+        out.y.reserve(rows);
+        out.th.reserve(rows);
         let mut p = Pose::new(0.0, 0.0, 0.0);
         out.push(p);
-        // A skid-steer robot always steps by its sides; a differential drive only with a
-        // law (otherwise its exact kinematics, the same to rounding).
-        let sides = robot.kind == RobotKind::SkidSteer || *law != TurnLaw::default();
-        if let (Some(rho), true) = (&self.rho, sides) {
-            for (inc, &rho) in self.inc.iter().zip(rho) {
-                p = integrate_arc(p, &skid_step(robot, law, rho, inc));
+        if let (Some(rho), Some((sides, law))) = (&self.rho, stepper.sides()) {
+            for (inc, &rho) in self.incs().zip(rho) {
+                p = integrate_arc(p, &sides.step(law, rho, inc));
                 out.push(p);
             }
             return true;
         }
         let Some(legs) = &self.legs else {
-            for inc in &self.inc {
-                p = integrate_arc(p, &kin.forward(inc));
+            for inc in self.incs() {
+                p = integrate_arc(p, &stepper.forward(inc));
                 out.push(p);
             }
             return true;
         };
         let mut at: Option<((f64, f64), Kinematics<f64>)> = None;
-        for (k, inc) in self.inc.iter().enumerate() {
+        for (k, inc) in self.incs().enumerate() {
             let l = legs[k];
             if at
                 .as_ref()
@@ -1027,11 +1077,13 @@ pub(crate) struct Path {
 }
 
 impl Path {
+    #[inline]
     fn clear(&mut self) {
         self.x.clear();
         self.y.clear();
         self.th.clear();
     }
+    #[inline]
     fn push(&mut self, p: Pose<f64>) {
         self.x.push(p.x);
         self.y.push(p.y);
@@ -1262,8 +1314,9 @@ impl<'a> Problem<'a> {
             c.0 = vec![f64::NAN];
             return false;
         };
+        let stepper = Stepper::new(&r, &kin, &law);
         for (s, p) in self.series.iter().zip(c.1.iter_mut()) {
-            if !s.path_with(&r, &kin, &law, p) {
+            if !s.path_by(&r, &stepper, p) {
                 c.0 = vec![f64::NAN];
                 return false;
             }

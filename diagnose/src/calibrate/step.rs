@@ -1,0 +1,60 @@
+//! What one evaluation of the calibration model steps the paths with: the parts of the
+//! geometry that do not change from row to row (the kinematics' least-squares matrix, a
+//! robot's sides), computed once per geometry instead of once per row. The twists are the
+//! same, to the bit, as [`Kinematics::forward`] and the per-row side stepping give.
+
+use super::{Sides, TurnLaw};
+use calib_core::kinematics::{Kinematics, Twist};
+use calib_core::robot::{Robot, RobotKind};
+
+/// The body twist of one row's wheel increments at one geometry.
+#[derive(Debug, Clone)]
+pub(crate) struct Stepper {
+    /// Per wheel: its column of the kinematics' least-squares matrix (vx, vy, omega per
+    /// unit increment).
+    columns: Vec<[f64; 3]>,
+    /// A robot stepped by its sides (skid-steer, or a differential drive with a turn
+    /// law), on recordings that carry the turn ratio.
+    sides: Option<(Sides, TurnLaw)>,
+}
+
+impl Stepper {
+    /// The stepping of `robot`, whose kinematics at its geometry are `kin`, with `law`.
+    pub(crate) fn new(robot: &Robot, kin: &Kinematics<f64>, law: &TurnLaw) -> Stepper {
+        let n = robot.wheels.len();
+        // Column i of the matrix is the twist of a unit increment of wheel i alone: exact
+        // (every other term adds a signed zero).
+        let mut e = vec![0.0; n];
+        let columns = (0..n)
+            .map(|i| {
+                e[i] = 1.0;
+                let t = kin.forward(&e);
+                e[i] = 0.0;
+                [t.vx, t.vy, t.omega]
+            })
+            .collect();
+        // A skid-steer robot always steps by its sides; a differential drive only with a
+        // law (otherwise its exact kinematics, the same to rounding).
+        let sides = (robot.kind == RobotKind::SkidSteer || *law != TurnLaw::default())
+            .then(|| (Sides::new(robot), *law));
+        Stepper { columns, sides }
+    }
+
+    /// The sides' stepping, when the robot steps by its sides.
+    pub(crate) fn sides(&self) -> Option<&(Sides, TurnLaw)> {
+        self.sides.as_ref()
+    }
+
+    /// [`Kinematics::forward`] of one row's increments: each component summed over the
+    /// wheels in order, as it does.
+    #[inline]
+    pub(crate) fn forward(&self, inc: &[f64]) -> Twist<f64> {
+        let mut o = [0.0; 3];
+        for (c, w) in self.columns.iter().zip(inc) {
+            o[0] += c[0] * w;
+            o[1] += c[1] * w;
+            o[2] += c[2] * w;
+        }
+        Twist::new(o[0], o[1], o[2])
+    }
+}
