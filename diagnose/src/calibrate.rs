@@ -15,10 +15,11 @@
 //! is fitted. Every parameter has a plausible range; a value outside is listed
 //! `implausible` with what it most likely stands in for.
 
+mod lm;
 pub mod proxy;
+mod sens;
 mod step;
 
-use crate::fit;
 use crate::replay::unwrap_angles;
 use calib_core::correction::Corrections;
 use calib_core::kinematics::Kinematics;
@@ -1272,6 +1273,9 @@ struct Problem<'a> {
     huber: Option<f64>,
     /// Lever arm of the dead-reckoning heading residuals, m.
     dr_lever: f64,
+    /// The Jacobian of a fit's solution (its covariance, the cross-validation's steps)
+    /// by forward differences, as the iterations' used to be; else the analytic one.
+    differences_at_solution: bool,
 }
 
 impl<'a> Problem<'a> {
@@ -1299,6 +1303,7 @@ impl<'a> Problem<'a> {
             free_start: true,
             huber: None,
             dr_lever: DR_HEADING_LEVER_M,
+            differences_at_solution: true,
             cache: RefCell::new((vec![f64::NAN], vec![Path::default(); series.len()])),
         }
     }
@@ -1315,13 +1320,84 @@ impl<'a> Problem<'a> {
             return false;
         };
         let stepper = Stepper::new(&r, &kin, &law);
-        for (s, p) in self.series.iter().zip(c.1.iter_mut()) {
-            if !s.path_by(&r, &stepper, p) {
-                c.0 = vec![f64::NAN];
-                return false;
+        let mut jobs: Vec<(&Series, &mut Path)> = self.series.iter().zip(c.1.iter_mut()).collect();
+        let ok = par_each(&mut jobs, |(s, p)| s.path_by(&r, &stepper, p));
+        if ok.iter().all(|v| *v) {
+            c.0 = geom.to_vec();
+            true
+        } else {
+            c.0 = vec![f64::NAN];
+            false
+        }
+    }
+
+    /// The analytic Jacobian of [`Problem::residuals`] with the prior rows (dead
+    /// reckoning only) at `geom`, the data rows through Huber's loss when robust (`r`:
+    /// the residuals at `geom` as the fit sees them). False when it has none (fitted start
+    /// poses, a wheeled-legged robot, a singular geometry).
+    fn jacobian(&self, geom: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
+        if self.free_start {
+            return false;
+        }
+        let g = self.specs.len();
+        let m = self.data_len();
+        let robot = robot_with(self.robot, self.specs, geom);
+        let law = TurnLaw::of(self.specs, geom);
+        let Ok(kin) = Kinematics::<f64>::new(&robot, &Corrections::None) else {
+            return false;
+        };
+        let stepper = Stepper::new(&robot, &kin, &law);
+        let cols = sens::split_params(self.specs);
+        let sides = self.robot.kind == RobotKind::SkidSteer
+            || self
+                .specs
+                .iter()
+                .any(|s| matches!(s.kind, GeomKind::EbArc | GeomKind::IcrX));
+        let Some(slopes) = sens::TwistSlopes::new(self.robot, self.specs, geom, &cols.path, sides)
+        else {
+            return false;
+        };
+        let mut jobs: Vec<(&Series, Option<sens::Sensitivity>)> =
+            self.series.iter().map(|s| (s, None)).collect();
+        par_each(&mut jobs, |(s, out)| {
+            *out = s.sensitivity(&stepper, &slopes, s.dr_rows());
+        });
+        if jobs.iter().any(|j| j.1.is_none()) {
+            return false;
+        }
+        if jac.nrows() != m + self.priors.len() || jac.ncols() != g {
+            *jac = DMatrix::zeros(m + self.priors.len(), g);
+        }
+        jac.fill(0.0);
+        let get = |k: GeomKind| {
+            self.specs
+                .iter()
+                .position(|s| s.kind == k)
+                .map_or(0.0, |i| geom[i])
+        };
+        let marker = (get(GeomKind::MarkerX), get(GeomKind::MarkerY));
+        let mut row = 0;
+        for (s, sens) in &jobs {
+            let sens = sens.as_ref().expect("checked above");
+            s.dr_jacobian(sens, &cols, marker, self.dr_lever, jac, row);
+            row += 3 * s.samples.len();
+        }
+        if let Some(c) = self.huber {
+            // d huber / dr: 1 within c, c / |huber(r)| beyond (huber is monotone, = c at c).
+            for (i, v) in r[..m].iter().enumerate() {
+                if v.abs() > c {
+                    let k = c / v.abs();
+                    for a in 0..g {
+                        jac[(i, a)] *= k;
+                    }
+                }
             }
         }
-        c.0 = geom.to_vec();
+        for (i, (w, _, sigma)) in self.priors.iter().enumerate() {
+            for a in 0..g {
+                jac[(m + i, a)] = w[a] / sigma * self.prior_scale;
+            }
+        }
         true
     }
 
@@ -1340,12 +1416,27 @@ impl<'a> Problem<'a> {
                 .map_or(0.0, |i| geom[i])
         };
         let marker = (get(GeomKind::MarkerX), get(GeomKind::MarkerY));
-        for (i, s) in self.series.iter().enumerate() {
-            if self.free_start {
+        if self.free_start {
+            for (i, s) in self.series.iter().enumerate() {
                 let nu = Nuisance::from(&nuis[i * NUIS..(i + 1) * NUIS]);
                 residuals_into(s, &c.1[i], &nu, marker, &mut out);
-            } else {
-                dr_residuals_into(s, &c.1[i], marker, self.dr_lever, &mut out);
+            }
+        } else {
+            // Each recording's on its own (in parallel), then in order.
+            let lever = self.dr_lever;
+            let mut jobs: Vec<(&Series, &Path)> = self.series.iter().zip(&c.1).collect();
+            let parts = par_jobs(
+                &mut jobs,
+                |j| 20 * j.0.samples.len(),
+                |(s, path)| {
+                    let mut v = Vec::with_capacity(3 * s.samples.len());
+                    dr_residuals_into(s, path, marker, lever, &mut v);
+                    v
+                },
+            );
+            out.reserve(parts.iter().map(|v| v.len()).sum());
+            for v in parts {
+                out.extend_from_slice(&v);
             }
         }
         if with_prior {
@@ -1369,6 +1460,72 @@ impl<'a> Problem<'a> {
             })
             .sum()
     }
+}
+
+/// Rows below which one evaluation is not worth a second thread.
+const PAR_MIN_ROWS: usize = 20_000;
+
+/// Runs `f` on every job (a recording and its output), on up to
+/// `available_parallelism` threads when the recordings are long enough to pay for them;
+/// each job's result is the same as run alone. The jobs are split in contiguous runs of
+/// about equal rows.
+fn par_each<'s, J: Send, R: Send>(
+    jobs: &mut [(&'s Series, J)],
+    f: impl Fn(&mut (&'s Series, J)) -> R + Sync,
+) -> Vec<R> {
+    par_jobs(jobs, |j| j.0.t.len(), f)
+}
+
+/// [`par_each`] on the recordings `series`, read only.
+fn par_map<R: Send>(series: &[&Series], f: impl Fn(&Series) -> R + Sync) -> Vec<R> {
+    let mut jobs: Vec<(&Series, ())> = series.iter().map(|s| (*s, ())).collect();
+    par_each(&mut jobs, |j| f(j.0))
+}
+
+/// Runs `f` on every job, weighed by `rows`, in contiguous runs of about equal weight on
+/// up to `available_parallelism` threads (one thread under [`PAR_MIN_ROWS`]).
+fn par_jobs<J: Send, R: Send>(
+    jobs: &mut [J],
+    rows: impl Fn(&J) -> usize,
+    f: impl Fn(&mut J) -> R + Sync,
+) -> Vec<R> {
+    let total: usize = jobs.iter().map(&rows).sum();
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(jobs.len());
+    if threads < 2 || total < PAR_MIN_ROWS {
+        return jobs.iter_mut().map(&f).collect();
+    }
+    // Contiguous chunks of about total / threads each.
+    let mut bounds = vec![0];
+    let mut acc = 0;
+    for (i, j) in jobs.iter().enumerate() {
+        acc += rows(j);
+        if bounds.len() < threads && acc * threads >= total * bounds.len() {
+            bounds.push(i + 1);
+        }
+    }
+    if bounds.last() != Some(&jobs.len()) {
+        bounds.push(jobs.len());
+    }
+    let mut chunks = Vec::new();
+    let mut rest = jobs;
+    for w in bounds.windows(2) {
+        let (a, b) = std::mem::take(&mut rest).split_at_mut(w[1] - w[0]);
+        chunks.push(a);
+        rest = b;
+    }
+    let f = &f;
+    std::thread::scope(|sc| {
+        let handles: Vec<_> = chunks
+            .into_iter()
+            .map(|c| sc.spawn(move || c.iter_mut().map(f).collect::<Vec<R>>()))
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().expect("a calibration thread panicked"))
+            .collect()
+    })
 }
 
 /// A fitted time offset beyond this (s) is reported implausible: loggers of one rig are
@@ -1415,6 +1572,18 @@ struct Solved {
 }
 
 fn solve(p: &Problem, geom0: &[f64], nuis0: &[f64], fit_geom: bool) -> Solved {
+    solve_iter(p, geom0, nuis0, fit_geom, 60)
+}
+
+/// [`solve`] with at most `max_iter` iterations (none: the residuals and Jacobian at the
+/// start, as a fit ending there returns them).
+fn solve_iter(
+    p: &Problem,
+    geom0: &[f64],
+    nuis0: &[f64],
+    fit_geom: bool,
+    max_iter: usize,
+) -> Solved {
     let g = p.specs.len();
     let (nlo, nhi) = nuisance_bounds(p.series.len());
     let (glo, ghi) = if p.plausible_bounds {
@@ -1454,7 +1623,31 @@ fn solve(p: &Problem, geom0: &[f64], nuis0: &[f64], fit_geom: bool) -> Solved {
             evaluations: 1,
         };
     }
-    let (r, jac) = fit::levenberg_marquardt_jacobian(&mut f, &x0, &lo, &hi, 60);
+    struct Analytic<'a, 'b>(&'b Problem<'a>, usize);
+    impl lm::Jacobian for Analytic<'_, '_> {
+        fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
+            self.0.jacobian(&x[..self.1], r, jac)
+        }
+        fn runs(&self) -> usize {
+            // One pass over the rows carrying the sensitivities: about three model runs.
+            3
+        }
+    }
+    let mut jac_fn: Box<dyn lm::Jacobian> = if fit_geom && !p.free_start {
+        Box::new(Analytic(p, g))
+    } else {
+        Box::new(lm::Differences)
+    };
+    let r = lm::levenberg_marquardt(
+        &mut f,
+        jac_fn.as_mut(),
+        &x0,
+        &lo,
+        &hi,
+        max_iter,
+        p.differences_at_solution,
+    );
+    let jac = &r.jac;
     let (geom, nuis) = if fit_geom {
         (r.x[..g].to_vec(), r.x[g..].to_vec())
     } else {
@@ -2001,7 +2194,25 @@ fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
     }
     let mean_of = |v: &[f64], a: usize, b: usize| (v[b + 1] - v[a]) / (b + 1 - a) as f64;
     let mut reg = vec![(0.0, 0.0); n];
-    let first_at = |t0: f64| (0..n).find(|&k| t(k) >= t0).unwrap_or(n - 1);
+    // The first sample at or after t0: by bisection when the times never decrease (the
+    // same sample as the scan, which is quadratic in the samples over the recording).
+    let ordered = (1..n).all(|k| t(k - 1) <= t(k));
+    let first_at = |t0: f64| {
+        if ordered && !t0.is_nan() {
+            let (mut lo, mut hi) = (0, n);
+            while lo < hi {
+                let mid = (lo + hi) / 2;
+                if t(mid) < t0 {
+                    lo = mid + 1;
+                } else {
+                    hi = mid;
+                }
+            }
+            lo.min(n - 1)
+        } else {
+            (0..n).find(|&k| t(k) >= t0).unwrap_or(n - 1)
+        }
+    };
     let mut step = vec![0.0; n];
     let mut transient = vec![0.0; n];
     let mut turned = vec![0.0; n];
@@ -2235,25 +2446,54 @@ fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
 
 /// One joint fit of `specs` from nominal (nuisance first, then geometry with the prior
 /// weighed by the data): the fit, its residual variance x autocorrelation inflation, and
-/// its covariance.
-fn fit_specs(
-    robot: &Robot,
-    specs: &[ParamSpec],
-    series: &[Series],
-    cfg: Cfg,
-) -> (Solved, f64, DMatrix<f64>, usize) {
+/// its covariance (when `cov`, else empty: the fit's Jacobian is then the analytic one).
+fn fit_specs(robot: &Robot, specs: &[ParamSpec], series: &[Series], cfg: Cfg, cov: bool) -> Fit {
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
     let mut p = Problem::new(robot, specs, series);
     cfg.apply(&mut p);
+    p.differences_at_solution = false;
     let before = solve(&p, &nominal, &nuisance_start(series, cfg.free_start), false);
     p.prior_scale = noise_scale(&p, &before);
     let first = solve(&p, &nominal, &before.nuis, true);
     p.prior_scale = noise_scale(&p, &first);
+    p.differences_at_solution = cov;
     let f = solve(&p, &first.geom, &first.nuis, true);
     let var = noise_scale(&p, &f).powi(2);
-    let (cov, _) = covariance(&p, &f);
+    let cov = if cov {
+        covariance(&p, &f).0
+    } else {
+        DMatrix::zeros(0, 0)
+    };
     let runs = before.evaluations + first.evaluations + f.evaluations;
-    (f, var, cov, runs)
+    Fit {
+        f,
+        var,
+        cov,
+        runs,
+        first,
+    }
+}
+
+/// A joint fit of [`fit_specs`].
+struct Fit {
+    /// The fit (the prior weighed by the first fit's residuals).
+    f: Solved,
+    /// Its residual variance x autocorrelation inflation.
+    var: f64,
+    /// Its covariance (empty unless asked for).
+    cov: DMatrix<f64>,
+    /// Model runs it took.
+    runs: usize,
+    /// The first fit (the prior weighed by the nominal residuals).
+    first: Solved,
+}
+
+/// A fit of the chosen parameters on all the recordings that choosing them made: the
+/// final fit repeats it (the same problem, the same steps) and takes it over.
+struct Prefit {
+    specs: Vec<ParamSpec>,
+    first: Solved,
+    f: Solved,
 }
 
 /// 0.999 quantile of chi-squared with `k` degrees of freedom (Wilson-Hilferty; within
@@ -2275,22 +2515,33 @@ fn choose_specs(
     cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
+    prefit: &mut Option<Prefit>,
 ) -> Vec<ParamSpec> {
     let full = param_specs(robot, marker);
     if robot.kind == RobotKind::SkidSteer
         || (robot.kind == RobotKind::DiffDrive && robot.wheels.len() == 2)
     {
-        return choose_turn_law(robot, series, cfg, notes, runs);
+        return choose_turn_law(robot, series, cfg, notes, runs, prefit);
     }
     if robot.kind == RobotKind::Omni && series.len() >= 2 {
-        return climb_ladder(robot, series, marker, cfg, notes, runs);
+        return climb_ladder(robot, series, marker, cfg, notes, runs, prefit);
     }
     if !is_mecanum(robot) {
         return full;
     }
     let roller = roller_specs(robot, marker);
-    let (f_full, var_full, _, r1) = fit_specs(robot, &full, series, cfg);
-    let (f_roller, _, cov_roller, r2) = fit_specs(robot, &roller, series, cfg);
+    let Fit {
+        f: f_full,
+        var: var_full,
+        runs: r1,
+        ..
+    } = fit_specs(robot, &full, series, cfg, false);
+    let Fit {
+        f: f_roller,
+        cov: cov_roller,
+        runs: r2,
+        ..
+    } = fit_specs(robot, &roller, series, cfg, true);
     *runs += r1 + r2;
     let gi = roller
         .iter()
@@ -2443,7 +2694,7 @@ fn heldout_error(
             .filter(|&j| j % k != fold)
             .map(|j| series[j].clone())
             .collect();
-        let (f, _, _, r) = fit_specs(robot, specs, &rest, cfg);
+        let Fit { f, runs: r, .. } = fit_specs(robot, specs, &rest, cfg, false);
         *runs += r;
         for j in (0..n).filter(|&j| j % k == fold) {
             e += fitted_dead_reckoning_rmse(robot, specs, &f.geom, &series[j]);
@@ -2464,6 +2715,7 @@ fn climb_ladder(
     cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
+    prefit: &mut Option<Prefit>,
 ) -> Vec<ParamSpec> {
     let rungs = ladder(robot, marker);
     let k = series.len().min(LADDER_FOLDS);
@@ -2483,12 +2735,14 @@ fn climb_ladder(
         .collect::<Vec<_>>()
         .join("; ");
     let mut skipped = Vec::new();
-    for ((name, specs), e) in rungs.iter().zip(&errors) {
+    let mut fitted: Vec<(usize, Fit)> = Vec::new();
+    for (rung, ((name, specs), e)) in rungs.iter().zip(&errors).enumerate() {
         if !(e.is_finite() && *e <= (1.0 + LADDER_TOLERANCE) * best) {
             continue;
         }
-        let (f, _, _, r) = fit_specs(robot, specs, series, cfg);
-        *runs += r;
+        let fit = fit_specs(robot, specs, series, cfg, false);
+        *runs += fit.runs;
+        let f = &fit.f;
         let edge: Vec<String> = specs
             .iter()
             .zip(&f.geom)
@@ -2500,6 +2754,7 @@ fn climb_ladder(
                 "{name} wants {} outside the plausible range",
                 edge.join(", ")
             ));
+            fitted.push((rung, fit));
             continue;
         }
         let why = if skipped.is_empty() {
@@ -2511,17 +2766,35 @@ fn climb_ladder(
             "model ladder, held-out dead reckoning by recording ({k} folds): {table}; kept: {name}, the simplest within {:.0} % of the best{why}",
             LADDER_TOLERANCE * 100.0
         ));
+        *prefit = Some(Prefit {
+            specs: specs.clone(),
+            first: fit.first,
+            f: fit.f,
+        });
         return specs.clone();
     }
     // Every adequate model wants an implausible value: the best one is fitted, its
     // implausible values reported (the model or the range is wrong).
-    let (name, specs) = rungs
+    let chosen = rungs
         .iter()
         .zip(&errors)
-        .filter(|(_, e)| e.is_finite())
-        .min_by(|a, b| a.1.total_cmp(b.1))
-        .map(|(r, _)| r.clone())
-        .unwrap_or_else(|| ("full", param_specs(robot, marker)));
+        .enumerate()
+        .filter(|(_, (_, e))| e.is_finite())
+        .min_by(|a, b| a.1 .1.total_cmp(b.1 .1))
+        .map(|(i, (r, _))| (i, r.clone()));
+    let (name, specs) = match chosen {
+        Some((i, r)) => {
+            if let Some((_, fit)) = fitted.into_iter().find(|(j, _)| *j == i) {
+                *prefit = Some(Prefit {
+                    specs: r.1.clone(),
+                    first: fit.first,
+                    f: fit.f,
+                });
+            }
+            r
+        }
+        None => ("full", param_specs(robot, marker)),
+    };
     notes.push(format!(
         "model ladder, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values outside the plausible ranges ({}): the best, {name}, is fitted and its implausible values are listed",
         skipped.join("; ")
@@ -2557,6 +2830,7 @@ fn choose_turn_law(
     cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
+    prefit: &mut Option<Prefit>,
 ) -> Vec<ParamSpec> {
     let skid = robot.kind == RobotKind::SkidSteer;
     let who = if skid { "skid-steer" } else { "turn law" };
@@ -2583,8 +2857,9 @@ fn choose_turn_law(
         ));
         return base;
     }
-    let (f_law, _, cov_law, r0) = fit_specs(robot, &law, series, cfg);
-    *runs += r0;
+    let fit_law = fit_specs(robot, &law, series, cfg, true);
+    *runs += fit_law.runs;
+    let (f_law, cov_law) = (&fit_law.f, &fit_law.cov);
     let k = series.len().min(LADDER_FOLDS);
     let e_base = heldout_error(robot, &base, series, cfg, runs);
     let e_law = heldout_error(robot, &law, series, cfg, runs);
@@ -2622,6 +2897,11 @@ fn choose_turn_law(
         notes.push(format!(
             "{who}: {what} and the law holds out ({figures}): the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn)"
         ));
+        *prefit = Some(Prefit {
+            specs: law.clone(),
+            first: fit_law.first,
+            f: fit_law.f,
+        });
         law
     } else {
         notes.push(format!(
@@ -2690,14 +2970,14 @@ pub fn calibrate(
     let mut events: Vec<Event> = series.iter().flat_map(|s| s.glitches.clone()).collect();
     if !cfg.free_start {
         let specs0 = param_specs(robot, opts.marker_offset);
-        let (f0, ..) = fit_specs(robot, &specs0, &series, cfg);
+        let f0 = fit_specs(robot, &specs0, &series, cfg, false).f;
         let r0 = robot_with(robot, &specs0, &f0.geom);
         for s in series.iter_mut() {
             events.extend(detect_events(&r0, s));
         }
         if opts.robust {
             // Huber's scale: HUBER_K robust sigmas (MAD) of the squared-loss residuals.
-            let (f1, ..) = fit_specs(robot, &specs0, &series, cfg);
+            let f1 = fit_specs(robot, &specs0, &series, cfg, false).f;
             let mut p1 = Problem::new(robot, &specs0, &series);
             cfg.apply(&mut p1);
             let r = p1.residuals(&f1.geom, &f1.nuis, false);
@@ -2707,6 +2987,7 @@ pub fn calibrate(
             }
         }
     }
+    let mut prefit = None;
     let specs = choose_specs(
         robot,
         &series,
@@ -2714,6 +2995,7 @@ pub fn calibrate(
         cfg,
         &mut notes,
         &mut runs,
+        &mut prefit,
     );
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
 
@@ -2731,12 +3013,30 @@ pub fn calibrate(
 
     // Joint fit, the prior weighed by the nominal residuals first (directions the data
     // do not constrain must not wander off while the fit starts).
+    // When choosing the model fitted it on all the recordings already (the same problem
+    // and steps), that fit is taken over, its Jacobian at the solution by differences.
     p.prior_scale = noise_scale(&p, &before);
-    let mut fitted = solve(&p, &nominal, &before.nuis, true);
-    runs += fitted.evaluations;
-    // Weigh the plausibility prior against the data's real information (MAP), and refit.
-    p.prior_scale = noise_scale(&p, &fitted);
-    fitted = solve(&p, &fitted.geom, &fitted.nuis, true);
+    let mut fitted = match prefit {
+        Some(pre) => {
+            debug_assert!(pre
+                .specs
+                .iter()
+                .map(|s| &s.name)
+                .eq(specs.iter().map(|s| &s.name)));
+            p.prior_scale = noise_scale(&p, &pre.first);
+            solve_iter(&p, &pre.f.geom, &pre.f.nuis, true, 0)
+        }
+        None => {
+            p.differences_at_solution = false;
+            let first = solve(&p, &nominal, &before.nuis, true);
+            p.differences_at_solution = true;
+            runs += first.evaluations;
+            // Weigh the plausibility prior against the data's real information (MAP),
+            // and refit.
+            p.prior_scale = noise_scale(&p, &first);
+            solve(&p, &first.geom, &first.nuis, true)
+        }
+    };
     runs += fitted.evaluations;
     let g = specs.len();
     let (mut cov, inflation) = covariance(&p, &fitted);
@@ -2873,10 +3173,28 @@ pub fn calibrate(
         }
     }
 
-    // Per recording.
+    // Per recording: its dead reckoning and aligned errors (independent: in parallel).
+    let refs: Vec<&Series> = series.iter().collect();
+    let replays = par_map(&refs, |s| {
+        let (ab, aa) = if cfg.free_start {
+            (f64::NAN, f64::NAN)
+        } else {
+            (
+                aligned_rmse(robot, &specs, &nominal, s),
+                aligned_rmse(robot, &specs, &fitted.geom, s),
+            )
+        };
+        (
+            dead_reckoning_rmse(robot, s).unwrap_or(f64::NAN),
+            fitted_dead_reckoning_rmse(robot, &specs, &fitted.geom, s),
+            ab,
+            aa,
+        )
+    });
     let mut per_recording = Vec::new();
     let mut offs = (0, 0);
     for (i, s) in series.iter().enumerate() {
+        let (dr_before, dr_after, ab, aa) = replays[i];
         let m = 3 * if cfg.free_start {
             s.pose_samples()
         } else {
@@ -2898,22 +3216,15 @@ pub fn calibrate(
             let a = s.first_pose();
             (a, a, f64::NAN, f64::NAN)
         };
-        let (ab, aa) = if cfg.free_start {
-            (rb, ra)
-        } else {
-            (
-                aligned_rmse(robot, &specs, &nominal, s),
-                aligned_rmse(robot, &specs, &fitted.geom, s),
-            )
-        };
+        let (ab, aa) = if cfg.free_start { (rb, ra) } else { (ab, aa) };
         per_recording.push(PerRecording {
             name: s.name.clone(),
             pose_samples: s.pose_samples(),
             compared_samples: m / 3,
             rmse_before_m: rb,
             rmse_after_m: ra,
-            dead_reckoning_before_m: dead_reckoning_rmse(robot, s).unwrap_or(f64::NAN),
-            dead_reckoning_after_m: fitted_dead_reckoning_rmse(robot, &specs, &fitted.geom, s),
+            dead_reckoning_before_m: dr_before,
+            dead_reckoning_after_m: dr_after,
             aligned_before_m: ab,
             aligned_after_m: aa,
             nuisance: nu,
@@ -2980,6 +3291,8 @@ pub fn calibrate(
             geom_bounds(&specs)
         };
         let t0 = std::time::Instant::now();
+        // One-step folds: (recording, group, geometry without the group), replayed after.
+        let mut stepped: Vec<(usize, &String, Vec<f64>)> = Vec::new();
         for (k, gname) in distinct.iter().enumerate().filter(|_| distinct.len() >= 2) {
             if let Some((h, grad, r, at)) = &gn {
                 let (mut h, mut grad) = (h.clone(), grad.clone());
@@ -2997,14 +3310,7 @@ pub fn calibrate(
                     .map(|a| (fitted.geom[a] + step[a]).clamp(blo[a], bhi[a]))
                     .collect();
                 for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
-                    leave_one_out.push(Heldout {
-                        name: series[i].name.clone(),
-                        group: Some(gname.clone()),
-                        rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
-                        rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, &geom, &series[i]),
-                        aligned_before_m: per_recording[i].aligned_before_m,
-                        aligned_after_m: aligned_rmse(robot, &specs, &geom, &series[i]),
-                    });
+                    stepped.push((i, gname, geom.clone()));
                 }
                 continue;
             }
@@ -3023,6 +3329,7 @@ pub fn calibrate(
             q.priors = p.priors.clone();
             q.prior_scale = p.prior_scale;
             q.plausible_bounds = p.plausible_bounds;
+            q.differences_at_solution = false;
             let nuis: Vec<f64> = if cfg.free_start {
                 keep.iter()
                     .flat_map(|&j| fitted.nuis[j * NUIS..(j + 1) * NUIS].to_vec())
@@ -3043,6 +3350,18 @@ pub fn calibrate(
                 });
             }
         }
+        let mut jobs: Vec<_> = stepped
+            .into_iter()
+            .map(|(i, gname, geom)| (&series[i], (i, gname, geom)))
+            .collect();
+        leave_one_out.extend(par_each(&mut jobs, |(s, (i, gname, geom))| Heldout {
+            name: s.name.clone(),
+            group: Some((*gname).clone()),
+            rmse_before_m: per_recording[*i].dead_reckoning_before_m,
+            rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, geom, s),
+            aligned_before_m: per_recording[*i].aligned_before_m,
+            aligned_after_m: aligned_rmse(robot, &specs, geom, s),
+        }));
     }
 
     let params: Vec<FittedParam> = specs

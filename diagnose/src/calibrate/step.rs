@@ -40,6 +40,11 @@ impl Stepper {
         Stepper { columns, sides }
     }
 
+    /// The matrix's columns, one per wheel.
+    pub(crate) fn columns(&self) -> &[[f64; 3]] {
+        &self.columns
+    }
+
     /// The sides' stepping, when the robot steps by its sides.
     pub(crate) fn sides(&self) -> Option<&(Sides, TurnLaw)> {
         self.sides.as_ref()
