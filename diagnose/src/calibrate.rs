@@ -1482,6 +1482,49 @@ fn par_map<R: Send>(series: &[&Series], f: impl Fn(&Series) -> R + Sync) -> Vec<
     par_each(&mut jobs, |j| f(j.0))
 }
 
+thread_local! {
+    /// Set on [`pool_map`]'s threads: what they run runs on one thread.
+    static IN_POOL: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// `f` of every item, on up to `available_parallelism` threads taking the next item as
+/// they finish one (each item on one thread, its own work not split further); results
+/// in the items' order.
+fn pool_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(items.len());
+    if threads < 2 || IN_POOL.with(|p| p.get()) {
+        return items.iter().map(f).collect();
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let (f, next) = (&f, &next);
+    let mut out: Vec<(usize, R)> = std::thread::scope(|sc| {
+        let handles: Vec<_> = (0..threads)
+            .map(|_| {
+                sc.spawn(move || {
+                    IN_POOL.with(|p| p.set(true));
+                    let mut mine = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(item) = items.get(i) else {
+                            break;
+                        };
+                        mine.push((i, f(item)));
+                    }
+                    mine
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().expect("a calibration thread panicked"))
+            .collect()
+    });
+    out.sort_by_key(|r| r.0);
+    out.into_iter().map(|r| r.1).collect()
+}
+
 /// Runs `f` on every job, weighed by `rows`, in contiguous runs of about equal weight on
 /// up to `available_parallelism` threads (one thread under [`PAR_MIN_ROWS`]).
 fn par_jobs<J: Send, R: Send>(
@@ -1493,7 +1536,7 @@ fn par_jobs<J: Send, R: Send>(
     let threads = std::thread::available_parallelism()
         .map_or(1, |n| n.get())
         .min(jobs.len());
-    if threads < 2 || total < PAR_MIN_ROWS {
+    if threads < 2 || total < PAR_MIN_ROWS || IN_POOL.with(|p| p.get()) {
         return jobs.iter_mut().map(&f).collect();
     }
     // Contiguous chunks of about total / threads each.
@@ -2679,32 +2722,53 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
 /// most [`LADDER_FOLDS`] folds (recording j in fold j mod k; 44 recordings left out one
 /// by one for five models took six minutes), the model fitted without each fold and
 /// dead-reckoning it from each recording's first pose.
-fn heldout_error(
+///
+/// Of each model of `models`: the folds of all of them are fitted in parallel (each fit
+/// on one thread), each model's errors summed in fold order.
+fn heldout_errors(
     robot: &Robot,
-    specs: &[ParamSpec],
+    models: &[&[ParamSpec]],
     series: &[Series],
     cfg: Cfg,
     runs: &mut usize,
-) -> f64 {
+) -> Vec<f64> {
     let n = series.len();
     let k = n.min(LADDER_FOLDS);
-    let mut e = 0.0;
-    for fold in 0..k {
+    let mut jobs: Vec<(usize, usize)> = (0..models.len())
+        .flat_map(|m| (0..k).map(move |fold| (m, fold)))
+        .collect();
+    // Largest models first: the threads finish together.
+    jobs.sort_by_key(|&(m, _)| std::cmp::Reverse(models[m].len()));
+    let done = pool_map(&jobs, |&(m, fold)| {
         let rest: Vec<Series> = (0..n)
             .filter(|&j| j % k != fold)
             .map(|j| series[j].clone())
             .collect();
-        let Fit { f, runs: r, .. } = fit_specs(robot, specs, &rest, cfg, false);
-        *runs += r;
-        for j in (0..n).filter(|&j| j % k == fold) {
-            e += fitted_dead_reckoning_rmse(robot, specs, &f.geom, &series[j]);
-        }
-    }
-    e / n as f64
+        let Fit { f, runs: r, .. } = fit_specs(robot, models[m], &rest, cfg, false);
+        let errors: Vec<f64> = (0..n)
+            .filter(|&j| j % k == fold)
+            .map(|j| fitted_dead_reckoning_rmse(robot, models[m], &f.geom, &series[j]))
+            .collect();
+        (errors, r)
+    });
+    let mut by_job: Vec<_> = jobs.into_iter().zip(done).collect();
+    by_job.sort_by_key(|j| j.0);
+    *runs += by_job.iter().map(|j| j.1 .1).sum::<usize>();
+    (0..models.len())
+        .map(|m| {
+            let mut e = 0.0;
+            for (_, (errors, _)) in by_job.iter().filter(|j| j.0 .0 == m) {
+                for v in errors {
+                    e += v;
+                }
+            }
+            e / n as f64
+        })
+        .collect()
 }
 
 /// Parsimony for an omni robot: each model of [`ladder`] is judged by its held-out
-/// dead reckoning ([`heldout_error`]); the simplest model within
+/// dead reckoning ([`heldout_errors`]); the simplest model within
 /// [`LADDER_TOLERANCE`] of the best held-out error is kept, unless its fit on all the data
 /// leaves a parameter outside its plausible range (the model or the range is then
 /// wrong: said, and the next adequate model tried). Says which and why, with figures.
@@ -2719,10 +2783,8 @@ fn climb_ladder(
 ) -> Vec<ParamSpec> {
     let rungs = ladder(robot, marker);
     let k = series.len().min(LADDER_FOLDS);
-    let errors: Vec<f64> = rungs
-        .iter()
-        .map(|(_, specs)| heldout_error(robot, specs, series, cfg, runs))
-        .collect();
+    let models: Vec<&[ParamSpec]> = rungs.iter().map(|(_, specs)| specs.as_slice()).collect();
+    let errors = heldout_errors(robot, &models, series, cfg, runs);
     let best = errors
         .iter()
         .copied()
@@ -2861,8 +2923,8 @@ fn choose_turn_law(
     *runs += fit_law.runs;
     let (f_law, cov_law) = (&fit_law.f, &fit_law.cov);
     let k = series.len().min(LADDER_FOLDS);
-    let e_base = heldout_error(robot, &base, series, cfg, runs);
-    let e_law = heldout_error(robot, &law, series, cfg, runs);
+    let e = heldout_errors(robot, &[&base, &law], series, cfg, runs);
+    let (e_base, e_law) = (e[0], e[1]);
     let at = |k: GeomKind| law.iter().position(|s| s.kind == k);
     let sd = |i: usize| cov_law[(i, i)].max(0.0).sqrt();
     let ia = at(GeomKind::EbArc).unwrap_or(0);
