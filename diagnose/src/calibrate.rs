@@ -1035,17 +1035,18 @@ impl Series {
         out.th.reserve(rows);
         let mut p = Pose::new(0.0, 0.0, 0.0);
         out.push(p);
+        let (mut x, mut y, mut h) = (0.0, 0.0, step::Heading::new());
         if let (Some(rho), Some((sides, law))) = (&self.rho, stepper.sides()) {
             for (inc, &rho) in self.incs().zip(rho) {
-                p = integrate_arc(p, &sides.step(law, rho, inc));
-                out.push(p);
+                step::arc_step(&mut x, &mut y, &mut h, &sides.step(law, rho, inc));
+                out.push(Pose::new(x, y, h.th));
             }
             return true;
         }
         let Some(legs) = &self.legs else {
             for inc in self.incs() {
-                p = integrate_arc(p, &stepper.forward(inc));
-                out.push(p);
+                step::arc_step(&mut x, &mut y, &mut h, &stepper.forward(inc));
+                out.push(Pose::new(x, y, h.th));
             }
             return true;
         };

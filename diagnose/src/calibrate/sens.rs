@@ -11,7 +11,6 @@ use super::step::Stepper;
 use super::{robot_with, GeomKind, ParamSpec, Series, Sides, TurnLaw, RES_UNIT_M};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
-use calib_core::odometry::arc_coefficients;
 use calib_core::robot::Robot;
 
 /// d/dd of [`arc_coefficients`]: (d(sin d / d), d((1 - cos d) / d)).
@@ -198,7 +197,7 @@ impl Series {
         let mut out = Vec::with_capacity(need.len() * p);
         let mut d = vec![[0.0f64; 3]; p];
         let mut dt = vec![[0.0f64; 3]; p];
-        let (mut x, mut y, mut th) = (0.0f64, 0.0f64, 0.0f64);
+        let (mut x, mut y, mut h) = (0.0f64, 0.0f64, super::step::Heading::new());
         let mut next = 0usize;
         let mut keep = |k: usize, x: f64, y: f64, th: f64, d: &[[f64; 3]]| {
             if need.get(next) == Some(&k) {
@@ -207,19 +206,17 @@ impl Series {
                 next += 1;
             }
         };
-        keep(0, x, y, th, &d);
+        keep(0, x, y, h.th, &d);
         for (k, (inc, &r)) in self.incs().zip(rho).enumerate() {
             let tw: Twist<f64> = match sides {
                 Some((_, (s, law))) => s.step(law, r, inc),
                 None => stepper.forward(inc),
             };
             slopes.row(inc, r, &mut dt);
-            // integrate_arc, with the quantities its derivative needs.
-            let (s, c) = arc_coefficients(tw.omega);
+            // The arc step (as the path's), with the quantities its derivative needs.
+            let (st, ct) = (h.sin, h.cos);
+            let (s, c, lx, ly) = super::step::arc_step(&mut x, &mut y, &mut h, &tw);
             let (ds, dc) = arc_slopes(tw.omega);
-            let lx = s * tw.vx - c * tw.vy;
-            let ly = c * tw.vx + s * tw.vy;
-            let (st, ct) = th.sin_cos();
             let (ex, ey) = (ct * lx - st * ly, st * lx + ct * ly);
             for (dj, t) in d.iter_mut().zip(&dt) {
                 let dlx = (ds * tw.vx - dc * tw.vy) * t[2] + s * t[0] - c * t[1];
@@ -228,10 +225,7 @@ impl Series {
                 dj[1] += ex * dj[2] + st * dlx + ct * dly;
                 dj[2] += t[2];
             }
-            x = x + ct * lx - st * ly;
-            y = y + st * lx + ct * ly;
-            th += tw.omega;
-            keep(k + 1, x, y, th, &d);
+            keep(k + 1, x, y, h.th, &d);
         }
         Some(Sensitivity {
             need,
