@@ -15,9 +15,11 @@
 //! is fitted. Every parameter has a plausible range; a value outside is listed
 //! `implausible` with what it most likely stands in for.
 
+mod lm;
 pub mod proxy;
+mod sens;
+mod step;
 
-use crate::fit;
 use crate::replay::unwrap_angles;
 use calib_core::correction::Corrections;
 use calib_core::kinematics::Kinematics;
@@ -28,6 +30,7 @@ use nalgebra::{DMatrix, SymmetricEigen};
 use serde::Serialize;
 use std::cell::RefCell;
 use std::fmt;
+use step::Stepper;
 
 /// Unit of the position residuals (m): only scales the cost, uncertainties use the
 /// observed scatter.
@@ -416,9 +419,10 @@ const RHO_HALF_WINDOW: usize = 20;
 /// radii), smoothed over [`RHO_HALF_WINDOW`] rows either side.
 fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
     let m = inc.len();
+    let sides = Sides::new(robot);
     let (mut pl, mut pr) = (vec![0.0; m + 1], vec![0.0; m + 1]);
     for k in 0..m {
-        let (l, r) = side_travel(robot, &inc[k]);
+        let (l, r) = sides.travel(&inc[k]);
         pl[k + 1] = pl[k] + l;
         pr[k + 1] = pr[k] + r;
     }
@@ -439,19 +443,70 @@ fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
         .collect()
 }
 
-/// Mean travel of the left and the right wheels over one increment (m).
-fn side_travel(robot: &Robot, inc: &[f64]) -> (f64, f64) {
-    let (mut l, mut r, mut nl, mut nr) = (0.0, 0.0, 0.0, 0.0);
-    for (w, d) in robot.wheels.iter().zip(inc) {
-        if w.is_left() {
-            l += w.radius_m * d;
-            nl += 1.0;
-        } else {
-            r += w.radius_m * d;
-            nr += 1.0;
+/// A robot's sides as the stepping needs them, computed once per geometry (the wheels'
+/// sides and the mean half separation take trigonometry): [`Sides::travel`] and
+/// [`Sides::step`] give the same values, to the bit, as computing them per row.
+#[derive(Debug, Clone)]
+pub(crate) struct Sides {
+    /// Per wheel: on the left side, and its radius (m).
+    wheels: Vec<(bool, f64)>,
+    /// Left and right wheel counts, at least 1.
+    counts: (f64, f64),
+    /// Mean |y| of the wheels (half the separation, E_b applied), m.
+    half: f64,
+}
+
+impl Sides {
+    pub(crate) fn new(robot: &Robot) -> Sides {
+        let wheels: Vec<(bool, f64)> = robot
+            .wheels
+            .iter()
+            .map(|w| (w.is_left(), w.radius_m))
+            .collect();
+        let nl = wheels.iter().filter(|w| w.0).count() as f64;
+        let nr = wheels.len() as f64 - nl;
+        let half = robot
+            .wheels
+            .iter()
+            .map(|w| w.position().1.abs())
+            .sum::<f64>()
+            / robot.wheels.len().max(1) as f64;
+        Sides {
+            wheels,
+            counts: (f64::max(nl, 1.0), f64::max(nr, 1.0)),
+            half,
         }
     }
-    (l / f64::max(nl, 1.0), r / f64::max(nr, 1.0))
+
+    /// Mean travel of the left and the right wheels over one increment (m).
+    #[inline]
+    pub(crate) fn travel(&self, inc: &[f64]) -> (f64, f64) {
+        let (mut l, mut r) = (0.0, 0.0);
+        for (&(left, radius), d) in self.wheels.iter().zip(inc) {
+            if left {
+                l += radius * d;
+            } else {
+                r += radius * d;
+            }
+        }
+        (l / self.counts.0, r / self.counts.1)
+    }
+
+    /// One step of a robot driven by its sides (skid-steer, or a differential drive with
+    /// a turn law): each side's mean travel, the separation (E_b applied) widened by the
+    /// law at this turn ratio, the sideways speed of the ICR offset.
+    #[inline]
+    pub(crate) fn step(
+        &self,
+        law: &TurnLaw,
+        rho: f64,
+        inc: &[f64],
+    ) -> calib_core::kinematics::Twist<f64> {
+        let (l, r) = self.travel(inc);
+        let half = self.half * (1.0 + law.arc_rel * (1.0 - rho).powi(2));
+        let dth = (r - l) / (2.0 * half);
+        calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)
+    }
 }
 
 /// How a recording turns: the side-travel difference |d_r - d_l| summed over all rows, over
@@ -462,28 +517,6 @@ pub(crate) struct Turning {
     pub(crate) all: f64,
     pub(crate) arcs: f64,
     pub(crate) arc_term: f64,
-}
-
-/// One step of a robot driven by its sides (skid-steer, or a differential drive with a
-/// turn law): each side's mean travel, the separation of `robot`
-/// (E_b applied) widened by the law at this turn ratio, the sideways speed of the ICR
-/// offset.
-fn skid_step(
-    robot: &Robot,
-    law: &TurnLaw,
-    rho: f64,
-    inc: &[f64],
-) -> calib_core::kinematics::Twist<f64> {
-    let (l, r) = side_travel(robot, inc);
-    let half = robot
-        .wheels
-        .iter()
-        .map(|w| w.position().1.abs())
-        .sum::<f64>()
-        / robot.wheels.len().max(1) as f64
-        * (1.0 + law.arc_rel * (1.0 - rho).powi(2));
-    let dth = (r - l) / (2.0 * half);
-    calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)
 }
 
 /// Why calibration cannot run.
@@ -513,8 +546,11 @@ pub struct Series {
     pub name: String,
     /// Time of each row, s.
     pub t: Vec<f64>,
-    /// Per row, per wheel: angle increment to the next row (rad).
-    inc: Vec<Vec<f64>>,
+    /// Per row, per wheel: angle increment to the next row (rad), row after row
+    /// ([`Series::wheels`] values a row).
+    inc: Vec<f64>,
+    /// Wheels per row of `inc`.
+    wheels: usize,
     pub(crate) pose_row: Vec<usize>,
     pub(crate) px: Vec<f64>,
     pub(crate) py: Vec<f64>,
@@ -726,10 +762,12 @@ impl Series {
         let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
         let rho = matches!(robot.kind, RobotKind::SkidSteer | RobotKind::DiffDrive)
             .then(|| turn_ratio(robot, &inc));
+        let wheels = robot.wheels.len();
         let mut s = Series {
             name: name.to_string(),
             t: rec.t.clone(),
-            inc,
+            inc: inc.concat(),
+            wheels,
             pose_row,
             px,
             py,
@@ -901,7 +939,8 @@ impl Series {
                     format!("{}{PART_SEP}{}", self.name, k + 1)
                 },
                 t: self.t[rows.clone()].to_vec(),
-                inc: self.inc[r0..r1 - 1].to_vec(),
+                inc: self.inc[r0 * self.wheels..(r1 - 1) * self.wheels].to_vec(),
+                wheels: self.wheels,
                 pose_row: self.pose_row[p0..p1].iter().map(|r| r - r0).collect(),
                 px,
                 py,
@@ -945,8 +984,9 @@ impl Series {
         let Some(rho) = &self.rho else {
             return t;
         };
-        for (inc, &rho) in self.inc.iter().zip(rho) {
-            let (l, r) = side_travel(robot, inc);
+        let sides = Sides::new(robot);
+        for (inc, &rho) in self.incs().zip(rho) {
+            let (l, r) = sides.travel(inc);
             let d = (r - l).abs();
             t.all += d;
             t.arc_term += d * (1.0 - rho).powi(2);
@@ -955,6 +995,11 @@ impl Series {
             }
         }
         t
+    }
+
+    /// The wheel increments, row after row.
+    fn incs(&self) -> std::slice::ChunksExact<'_, f64> {
+        self.inc.chunks_exact(self.wheels.max(1))
     }
 
     /// Number of ground-truth pose samples.
@@ -978,28 +1023,35 @@ impl Series {
         law: &TurnLaw,
         out: &mut Path,
     ) -> bool {
+        self.path_by(robot, &Stepper::new(robot, kin, law), out)
+    }
+
+    /// [`Series::path_with`] with the stepping of `robot` at its geometry prepared.
+    pub(crate) fn path_by(&self, robot: &Robot, stepper: &Stepper, out: &mut Path) -> bool {
         out.clear();
+        let rows = self.t.len();
+        out.x.reserve(rows);
+        out.y.reserve(rows);
+        out.th.reserve(rows);
         let mut p = Pose::new(0.0, 0.0, 0.0);
         out.push(p);
-        // A skid-steer robot always steps by its sides; a differential drive only with a
-        // law (otherwise its exact kinematics, the same to rounding).
-        let sides = robot.kind == RobotKind::SkidSteer || *law != TurnLaw::default();
-        if let (Some(rho), true) = (&self.rho, sides) {
-            for (inc, &rho) in self.inc.iter().zip(rho) {
-                p = integrate_arc(p, &skid_step(robot, law, rho, inc));
-                out.push(p);
+        let (mut x, mut y, mut h) = (0.0, 0.0, step::Heading::new());
+        if let (Some(rho), Some((sides, law))) = (&self.rho, stepper.sides()) {
+            for (inc, &rho) in self.incs().zip(rho) {
+                step::arc_step(&mut x, &mut y, &mut h, &sides.step(law, rho, inc));
+                out.push(Pose::new(x, y, h.th));
             }
             return true;
         }
         let Some(legs) = &self.legs else {
-            for inc in &self.inc {
-                p = integrate_arc(p, &kin.forward(inc));
-                out.push(p);
+            for inc in self.incs() {
+                step::arc_step(&mut x, &mut y, &mut h, &stepper.forward(inc));
+                out.push(Pose::new(x, y, h.th));
             }
             return true;
         };
         let mut at: Option<((f64, f64), Kinematics<f64>)> = None;
-        for (k, inc) in self.inc.iter().enumerate() {
+        for (k, inc) in self.incs().enumerate() {
             let l = legs[k];
             if at
                 .as_ref()
@@ -1027,11 +1079,13 @@ pub(crate) struct Path {
 }
 
 impl Path {
+    #[inline]
     fn clear(&mut self) {
         self.x.clear();
         self.y.clear();
         self.th.clear();
     }
+    #[inline]
     fn push(&mut self, p: Pose<f64>) {
         self.x.push(p.x);
         self.y.push(p.y);
@@ -1220,6 +1274,9 @@ struct Problem<'a> {
     huber: Option<f64>,
     /// Lever arm of the dead-reckoning heading residuals, m.
     dr_lever: f64,
+    /// The Jacobian of a fit's solution (its covariance, the cross-validation's steps)
+    /// by forward differences, as the iterations' used to be; else the analytic one.
+    differences_at_solution: bool,
 }
 
 impl<'a> Problem<'a> {
@@ -1247,6 +1304,7 @@ impl<'a> Problem<'a> {
             free_start: true,
             huber: None,
             dr_lever: DR_HEADING_LEVER_M,
+            differences_at_solution: true,
             cache: RefCell::new((vec![f64::NAN], vec![Path::default(); series.len()])),
         }
     }
@@ -1262,13 +1320,85 @@ impl<'a> Problem<'a> {
             c.0 = vec![f64::NAN];
             return false;
         };
-        for (s, p) in self.series.iter().zip(c.1.iter_mut()) {
-            if !s.path_with(&r, &kin, &law, p) {
-                c.0 = vec![f64::NAN];
-                return false;
+        let stepper = Stepper::new(&r, &kin, &law);
+        let mut jobs: Vec<(&Series, &mut Path)> = self.series.iter().zip(c.1.iter_mut()).collect();
+        let ok = par_each(&mut jobs, |(s, p)| s.path_by(&r, &stepper, p));
+        if ok.iter().all(|v| *v) {
+            c.0 = geom.to_vec();
+            true
+        } else {
+            c.0 = vec![f64::NAN];
+            false
+        }
+    }
+
+    /// The analytic Jacobian of [`Problem::residuals`] with the prior rows (dead
+    /// reckoning only) at `geom`, the data rows through Huber's loss when robust (`r`:
+    /// the residuals at `geom` as the fit sees them). False when it has none (fitted start
+    /// poses, a wheeled-legged robot, a singular geometry).
+    fn jacobian(&self, geom: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
+        if self.free_start {
+            return false;
+        }
+        let g = self.specs.len();
+        let m = self.data_len();
+        let robot = robot_with(self.robot, self.specs, geom);
+        let law = TurnLaw::of(self.specs, geom);
+        let Ok(kin) = Kinematics::<f64>::new(&robot, &Corrections::None) else {
+            return false;
+        };
+        let stepper = Stepper::new(&robot, &kin, &law);
+        let cols = sens::split_params(self.specs);
+        let sides = self.robot.kind == RobotKind::SkidSteer
+            || self
+                .specs
+                .iter()
+                .any(|s| matches!(s.kind, GeomKind::EbArc | GeomKind::IcrX));
+        let Some(slopes) = sens::TwistSlopes::new(self.robot, self.specs, geom, &cols.path, sides)
+        else {
+            return false;
+        };
+        let mut jobs: Vec<(&Series, Option<sens::Sensitivity>)> =
+            self.series.iter().map(|s| (s, None)).collect();
+        par_each(&mut jobs, |(s, out)| {
+            *out = s.sensitivity(&stepper, &slopes, s.dr_rows());
+        });
+        if jobs.iter().any(|j| j.1.is_none()) {
+            return false;
+        }
+        if jac.nrows() != m + self.priors.len() || jac.ncols() != g {
+            *jac = DMatrix::zeros(m + self.priors.len(), g);
+        }
+        jac.fill(0.0);
+        let get = |k: GeomKind| {
+            self.specs
+                .iter()
+                .position(|s| s.kind == k)
+                .map_or(0.0, |i| geom[i])
+        };
+        let marker = (get(GeomKind::MarkerX), get(GeomKind::MarkerY));
+        let mut row = 0;
+        for (s, sens) in &jobs {
+            let sens = sens.as_ref().expect("checked above");
+            s.dr_jacobian(sens, &cols, marker, self.dr_lever, jac, row);
+            row += 3 * s.samples.len();
+        }
+        if let Some(c) = self.huber {
+            // d huber / dr: 1 within c, c / |huber(r)| beyond (huber is monotone, = c at c).
+            for (i, v) in r[..m].iter().enumerate() {
+                if v.abs() > c {
+                    let k = c / v.abs();
+                    for a in 0..g {
+                        jac[(i, a)] *= k;
+                    }
+                }
             }
         }
-        c.0 = geom.to_vec();
+        for (i, (w, _, sigma)) in self.priors.iter().enumerate() {
+            for a in 0..g {
+                jac[(m + i, a)] = w[a] / sigma * self.prior_scale;
+            }
+        }
         true
     }
 
@@ -1287,12 +1417,27 @@ impl<'a> Problem<'a> {
                 .map_or(0.0, |i| geom[i])
         };
         let marker = (get(GeomKind::MarkerX), get(GeomKind::MarkerY));
-        for (i, s) in self.series.iter().enumerate() {
-            if self.free_start {
+        if self.free_start {
+            for (i, s) in self.series.iter().enumerate() {
                 let nu = Nuisance::from(&nuis[i * NUIS..(i + 1) * NUIS]);
                 residuals_into(s, &c.1[i], &nu, marker, &mut out);
-            } else {
-                dr_residuals_into(s, &c.1[i], marker, self.dr_lever, &mut out);
+            }
+        } else {
+            // Each recording's on its own (in parallel), then in order.
+            let lever = self.dr_lever;
+            let mut jobs: Vec<(&Series, &Path)> = self.series.iter().zip(&c.1).collect();
+            let parts = par_jobs(
+                &mut jobs,
+                |j| 20 * j.0.samples.len(),
+                |(s, path)| {
+                    let mut v = Vec::with_capacity(3 * s.samples.len());
+                    dr_residuals_into(s, path, marker, lever, &mut v);
+                    v
+                },
+            );
+            out.reserve(parts.iter().map(|v| v.len()).sum());
+            for v in parts {
+                out.extend_from_slice(&v);
             }
         }
         if with_prior {
@@ -1316,6 +1461,115 @@ impl<'a> Problem<'a> {
             })
             .sum()
     }
+}
+
+/// Rows below which one evaluation is not worth a second thread.
+const PAR_MIN_ROWS: usize = 20_000;
+
+/// Runs `f` on every job (a recording and its output), on up to
+/// `available_parallelism` threads when the recordings are long enough to pay for them;
+/// each job's result is the same as run alone. The jobs are split in contiguous runs of
+/// about equal rows.
+fn par_each<'s, J: Send, R: Send>(
+    jobs: &mut [(&'s Series, J)],
+    f: impl Fn(&mut (&'s Series, J)) -> R + Sync,
+) -> Vec<R> {
+    par_jobs(jobs, |j| j.0.t.len(), f)
+}
+
+/// [`par_each`] on the recordings `series`, read only.
+fn par_map<R: Send>(series: &[&Series], f: impl Fn(&Series) -> R + Sync) -> Vec<R> {
+    let mut jobs: Vec<(&Series, ())> = series.iter().map(|s| (*s, ())).collect();
+    par_each(&mut jobs, |j| f(j.0))
+}
+
+thread_local! {
+    /// Set on [`pool_map`]'s threads: what they run runs on one thread.
+    static IN_POOL: std::cell::Cell<bool> = const { std::cell::Cell::new(false) };
+}
+
+/// `f` of every item, on up to `available_parallelism` threads taking the next item as
+/// they finish one (each item on one thread, its own work not split further); results
+/// in the items' order.
+fn pool_map<T: Sync, R: Send>(items: &[T], f: impl Fn(&T) -> R + Sync) -> Vec<R> {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(items.len());
+    if threads < 2 || IN_POOL.with(|p| p.get()) {
+        return items.iter().map(f).collect();
+    }
+    let next = std::sync::atomic::AtomicUsize::new(0);
+    let (f, next) = (&f, &next);
+    let mut out: Vec<(usize, R)> = std::thread::scope(|sc| {
+        let handles: Vec<_> = (0..threads)
+            .map(|_| {
+                sc.spawn(move || {
+                    IN_POOL.with(|p| p.set(true));
+                    let mut mine = Vec::new();
+                    loop {
+                        let i = next.fetch_add(1, std::sync::atomic::Ordering::Relaxed);
+                        let Some(item) = items.get(i) else {
+                            break;
+                        };
+                        mine.push((i, f(item)));
+                    }
+                    mine
+                })
+            })
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().expect("a calibration thread panicked"))
+            .collect()
+    });
+    out.sort_by_key(|r| r.0);
+    out.into_iter().map(|r| r.1).collect()
+}
+
+/// Runs `f` on every job, weighed by `rows`, in contiguous runs of about equal weight on
+/// up to `available_parallelism` threads (one thread under [`PAR_MIN_ROWS`]).
+fn par_jobs<J: Send, R: Send>(
+    jobs: &mut [J],
+    rows: impl Fn(&J) -> usize,
+    f: impl Fn(&mut J) -> R + Sync,
+) -> Vec<R> {
+    let total: usize = jobs.iter().map(&rows).sum();
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(jobs.len());
+    if threads < 2 || total < PAR_MIN_ROWS || IN_POOL.with(|p| p.get()) {
+        return jobs.iter_mut().map(&f).collect();
+    }
+    // Contiguous chunks of about total / threads each.
+    let mut bounds = vec![0];
+    let mut acc = 0;
+    for (i, j) in jobs.iter().enumerate() {
+        acc += rows(j);
+        if bounds.len() < threads && acc * threads >= total * bounds.len() {
+            bounds.push(i + 1);
+        }
+    }
+    if bounds.last() != Some(&jobs.len()) {
+        bounds.push(jobs.len());
+    }
+    let mut chunks = Vec::new();
+    let mut rest = jobs;
+    for w in bounds.windows(2) {
+        let (a, b) = std::mem::take(&mut rest).split_at_mut(w[1] - w[0]);
+        chunks.push(a);
+        rest = b;
+    }
+    let f = &f;
+    std::thread::scope(|sc| {
+        let handles: Vec<_> = chunks
+            .into_iter()
+            .map(|c| sc.spawn(move || c.iter_mut().map(f).collect::<Vec<R>>()))
+            .collect();
+        handles
+            .into_iter()
+            .flat_map(|h| h.join().expect("a calibration thread panicked"))
+            .collect()
+    })
 }
 
 /// A fitted time offset beyond this (s) is reported implausible: loggers of one rig are
@@ -1362,6 +1616,18 @@ struct Solved {
 }
 
 fn solve(p: &Problem, geom0: &[f64], nuis0: &[f64], fit_geom: bool) -> Solved {
+    solve_iter(p, geom0, nuis0, fit_geom, 60)
+}
+
+/// [`solve`] with at most `max_iter` iterations (none: the residuals and Jacobian at the
+/// start, as a fit ending there returns them).
+fn solve_iter(
+    p: &Problem,
+    geom0: &[f64],
+    nuis0: &[f64],
+    fit_geom: bool,
+    max_iter: usize,
+) -> Solved {
     let g = p.specs.len();
     let (nlo, nhi) = nuisance_bounds(p.series.len());
     let (glo, ghi) = if p.plausible_bounds {
@@ -1401,7 +1667,31 @@ fn solve(p: &Problem, geom0: &[f64], nuis0: &[f64], fit_geom: bool) -> Solved {
             evaluations: 1,
         };
     }
-    let (r, jac) = fit::levenberg_marquardt_jacobian(&mut f, &x0, &lo, &hi, 60);
+    struct Analytic<'a, 'b>(&'b Problem<'a>, usize);
+    impl lm::Jacobian for Analytic<'_, '_> {
+        fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
+            self.0.jacobian(&x[..self.1], r, jac)
+        }
+        fn runs(&self) -> usize {
+            // One pass over the rows carrying the sensitivities: about three model runs.
+            3
+        }
+    }
+    let mut jac_fn: Box<dyn lm::Jacobian> = if fit_geom && !p.free_start {
+        Box::new(Analytic(p, g))
+    } else {
+        Box::new(lm::Differences)
+    };
+    let r = lm::levenberg_marquardt(
+        &mut f,
+        jac_fn.as_mut(),
+        &x0,
+        &lo,
+        &hi,
+        max_iter,
+        p.differences_at_solution,
+    );
+    let jac = &r.jac;
     let (geom, nuis) = if fit_geom {
         (r.x[..g].to_vec(), r.x[g..].to_vec())
     } else {
@@ -1948,7 +2238,25 @@ fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
     }
     let mean_of = |v: &[f64], a: usize, b: usize| (v[b + 1] - v[a]) / (b + 1 - a) as f64;
     let mut reg = vec![(0.0, 0.0); n];
-    let first_at = |t0: f64| (0..n).find(|&k| t(k) >= t0).unwrap_or(n - 1);
+    // The first sample at or after t0: by bisection when the times never decrease (the
+    // same sample as the scan, which is quadratic in the samples over the recording).
+    let ordered = (1..n).all(|k| t(k - 1) <= t(k));
+    let first_at = |t0: f64| {
+        if ordered && !t0.is_nan() {
+            let (mut lo, mut hi) = (0, n);
+            while lo < hi {
+                let mid = (lo + hi) / 2;
+                if t(mid) < t0 {
+                    lo = mid + 1;
+                } else {
+                    hi = mid;
+                }
+            }
+            lo.min(n - 1)
+        } else {
+            (0..n).find(|&k| t(k) >= t0).unwrap_or(n - 1)
+        }
+    };
     let mut step = vec![0.0; n];
     let mut transient = vec![0.0; n];
     let mut turned = vec![0.0; n];
@@ -2182,25 +2490,54 @@ fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
 
 /// One joint fit of `specs` from nominal (nuisance first, then geometry with the prior
 /// weighed by the data): the fit, its residual variance x autocorrelation inflation, and
-/// its covariance.
-fn fit_specs(
-    robot: &Robot,
-    specs: &[ParamSpec],
-    series: &[Series],
-    cfg: Cfg,
-) -> (Solved, f64, DMatrix<f64>, usize) {
+/// its covariance (when `cov`, else empty: the fit's Jacobian is then the analytic one).
+fn fit_specs(robot: &Robot, specs: &[ParamSpec], series: &[Series], cfg: Cfg, cov: bool) -> Fit {
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
     let mut p = Problem::new(robot, specs, series);
     cfg.apply(&mut p);
+    p.differences_at_solution = false;
     let before = solve(&p, &nominal, &nuisance_start(series, cfg.free_start), false);
     p.prior_scale = noise_scale(&p, &before);
     let first = solve(&p, &nominal, &before.nuis, true);
     p.prior_scale = noise_scale(&p, &first);
+    p.differences_at_solution = cov;
     let f = solve(&p, &first.geom, &first.nuis, true);
     let var = noise_scale(&p, &f).powi(2);
-    let (cov, _) = covariance(&p, &f);
+    let cov = if cov {
+        covariance(&p, &f).0
+    } else {
+        DMatrix::zeros(0, 0)
+    };
     let runs = before.evaluations + first.evaluations + f.evaluations;
-    (f, var, cov, runs)
+    Fit {
+        f,
+        var,
+        cov,
+        runs,
+        first,
+    }
+}
+
+/// A joint fit of [`fit_specs`].
+struct Fit {
+    /// The fit (the prior weighed by the first fit's residuals).
+    f: Solved,
+    /// Its residual variance x autocorrelation inflation.
+    var: f64,
+    /// Its covariance (empty unless asked for).
+    cov: DMatrix<f64>,
+    /// Model runs it took.
+    runs: usize,
+    /// The first fit (the prior weighed by the nominal residuals).
+    first: Solved,
+}
+
+/// A fit of the chosen parameters on all the recordings that choosing them made: the
+/// final fit repeats it (the same problem, the same steps) and takes it over.
+struct Prefit {
+    specs: Vec<ParamSpec>,
+    first: Solved,
+    f: Solved,
 }
 
 /// 0.999 quantile of chi-squared with `k` degrees of freedom (Wilson-Hilferty; within
@@ -2222,22 +2559,33 @@ fn choose_specs(
     cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
+    prefit: &mut Option<Prefit>,
 ) -> Vec<ParamSpec> {
     let full = param_specs(robot, marker);
     if robot.kind == RobotKind::SkidSteer
         || (robot.kind == RobotKind::DiffDrive && robot.wheels.len() == 2)
     {
-        return choose_turn_law(robot, series, cfg, notes, runs);
+        return choose_turn_law(robot, series, cfg, notes, runs, prefit);
     }
     if robot.kind == RobotKind::Omni && series.len() >= 2 {
-        return climb_ladder(robot, series, marker, cfg, notes, runs);
+        return climb_ladder(robot, series, marker, cfg, notes, runs, prefit);
     }
     if !is_mecanum(robot) {
         return full;
     }
     let roller = roller_specs(robot, marker);
-    let (f_full, var_full, _, r1) = fit_specs(robot, &full, series, cfg);
-    let (f_roller, _, cov_roller, r2) = fit_specs(robot, &roller, series, cfg);
+    let Fit {
+        f: f_full,
+        var: var_full,
+        runs: r1,
+        ..
+    } = fit_specs(robot, &full, series, cfg, false);
+    let Fit {
+        f: f_roller,
+        cov: cov_roller,
+        runs: r2,
+        ..
+    } = fit_specs(robot, &roller, series, cfg, true);
     *runs += r1 + r2;
     let gi = roller
         .iter()
@@ -2375,32 +2723,53 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
 /// most [`LADDER_FOLDS`] folds (recording j in fold j mod k; 44 recordings left out one
 /// by one for five models took six minutes), the model fitted without each fold and
 /// dead-reckoning it from each recording's first pose.
-fn heldout_error(
+///
+/// Of each model of `models`: the folds of all of them are fitted in parallel (each fit
+/// on one thread), each model's errors summed in fold order.
+fn heldout_errors(
     robot: &Robot,
-    specs: &[ParamSpec],
+    models: &[&[ParamSpec]],
     series: &[Series],
     cfg: Cfg,
     runs: &mut usize,
-) -> f64 {
+) -> Vec<f64> {
     let n = series.len();
     let k = n.min(LADDER_FOLDS);
-    let mut e = 0.0;
-    for fold in 0..k {
+    let mut jobs: Vec<(usize, usize)> = (0..models.len())
+        .flat_map(|m| (0..k).map(move |fold| (m, fold)))
+        .collect();
+    // Largest models first: the threads finish together.
+    jobs.sort_by_key(|&(m, _)| std::cmp::Reverse(models[m].len()));
+    let done = pool_map(&jobs, |&(m, fold)| {
         let rest: Vec<Series> = (0..n)
             .filter(|&j| j % k != fold)
             .map(|j| series[j].clone())
             .collect();
-        let (f, _, _, r) = fit_specs(robot, specs, &rest, cfg);
-        *runs += r;
-        for j in (0..n).filter(|&j| j % k == fold) {
-            e += fitted_dead_reckoning_rmse(robot, specs, &f.geom, &series[j]);
-        }
-    }
-    e / n as f64
+        let Fit { f, runs: r, .. } = fit_specs(robot, models[m], &rest, cfg, false);
+        let errors: Vec<f64> = (0..n)
+            .filter(|&j| j % k == fold)
+            .map(|j| fitted_dead_reckoning_rmse(robot, models[m], &f.geom, &series[j]))
+            .collect();
+        (errors, r)
+    });
+    let mut by_job: Vec<_> = jobs.into_iter().zip(done).collect();
+    by_job.sort_by_key(|j| j.0);
+    *runs += by_job.iter().map(|j| j.1 .1).sum::<usize>();
+    (0..models.len())
+        .map(|m| {
+            let mut e = 0.0;
+            for (_, (errors, _)) in by_job.iter().filter(|j| j.0 .0 == m) {
+                for v in errors {
+                    e += v;
+                }
+            }
+            e / n as f64
+        })
+        .collect()
 }
 
 /// Parsimony for an omni robot: each model of [`ladder`] is judged by its held-out
-/// dead reckoning ([`heldout_error`]); the simplest model within
+/// dead reckoning ([`heldout_errors`]); the simplest model within
 /// [`LADDER_TOLERANCE`] of the best held-out error is kept, unless its fit on all the data
 /// leaves a parameter outside its plausible range (the model or the range is then
 /// wrong: said, and the next adequate model tried). Says which and why, with figures.
@@ -2411,13 +2780,12 @@ fn climb_ladder(
     cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
+    prefit: &mut Option<Prefit>,
 ) -> Vec<ParamSpec> {
     let rungs = ladder(robot, marker);
     let k = series.len().min(LADDER_FOLDS);
-    let errors: Vec<f64> = rungs
-        .iter()
-        .map(|(_, specs)| heldout_error(robot, specs, series, cfg, runs))
-        .collect();
+    let models: Vec<&[ParamSpec]> = rungs.iter().map(|(_, specs)| specs.as_slice()).collect();
+    let errors = heldout_errors(robot, &models, series, cfg, runs);
     let best = errors
         .iter()
         .copied()
@@ -2430,12 +2798,14 @@ fn climb_ladder(
         .collect::<Vec<_>>()
         .join("; ");
     let mut skipped = Vec::new();
-    for ((name, specs), e) in rungs.iter().zip(&errors) {
+    let mut fitted: Vec<(usize, Fit)> = Vec::new();
+    for (rung, ((name, specs), e)) in rungs.iter().zip(&errors).enumerate() {
         if !(e.is_finite() && *e <= (1.0 + LADDER_TOLERANCE) * best) {
             continue;
         }
-        let (f, _, _, r) = fit_specs(robot, specs, series, cfg);
-        *runs += r;
+        let fit = fit_specs(robot, specs, series, cfg, false);
+        *runs += fit.runs;
+        let f = &fit.f;
         let edge: Vec<String> = specs
             .iter()
             .zip(&f.geom)
@@ -2447,6 +2817,7 @@ fn climb_ladder(
                 "{name} wants {} outside the plausible range",
                 edge.join(", ")
             ));
+            fitted.push((rung, fit));
             continue;
         }
         let why = if skipped.is_empty() {
@@ -2458,17 +2829,35 @@ fn climb_ladder(
             "model ladder, held-out dead reckoning by recording ({k} folds): {table}; kept: {name}, the simplest within {:.0} % of the best{why}",
             LADDER_TOLERANCE * 100.0
         ));
+        *prefit = Some(Prefit {
+            specs: specs.clone(),
+            first: fit.first,
+            f: fit.f,
+        });
         return specs.clone();
     }
     // Every adequate model wants an implausible value: the best one is fitted, its
     // implausible values reported (the model or the range is wrong).
-    let (name, specs) = rungs
+    let chosen = rungs
         .iter()
         .zip(&errors)
-        .filter(|(_, e)| e.is_finite())
-        .min_by(|a, b| a.1.total_cmp(b.1))
-        .map(|(r, _)| r.clone())
-        .unwrap_or_else(|| ("full", param_specs(robot, marker)));
+        .enumerate()
+        .filter(|(_, (_, e))| e.is_finite())
+        .min_by(|a, b| a.1 .1.total_cmp(b.1 .1))
+        .map(|(i, (r, _))| (i, r.clone()));
+    let (name, specs) = match chosen {
+        Some((i, r)) => {
+            if let Some((_, fit)) = fitted.into_iter().find(|(j, _)| *j == i) {
+                *prefit = Some(Prefit {
+                    specs: r.1.clone(),
+                    first: fit.first,
+                    f: fit.f,
+                });
+            }
+            r
+        }
+        None => ("full", param_specs(robot, marker)),
+    };
     notes.push(format!(
         "model ladder, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values outside the plausible ranges ({}): the best, {name}, is fitted and its implausible values are listed",
         skipped.join("; ")
@@ -2504,6 +2893,7 @@ fn choose_turn_law(
     cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
+    prefit: &mut Option<Prefit>,
 ) -> Vec<ParamSpec> {
     let skid = robot.kind == RobotKind::SkidSteer;
     let who = if skid { "skid-steer" } else { "turn law" };
@@ -2530,11 +2920,12 @@ fn choose_turn_law(
         ));
         return base;
     }
-    let (f_law, _, cov_law, r0) = fit_specs(robot, &law, series, cfg);
-    *runs += r0;
+    let fit_law = fit_specs(robot, &law, series, cfg, true);
+    *runs += fit_law.runs;
+    let (f_law, cov_law) = (&fit_law.f, &fit_law.cov);
     let k = series.len().min(LADDER_FOLDS);
-    let e_base = heldout_error(robot, &base, series, cfg, runs);
-    let e_law = heldout_error(robot, &law, series, cfg, runs);
+    let e = heldout_errors(robot, &[&base, &law], series, cfg, runs);
+    let (e_base, e_law) = (e[0], e[1]);
     let at = |k: GeomKind| law.iter().position(|s| s.kind == k);
     let sd = |i: usize| cov_law[(i, i)].max(0.0).sqrt();
     let ia = at(GeomKind::EbArc).unwrap_or(0);
@@ -2569,6 +2960,11 @@ fn choose_turn_law(
         notes.push(format!(
             "{who}: {what} and the law holds out ({figures}): the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn)"
         ));
+        *prefit = Some(Prefit {
+            specs: law.clone(),
+            first: fit_law.first,
+            f: fit_law.f,
+        });
         law
     } else {
         notes.push(format!(
@@ -2637,14 +3033,14 @@ pub fn calibrate(
     let mut events: Vec<Event> = series.iter().flat_map(|s| s.glitches.clone()).collect();
     if !cfg.free_start {
         let specs0 = param_specs(robot, opts.marker_offset);
-        let (f0, ..) = fit_specs(robot, &specs0, &series, cfg);
+        let f0 = fit_specs(robot, &specs0, &series, cfg, false).f;
         let r0 = robot_with(robot, &specs0, &f0.geom);
         for s in series.iter_mut() {
             events.extend(detect_events(&r0, s));
         }
         if opts.robust {
             // Huber's scale: HUBER_K robust sigmas (MAD) of the squared-loss residuals.
-            let (f1, ..) = fit_specs(robot, &specs0, &series, cfg);
+            let f1 = fit_specs(robot, &specs0, &series, cfg, false).f;
             let mut p1 = Problem::new(robot, &specs0, &series);
             cfg.apply(&mut p1);
             let r = p1.residuals(&f1.geom, &f1.nuis, false);
@@ -2654,6 +3050,7 @@ pub fn calibrate(
             }
         }
     }
+    let mut prefit = None;
     let specs = choose_specs(
         robot,
         &series,
@@ -2661,6 +3058,7 @@ pub fn calibrate(
         cfg,
         &mut notes,
         &mut runs,
+        &mut prefit,
     );
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
 
@@ -2678,12 +3076,30 @@ pub fn calibrate(
 
     // Joint fit, the prior weighed by the nominal residuals first (directions the data
     // do not constrain must not wander off while the fit starts).
+    // When choosing the model fitted it on all the recordings already (the same problem
+    // and steps), that fit is taken over, its Jacobian at the solution by differences.
     p.prior_scale = noise_scale(&p, &before);
-    let mut fitted = solve(&p, &nominal, &before.nuis, true);
-    runs += fitted.evaluations;
-    // Weigh the plausibility prior against the data's real information (MAP), and refit.
-    p.prior_scale = noise_scale(&p, &fitted);
-    fitted = solve(&p, &fitted.geom, &fitted.nuis, true);
+    let mut fitted = match prefit {
+        Some(pre) => {
+            debug_assert!(pre
+                .specs
+                .iter()
+                .map(|s| &s.name)
+                .eq(specs.iter().map(|s| &s.name)));
+            p.prior_scale = noise_scale(&p, &pre.first);
+            solve_iter(&p, &pre.f.geom, &pre.f.nuis, true, 0)
+        }
+        None => {
+            p.differences_at_solution = false;
+            let first = solve(&p, &nominal, &before.nuis, true);
+            p.differences_at_solution = true;
+            runs += first.evaluations;
+            // Weigh the plausibility prior against the data's real information (MAP),
+            // and refit.
+            p.prior_scale = noise_scale(&p, &first);
+            solve(&p, &first.geom, &first.nuis, true)
+        }
+    };
     runs += fitted.evaluations;
     let g = specs.len();
     let (mut cov, inflation) = covariance(&p, &fitted);
@@ -2820,10 +3236,28 @@ pub fn calibrate(
         }
     }
 
-    // Per recording.
+    // Per recording: its dead reckoning and aligned errors (independent: in parallel).
+    let refs: Vec<&Series> = series.iter().collect();
+    let replays = par_map(&refs, |s| {
+        let (ab, aa) = if cfg.free_start {
+            (f64::NAN, f64::NAN)
+        } else {
+            (
+                aligned_rmse(robot, &specs, &nominal, s),
+                aligned_rmse(robot, &specs, &fitted.geom, s),
+            )
+        };
+        (
+            dead_reckoning_rmse(robot, s).unwrap_or(f64::NAN),
+            fitted_dead_reckoning_rmse(robot, &specs, &fitted.geom, s),
+            ab,
+            aa,
+        )
+    });
     let mut per_recording = Vec::new();
     let mut offs = (0, 0);
     for (i, s) in series.iter().enumerate() {
+        let (dr_before, dr_after, ab, aa) = replays[i];
         let m = 3 * if cfg.free_start {
             s.pose_samples()
         } else {
@@ -2845,22 +3279,15 @@ pub fn calibrate(
             let a = s.first_pose();
             (a, a, f64::NAN, f64::NAN)
         };
-        let (ab, aa) = if cfg.free_start {
-            (rb, ra)
-        } else {
-            (
-                aligned_rmse(robot, &specs, &nominal, s),
-                aligned_rmse(robot, &specs, &fitted.geom, s),
-            )
-        };
+        let (ab, aa) = if cfg.free_start { (rb, ra) } else { (ab, aa) };
         per_recording.push(PerRecording {
             name: s.name.clone(),
             pose_samples: s.pose_samples(),
             compared_samples: m / 3,
             rmse_before_m: rb,
             rmse_after_m: ra,
-            dead_reckoning_before_m: dead_reckoning_rmse(robot, s).unwrap_or(f64::NAN),
-            dead_reckoning_after_m: fitted_dead_reckoning_rmse(robot, &specs, &fitted.geom, s),
+            dead_reckoning_before_m: dr_before,
+            dead_reckoning_after_m: dr_after,
             aligned_before_m: ab,
             aligned_after_m: aa,
             nuisance: nu,
@@ -2927,6 +3354,8 @@ pub fn calibrate(
             geom_bounds(&specs)
         };
         let t0 = std::time::Instant::now();
+        // One-step folds: (recording, group, geometry without the group), replayed after.
+        let mut stepped: Vec<(usize, &String, Vec<f64>)> = Vec::new();
         for (k, gname) in distinct.iter().enumerate().filter(|_| distinct.len() >= 2) {
             if let Some((h, grad, r, at)) = &gn {
                 let (mut h, mut grad) = (h.clone(), grad.clone());
@@ -2944,14 +3373,7 @@ pub fn calibrate(
                     .map(|a| (fitted.geom[a] + step[a]).clamp(blo[a], bhi[a]))
                     .collect();
                 for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
-                    leave_one_out.push(Heldout {
-                        name: series[i].name.clone(),
-                        group: Some(gname.clone()),
-                        rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
-                        rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, &geom, &series[i]),
-                        aligned_before_m: per_recording[i].aligned_before_m,
-                        aligned_after_m: aligned_rmse(robot, &specs, &geom, &series[i]),
-                    });
+                    stepped.push((i, gname, geom.clone()));
                 }
                 continue;
             }
@@ -2970,6 +3392,7 @@ pub fn calibrate(
             q.priors = p.priors.clone();
             q.prior_scale = p.prior_scale;
             q.plausible_bounds = p.plausible_bounds;
+            q.differences_at_solution = false;
             let nuis: Vec<f64> = if cfg.free_start {
                 keep.iter()
                     .flat_map(|&j| fitted.nuis[j * NUIS..(j + 1) * NUIS].to_vec())
@@ -2990,6 +3413,18 @@ pub fn calibrate(
                 });
             }
         }
+        let mut jobs: Vec<_> = stepped
+            .into_iter()
+            .map(|(i, gname, geom)| (&series[i], (i, gname, geom)))
+            .collect();
+        leave_one_out.extend(par_each(&mut jobs, |(s, (i, gname, geom))| Heldout {
+            name: s.name.clone(),
+            group: Some((*gname).clone()),
+            rmse_before_m: per_recording[*i].dead_reckoning_before_m,
+            rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, geom, s),
+            aligned_before_m: per_recording[*i].aligned_before_m,
+            aligned_after_m: aligned_rmse(robot, &specs, geom, s),
+        }));
     }
 
     let params: Vec<FittedParam> = specs

@@ -1,0 +1,402 @@
+//! The paths' sensitivities to the geometry: d(x, y, theta)/d(parameter) carried along the
+//! integration with the path itself (forward mode), so a Jacobian of the dead-reckoning
+//! residuals costs one pass over the rows instead of one model run per parameter.
+//!
+//! The twist's derivatives are central differences of the per-geometry stepping (linear in
+//! the increments for a kinematics matrix, so one matrix of slopes per parameter; per row
+//! for a robot stepped by its sides); the arc integration and the residuals are
+//! differentiated exactly.
+
+use super::step::Stepper;
+use super::{robot_with, GeomKind, ParamSpec, Series, Sides, TurnLaw, RES_UNIT_M};
+use calib_core::correction::Corrections;
+use calib_core::kinematics::{Kinematics, Twist};
+use calib_core::robot::Robot;
+
+/// d/dd of [`arc_coefficients`]: (d(sin d / d), d((1 - cos d) / d)).
+#[inline]
+fn arc_slopes(d: f64) -> (f64, f64) {
+    if d.abs() < 0.1 {
+        // Taylor series of the derivatives; first omitted terms below 1e-13.
+        let d2 = d * d;
+        let s = -d * (1.0 / 3.0 - d2 * (1.0 / 30.0 - d2 * (1.0 / 840.0 - d2 / 45360.0)));
+        let c = 0.5 - d2 * (1.0 / 8.0 - d2 * (1.0 / 144.0 - d2 * (1.0 / 5760.0 - d2 / 403200.0)));
+        (s, c)
+    } else {
+        let (sn, cs) = d.sin_cos();
+        ((cs - sn / d) / d, (sn - (1.0 - cs) / d) / d)
+    }
+}
+
+/// How the twist of one row moves with each path parameter.
+pub(crate) enum TwistSlopes {
+    /// d twist / d q_j = slopes[j] * increments (a kinematics matrix).
+    Linear(Vec<Vec<[f64; 3]>>),
+    /// Central differences of a robot stepped by its sides, per parameter.
+    Sides(Vec<SideSlope>),
+}
+
+/// A robot's sides and turn law at one geometry.
+type SidesAt = (Sides, TurnLaw);
+
+/// The sides at q + h and q - h, and 1 / 2h.
+pub(crate) struct SideSlope {
+    plus: SidesAt,
+    minus: SidesAt,
+    k: f64,
+}
+
+/// Relative step of the central differences (of the per-geometry stepping, which is
+/// linear or rational in the parameters: truncation error ~1e-10 relative).
+const STEP: f64 = 1e-5;
+
+impl TwistSlopes {
+    /// The slopes of the parameters `path_params` (indices into `specs`) at `geom`, for a
+    /// robot stepped by its sides when `sides`. None when the geometry is singular
+    /// nearby.
+    pub(crate) fn new(
+        robot: &Robot,
+        specs: &[ParamSpec],
+        geom: &[f64],
+        path_params: &[usize],
+        sides: bool,
+    ) -> Option<TwistSlopes> {
+        let at = |j: usize, h: f64| -> Option<Stepper> {
+            let mut q = geom.to_vec();
+            q[j] += h;
+            let r = robot_with(robot, specs, &q);
+            let kin = Kinematics::<f64>::new(&r, &Corrections::None).ok()?;
+            Some(Stepper::new(&r, &kin, &TurnLaw::of(specs, &q)))
+        };
+        let step = |j: usize| STEP * geom[j].abs().max(1e-2);
+        if sides {
+            let mut v = Vec::new();
+            for &j in path_params {
+                let h = step(j);
+                let (p, m) = (at(j, h)?, at(j, -h)?);
+                let sides_of = |s: &Stepper, q: f64| -> SidesAt {
+                    let mut g = geom.to_vec();
+                    g[j] += q;
+                    let r = robot_with(robot, specs, &g);
+                    s.sides()
+                        .cloned()
+                        .unwrap_or_else(|| (Sides::new(&r), TurnLaw::of(specs, &g)))
+                };
+                v.push(SideSlope {
+                    plus: sides_of(&p, h),
+                    minus: sides_of(&m, -h),
+                    k: 0.5 / h,
+                });
+            }
+            return Some(TwistSlopes::Sides(v));
+        }
+        let mut v = Vec::new();
+        for &j in path_params {
+            let h = step(j);
+            let (p, m) = (at(j, h)?, at(j, -h)?);
+            v.push(
+                p.columns()
+                    .iter()
+                    .zip(m.columns())
+                    .map(|(a, b)| {
+                        [
+                            (a[0] - b[0]) * 0.5 / h,
+                            (a[1] - b[1]) * 0.5 / h,
+                            (a[2] - b[2]) * 0.5 / h,
+                        ]
+                    })
+                    .collect(),
+            );
+        }
+        Some(TwistSlopes::Linear(v))
+    }
+
+    fn count(&self) -> usize {
+        match self {
+            TwistSlopes::Linear(v) => v.len(),
+            TwistSlopes::Sides(v) => v.len(),
+        }
+    }
+
+    /// The twist derivatives of one row into `out` (one per parameter).
+    #[inline]
+    fn row(&self, inc: &[f64], rho: f64, out: &mut [[f64; 3]]) {
+        match self {
+            TwistSlopes::Linear(v) => {
+                for (o, cols) in out.iter_mut().zip(v) {
+                    let mut t = [0.0; 3];
+                    for (c, w) in cols.iter().zip(inc) {
+                        t[0] += c[0] * w;
+                        t[1] += c[1] * w;
+                        t[2] += c[2] * w;
+                    }
+                    *o = t;
+                }
+            }
+            TwistSlopes::Sides(v) => {
+                for (o, d) in out.iter_mut().zip(v) {
+                    let (a, b) = (
+                        d.plus.0.step(&d.plus.1, rho, inc),
+                        d.minus.0.step(&d.minus.1, rho, inc),
+                    );
+                    let k = d.k;
+                    *o = [
+                        (a.vx - b.vx) * k,
+                        (a.vy - b.vy) * k,
+                        (a.omega - b.omega) * k,
+                    ];
+                }
+            }
+        }
+    }
+}
+
+/// A recording's path and its sensitivities at the path rows `need` (sorted, distinct):
+/// values[i] = (x, y, theta) at need[i], slopes[i * p + j] = d(x, y, theta)/d q_j.
+pub(crate) struct Sensitivity {
+    pub(crate) need: Vec<usize>,
+    pub(crate) values: Vec<[f64; 3]>,
+    pub(crate) slopes: Vec<[f64; 3]>,
+}
+
+impl Series {
+    /// The path rows the dead-reckoning residuals read: each compared sample's and each
+    /// anchor's.
+    pub(crate) fn dr_rows(&self) -> Vec<usize> {
+        let mut v: Vec<usize> = self
+            .samples
+            .iter()
+            .chain(&self.anchors)
+            .map(|&j| self.pose_row[j])
+            .collect();
+        v.sort_unstable();
+        v.dedup();
+        v
+    }
+
+    /// The path of `stepper` (as [`Series::path_by`], to the bit) and its sensitivities
+    /// to the parameters of `slopes`, kept at the rows `need`. None for a wheeled-legged
+    /// robot (its kinematics follow the legs: not handled here).
+    pub(crate) fn sensitivity(
+        &self,
+        stepper: &Stepper,
+        slopes: &TwistSlopes,
+        need: Vec<usize>,
+    ) -> Option<Sensitivity> {
+        if self.legs.is_some() {
+            return None;
+        }
+        let p = slopes.count();
+        let sides = match (&self.rho, stepper.sides()) {
+            (Some(rho), Some(s)) => Some((rho, s)),
+            _ => None,
+        };
+        let no_rho = vec![0.0; self.inc.len() / self.wheels.max(1)];
+        let rho = self.rho.as_deref().unwrap_or(&no_rho);
+        let mut values = Vec::with_capacity(need.len());
+        let mut out = Vec::with_capacity(need.len() * p);
+        let mut d = vec![[0.0f64; 3]; p];
+        let mut dt = vec![[0.0f64; 3]; p];
+        let (mut x, mut y, mut h) = (0.0f64, 0.0f64, super::step::Heading::new());
+        let mut next = 0usize;
+        let mut keep = |k: usize, x: f64, y: f64, th: f64, d: &[[f64; 3]]| {
+            if need.get(next) == Some(&k) {
+                values.push([x, y, th]);
+                out.extend_from_slice(d);
+                next += 1;
+            }
+        };
+        keep(0, x, y, h.th, &d);
+        for (k, (inc, &r)) in self.incs().zip(rho).enumerate() {
+            let tw: Twist<f64> = match sides {
+                Some((_, (s, law))) => s.step(law, r, inc),
+                None => stepper.forward(inc),
+            };
+            slopes.row(inc, r, &mut dt);
+            // The arc step (as the path's), with the quantities its derivative needs.
+            let (st, ct) = (h.sin, h.cos);
+            let (s, c, lx, ly) = super::step::arc_step(&mut x, &mut y, &mut h, &tw);
+            let (ds, dc) = arc_slopes(tw.omega);
+            let (ex, ey) = (ct * lx - st * ly, st * lx + ct * ly);
+            for (dj, t) in d.iter_mut().zip(&dt) {
+                let dlx = (ds * tw.vx - dc * tw.vy) * t[2] + s * t[0] - c * t[1];
+                let dly = (dc * tw.vx + ds * tw.vy) * t[2] + c * t[0] + s * t[1];
+                dj[0] += -ey * dj[2] + ct * dlx - st * dly;
+                dj[1] += ex * dj[2] + st * dlx + ct * dly;
+                dj[2] += t[2];
+            }
+            keep(k + 1, x, y, h.th, &d);
+        }
+        Some(Sensitivity {
+            need,
+            values,
+            slopes: out,
+        })
+    }
+
+    /// The Jacobian rows of [`super::dr_residuals_into`] (same order) from the
+    /// sensitivities `sens` of the path parameters of `cols`, and its marker parameters,
+    /// into `jac` rows from `row0`:
+    /// columns are parameter indices.
+    pub(crate) fn dr_jacobian(
+        &self,
+        sens: &Sensitivity,
+        cols: &Columns,
+        marker: (f64, f64),
+        lever: f64,
+        jac: &mut nalgebra::DMatrix<f64>,
+        row0: usize,
+    ) {
+        let (path_params, marker_params) = (&cols.path, cols.marker);
+        let p = path_params.len();
+        let at = |k: usize| sens.need.binary_search(&k).expect("row kept");
+        let mut seg = 0usize;
+        let u = 1.0 / RES_UNIT_M;
+        for (n, &j) in self.samples.iter().enumerate() {
+            while seg + 1 < self.anchors.len() && self.anchors[seg + 1] <= j {
+                seg += 1;
+            }
+            let a = self.anchors[seg];
+            let (ia, ij) = (at(self.pose_row[a]), at(self.pose_row[j]));
+            let (va, vj) = (sens.values[ia], sens.values[ij]);
+            let dth = self.pth[a] - va[2];
+            let (c, sn) = (dth.cos(), dth.sin());
+            let (dx, dy) = (vj[0] - va[0], vj[1] - va[1]);
+            let th = vj[2] + dth;
+            let (cm, sm) = (th.cos(), th.sin());
+            let row = row0 + 3 * n;
+            for (q, &col) in path_params.iter().enumerate() {
+                let (sa, sj) = (sens.slopes[ia * p + q], sens.slopes[ij * p + q]);
+                let d_dth = -sa[2];
+                let (d_dx, d_dy) = (sj[0] - sa[0], sj[1] - sa[1]);
+                let d_th = sj[2] + d_dth;
+                let wx = (-sn * dx - c * dy) * d_dth + c * d_dx - sn * d_dy
+                    + (-sm * marker.0 - cm * marker.1) * d_th;
+                let wy = (c * dx - sn * dy) * d_dth
+                    + sn * d_dx
+                    + c * d_dy
+                    + (cm * marker.0 - sm * marker.1) * d_th;
+                jac[(row, col)] = wx * u;
+                jac[(row + 1, col)] = wy * u;
+                jac[(row + 2, col)] = d_th * lever * u;
+            }
+            let (ca, sa) = (self.pth[a].cos(), self.pth[a].sin());
+            if let Some(col) = marker_params.0 {
+                jac[(row, col)] = (cm - ca) * u;
+                jac[(row + 1, col)] = (sm - sa) * u;
+                jac[(row + 2, col)] = 0.0;
+            }
+            if let Some(col) = marker_params.1 {
+                jac[(row, col)] = (sa - sm) * u;
+                jac[(row + 1, col)] = (cm - ca) * u;
+                jac[(row + 2, col)] = 0.0;
+            }
+        }
+    }
+}
+
+/// The path parameters of `specs` (those the paths depend on) and the marker's.
+pub(crate) fn split_params(specs: &[ParamSpec]) -> Columns {
+    let path = (0..specs.len())
+        .filter(|&i| !matches!(specs[i].kind, GeomKind::MarkerX | GeomKind::MarkerY))
+        .collect();
+    let at = |k: GeomKind| specs.iter().position(|s| s.kind == k);
+    Columns {
+        path,
+        marker: (at(GeomKind::MarkerX), at(GeomKind::MarkerY)),
+    }
+}
+
+/// Jacobian columns (parameter indices) of the parameters the paths depend on, and of
+/// the marker's x and y.
+pub(crate) struct Columns {
+    pub(crate) path: Vec<usize>,
+    pub(crate) marker: (Option<usize>, Option<usize>),
+}
+
+#[cfg(test)]
+mod tests {
+    use super::super::{param_specs, turn_law_specs, Problem, Series};
+    use super::*;
+    use nalgebra::DMatrix;
+    use sim::{record, Motion, RandomMotion, RecordConfig, Surface};
+
+    fn robot(name: &str) -> Robot {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+            .join("../robots")
+            .join(format!("{name}.toml"));
+        formats::robot_file::load(&p).unwrap()
+    }
+
+    fn series(robot: &Robot, seed: u64) -> Series {
+        let motion = Motion::Random(RandomMotion {
+            duration_s: 20.0,
+            ..RandomMotion::default()
+        });
+        let mut cfg = RecordConfig {
+            row_rate_hz: 50.0,
+            ..RecordConfig::default()
+        };
+        cfg.sim.seed = seed;
+        let rec = record(robot, &[], Surface::flat(), &motion, &cfg).unwrap();
+        Series::new("r", robot, &rec.recording).unwrap()
+    }
+
+    /// The analytic Jacobian of the dead-reckoning residuals against central differences
+    /// of the residuals themselves, away from nominal, with the prior rows.
+    fn agrees(robot: &Robot, specs: &[ParamSpec], geom: &[f64]) {
+        let all = [series(robot, 1), series(robot, 2)];
+        let mut p = Problem::new(robot, specs, &all);
+        p.free_start = false;
+        p.prior_scale = 3.0;
+        let r = p.residuals(geom, &[], true);
+        let mut jac = DMatrix::zeros(0, 0);
+        assert!(p.jacobian(geom, &r, &mut jac));
+        assert_eq!((jac.nrows(), jac.ncols()), (r.len(), specs.len()));
+        for j in 0..specs.len() {
+            let h = 1e-6 * geom[j].abs().max(1e-2);
+            let (mut a, mut b) = (geom.to_vec(), geom.to_vec());
+            a[j] += h;
+            b[j] -= h;
+            let (ra, rb) = (p.residuals(&a, &[], true), p.residuals(&b, &[], true));
+            let scale = (0..r.len())
+                .map(|i| ((ra[i] - rb[i]) / (2.0 * h)).abs())
+                .fold(1e-9, f64::max);
+            for i in 0..r.len() {
+                let fd = (ra[i] - rb[i]) / (2.0 * h);
+                assert!(
+                    (jac[(i, j)] - fd).abs() <= 1e-5 * scale,
+                    "{}: row {i}: analytic {} differences {fd}",
+                    specs[j].name,
+                    jac[(i, j)]
+                );
+            }
+        }
+    }
+
+    fn off_nominal(specs: &[ParamSpec]) -> Vec<f64> {
+        specs
+            .iter()
+            .enumerate()
+            .map(|(i, s)| {
+                s.nominal + 0.3 * (s.plausible.1 - s.nominal) * if i % 2 == 0 { 1.0 } else { -0.7 }
+            })
+            .collect()
+    }
+
+    #[test]
+    fn omni_jacobian_matches_differences() {
+        let r = robot("omni4");
+        let specs = param_specs(&r, true);
+        agrees(&r, &specs, &off_nominal(&specs));
+    }
+
+    #[test]
+    fn turn_law_jacobian_matches_differences() {
+        for name in ["mobolab", "rover4"] {
+            let r = robot(name);
+            let specs = turn_law_specs(&r);
+            agrees(&r, &specs, &off_nominal(&specs));
+        }
+    }
+}
