@@ -15,7 +15,6 @@
 //! is fitted. Every parameter has a plausible range; a value outside is listed
 //! `implausible` with what it most likely stands in for.
 
-mod lm;
 pub mod proxy;
 mod sens;
 mod step;
@@ -1668,7 +1667,7 @@ fn solve_iter(
         };
     }
     struct Analytic<'a, 'b>(&'b Problem<'a>, usize);
-    impl lm::Jacobian for Analytic<'_, '_> {
+    impl crate::fit::Jacobian for Analytic<'_, '_> {
         fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
             self.0.jacobian(&x[..self.1], r, jac)
         }
@@ -1677,12 +1676,12 @@ fn solve_iter(
             3
         }
     }
-    let mut jac_fn: Box<dyn lm::Jacobian> = if fit_geom && !p.free_start {
+    let mut jac_fn: Box<dyn crate::fit::Jacobian> = if fit_geom && !p.free_start {
         Box::new(Analytic(p, g))
     } else {
-        Box::new(lm::Differences)
+        Box::new(crate::fit::Differences)
     };
-    let r = lm::levenberg_marquardt(
+    let r = crate::fit::levenberg_marquardt_with(
         &mut f,
         jac_fn.as_mut(),
         &x0,

@@ -1,8 +1,10 @@
-//! Levenberg-Marquardt on a handful of parameters with a finite-difference Jacobian.
+//! Levenberg-Marquardt on a handful of parameters, with a finite-difference Jacobian or
+//! one the model provides.
 //!
-//! The models are simulations (thresholds, clamps, integrations), so analytic Jacobians
-//! would be long and fragile; with at most a few parameters, p + 1 model runs per
-//! iteration are affordable. Bounds are enforced by clamping.
+//! Diagnose's models are simulations (thresholds, clamps, integrations), so analytic
+//! Jacobians would be long and fragile; with at most a few parameters, p + 1 model runs
+//! per iteration are affordable. Calibration's dead reckoning carries its sensitivities
+//! and passes them in ([`Jacobian`]). Bounds are enforced by clamping.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -45,6 +47,67 @@ pub fn levenberg_marquardt_jacobian(
     hi: &[f64],
     max_iter: usize,
 ) -> (FitResult, DMatrix<f64>) {
+    let r = levenberg_marquardt_with(f, &mut Differences, x0, lo, hi, max_iter, true);
+    let sigma = covariance_sigma(&r.jac, r.cost, r.jac.nrows());
+    (
+        FitResult {
+            x: r.x,
+            cost: r.cost,
+            sigma,
+            evaluations: r.evaluations,
+        },
+        r.jac,
+    )
+}
+
+/// The Jacobian of the residuals at a point, when the model has one cheaper than forward
+/// differences (calibration's paths carry their sensitivities).
+pub trait Jacobian {
+    /// Fills `jac` (resized as needed) at `x`, whose residuals are `r`. False when it
+    /// cannot: forward differences are used instead.
+    fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool;
+    /// What one Jacobian costs, in model runs (for the run count).
+    fn runs(&self) -> usize;
+}
+
+/// No analytic Jacobian: forward differences everywhere.
+pub struct Differences;
+
+impl Jacobian for Differences {
+    fn at(&mut self, _: &[f64], _: &[f64], _: &mut DMatrix<f64>) -> bool {
+        false
+    }
+    fn runs(&self) -> usize {
+        0
+    }
+}
+
+/// Outcome of [`levenberg_marquardt_with`].
+pub struct Fitted {
+    /// Parameters in the optimiser's coordinates.
+    pub x: Vec<f64>,
+    /// Sum of squared residuals at `x`.
+    pub cost: f64,
+    /// Residual function evaluations, a Jacobian counted as [`Jacobian::runs`] (or one
+    /// per parameter for forward differences).
+    pub evaluations: usize,
+    /// Jacobian of the residuals at `x`.
+    pub jac: DMatrix<f64>,
+}
+
+/// The one Levenberg-Marquardt loop: minimises the sum of squares of `f(x)` from `x0`
+/// within `[lo, hi]` (bounds by clamping), with `jac_fn`'s Jacobian during the
+/// iterations. The Jacobian returned at the solution is `jac_fn`'s too unless
+/// `final_differences`, then forward differences.
+pub fn levenberg_marquardt_with(
+    f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
+    jac_fn: &mut dyn Jacobian,
+    x0: &[f64],
+    lo: &[f64],
+    hi: &[f64],
+    max_iter: usize,
+    final_differences: bool,
+) -> Fitted {
     let p = x0.len();
     let clamp = |x: &mut [f64]| {
         for i in 0..x.len() {
@@ -58,9 +121,20 @@ pub fn levenberg_marquardt_jacobian(
     let mut cost = sumsq(&r);
     let mut lambda = 1e-3;
     let mut jac = DMatrix::<f64>::zeros(r.len(), p);
+    let mut jacobian = |f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
+                        x: &[f64],
+                        r: &[f64],
+                        jac: &mut DMatrix<f64>,
+                        differences: bool| {
+        if !differences && jac_fn.at(x, r, jac) {
+            jac_fn.runs()
+        } else {
+            forward_differences(f, x, r, hi, jac);
+            p
+        }
+    };
     for _ in 0..max_iter {
-        jacobian(f, &x, &r, hi, &mut jac);
-        evaluations += p;
+        evaluations += jacobian(f, &x, &r, &mut jac, false);
         let jt = jac.transpose();
         let jtj = &jt * &jac;
         let g = &jt * DVector::from_column_slice(&r);
@@ -97,18 +171,13 @@ pub fn levenberg_marquardt_jacobian(
             break;
         }
     }
-    jacobian(f, &x, &r, hi, &mut jac);
-    evaluations += p;
-    let sigma = covariance_sigma(&jac, cost, r.len());
-    (
-        FitResult {
-            x,
-            cost,
-            sigma,
-            evaluations,
-        },
+    evaluations += jacobian(f, &x, &r, &mut jac, final_differences);
+    Fitted {
+        x,
+        cost,
+        evaluations,
         jac,
-    )
+    }
 }
 
 fn sumsq(r: &[f64]) -> f64 {
@@ -116,7 +185,7 @@ fn sumsq(r: &[f64]) -> f64 {
 }
 
 /// Forward differences, stepping backwards at the upper bound.
-fn jacobian(
+fn forward_differences(
     f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
     x: &[f64],
     r: &[f64],
@@ -124,7 +193,7 @@ fn jacobian(
     jac: &mut DMatrix<f64>,
 ) {
     let m = r.len();
-    if jac.nrows() != m {
+    if jac.nrows() != m || jac.ncols() != x.len() {
         *jac = DMatrix::zeros(m, x.len());
     }
     for j in 0..x.len() {
