@@ -1279,6 +1279,17 @@ struct Problem<'a> {
 }
 
 impl<'a> Problem<'a> {
+    /// Where motion capture tracks on the body in `geom` ((0, 0) when not fitted).
+    fn marker(&self, geom: &[f64]) -> (f64, f64) {
+        let get = |k: GeomKind| {
+            self.specs
+                .iter()
+                .position(|s| s.kind == k)
+                .map_or(0.0, |i| geom[i])
+        };
+        (get(GeomKind::MarkerX), get(GeomKind::MarkerY))
+    }
+
     fn new(robot: &'a Robot, specs: &'a [ParamSpec], series: &'a [Series]) -> Self {
         // A weak prior at nominal (one plausible half-range) keeps directions the data
         // do not constrain where they are; it is negligible against thousands of
@@ -1369,13 +1380,7 @@ impl<'a> Problem<'a> {
             *jac = DMatrix::zeros(m + self.priors.len(), g);
         }
         jac.fill(0.0);
-        let get = |k: GeomKind| {
-            self.specs
-                .iter()
-                .position(|s| s.kind == k)
-                .map_or(0.0, |i| geom[i])
-        };
-        let marker = (get(GeomKind::MarkerX), get(GeomKind::MarkerY));
+        let marker = self.marker(geom);
         let mut row = 0;
         for (s, sens) in &jobs {
             let sens = sens.as_ref().expect("checked above");
@@ -1409,13 +1414,7 @@ impl<'a> Problem<'a> {
             return vec![1e12; m + if with_prior { self.priors.len() } else { 0 }];
         }
         let c = self.cache.borrow();
-        let get = |k: GeomKind| {
-            self.specs
-                .iter()
-                .position(|s| s.kind == k)
-                .map_or(0.0, |i| geom[i])
-        };
-        let marker = (get(GeomKind::MarkerX), get(GeomKind::MarkerY));
+        let marker = self.marker(geom);
         if self.free_start {
             for (i, s) in self.series.iter().enumerate() {
                 let nu = Nuisance::from(&nuis[i * NUIS..(i + 1) * NUIS]);
