@@ -695,49 +695,40 @@ pub fn variant_worth_fitting(
 }
 
 /// Of the mechanisms of one catalogue effect, one with fewer parameters whose BIC is
-/// within [`SIMPLER_BIC_MARGIN`] or [`SIMPLER_BIC_SHARE`] of the best goes first: the simplest adequate
-/// explanation (per-wheel play must beat one play for both wheels by more than noise).
-/// `tried` is sorted by BIC change; the order between catalogue effects is kept.
-fn prefer_simpler_mechanisms(tried: &mut [Tried], k: impl Fn(Effect) -> usize) {
+/// within [`SIMPLER_BIC_MARGIN`] or [`SIMPLER_BIC_SHARE`] of the best goes first: the
+/// simplest adequate explanation (per-wheel play must beat one play for both wheels by
+/// more than noise). `tried` is sorted by BIC change; the order between catalogue
+/// effects is kept.
+fn prefer_simpler_mechanisms(tried: &mut Vec<Tried>, k: impl Fn(Effect) -> usize) {
     let scores: Vec<(Effect, usize, f64)> = tried.iter().map(|t| (t.0, k(t.0), t.4)).collect();
-    prefer_simpler(&scores)
-        .into_iter()
-        .enumerate()
-        .for_each(|(to, from)| {
-            if from != to {
-                tried[to..=from].rotate_right(1);
-            }
-        });
+    let mut slots: Vec<Option<Tried>> = tried.drain(..).map(Some).collect();
+    for i in simpler_first(&scores) {
+        tried.extend(slots[i].take());
+    }
 }
 
-/// The reordering [`prefer_simpler_mechanisms`] applies, on (effect, parameter count,
-/// BIC change) sorted by BIC change: for each position in turn, the index (in the list
-/// as reordered so far) of the entry that goes there.
-fn prefer_simpler(scores: &[(Effect, usize, f64)]) -> Vec<usize> {
-    let mut order: Vec<(Effect, usize, f64)> = scores.to_vec();
-    let mut moves = Vec::new();
+/// The order [`prefer_simpler_mechanisms`] gives (indices into `scores`: effect,
+/// parameter count, BIC change, sorted by BIC change).
+fn simpler_first(scores: &[(Effect, usize, f64)]) -> Vec<usize> {
+    let mut order: Vec<usize> = (0..scores.len()).collect();
     for pos in 0..order.len() {
-        let (e, k0, d0) = order[pos];
-        let first_of_base = !order[..pos].iter().any(|x| x.0.base() == e.base());
-        let pick = if first_of_base {
-            (pos..order.len())
-                .filter(|&j| {
-                    order[j].0.base() == e.base()
-                        && order[j].1 < k0
-                        && order[j].2 <= d0 + SIMPLER_BIC_MARGIN.max(SIMPLER_BIC_SHARE * d0.abs())
-                })
-                .min_by_key(|&j| order[j].1)
-                .unwrap_or(pos)
-        } else {
-            pos
-        };
-        if pick != pos {
-            let x = order.remove(pick);
-            order.insert(pos, x);
+        let (e, k0, d0) = scores[order[pos]];
+        if order[..pos].iter().any(|&i| scores[i].0.base() == e.base()) {
+            continue;
         }
-        moves.push(pick);
+        let margin = SIMPLER_BIC_MARGIN.max(SIMPLER_BIC_SHARE * d0.abs());
+        let simpler = (pos..order.len())
+            .filter(|&j| {
+                let (x, k, d) = scores[order[j]];
+                x.base() == e.base() && k < k0 && d <= d0 + margin
+            })
+            .min_by_key(|&j| scores[order[j]].1);
+        if let Some(j) = simpler {
+            let i = order.remove(j);
+            order.insert(pos, i);
+        }
     }
-    moves
+    order
 }
 
 /// Fits each candidate effect on top of `base`, spread over the machine's cores (each
@@ -1163,11 +1154,10 @@ mod tests {
     #[test]
     fn one_parameter_wins_unless_the_richer_mechanism_is_clearly_better() {
         let apply = |scores: &[(Effect, usize, f64)]| -> Vec<Effect> {
-            let mut order = scores.to_vec();
-            for (to, from) in prefer_simpler(scores).into_iter().enumerate() {
-                order[to..=from].rotate_right(1);
-            }
-            order.into_iter().map(|x| x.0).collect()
+            simpler_first(scores)
+                .into_iter()
+                .map(|i| scores[i].0)
+                .collect()
         };
         let close = [
             (Effect::BacklashPerWheel, 2, -108.0),
