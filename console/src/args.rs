@@ -107,9 +107,31 @@ pub struct DiagnoseArgs {
     /// Most effects to combine in one explanation (1 to 4).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=4))]
     pub max_effects: u8,
+    /// Merge faster rows to about this many per second while reading (commands averaged,
+    /// counts and poses kept as sampled; docs/formats.md §2.4); 0 keeps every row.
+    #[arg(long, default_value_t = formats::decimate::DEFAULT_MAX_ROW_RATE_HZ, value_parser = max_rate)]
+    pub max_rate: f64,
     /// How to read recordings given as ROS 2 bags.
     #[command(flatten)]
     pub bag: BagFlags,
+}
+
+/// `--max-rate`: a finite rate, 0 or more.
+fn max_rate(s: &str) -> Result<f64, String> {
+    let v: f64 = s
+        .parse()
+        .map_err(|_| format!("'{s}' is not a number of rows per second"))?;
+    if !v.is_finite() || v < 0.0 {
+        return Err(format!("{s}: give 0 (every row) or a positive rate"));
+    }
+    Ok(v)
+}
+
+impl DiagnoseArgs {
+    /// The row rate to merge to, if any.
+    pub fn max_row_rate_hz(&self) -> Option<f64> {
+        (self.max_rate > 0.0).then_some(self.max_rate)
+    }
 }
 
 /// Subcommands of `wheelcal sim`.

@@ -18,11 +18,25 @@ pub fn is_bag(p: &Path) -> bool {
 /// A recording from a formats.md CSV file or a ROS 2 bag (read with `flags`): for the
 /// commands that take either (`calibrate`, `diagnose`). The import's notes go to stderr.
 pub fn load_recording(p: &Path, robot: &Robot, flags: &BagFlags) -> Result<Recording> {
+    load_recording_at(p, robot, flags, None)
+}
+
+/// [`load_recording`], a CSV file's rows merged to about `max_rate_hz` per second as it
+/// is read (formats::decimate; `Recording::merged` says so). A bag is read whole (the
+/// diagnosis merges its rows).
+pub fn load_recording_at(
+    p: &Path,
+    robot: &Robot,
+    flags: &BagFlags,
+    max_rate_hz: Option<f64>,
+) -> Result<Recording> {
     if is_bag(p) {
-        Ok(ros2bag::load_bag_recording(p, robot, &flags.options()?)?)
-    } else {
-        Ok(Recording::load(p, robot)?)
+        return Ok(ros2bag::load_bag_recording(p, robot, &flags.options()?)?);
     }
+    let opts = formats::recording::ReadOptions {
+        max_row_rate_hz: max_rate_hz,
+    };
+    Ok(Recording::load_with(p, robot, &opts)?)
 }
 
 /// Recording CSV files named by `p`: the file itself, `p/recording.csv`, or every

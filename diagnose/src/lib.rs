@@ -74,12 +74,16 @@ pub const RESIDUAL_CHI2: f64 = 10.0;
 pub struct Options {
     /// Most effects to combine.
     pub max_effects: usize,
+    /// Rows faster than this (per second) are merged first (`formats::decimate`); `None`
+    /// diagnoses every row.
+    pub max_row_rate_hz: Option<f64>,
 }
 
 impl Default for Options {
     fn default() -> Self {
         Options {
             max_effects: select::MAX_EFFECTS,
+            max_row_rate_hz: Some(formats::decimate::DEFAULT_MAX_ROW_RATE_HZ),
         }
     }
 }
@@ -146,6 +150,12 @@ pub fn diagnose_owned(
             "the wheels cannot resolve the body twist".into(),
         ));
     }
+    // Fast rows merged first: the replays' cost and memory follow the rows kept.
+    let recording = match options.max_row_rate_hz {
+        Some(rate) if rate.is_finite() && rate > 0.0 => recording.decimated(rate).0,
+        _ => recording,
+    };
+    let decimation = recording.merged;
     // Recording artefacts first: found, reported apart and removed before the physics.
     let stage = recording_stage::analyse(robot, recording);
     let recording_stage::RecordingStage {
@@ -155,6 +165,7 @@ pub fn diagnose_owned(
     } = stage;
     let prepared = replay::Prepared::new(robot, &corrected);
     let mut notes = corrected.notes.clone();
+    notes.extend(decimation.map(|d| d.note()));
     drop(corrected);
     if prepared.poses.len() < MIN_POSE_SAMPLES && !prepared.has_actuator_stage() {
         return Err(DiagnoseError::NotEnoughData(format!(

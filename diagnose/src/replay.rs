@@ -80,6 +80,9 @@ pub struct Prepared {
     /// Encoder counts are cumulative, so a coarser step loses no odometry; rows between
     /// are interpolated.
     pub ground_rows: Vec<usize>,
+    /// The rows were merged (`formats::decimate`): each command is the mean over its
+    /// interval, so commands are read as held, never as samples of a ramp.
+    pub commands_are_means: bool,
 }
 
 /// Most ground-stage steps per second (100-200 rows/s lose no odometry).
@@ -215,6 +218,7 @@ impl Prepared {
             poses,
             legs,
             driven_share,
+            commands_are_means: rec.merged.is_some(),
         }
     }
 

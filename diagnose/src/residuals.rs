@@ -235,6 +235,13 @@ impl<'a> Evaluator<'a> {
                 (best, floor)
             };
             let held = best_with_lag(&ev);
+            if p.commands_are_means {
+                // Merged rows carry interval means: held is the reading that keeps their
+                // travel exact.
+                ev.act_floor_rss.set(held.1);
+                ev.noise = estimate_noise(p, &nominal);
+                return ev;
+            }
             ev.linear_commands.set(true);
             *ev.act_cache.borrow_mut() = None;
             *ev.ground_cache.borrow_mut() = None;

@@ -5,6 +5,7 @@
 //! is the `no_std` core the firmware links. Every error names the file, line and column.
 
 pub mod catalogue;
+pub mod decimate;
 pub mod recording;
 pub mod robot_file;
 pub mod runs_file;

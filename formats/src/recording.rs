@@ -6,6 +6,8 @@
 //! log export. Every error names the file, the line and the column, because people make
 //! these files with their own measuring setups.
 
+pub use crate::decimate::Decimation;
+use crate::decimate::{Cells, Decimator};
 use calib_core::robot::{Robot, RobotKind};
 use std::fmt;
 use std::io::Write;
@@ -41,6 +43,9 @@ pub struct Recording {
     pub leg_rear: Option<Vec<Option<f64>>>,
     /// Notes for the reader (ignored unknown columns).
     pub notes: Vec<String>,
+    /// Set when rows were merged ([`crate::decimate`]): the commands are then means over
+    /// the intervals between rows, to be read as held, not as samples of a ramp.
+    pub merged: Option<Decimation>,
 }
 
 /// A recording that could not be read.
@@ -74,6 +79,14 @@ impl fmt::Display for RecordingError {
 }
 
 impl std::error::Error for RecordingError {}
+
+/// How a recording is read.
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub struct ReadOptions {
+    /// Merge rows to at most about this many per second while reading
+    /// ([`crate::decimate`]); `None` keeps every row.
+    pub max_row_rate_hz: Option<f64>,
+}
 
 /// A recording larger than this is refused before it is parsed (the read is capped by the
 /// bytes actually read, so a device that never ends fails at once).
@@ -199,6 +212,16 @@ impl Recording {
 
     /// Reads and checks a recording against the robot it was made with.
     pub fn load(path: &Path, robot: &Robot) -> Result<Self, RecordingError> {
+        Self::load_with(path, robot, &ReadOptions::default())
+    }
+
+    /// [`Recording::load`] with options: with a row rate, rows are merged as they are
+    /// read (the file is never held at its full rate) and what was merged is returned.
+    pub fn load_with(
+        path: &Path,
+        robot: &Robot,
+        opts: &ReadOptions,
+    ) -> Result<Self, RecordingError> {
         let text =
             crate::text_file::read_capped(path, MAX_RECORDING_BYTES, "recording").map_err(|e| {
                 RecordingError {
@@ -208,11 +231,21 @@ impl Recording {
                     message: e.0,
                 }
             })?;
-        Self::parse(&text, path, robot)
+        Self::parse_with(&text, path, robot, opts)
     }
 
     /// Parses CSV text; `path` is only used in messages.
     pub fn parse(text: &str, path: &Path, robot: &Robot) -> Result<Self, RecordingError> {
+        Self::parse_with(text, path, robot, &ReadOptions::default())
+    }
+
+    /// [`Recording::parse`] with options (see [`Recording::load_with`]).
+    pub fn parse_with(
+        text: &str,
+        path: &Path,
+        robot: &Robot,
+        opts: &ReadOptions,
+    ) -> Result<Self, RecordingError> {
         let err = |line: Option<usize>, column: Option<(usize, String)>, message: String| {
             RecordingError {
                 path: path.to_path_buf(),
@@ -342,6 +375,12 @@ impl Recording {
         let t_col = cols.iter().position(|c| *c == Col::T).unwrap_or(0);
         let mut lines = crate::text_file::LineCounter::new(text);
         let x_col = cols.iter().position(|c| *c == Col::X).unwrap_or(0);
+        let mut decimator = opts
+            .max_row_rate_hz
+            .filter(|r| r.is_finite() && *r > 0.0)
+            .map(|r| Decimator::new(robot.wheels.len(), r));
+        let mut cmd_row: Vec<Option<f64>> = vec![None; robot.wheels.len()];
+        let mut enc_row: Vec<Option<i64>> = vec![None; robot.wheels.len()];
         loop {
             let line = lines.line_at(reader.position().byte());
             match reader.read_record(&mut record) {
@@ -365,7 +404,8 @@ impl Recording {
             let mut pose = [None; 3];
             let mut legs = [None; 2];
             enc_cells.clear();
-            let row_index = rec.t.len();
+            cmd_row.iter_mut().for_each(|c| *c = None);
+            enc_row.iter_mut().for_each(|c| *c = None);
             for (ci, (cell, col)) in record.iter().zip(&cols).enumerate() {
                 if *col == Col::Ignored {
                     continue;
@@ -385,9 +425,7 @@ impl Recording {
                             format!("encoder count must be an integer, got '{cell}'"),
                         )
                     })?;
-                    let series = rec.wheels[*i].enc.as_mut().expect("declared in the header");
-                    series.resize(row_index, None);
-                    series.push(Some(v));
+                    enc_row[*i] = Some(v);
                     enc_cells.push((ci, *i, v));
                     continue;
                 }
@@ -411,11 +449,7 @@ impl Recording {
                     Col::Theta => pose[2] = Some(v),
                     Col::LegFront => legs[0] = Some(v),
                     Col::LegRear => legs[1] = Some(v),
-                    Col::Cmd(i) => {
-                        let series = rec.wheels[*i].cmd.as_mut().expect("declared in the header");
-                        series.resize(row_index, None);
-                        series.push(Some(v));
-                    }
+                    Col::Cmd(i) => cmd_row[*i] = Some(v),
                     Col::Enc(_) | Col::Ignored => {}
                 }
             }
@@ -497,25 +531,23 @@ impl Recording {
                 first_pose.get_or_insert((t, x, y));
             }
             last_t = t;
-            rec.t.push(t);
-            rec.x.push(pose[0]);
-            rec.y.push(pose[1]);
-            rec.theta.push(pose[2]);
-            if let Some(f) = &mut rec.leg_front {
-                f.push(legs[0]);
+            let cells = Cells {
+                t,
+                cmd: cmd_row.clone(),
+                enc: enc_row.clone(),
+                pose: match pose {
+                    [Some(x), Some(y), Some(th)] => Some((x, y, th)),
+                    _ => None,
+                },
+                legs,
+            };
+            match &mut decimator {
+                Some(d) => d.offer(&mut rec, cells),
+                None => cells.push_to(&mut rec),
             }
-            if let Some(r) = &mut rec.leg_rear {
-                r.push(legs[1]);
-            }
-            let n = rec.t.len();
-            for w in &mut rec.wheels {
-                if let Some(c) = &mut w.cmd {
-                    c.resize(n, None);
-                }
-                if let Some(e) = &mut w.enc {
-                    e.resize(n, None);
-                }
-            }
+        }
+        if let Some(d) = decimator {
+            d.finish(&mut rec);
         }
         if rec.is_empty() {
             return Err(err(

@@ -18,12 +18,13 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
     let robot = robot_file::load(&a.robot)?;
     // Long work says so on stderr (a large recording reads and fits for a minute).
     let busy = crate::progress::Progress::start(&format!("reading {}", recording.display()));
-    let rec = recordings::load_recording(recording, &robot, &a.bag)?;
+    let rec = recordings::load_recording_at(recording, &robot, &a.bag, a.max_row_rate_hz())?;
     for n in &rec.notes {
         out.note(&format!("{}: {n}", recording.display()));
     }
     let opts = diagnose::Options {
         max_effects: a.max_effects.into(),
+        max_row_rate_hz: a.max_row_rate_hz(),
     };
     busy.set_message(format!("diagnosing {} rows", rec.len()));
     let rep = diagnose::diagnose_owned(&robot, rec, &opts)
@@ -56,6 +57,7 @@ fn diagnose_many(a: &DiagnoseArgs, files: &[PathBuf], out: Output) -> Result<()>
         .collect::<Result<Vec<_>>>()?;
     let opts = diagnose::Options {
         max_effects: a.max_effects.into(),
+        max_row_rate_hz: a.max_row_rate_hz(),
     };
     let rep = diagnose::multi::diagnose_many(&robot, &recs, &opts).map_err(|mut e| {
         // Name the file, not only the short name; the error stays the diagnosis's.
