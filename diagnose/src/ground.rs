@@ -66,15 +66,23 @@ impl Heading {
 type ContactWheel = (f64, (f64, f64), (f64, f64), bool);
 
 /// Predicted poses, starting at the origin with heading 0.
+///
+/// A fit compares the model with the measured poses only, so its paths hold the pose
+/// rows alone ([`Rows::Poses`]); the windows and the localisation read a path at every
+/// row ([`Rows::All`]).
 #[derive(Debug, Clone, Default)]
 pub struct Path {
-    /// At every row.
+    /// Predicted x, m: at each pose row (`Prepared::poses.row`), or at every row when
+    /// `per_row`.
     pub x: Vec<f64>,
-    /// Predicted y at every row, m.
+    /// Predicted y, m, at the same rows as `x`.
     pub y: Vec<f64>,
-    /// Predicted heading at every row, rad (not wrapped).
+    /// Predicted heading, rad (not wrapped), at the same rows as `x`.
     pub theta: Vec<f64>,
-    /// Body displacement over each interval (row k to k+1), body frame.
+    /// Whether `x`, `y`, `theta` and `step` are per row.
+    pub per_row: bool,
+    /// Body displacement over each interval (row k to k+1), body frame (per-row paths
+    /// only).
     pub step: Vec<Twist<f64>>,
     /// Undriven wheels with encoders: (wheel index, predicted angle per row). They roll
     /// with the body, so the model predicts what their encoders must read.
@@ -171,7 +179,24 @@ impl KinCache {
 /// Floor-fixed effects (cables across world x) need the robot's world pose: they take
 /// the measured pose, interpolated between samples, not the model's own dead-reckoned
 /// pose, whose drift is exactly what is being diagnosed.
-pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mut Path) {
+/// Which rows a path holds.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum Rows {
+    /// The pose rows only (what a fit compares).
+    Poses,
+    /// Every row, with the steps between them.
+    All,
+}
+
+pub fn simulate(
+    p: &Prepared,
+    angles: &[Option<&[f64]>],
+    model: &Model,
+    rows: Rows,
+    out: &mut Path,
+) {
+    let per_row = rows == Rows::All;
+    out.per_row = per_row;
     out.x.clear();
     out.y.clear();
     out.theta.clear();
@@ -236,15 +261,24 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
     let mut cache = KinCache::new(&robot, scales_known, eb);
     let mut pose = Pose::new(0.0, 0.0, 0.0);
     let mut heading = Heading::new();
-    // One entry per row: the ground rows' steps, the rows between interpolated.
+    // Per row: the ground rows' steps, the rows between interpolated. Else the pose rows
+    // (every pose row is a ground row).
     let n = p.rows();
-    out.x.reserve(n);
-    out.y.reserve(n);
-    out.theta.reserve(n);
-    out.step.reserve(n);
-    out.x.push(0.0);
-    out.y.push(0.0);
-    out.theta.push(0.0);
+    let pose_rows = &p.poses.row;
+    let mut next_pose = 0;
+    let kept = if per_row { n } else { pose_rows.len() };
+    out.x.reserve(kept);
+    out.y.reserve(kept);
+    out.theta.reserve(kept);
+    if per_row {
+        out.step.reserve(n);
+    }
+    if per_row || pose_rows.first() == Some(&0) {
+        out.x.push(0.0);
+        out.y.push(0.0);
+        out.theta.push(0.0);
+        next_pose = 1;
+    }
     let m = known.len();
     let mut inc = vec![0.0; m];
     let mut contact: Option<Vec<f64>> = None;
@@ -380,14 +414,22 @@ pub fn simulate(p: &Prepared, angles: &[Option<&[f64]>], model: &Model, out: &mu
                 }
             }
         }
+        if !per_row {
+            if pose_rows.get(next_pose) == Some(&k_next) {
+                out.x.push(pose.x);
+                out.y.push(pose.y);
+                out.theta.push(pose.theta);
+                next_pose += 1;
+            }
+        }
         // Rows k+1 ..= k_next: linear in time between the step's ends (one row when the
         // recording is not faster than the ground rate).
         let (x0, y0, th0) = (
-            *out.x.last().expect("starts with a row"),
-            *out.y.last().expect("starts with a row"),
-            *out.theta.last().expect("starts with a row"),
+            out.x.last().copied().unwrap_or(0.0),
+            out.y.last().copied().unwrap_or(0.0),
+            out.theta.last().copied().unwrap_or(0.0),
         );
-        for r in k + 1..=k_next {
+        for r in (k + 1..=k_next).filter(|_| per_row) {
             let f = if dt > 0.0 {
                 (p.t[r] - p.t[k]) / dt
             } else {

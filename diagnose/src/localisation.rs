@@ -170,8 +170,8 @@ fn travel(ev: &Evaluator, model: &Model) -> Option<Localisation> {
     if ps.len() < MIN_SAMPLES {
         return None;
     }
-    let p0 = ev.path(&without);
-    let p1 = ev.path(model);
+    let p0 = ev.path_per_row(&without);
+    let p1 = ev.path_per_row(model);
     let along = |path: &crate::ground::Path, row: [f64; 3], a: usize, b: usize| -> f64 {
         let n = path.step.len();
         let (mut mx, mut my, mut mw) = (0.0, 0.0, 0.0);

@@ -86,7 +86,7 @@ pub struct Prepared {
 }
 
 /// Most ground-stage steps per second (100-200 rows/s lose no odometry).
-pub const GROUND_RATE_HZ: f64 = 100.0;
+pub const GROUND_RATE_HZ: f64 = 50.0;
 
 /// The rows [`Prepared::ground_rows`] keeps.
 pub fn ground_rows(t: &[f64], pose_rows: &[usize], rate_hz: f64) -> Vec<usize> {

@@ -10,7 +10,7 @@
 
 use crate::actuator::{simulate_wheel, ActuatorParams};
 use crate::effects::{Effect, Model, Stage};
-use crate::ground::{simulate, Path};
+use crate::ground::{simulate, Path, Rows};
 use crate::replay::Prepared;
 use std::cell::RefCell;
 use std::rc::Rc;
@@ -377,7 +377,8 @@ impl<'a> Evaluator<'a> {
         v
     }
 
-    /// The predicted path of a model (origin start).
+    /// The predicted path of a model (origin start) at the pose rows: what a fit compares.
+    /// The last one is cached.
     pub fn path(&self, m: &Model) -> Rc<Path> {
         let uses_act = self.ground_uses_actuator();
         let mut k = key(m, Stage::Ground, uses_act);
@@ -387,6 +388,19 @@ impl<'a> Evaluator<'a> {
                 return Rc::clone(path);
             }
         }
+        let path = Rc::new(self.simulate(m, Rows::Poses));
+        *self.ground_cache.borrow_mut() = Some((k, Rc::clone(&path)));
+        path
+    }
+
+    /// The predicted path of a model at every row, with the steps between rows (for the
+    /// windows and the localisation; not cached).
+    pub fn path_per_row(&self, m: &Model) -> Path {
+        self.simulate(m, Rows::All)
+    }
+
+    fn simulate(&self, m: &Model, rows: Rows) -> Path {
+        let uses_act = self.ground_uses_actuator();
         let act = if uses_act {
             self.actuator_angles(m)
         } else {
@@ -408,9 +422,7 @@ impl<'a> Evaluator<'a> {
             Some(v) => v.iter().map(|a| a.as_deref()).collect(),
             None => angles,
         };
-        simulate(self.p, &angles, m, &mut path);
-        let path = Rc::new(path);
-        *self.ground_cache.borrow_mut() = Some((k, Rc::clone(&path)));
+        simulate(self.p, &angles, m, rows, &mut path);
         path
     }
 
@@ -468,9 +480,15 @@ impl<'a> Evaluator<'a> {
     fn ground_residuals(&self, path: &Path, fit: Fold, ev: &mut Eval) {
         let ps = &self.p.poses;
         let n = ps.len();
-        let px: Vec<f64> = ps.row.iter().map(|&r| path.x[r]).collect();
-        let py: Vec<f64> = ps.row.iter().map(|&r| path.y[r]).collect();
-        let pth: Vec<f64> = ps.row.iter().map(|&r| path.theta[r]).collect();
+        let (px, py, pth) = if path.per_row {
+            (
+                &ps.row.iter().map(|&r| path.x[r]).collect::<Vec<f64>>(),
+                &ps.row.iter().map(|&r| path.y[r]).collect::<Vec<f64>>(),
+                &ps.row.iter().map(|&r| path.theta[r]).collect::<Vec<f64>>(),
+            )
+        } else {
+            (&path.x, &path.y, &path.theta)
+        };
         let use_k = |k: usize| fit.contains(self.pose_block[k]);
         let wp = 1.0 / self.noise.pose_sigma_m.powi(2);
         let wt = 1.0 / self.noise.heading_sigma_rad.powi(2);

@@ -182,7 +182,7 @@ pub fn region_loss(ev: &Evaluator, model: &Model) -> Option<RegionSignature> {
     let p = ev.p;
     // The contact travel the model predicts (the final model: slip it found is not a
     // floor), against what the measured poses say.
-    let path = ev.path(model);
+    let path = ev.path_per_row(model);
     let ps = &p.poses;
     if ps.len() < 40 {
         return None;

@@ -79,7 +79,7 @@ pub struct Signals {
 pub fn signals(ev: &Evaluator) -> Signals {
     let p = ev.p;
     let n = p.rows();
-    let path = ev.path(&crate::effects::Model::default());
+    let path = ev.path_per_row(&crate::effects::Model::default());
     let mut speed = vec![0.0; n];
     let mut omega = vec![0.0; n];
     for k in 0..n.saturating_sub(1) {
