@@ -414,13 +414,11 @@ pub fn simulate(
                 }
             }
         }
-        if !per_row {
-            if pose_rows.get(next_pose) == Some(&k_next) {
-                out.x.push(pose.x);
-                out.y.push(pose.y);
-                out.theta.push(pose.theta);
-                next_pose += 1;
-            }
+        if !per_row && pose_rows.get(next_pose) == Some(&k_next) {
+            out.x.push(pose.x);
+            out.y.push(pose.y);
+            out.theta.push(pose.theta);
+            next_pose += 1;
         }
         // Rows k+1 ..= k_next: linear in time between the step's ends (one row when the
         // recording is not faster than the ground rate).
