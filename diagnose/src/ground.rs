@@ -172,13 +172,6 @@ impl KinCache {
     }
 }
 
-/// Integrates the model over the recording. `angles[i]` is wheel i's angle per row (from
-/// its encoder or from the actuator model); `None` for a wheel nobody measured or
-/// commanded (it is left out of the least squares).
-///
-/// Floor-fixed effects (cables across world x) need the robot's world pose: they take
-/// the measured pose, interpolated between samples, not the model's own dead-reckoned
-/// pose, whose drift is exactly what is being diagnosed.
 /// Which rows a path holds.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
 pub enum Rows {
@@ -188,6 +181,13 @@ pub enum Rows {
     All,
 }
 
+/// Integrates the model over the recording. `angles[i]` is wheel i's angle per row (from
+/// its encoder or from the actuator model); `None` for a wheel nobody measured or
+/// commanded (it is left out of the least squares).
+///
+/// Floor-fixed effects (cables across world x) need the robot's world pose: they take
+/// the measured pose, interpolated between samples, not the model's own dead-reckoned
+/// pose, whose drift is exactly what is being diagnosed.
 pub fn simulate(
     p: &Prepared,
     angles: &[Option<&[f64]>],
