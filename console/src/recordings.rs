@@ -33,10 +33,10 @@ pub fn load_recording_at(
     if is_bag(p) {
         return Ok(ros2bag::load_bag_recording(p, robot, &flags.options()?)?);
     }
-    let opts = formats::recording::ReadOptions {
-        max_row_rate_hz: max_rate_hz,
-    };
-    Ok(Recording::load_with(p, robot, &opts)?)
+    Ok(match max_rate_hz {
+        Some(rate) => formats::decimate::load(p, robot, rate)?,
+        None => Recording::load(p, robot)?,
+    })
 }
 
 /// Recording CSV files named by `p`: the file itself, `p/recording.csv`, or every

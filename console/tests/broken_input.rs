@@ -210,7 +210,8 @@ fn a_jump_in_time_no_run_holds_is_a_data_error() {
 }
 
 /// A gap a run can hold (2 s of rows lost) is reported as one interval with its count,
-/// not one entry per missing sample.
+/// not one entry per missing sample: counted at the file's own rate with `--max-rate 0`,
+/// and at the merged rate (about 100 rows/s, formats.md §2) by default.
 #[test]
 fn a_gap_is_reported_as_an_interval_with_its_count() {
     let dir = scratch("gap");
@@ -219,35 +220,38 @@ fn a_gap_is_reported_as_an_interval_with_its_count() {
     // Rows 2000..2400 lost: 400 samples at 200 rows/s.
     rows.drain(2000..2400);
     let f = write(&dir, "gap.csv", &h, &rows);
-    let o = wheelcal()
-        .args(["--json", "diagnose", "--robot"])
-        .arg(rec.join("robot.toml"))
-        .arg("--recording")
-        .arg(&f)
-        .output()
-        .unwrap();
-    let err = String::from_utf8_lossy(&o.stderr);
-    assert!(o.status.success(), "{err}");
-    let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
-    let glitch = v["recording_artefacts"]
-        .as_array()
-        .expect("recording_artefacts")
-        .iter()
-        .find(|a| a["id"] == "sample_glitch")
-        .unwrap_or_else(|| panic!("no sample_glitch in {}", v["recording_artefacts"]));
-    assert_eq!(glitch["parameters"]["missing_samples"], 400.0, "{glitch}");
-    let gaps = glitch["gaps"].as_array().expect("gaps");
-    assert_eq!(gaps.len(), 1, "{glitch}");
-    assert_eq!(gaps[0]["missing"].as_f64(), Some(400.0), "{glitch}");
-    // From the last row before (t = 9.995 s) to the first after (t = 12 s).
-    let (a, b) = (
-        gaps[0]["after_s"].as_f64().unwrap(),
-        gaps[0]["before_s"].as_f64().unwrap(),
-    );
-    assert!(
-        (a - 9.995).abs() < 1e-9 && (b - 12.0).abs() < 1e-9,
-        "{glitch}"
-    );
+    // (--max-rate, samples missing at the rows' rate, the last row before the gap)
+    for (max_rate, missing, after_s) in [("0", 400.0, 9.995), ("100", 200.0, 9.99)] {
+        let o = wheelcal()
+            .args(["--json", "diagnose", "--max-rate", max_rate, "--robot"])
+            .arg(rec.join("robot.toml"))
+            .arg("--recording")
+            .arg(&f)
+            .output()
+            .unwrap();
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(o.status.success(), "{err}");
+        let v: serde_json::Value = serde_json::from_slice(&o.stdout).expect("JSON");
+        let glitch = v["recording_artefacts"]
+            .as_array()
+            .expect("recording_artefacts")
+            .iter()
+            .find(|a| a["id"] == "sample_glitch")
+            .unwrap_or_else(|| panic!("no sample_glitch in {}", v["recording_artefacts"]));
+        assert_eq!(glitch["parameters"]["missing_samples"], missing, "{glitch}");
+        let gaps = glitch["gaps"].as_array().expect("gaps");
+        assert_eq!(gaps.len(), 1, "{glitch}");
+        assert_eq!(gaps[0]["missing"].as_f64(), Some(missing), "{glitch}");
+        // From the last row kept before to the first after (t = 12 s).
+        let (a, b) = (
+            gaps[0]["after_s"].as_f64().unwrap(),
+            gaps[0]["before_s"].as_f64().unwrap(),
+        );
+        assert!(
+            (a - after_s).abs() < 1e-9 && (b - 12.0).abs() < 1e-9,
+            "{glitch}"
+        );
+    }
 }
 
 /// Poses in millimetres (a 1 m square written as 1000): an RMSE of 1,105 m before.

@@ -9,7 +9,9 @@
 //! comes that long after the last kept pose; the last row is always kept. A recording at
 //! or below the rate (intervals varying by up to 25 %) keeps every row.
 
-use crate::recording::Recording;
+use crate::recording::{Cells, Decimation, Recording, RecordingError, RowSink};
+use calib_core::robot::Robot;
+use std::path::Path;
 
 /// Default most rows per second diagnosis works on (`wheelcal diagnose --max-rate`).
 pub const DEFAULT_MAX_ROW_RATE_HZ: f64 = 100.0;
@@ -18,102 +20,6 @@ pub const DEFAULT_MAX_ROW_RATE_HZ: f64 = 100.0;
 /// recording at the target rate whose intervals vary by up to 25 % keeps every row, and
 /// one at twice the rate keeps every other row.
 pub const KEEP_FRACTION: f64 = 0.75;
-
-/// What a decimating read did.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct Decimation {
-    /// Rows in the file.
-    pub rows_read: usize,
-    /// Rows kept.
-    pub rows_kept: usize,
-    /// The rate asked for (rows/s).
-    pub max_row_rate_hz: f64,
-}
-
-impl Decimation {
-    /// Whether rows were merged.
-    pub fn merged(&self) -> bool {
-        self.rows_kept < self.rows_read
-    }
-
-    /// One line for a report's notes.
-    pub fn note(&self) -> String {
-        format!(
-            "{} of {} rows kept (at most about {:.0} rows/s; commands averaged over the merged rows, counts and poses as sampled at the kept rows)",
-            self.rows_kept,
-            self.rows_read,
-            self.max_row_rate_hz / KEEP_FRACTION
-        )
-    }
-}
-
-/// One row's cells, as read (blank = `None`).
-#[derive(Debug, Clone, Default, PartialEq)]
-pub struct Cells {
-    /// Time (s).
-    pub t: f64,
-    /// Command per wheel of the robot (rad/s).
-    pub cmd: Vec<Option<f64>>,
-    /// Encoder count per wheel of the robot.
-    pub enc: Vec<Option<i64>>,
-    /// Measured pose.
-    pub pose: Option<(f64, f64, f64)>,
-    /// Leg angles (front, rear).
-    pub legs: [Option<f64>; 2],
-}
-
-impl Cells {
-    /// Row `k` of `rec`.
-    pub fn of(rec: &Recording, k: usize) -> Cells {
-        Cells {
-            t: rec.t[k],
-            cmd: rec
-                .wheels
-                .iter()
-                .map(|w| w.cmd.as_ref().and_then(|c| c[k]))
-                .collect(),
-            enc: rec
-                .wheels
-                .iter()
-                .map(|w| w.enc.as_ref().and_then(|e| e[k]))
-                .collect(),
-            pose: match (rec.x[k], rec.y[k], rec.theta[k]) {
-                (Some(x), Some(y), Some(th)) => Some((x, y, th)),
-                _ => None,
-            },
-            legs: [
-                rec.leg_front.as_ref().and_then(|l| l[k]),
-                rec.leg_rear.as_ref().and_then(|l| l[k]),
-            ],
-        }
-    }
-
-    /// Appends the row to the columns `rec` has.
-    pub fn push_to(&self, rec: &mut Recording) {
-        rec.t.push(self.t);
-        for (i, w) in rec.wheels.iter_mut().enumerate() {
-            if let Some(c) = &mut w.cmd {
-                c.push(self.cmd.get(i).copied().flatten());
-            }
-            if let Some(e) = &mut w.enc {
-                e.push(self.enc.get(i).copied().flatten());
-            }
-        }
-        let (x, y, th) = match self.pose {
-            Some((x, y, th)) => (Some(x), Some(y), Some(th)),
-            None => (None, None, None),
-        };
-        rec.x.push(x);
-        rec.y.push(y);
-        rec.theta.push(th);
-        if let Some(f) = &mut rec.leg_front {
-            f.push(self.legs[0]);
-        }
-        if let Some(r) = &mut rec.leg_rear {
-            r.push(self.legs[1]);
-        }
-    }
-}
 
 /// Merges rows as they come (so a file is never held at its full rate).
 #[derive(Debug, Clone)]
@@ -229,7 +135,7 @@ impl Decimator {
 
     /// Keeps the last row (the recording ends when the file does) and says what was done
     /// (also in `rec.merged` when rows were merged).
-    pub fn finish(mut self, rec: &mut Recording) -> Decimation {
+    pub fn close(&mut self, rec: &mut Recording) -> Decimation {
         if let Some(row) = self.pending.take() {
             self.keep(rec, row);
         }
@@ -243,6 +149,41 @@ impl Decimator {
         }
         info
     }
+}
+
+impl RowSink for Decimator {
+    fn push(&mut self, rec: &mut Recording, row: Cells) {
+        self.offer(rec, row);
+    }
+
+    fn finish(&mut self, rec: &mut Recording) {
+        self.close(rec);
+    }
+}
+
+/// Reads a recording ([`Recording::load`]) merging its rows to about `max_rate_hz` per
+/// second as they are read: the file is never held at its full rate.
+pub fn load(path: &Path, robot: &Robot, max_rate_hz: f64) -> Result<Recording, RecordingError> {
+    Recording::load_into(
+        path,
+        robot,
+        &mut Decimator::new(robot.wheels.len(), max_rate_hz),
+    )
+}
+
+/// [`load`] on CSV text (`path` only names it in messages).
+pub fn parse(
+    text: &str,
+    path: &Path,
+    robot: &Robot,
+    max_rate_hz: f64,
+) -> Result<Recording, RecordingError> {
+    Recording::parse_into(
+        text,
+        path,
+        robot,
+        &mut Decimator::new(robot.wheels.len(), max_rate_hz),
+    )
 }
 
 impl Recording {
@@ -277,7 +218,7 @@ impl Recording {
         for k in 0..self.len() {
             d.offer(&mut out, Cells::of(&self, k));
         }
-        let mut info = d.finish(&mut out);
+        let mut info = d.close(&mut out);
         if let Some(before) = self.merged {
             // Merged twice: counted from the file's rows.
             info.rows_read = before.rows_read;
@@ -410,10 +351,7 @@ mod tests {
         let path = std::path::Path::new("fast.csv");
         let read = Recording::parse(&text, path, &robot).unwrap();
         let (expected, info) = read.decimated(100.0);
-        let opts = crate::recording::ReadOptions {
-            max_row_rate_hz: Some(100.0),
-        };
-        let streamed = Recording::parse_with(&text, path, &robot, &opts).unwrap();
+        let streamed = parse(&text, path, &robot, 100.0).unwrap();
         assert_eq!(streamed, expected);
         assert_eq!(streamed.merged, Some(info));
         assert!(info.rows_kept * 3 < info.rows_read, "{info:?}");

@@ -6,8 +6,6 @@
 //! log export. Every error names the file, the line and the column, because people make
 //! these files with their own measuring setups.
 
-pub use crate::decimate::Decimation;
-use crate::decimate::{Cells, Decimator};
 use calib_core::robot::{Robot, RobotKind};
 use std::fmt;
 use std::io::Write;
@@ -43,7 +41,7 @@ pub struct Recording {
     pub leg_rear: Option<Vec<Option<f64>>>,
     /// Notes for the reader (ignored unknown columns).
     pub notes: Vec<String>,
-    /// Set when rows were merged ([`crate::decimate`]): the commands are then means over
+    /// Set when rows were merged (`crate::decimate`): the commands are then means over
     /// the intervals between rows, to be read as held, not as samples of a ramp.
     pub merged: Option<Decimation>,
 }
@@ -79,14 +77,6 @@ impl fmt::Display for RecordingError {
 }
 
 impl std::error::Error for RecordingError {}
-
-/// How a recording is read.
-#[derive(Debug, Clone, Copy, Default, PartialEq)]
-pub struct ReadOptions {
-    /// Merge rows to at most about this many per second while reading
-    /// ([`crate::decimate`]); `None` keeps every row.
-    pub max_row_rate_hz: Option<f64>,
-}
 
 /// A recording larger than this is refused before it is parsed (the read is capped by the
 /// bytes actually read, so a device that never ends fails at once).
@@ -212,15 +202,14 @@ impl Recording {
 
     /// Reads and checks a recording against the robot it was made with.
     pub fn load(path: &Path, robot: &Robot) -> Result<Self, RecordingError> {
-        Self::load_with(path, robot, &ReadOptions::default())
+        Self::load_into(path, robot, &mut AllRows)
     }
 
-    /// [`Recording::load`] with options: with a row rate, rows are merged as they are
-    /// read (the file is never held at its full rate) and what was merged is returned.
-    pub fn load_with(
+    /// [`Recording::load`], each row handed to `sink` (which may merge rows).
+    pub fn load_into(
         path: &Path,
         robot: &Robot,
-        opts: &ReadOptions,
+        sink: &mut dyn RowSink,
     ) -> Result<Self, RecordingError> {
         let text =
             crate::text_file::read_capped(path, MAX_RECORDING_BYTES, "recording").map_err(|e| {
@@ -231,20 +220,20 @@ impl Recording {
                     message: e.0,
                 }
             })?;
-        Self::parse_with(&text, path, robot, opts)
+        Self::parse_into(&text, path, robot, sink)
     }
 
     /// Parses CSV text; `path` is only used in messages.
     pub fn parse(text: &str, path: &Path, robot: &Robot) -> Result<Self, RecordingError> {
-        Self::parse_with(text, path, robot, &ReadOptions::default())
+        Self::parse_into(text, path, robot, &mut AllRows)
     }
 
-    /// [`Recording::parse`] with options (see [`Recording::load_with`]).
-    pub fn parse_with(
+    /// [`Recording::parse`], each row handed to `sink`.
+    pub fn parse_into(
         text: &str,
         path: &Path,
         robot: &Robot,
-        opts: &ReadOptions,
+        sink: &mut dyn RowSink,
     ) -> Result<Self, RecordingError> {
         let err = |line: Option<usize>, column: Option<(usize, String)>, message: String| {
             RecordingError {
@@ -375,10 +364,6 @@ impl Recording {
         let t_col = cols.iter().position(|c| *c == Col::T).unwrap_or(0);
         let mut lines = crate::text_file::LineCounter::new(text);
         let x_col = cols.iter().position(|c| *c == Col::X).unwrap_or(0);
-        let mut decimator = opts
-            .max_row_rate_hz
-            .filter(|r| r.is_finite() && *r > 0.0)
-            .map(|r| Decimator::new(robot.wheels.len(), r));
         let mut cmd_row: Vec<Option<f64>> = vec![None; robot.wheels.len()];
         let mut enc_row: Vec<Option<i64>> = vec![None; robot.wheels.len()];
         loop {
@@ -541,14 +526,9 @@ impl Recording {
                 },
                 legs,
             };
-            match &mut decimator {
-                Some(d) => d.offer(&mut rec, cells),
-                None => cells.push_to(&mut rec),
-            }
+            sink.push(&mut rec, cells);
         }
-        if let Some(d) = decimator {
-            d.finish(&mut rec);
-        }
+        sink.finish(&mut rec);
         if rec.is_empty() {
             return Err(err(
                 None,
@@ -705,6 +685,121 @@ fn short(v: f64) -> String {
     } else {
         format!("{v}")
     }
+}
+
+/// What merging fast rows did (`crate::decimate`).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Decimation {
+    /// Rows in the file.
+    pub rows_read: usize,
+    /// Rows kept.
+    pub rows_kept: usize,
+    /// The rate asked for (rows/s).
+    pub max_row_rate_hz: f64,
+}
+
+impl Decimation {
+    /// Whether rows were merged.
+    pub fn merged(&self) -> bool {
+        self.rows_kept < self.rows_read
+    }
+
+    /// One line for a report's notes.
+    pub fn note(&self) -> String {
+        format!(
+            "{} of {} rows kept (merged to about {:.0} rows/s, formats.md §2; commands averaged over the merged rows, counts and poses as sampled at the kept rows)",
+            self.rows_kept,
+            self.rows_read,
+            self.max_row_rate_hz
+        )
+    }
+}
+
+/// One row's cells, as read (blank = `None`): what a parser hands its [`RowSink`].
+#[derive(Debug, Clone, Default, PartialEq)]
+pub struct Cells {
+    /// Time (s).
+    pub t: f64,
+    /// Command per wheel of the robot (rad/s).
+    pub cmd: Vec<Option<f64>>,
+    /// Encoder count per wheel of the robot.
+    pub enc: Vec<Option<i64>>,
+    /// Measured pose.
+    pub pose: Option<(f64, f64, f64)>,
+    /// Leg angles (front, rear).
+    pub legs: [Option<f64>; 2],
+}
+
+impl Cells {
+    /// Row `k` of `rec`.
+    pub fn of(rec: &Recording, k: usize) -> Cells {
+        Cells {
+            t: rec.t[k],
+            cmd: rec
+                .wheels
+                .iter()
+                .map(|w| w.cmd.as_ref().and_then(|c| c[k]))
+                .collect(),
+            enc: rec
+                .wheels
+                .iter()
+                .map(|w| w.enc.as_ref().and_then(|e| e[k]))
+                .collect(),
+            pose: match (rec.x[k], rec.y[k], rec.theta[k]) {
+                (Some(x), Some(y), Some(th)) => Some((x, y, th)),
+                _ => None,
+            },
+            legs: [
+                rec.leg_front.as_ref().and_then(|l| l[k]),
+                rec.leg_rear.as_ref().and_then(|l| l[k]),
+            ],
+        }
+    }
+
+    /// Appends the row to the columns `rec` has.
+    pub fn push_to(&self, rec: &mut Recording) {
+        rec.t.push(self.t);
+        for (i, w) in rec.wheels.iter_mut().enumerate() {
+            if let Some(c) = &mut w.cmd {
+                c.push(self.cmd.get(i).copied().flatten());
+            }
+            if let Some(e) = &mut w.enc {
+                e.push(self.enc.get(i).copied().flatten());
+            }
+        }
+        let (x, y, th) = match self.pose {
+            Some((x, y, th)) => (Some(x), Some(y), Some(th)),
+            None => (None, None, None),
+        };
+        rec.x.push(x);
+        rec.y.push(y);
+        rec.theta.push(th);
+        if let Some(f) = &mut rec.leg_front {
+            f.push(self.legs[0]);
+        }
+        if let Some(r) = &mut rec.leg_rear {
+            r.push(self.legs[1]);
+        }
+    }
+}
+
+/// Where a parser puts each row it read.
+pub trait RowSink {
+    /// Appends (or merges) one row.
+    fn push(&mut self, rec: &mut Recording, row: Cells);
+    /// Called once after the last row.
+    fn finish(&mut self, rec: &mut Recording);
+}
+
+/// Every row as read.
+pub struct AllRows;
+
+impl RowSink for AllRows {
+    fn push(&mut self, rec: &mut Recording, row: Cells) {
+        row.push_to(rec);
+    }
+
+    fn finish(&mut self, _: &mut Recording) {}
 }
 
 /// One row to append with [`Recording::push_row`].
