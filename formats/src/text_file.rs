@@ -69,7 +69,8 @@ pub fn read_capped(path: &Path, max_bytes: u64, what: &str) -> Result<String, Re
     let file =
         std::fs::File::open(path).map_err(|e| ReadError(format!("cannot read {what}: {e}")))?;
     let mut limited = file.take(max_bytes + 1);
-    let mut buf: Vec<u8> = Vec::new();
+    // The file's own size (a device says 0): no doubling slack held while it is parsed.
+    let mut buf: Vec<u8> = Vec::with_capacity(meta.len().min(max_bytes) as usize + 1);
     let mut chunk = vec![0u8; 64 * 1024];
     loop {
         let n = match limited.read(&mut chunk) {
