@@ -1258,7 +1258,8 @@ fn dead_reckoning_rmse_with(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<
 struct Problem<'a> {
     robot: &'a Robot,
     specs: &'a [ParamSpec],
-    series: &'a [Series],
+    /// The recordings, borrowed (a fold's problem holds some of them).
+    series: Vec<&'a Series>,
     /// Prior rows: (weights over the geometry parameters, target, sigma).
     priors: Vec<(Vec<f64>, f64, f64)>,
     /// Prior rows are multiplied by this: sqrt(residual variance x autocorrelation
@@ -1290,7 +1291,13 @@ impl<'a> Problem<'a> {
         (get(GeomKind::MarkerX), get(GeomKind::MarkerY))
     }
 
-    fn new(robot: &'a Robot, specs: &'a [ParamSpec], series: &'a [Series]) -> Self {
+    fn new(
+        robot: &'a Robot,
+        specs: &'a [ParamSpec],
+        series: impl IntoIterator<Item = &'a Series>,
+    ) -> Self {
+        let series: Vec<&'a Series> = series.into_iter().collect();
+        let n = series.len();
         // A weak prior at nominal (one plausible half-range) keeps directions the data
         // do not constrain where they are; it is negligible against thousands of
         // millimetre residuals wherever the data speak.
@@ -1315,7 +1322,7 @@ impl<'a> Problem<'a> {
             huber: None,
             dr_lever: DR_HEADING_LEVER_M,
             differences_at_solution: true,
-            cache: RefCell::new((vec![f64::NAN], vec![Path::default(); series.len()])),
+            cache: RefCell::new((vec![f64::NAN], vec![Path::default(); n])),
         }
     }
 
@@ -1331,7 +1338,8 @@ impl<'a> Problem<'a> {
             return false;
         };
         let stepper = Stepper::new(&r, &kin, &law);
-        let mut jobs: Vec<(&Series, &mut Path)> = self.series.iter().zip(c.1.iter_mut()).collect();
+        let mut jobs: Vec<(&Series, &mut Path)> =
+            self.series.iter().copied().zip(c.1.iter_mut()).collect();
         let ok = par_each(&mut jobs, |(s, p)| s.path_by(&r, &stepper, p));
         if ok.iter().all(|v| *v) {
             c.0 = geom.to_vec();
@@ -1369,7 +1377,7 @@ impl<'a> Problem<'a> {
             return false;
         };
         let mut jobs: Vec<(&Series, Option<sens::Sensitivity>)> =
-            self.series.iter().map(|s| (s, None)).collect();
+            self.series.iter().map(|s| (*s, None)).collect();
         par_each(&mut jobs, |(s, out)| {
             *out = s.sensitivity(&stepper, &slopes, s.dr_rows());
         });
@@ -1423,7 +1431,7 @@ impl<'a> Problem<'a> {
         } else {
             // Each recording's on its own (in parallel), then in order.
             let lever = self.dr_lever;
-            let mut jobs: Vec<(&Series, &Path)> = self.series.iter().zip(&c.1).collect();
+            let mut jobs: Vec<(&Series, &Path)> = self.series.iter().copied().zip(&c.1).collect();
             let parts = par_jobs(
                 &mut jobs,
                 |j| 20 * j.0.samples.len(),
@@ -1706,9 +1714,14 @@ fn solve_iter(
     }
 }
 
+/// The recordings borrowed one by one.
+fn refs(series: &[Series]) -> Vec<&Series> {
+    series.iter().collect()
+}
+
 /// Nuisance start: start pose at the first measured pose, clocks nominal (none when
 /// dead-reckoning: nothing per recording is fitted).
-fn nuisance_start(series: &[Series], free_start: bool) -> Vec<f64> {
+fn nuisance_start(series: &[&Series], free_start: bool) -> Vec<f64> {
     if !free_start {
         return vec![];
     }
@@ -1827,9 +1840,8 @@ pub struct Heldout {
 
 /// Fit RMSE of `s` with the geometry fixed, only its start pose and clocks fitted.
 fn aligned_rmse(robot: &Robot, specs: &[ParamSpec], geom: &[f64], s: &Series) -> f64 {
-    let one = [s.clone()];
-    let p = Problem::new(robot, specs, &one);
-    let r = solve(&p, geom, &nuisance_start(&one, true), false);
+    let p = Problem::new(robot, specs, [s]);
+    let r = solve(&p, geom, &nuisance_start(&[s], true), false);
     position_rmse(&p.residuals(geom, &r.nuis, false))
 }
 
@@ -2489,9 +2501,9 @@ fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
 /// One joint fit of `specs` from nominal (nuisance first, then geometry with the prior
 /// weighed by the data): the fit, its residual variance x autocorrelation inflation, and
 /// its covariance (when `cov`, else empty: the fit's Jacobian is then the analytic one).
-fn fit_specs(robot: &Robot, specs: &[ParamSpec], series: &[Series], cfg: Cfg, cov: bool) -> Fit {
+fn fit_specs(robot: &Robot, specs: &[ParamSpec], series: &[&Series], cfg: Cfg, cov: bool) -> Fit {
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
-    let mut p = Problem::new(robot, specs, series);
+    let mut p = Problem::new(robot, specs, series.iter().copied());
     cfg.apply(&mut p);
     p.differences_at_solution = false;
     let before = solve(&p, &nominal, &nuisance_start(series, cfg.free_start), false);
@@ -2577,13 +2589,13 @@ fn choose_specs(
         var: var_full,
         runs: r1,
         ..
-    } = fit_specs(robot, &full, series, cfg, false);
+    } = fit_specs(robot, &full, &refs(series), cfg, false);
     let Fit {
         f: f_roller,
         cov: cov_roller,
         runs: r2,
         ..
-    } = fit_specs(robot, &roller, series, cfg, true);
+    } = fit_specs(robot, &roller, &refs(series), cfg, true);
     *runs += r1 + r2;
     let gi = roller
         .iter()
@@ -2739,9 +2751,9 @@ fn heldout_errors(
     // Largest models first: the threads finish together.
     jobs.sort_by_key(|&(m, _)| std::cmp::Reverse(models[m].len()));
     let done = pool_map(&jobs, |&(m, fold)| {
-        let rest: Vec<Series> = (0..n)
+        let rest: Vec<&Series> = (0..n)
             .filter(|&j| j % k != fold)
-            .map(|j| series[j].clone())
+            .map(|j| &series[j])
             .collect();
         let Fit { f, runs: r, .. } = fit_specs(robot, models[m], &rest, cfg, false);
         let errors: Vec<f64> = (0..n)
@@ -2801,7 +2813,7 @@ fn climb_ladder(
         if !(e.is_finite() && *e <= (1.0 + LADDER_TOLERANCE) * best) {
             continue;
         }
-        let fit = fit_specs(robot, specs, series, cfg, false);
+        let fit = fit_specs(robot, specs, &refs(series), cfg, false);
         *runs += fit.runs;
         let f = &fit.f;
         let edge: Vec<String> = specs
@@ -2918,7 +2930,7 @@ fn choose_turn_law(
         ));
         return base;
     }
-    let fit_law = fit_specs(robot, &law, series, cfg, true);
+    let fit_law = fit_specs(robot, &law, &refs(series), cfg, true);
     *runs += fit_law.runs;
     let (f_law, cov_law) = (&fit_law.f, &fit_law.cov);
     let k = series.len().min(LADDER_FOLDS);
@@ -3031,14 +3043,14 @@ pub fn calibrate(
     let mut events: Vec<Event> = series.iter().flat_map(|s| s.glitches.clone()).collect();
     if !cfg.free_start {
         let specs0 = param_specs(robot, opts.marker_offset);
-        let f0 = fit_specs(robot, &specs0, &series, cfg, false).f;
+        let f0 = fit_specs(robot, &specs0, &refs(&series), cfg, false).f;
         let r0 = robot_with(robot, &specs0, &f0.geom);
         for s in series.iter_mut() {
             events.extend(detect_events(&r0, s));
         }
         if opts.robust {
             // Huber's scale: HUBER_K robust sigmas (MAD) of the squared-loss residuals.
-            let f1 = fit_specs(robot, &specs0, &series, cfg, false).f;
+            let f1 = fit_specs(robot, &specs0, &refs(&series), cfg, false).f;
             let mut p1 = Problem::new(robot, &specs0, &series);
             cfg.apply(&mut p1);
             let r = p1.residuals(&f1.geom, &f1.nuis, false);
@@ -3066,7 +3078,7 @@ pub fn calibrate(
     let before = solve(
         &p,
         &nominal,
-        &nuisance_start(&series, cfg.free_start),
+        &nuisance_start(&refs(&series), cfg.free_start),
         false,
     );
     let before_res = p.residuals(&nominal, &before.nuis, false);
@@ -3384,8 +3396,8 @@ pub fn calibrate(
                 );
             }
             let keep: Vec<usize> = (0..series.len()).filter(|&j| &groups[j] != gname).collect();
-            let rest: Vec<Series> = keep.iter().map(|&j| series[j].clone()).collect();
-            let mut q = Problem::new(robot, &specs, &rest);
+            let rest: Vec<&Series> = keep.iter().map(|&j| &series[j]).collect();
+            let mut q = Problem::new(robot, &specs, rest);
             cfg.apply(&mut q);
             q.priors = p.priors.clone();
             q.prior_scale = p.prior_scale;
