@@ -1152,12 +1152,92 @@ pub(crate) fn residuals_into(
             (l(&path.x), l(&path.y), l(&path.th))
         };
         // The marker sits at `marker` in the body frame: it moves on a circle in a turn.
-        let (cm, sm) = ((nu.theta0_rad + th).cos(), (nu.theta0_rad + th).sin());
-        let wx = nu.x0_m + c * x - sn * y + cm * marker.0 - sm * marker.1;
-        let wy = nu.y0_m + sn * x + c * y + sm * marker.0 + cm * marker.1;
+        let (mut wx, mut wy) = (nu.x0_m + c * x - sn * y, nu.y0_m + sn * x + c * y);
+        if marker != (0.0, 0.0) {
+            let (sm, cm) = (nu.theta0_rad + th).sin_cos();
+            wx += cm * marker.0 - sm * marker.1;
+            wy += sm * marker.0 + cm * marker.1;
+        }
         out.push((wx - s.px[j]) / RES_UNIT_M);
         out.push((wy - s.py[j]) / RES_UNIT_M);
         out.push((nu.theta0_rad + th - s.pth[j]) * HEADING_LEVER_M / RES_UNIT_M);
+    }
+}
+
+/// The Jacobian of [`residuals_into`] with respect to the recording's nuisance (x0, y0,
+/// theta0, time offset, clock ratio: columns `col0..col0 + NUIS`) into `jac` from row
+/// `row0`. The path is interpolated linearly between rows, so its slope in time is its
+/// segment's (none before the first row or after the last).
+fn nuisance_jacobian_into(
+    s: &Series,
+    path: &Path,
+    nu: &Nuisance,
+    marker: (f64, f64),
+    jac: &mut DMatrix<f64>,
+    row0: usize,
+    col0: usize,
+) {
+    let t0 = s.t[0];
+    let (c, sn) = (nu.theta0_rad.cos(), nu.theta0_rad.sin());
+    let n = s.t.len();
+    let u = 1.0 / RES_UNIT_M;
+    let lever = HEADING_LEVER_M * u;
+    let mut k = 0usize;
+    for j in 0..s.pose_row.len() {
+        let tj = s.t[s.pose_row[j]];
+        let tau = t0 + (tj - t0 - nu.time_offset_s) / nu.clock_ratio;
+        while k + 2 < n && s.t[k + 1] <= tau {
+            k += 1;
+        }
+        while k > 0 && s.t[k] > tau {
+            k -= 1;
+        }
+        // The path at tau and its slope in tau.
+        let ((x, y, th), (vx, vy, vth)) = if n < 2 || tau <= s.t[0] {
+            ((path.x[0], path.y[0], path.th[0]), (0.0, 0.0, 0.0))
+        } else if tau >= s.t[n - 1] {
+            (
+                (path.x[n - 1], path.y[n - 1], path.th[n - 1]),
+                (0.0, 0.0, 0.0),
+            )
+        } else {
+            let dt = s.t[k + 1] - s.t[k];
+            let f = (tau - s.t[k]) / dt;
+            let l = |v: &[f64]| v[k] + (v[k + 1] - v[k]) * f;
+            let d = |v: &[f64]| (v[k + 1] - v[k]) / dt;
+            (
+                (l(&path.x), l(&path.y), l(&path.th)),
+                (d(&path.x), d(&path.y), d(&path.th)),
+            )
+        };
+        // d(wx, wy)/d theta_total of the marker's offset (zero without one).
+        let (mx, my) = if marker != (0.0, 0.0) {
+            let (sm, cm) = (nu.theta0_rad + th).sin_cos();
+            (
+                -sm * marker.0 - cm * marker.1,
+                cm * marker.0 - sm * marker.1,
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        // d tau / d time offset, d tau / d clock ratio.
+        let dtau = [
+            -1.0 / nu.clock_ratio,
+            -(tj - t0 - nu.time_offset_s) / (nu.clock_ratio * nu.clock_ratio),
+        ];
+        let wx_tau = c * vx - sn * vy + mx * vth;
+        let wy_tau = sn * vx + c * vy + my * vth;
+        let row = row0 + 3 * j;
+        jac[(row, col0)] = u;
+        jac[(row + 1, col0 + 1)] = u;
+        jac[(row, col0 + 2)] = (-sn * x - c * y + mx) * u;
+        jac[(row + 1, col0 + 2)] = (c * x - sn * y + my) * u;
+        jac[(row + 2, col0 + 2)] = lever;
+        for (q, dq) in dtau.iter().enumerate() {
+            jac[(row, col0 + 3 + q)] = wx_tau * dq * u;
+            jac[(row + 1, col0 + 3 + q)] = wy_tau * dq * u;
+            jac[(row + 2, col0 + 3 + q)] = vth * dq * lever;
+        }
     }
 }
 
@@ -1414,6 +1494,47 @@ impl<'a> Problem<'a> {
         true
     }
 
+    /// The analytic Jacobian of the data residuals with respect to every recording's
+    /// nuisance at the geometry `geom` (fixed), through Huber's loss when robust (`r`:
+    /// the residuals as the fit sees them). False when the start poses are not fitted or
+    /// the geometry is singular.
+    fn nuisance_jacobian(
+        &self,
+        geom: &[f64],
+        nuis: &[f64],
+        r: &[f64],
+        jac: &mut DMatrix<f64>,
+    ) -> bool {
+        if !self.free_start || !self.paths(geom) {
+            return false;
+        }
+        let m = self.data_len();
+        let np = nuis.len();
+        if jac.nrows() != m || jac.ncols() != np {
+            *jac = DMatrix::zeros(m, np);
+        }
+        jac.fill(0.0);
+        let c = self.cache.borrow();
+        let marker = self.marker(geom);
+        let mut row = 0;
+        for (i, s) in self.series.iter().enumerate() {
+            let nu = Nuisance::from(&nuis[i * NUIS..(i + 1) * NUIS]);
+            nuisance_jacobian_into(s, &c.1[i], &nu, marker, jac, row, i * NUIS);
+            row += 3 * s.pose_samples();
+        }
+        if let Some(h) = self.huber {
+            for (i, v) in r[..m].iter().enumerate() {
+                if v.abs() > h {
+                    let k = h / v.abs();
+                    for a in 0..np {
+                        jac[(i, a)] *= k;
+                    }
+                }
+            }
+        }
+        true
+    }
+
     /// Data residuals of every recording, then prior rows.
     fn residuals(&self, geom: &[f64], nuis: &[f64], with_prior: bool) -> Vec<f64> {
         let mut out = Vec::new();
@@ -1481,12 +1602,6 @@ fn par_each<'s, J: Send, R: Send>(
     f: impl Fn(&mut (&'s Series, J)) -> R + Sync,
 ) -> Vec<R> {
     par_jobs(jobs, |j| j.0.t.len(), f)
-}
-
-/// [`par_each`] on the recordings `series`, read only.
-fn par_map<R: Send>(series: &[&Series], f: impl Fn(&Series) -> R + Sync) -> Vec<R> {
-    let mut jobs: Vec<(&Series, ())> = series.iter().map(|s| (*s, ())).collect();
-    par_each(&mut jobs, |j| f(j.0))
 }
 
 thread_local! {
@@ -1683,8 +1798,21 @@ fn solve_iter(
             3
         }
     }
+    /// The start poses and clocks alone (the geometry given): their analytic Jacobian.
+    struct Nuisances<'a, 'b>(&'b Problem<'a>, &'b [f64]);
+    impl crate::fit::Jacobian for Nuisances<'_, '_> {
+        fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
+            self.0.nuisance_jacobian(self.1, x, r, jac)
+        }
+        fn runs(&self) -> usize {
+            // One pass over the pose samples, the paths as they are: one model run.
+            1
+        }
+    }
     let mut jac_fn: Box<dyn crate::fit::Jacobian> = if fit_geom && !p.free_start {
         Box::new(Analytic(p, g))
+    } else if !fit_geom && p.free_start {
+        Box::new(Nuisances(p, geom0))
     } else {
         Box::new(crate::fit::Differences)
     };
@@ -1840,7 +1968,9 @@ pub struct Heldout {
 
 /// Fit RMSE of `s` with the geometry fixed, only its start pose and clocks fitted.
 fn aligned_rmse(robot: &Robot, specs: &[ParamSpec], geom: &[f64], s: &Series) -> f64 {
-    let p = Problem::new(robot, specs, [s]);
+    let mut p = Problem::new(robot, specs, [s]);
+    // Only the residuals are read: the analytic Jacobian at the solution too.
+    p.differences_at_solution = false;
     let r = solve(&p, geom, &nuisance_start(&[s], true), false);
     position_rmse(&p.residuals(geom, &r.nuis, false))
 }
@@ -3246,9 +3376,9 @@ pub fn calibrate(
         }
     }
 
-    // Per recording: its dead reckoning and aligned errors (independent: in parallel).
-    let refs: Vec<&Series> = series.iter().collect();
-    let replays = par_map(&refs, |s| {
+    // Per recording: its dead reckoning and aligned errors (independent: in parallel,
+    // each thread taking the next recording, since the aligned fits' lengths vary).
+    let replays = pool_map(&series, |s| {
         let (ab, aa) = if cfg.free_start {
             (f64::NAN, f64::NAN)
         } else {
@@ -3423,17 +3553,16 @@ pub fn calibrate(
                 });
             }
         }
-        let mut jobs: Vec<_> = stepped
-            .into_iter()
-            .map(|(i, gname, geom)| (&series[i], (i, gname, geom)))
-            .collect();
-        leave_one_out.extend(par_each(&mut jobs, |(s, (i, gname, geom))| Heldout {
-            name: s.name.clone(),
-            group: Some((*gname).clone()),
-            rmse_before_m: per_recording[*i].dead_reckoning_before_m,
-            rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, geom, s),
-            aligned_before_m: per_recording[*i].aligned_before_m,
-            aligned_after_m: aligned_rmse(robot, &specs, geom, s),
+        leave_one_out.extend(pool_map(&stepped, |(i, gname, geom)| {
+            let s = &series[*i];
+            Heldout {
+                name: s.name.clone(),
+                group: Some((*gname).clone()),
+                rmse_before_m: per_recording[*i].dead_reckoning_before_m,
+                rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, geom, s),
+                aligned_before_m: per_recording[*i].aligned_before_m,
+                aligned_after_m: aligned_rmse(robot, &specs, geom, s),
+            }
         }));
     }
 
