@@ -1155,8 +1155,9 @@ pub(crate) fn residuals_into(
         let (mut wx, mut wy) = (nu.x0_m + c * x - sn * y, nu.y0_m + sn * x + c * y);
         if marker != (0.0, 0.0) {
             let (sm, cm) = (nu.theta0_rad + th).sin_cos();
-            wx += cm * marker.0 - sm * marker.1;
-            wy += sm * marker.0 + cm * marker.1;
+            // Term by term, as the whole sum rounds.
+            wx = wx + cm * marker.0 - sm * marker.1;
+            wy = wy + sm * marker.0 + cm * marker.1;
         }
         out.push((wx - s.px[j]) / RES_UNIT_M);
         out.push((wy - s.py[j]) / RES_UNIT_M);
@@ -1252,23 +1253,35 @@ pub(crate) fn dr_residuals_into(
     out: &mut Vec<f64>,
 ) {
     let mut seg = 0usize;
+    // The segment whose anchor quantities are set: the anchor's path row, the rotation
+    // onto the measured heading there (angle, cos, sin) and the body's position.
+    let mut set = usize::MAX;
+    let (mut ka, mut dth, mut c, mut sn, mut bx, mut by) = (0, 0.0, 1.0, 0.0, 0.0, 0.0);
     for &j in &s.samples {
         while seg + 1 < s.anchors.len() && s.anchors[seg + 1] <= j {
             seg += 1;
         }
-        let a = s.anchors[seg];
-        let (ka, kj) = (s.pose_row[a], s.pose_row[j]);
-        let dth = s.pth[a] - path.th[ka];
-        let (c, sn) = (dth.cos(), dth.sin());
-        // Body position at the anchor from the measured marker position.
-        let (ca, sa) = (s.pth[a].cos(), s.pth[a].sin());
-        let bx = s.px[a] - (ca * marker.0 - sa * marker.1);
-        let by = s.py[a] - (sa * marker.0 + ca * marker.1);
+        if set != seg {
+            set = seg;
+            let a = s.anchors[seg];
+            ka = s.pose_row[a];
+            dth = s.pth[a] - path.th[ka];
+            (c, sn) = (dth.cos(), dth.sin());
+            // Body position at the anchor from the measured marker position.
+            let (ca, sa) = (s.pth[a].cos(), s.pth[a].sin());
+            bx = s.px[a] - (ca * marker.0 - sa * marker.1);
+            by = s.py[a] - (sa * marker.0 + ca * marker.1);
+        }
+        let kj = s.pose_row[j];
         let (dx, dy) = (path.x[kj] - path.x[ka], path.y[kj] - path.y[ka]);
         let th = path.th[kj] + dth;
-        let (cm, sm) = (th.cos(), th.sin());
-        let wx = bx + c * dx - sn * dy + cm * marker.0 - sm * marker.1;
-        let wy = by + sn * dx + c * dy + sm * marker.0 + cm * marker.1;
+        let (mut wx, mut wy) = (bx + c * dx - sn * dy, by + sn * dx + c * dy);
+        if marker != (0.0, 0.0) {
+            let (cm, sm) = (th.cos(), th.sin());
+            // Term by term, as the whole sum rounds.
+            wx = wx + cm * marker.0 - sm * marker.1;
+            wy = wy + sm * marker.0 + cm * marker.1;
+        }
         out.push((wx - s.px[j]) / RES_UNIT_M);
         out.push((wy - s.py[j]) / RES_UNIT_M);
         out.push((th - s.pth[j]) * lever / RES_UNIT_M);

@@ -361,23 +361,38 @@ impl Series {
         let at = |k: usize| sens.need.binary_search(&k).expect("row kept");
         let mut seg = 0usize;
         let u = 1.0 / RES_UNIT_M;
+        // The marker's terms need the heading's cosine and sine at each sample.
+        let turns = marker != (0.0, 0.0) || marker_params != (None, None);
+        // The segment whose anchor quantities are set: its kept row, the rotation onto the
+        // measured heading there (angle, cos, sin) and the measured heading's cos and sin.
+        let mut set = usize::MAX;
+        let (mut ia, mut dth, mut c, mut sn, mut ca, mut sa) = (0, 0.0, 1.0, 0.0, 1.0, 0.0);
         for (n, &j) in self.samples.iter().enumerate() {
             while seg + 1 < self.anchors.len() && self.anchors[seg + 1] <= j {
                 seg += 1;
             }
-            let a = self.anchors[seg];
-            let (ia, ij) = (at(self.pose_row[a]), at(self.pose_row[j]));
+            if set != seg {
+                set = seg;
+                let a = self.anchors[seg];
+                ia = at(self.pose_row[a]);
+                dth = self.pth[a] - sens.values[ia][2];
+                (c, sn) = (dth.cos(), dth.sin());
+                (ca, sa) = (self.pth[a].cos(), self.pth[a].sin());
+            }
+            let ij = at(self.pose_row[j]);
             let (va, vj) = (sens.values[ia], sens.values[ij]);
-            let dth = self.pth[a] - va[2];
-            let (c, sn) = (dth.cos(), dth.sin());
             let (dx, dy) = (vj[0] - va[0], vj[1] - va[1]);
             let th = vj[2] + dth;
-            let (cm, sm) = (th.cos(), th.sin());
+            let (cm, sm) = if turns {
+                (th.cos(), th.sin())
+            } else {
+                (0.0, 0.0)
+            };
             let row = row0 + 3 * n;
             for (q, &col) in path_params.iter().enumerate() {
-                let (sa, sj) = (sens.slopes[ia * p + q], sens.slopes[ij * p + q]);
-                let d_dth = -sa[2];
-                let (d_dx, d_dy) = (sj[0] - sa[0], sj[1] - sa[1]);
+                let (si, sj) = (sens.slopes[ia * p + q], sens.slopes[ij * p + q]);
+                let d_dth = -si[2];
+                let (d_dx, d_dy) = (sj[0] - si[0], sj[1] - si[1]);
                 let d_th = sj[2] + d_dth;
                 let wx = (-sn * dx - c * dy) * d_dth + c * d_dx - sn * d_dy
                     + (-sm * marker.0 - cm * marker.1) * d_th;
@@ -389,7 +404,6 @@ impl Series {
                 jac[(row + 1, col)] = wy * u;
                 jac[(row + 2, col)] = d_th * lever * u;
             }
-            let (ca, sa) = (self.pth[a].cos(), self.pth[a].sin());
             if let Some(col) = marker_params.0 {
                 jac[(row, col)] = (cm - ca) * u;
                 jac[(row + 1, col)] = (sm - sa) * u;
