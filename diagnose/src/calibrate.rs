@@ -1810,6 +1810,9 @@ fn solve_iter(
             // One pass over the rows carrying the sensitivities: about three model runs.
             3
         }
+        fn column_dots(&self) -> bool {
+            true
+        }
     }
     /// The start poses and clocks alone (the geometry given): their analytic Jacobian.
     struct Nuisances<'a, 'b>(&'b Problem<'a>, &'b [f64]);
@@ -1820,6 +1823,9 @@ fn solve_iter(
         fn runs(&self) -> usize {
             // One pass over the pose samples, the paths as they are: one model run.
             1
+        }
+        fn column_dots(&self) -> bool {
+            true
         }
     }
     let mut jac_fn: Box<dyn crate::fit::Jacobian> = if fit_geom && !p.free_start {
