@@ -1242,12 +1242,32 @@ fn nuisance_jacobian_into(
     }
 }
 
+/// A path's (x, y, theta) at a row.
+pub(crate) trait PathAt {
+    fn at(&self, row: usize) -> [f64; 3];
+}
+
+impl PathAt for &Path {
+    #[inline]
+    fn at(&self, k: usize) -> [f64; 3] {
+        [self.x[k], self.y[k], self.th[k]]
+    }
+}
+
+impl PathAt for &sens::Sensitivity {
+    /// At a kept row only.
+    #[inline]
+    fn at(&self, k: usize) -> [f64; 3] {
+        self.values[self.need.binary_search(&k).expect("row kept")]
+    }
+}
+
 /// Dead-reckoning residuals (ex, ey, lever * eth, in RES_UNIT_M) of one recording at its
 /// distance samples: the path integrated from the measured pose at each anchor (the first
 /// pose sample, and the end of each event), no start pose or clocks fitted.
 pub(crate) fn dr_residuals_into(
     s: &Series,
-    path: &Path,
+    path: impl PathAt,
     marker: (f64, f64),
     lever: f64,
     out: &mut Vec<f64>,
@@ -1256,7 +1276,7 @@ pub(crate) fn dr_residuals_into(
     // The segment whose anchor quantities are set: the anchor's path row, the rotation
     // onto the measured heading there (angle, cos, sin) and the body's position.
     let mut set = usize::MAX;
-    let (mut ka, mut dth, mut c, mut sn, mut bx, mut by) = (0, 0.0, 1.0, 0.0, 0.0, 0.0);
+    let (mut pa, mut dth, mut c, mut sn, mut bx, mut by) = ([0.0; 3], 0.0, 1.0, 0.0, 0.0, 0.0);
     for &j in &s.samples {
         while seg + 1 < s.anchors.len() && s.anchors[seg + 1] <= j {
             seg += 1;
@@ -1264,17 +1284,17 @@ pub(crate) fn dr_residuals_into(
         if set != seg {
             set = seg;
             let a = s.anchors[seg];
-            ka = s.pose_row[a];
-            dth = s.pth[a] - path.th[ka];
+            pa = path.at(s.pose_row[a]);
+            dth = s.pth[a] - pa[2];
             (c, sn) = (dth.cos(), dth.sin());
             // Body position at the anchor from the measured marker position.
             let (ca, sa) = (s.pth[a].cos(), s.pth[a].sin());
             bx = s.px[a] - (ca * marker.0 - sa * marker.1);
             by = s.py[a] - (sa * marker.0 + ca * marker.1);
         }
-        let kj = s.pose_row[j];
-        let (dx, dy) = (path.x[kj] - path.x[ka], path.y[kj] - path.y[ka]);
-        let th = path.th[kj] + dth;
+        let pj = path.at(s.pose_row[j]);
+        let (dx, dy) = (pj[0] - pa[0], pj[1] - pa[1]);
+        let th = pj[2] + dth;
         let (mut wx, mut wy) = (bx + c * dx - sn * dy, by + sn * dx + c * dy);
         if marker != (0.0, 0.0) {
             let (cm, sm) = (th.cos(), th.sin());
@@ -1359,6 +1379,13 @@ struct Problem<'a> {
     /// inflation) once known, so the prior weighs against what the data really tell.
     prior_scale: f64,
     cache: RefCell<(Vec<f64>, Vec<Path>)>,
+    /// The geometry and its paths at the dead-reckoning rows with their sensitivities
+    /// ([`Problem::sensitivities`]).
+    sens: RefCell<(Vec<f64>, Vec<sens::Sensitivity>)>,
+    /// Residuals are evaluated with the sensitivities (dead reckoning only): set while a
+    /// fit with the analytic Jacobian runs, whose next Jacobian is most likely at the point
+    /// just evaluated (one pass over the rows then serves both).
+    speculate: std::cell::Cell<bool>,
     /// Bound the geometry to the plausible ranges (else 10 times wider).
     plausible_bounds: bool,
     /// Fit each recording's start pose and clocks (else dead-reckon from the anchors).
@@ -1416,6 +1443,8 @@ impl<'a> Problem<'a> {
             dr_lever: DR_HEADING_LEVER_M,
             differences_at_solution: true,
             cache: RefCell::new((vec![f64::NAN], vec![Path::default(); n])),
+            sens: RefCell::new((vec![f64::NAN], Vec::new())),
+            speculate: std::cell::Cell::new(false),
         }
     }
 
@@ -1448,11 +1477,52 @@ impl<'a> Problem<'a> {
     /// the residuals at `geom` as the fit sees them). False when it has none (fitted start
     /// poses, a wheeled-legged robot, a singular geometry).
     fn jacobian(&self, geom: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
-        if self.free_start {
+        if !self.sensitivities(geom) {
             return false;
         }
         let g = self.specs.len();
         let m = self.data_len();
+        let cached = self.sens.borrow();
+        let cols = sens::split_params(self.specs);
+        if jac.nrows() != m + self.priors.len() || jac.ncols() != g {
+            *jac = DMatrix::zeros(m + self.priors.len(), g);
+        }
+        jac.fill(0.0);
+        let marker = self.marker(geom);
+        let mut row = 0;
+        for (s, sens) in self.series.iter().zip(&cached.1) {
+            s.dr_jacobian(sens, &cols, marker, self.dr_lever, jac, row);
+            row += 3 * s.samples.len();
+        }
+        if let Some(c) = self.huber {
+            // d huber / dr: 1 within c, c / |huber(r)| beyond (huber is monotone, = c at c).
+            for (i, v) in r[..m].iter().enumerate() {
+                if v.abs() > c {
+                    let k = c / v.abs();
+                    for a in 0..g {
+                        jac[(i, a)] *= k;
+                    }
+                }
+            }
+        }
+        for (i, (w, _, sigma)) in self.priors.iter().enumerate() {
+            for a in 0..g {
+                jac[(m + i, a)] = w[a] / sigma * self.prior_scale;
+            }
+        }
+        true
+    }
+
+    /// The paths at the dead-reckoning rows and their sensitivities at `geom` into
+    /// [`Problem::sens`] (kept while `geom` stays). False when there are none (fitted
+    /// start poses, a wheeled-legged robot, a singular geometry).
+    fn sensitivities(&self, geom: &[f64]) -> bool {
+        if self.free_start {
+            return false;
+        }
+        if self.sens.borrow().0.as_slice() == geom {
+            return true;
+        }
         let robot = robot_with(self.robot, self.specs, geom);
         let law = TurnLaw::of(self.specs, geom);
         let Ok(kin) = Kinematics::<f64>::new(&robot, &Corrections::None) else {
@@ -1474,36 +1544,10 @@ impl<'a> Problem<'a> {
         par_each(&mut jobs, |(s, out)| {
             *out = s.sensitivity(&stepper, &slopes, s.dr_rows());
         });
-        if jobs.iter().any(|j| j.1.is_none()) {
+        let Some(all) = jobs.into_iter().map(|j| j.1).collect::<Option<Vec<_>>>() else {
             return false;
-        }
-        if jac.nrows() != m + self.priors.len() || jac.ncols() != g {
-            *jac = DMatrix::zeros(m + self.priors.len(), g);
-        }
-        jac.fill(0.0);
-        let marker = self.marker(geom);
-        let mut row = 0;
-        for (s, sens) in &jobs {
-            let sens = sens.as_ref().expect("checked above");
-            s.dr_jacobian(sens, &cols, marker, self.dr_lever, jac, row);
-            row += 3 * s.samples.len();
-        }
-        if let Some(c) = self.huber {
-            // d huber / dr: 1 within c, c / |huber(r)| beyond (huber is monotone, = c at c).
-            for (i, v) in r[..m].iter().enumerate() {
-                if v.abs() > c {
-                    let k = c / v.abs();
-                    for a in 0..g {
-                        jac[(i, a)] *= k;
-                    }
-                }
-            }
-        }
-        for (i, (w, _, sigma)) in self.priors.iter().enumerate() {
-            for a in 0..g {
-                jac[(m + i, a)] = w[a] / sigma * self.prior_scale;
-            }
-        }
+        };
+        *self.sens.borrow_mut() = (geom.to_vec(), all);
         true
     }
 
@@ -1551,6 +1595,31 @@ impl<'a> Problem<'a> {
     /// Data residuals of every recording, then prior rows.
     fn residuals(&self, geom: &[f64], nuis: &[f64], with_prior: bool) -> Vec<f64> {
         let mut out = Vec::new();
+        let cached = !self.free_start && self.sens.borrow().0.as_slice() == geom;
+        if cached || (self.speculate.get() && self.sensitivities(geom)) {
+            // The paths at the dead-reckoning rows, as the sensitivities carry them.
+            let c = self.sens.borrow();
+            let (marker, lever) = (self.marker(geom), self.dr_lever);
+            let mut jobs: Vec<(&Series, &sens::Sensitivity)> =
+                self.series.iter().copied().zip(&c.1).collect();
+            let parts = par_jobs(
+                &mut jobs,
+                |j| 20 * j.0.samples.len(),
+                |(s, sens)| {
+                    let mut v = Vec::with_capacity(3 * s.samples.len());
+                    dr_residuals_into(s, *sens, marker, lever, &mut v);
+                    v
+                },
+            );
+            out.reserve(parts.iter().map(|v| v.len()).sum());
+            for v in parts {
+                out.extend_from_slice(&v);
+            }
+            if with_prior {
+                self.prior_rows(geom, &mut out);
+            }
+            return out;
+        }
         if !self.paths(geom) {
             let m = self.data_len();
             return vec![1e12; m + if with_prior { self.priors.len() } else { 0 }];
@@ -1571,7 +1640,7 @@ impl<'a> Problem<'a> {
                 |j| 20 * j.0.samples.len(),
                 |(s, path)| {
                     let mut v = Vec::with_capacity(3 * s.samples.len());
-                    dr_residuals_into(s, path, marker, lever, &mut v);
+                    dr_residuals_into(s, *path, marker, lever, &mut v);
                     v
                 },
             );
@@ -1581,12 +1650,17 @@ impl<'a> Problem<'a> {
             }
         }
         if with_prior {
-            for (w, target, sigma) in &self.priors {
-                let v: f64 = w.iter().zip(geom).map(|(a, b)| a * b).sum();
-                out.push((v - target) / sigma * self.prior_scale);
-            }
+            self.prior_rows(geom, &mut out);
         }
         out
+    }
+
+    /// The prior rows at `geom` onto `out`.
+    fn prior_rows(&self, geom: &[f64], out: &mut Vec<f64>) {
+        for (w, target, sigma) in &self.priors {
+            let v: f64 = w.iter().zip(geom).map(|(a, b)| a * b).sum();
+            out.push((v - target) / sigma * self.prior_scale);
+        }
     }
 
     fn data_len(&self) -> usize {
@@ -1801,10 +1875,12 @@ fn solve_iter(
             evaluations: 1,
         };
     }
-    struct Analytic<'a, 'b>(&'b Problem<'a>, usize);
+    /// The geometry's analytic Jacobian; whether the last one was (else differences).
+    struct Analytic<'a, 'b>(&'b Problem<'a>, usize, bool);
     impl crate::fit::Jacobian for Analytic<'_, '_> {
         fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
-            self.0.jacobian(&x[..self.1], r, jac)
+            self.2 = self.0.jacobian(&x[..self.1], r, jac);
+            self.2
         }
         fn runs(&self) -> usize {
             // One pass over the rows carrying the sensitivities: about three model runs.
@@ -1828,22 +1904,46 @@ fn solve_iter(
             true
         }
     }
-    let mut jac_fn: Box<dyn crate::fit::Jacobian> = if fit_geom && !p.free_start {
-        Box::new(Analytic(p, g))
-    } else if !fit_geom && p.free_start {
-        Box::new(Nuisances(p, geom0))
+    let analytic = fit_geom && !p.free_start;
+    let r = if analytic {
+        // Each point evaluated carries its sensitivities: the Jacobian that follows an
+        // accepted step costs no pass over the rows.
+        p.speculate.set(true);
+        let mut jac_fn = Analytic(p, g, false);
+        let mut r = crate::fit::levenberg_marquardt_with(
+            &mut f,
+            &mut jac_fn,
+            &x0,
+            &lo,
+            &hi,
+            max_iter,
+            false,
+        );
+        p.speculate.set(false);
+        if p.differences_at_solution && jac_fn.2 {
+            // Forward differences at the solution, as the fit gives them (its analytic
+            // Jacobian there is counted as its runs; the differences as one per parameter).
+            let at = f(&r.x);
+            crate::fit::forward_differences(&mut f, &r.x, &at, &hi, &mut r.jac);
+            r.evaluations = r.evaluations - crate::fit::Jacobian::runs(&jac_fn) + r.x.len();
+        }
+        r
     } else {
-        Box::new(crate::fit::Differences)
+        let mut jac_fn: Box<dyn crate::fit::Jacobian> = if !fit_geom && p.free_start {
+            Box::new(Nuisances(p, geom0))
+        } else {
+            Box::new(crate::fit::Differences)
+        };
+        crate::fit::levenberg_marquardt_with(
+            &mut f,
+            jac_fn.as_mut(),
+            &x0,
+            &lo,
+            &hi,
+            max_iter,
+            p.differences_at_solution,
+        )
     };
-    let r = crate::fit::levenberg_marquardt_with(
-        &mut f,
-        jac_fn.as_mut(),
-        &x0,
-        &lo,
-        &hi,
-        max_iter,
-        p.differences_at_solution,
-    );
     let jac = &r.jac;
     let (geom, nuis) = if fit_geom {
         (r.x[..g].to_vec(), r.x[g..].to_vec())

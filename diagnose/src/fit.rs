@@ -196,7 +196,7 @@ fn sumsq(r: &[f64]) -> f64 {
 }
 
 /// Forward differences, stepping backwards at the upper bound.
-fn forward_differences(
+pub(crate) fn forward_differences(
     f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
     x: &[f64],
     r: &[f64],
