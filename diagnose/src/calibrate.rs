@@ -1152,12 +1152,113 @@ pub(crate) fn residuals_into(
             (l(&path.x), l(&path.y), l(&path.th))
         };
         // The marker sits at `marker` in the body frame: it moves on a circle in a turn.
-        let (cm, sm) = ((nu.theta0_rad + th).cos(), (nu.theta0_rad + th).sin());
-        let wx = nu.x0_m + c * x - sn * y + cm * marker.0 - sm * marker.1;
-        let wy = nu.y0_m + sn * x + c * y + sm * marker.0 + cm * marker.1;
+        let (mut wx, mut wy) = (nu.x0_m + c * x - sn * y, nu.y0_m + sn * x + c * y);
+        if marker != (0.0, 0.0) {
+            let (sm, cm) = (nu.theta0_rad + th).sin_cos();
+            // Term by term, as the whole sum rounds.
+            wx = wx + cm * marker.0 - sm * marker.1;
+            wy = wy + sm * marker.0 + cm * marker.1;
+        }
         out.push((wx - s.px[j]) / RES_UNIT_M);
         out.push((wy - s.py[j]) / RES_UNIT_M);
         out.push((nu.theta0_rad + th - s.pth[j]) * HEADING_LEVER_M / RES_UNIT_M);
+    }
+}
+
+/// The Jacobian of [`residuals_into`] with respect to the recording's nuisance (x0, y0,
+/// theta0, time offset, clock ratio: columns `col0..col0 + NUIS`) into `jac` from row
+/// `row0`. The path is interpolated linearly between rows, so its slope in time is its
+/// segment's (none before the first row or after the last).
+fn nuisance_jacobian_into(
+    s: &Series,
+    path: &Path,
+    nu: &Nuisance,
+    marker: (f64, f64),
+    jac: &mut DMatrix<f64>,
+    row0: usize,
+    col0: usize,
+) {
+    let t0 = s.t[0];
+    let (c, sn) = (nu.theta0_rad.cos(), nu.theta0_rad.sin());
+    let n = s.t.len();
+    let u = 1.0 / RES_UNIT_M;
+    let lever = HEADING_LEVER_M * u;
+    let mut k = 0usize;
+    for j in 0..s.pose_row.len() {
+        let tj = s.t[s.pose_row[j]];
+        let tau = t0 + (tj - t0 - nu.time_offset_s) / nu.clock_ratio;
+        while k + 2 < n && s.t[k + 1] <= tau {
+            k += 1;
+        }
+        while k > 0 && s.t[k] > tau {
+            k -= 1;
+        }
+        // The path at tau and its slope in tau.
+        let ((x, y, th), (vx, vy, vth)) = if n < 2 || tau <= s.t[0] {
+            ((path.x[0], path.y[0], path.th[0]), (0.0, 0.0, 0.0))
+        } else if tau >= s.t[n - 1] {
+            (
+                (path.x[n - 1], path.y[n - 1], path.th[n - 1]),
+                (0.0, 0.0, 0.0),
+            )
+        } else {
+            let dt = s.t[k + 1] - s.t[k];
+            let f = (tau - s.t[k]) / dt;
+            let l = |v: &[f64]| v[k] + (v[k + 1] - v[k]) * f;
+            let d = |v: &[f64]| (v[k + 1] - v[k]) / dt;
+            (
+                (l(&path.x), l(&path.y), l(&path.th)),
+                (d(&path.x), d(&path.y), d(&path.th)),
+            )
+        };
+        // d(wx, wy)/d theta_total of the marker's offset (zero without one).
+        let (mx, my) = if marker != (0.0, 0.0) {
+            let (sm, cm) = (nu.theta0_rad + th).sin_cos();
+            (
+                -sm * marker.0 - cm * marker.1,
+                cm * marker.0 - sm * marker.1,
+            )
+        } else {
+            (0.0, 0.0)
+        };
+        // d tau / d time offset, d tau / d clock ratio.
+        let dtau = [
+            -1.0 / nu.clock_ratio,
+            -(tj - t0 - nu.time_offset_s) / (nu.clock_ratio * nu.clock_ratio),
+        ];
+        let wx_tau = c * vx - sn * vy + mx * vth;
+        let wy_tau = sn * vx + c * vy + my * vth;
+        let row = row0 + 3 * j;
+        jac[(row, col0)] = u;
+        jac[(row + 1, col0 + 1)] = u;
+        jac[(row, col0 + 2)] = (-sn * x - c * y + mx) * u;
+        jac[(row + 1, col0 + 2)] = (c * x - sn * y + my) * u;
+        jac[(row + 2, col0 + 2)] = lever;
+        for (q, dq) in dtau.iter().enumerate() {
+            jac[(row, col0 + 3 + q)] = wx_tau * dq * u;
+            jac[(row + 1, col0 + 3 + q)] = wy_tau * dq * u;
+            jac[(row + 2, col0 + 3 + q)] = vth * dq * lever;
+        }
+    }
+}
+
+/// A path's (x, y, theta) at a row.
+pub(crate) trait PathAt {
+    fn at(&self, row: usize) -> [f64; 3];
+}
+
+impl PathAt for &Path {
+    #[inline]
+    fn at(&self, k: usize) -> [f64; 3] {
+        [self.x[k], self.y[k], self.th[k]]
+    }
+}
+
+impl PathAt for &sens::Sensitivity {
+    /// At a kept row only.
+    #[inline]
+    fn at(&self, k: usize) -> [f64; 3] {
+        self.values[self.need.binary_search(&k).expect("row kept")]
     }
 }
 
@@ -1166,29 +1267,41 @@ pub(crate) fn residuals_into(
 /// pose sample, and the end of each event), no start pose or clocks fitted.
 pub(crate) fn dr_residuals_into(
     s: &Series,
-    path: &Path,
+    path: impl PathAt,
     marker: (f64, f64),
     lever: f64,
     out: &mut Vec<f64>,
 ) {
     let mut seg = 0usize;
+    // The segment whose anchor quantities are set: the anchor's path row, the rotation
+    // onto the measured heading there (angle, cos, sin) and the body's position.
+    let mut set = usize::MAX;
+    let (mut pa, mut dth, mut c, mut sn, mut bx, mut by) = ([0.0; 3], 0.0, 1.0, 0.0, 0.0, 0.0);
     for &j in &s.samples {
         while seg + 1 < s.anchors.len() && s.anchors[seg + 1] <= j {
             seg += 1;
         }
-        let a = s.anchors[seg];
-        let (ka, kj) = (s.pose_row[a], s.pose_row[j]);
-        let dth = s.pth[a] - path.th[ka];
-        let (c, sn) = (dth.cos(), dth.sin());
-        // Body position at the anchor from the measured marker position.
-        let (ca, sa) = (s.pth[a].cos(), s.pth[a].sin());
-        let bx = s.px[a] - (ca * marker.0 - sa * marker.1);
-        let by = s.py[a] - (sa * marker.0 + ca * marker.1);
-        let (dx, dy) = (path.x[kj] - path.x[ka], path.y[kj] - path.y[ka]);
-        let th = path.th[kj] + dth;
-        let (cm, sm) = (th.cos(), th.sin());
-        let wx = bx + c * dx - sn * dy + cm * marker.0 - sm * marker.1;
-        let wy = by + sn * dx + c * dy + sm * marker.0 + cm * marker.1;
+        if set != seg {
+            set = seg;
+            let a = s.anchors[seg];
+            pa = path.at(s.pose_row[a]);
+            dth = s.pth[a] - pa[2];
+            (c, sn) = (dth.cos(), dth.sin());
+            // Body position at the anchor from the measured marker position.
+            let (ca, sa) = (s.pth[a].cos(), s.pth[a].sin());
+            bx = s.px[a] - (ca * marker.0 - sa * marker.1);
+            by = s.py[a] - (sa * marker.0 + ca * marker.1);
+        }
+        let pj = path.at(s.pose_row[j]);
+        let (dx, dy) = (pj[0] - pa[0], pj[1] - pa[1]);
+        let th = pj[2] + dth;
+        let (mut wx, mut wy) = (bx + c * dx - sn * dy, by + sn * dx + c * dy);
+        if marker != (0.0, 0.0) {
+            let (cm, sm) = (th.cos(), th.sin());
+            // Term by term, as the whole sum rounds.
+            wx = wx + cm * marker.0 - sm * marker.1;
+            wy = wy + sm * marker.0 + cm * marker.1;
+        }
         out.push((wx - s.px[j]) / RES_UNIT_M);
         out.push((wy - s.py[j]) / RES_UNIT_M);
         out.push((th - s.pth[j]) * lever / RES_UNIT_M);
@@ -1258,13 +1371,21 @@ fn dead_reckoning_rmse_with(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<
 struct Problem<'a> {
     robot: &'a Robot,
     specs: &'a [ParamSpec],
-    series: &'a [Series],
+    /// The recordings, borrowed (a fold's problem holds some of them).
+    series: Vec<&'a Series>,
     /// Prior rows: (weights over the geometry parameters, target, sigma).
     priors: Vec<(Vec<f64>, f64, f64)>,
     /// Prior rows are multiplied by this: sqrt(residual variance x autocorrelation
     /// inflation) once known, so the prior weighs against what the data really tell.
     prior_scale: f64,
     cache: RefCell<(Vec<f64>, Vec<Path>)>,
+    /// The geometry and its paths at the dead-reckoning rows with their sensitivities
+    /// ([`Problem::sensitivities`]).
+    sens: RefCell<(Vec<f64>, Vec<sens::Sensitivity>)>,
+    /// Residuals are evaluated with the sensitivities (dead reckoning only): set while a
+    /// fit with the analytic Jacobian runs, whose next Jacobian is most likely at the point
+    /// just evaluated (one pass over the rows then serves both).
+    speculate: std::cell::Cell<bool>,
     /// Bound the geometry to the plausible ranges (else 10 times wider).
     plausible_bounds: bool,
     /// Fit each recording's start pose and clocks (else dead-reckon from the anchors).
@@ -1290,7 +1411,13 @@ impl<'a> Problem<'a> {
         (get(GeomKind::MarkerX), get(GeomKind::MarkerY))
     }
 
-    fn new(robot: &'a Robot, specs: &'a [ParamSpec], series: &'a [Series]) -> Self {
+    fn new(
+        robot: &'a Robot,
+        specs: &'a [ParamSpec],
+        series: impl IntoIterator<Item = &'a Series>,
+    ) -> Self {
+        let series: Vec<&'a Series> = series.into_iter().collect();
+        let n = series.len();
         // A weak prior at nominal (one plausible half-range) keeps directions the data
         // do not constrain where they are; it is negligible against thousands of
         // millimetre residuals wherever the data speak.
@@ -1315,7 +1442,9 @@ impl<'a> Problem<'a> {
             huber: None,
             dr_lever: DR_HEADING_LEVER_M,
             differences_at_solution: true,
-            cache: RefCell::new((vec![f64::NAN], vec![Path::default(); series.len()])),
+            cache: RefCell::new((vec![f64::NAN], vec![Path::default(); n])),
+            sens: RefCell::new((vec![f64::NAN], Vec::new())),
+            speculate: std::cell::Cell::new(false),
         }
     }
 
@@ -1331,7 +1460,8 @@ impl<'a> Problem<'a> {
             return false;
         };
         let stepper = Stepper::new(&r, &kin, &law);
-        let mut jobs: Vec<(&Series, &mut Path)> = self.series.iter().zip(c.1.iter_mut()).collect();
+        let mut jobs: Vec<(&Series, &mut Path)> =
+            self.series.iter().copied().zip(c.1.iter_mut()).collect();
         let ok = par_each(&mut jobs, |(s, p)| s.path_by(&r, &stepper, p));
         if ok.iter().all(|v| *v) {
             c.0 = geom.to_vec();
@@ -1347,43 +1477,20 @@ impl<'a> Problem<'a> {
     /// the residuals at `geom` as the fit sees them). False when it has none (fitted start
     /// poses, a wheeled-legged robot, a singular geometry).
     fn jacobian(&self, geom: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
-        if self.free_start {
+        if !self.sensitivities(geom) {
             return false;
         }
         let g = self.specs.len();
         let m = self.data_len();
-        let robot = robot_with(self.robot, self.specs, geom);
-        let law = TurnLaw::of(self.specs, geom);
-        let Ok(kin) = Kinematics::<f64>::new(&robot, &Corrections::None) else {
-            return false;
-        };
-        let stepper = Stepper::new(&robot, &kin, &law);
+        let cached = self.sens.borrow();
         let cols = sens::split_params(self.specs);
-        let sides = self.robot.kind == RobotKind::SkidSteer
-            || self
-                .specs
-                .iter()
-                .any(|s| matches!(s.kind, GeomKind::EbArc | GeomKind::IcrX));
-        let Some(slopes) = sens::TwistSlopes::new(self.robot, self.specs, geom, &cols.path, sides)
-        else {
-            return false;
-        };
-        let mut jobs: Vec<(&Series, Option<sens::Sensitivity>)> =
-            self.series.iter().map(|s| (s, None)).collect();
-        par_each(&mut jobs, |(s, out)| {
-            *out = s.sensitivity(&stepper, &slopes, s.dr_rows());
-        });
-        if jobs.iter().any(|j| j.1.is_none()) {
-            return false;
-        }
         if jac.nrows() != m + self.priors.len() || jac.ncols() != g {
             *jac = DMatrix::zeros(m + self.priors.len(), g);
         }
         jac.fill(0.0);
         let marker = self.marker(geom);
         let mut row = 0;
-        for (s, sens) in &jobs {
-            let sens = sens.as_ref().expect("checked above");
+        for (s, sens) in self.series.iter().zip(&cached.1) {
             s.dr_jacobian(sens, &cols, marker, self.dr_lever, jac, row);
             row += 3 * s.samples.len();
         }
@@ -1406,9 +1513,113 @@ impl<'a> Problem<'a> {
         true
     }
 
+    /// The paths at the dead-reckoning rows and their sensitivities at `geom` into
+    /// [`Problem::sens`] (kept while `geom` stays). False when there are none (fitted
+    /// start poses, a wheeled-legged robot, a singular geometry).
+    fn sensitivities(&self, geom: &[f64]) -> bool {
+        if self.free_start {
+            return false;
+        }
+        if self.sens.borrow().0.as_slice() == geom {
+            return true;
+        }
+        let robot = robot_with(self.robot, self.specs, geom);
+        let law = TurnLaw::of(self.specs, geom);
+        let Ok(kin) = Kinematics::<f64>::new(&robot, &Corrections::None) else {
+            return false;
+        };
+        let stepper = Stepper::new(&robot, &kin, &law);
+        let cols = sens::split_params(self.specs);
+        let sides = self.robot.kind == RobotKind::SkidSteer
+            || self
+                .specs
+                .iter()
+                .any(|s| matches!(s.kind, GeomKind::EbArc | GeomKind::IcrX));
+        let Some(slopes) = sens::TwistSlopes::new(self.robot, self.specs, geom, &cols.path, sides)
+        else {
+            return false;
+        };
+        let mut jobs: Vec<(&Series, Option<sens::Sensitivity>)> =
+            self.series.iter().map(|s| (*s, None)).collect();
+        par_each(&mut jobs, |(s, out)| {
+            *out = s.sensitivity(&stepper, &slopes, s.dr_rows());
+        });
+        let Some(all) = jobs.into_iter().map(|j| j.1).collect::<Option<Vec<_>>>() else {
+            return false;
+        };
+        *self.sens.borrow_mut() = (geom.to_vec(), all);
+        true
+    }
+
+    /// The analytic Jacobian of the data residuals with respect to every recording's
+    /// nuisance at the geometry `geom` (fixed), through Huber's loss when robust (`r`:
+    /// the residuals as the fit sees them). False when the start poses are not fitted or
+    /// the geometry is singular.
+    fn nuisance_jacobian(
+        &self,
+        geom: &[f64],
+        nuis: &[f64],
+        r: &[f64],
+        jac: &mut DMatrix<f64>,
+    ) -> bool {
+        if !self.free_start || !self.paths(geom) {
+            return false;
+        }
+        let m = self.data_len();
+        let np = nuis.len();
+        if jac.nrows() != m || jac.ncols() != np {
+            *jac = DMatrix::zeros(m, np);
+        }
+        jac.fill(0.0);
+        let c = self.cache.borrow();
+        let marker = self.marker(geom);
+        let mut row = 0;
+        for (i, s) in self.series.iter().enumerate() {
+            let nu = Nuisance::from(&nuis[i * NUIS..(i + 1) * NUIS]);
+            nuisance_jacobian_into(s, &c.1[i], &nu, marker, jac, row, i * NUIS);
+            row += 3 * s.pose_samples();
+        }
+        if let Some(h) = self.huber {
+            for (i, v) in r[..m].iter().enumerate() {
+                if v.abs() > h {
+                    let k = h / v.abs();
+                    for a in 0..np {
+                        jac[(i, a)] *= k;
+                    }
+                }
+            }
+        }
+        true
+    }
+
     /// Data residuals of every recording, then prior rows.
     fn residuals(&self, geom: &[f64], nuis: &[f64], with_prior: bool) -> Vec<f64> {
         let mut out = Vec::new();
+        let cached = !self.free_start && self.sens.borrow().0.as_slice() == geom;
+        if cached || (self.speculate.get() && self.sensitivities(geom)) {
+            // The paths at the dead-reckoning rows, as the sensitivities carry them.
+            let c = self.sens.borrow();
+            let (marker, lever) = (self.marker(geom), self.dr_lever);
+            let mut jobs: Vec<(&Series, &sens::Sensitivity)> =
+                self.series.iter().copied().zip(&c.1).collect();
+            let parts = par_jobs(
+                &mut jobs,
+                |j| 20 * j.0.samples.len(),
+                |(s, sens)| {
+                    let mut v = Vec::with_capacity(3 * s.samples.len());
+                    dr_residuals_into(s, *sens, marker, lever, &mut v);
+                    v
+                },
+            );
+            out.reserve(parts.iter().map(|v| v.len()).sum());
+            for v in parts {
+                out.extend_from_slice(&v);
+            }
+            if with_prior {
+                self.prior_rows(geom, &mut out);
+            }
+            return out;
+        }
         if !self.paths(geom) {
             let m = self.data_len();
             return vec![1e12; m + if with_prior { self.priors.len() } else { 0 }];
@@ -1423,13 +1634,13 @@ impl<'a> Problem<'a> {
         } else {
             // Each recording's on its own (in parallel), then in order.
             let lever = self.dr_lever;
-            let mut jobs: Vec<(&Series, &Path)> = self.series.iter().zip(&c.1).collect();
+            let mut jobs: Vec<(&Series, &Path)> = self.series.iter().copied().zip(&c.1).collect();
             let parts = par_jobs(
                 &mut jobs,
                 |j| 20 * j.0.samples.len(),
                 |(s, path)| {
                     let mut v = Vec::with_capacity(3 * s.samples.len());
-                    dr_residuals_into(s, path, marker, lever, &mut v);
+                    dr_residuals_into(s, *path, marker, lever, &mut v);
                     v
                 },
             );
@@ -1439,12 +1650,17 @@ impl<'a> Problem<'a> {
             }
         }
         if with_prior {
-            for (w, target, sigma) in &self.priors {
-                let v: f64 = w.iter().zip(geom).map(|(a, b)| a * b).sum();
-                out.push((v - target) / sigma * self.prior_scale);
-            }
+            self.prior_rows(geom, &mut out);
         }
         out
+    }
+
+    /// The prior rows at `geom` onto `out`.
+    fn prior_rows(&self, geom: &[f64], out: &mut Vec<f64>) {
+        for (w, target, sigma) in &self.priors {
+            let v: f64 = w.iter().zip(geom).map(|(a, b)| a * b).sum();
+            out.push((v - target) / sigma * self.prior_scale);
+        }
     }
 
     fn data_len(&self) -> usize {
@@ -1473,12 +1689,6 @@ fn par_each<'s, J: Send, R: Send>(
     f: impl Fn(&mut (&'s Series, J)) -> R + Sync,
 ) -> Vec<R> {
     par_jobs(jobs, |j| j.0.t.len(), f)
-}
-
-/// [`par_each`] on the recordings `series`, read only.
-fn par_map<R: Send>(series: &[&Series], f: impl Fn(&Series) -> R + Sync) -> Vec<R> {
-    let mut jobs: Vec<(&Series, ())> = series.iter().map(|s| (*s, ())).collect();
-    par_each(&mut jobs, |j| f(j.0))
 }
 
 thread_local! {
@@ -1665,30 +1875,75 @@ fn solve_iter(
             evaluations: 1,
         };
     }
-    struct Analytic<'a, 'b>(&'b Problem<'a>, usize);
+    /// The geometry's analytic Jacobian; whether the last one was (else differences).
+    struct Analytic<'a, 'b>(&'b Problem<'a>, usize, bool);
     impl crate::fit::Jacobian for Analytic<'_, '_> {
         fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
-            self.0.jacobian(&x[..self.1], r, jac)
+            self.2 = self.0.jacobian(&x[..self.1], r, jac);
+            self.2
         }
         fn runs(&self) -> usize {
             // One pass over the rows carrying the sensitivities: about three model runs.
             3
         }
+        fn column_dots(&self) -> bool {
+            true
+        }
     }
-    let mut jac_fn: Box<dyn crate::fit::Jacobian> = if fit_geom && !p.free_start {
-        Box::new(Analytic(p, g))
+    /// The start poses and clocks alone (the geometry given): their analytic Jacobian.
+    struct Nuisances<'a, 'b>(&'b Problem<'a>, &'b [f64]);
+    impl crate::fit::Jacobian for Nuisances<'_, '_> {
+        fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
+            self.0.nuisance_jacobian(self.1, x, r, jac)
+        }
+        fn runs(&self) -> usize {
+            // One pass over the pose samples, the paths as they are: one model run.
+            1
+        }
+        fn column_dots(&self) -> bool {
+            true
+        }
+    }
+    let analytic = fit_geom && !p.free_start;
+    let r = if analytic {
+        // Each point evaluated carries its sensitivities: the Jacobian that follows an
+        // accepted step costs no pass over the rows.
+        p.speculate.set(true);
+        let mut jac_fn = Analytic(p, g, false);
+        let mut r = crate::fit::levenberg_marquardt_with(
+            &mut f,
+            &mut jac_fn,
+            &x0,
+            &lo,
+            &hi,
+            max_iter,
+            false,
+        );
+        p.speculate.set(false);
+        if p.differences_at_solution && jac_fn.2 {
+            // Forward differences at the solution, as the fit gives them (its analytic
+            // Jacobian there is counted as its runs; the differences as one per parameter).
+            let at = f(&r.x);
+            crate::fit::forward_differences(&mut f, &r.x, &at, &hi, &mut r.jac);
+            r.evaluations = r.evaluations - crate::fit::Jacobian::runs(&jac_fn) + r.x.len();
+        }
+        r
     } else {
-        Box::new(crate::fit::Differences)
+        let mut jac_fn: Box<dyn crate::fit::Jacobian> = if !fit_geom && p.free_start {
+            Box::new(Nuisances(p, geom0))
+        } else {
+            Box::new(crate::fit::Differences)
+        };
+        crate::fit::levenberg_marquardt_with(
+            &mut f,
+            jac_fn.as_mut(),
+            &x0,
+            &lo,
+            &hi,
+            max_iter,
+            p.differences_at_solution,
+        )
     };
-    let r = crate::fit::levenberg_marquardt_with(
-        &mut f,
-        jac_fn.as_mut(),
-        &x0,
-        &lo,
-        &hi,
-        max_iter,
-        p.differences_at_solution,
-    );
     let jac = &r.jac;
     let (geom, nuis) = if fit_geom {
         (r.x[..g].to_vec(), r.x[g..].to_vec())
@@ -1706,9 +1961,14 @@ fn solve_iter(
     }
 }
 
+/// The recordings borrowed one by one.
+fn refs(series: &[Series]) -> Vec<&Series> {
+    series.iter().collect()
+}
+
 /// Nuisance start: start pose at the first measured pose, clocks nominal (none when
 /// dead-reckoning: nothing per recording is fitted).
-fn nuisance_start(series: &[Series], free_start: bool) -> Vec<f64> {
+fn nuisance_start(series: &[&Series], free_start: bool) -> Vec<f64> {
     if !free_start {
         return vec![];
     }
@@ -1827,9 +2087,10 @@ pub struct Heldout {
 
 /// Fit RMSE of `s` with the geometry fixed, only its start pose and clocks fitted.
 fn aligned_rmse(robot: &Robot, specs: &[ParamSpec], geom: &[f64], s: &Series) -> f64 {
-    let one = [s.clone()];
-    let p = Problem::new(robot, specs, &one);
-    let r = solve(&p, geom, &nuisance_start(&one, true), false);
+    let mut p = Problem::new(robot, specs, [s]);
+    // Only the residuals are read: the analytic Jacobian at the solution too.
+    p.differences_at_solution = false;
+    let r = solve(&p, geom, &nuisance_start(&[s], true), false);
     position_rmse(&p.residuals(geom, &r.nuis, false))
 }
 
@@ -2489,9 +2750,9 @@ fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
 /// One joint fit of `specs` from nominal (nuisance first, then geometry with the prior
 /// weighed by the data): the fit, its residual variance x autocorrelation inflation, and
 /// its covariance (when `cov`, else empty: the fit's Jacobian is then the analytic one).
-fn fit_specs(robot: &Robot, specs: &[ParamSpec], series: &[Series], cfg: Cfg, cov: bool) -> Fit {
+fn fit_specs(robot: &Robot, specs: &[ParamSpec], series: &[&Series], cfg: Cfg, cov: bool) -> Fit {
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
-    let mut p = Problem::new(robot, specs, series);
+    let mut p = Problem::new(robot, specs, series.iter().copied());
     cfg.apply(&mut p);
     p.differences_at_solution = false;
     let before = solve(&p, &nominal, &nuisance_start(series, cfg.free_start), false);
@@ -2577,13 +2838,13 @@ fn choose_specs(
         var: var_full,
         runs: r1,
         ..
-    } = fit_specs(robot, &full, series, cfg, false);
+    } = fit_specs(robot, &full, &refs(series), cfg, false);
     let Fit {
         f: f_roller,
         cov: cov_roller,
         runs: r2,
         ..
-    } = fit_specs(robot, &roller, series, cfg, true);
+    } = fit_specs(robot, &roller, &refs(series), cfg, true);
     *runs += r1 + r2;
     let gi = roller
         .iter()
@@ -2739,9 +3000,9 @@ fn heldout_errors(
     // Largest models first: the threads finish together.
     jobs.sort_by_key(|&(m, _)| std::cmp::Reverse(models[m].len()));
     let done = pool_map(&jobs, |&(m, fold)| {
-        let rest: Vec<Series> = (0..n)
+        let rest: Vec<&Series> = (0..n)
             .filter(|&j| j % k != fold)
-            .map(|j| series[j].clone())
+            .map(|j| &series[j])
             .collect();
         let Fit { f, runs: r, .. } = fit_specs(robot, models[m], &rest, cfg, false);
         let errors: Vec<f64> = (0..n)
@@ -2801,7 +3062,7 @@ fn climb_ladder(
         if !(e.is_finite() && *e <= (1.0 + LADDER_TOLERANCE) * best) {
             continue;
         }
-        let fit = fit_specs(robot, specs, series, cfg, false);
+        let fit = fit_specs(robot, specs, &refs(series), cfg, false);
         *runs += fit.runs;
         let f = &fit.f;
         let edge: Vec<String> = specs
@@ -2918,7 +3179,7 @@ fn choose_turn_law(
         ));
         return base;
     }
-    let fit_law = fit_specs(robot, &law, series, cfg, true);
+    let fit_law = fit_specs(robot, &law, &refs(series), cfg, true);
     *runs += fit_law.runs;
     let (f_law, cov_law) = (&fit_law.f, &fit_law.cov);
     let k = series.len().min(LADDER_FOLDS);
@@ -3031,14 +3292,14 @@ pub fn calibrate(
     let mut events: Vec<Event> = series.iter().flat_map(|s| s.glitches.clone()).collect();
     if !cfg.free_start {
         let specs0 = param_specs(robot, opts.marker_offset);
-        let f0 = fit_specs(robot, &specs0, &series, cfg, false).f;
+        let f0 = fit_specs(robot, &specs0, &refs(&series), cfg, false).f;
         let r0 = robot_with(robot, &specs0, &f0.geom);
         for s in series.iter_mut() {
             events.extend(detect_events(&r0, s));
         }
         if opts.robust {
             // Huber's scale: HUBER_K robust sigmas (MAD) of the squared-loss residuals.
-            let f1 = fit_specs(robot, &specs0, &series, cfg, false).f;
+            let f1 = fit_specs(robot, &specs0, &refs(&series), cfg, false).f;
             let mut p1 = Problem::new(robot, &specs0, &series);
             cfg.apply(&mut p1);
             let r = p1.residuals(&f1.geom, &f1.nuis, false);
@@ -3066,7 +3327,7 @@ pub fn calibrate(
     let before = solve(
         &p,
         &nominal,
-        &nuisance_start(&series, cfg.free_start),
+        &nuisance_start(&refs(&series), cfg.free_start),
         false,
     );
     let before_res = p.residuals(&nominal, &before.nuis, false);
@@ -3234,9 +3495,9 @@ pub fn calibrate(
         }
     }
 
-    // Per recording: its dead reckoning and aligned errors (independent: in parallel).
-    let refs: Vec<&Series> = series.iter().collect();
-    let replays = par_map(&refs, |s| {
+    // Per recording: its dead reckoning and aligned errors (independent: in parallel,
+    // each thread taking the next recording, since the aligned fits' lengths vary).
+    let replays = pool_map(&series, |s| {
         let (ab, aa) = if cfg.free_start {
             (f64::NAN, f64::NAN)
         } else {
@@ -3384,8 +3645,8 @@ pub fn calibrate(
                 );
             }
             let keep: Vec<usize> = (0..series.len()).filter(|&j| &groups[j] != gname).collect();
-            let rest: Vec<Series> = keep.iter().map(|&j| series[j].clone()).collect();
-            let mut q = Problem::new(robot, &specs, &rest);
+            let rest: Vec<&Series> = keep.iter().map(|&j| &series[j]).collect();
+            let mut q = Problem::new(robot, &specs, rest);
             cfg.apply(&mut q);
             q.priors = p.priors.clone();
             q.prior_scale = p.prior_scale;
@@ -3411,17 +3672,16 @@ pub fn calibrate(
                 });
             }
         }
-        let mut jobs: Vec<_> = stepped
-            .into_iter()
-            .map(|(i, gname, geom)| (&series[i], (i, gname, geom)))
-            .collect();
-        leave_one_out.extend(par_each(&mut jobs, |(s, (i, gname, geom))| Heldout {
-            name: s.name.clone(),
-            group: Some((*gname).clone()),
-            rmse_before_m: per_recording[*i].dead_reckoning_before_m,
-            rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, geom, s),
-            aligned_before_m: per_recording[*i].aligned_before_m,
-            aligned_after_m: aligned_rmse(robot, &specs, geom, s),
+        leave_one_out.extend(pool_map(&stepped, |(i, gname, geom)| {
+            let s = &series[*i];
+            Heldout {
+                name: s.name.clone(),
+                group: Some((*gname).clone()),
+                rmse_before_m: per_recording[*i].dead_reckoning_before_m,
+                rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, geom, s),
+                aligned_before_m: per_recording[*i].aligned_before_m,
+                aligned_after_m: aligned_rmse(robot, &specs, geom, s),
+            }
         }));
     }
 

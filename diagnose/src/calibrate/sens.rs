@@ -28,6 +28,11 @@ fn arc_slopes(d: f64) -> (f64, f64) {
     }
 }
 
+/// Parameters from which [`Series::sensitivity`] of a kinematics matrix sums the rows
+/// between kept rows once for all parameters rather than stepping each parameter row by
+/// row (the sums cost about four parameters' steps).
+const SUMMED_MIN_PARAMS: usize = 4;
+
 /// How the twist of one row moves with each path parameter.
 pub(crate) enum TwistSlopes {
     /// d twist / d q_j = slopes[j] * increments (a kinematics matrix).
@@ -186,6 +191,22 @@ impl Series {
         if self.legs.is_some() {
             return None;
         }
+        if let TwistSlopes::Linear(v) = slopes {
+            let sides = self.rho.is_some() && stepper.sides().is_some();
+            if !sides && v.len() >= SUMMED_MIN_PARAMS {
+                return Some(self.sensitivity_summed(stepper, v, need));
+            }
+        }
+        Some(self.sensitivity_stepped(stepper, slopes, need))
+    }
+
+    /// [`Series::sensitivity`] stepping every parameter's sensitivities row by row.
+    fn sensitivity_stepped(
+        &self,
+        stepper: &Stepper,
+        slopes: &TwistSlopes,
+        need: Vec<usize>,
+    ) -> Sensitivity {
         let p = slopes.count();
         let sides = match (&self.rho, stepper.sides()) {
             (Some(rho), Some(s)) => Some((rho, s)),
@@ -227,11 +248,99 @@ impl Series {
             }
             keep(k + 1, x, y, h.th, &d);
         }
-        Some(Sensitivity {
+        Sensitivity {
             need,
             values,
             slopes: out,
-        })
+        }
+    }
+
+    /// [`Series::sensitivity`] of a kinematics matrix's slopes `slopes` (per parameter,
+    /// per wheel: d(vx, vy, omega)/d q per unit increment), summed between the kept rows.
+    ///
+    /// A row's twist slope is S_j inc (S_j: the parameter's slopes), and the
+    /// sensitivities' step is linear in it: d2 += S_j[2] inc, and d0, d1 move by
+    /// -ey d2 + P . (S_j inc) and ex d2 + Q . (S_j inc) with (P, Q, ex, ey) of the row's
+    /// arc alone. So the rows between two kept rows sum, once for every parameter, into
+    /// the weights of the 3 x wheels entries of S_j (and of d2 before them), and each
+    /// parameter is stepped once per kept row: a pass costs about the same whatever the
+    /// number of parameters (the same sums as the row-by-row stepping, in another order).
+    fn sensitivity_summed(
+        &self,
+        stepper: &Stepper,
+        slopes: &[Vec<[f64; 3]>],
+        need: Vec<usize>,
+    ) -> Sensitivity {
+        let p = slopes.len();
+        let nw = self.wheels.max(1);
+        let mut values = Vec::with_capacity(need.len());
+        let mut out = Vec::with_capacity(need.len() * p);
+        let mut d = vec![[0.0f64; 3]; p];
+        // Per wheel: the weights of S_j[w] = (vx, vy, omega) slopes in d0 and d1
+        // (a0, a1), of the increments summed so far (cum: d2's).
+        let mut a0 = vec![[0.0f64; 3]; nw];
+        let mut a1 = vec![[0.0f64; 3]; nw];
+        let mut cum = vec![0.0f64; nw];
+        // d0 and d1's weights of d2 at the segment's start.
+        let (mut ey_sum, mut ex_sum) = (0.0f64, 0.0f64);
+        let (mut x, mut y, mut h) = (0.0f64, 0.0f64, super::step::Heading::new());
+        let mut next = 0usize;
+        if need.first() == Some(&0) {
+            values.push([x, y, h.th]);
+            out.extend_from_slice(&d);
+            next = 1;
+        }
+        for (k, inc) in self.incs().enumerate() {
+            let tw = stepper.forward(inc);
+            // The arc step (as the path's), with the quantities its derivative needs.
+            let (st, ct) = (h.sin, h.cos);
+            let (s, c, lx, ly) = super::step::arc_step(&mut x, &mut y, &mut h, &tw);
+            let (ds, dc) = arc_slopes(tw.omega);
+            let (ex, ey) = (ct * lx - st * ly, st * lx + ct * ly);
+            let (a, b) = (ds * tw.vx - dc * tw.vy, dc * tw.vx + ds * tw.vy);
+            // d0 += -ey d2 + P . t, d1 += ex d2 + Q . t, d2 += t[2] (t = S_j inc).
+            let pw = [ct * s - st * c, -(ct * c + st * s), ct * a - st * b];
+            let qw = [st * s + ct * c, ct * s - st * c, st * a + ct * b];
+            for w in 0..nw {
+                let (iw, cw) = (inc[w], cum[w]);
+                let (u0, u1) = (&mut a0[w], &mut a1[w]);
+                u0[0] += pw[0] * iw;
+                u0[1] += pw[1] * iw;
+                u0[2] += pw[2] * iw - ey * cw;
+                u1[0] += qw[0] * iw;
+                u1[1] += qw[1] * iw;
+                u1[2] += qw[2] * iw + ex * cw;
+                cum[w] = cw + iw;
+            }
+            ey_sum += ey;
+            ex_sum += ex;
+            if need.get(next) == Some(&(k + 1)) {
+                for (dj, sj) in d.iter_mut().zip(slopes) {
+                    let (mut w0, mut w1, mut w2) = (0.0, 0.0, 0.0);
+                    for w in 0..nw {
+                        let (g, u0, u1) = (&sj[w], &a0[w], &a1[w]);
+                        w0 += u0[0] * g[0] + u0[1] * g[1] + u0[2] * g[2];
+                        w1 += u1[0] * g[0] + u1[1] * g[1] + u1[2] * g[2];
+                        w2 += cum[w] * g[2];
+                    }
+                    dj[0] += -ey_sum * dj[2] + w0;
+                    dj[1] += ex_sum * dj[2] + w1;
+                    dj[2] += w2;
+                }
+                values.push([x, y, h.th]);
+                out.extend_from_slice(&d);
+                next += 1;
+                a0.iter_mut().for_each(|v| *v = [0.0; 3]);
+                a1.iter_mut().for_each(|v| *v = [0.0; 3]);
+                cum.iter_mut().for_each(|v| *v = 0.0);
+                (ey_sum, ex_sum) = (0.0, 0.0);
+            }
+        }
+        Sensitivity {
+            need,
+            values,
+            slopes: out,
+        }
     }
 
     /// The Jacobian rows of [`super::dr_residuals_into`] (same order) from the
@@ -252,23 +361,38 @@ impl Series {
         let at = |k: usize| sens.need.binary_search(&k).expect("row kept");
         let mut seg = 0usize;
         let u = 1.0 / RES_UNIT_M;
+        // The marker's terms need the heading's cosine and sine at each sample.
+        let turns = marker != (0.0, 0.0) || marker_params != (None, None);
+        // The segment whose anchor quantities are set: its kept row, the rotation onto the
+        // measured heading there (angle, cos, sin) and the measured heading's cos and sin.
+        let mut set = usize::MAX;
+        let (mut ia, mut dth, mut c, mut sn, mut ca, mut sa) = (0, 0.0, 1.0, 0.0, 1.0, 0.0);
         for (n, &j) in self.samples.iter().enumerate() {
             while seg + 1 < self.anchors.len() && self.anchors[seg + 1] <= j {
                 seg += 1;
             }
-            let a = self.anchors[seg];
-            let (ia, ij) = (at(self.pose_row[a]), at(self.pose_row[j]));
+            if set != seg {
+                set = seg;
+                let a = self.anchors[seg];
+                ia = at(self.pose_row[a]);
+                dth = self.pth[a] - sens.values[ia][2];
+                (c, sn) = (dth.cos(), dth.sin());
+                (ca, sa) = (self.pth[a].cos(), self.pth[a].sin());
+            }
+            let ij = at(self.pose_row[j]);
             let (va, vj) = (sens.values[ia], sens.values[ij]);
-            let dth = self.pth[a] - va[2];
-            let (c, sn) = (dth.cos(), dth.sin());
             let (dx, dy) = (vj[0] - va[0], vj[1] - va[1]);
             let th = vj[2] + dth;
-            let (cm, sm) = (th.cos(), th.sin());
+            let (cm, sm) = if turns {
+                (th.cos(), th.sin())
+            } else {
+                (0.0, 0.0)
+            };
             let row = row0 + 3 * n;
             for (q, &col) in path_params.iter().enumerate() {
-                let (sa, sj) = (sens.slopes[ia * p + q], sens.slopes[ij * p + q]);
-                let d_dth = -sa[2];
-                let (d_dx, d_dy) = (sj[0] - sa[0], sj[1] - sa[1]);
+                let (si, sj) = (sens.slopes[ia * p + q], sens.slopes[ij * p + q]);
+                let d_dth = -si[2];
+                let (d_dx, d_dy) = (sj[0] - si[0], sj[1] - si[1]);
                 let d_th = sj[2] + d_dth;
                 let wx = (-sn * dx - c * dy) * d_dth + c * d_dx - sn * d_dy
                     + (-sm * marker.0 - cm * marker.1) * d_th;
@@ -280,7 +404,6 @@ impl Series {
                 jac[(row + 1, col)] = wy * u;
                 jac[(row + 2, col)] = d_th * lever * u;
             }
-            let (ca, sa) = (self.pth[a].cos(), self.pth[a].sin());
             if let Some(col) = marker_params.0 {
                 jac[(row, col)] = (cm - ca) * u;
                 jac[(row + 1, col)] = (sm - sa) * u;
@@ -382,6 +505,36 @@ mod tests {
                 s.nominal + 0.3 * (s.plausible.1 - s.nominal) * if i % 2 == 0 { 1.0 } else { -0.7 }
             })
             .collect()
+    }
+
+    /// The sensitivities summed between kept rows are the row-by-row ones (to rounding),
+    /// on a robot whose kinematics matrix depends on every parameter.
+    #[test]
+    fn summed_sensitivities_are_the_stepped_ones() {
+        let r = robot("omni4");
+        let specs = param_specs(&r, false);
+        let geom = off_nominal(&specs);
+        let s = series(&r, 3);
+        let rb = robot_with(&r, &specs, &geom);
+        let kin = Kinematics::<f64>::new(&rb, &Corrections::None).unwrap();
+        let stepper = Stepper::new(&rb, &kin, &TurnLaw::of(&specs, &geom));
+        let cols = split_params(&specs);
+        let slopes = TwistSlopes::new(&r, &specs, &geom, &cols.path, false).unwrap();
+        let TwistSlopes::Linear(v) = &slopes else {
+            panic!("a kinematics matrix's slopes")
+        };
+        let need = s.dr_rows();
+        let a = s.sensitivity_summed(&stepper, v, need.clone());
+        let b = s.sensitivity_stepped(&stepper, &slopes, need);
+        assert_eq!(a.values, b.values, "the path itself, to the bit");
+        let scale = b
+            .slopes
+            .iter()
+            .flatten()
+            .fold(1e-9f64, |m, v| m.max(v.abs()));
+        for (x, y) in a.slopes.iter().flatten().zip(b.slopes.iter().flatten()) {
+            assert!((x - y).abs() <= 1e-9 * scale, "{x} vs {y}");
+        }
     }
 
     #[test]
