@@ -1121,6 +1121,28 @@ impl Nuisance {
     }
 }
 
+/// Each pose sample on the encoders' clock: (sample j, its row time, its time tau on the
+/// encoders' clock, the row segment k with t[k] <= tau < t[k + 1] where there is one).
+fn pose_segments<'a>(
+    s: &'a Series,
+    nu: &Nuisance,
+) -> impl Iterator<Item = (usize, f64, f64, usize)> + 'a {
+    let (t0, n) = (s.t[0], s.t.len());
+    let (offset, ratio) = (nu.time_offset_s, nu.clock_ratio);
+    let mut k = 0usize;
+    (0..s.pose_row.len()).map(move |j| {
+        let tj = s.t[s.pose_row[j]];
+        let tau = t0 + (tj - t0 - offset) / ratio;
+        while k + 2 < n && s.t[k + 1] <= tau {
+            k += 1;
+        }
+        while k > 0 && s.t[k] > tau {
+            k -= 1;
+        }
+        (j, tj, tau, k)
+    })
+}
+
 /// Residuals (ex, ey, lever * eth per pose sample, in RES_UNIT_M) of one recording.
 pub(crate) fn residuals_into(
     s: &Series,
@@ -1129,19 +1151,9 @@ pub(crate) fn residuals_into(
     marker: (f64, f64),
     out: &mut Vec<f64>,
 ) {
-    let t0 = s.t[0];
     let (c, sn) = (nu.theta0_rad.cos(), nu.theta0_rad.sin());
     let n = s.t.len();
-    let mut k = 0usize;
-    for j in 0..s.pose_row.len() {
-        let tj = s.t[s.pose_row[j]];
-        let tau = t0 + (tj - t0 - nu.time_offset_s) / nu.clock_ratio;
-        while k + 2 < n && s.t[k + 1] <= tau {
-            k += 1;
-        }
-        while k > 0 && s.t[k] > tau {
-            k -= 1;
-        }
+    for (j, _, tau, k) in pose_segments(s, nu) {
         let (x, y, th) = if n < 2 || tau <= s.t[0] {
             (path.x[0], path.y[0], path.th[0])
         } else if tau >= s.t[n - 1] {
@@ -1183,16 +1195,7 @@ fn nuisance_jacobian_into(
     let n = s.t.len();
     let u = 1.0 / RES_UNIT_M;
     let lever = HEADING_LEVER_M * u;
-    let mut k = 0usize;
-    for j in 0..s.pose_row.len() {
-        let tj = s.t[s.pose_row[j]];
-        let tau = t0 + (tj - t0 - nu.time_offset_s) / nu.clock_ratio;
-        while k + 2 < n && s.t[k + 1] <= tau {
-            k += 1;
-        }
-        while k > 0 && s.t[k] > tau {
-            k -= 1;
-        }
+    for (j, tj, tau, k) in pose_segments(s, nu) {
         // The path at tau and its slope in tau.
         let ((x, y, th), (vx, vy, vth)) = if n < 2 || tau <= s.t[0] {
             ((path.x[0], path.y[0], path.th[0]), (0.0, 0.0, 0.0))
@@ -1599,22 +1602,7 @@ impl<'a> Problem<'a> {
         if cached || (self.speculate.get() && self.sensitivities(geom)) {
             // The paths at the dead-reckoning rows, as the sensitivities carry them.
             let c = self.sens.borrow();
-            let (marker, lever) = (self.marker(geom), self.dr_lever);
-            let mut jobs: Vec<(&Series, &sens::Sensitivity)> =
-                self.series.iter().copied().zip(&c.1).collect();
-            let parts = par_jobs(
-                &mut jobs,
-                |j| 20 * j.0.samples.len(),
-                |(s, sens)| {
-                    let mut v = Vec::with_capacity(3 * s.samples.len());
-                    dr_residuals_into(s, *sens, marker, lever, &mut v);
-                    v
-                },
-            );
-            out.reserve(parts.iter().map(|v| v.len()).sum());
-            for v in parts {
-                out.extend_from_slice(&v);
-            }
+            self.dr_residuals_all(c.1.iter().collect(), self.marker(geom), &mut out);
             if with_prior {
                 self.prior_rows(geom, &mut out);
             }
@@ -1632,27 +1620,37 @@ impl<'a> Problem<'a> {
                 residuals_into(s, &c.1[i], &nu, marker, &mut out);
             }
         } else {
-            // Each recording's on its own (in parallel), then in order.
-            let lever = self.dr_lever;
-            let mut jobs: Vec<(&Series, &Path)> = self.series.iter().copied().zip(&c.1).collect();
-            let parts = par_jobs(
-                &mut jobs,
-                |j| 20 * j.0.samples.len(),
-                |(s, path)| {
-                    let mut v = Vec::with_capacity(3 * s.samples.len());
-                    dr_residuals_into(s, *path, marker, lever, &mut v);
-                    v
-                },
-            );
-            out.reserve(parts.iter().map(|v| v.len()).sum());
-            for v in parts {
-                out.extend_from_slice(&v);
-            }
+            self.dr_residuals_all(c.1.iter().collect(), marker, &mut out);
         }
         if with_prior {
             self.prior_rows(geom, &mut out);
         }
         out
+    }
+
+    /// The dead-reckoning residuals of every recording along `paths` (one per series):
+    /// each recording's on its own (in parallel), then in order onto `out`.
+    fn dr_residuals_all<P: Copy + PathAt + Send>(
+        &self,
+        paths: Vec<P>,
+        marker: (f64, f64),
+        out: &mut Vec<f64>,
+    ) {
+        let lever = self.dr_lever;
+        let mut jobs: Vec<(&Series, P)> = self.series.iter().copied().zip(paths).collect();
+        let parts = par_jobs(
+            &mut jobs,
+            |j| 20 * j.0.samples.len(),
+            |(s, path)| {
+                let mut v = Vec::with_capacity(3 * s.samples.len());
+                dr_residuals_into(s, *path, marker, lever, &mut v);
+                v
+            },
+        );
+        out.reserve(parts.iter().map(|v| v.len()).sum());
+        for v in parts {
+            out.extend_from_slice(&v);
+        }
     }
 
     /// The prior rows at `geom` onto `out`.

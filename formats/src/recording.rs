@@ -168,28 +168,19 @@ impl Recording {
 
     /// Appends a row. Slices must have one value per wheel when the columns exist.
     pub fn push_row(&mut self, row: Row<'_>) {
-        self.t.push(row.t);
-        for (i, w) in self.wheels.iter_mut().enumerate() {
-            if let Some(c) = &mut w.cmd {
-                c.push(row.cmd.and_then(|v| v.get(i).copied()));
-            }
-            if let Some(e) = &mut w.enc {
-                e.push(row.enc.and_then(|v| v.get(i).copied()));
-            }
+        let n = self.wheels.len();
+        Cells {
+            t: row.t,
+            cmd: (0..n)
+                .map(|i| row.cmd.and_then(|v| v.get(i).copied()))
+                .collect(),
+            enc: (0..n)
+                .map(|i| row.enc.and_then(|v| v.get(i).copied()))
+                .collect(),
+            pose: row.pose,
+            legs: [row.legs.map(|l| l.0), row.legs.map(|l| l.1)],
         }
-        let (x, y, th) = match row.pose {
-            Some((x, y, t)) => (Some(x), Some(y), Some(t)),
-            None => (None, None, None),
-        };
-        self.x.push(x);
-        self.y.push(y);
-        self.theta.push(th);
-        if let Some(f) = &mut self.leg_front {
-            f.push(row.legs.map(|l| l.0));
-        }
-        if let Some(r) = &mut self.leg_rear {
-            r.push(row.legs.map(|l| l.1));
-        }
+        .push_to(self);
     }
 
     /// Rows where the pose was measured.
