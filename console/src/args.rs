@@ -108,7 +108,8 @@ pub struct DiagnoseArgs {
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=4))]
     pub max_effects: u8,
     /// Merge faster rows to about this many per second while reading (commands averaged,
-    /// counts and poses kept as sampled; docs/formats.md §2.4); 0 keeps every row.
+    /// counts and poses kept as sampled; docs/formats.md §2, "Fast recordings"); 0 keeps
+    /// every row.
     #[arg(long, default_value_t = formats::decimate::DEFAULT_MAX_ROW_RATE_HZ, value_parser = max_rate)]
     pub max_rate: f64,
     /// How to read recordings given as ROS 2 bags.

@@ -1,4 +1,4 @@
-//! Fewer rows for long, fast recordings (docs/formats.md §2.4).
+//! Fewer rows for long, fast recordings (docs/formats.md §2, "Fast recordings").
 //!
 //! Diagnosis replays a recording many times, so its cost and memory grow with the rows.
 //! Above about 100 rows/s the extra rows add nothing the models can use: encoder counts
