@@ -1121,6 +1121,19 @@ impl Nuisance {
     }
 }
 
+/// Huber's loss on the Jacobian's data rows: d huber / dr is 1 within `c` and
+/// c / |r| beyond (huber is monotone, = c at c), on the first `cols` columns.
+fn huber_rows(jac: &mut DMatrix<f64>, r: &[f64], c: f64, cols: usize) {
+    for (i, v) in r.iter().enumerate() {
+        if v.abs() > c {
+            let k = c / v.abs();
+            for a in 0..cols {
+                jac[(i, a)] *= k;
+            }
+        }
+    }
+}
+
 /// Each pose sample on the encoders' clock: (sample j, its row time, its time tau on the
 /// encoders' clock, the row segment k with t[k] <= tau < t[k + 1] where there is one).
 fn pose_segments<'a>(
@@ -1498,15 +1511,7 @@ impl<'a> Problem<'a> {
             row += 3 * s.samples.len();
         }
         if let Some(c) = self.huber {
-            // d huber / dr: 1 within c, c / |huber(r)| beyond (huber is monotone, = c at c).
-            for (i, v) in r[..m].iter().enumerate() {
-                if v.abs() > c {
-                    let k = c / v.abs();
-                    for a in 0..g {
-                        jac[(i, a)] *= k;
-                    }
-                }
-            }
+            huber_rows(jac, &r[..m], c, g);
         }
         for (i, (w, _, sigma)) in self.priors.iter().enumerate() {
             for a in 0..g {
@@ -1583,14 +1588,7 @@ impl<'a> Problem<'a> {
             row += 3 * s.pose_samples();
         }
         if let Some(h) = self.huber {
-            for (i, v) in r[..m].iter().enumerate() {
-                if v.abs() > h {
-                    let k = h / v.abs();
-                    for a in 0..np {
-                        jac[(i, a)] *= k;
-                    }
-                }
-            }
+            huber_rows(jac, &r[..m], h, np);
         }
         true
     }

@@ -235,25 +235,24 @@ impl<'a> Evaluator<'a> {
                 (best, floor)
             };
             let held = best_with_lag(&ev);
-            if p.commands_are_means {
-                // Merged rows carry interval means: held is the reading that keeps their
-                // travel exact.
-                ev.act_floor_rss.set(held.1);
-                ev.noise = estimate_noise(p, &nominal);
-                return ev;
-            }
-            ev.linear_commands.set(true);
-            *ev.act_cache.borrow_mut() = None;
-            *ev.ground_cache.borrow_mut() = None;
-            let linear = best_with_lag(&ev);
-            if linear.0 < held.0 {
+            // Merged rows carry interval means: held is the reading that keeps their
+            // travel exact, so the linear one is not tried.
+            let linear = (!p.commands_are_means).then(|| {
+                ev.linear_commands.set(true);
+                *ev.act_cache.borrow_mut() = None;
+                *ev.ground_cache.borrow_mut() = None;
+                best_with_lag(&ev)
+            });
+            if let Some(linear) = linear.filter(|l| l.0 < held.0) {
                 nominal = ev.evaluate(&Model::default(), Fold::All);
                 ev.act_floor_rss.set(linear.1);
             } else {
-                ev.linear_commands.set(false);
                 ev.act_floor_rss.set(held.1);
-                *ev.act_cache.borrow_mut() = None;
-                *ev.ground_cache.borrow_mut() = None;
+                if linear.is_some() {
+                    ev.linear_commands.set(false);
+                    *ev.act_cache.borrow_mut() = None;
+                    *ev.ground_cache.borrow_mut() = None;
+                }
             }
         }
         ev.noise = estimate_noise(p, &nominal);
