@@ -12,6 +12,17 @@ use crate::linalg::inverse3;
 use crate::robot::{Robot, MAX_WHEELS};
 use num_traits::Float;
 
+/// Share of a differential drive's turn law (the effective separation on arcs against a
+/// turn in place) that acts at turn ratio `rho` = |v_r - v_l| / (|v_r| + |v_l|): 1 - rho^2.
+/// It is 0 in a turn in place (rho = 1) and near 1 on every arc wider than the track,
+/// because a tyre's turn slip (the twist of its contact patch) falls as one over the turn
+/// radius. Measured on the OptiOdom robot, this shape gives the same law on two days
+/// (0.0057 ± 0.0006 in June, 0.0047 ± 0.0014 in December); the smooth (1 - rho)^2 did
+/// not (0.0104 ± 0.0011 against 0.0059 ± 0.0017).
+pub fn turn_law_share<T: Float>(rho: T) -> T {
+    T::one() - rho * rho
+}
+
 /// A planar body velocity (or displacement over a tick) in the body frame.
 #[derive(
     Debug,

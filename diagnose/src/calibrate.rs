@@ -390,7 +390,7 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
 }
 
 /// A turn-radius law (zero when the separation does not depend on the turn).
-#[derive(Debug, Clone, Copy, PartialEq, Default)]
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
 pub struct TurnLaw {
     /// eb_arc / eb: relative growth of the separation from a turn in place to a wide arc.
     pub arc_rel: f64,
@@ -399,12 +399,13 @@ pub struct TurnLaw {
 }
 
 impl TurnLaw {
-    /// The law in `values` (in `specs` order).
-    pub fn of(specs: &[ParamSpec], values: &[f64]) -> TurnLaw {
+    /// The law in `values` (in `specs` order); `known_arc_rel` when the specs do not fit
+    /// eb_arc ([`CalOptions::turn_law`], else 0).
+    pub fn of(specs: &[ParamSpec], values: &[f64], known_arc_rel: f64) -> TurnLaw {
         let get = |k: GeomKind| specs.iter().position(|s| s.kind == k).map(|i| values[i]);
         let eb = get(GeomKind::Eb).unwrap_or(1.0);
         TurnLaw {
-            arc_rel: get(GeomKind::EbArc).unwrap_or(0.0) / eb,
+            arc_rel: get(GeomKind::EbArc).map_or(known_arc_rel, |a| a / eb),
             icr_x_m: get(GeomKind::IcrX).unwrap_or(0.0),
         }
     }
@@ -453,6 +454,8 @@ pub(crate) struct Sides {
     counts: (f64, f64),
     /// Mean |y| of the wheels (half the separation, E_b applied), m.
     half: f64,
+    /// A skid-steer robot (the law's shape differs).
+    skid: bool,
 }
 
 impl Sides {
@@ -474,6 +477,19 @@ impl Sides {
             wheels,
             counts: (f64::max(nl, 1.0), f64::max(nr, 1.0)),
             half,
+            skid: robot.kind == RobotKind::SkidSteer,
+        }
+    }
+
+    /// Share of the law's widening at turn ratio `rho`: a differential drive's turn slip
+    /// ([`calib_core::kinematics::turn_law_share`]); a skid-steer robot's moving ICRs
+    /// (1 - rho)^2, as measured on the simulator's independent tyres.
+    #[inline]
+    pub(crate) fn law_share(&self, rho: f64) -> f64 {
+        if self.skid {
+            (1.0 - rho).powi(2)
+        } else {
+            calib_core::kinematics::turn_law_share(rho)
         }
     }
 
@@ -502,7 +518,7 @@ impl Sides {
         inc: &[f64],
     ) -> calib_core::kinematics::Twist<f64> {
         let (l, r) = self.travel(inc);
-        let half = self.half * (1.0 + law.arc_rel * (1.0 - rho).powi(2));
+        let half = self.half * (1.0 + law.arc_rel * self.law_share(rho));
         let dth = (r - l) / (2.0 * half);
         calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)
     }
@@ -988,7 +1004,7 @@ impl Series {
             let (l, r) = sides.travel(inc);
             let d = (r - l).abs();
             t.all += d;
-            t.arc_term += d * (1.0 - rho).powi(2);
+            t.arc_term += d * sides.law_share(rho);
             if (ARC_RHO.0..=ARC_RHO.1).contains(&rho) {
                 t.arcs += d;
             }
@@ -1351,16 +1367,24 @@ pub fn dead_reckoning_rmse(robot: &Robot, s: &Series) -> Option<f64> {
     dead_reckoning_rmse_with(robot, &TurnLaw::default(), s)
 }
 
+/// [`dead_reckoning_rmse`] of a robot whose separation follows `law` (its `robot` the
+/// separation of a turn in place: [`Calibration::law_base_robot`]).
+pub fn dead_reckoning_rmse_law(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<f64> {
+    dead_reckoning_rmse_with(robot, law, s)
+}
+
 /// [`dead_reckoning_rmse`] of the geometry `values` (in `specs` order) of `base`, a
 /// skid-steer robot's turn-radius law included.
 pub fn fitted_dead_reckoning_rmse(
     base: &Robot,
     specs: &[ParamSpec],
     values: &[f64],
+    known_arc_rel: f64,
     s: &Series,
 ) -> f64 {
     let r = robot_with(base, specs, values);
-    dead_reckoning_rmse_with(&r, &TurnLaw::of(specs, values), s).unwrap_or(f64::NAN)
+    dead_reckoning_rmse_with(&r, &TurnLaw::of(specs, values, known_arc_rel), s)
+        .unwrap_or(f64::NAN)
 }
 
 fn dead_reckoning_rmse_with(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<f64> {
@@ -1410,6 +1434,8 @@ struct Problem<'a> {
     huber: Option<f64>,
     /// Lever arm of the dead-reckoning heading residuals, m.
     dr_lever: f64,
+    /// A known turn law (eb_arc / eb) when the specs do not fit one.
+    known_law: f64,
     /// The Jacobian of a fit's solution (its covariance, the cross-validation's steps)
     /// by forward differences, as the iterations' used to be; else the analytic one.
     differences_at_solution: bool,
@@ -1457,6 +1483,7 @@ impl<'a> Problem<'a> {
             free_start: true,
             huber: None,
             dr_lever: DR_HEADING_LEVER_M,
+            known_law: 0.0,
             differences_at_solution: true,
             cache: RefCell::new((vec![f64::NAN], vec![Path::default(); n])),
             sens: RefCell::new((vec![f64::NAN], Vec::new())),
@@ -1470,7 +1497,7 @@ impl<'a> Problem<'a> {
             return true;
         }
         let r = robot_with(self.robot, self.specs, geom);
-        let law = TurnLaw::of(self.specs, geom);
+        let law = TurnLaw::of(self.specs, geom, self.known_law);
         let Ok(kin) = Kinematics::<f64>::new(&r, &Corrections::None) else {
             c.0 = vec![f64::NAN];
             return false;
@@ -1532,7 +1559,7 @@ impl<'a> Problem<'a> {
             return true;
         }
         let robot = robot_with(self.robot, self.specs, geom);
-        let law = TurnLaw::of(self.specs, geom);
+        let law = TurnLaw::of(self.specs, geom, self.known_law);
         let Ok(kin) = Kinematics::<f64>::new(&robot, &Corrections::None) else {
             return false;
         };
@@ -1543,7 +1570,7 @@ impl<'a> Problem<'a> {
                 .specs
                 .iter()
                 .any(|s| matches!(s.kind, GeomKind::EbArc | GeomKind::IcrX));
-        let Some(slopes) = sens::TwistSlopes::new(self.robot, self.specs, geom, &cols.path, sides)
+        let Some(slopes) = sens::TwistSlopes::new(self.robot, self.specs, geom, self.known_law, &cols.path, sides)
         else {
             return false;
         };
@@ -2172,6 +2199,12 @@ pub struct Calibration {
     /// geometry (`geometry`).
     #[serde(rename = "geometry", serialize_with = "serialize_geometry")]
     pub fitted_robot: Robot,
+    /// The turn law the geometry was fitted with (fitted, given, or none: zero).
+    pub turn_law: TurnLaw,
+    /// With a turn law: the fitted robot with the separation of a turn in place, which
+    /// the law widens on arcs ([`dead_reckoning_rmse_law`]); else `fitted_robot`.
+    #[serde(skip)]
+    pub law_base_robot: Robot,
 }
 
 impl Calibration {
@@ -2319,6 +2352,12 @@ pub struct CalOptions {
     /// Lever arm (m) of the heading residuals in the dead-reckoning objective (default
     /// [`DR_HEADING_LEVER_M`]).
     pub heading_lever_m: Option<f64>,
+    /// A differential drive's known turn law, eb_arc / eb (the effective separation on
+    /// arcs against a turn in place, [`calib_core::kinematics::turn_law_share`]), from an
+    /// earlier calibration on runs with arcs: held fixed while the geometry is fitted.
+    /// Squares turn in place and cannot find it (measured: it transfers across days on
+    /// the OptiOdom robot).
+    pub turn_law: Option<f64>,
 }
 
 /// How cross-validation groups recordings.
@@ -2420,13 +2459,21 @@ struct Cfg {
     free_start: bool,
     huber: Option<f64>,
     dr_lever: f64,
+    /// A known turn law (eb_arc / eb, [`CalOptions::turn_law`]).
+    known_law: Option<f64>,
 }
 
 impl Cfg {
+    /// The known turn law, 0 when none is given.
+    fn law(&self) -> f64 {
+        self.known_law.unwrap_or(0.0)
+    }
+
     fn apply(&self, p: &mut Problem) {
         p.free_start = self.free_start;
         p.huber = self.huber;
         p.dr_lever = self.dr_lever;
+        p.known_law = self.law();
     }
 }
 
@@ -2673,6 +2720,23 @@ fn check_inputs(
                 recording: Some(hn.clone()),
                 message: format!(
                     "the held-out recording is also fitted (as {n}): a held-out error needs a recording the fit did not see"
+                ),
+            });
+        }
+    }
+    if let Some(law) = opts.turn_law {
+        if robot.kind != RobotKind::DiffDrive {
+            return Err(CalibrateError {
+                recording: None,
+                message: "a known turn law (--turn-law) is for differential drives; a skid-steer robot's law is fitted from its recordings".into(),
+            });
+        }
+        if !(law.abs() <= DIFF_EB_ARC_RANGE) {
+            return Err(CalibrateError {
+                recording: None,
+                message: format!(
+                    "--turn-law {law} is outside the plausible -{r}..{r} (eb_arc / eb: the separation on arcs over that of a turn in place, minus 1)",
+                    r = DIFF_EB_ARC_RANGE
                 ),
             });
         }
@@ -3003,7 +3067,7 @@ fn heldout_errors(
         let Fit { f, runs: r, .. } = fit_specs(robot, models[m], &rest, cfg, false);
         let errors: Vec<f64> = (0..n)
             .filter(|&j| j % k == fold)
-            .map(|j| fitted_dead_reckoning_rmse(robot, models[m], &f.geom, &series[j]))
+            .map(|j| fitted_dead_reckoning_rmse(robot, models[m], &f.geom, cfg.law(), &series[j]))
             .collect();
         (errors, r)
     });
@@ -3154,6 +3218,13 @@ fn choose_turn_law(
     let who = if skid { "skid-steer" } else { "turn law" };
     let base = param_specs(robot, false);
     let law = turn_law_specs(robot);
+    if let Some(known) = cfg.known_law {
+        notes.push(format!(
+            "turn law: given (--turn-law), held at eb_arc/eb {known:+.4}: the separation on arcs is {:.2} % wider than in a turn in place; the geometry is fitted with it",
+            known * 100.0
+        ));
+        return base;
+    }
     if series.len() < 2 {
         if skid {
             notes.push(format!(
@@ -3265,6 +3336,7 @@ pub fn calibrate(
         free_start: opts.free_start,
         huber: None,
         dr_lever: opts.heading_lever_m.unwrap_or(DR_HEADING_LEVER_M),
+        known_law: opts.turn_law,
     };
     // SLAM-like poses: dead reckoning from one pose sample of centimetre noise tilts the
     // whole recording (measured on the simulator: scale, E_d and E_b 8-11 sigma off), so
@@ -3446,24 +3518,22 @@ pub fn calibrate(
     // A turn-radius law is more than a robot file, the board or ROS 2's
     // diff_drive_controller express: they all get E_b at the recordings' mean turn,
     // weighted by how much each row turns.
-    let law_arc = specs
-        .iter()
-        .position(|s| s.kind == GeomKind::EbArc)
-        .map_or(0.0, |i| fitted.geom[i]);
+    let turn_law = TurnLaw::of(&specs, &fitted.geom, cfg.law());
+    let law_base_robot = fitted_robot.clone();
     let mut law_eb_shift = 0.0;
-    if law_arc != 0.0 {
+    if turn_law.arc_rel != 0.0 {
         let (mut sw, mut st) = (0.0, 0.0);
         for s in &series {
             let t = s.turning(robot);
             sw += t.all;
             st += t.arc_term;
         }
+        let eb = specs
+            .iter()
+            .position(|s| s.kind == GeomKind::Eb)
+            .map_or(1.0, |i| fitted.geom[i]);
         if sw > 0.0 {
-            law_eb_shift = law_arc * st / sw;
-            let eb = specs
-                .iter()
-                .position(|s| s.kind == GeomKind::Eb)
-                .map_or(1.0, |i| fitted.geom[i]);
+            law_eb_shift = turn_law.arc_rel * eb * st / sw;
             for w in fitted_robot.wheels.iter_mut() {
                 w.l_m *= (eb + law_eb_shift) / eb;
             }
@@ -3504,7 +3574,7 @@ pub fn calibrate(
         };
         (
             dead_reckoning_rmse(robot, s).unwrap_or(f64::NAN),
-            fitted_dead_reckoning_rmse(robot, &specs, &fitted.geom, s),
+            fitted_dead_reckoning_rmse(robot, &specs, &fitted.geom, cfg.law(), s),
             ab,
             aa,
         )
@@ -3559,7 +3629,7 @@ pub fn calibrate(
         rmse_before_m: dead_reckoning_rmse(robot, h).unwrap_or(f64::NAN),
         aligned_before_m: aligned_rmse(robot, &specs, &nominal, h),
         aligned_after_m: aligned_rmse(robot, &specs, &fitted.geom, h),
-        rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, &fitted.geom, h),
+        rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, &fitted.geom, cfg.law(), h),
     });
 
     // Cross-validation: each group (run, session or path kind) held out in turn, the
@@ -3662,7 +3732,7 @@ pub fn calibrate(
                     name: series[i].name.clone(),
                     group: Some(gname.clone()),
                     rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
-                    rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, &f.geom, &series[i]),
+                    rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, &f.geom, cfg.law(), &series[i]),
                     aligned_before_m: per_recording[i].aligned_before_m,
                     aligned_after_m: aligned_rmse(robot, &specs, &f.geom, &series[i]),
                 });
@@ -3674,7 +3744,7 @@ pub fn calibrate(
                 name: s.name.clone(),
                 group: Some((*gname).clone()),
                 rmse_before_m: per_recording[*i].dead_reckoning_before_m,
-                rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, geom, s),
+                rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, geom, cfg.law(), s),
                 aligned_before_m: per_recording[*i].aligned_before_m,
                 aligned_after_m: aligned_rmse(robot, &specs, geom, s),
             }
@@ -3790,6 +3860,8 @@ pub fn calibrate(
         notes,
         model_runs: runs,
         fitted_robot,
+        turn_law,
+        law_base_robot,
     })
 }
 

@@ -145,7 +145,7 @@ fn a_law_from_the_other_month_beats_optiodom() {
             ..Default::default()
         };
         calibrate(robot, recs, None, &opts)
-            .map(|c| (c.fitted_robot_at_spin(), c.turn_law))
+            .map(|c| (c.law_base_robot, c.turn_law))
             .map_err(|e| e.to_string())
     })
     .unwrap();

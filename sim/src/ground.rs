@@ -160,8 +160,9 @@ impl Ground {
         let mut w = self.wheel_twist;
         if params.turn_scrub != 0.0 && !geom.skid_steer {
             // Wide tyres: the contact patches sit at the inner edges in a turn in place and
-            // roll on their centres on a straight line, so the effective separation grows
-            // by `turn_scrub` (1 - rho)^2 from the first to the second.
+            // roll on their centres on arcs and straight lines, so the effective
+            // separation grows by `turn_scrub` from the first to the second, in the share
+            // `calib_core::kinematics::turn_law_share` gives.
             let (mut l, mut r, mut nl, mut nr) = (0.0, 0.0, 0.0, 0.0);
             for (g, c) in geom.wheels.iter().zip(&self.contacts) {
                 if g.driven && g.y >= 0.0 {
@@ -175,7 +176,7 @@ impl Ground {
             let (l, r) = (l / f64::max(nl, 1.0), r / f64::max(nr, 1.0));
             let den = l.abs() + r.abs();
             let rho = if den > 0.0 { (r - l).abs() / den } else { 1.0 };
-            w.omega /= 1.0 + params.turn_scrub * (1.0 - rho).powi(2);
+            w.omega /= 1.0 + params.turn_scrub * calib_core::kinematics::turn_law_share(rho);
         }
         let side = match params.mech.lateral {
             Mechanism::Saturating if params.mech.lateral_sat_m_s.is_finite() => {

@@ -56,8 +56,9 @@ pub struct SimConfig {
     /// Tyre-ground friction of a skid-steer robot (other kinds ignore it).
     pub tyre: crate::skid::Tyre,
     /// Growth of the effective separation from a turn in place to a wide arc (wide
-    /// tyres): E_b(rho) = E_b (1 + turn_scrub (1 - rho)^2), rho = |v_r - v_l| /
-    /// (|v_r| + |v_l|). 0: the separation does not depend on the turn.
+    /// tyres): E_b(rho) = E_b (1 + turn_scrub (1 - rho^2)), rho = |v_r - v_l| /
+    /// (|v_r| + |v_l|) (`calib_core::kinematics::turn_law_share`). 0: the separation
+    /// does not depend on the turn.
     pub turn_scrub: f64,
 }
 

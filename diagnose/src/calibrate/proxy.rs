@@ -11,7 +11,7 @@
 //! frame, the first pose is exactly (0, 0, 0)), RMS position error over every pose sample
 //! of a run ([`dead_reckoning_rmse`]).
 
-use super::{dead_reckoning_rmse, Series};
+use super::{dead_reckoning_rmse, dead_reckoning_rmse_law, Series, TurnLaw};
 use calib_core::robot::Robot;
 use formats::recording::Recording;
 use serde::Serialize;
@@ -226,6 +226,12 @@ pub fn sessions_dir(from: &Path) -> Option<PathBuf> {
 /// robot out.
 pub type Train<'a> = dyn Fn(&Robot, &[(String, Recording)]) -> Result<Robot, String> + 'a;
 
+/// A training procedure that may fit a turn law: the nominal robot, the training
+/// recordings and the session id in; the fitted robot (the separation of a turn in place)
+/// and its law out.
+pub type TrainLaw<'a> =
+    dyn Fn(&Robot, &[(String, Recording)], &str) -> Result<(Robot, TurnLaw), String> + 'a;
+
 /// Runs the proxy for the differential robot: every square session of `dir` (or those in
 /// `only`), trained by `train`, tested on its paired runs (at most `max_tests` of them,
 /// evenly spread, when given).
@@ -234,6 +240,19 @@ pub fn run_diff(
     only: Option<&[&str]>,
     max_tests: Option<usize>,
     train: &Train<'_>,
+) -> Result<Vec<SessionResult>, String> {
+    run_diff_with_law(dir, only, max_tests, &|robot, recs, _| {
+        Ok((train(robot, recs)?, TurnLaw::default()))
+    })
+}
+
+/// [`run_diff`] with a training that may fit a turn law: the test runs are dead-reckoned
+/// with the law (as a board that applies it would).
+pub fn run_diff_with_law(
+    dir: &Path,
+    only: Option<&[&str]>,
+    max_tests: Option<usize>,
+    train: &TrainLaw<'_>,
 ) -> Result<Vec<SessionResult>, String> {
     let params: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.join("authors_params.json")).map_err(|e| e.to_string())?,
@@ -260,7 +279,7 @@ pub fn run_diff(
             recs.push((r.folder.clone(), rec));
         }
         let nominal = robot.ok_or("no run")?;
-        let ours = train(&nominal, &recs)?;
+        let (ours, law) = train(&nominal, &recs, &session)?;
         let authors = authors_diff_robot(&params, &nominal, &session, "square")
             .ok_or_else(|| format!("no authors' parameters for square {session}"))?;
         let mut tests = test_runs(&all, runs[0]);
@@ -276,8 +295,9 @@ pub fn run_diff(
                 test_cache.insert(t.folder.clone(), s);
             }
             let s = &test_cache[&t.folder];
-            let e = |r: &Robot| dead_reckoning_rmse(r, s).unwrap_or(f64::NAN);
-            res.push((t.folder.clone(), e(&ours), e(&authors)));
+            let ours = dead_reckoning_rmse_law(&ours, &law, s).unwrap_or(f64::NAN);
+            let authors = dead_reckoning_rmse(&authors, s).unwrap_or(f64::NAN);
+            res.push((t.folder.clone(), ours, authors));
         }
         out.push(SessionResult {
             session,

@@ -63,6 +63,7 @@ impl TwistSlopes {
         robot: &Robot,
         specs: &[ParamSpec],
         geom: &[f64],
+        known_law: f64,
         path_params: &[usize],
         sides: bool,
     ) -> Option<TwistSlopes> {
@@ -71,7 +72,7 @@ impl TwistSlopes {
             q[j] += h;
             let r = robot_with(robot, specs, &q);
             let kin = Kinematics::<f64>::new(&r, &Corrections::None).ok()?;
-            Some(Stepper::new(&r, &kin, &TurnLaw::of(specs, &q)))
+            Some(Stepper::new(&r, &kin, &TurnLaw::of(specs, &q, known_law)))
         };
         let step = |j: usize| STEP * geom[j].abs().max(1e-2);
         if sides {
@@ -85,7 +86,7 @@ impl TwistSlopes {
                     let r = robot_with(robot, specs, &g);
                     s.sides()
                         .cloned()
-                        .unwrap_or_else(|| (Sides::new(&r), TurnLaw::of(specs, &g)))
+                        .unwrap_or_else(|| (Sides::new(&r), TurnLaw::of(specs, &g, known_law)))
                 };
                 v.push(SideSlope {
                     plus: sides_of(&p, h),
@@ -517,9 +518,9 @@ mod tests {
         let s = series(&r, 3);
         let rb = robot_with(&r, &specs, &geom);
         let kin = Kinematics::<f64>::new(&rb, &Corrections::None).unwrap();
-        let stepper = Stepper::new(&rb, &kin, &TurnLaw::of(&specs, &geom));
+        let stepper = Stepper::new(&rb, &kin, &TurnLaw::of(&specs, &geom, 0.0));
         let cols = split_params(&specs);
-        let slopes = TwistSlopes::new(&r, &specs, &geom, &cols.path, false).unwrap();
+        let slopes = TwistSlopes::new(&r, &specs, &geom, 0.0, &cols.path, false).unwrap();
         let TwistSlopes::Linear(v) = &slopes else {
             panic!("a kinematics matrix's slopes")
         };
