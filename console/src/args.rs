@@ -673,6 +673,13 @@ pub struct CalibrateArgs {
     /// (default 0.1; 3 transferred better on real runs, see the README).
     #[arg(long)]
     pub heading_lever: Option<f64>,
+    /// A differential drive's known turn law, held fixed while the geometry is fitted:
+    /// how much wider the effective separation is on arcs than in a turn in place
+    /// (eb_arc / eb; 0.005 is 0.5 %). Take it from an earlier calibrate on runs with arcs
+    /// (circles, free driving): the JSON's `turn_law.arc_rel`. Squares turn in place and
+    /// cannot find it themselves.
+    #[arg(long, value_name = "EB_ARC")]
+    pub turn_law: Option<f64>,
     /// How to read recordings given as ROS 2 bags.
     #[command(flatten)]
     pub bag: BagFlags,

@@ -7,7 +7,10 @@
 //!
 //! Options: `--sessions DIR` (default: `shared/real/sessions` beside the checkout),
 //! `--only S1,S2`, `--max-tests N`, `--json` (per-run numbers), `--free-start`,
-//! `--robust`, `--heading-lever M` (calibrate's options).
+//! `--robust`, `--heading-lever M` (calibrate's options), `--law-from-other-month`: first
+//! fit the turn law on each month's runs (June: 23 June squares, 25 June circles and
+//! Ivanjko paths; December: 23 December), then train each square session with the other
+//! month's law held fixed (`--turn-law`) and dead-reckon its test runs with that law.
 
 use diagnose::calibrate::{calibrate, proxy, CalOptions};
 use std::path::PathBuf;
@@ -39,30 +42,55 @@ fn main() {
         ..Default::default()
     };
     let t0 = std::time::Instant::now();
-    let res = proxy::run_diff(&dir, only_refs.as_deref(), max_tests, &|robot, recs| {
-        let t = std::time::Instant::now();
-        let c = calibrate(robot, recs, None, &opts).map_err(|e| e.to_string())?;
-        eprintln!(
-            "trained on {} recordings in {:.2} s: {}",
-            recs.len(),
-            t.elapsed().as_secs_f64(),
-            c.params
-                .iter()
-                .map(|p| format!("{} {:.5}", p.spec.name, p.value))
-                .collect::<Vec<_>>()
-                .join(", ")
-        );
-        if flag("--verbose") {
-            eprintln!("{c}");
-        }
-        for e in &c.events {
+    let laws = flag("--law-from-other-month").then(|| {
+        ["06", "12"].map(|m| {
+            let law = month_law(&dir, m).unwrap_or_else(|e| {
+                eprintln!("{e}");
+                std::process::exit(1)
+            });
+            eprintln!("turn law fitted on month {m}: eb_arc/eb {law:+.4}");
+            law
+        })
+    });
+    let res = proxy::run_diff_with_law(
+        &dir,
+        only_refs.as_deref(),
+        max_tests,
+        &|robot, recs, session| {
+            let opts = CalOptions {
+                turn_law: laws.map(|l| {
+                    if session.get(2..4) == Some("06") {
+                        l[1]
+                    } else {
+                        l[0]
+                    }
+                }),
+                ..opts.clone()
+            };
+            let t = std::time::Instant::now();
+            let c = calibrate(robot, recs, None, &opts).map_err(|e| e.to_string())?;
             eprintln!(
-                "  event {} {} at {:.2} s for {:.2} s: {:+.3} rad",
-                e.recording, e.kind, e.t_s, e.duration_s, e.heading_rad
+                "trained on {} recordings in {:.2} s: {}",
+                recs.len(),
+                t.elapsed().as_secs_f64(),
+                c.params
+                    .iter()
+                    .map(|p| format!("{} {:.5}", p.spec.name, p.value))
+                    .collect::<Vec<_>>()
+                    .join(", ")
             );
-        }
-        Ok(c.fitted_robot)
-    })
+            if flag("--verbose") {
+                eprintln!("{c}");
+            }
+            for e in &c.events {
+                eprintln!(
+                    "  event {} {} at {:.2} s for {:.2} s: {:+.3} rad",
+                    e.recording, e.kind, e.t_s, e.duration_s, e.heading_rad
+                );
+            }
+            Ok((c.law_base_robot, c.turn_law))
+        },
+    )
     .unwrap_or_else(|e| {
         eprintln!("{e}");
         std::process::exit(1)
@@ -72,4 +100,21 @@ fn main() {
     }
     print!("{}", proxy::table(&res));
     eprintln!("total {:.1} s", t0.elapsed().as_secs_f64());
+}
+
+/// The turn law (eb_arc / eb) `calibrate` fits on every differential-drive run of month
+/// `month` (`"06"`, `"12"`), 0 when it keeps none.
+fn month_law(dir: &std::path::Path, month: &str) -> Result<f64, String> {
+    let mut robot = None;
+    let mut recs = Vec::new();
+    for r in proxy::list_runs(dir).map_err(|e| e.to_string())? {
+        if r.robot == "diff" && r.session.get(2..4) == Some(month) {
+            let (rb, rec) = proxy::load_run(dir, &r.folder)?;
+            robot.get_or_insert(rb);
+            recs.push((r.folder.clone(), rec));
+        }
+    }
+    let robot = robot.ok_or(format!("no differential-drive run in month {month}"))?;
+    let c = calibrate(&robot, &recs, None, &CalOptions::default()).map_err(|e| e.to_string())?;
+    Ok(c.turn_law.arc_rel)
 }

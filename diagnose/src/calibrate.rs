@@ -1383,8 +1383,7 @@ pub fn fitted_dead_reckoning_rmse(
     s: &Series,
 ) -> f64 {
     let r = robot_with(base, specs, values);
-    dead_reckoning_rmse_with(&r, &TurnLaw::of(specs, values, known_arc_rel), s)
-        .unwrap_or(f64::NAN)
+    dead_reckoning_rmse_with(&r, &TurnLaw::of(specs, values, known_arc_rel), s).unwrap_or(f64::NAN)
 }
 
 fn dead_reckoning_rmse_with(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<f64> {
@@ -1570,8 +1569,14 @@ impl<'a> Problem<'a> {
                 .specs
                 .iter()
                 .any(|s| matches!(s.kind, GeomKind::EbArc | GeomKind::IcrX));
-        let Some(slopes) = sens::TwistSlopes::new(self.robot, self.specs, geom, self.known_law, &cols.path, sides)
-        else {
+        let Some(slopes) = sens::TwistSlopes::new(
+            self.robot,
+            self.specs,
+            geom,
+            self.known_law,
+            &cols.path,
+            sides,
+        ) else {
             return false;
         };
         let mut jobs: Vec<(&Series, Option<sens::Sensitivity>)> =
@@ -2731,7 +2736,7 @@ fn check_inputs(
                 message: "a known turn law (--turn-law) is for differential drives; a skid-steer robot's law is fitted from its recordings".into(),
             });
         }
-        if !(law.abs() <= DIFF_EB_ARC_RANGE) {
+        if !law.is_finite() || law.abs() > DIFF_EB_ARC_RANGE {
             return Err(CalibrateError {
                 recording: None,
                 message: format!(
@@ -3732,7 +3737,13 @@ pub fn calibrate(
                     name: series[i].name.clone(),
                     group: Some(gname.clone()),
                     rmse_before_m: dead_reckoning_rmse(robot, &series[i]).unwrap_or(f64::NAN),
-                    rmse_after_m: fitted_dead_reckoning_rmse(robot, &specs, &f.geom, cfg.law(), &series[i]),
+                    rmse_after_m: fitted_dead_reckoning_rmse(
+                        robot,
+                        &specs,
+                        &f.geom,
+                        cfg.law(),
+                        &series[i],
+                    ),
                     aligned_before_m: per_recording[i].aligned_before_m,
                     aligned_after_m: aligned_rmse(robot, &specs, &f.geom, &series[i]),
                 });

@@ -679,3 +679,31 @@ fn turn_dependent_separation_is_found_and_not_invented() {
         c.notes
     );
 }
+
+/// A known turn law (`--turn-law`): outside its plausible ±0.1, not finite, or given for
+/// a robot that is not a differential drive, it is refused with a message naming the
+/// option; within range on a differential drive, it is held and reported.
+#[test]
+fn a_known_turn_law_is_checked_and_held() {
+    let nominal = robot("mobolab");
+    let rec = square(&nominal, Direction::Cw, 11);
+    let recs = [("square".to_string(), rec.recording)];
+    for bad in [0.3, -0.2, f64::NAN] {
+        let opts = CalOptions {
+            turn_law: Some(bad),
+            ..Default::default()
+        };
+        let e = calibrate(&nominal, &recs, None, &opts).unwrap_err();
+        assert!(e.to_string().contains("--turn-law"), "{bad}: {e}");
+    }
+    let omni = robot("omni4");
+    let opts = CalOptions {
+        turn_law: Some(0.005),
+        ..Default::default()
+    };
+    let e = calibrate(&omni, &recs, None, &opts).unwrap_err();
+    assert!(e.to_string().contains("--turn-law"), "{e}");
+    let c = calibrate(&nominal, &recs, None, &opts).unwrap();
+    assert_eq!(c.turn_law.arc_rel, 0.005);
+    assert!(c.params.iter().all(|p| p.spec.name != "eb_arc"), "{c}");
+}

@@ -175,6 +175,7 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         robust: a.robust,
         cv: if a.no_cross_validation { None } else { cv },
         heading_lever_m: a.heading_lever,
+        turn_law: a.turn_law,
     };
     let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|mut e| {
         // Name the file, not only the short name; the error stays the calibration's.
@@ -328,6 +329,7 @@ mod tests {
             robust: false,
             cv: None,
             heading_lever: None,
+            turn_law: None,
             bag: default_bag_flags(),
         }
     }
