@@ -17,7 +17,7 @@ use num_traits::Float;
 /// It is 0 in a turn in place (rho = 1) and near 1 on every arc wider than the track,
 /// because a tyre's turn slip (the twist of its contact patch) falls as one over the turn
 /// radius. Measured on the OptiOdom robot, this shape gives the same law on two days
-/// (0.0057 ± 0.0006 in June, 0.0047 ± 0.0014 in December); the smooth (1 - rho)^2 did
+/// (0.0057 ± 0.0006 in June, 0.0044 ± 0.0013 in December); the smooth (1 - rho)^2 did
 /// not (0.0104 ± 0.0011 against 0.0059 ± 0.0017).
 pub fn turn_law_share<T: Float>(rho: T) -> T {
     T::one() - rho * rho

@@ -411,14 +411,28 @@ impl TurnLaw {
     }
 }
 
-/// Rows either side over which a skid-steer recording's turn ratio rho is smoothed
-/// (0.1 s at 200 rows/s): one encoder count makes a row's own ratio noisy at low speed.
-const RHO_HALF_WINDOW: usize = 20;
+/// Time either side over which a recording's turn ratio rho is smoothed (s): one encoder
+/// count makes a row's own ratio noisy at low speed (20 rows at 200 rows/s, 2 at 20).
+const RHO_HALF_WINDOW_S: f64 = 0.1;
+
+/// The median step between consecutive times, when positive.
+fn median_step(t: &[f64]) -> Option<f64> {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return None;
+    }
+    let mid = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    (*m > 0.0).then_some(*m)
+}
 
 /// Per increment, rho = |d_r - d_l| / (|d_r| + |d_l|) of the sides' travel (nominal
-/// radii), smoothed over [`RHO_HALF_WINDOW`] rows either side.
-fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
+/// radii), smoothed over [`RHO_HALF_WINDOW_S`] either side (in rows at the median row step).
+fn turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> Vec<f64> {
     let m = inc.len();
+    let half = median_step(t).map_or(1, |dt| {
+        ((RHO_HALF_WINDOW_S / dt).round() as usize).max(1)
+    });
     let sides = Sides::new(robot);
     let (mut pl, mut pr) = (vec![0.0; m + 1], vec![0.0; m + 1]);
     for k in 0..m {
@@ -429,8 +443,8 @@ fn turn_ratio(robot: &Robot, inc: &[Vec<f64>]) -> Vec<f64> {
     (0..m)
         .map(|k| {
             let (a, b) = (
-                k.saturating_sub(RHO_HALF_WINDOW),
-                (k + RHO_HALF_WINDOW + 1).min(m),
+                k.saturating_sub(half),
+                (k + half + 1).min(m),
             );
             let (dl, dr) = (pl[b] - pl[a], pr[b] - pr[a]);
             let den = dl.abs() + dr.abs();
@@ -776,7 +790,7 @@ impl Series {
         };
         let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
         let rho = matches!(robot.kind, RobotKind::SkidSteer | RobotKind::DiffDrive)
-            .then(|| turn_ratio(robot, &inc));
+            .then(|| turn_ratio(robot, &inc, &rec.t));
         let wheels = robot.wheels.len();
         let mut s = Series {
             name: name.to_string(),
