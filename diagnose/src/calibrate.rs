@@ -430,9 +430,7 @@ fn median_step(t: &[f64]) -> Option<f64> {
 /// radii), smoothed over [`RHO_HALF_WINDOW_S`] either side (in rows at the median row step).
 fn turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> Vec<f64> {
     let m = inc.len();
-    let half = median_step(t).map_or(1, |dt| {
-        ((RHO_HALF_WINDOW_S / dt).round() as usize).max(1)
-    });
+    let half = median_step(t).map_or(1, |dt| ((RHO_HALF_WINDOW_S / dt).round() as usize).max(1));
     let sides = Sides::new(robot);
     let (mut pl, mut pr) = (vec![0.0; m + 1], vec![0.0; m + 1]);
     for k in 0..m {
@@ -442,10 +440,7 @@ fn turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> Vec<f64> {
     }
     (0..m)
         .map(|k| {
-            let (a, b) = (
-                k.saturating_sub(half),
-                (k + half + 1).min(m),
-            );
+            let (a, b) = (k.saturating_sub(half), (k + half + 1).min(m));
             let (dl, dr) = (pl[b] - pl[a], pr[b] - pr[a]);
             let den = dl.abs() + dr.abs();
             if den > 0.0 {
