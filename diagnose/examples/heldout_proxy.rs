@@ -5,9 +5,11 @@
 //!
 //!     cargo run --release -p diagnose --example heldout_proxy [-- OPTIONS]
 //!
-//! Options: `--sessions DIR` (default: `shared/real/sessions` beside the checkout),
+//! Options: `--robot diff|omni3` (default diff; omni3 trains on its two square sessions and
+//! tests on the 44 circles of the same day, against `omni3-sousa`),
+//! `--sessions DIR` (default: `shared/real/sessions` beside the checkout),
 //! `--only S1,S2`, `--max-tests N`, `--json` (per-run numbers), `--free-start`,
-//! `--robust`, `--heading-lever M` (calibrate's options), `--law-from-other-month`: first
+//! `--robust`, `--marker-offset`, `--heading-lever M` (calibrate's options), `--law-from-other-month`: first
 //! fit the turn law on each month's runs (June: 23 June squares, 25 June circles and
 //! Ivanjko paths; December: 23 December), then train each square session with the other
 //! month's law held fixed (`--turn-law`) and dead-reckon its test runs with that law.
@@ -38,6 +40,7 @@ fn main() {
     let opts = CalOptions {
         free_start: flag("--free-start"),
         robust: flag("--robust"),
+        marker_offset: flag("--marker-offset"),
         heading_lever_m: val("--heading-lever").and_then(|v| v.parse().ok()),
         ..Default::default()
     };
@@ -52,8 +55,10 @@ fn main() {
             law
         })
     });
-    let res = proxy::run_diff_with_law(
+    let robot_name = val("--robot").unwrap_or_else(|| "diff".into());
+    let res = proxy::run_robot(
         &dir,
+        &robot_name,
         only_refs.as_deref(),
         max_tests,
         &|robot, recs, session| {

@@ -112,6 +112,36 @@ pub fn authors_diff_robot(
     Some(r)
 }
 
+/// The OptiOdom authors' omni parameters for `session` and `path` (`omni3-sousa` or
+/// `omni4-sousa` of authors_params.json, the row fitted on all the session's runs): the
+/// nominal robot with each wheel's radius, distance and angles from the row's `wheels`.
+pub fn authors_omni_robot(
+    params: &serde_json::Value,
+    key: &str,
+    nominal: &Robot,
+    session: &str,
+    path: &str,
+) -> Option<Robot> {
+    let row = params.get(key)?.as_array()?.iter().find(|r| {
+        r["session"].as_str() == Some(session)
+            && r["path"].as_str() == Some(path)
+            && r["note"].as_str() == Some("")
+    })?;
+    let mut r = nominal.clone();
+    for w in r.wheels.iter_mut() {
+        let a = row["wheels"]
+            .as_array()?
+            .iter()
+            .find(|a| a["name"].as_str() == Some(w.name.as_str()))?;
+        w.radius_m = a["radius_m"].as_f64()?;
+        w.l_m = a["l_m"].as_f64()?;
+        w.alpha_rad = a["alpha_deg"].as_f64()?.to_radians();
+        w.beta_rad = a["beta_deg"].as_f64()?.to_radians();
+        w.gamma_rad = a["gamma_deg"].as_f64()?.to_radians();
+    }
+    Some(r)
+}
+
 /// Held-out errors of one training session.
 #[derive(Debug, Clone, Serialize)]
 pub struct SessionResult {
@@ -254,6 +284,19 @@ pub fn run_diff_with_law(
     max_tests: Option<usize>,
     train: &TrainLaw<'_>,
 ) -> Result<Vec<SessionResult>, String> {
+    run_robot(dir, "diff", only, max_tests, train)
+}
+
+/// The proxy for robot `robot` of the sessions folder (`diff`, `omni3`): each of its
+/// square sessions trained by `train` and tested on the circular and Ivanjko runs of the
+/// nearest day, against the authors' parameters fitted on the same session.
+pub fn run_robot(
+    dir: &Path,
+    robot_name: &str,
+    only: Option<&[&str]>,
+    max_tests: Option<usize>,
+    train: &TrainLaw<'_>,
+) -> Result<Vec<SessionResult>, String> {
     let params: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.join("authors_params.json")).map_err(|e| e.to_string())?,
     )
@@ -262,7 +305,7 @@ pub fn run_diff_with_law(
     let mut sessions: BTreeMap<String, Vec<&RunDir>> = BTreeMap::new();
     for r in all
         .iter()
-        .filter(|r| r.robot == "diff" && r.path == "square")
+        .filter(|r| r.robot == robot_name && r.path == "square")
     {
         if only.is_none_or(|o| o.contains(&r.session.as_str())) {
             sessions.entry(r.session.clone()).or_default().push(r);
@@ -280,8 +323,13 @@ pub fn run_diff_with_law(
         }
         let nominal = robot.ok_or("no run")?;
         let (ours, law) = train(&nominal, &recs, &session)?;
-        let authors = authors_diff_robot(&params, &nominal, &session, "square")
-            .ok_or_else(|| format!("no authors' parameters for square {session}"))?;
+        let authors = if robot_name == "diff" {
+            authors_diff_robot(&params, &nominal, &session, "square")
+        } else {
+            let key = format!("{robot_name}-sousa");
+            authors_omni_robot(&params, &key, &nominal, &session, "square")
+        }
+        .ok_or_else(|| format!("no authors' parameters for square {session}"))?;
         let mut tests = test_runs(&all, runs[0]);
         if let Some(m) = max_tests.filter(|m| *m < tests.len()) {
             let step = tests.len() as f64 / m as f64;
