@@ -22,6 +22,10 @@ pub const FACTOR_MAX: f64 = 2.0;
 /// ([Mandow et al.]; Husky ships 1.875), so [`FACTOR_MAX`] would refuse every real one.
 pub const SKID_EB_MAX: f64 = 3.0;
 
+/// A turn law's e_b_arc is refused beyond ±this: tyre scrub widens a separation by a few
+/// per cent at most (the OptiOdom robot: 0.5 %).
+pub const E_B_ARC_MAX: f64 = 0.1;
+
 /// The correction factors a board stores.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Corrections {
@@ -43,6 +47,22 @@ pub enum Corrections {
         f_lat: Vec<f64, MAX_WHEELS>,
         /// Longitudinal factor common to all wheels (dimensionless).
         f_lon: f64,
+    },
+    /// [`Corrections::DiffDrive`] whose effective separation depends on the turn (wide
+    /// tyres' turn slip, fitted by `wheelcal calibrate`): `e_b` in a turn in place, times
+    /// 1 + `e_b_arc` (1 - rho^2) at turn ratio rho ([`crate::kinematics::turn_law_share`]).
+    /// Odometry applies the law; wheel commands use `e_b` (the closed loop on odometry
+    /// steers the rest). Last on the wire, so stored and sent values of the other kinds
+    /// read as before.
+    DiffDriveTurnLaw {
+        /// Left wheel's effective radius / nominal radius.
+        c_l: f64,
+        /// Right wheel's effective radius / nominal radius.
+        c_r: f64,
+        /// Actual wheelbase / nominal wheelbase in a turn in place.
+        e_b: f64,
+        /// How much wider the effective separation is on arcs (0.005 is 0.5 %).
+        e_b_arc: f64,
     },
 }
 
@@ -101,11 +121,14 @@ impl fmt::Display for CorrectionError {
                 max,
             } => {
                 at(f, name, index)?;
+                // A turn law's e_b_arc is a growth, symmetric about 0; factors start at
+                // FACTOR_MIN.
+                let min = if *name == "e_b_arc" { -*max } else { FACTOR_MIN };
                 write!(
                     f,
                     " = {} is outside [{}, {}]",
                     Num(*value),
-                    Num(FACTOR_MIN),
+                    Num(min),
                     Num(*max)
                 )
             }
@@ -162,10 +185,25 @@ impl Corrections {
         Corrections::None
     }
 
-    /// Checks the factors are finite, within [0.5, 2.0] and fit the robot.
+    /// Checks the factors are finite, within [0.5, 2.0] and fit the robot (a turn law's
+    /// `e_b_arc` within ±[`E_B_ARC_MAX`], on a differential drive only).
     pub fn validate(&self, robot: &Robot) -> Result<(), CorrectionError> {
         match self {
             Corrections::None => Ok(()),
+            Corrections::DiffDriveTurnLaw {
+                c_l,
+                c_r,
+                e_b,
+                e_b_arc,
+            } => {
+                if robot.kind != RobotKind::DiffDrive {
+                    return Err(CorrectionError::WrongKind { robot: robot.kind });
+                }
+                check("c_l", None, *c_l)?;
+                check("c_r", None, *c_r)?;
+                check("e_b", None, *e_b)?;
+                check_within("e_b_arc", *e_b_arc, -E_B_ARC_MAX, E_B_ARC_MAX)
+            }
             Corrections::DiffDrive { c_l, c_r, e_b } => {
                 if robot.kind == RobotKind::Omni {
                     return Err(CorrectionError::WrongKind { robot: robot.kind });
@@ -201,7 +239,8 @@ impl Corrections {
     pub fn radius_scale(&self, robot: &Robot, i: usize) -> f64 {
         match self {
             Corrections::None => 1.0,
-            Corrections::DiffDrive { c_l, c_r, .. } => {
+            Corrections::DiffDrive { c_l, c_r, .. }
+            | Corrections::DiffDriveTurnLaw { c_l, c_r, .. } => {
                 if robot.wheels[i].is_left() {
                     *c_l
                 } else {
@@ -214,11 +253,29 @@ impl Corrections {
         }
     }
 
-    /// Multiplier on every wheel's distance from the body origin (E_b).
+    /// Multiplier on every wheel's distance from the body origin (E_b; with a turn law,
+    /// its value in a turn in place).
     pub fn wheelbase_scale(&self) -> f64 {
         match self {
-            Corrections::DiffDrive { e_b, .. } => *e_b,
+            Corrections::DiffDrive { e_b, .. } | Corrections::DiffDriveTurnLaw { e_b, .. } => *e_b,
             _ => 1.0,
+        }
+    }
+
+    /// A differential drive's (c_l, c_r, e_b), with or without a turn law.
+    pub fn diff_factors(&self) -> Option<(f64, f64, f64)> {
+        match self {
+            Corrections::DiffDrive { c_l, c_r, e_b }
+            | Corrections::DiffDriveTurnLaw { c_l, c_r, e_b, .. } => Some((*c_l, *c_r, *e_b)),
+            _ => None,
+        }
+    }
+
+    /// The turn law's e_b_arc (0 without one).
+    pub fn turn_law(&self) -> f64 {
+        match self {
+            Corrections::DiffDriveTurnLaw { e_b_arc, .. } => *e_b_arc,
+            _ => 0.0,
         }
     }
 
@@ -229,6 +286,23 @@ impl Corrections {
         match (self, secondary) {
             (Corrections::None, s) => Some(s.clone()),
             (p, Corrections::None) => Some(p.clone()),
+            // With a turn law on either side: the factors multiply and the laws' small
+            // growths add.
+            (
+                Corrections::DiffDrive { .. } | Corrections::DiffDriveTurnLaw { .. },
+                Corrections::DiffDrive { .. } | Corrections::DiffDriveTurnLaw { .. },
+            ) if matches!(self, Corrections::DiffDriveTurnLaw { .. })
+                || matches!(secondary, Corrections::DiffDriveTurnLaw { .. }) =>
+            {
+                let (l1, r1, b1) = self.diff_factors()?;
+                let (l2, r2, b2) = secondary.diff_factors()?;
+                Some(Corrections::DiffDriveTurnLaw {
+                    c_l: l1 * l2,
+                    c_r: r1 * r2,
+                    e_b: b1 * b2,
+                    e_b_arc: self.turn_law() + secondary.turn_law(),
+                })
+            }
             (
                 Corrections::DiffDrive { c_l, c_r, e_b },
                 Corrections::DiffDrive {

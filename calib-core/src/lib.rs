@@ -27,3 +27,4 @@ pub use odometry::{Odometry, Pose};
 pub mod control;
 pub mod encoder;
 pub mod stepper;
+pub mod turn_law;

@@ -199,9 +199,14 @@ pub struct SetArgs {
     /// Differential drive: right wheel radius multiplier c_R.
     #[arg(long)]
     pub c_r: Option<f64>,
-    /// Differential drive: wheelbase multiplier E_b.
+    /// Differential drive: wheelbase multiplier E_b (in a turn in place, with a turn law).
     #[arg(long)]
     pub e_b: Option<f64>,
+    /// Differential drive: the turn law, how much wider the effective separation is on
+    /// arcs than in a turn in place (`calibrate`'s eb_arc / eb; 0.005 is 0.5 %; 0 removes
+    /// it). The board's odometry applies it; wheel commands use E_b.
+    #[arg(long, value_name = "EB_ARC")]
+    pub e_b_arc: Option<f64>,
     /// Omni: one factor per wheel, comma-separated, in the robot file's order.
     #[arg(long, value_delimiter = ',', value_parser = trimmed_f64)]
     pub f_lat: Option<Vec<f64>>,

@@ -19,6 +19,10 @@ pub struct DiffFactors {
     /// (the board accepts it for that kind), and the file says what the multiplier
     /// cannot express.
     pub skid_steer: Option<SkidNote>,
+    /// A differential drive's turn law, when calibrate kept or was given one: E_b in a
+    /// turn in place and e_b_arc (the growth on arcs). The file says the controller
+    /// cannot express it.
+    pub turn_law: Option<(f64, f64)>,
 }
 
 /// What a skid-steer export adds to the file.
@@ -37,6 +41,7 @@ impl DiffFactors {
             c_r,
             e_b,
             skid_steer: None,
+            turn_law: None,
         }
     }
 }
@@ -79,6 +84,16 @@ pub fn diff_drive_yaml(f: &DiffFactors, controller: &str, source: &str) -> Resul
                 spin + arc
             ));
         }
+    }
+    if let Some((spin, arc)) = f.turn_law {
+        head.push_str(&format!(
+            "# The fitted turn law is more than diff_drive_controller can express: the\n\
+             # effective separation is E_b {spin:.4} in a turn in place and {:.2} % wider on\n\
+             # arcs (tyre turn slip); the controller has no turn dependence. The multiplier\n\
+             # below is E_b at the recordings' mean turn. The wheelcal board applies the law\n\
+             # itself: factors set --e-b {spin:.6} --e-b-arc {arc:.6}.\n",
+            arc * 100.0
+        ));
     }
     Ok(format!(
         "{head}{controller}:\n  ros__parameters:\n    left_wheel_radius_multiplier: {:.9}\n    right_wheel_radius_multiplier: {:.9}\n    wheel_separation_multiplier: {:.9}\n",
@@ -131,17 +146,43 @@ pub fn factors_from_json(path: &Path) -> Result<DiffFactors> {
             .with_context(|| format!("{}: no numeric field {}", path.display(), keys.join(" or ")))
     };
     let skid = v.get("kind").and_then(serde_json::Value::as_str) == Some("skid_steer");
+    // A calibrate result with a differential drive's turn law carries both halves.
+    let law = ["e_b_turn_in_place", "e_b_arc"].map(|k| get(&[k]).ok());
     Ok(DiffFactors {
         c_l: get(&["c_l"])?,
         c_r: get(&["c_r"])?,
         e_b: get(&["e_b", "eb"])?,
         skid_steer: skid.then_some(SkidNote { law: None }),
+        turn_law: law[0].zip(law[1]),
     })
 }
 
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A differential drive's turn law: the multiplier is E_b at the mean turn (what the
+    /// controller can apply), and the file says what it cannot express and what the
+    /// board takes instead.
+    #[test]
+    fn a_turn_law_is_named_and_the_mean_turn_e_b_exported() {
+        let f = DiffFactors {
+            turn_law: Some((1.0057, 0.0057)),
+            ..DiffFactors::diff(0.997, 0.996, 1.0076)
+        };
+        let y = diff_drive_yaml(&f, "diff_drive_controller", "a fit").unwrap();
+        let v: serde_yaml::Value = serde_yaml::from_str(&y).expect("valid YAML");
+        let m = v["diff_drive_controller"]["ros__parameters"]["wheel_separation_multiplier"]
+            .as_f64()
+            .unwrap();
+        assert!((m - 1.0076).abs() < 1e-9, "{m}");
+        assert!(
+            y.contains("more than diff_drive_controller can express"),
+            "{y}"
+        );
+        assert!(y.contains("0.57 % wider on"), "{y}");
+        assert!(y.contains("--e-b 1.005700 --e-b-arc 0.005700"), "{y}");
+    }
 
     /// A skid-steer robot's E_b (1.5-2x the track, up to 3) is exported, and a kept
     /// turn-radius law is said to be more than the controller can express.
@@ -152,6 +193,7 @@ mod tests {
             c_r: 1.0,
             e_b: 2.4,
             skid_steer: Some(SkidNote { law: None }),
+            turn_law: None,
         };
         let y = diff_drive_yaml(&f, "diff_drive_controller", "a fit").unwrap();
         let v: serde_yaml::Value = serde_yaml::from_str(&y).expect("valid YAML");

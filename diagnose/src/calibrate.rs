@@ -2056,8 +2056,16 @@ pub enum Factors {
         c_l: f64,
         /// Right wheel's effective radius / nominal radius.
         c_r: f64,
-        /// Actual wheelbase / nominal wheelbase.
+        /// Actual wheelbase / nominal wheelbase (with a turn law: at the recordings' mean
+        /// turn, for consumers that apply one constant: ROS 2, the robot file).
         e_b: f64,
+        /// A differential drive's turn law, for a board that applies it: E_b in a turn in
+        /// place ...
+        #[serde(skip_serializing_if = "Option::is_none")]
+        e_b_turn_in_place: Option<f64>,
+        /// ... and the law's e_b_arc (`factors set --e-b-arc`).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        e_b_arc: Option<f64>,
     },
     /// Per wheel: the command multiplier f_lat (1 / radius scale), f_lon = 1. Wheel
     /// angle and position errors have no firmware factor: use the fitted robot file.
@@ -2222,6 +2230,14 @@ pub struct Calibration {
 }
 
 impl Calibration {
+    /// E_b of a differential drive's factors (at the recordings' mean turn), else 1.
+    pub fn factors_e_b(&self) -> f64 {
+        match self.factors {
+            Factors::Diff { e_b, .. } => e_b,
+            Factors::Wheels { .. } => 1.0,
+        }
+    }
+
     /// Each wheel's fitted geometry, in the robot's wheel order.
     pub fn geometry(&self) -> Vec<WheelGeometry> {
         wheel_geometry(&self.fitted_robot)
@@ -3297,8 +3313,13 @@ fn choose_turn_law(
         } else {
             "the effective wheelbase depends on how the robot turns (tyre scrub)"
         };
+        let consumers = if skid {
+            "ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn"
+        } else {
+            "the board applies it (factors set --e-b-arc); ROS 2's diff_drive_controller and the robot file get E_b at the recordings' mean turn"
+        };
         notes.push(format!(
-            "{who}: {what} and the law holds out ({figures}): the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn)"
+            "{who}: {what} and the law holds out ({figures}): the law is fitted ({consumers})"
         ));
         *prefit = Some(Prefit {
             specs: law.clone(),
@@ -3815,13 +3836,17 @@ pub fn calibrate(
             scale(GeomKind::Ed),
             scale(GeomKind::Eb),
         );
-        // With a turn-radius law: E_b at the recordings' mean turn (as the robot file).
-        let eb = eb + law_eb_shift;
+        // With a turn-radius law: E_b at the recordings' mean turn (as the robot file);
+        // a differential drive's board applies the law itself, from a turn in place.
+        let board_law = (robot.kind == RobotKind::DiffDrive && turn_law.arc_rel != 0.0)
+            .then_some((eb, turn_law.arc_rel));
         let (c_l, c_r) = calib_core::umbmark::wheel_factors(ed);
         Factors::Diff {
             c_l: sc * c_l,
             c_r: sc * c_r,
-            e_b: eb,
+            e_b: eb + law_eb_shift,
+            e_b_turn_in_place: board_law.map(|l| l.0),
+            e_b_arc: board_law.map(|l| l.1),
         }
     } else {
         if specs.iter().any(|s| {
@@ -4009,7 +4034,18 @@ impl fmt::Display for Calibration {
             writeln!(f)?;
         }
         match &self.factors {
-            Factors::Diff { c_l, c_r, e_b } => writeln!(
+            Factors::Diff {
+                c_l,
+                c_r,
+                e_b_turn_in_place: Some(e_b),
+                e_b_arc: Some(arc),
+                ..
+            } => writeln!(
+                f,
+                "firmware factors: factors set --c-l {c_l:.6} --c-r {c_r:.6} --e-b {e_b:.6} --e-b-arc {arc:.6} (the board applies the turn law; ROS 2 and the robot file get E_b {:.6} at the recordings' mean turn)",
+                self.factors_e_b()
+            )?,
+            Factors::Diff { c_l, c_r, e_b, .. } => writeln!(
                 f,
                 "firmware factors: factors set --c-l {c_l:.6} --c-r {c_r:.6} --e-b {e_b:.6}"
             )?,

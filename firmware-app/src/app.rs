@@ -18,6 +18,7 @@ use calib_core::protocol::{
     SCHEMA_FINGERPRINT,
 };
 use calib_core::robot::{DriveType, MAX_WHEELS};
+use calib_core::turn_law::TurnLawOdometry;
 use calib_core::{Corrections, Twist};
 use heapless::String;
 
@@ -111,6 +112,8 @@ pub struct App<'a> {
     corrections: Corrections,
     boot: BootReport,
     kin: Kinematics<f32>,
+    /// The corrections' turn law (none: twists pass unchanged).
+    turn_law: TurnLawOdometry<f32>,
     n: usize,
     dc: bool,
     /// None without encoders (open-loop steppers: odometry from the steps emitted).
@@ -175,12 +178,14 @@ impl<'a> App<'a> {
                 (Corrections::None, k)
             }
         };
+        let turn_law = TurnLawOdometry::new(&params.robot, corrections.turn_law(), DT as f64);
         let mut app = App {
             wheels: core::array::from_fn(|_| WheelState::new(params.gains, 1.0)),
             params,
             corrections,
             boot,
             kin,
+            turn_law,
             n: 0,
             dc: true,
             rad_per_count: None,
@@ -211,8 +216,15 @@ impl<'a> App<'a> {
         app
     }
 
+    /// The turn law of the active corrections for the active robot (its smoothing restarts).
+    fn configure_turn_law(&mut self) {
+        self.turn_law =
+            TurnLawOdometry::new(&self.params.robot, self.corrections.turn_law(), DT as f64);
+    }
+
     /// Derives the per-wheel state from params (after boot or SetParams).
     fn configure(&mut self) {
+        self.configure_turn_law();
         let p = &self.params;
         self.n = p.robot.wheel_count().min(MAX_WHEELS);
         self.dc = p.robot.drive.kind == DriveType::Dc;
@@ -313,8 +325,10 @@ impl<'a> App<'a> {
         if !wheels {
             drv.stop_all();
         }
-        // Odometry with the corrected geometry.
-        let d = self.kin.forward(&dphi[..self.n]);
+        // Odometry with the corrected geometry (and its turn law).
+        let d = self
+            .turn_law
+            .apply(&dphi[..self.n], self.kin.forward(&dphi[..self.n]));
         self.odo.update(&d);
         self.log_tick(now_us);
     }
@@ -816,6 +830,7 @@ impl<'a> App<'a> {
             .ok_or(Rejection::InvalidCorrections(CorrectionFault::Singular))?;
         self.kin = kin;
         self.corrections = c;
+        self.configure_turn_law();
         Ok(())
     }
 

@@ -69,6 +69,11 @@ pub struct Ground {
     /// Cable crossings so far, per wheel.
     pub crossings: Vec<u64>,
     contacts: Vec<f64>,
+    /// The left and right sides' contact speeds smoothed over
+    /// `calib_core::turn_law::TURN_RATIO_TIME_S` (m/s): how the robot turns, for the
+    /// turn scrub. A stepper's wheels move in pulses, one wheel per tick at times, so a
+    /// single tick's ratio says nothing about the turn.
+    sides: (f64, f64),
 }
 
 impl Ground {
@@ -81,6 +86,7 @@ impl Ground {
             pending_loss: vec![0.0; n_wheels],
             crossings: vec![0; n_wheels],
             contacts: vec![0.0; n_wheels],
+            sides: (0.0, 0.0),
         }
     }
 
@@ -174,6 +180,10 @@ impl Ground {
                 }
             }
             let (l, r) = (l / f64::max(nl, 1.0), r / f64::max(nr, 1.0));
+            let k = dt / (calib_core::turn_law::TURN_RATIO_TIME_S + dt);
+            let (sl, sr) = self.sides;
+            self.sides = (sl + k * (l - sl), sr + k * (r - sr));
+            let (l, r) = self.sides;
             let den = l.abs() + r.abs();
             let rho = if den > 0.0 { (r - l).abs() / den } else { 1.0 };
             w.omega /= 1.0 + params.turn_scrub * calib_core::kinematics::turn_law_share(rho);

@@ -383,10 +383,12 @@ pub enum Factor {
     FLat,
     /// F_lon, the longitudinal factor.
     FLon,
+    /// A turn law's e_b_arc (last on the wire).
+    EBArc,
 }
 
 impl Factor {
-    /// From the name `correction::check` was given (always one of the five; anything
+    /// From the name `correction::check` was given (always one of the six; anything
     /// else reads as f_lat).
     pub fn from_name(name: &str) -> Factor {
         match name {
@@ -394,6 +396,7 @@ impl Factor {
             "c_r" => Factor::CR,
             "e_b" => Factor::EB,
             "f_lon" => Factor::FLon,
+            "e_b_arc" => Factor::EBArc,
             _ => Factor::FLat,
         }
     }
@@ -406,6 +409,7 @@ impl Factor {
             Factor::EB => "e_b",
             Factor::FLat => "f_lat",
             Factor::FLon => "f_lon",
+            Factor::EBArc => "e_b_arc",
         }
     }
 }

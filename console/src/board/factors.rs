@@ -18,8 +18,11 @@ pub enum FactorsView {
         c_l: f64,
         /// Right wheel's effective radius / nominal radius.
         c_r: f64,
-        /// Actual wheelbase / nominal wheelbase.
+        /// Actual wheelbase / nominal wheelbase (in a turn in place, with a turn law).
         e_b: f64,
+        /// The turn law: how much wider the separation is on arcs (absent: none).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        e_b_arc: Option<f64>,
     },
     /// Omnidirectional robot.
     Omni {
@@ -38,6 +41,18 @@ impl From<&Corrections> for FactorsView {
                 c_l: *c_l,
                 c_r: *c_r,
                 e_b: *e_b,
+                e_b_arc: None,
+            },
+            Corrections::DiffDriveTurnLaw {
+                c_l,
+                c_r,
+                e_b,
+                e_b_arc,
+            } => FactorsView::DiffDrive {
+                c_l: *c_l,
+                c_r: *c_r,
+                e_b: *e_b,
+                e_b_arc: Some(*e_b_arc),
             },
             Corrections::Omni { f_lat, f_lon } => FactorsView::Omni {
                 f_lat: f_lat.to_vec(),
@@ -52,9 +67,21 @@ impl FactorsView {
     pub fn human(&self) -> String {
         match self {
             FactorsView::None => "no corrections (nominal geometry)\n".into(),
-            FactorsView::DiffDrive { c_l, c_r, e_b } => {
-                format!("c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6}\n")
-            }
+            FactorsView::DiffDrive {
+                c_l,
+                c_r,
+                e_b,
+                e_b_arc: None,
+            } => format!("c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6}\n"),
+            FactorsView::DiffDrive {
+                c_l,
+                c_r,
+                e_b,
+                e_b_arc: Some(a),
+            } => format!(
+                "c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6} in a turn in place, {:+.3} % wider on arcs (turn law e_b_arc {a:+.6})\n",
+                a * 100.0
+            ),
             FactorsView::Omni { f_lat, f_lon } => format!(
                 "F_lat = [{}]  F_lon = {f_lon:.6}\n",
                 f_lat
@@ -70,37 +97,44 @@ impl FactorsView {
 /// The factors `factors set` asks for: the board's `current` factors with the ones given
 /// replaced (nominal where the board holds none or the other kind, `n_wheels` F_lat of 1
 /// for an omni robot; the board refuses factors of the wrong kind in its own words).
-/// Differential and omni factors do not mix, and at least one factor must be given.
+/// Differential and omni factors do not mix, and at least one factor must be given. A
+/// turn law (`e_b_arc`) is kept unless replaced; 0 removes it.
 pub fn merge_corrections(
     current: &Corrections,
     n_wheels: usize,
-    c_l: Option<f64>,
-    c_r: Option<f64>,
-    e_b: Option<f64>,
-    f_lat: Option<&[f64]>,
-    f_lon: Option<f64>,
+    given: &GivenFactors<'_>,
 ) -> Result<Corrections> {
-    let diff = c_l.is_some() || c_r.is_some() || e_b.is_some();
+    let GivenFactors {
+        c_l,
+        c_r,
+        e_b,
+        e_b_arc,
+        f_lat,
+        f_lon,
+    } = *given;
+    let diff = c_l.is_some() || c_r.is_some() || e_b.is_some() || e_b_arc.is_some();
     let omni = f_lat.is_some() || f_lon.is_some();
     match (diff, omni) {
         (false, false) => bail!(
-            "give the factors to change: --c-l, --c-r, --e-b (differential drive) or --f-lat, --f-lon (omni)"
+            "give the factors to change: --c-l, --c-r, --e-b, --e-b-arc (differential drive) or --f-lat, --f-lon (omni)"
         ),
         (true, true) => {
-            bail!("differential (--c-l, --c-r, --e-b) and omni (--f-lat, --f-lon) factors do not mix")
+            bail!("differential (--c-l, --c-r, --e-b, --e-b-arc) and omni (--f-lat, --f-lon) factors do not mix")
         }
         (true, false) => {
             // Factors of the other kind on the board: nominal here, and the board refuses
             // differential factors on an omni robot in its own words.
-            let (l, r, b) = match current {
-                Corrections::DiffDrive { c_l, c_r, e_b } => (*c_l, *c_r, *e_b),
-                _ => (1.0, 1.0, 1.0),
-            };
-            Ok(Corrections::DiffDrive {
-                c_l: c_l.unwrap_or(l),
-                c_r: c_r.unwrap_or(r),
-                e_b: e_b.unwrap_or(b),
-            })
+            let (l, r, b) = current.diff_factors().unwrap_or((1.0, 1.0, 1.0));
+            let (c_l, c_r, e_b) = (c_l.unwrap_or(l), c_r.unwrap_or(r), e_b.unwrap_or(b));
+            match e_b_arc.unwrap_or(current.turn_law()) {
+                0.0 => Ok(Corrections::DiffDrive { c_l, c_r, e_b }),
+                e_b_arc => Ok(Corrections::DiffDriveTurnLaw {
+                    c_l,
+                    c_r,
+                    e_b,
+                    e_b_arc,
+                }),
+            }
         }
         (false, true) => {
             let (lat, lon) = match current {
@@ -116,6 +150,23 @@ pub fn merge_corrections(
             })
         }
     }
+}
+
+/// The factors given on `factors set`'s command line (None: keep the board's).
+#[derive(Debug, Clone, Copy, Default)]
+pub struct GivenFactors<'a> {
+    /// c_L.
+    pub c_l: Option<f64>,
+    /// c_R.
+    pub c_r: Option<f64>,
+    /// E_b (in a turn in place, with a turn law).
+    pub e_b: Option<f64>,
+    /// The turn law's e_b_arc (0: none).
+    pub e_b_arc: Option<f64>,
+    /// F_lat, one per wheel.
+    pub f_lat: Option<&'a [f64]>,
+    /// F_lon.
+    pub f_lon: Option<f64>,
 }
 
 /// A board's factors in words for messages (`c_L = 1.000000  c_R = ...`).
@@ -136,7 +187,15 @@ mod tests {
             c_r: 1.002,
             e_b: 1.01,
         };
-        let m = merge_corrections(&cur, 2, None, None, Some(1.6), None, None).unwrap();
+        let m = merge_corrections(
+            &cur,
+            2,
+            &GivenFactors {
+                e_b: Some(1.6),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(
             m,
             Corrections::DiffDrive {
@@ -145,8 +204,15 @@ mod tests {
                 e_b: 1.6
             }
         );
-        let m =
-            merge_corrections(&Corrections::None, 2, Some(1.01), None, None, None, None).unwrap();
+        let m = merge_corrections(
+            &Corrections::None,
+            2,
+            &GivenFactors {
+                c_l: Some(1.01),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         assert_eq!(
             m,
             Corrections::DiffDrive {
@@ -155,8 +221,15 @@ mod tests {
                 e_b: 1.0
             }
         );
-        let m =
-            merge_corrections(&Corrections::None, 4, None, None, None, None, Some(0.94)).unwrap();
+        let m = merge_corrections(
+            &Corrections::None,
+            4,
+            &GivenFactors {
+                f_lon: Some(0.94),
+                ..Default::default()
+            },
+        )
+        .unwrap();
         match m {
             Corrections::Omni { f_lat, f_lon } => {
                 assert_eq!(f_lat.as_slice(), &[1.0; 4]);
@@ -165,9 +238,51 @@ mod tests {
             other => panic!("{other:?}"),
         }
         // Mixing kinds or nothing given: refused, saying why.
-        let e = merge_corrections(&cur, 2, Some(1.0), None, None, None, Some(1.0)).unwrap_err();
+        let e = merge_corrections(
+            &cur,
+            2,
+            &GivenFactors {
+                c_l: Some(1.0),
+                f_lon: Some(1.0),
+                ..Default::default()
+            },
+        )
+        .unwrap_err();
         assert!(e.to_string().contains("do not mix"), "{e}");
-        let e = merge_corrections(&cur, 2, None, None, None, None, None).unwrap_err();
+        let e = merge_corrections(&cur, 2, &GivenFactors::default()).unwrap_err();
         assert!(e.to_string().contains("give the factors"), "{e}");
+        // A turn law: added by --e-b-arc, kept by later --e-b, removed by --e-b-arc 0.
+        let law = merge_corrections(
+            &cur,
+            2,
+            &GivenFactors {
+                e_b_arc: Some(0.0057),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(law.turn_law(), 0.0057);
+        assert_eq!(law.diff_factors(), Some((0.998, 1.002, 1.01)));
+        let kept = merge_corrections(
+            &law,
+            2,
+            &GivenFactors {
+                e_b: Some(1.02),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(kept.turn_law(), 0.0057);
+        assert_eq!(kept.wheelbase_scale(), 1.02);
+        let gone = merge_corrections(
+            &kept,
+            2,
+            &GivenFactors {
+                e_b_arc: Some(0.0),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert!(matches!(gone, Corrections::DiffDrive { .. }), "{gone:?}");
     }
 }

@@ -8,7 +8,7 @@ pub mod info;
 pub mod programs;
 pub mod trial_log;
 
-pub use factors::{factors_text, merge_corrections, FactorsView};
+pub use factors::{factors_text, merge_corrections, FactorsView, GivenFactors};
 pub use info::{info, status_line, stored_word, InfoReport};
 pub use programs::{
     drive_for, eviction_forecast, program_time_limit, run_omni, run_umbmark, start_program,

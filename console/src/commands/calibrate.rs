@@ -218,12 +218,19 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
 fn ros2_yaml(cal: &Calibration) -> Option<String> {
     match cal.factors {
         // Factors the board would refuse are not exported (the text says why not).
-        Factors::Diff { c_l, c_r, e_b } => Some(
+        Factors::Diff {
+            c_l,
+            c_r,
+            e_b,
+            e_b_turn_in_place,
+            e_b_arc,
+        } => Some(
             ros2::diff_drive_yaml(
                 &ros2::DiffFactors {
                     c_l,
                     c_r,
                     e_b,
+                    turn_law: e_b_turn_in_place.zip(e_b_arc),
                     skid_steer: (cal.kind == "skid_steer").then(|| {
                         let get = |n: &str| cal.params.iter().find(|p| p.spec.name == n);
                         ros2::SkidNote {

@@ -32,11 +32,14 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
     let c = board::merge_corrections(
         &current,
         n,
-        a.c_l,
-        a.c_r,
-        a.e_b,
-        a.f_lat.as_deref(),
-        a.f_lon,
+        &board::GivenFactors {
+            c_l: a.c_l,
+            c_r: a.c_r,
+            e_b: a.e_b,
+            e_b_arc: a.e_b_arc,
+            f_lat: a.f_lat.as_deref(),
+            f_lon: a.f_lon,
+        },
     )?;
     client.set_corrections(c)?;
     let f = FactorsView::from(&client.corrections()?);
