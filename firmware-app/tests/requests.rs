@@ -179,6 +179,26 @@ fn rejected_requests_change_nothing_and_say_why() {
             f_lon: 1.0,
         }),
     );
+    // A turn law beyond ±0.1 (tyre scrub is a few per cent at most): refused, named.
+    let r = rejected(
+        &mut b,
+        &mut l,
+        Request::SetCorrections(Corrections::DiffDriveTurnLaw {
+            c_l: 1.0,
+            c_r: 1.0,
+            e_b: 1.0,
+            e_b_arc: 0.3,
+        }),
+    );
+    assert!(
+        r == Rejection::InvalidCorrections(CorrectionFault::OutOfRange {
+            factor: Factor::EBArc,
+            index: None,
+            value: 0.3,
+            max: 0.1,
+        }),
+        "{r:?}"
+    );
     let mut p = defaults::params();
     p.robot.wheels[1].radius_m = -0.05;
     let r = rejected(&mut b, &mut l, Request::SetParams(p));
