@@ -304,3 +304,25 @@ fn damaged_flash_is_never_none_saved() {
     let l = block_on(store(fresh()).load());
     assert_eq!(l.boot.corrections, Stored::Missing);
 }
+
+/// A turn law (protocol v5's `DiffDriveTurnLaw`) saved over plain factors survives a
+/// reboot to the bit, and plain factors saved before it still read back as they were
+/// written (the new kind is last on the wire, so older values keep their encoding).
+#[test]
+fn a_saved_turn_law_survives_a_reboot() {
+    let mut s = store(fresh());
+    block_on(s.save(&PersistItem::Corrections(diff(1.01)))).unwrap();
+    let mut s = store(s.into_flash());
+    assert_eq!(block_on(s.load()).corrections, diff(1.01));
+    let law = Corrections::DiffDriveTurnLaw {
+        c_l: 1.01,
+        c_r: 0.99,
+        e_b: 1.02,
+        e_b_arc: 0.0057,
+    };
+    block_on(s.save(&PersistItem::Corrections(law.clone()))).unwrap();
+    let mut s = store(s.into_flash());
+    let l = block_on(s.load());
+    assert_eq!(l.corrections, law);
+    assert_eq!(l.boot.corrections, Stored::Loaded);
+}
