@@ -20,6 +20,8 @@
 //! taken (what the storage and control tasks exchange), `bench_mark(12)`/`bench_mark(13)`;
 //! a settings save handed to the storage task and taken there (`Channel` of a
 //! `PersistItem`, copied inside its critical sections), `bench_mark(14)`/`bench_mark(15)`.
+//! Then N turn-law steps of a differential drive's odometry (a law stored),
+//! `bench_mark(16)`/`bench_mark(17)`, per step.
 #![no_std]
 #![no_main]
 
@@ -203,6 +205,18 @@ fn main() -> ! {
     let got = SAVE.try_receive().is_ok();
     bench_mark(15);
     core::hint::black_box((sent, got));
+    // The odometry's turn-law step of a differential drive with a law stored (the omni
+    // robot above stores none, so its tick skips it): N ticks on an arc.
+    let diff = presets::mobolab();
+    let mut law = calib_core::turn_law::TurnLawOdometry::<f32>::new(&diff, 0.0057, 1e-3);
+    let mut d = calib_core::Twist::new(0.0f32, 0.0, 0.0);
+    bench_mark(16);
+    for i in 0..N {
+        let k = core::hint::black_box(i as f32 * 1e-6);
+        d = law.apply(&[2e-3 + k, 3e-3 - k], calib_core::Twist::new(1e-4, 0.0, 5e-4 + k));
+    }
+    bench_mark(17);
+    core::hint::black_box(d);
     hprintln!(
         "read-log answer {} bytes, telemetry {} bytes, signal {:?}",
         answer,
