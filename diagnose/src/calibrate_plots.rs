@@ -191,7 +191,8 @@ pub fn calibration_series(
     let mut one = |s: &Series, nuis: Option<(Nuisance, Nuisance)>| {
         let (mut p_nom, mut p_fit) = (DrPath::default(), DrPath::default());
         s.path(&r_nom, &kin_nom, &mut p_nom);
-        s.path(&r_fit, &kin_fit, &mut p_fit);
+        // The fitted geometry with its turn law (fitted or given), as the errors reported.
+        s.path_with(&r_fit, &kin_fit, &cal.turn_law, &mut p_fit);
         let ((nom, e_nom), (fit, e_fit)) = match nuis {
             Some((nu_nom, nu_fit)) => (
                 placed(s, &p_nom, &nu_nom, (0.0, 0.0)),

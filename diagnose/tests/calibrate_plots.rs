@@ -291,3 +291,18 @@ fn real_omni3_with_marker_offset_series_are_what_the_fit_compared() {
     assert!(c.params.iter().any(|p| p.spec.name == "marker_x_m"));
     check_consistent(&c, &robot, &recs, None);
 }
+
+/// With a turn law (here a known one, `--turn-law 0.05`), the plotted fitted paths are
+/// dead-reckoned with the law, as the errors the calibration reports: the same RMS to
+/// rounding (they differed once the law was left out of the figures).
+#[test]
+fn series_with_a_turn_law_are_what_the_fit_compared() {
+    let (robot, _, recs, held) = simulated();
+    let opts = CalOptions {
+        turn_law: Some(0.05),
+        ..Default::default()
+    };
+    let c = calibrate(&robot, &recs, Some(&held), &opts).unwrap();
+    assert_eq!(c.turn_law.arc_rel, 0.05);
+    check_consistent(&c, &robot, &recs, Some(&held));
+}
