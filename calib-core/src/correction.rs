@@ -286,35 +286,6 @@ impl Corrections {
         match (self, secondary) {
             (Corrections::None, s) => Some(s.clone()),
             (p, Corrections::None) => Some(p.clone()),
-            // With a turn law on either side: the factors multiply and the laws' small
-            // growths add.
-            (
-                Corrections::DiffDrive { .. } | Corrections::DiffDriveTurnLaw { .. },
-                Corrections::DiffDrive { .. } | Corrections::DiffDriveTurnLaw { .. },
-            ) if matches!(self, Corrections::DiffDriveTurnLaw { .. })
-                || matches!(secondary, Corrections::DiffDriveTurnLaw { .. }) =>
-            {
-                let (l1, r1, b1) = self.diff_factors()?;
-                let (l2, r2, b2) = secondary.diff_factors()?;
-                Some(Corrections::DiffDriveTurnLaw {
-                    c_l: l1 * l2,
-                    c_r: r1 * r2,
-                    e_b: b1 * b2,
-                    e_b_arc: self.turn_law() + secondary.turn_law(),
-                })
-            }
-            (
-                Corrections::DiffDrive { c_l, c_r, e_b },
-                Corrections::DiffDrive {
-                    c_l: l2,
-                    c_r: r2,
-                    e_b: b2,
-                },
-            ) => Some(Corrections::DiffDrive {
-                c_l: c_l * l2,
-                c_r: c_r * r2,
-                e_b: e_b * b2,
-            }),
             (
                 Corrections::Omni { f_lat, f_lon },
                 Corrections::Omni {
@@ -325,7 +296,22 @@ impl Corrections {
                 f_lat: f_lat.iter().zip(l2).map(|(a, b)| a * b).collect(),
                 f_lon: f_lon * o2,
             }),
-            _ => None,
+            // Differential factors multiply; the turn laws' small growths add. Anything
+            // else (omni with differential, or other wheel counts) does not compose.
+            _ => {
+                let (l1, r1, b1) = self.diff_factors()?;
+                let (l2, r2, b2) = secondary.diff_factors()?;
+                let (c_l, c_r, e_b) = (l1 * l2, r1 * r2, b1 * b2);
+                match self.turn_law() + secondary.turn_law() {
+                    0.0 => Some(Corrections::DiffDrive { c_l, c_r, e_b }),
+                    e_b_arc => Some(Corrections::DiffDriveTurnLaw {
+                        c_l,
+                        c_r,
+                        e_b,
+                        e_b_arc,
+                    }),
+                }
+            }
         }
     }
 
@@ -345,6 +331,40 @@ impl Corrections {
 mod tests {
     use super::*;
     use crate::robot::presets;
+
+    /// A second pass over a turn law: the factors multiply, the laws add (to 1e-12),
+    /// laws that cancel leave plain factors, and omni with differential factors does not
+    /// compose.
+    #[test]
+    fn turn_laws_compose() {
+        let law = |e_b_arc| Corrections::DiffDriveTurnLaw {
+            c_l: 1.01,
+            c_r: 0.99,
+            e_b: 1.02,
+            e_b_arc,
+        };
+        let plain = Corrections::DiffDrive {
+            c_l: 1.002,
+            c_r: 0.998,
+            e_b: 1.005,
+        };
+        let c = law(0.005).compose(&plain).unwrap();
+        let (l, r, b) = c.diff_factors().unwrap();
+        assert!((l - 1.01 * 1.002).abs() < 1e-12 && (r - 0.99 * 0.998).abs() < 1e-12);
+        assert!((b - 1.02 * 1.005).abs() < 1e-12);
+        assert!((c.turn_law() - 0.005).abs() < 1e-12);
+        let c = law(0.005).compose(&law(0.002)).unwrap();
+        assert!((c.turn_law() - 0.007).abs() < 1e-12);
+        assert!(matches!(
+            law(0.005).compose(&law(-0.005)),
+            Some(Corrections::DiffDrive { .. })
+        ));
+        let omni = Corrections::Omni {
+            f_lat: Vec::from_slice(&[1.0, 1.0, 1.0]).unwrap(),
+            f_lon: 1.0,
+        };
+        assert_eq!(law(0.005).compose(&omni), None);
+    }
 
     #[test]
     fn range_and_kind_are_checked() {

@@ -110,16 +110,7 @@ fn main() {
 /// The turn law (eb_arc / eb) `calibrate` fits on every differential-drive run of month
 /// `month` (`"06"`, `"12"`), 0 when it keeps none.
 fn month_law(dir: &std::path::Path, month: &str) -> Result<f64, String> {
-    let mut robot = None;
-    let mut recs = Vec::new();
-    for r in proxy::list_runs(dir).map_err(|e| e.to_string())? {
-        if r.robot == "diff" && r.session.get(2..4) == Some(month) {
-            let (rb, rec) = proxy::load_run(dir, &r.folder)?;
-            robot.get_or_insert(rb);
-            recs.push((r.folder.clone(), rec));
-        }
-    }
-    let robot = robot.ok_or(format!("no differential-drive run in month {month}"))?;
+    let (robot, recs) = proxy::month_runs(dir, "diff", month)?;
     let c = calibrate(&robot, &recs, None, &CalOptions::default()).map_err(|e| e.to_string())?;
     Ok(c.turn_law.arc_rel)
 }

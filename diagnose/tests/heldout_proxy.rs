@@ -61,29 +61,6 @@ fn every_square_session_beats_optiodom() {
     assert_meets_the_goal(&r);
 }
 
-/// The runs of one day's sessions (square, circular and Ivanjko) whose session id has
-/// month `month` (`"06"` or `"12"`).
-fn month_runs(
-    d: &std::path::Path,
-    month: &str,
-) -> (
-    calib_core::robot::Robot,
-    Vec<(String, formats::recording::Recording)>,
-) {
-    let all = proxy::list_runs(d).unwrap();
-    let mut robot = None;
-    let mut recs = Vec::new();
-    for r in all
-        .iter()
-        .filter(|r| r.robot == "diff" && r.session.get(2..4) == Some(month))
-    {
-        let (rb, rec) = proxy::load_run(d, &r.folder).unwrap();
-        robot.get_or_insert(rb);
-        recs.push((r.folder.clone(), rec));
-    }
-    (robot.unwrap(), recs)
-}
-
 /// The turn law (the effective wheelbase wider on arcs than in a turn in place: turn
 /// slip of wide tyres) fitted on each month's runs: June (squares of 23 June with the
 /// circles and Ivanjko spins of 25 June, 102 runs) and December (23 December, 62 runs).
@@ -96,7 +73,7 @@ fn the_turn_law_is_the_same_in_june_and_december() {
     let opts = CalOptions::default();
     let mut laws = Vec::new();
     for month in ["06", "12"] {
-        let (robot, recs) = month_runs(&d, month);
+        let (robot, recs) = proxy::month_runs(&d, "diff", month).unwrap();
         let c = calibrate(&robot, &recs, None, &opts).unwrap();
         let eb = c.params.iter().find(|p| p.spec.name == "eb").unwrap().value;
         let arc = c
@@ -136,7 +113,7 @@ fn a_law_from_the_other_month_beats_optiodom() {
     let Some(d) = dir() else { return };
     let mut law = std::collections::BTreeMap::new();
     for month in ["06", "12"] {
-        let (robot, recs) = month_runs(&d, month);
+        let (robot, recs) = proxy::month_runs(&d, "diff", month).unwrap();
         let c = calibrate(&robot, &recs, None, &CalOptions::default()).unwrap();
         law.insert(month, c.turn_law.arc_rel);
     }

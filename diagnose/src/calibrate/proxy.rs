@@ -245,6 +245,26 @@ pub fn load_run(dir: &Path, folder: &str) -> Result<(Robot, Recording), String> 
     Ok((robot, rec))
 }
 
+/// Every run of robot `robot` whose session is in month `month` (`"06"`, `"12"`), with
+/// the robot of the first: the data a month's turn law is fitted on.
+pub fn month_runs(
+    dir: &Path,
+    robot: &str,
+    month: &str,
+) -> Result<(Robot, Vec<(String, Recording)>), String> {
+    let mut nominal = None;
+    let mut recs = Vec::new();
+    for r in list_runs(dir).map_err(|e| e.to_string())? {
+        if r.robot == robot && r.session.get(2..4) == Some(month) {
+            let (rb, rec) = load_run(dir, &r.folder)?;
+            nominal.get_or_insert(rb);
+            recs.push((r.folder.clone(), rec));
+        }
+    }
+    let nominal = nominal.ok_or(format!("no {robot} run in month {month}"))?;
+    Ok((nominal, recs))
+}
+
 /// The sessions folder beside a checkout (`shared/real/sessions`), if present.
 pub fn sessions_dir(from: &Path) -> Option<PathBuf> {
     from.ancestors()
