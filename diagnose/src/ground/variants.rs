@@ -76,6 +76,57 @@ fn driven_kinematics(robot: &calib_core::Robot) -> Option<(Kinematics<f64>, Vec<
         .map(|k| (k, idx))
 }
 
+/// What the drive asks of the body: the driven wheels' rolling rows fix the motion they
+/// can; every standard wheel's sliding row, free ones included, fixes the rest, as in the
+/// ground stage's least squares. The driven front pair of a wheeled-legged robot alone
+/// would put the body's sideways velocity at its own axle (vy = -omega x_front), which
+/// the body never does while its rear axle holds too; under a traction bound that
+/// phantom sideways speed would spend grip the robot does not spend.
+struct DriveAsks {
+    /// Inverse of the normal matrix: driven rolling rows and all sliding rows.
+    inv: calib_core::linalg::Mat3,
+    /// Driven wheels: index and rolling row in rad per metre.
+    driven: Vec<(usize, [f64; 3])>,
+}
+
+impl DriveAsks {
+    fn new(robot: &calib_core::Robot) -> Option<Self> {
+        let sliding = robot.kind.wheels_have_sliding_constraint();
+        let mut n = [[0.0; 3]; 3];
+        let mut driven = Vec::new();
+        for (i, w) in robot.wheels.iter().enumerate() {
+            let (roll, slide) = w.constraint_rows(w.radius_m, 1.0);
+            for a in 0..3 {
+                for b in 0..3 {
+                    if w.driven {
+                        n[a][b] += roll[a] * roll[b];
+                    }
+                    if sliding {
+                        n[a][b] += slide[a] * slide[b];
+                    }
+                }
+            }
+            if w.driven {
+                driven.push((i, roll));
+            }
+        }
+        let inv = calib_core::linalg::inverse3(&n)?;
+        Some(DriveAsks { inv, driven })
+    }
+
+    /// The body twist for the driven wheels' rates (rad/s, in `driven`'s order).
+    fn twist(&self, rates: &[f64]) -> Twist<f64> {
+        let mut b = [0.0; 3];
+        for ((_, row), r) in self.driven.iter().zip(rates) {
+            for a in 0..3 {
+                b[a] += row[a] * r;
+            }
+        }
+        let x = |a: usize| -> f64 { (0..3).map(|c| self.inv[a][c] * b[c]).sum() };
+        Twist::new(x(0), x(1), x(2))
+    }
+}
+
 /// The wheel angles the ground stage should use under the body-bound or creep forms of
 /// traction slip (`None`: the model has neither, use the measured angles).
 pub fn slip_angles(
@@ -191,9 +242,10 @@ fn body_bound_with_free_wheels(
     mu: f64,
     out: &mut [Option<Vec<f64>>],
 ) {
-    let Some((drive, idx)) = driven_kinematics(robot) else {
+    let Some(drive) = DriveAsks::new(robot) else {
         return;
     };
+    let idx: Vec<usize> = drive.driven.iter().map(|d| d.0).collect();
     let Ok(all) = Kinematics::<f64>::new(robot, &Corrections::None) else {
         return;
     };
@@ -210,7 +262,7 @@ fn body_bound_with_free_wheels(
         for (r, a) in rates.iter_mut().zip(&src) {
             *r = (a[k2] - a[k1]) / span;
         }
-        drive.forward(rates)
+        drive.twist(rates)
     };
     let (mut dw, mut dw_body) = (vec![0.0; robot.wheels.len()], vec![0.0; robot.wheels.len()]);
     let mut angle: Vec<f64> = out
@@ -236,5 +288,80 @@ fn body_bound_with_free_wheels(
             };
             a[k + 1] = angle[i];
         }
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use calib_core::Robot;
+
+    fn wlr() -> Robot {
+        let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/wlr.toml");
+        formats::robot_file::load(&p).expect("robots/wlr.toml")
+    }
+
+    /// Contact speeds of the driven wheels for a body twist, as wheel rates (rad/s).
+    fn rates_for(robot: &Robot, asks: &DriveAsks, t: &Twist<f64>) -> Vec<f64> {
+        asks.driven
+            .iter()
+            .map(|&(i, _)| {
+                let w = &robot.wheels[i];
+                let row = w.rolling_row();
+                (row[0] * t.vx + row[1] * t.vy + row[2] * t.omega)
+                    / (w.radius_m * w.gamma_rad.cos())
+            })
+            .collect()
+    }
+
+    /// The wheeled-legged robot turns about its middle: front and rear axles both hold
+    /// their wheels sideways, so what the driven front pair asks has no sideways velocity
+    /// at the body origin. The front pair alone would put it at -omega x_front (0.175 m).
+    #[test]
+    fn a_legged_turn_has_no_sideways_velocity_at_the_middle() {
+        let robot = wlr();
+        let asks = DriveAsks::new(&robot).expect("the front pair resolves vx and omega");
+        let t = Twist::new(0.3, 0.0, 1.2);
+        let rates = rates_for(&robot, &asks, &t);
+        let got = asks.twist(&rates);
+        // Sliding rows weigh 1e-3 of a rolling row: they pull the turn rate by about
+        // 1e-6 (x / y)^2 per axle, 2.4e-6 here; 1e-5 allows for that.
+        assert!((got.vx - 0.3).abs() < 1e-5 * 0.3, "vx {}", got.vx);
+        assert!((got.omega - 1.2).abs() < 1e-5 * 1.2, "omega {}", got.omega);
+        assert!(got.vy.abs() < 1e-9, "vy {}", got.vy);
+        // The front pair on its own (the old reading) puts the sideways velocity at its axle.
+        let (front, _) = driven_kinematics(&robot).expect("front pair");
+        let alone = front.forward(&rates);
+        assert!(
+            (alone.vy + 1.2 * 0.175).abs() < 1e-3 * 0.21,
+            "vy alone {}",
+            alone.vy
+        );
+    }
+
+    /// With the rear axle moved to x = -0.1 m the body turns about the middle of the two
+    /// axles (equal sliding weights): vy = -omega (0.175 - 0.1) / 2.
+    #[test]
+    fn an_asymmetric_body_turns_about_the_middle_of_its_axles() {
+        let mut robot = wlr();
+        for w in robot.wheels.iter_mut().filter(|w| !w.driven) {
+            let (x, y): (f64, f64) = (-0.1, w.position().1);
+            w.l_m = x.hypot(y);
+            let alpha = y.atan2(x);
+            // Keep the rolling direction along body x: beta = 90 deg - alpha (mod 2 pi).
+            w.beta_rad += w.alpha_rad - alpha;
+            w.alpha_rad = alpha;
+        }
+        let asks = DriveAsks::new(&robot).expect("front pair");
+        let t = Twist::new(-0.2, 0.0, -0.8);
+        let rates = rates_for(&robot, &asks, &t);
+        let got = asks.twist(&rates);
+        let want_vy = 0.8 * (0.175 - 0.1) / 2.0;
+        assert!(
+            (got.vy - want_vy).abs() < 1e-6,
+            "vy {} want {want_vy}",
+            got.vy
+        );
+        assert!((got.omega + 0.8).abs() < 1e-5 * 0.8, "omega {}", got.omega);
     }
 }
