@@ -133,6 +133,14 @@ pub fn physics_of(target: &str, regressor: &str) -> Option<&'static str> {
         .map(|(_, _, p)| *p)
 }
 
+/// Whether any catalogue physics follows this regressor, for whichever residual: a
+/// heading error that follows the acceleration is unmapped as a pair, but acceleration
+/// is what slip follows; one that follows reversals of the forward command follows
+/// nothing the catalogue knows.
+pub fn regressor_has_physics(regressor: &str) -> bool {
+    PHYSICS.iter().any(|(_, r, _)| regressor.starts_with(r))
+}
+
 /// Number of held-out blocks of time.
 pub const BLOCKS: usize = 5;
 /// A support must explain at least this share of the held-out variance to be reported
@@ -707,5 +715,12 @@ mod tests {
             .unwrap()
             .starts_with("floor"));
         assert!(physics_of("heading", "reversals_fwd").is_none());
+        // Heading against acceleration: no pair, but slip follows acceleration.
+        assert!(physics_of("heading", "accel").is_none());
+        assert!(regressor_has_physics("accel"));
+        assert!(regressor_has_physics("floor_x3"));
+        assert!(!regressor_has_physics("reversals_fwd"));
+        assert!(!regressor_has_physics("reversals_fwd_abs"));
+        assert!(!regressor_has_physics("time"));
     }
 }

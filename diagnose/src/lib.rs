@@ -244,7 +244,12 @@ pub fn diagnose_owned(
 
     // Verdict: the finding explaining the largest share of the excess over noise, with
     // signatures naming effects no mechanism fits fully.
-    let (verdict, explained_fraction, implausible) = select::verdict(&ev, &sel, &mut findings);
+    // Identification of what the findings leave: the verdict weighs it, the report
+    // says it.
+    let mut left = identify::ground(&prepared, &sel.final_eval);
+    left.extend(identify::actuator(&ev, &sel.final_eval));
+    let (verdict, explained_fraction, implausible) =
+        select::verdict(&ev, &sel, &mut findings, &left);
     let rmse_stage = findings.first().map_or(Stage::Ground, |f| f.rmse_stage);
 
     // Geometry this recording cannot separate (from the whole-geometry fit of the
@@ -266,8 +271,6 @@ pub fn diagnose_owned(
     }
     // Identification: what the nominal residual depends on, and what the
     // residual left after the findings still depends on.
-    let mut left = identify::ground(&prepared, &sel.final_eval);
-    left.extend(identify::actuator(&ev, &sel.final_eval));
     let depends_on: Vec<String> = if !left.is_empty() || verdict != Verdict::Unexplained {
         left.iter().map(|t| t.depends_on.clone()).collect()
     } else {

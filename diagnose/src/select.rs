@@ -871,14 +871,16 @@ fn stage_chi2(ev: &Evaluator, r: &StageRss, s: Stage) -> Option<f64> {
 
 /// The verdict and the explained fraction; fills each finding's `explained_share`,
 /// `implausible_sign`, signature and `fit`, adds findings named by signature alone, and
-/// orders the findings by explained share.
+/// orders the findings by explained share. `left_terms` is the identification of what the
+/// findings leave ([`decide`] weighs it).
 pub fn verdict(
     ev: &Evaluator,
     sel: &Selection,
     findings: &mut Vec<Finding>,
+    left_terms: &[crate::identify::Term],
 ) -> (Verdict, f64, Vec<crate::plausibility::Implausible>) {
     use crate::signature;
-    use crate::{MIN_EXPLAINED, MISMATCH_CHI2, RESIDUAL_CHI2, WELL_EXPLAINED};
+    use crate::{MISMATCH_CHI2, RESIDUAL_CHI2};
     let (mut excess0, mut excess1) = (0.0, 0.0);
     let mut worst_final: f64 = 0.0;
     let mut mismatch = false;
@@ -1013,21 +1015,17 @@ pub fn verdict(
     let top = findings
         .iter()
         .find(|f| !f.implausible_sign && !implausible.iter().any(|i| i.effect == f.effect));
-    let verdict = match top {
-        None if mismatch => Verdict::Unexplained,
-        None => Verdict::None,
-        Some(f) if f.signature.is_some() => Verdict::Effect(f.effect.clone()),
-        Some(_) if mismatch && explained_fraction < MIN_EXPLAINED => Verdict::Unexplained,
-        // A fit that leaves the residual far outside the noise must explain nearly all
-        // of it to be the answer: an effect can bend an out-of-catalogue drift a long way
-        // with implausible parameters.
-        Some(_)
-            if mismatch && worst_final > RESIDUAL_CHI2 && explained_fraction < WELL_EXPLAINED =>
-        {
-            Verdict::Unexplained
-        }
-        Some(f) => Verdict::Effect(f.effect.clone()),
-    };
+    let verdict = decide(
+        top,
+        &Outcome {
+            mismatch,
+            explained_fraction,
+            worst_final,
+            left_outside_catalogue: left_terms
+                .iter()
+                .any(|t| !crate::identify::regressor_has_physics(&t.regressor)),
+        },
+    );
     // A named effect whose fit leaves the residual far outside the noise is partial.
     for f in findings.iter_mut() {
         if f.signature.is_some() && worst_final > RESIDUAL_CHI2 && f.fit == Fit::Full {
@@ -1036,6 +1034,41 @@ pub fn verdict(
         }
     }
     (verdict, explained_fraction, implausible)
+}
+
+/// What the fit left, as [`decide`] weighs it.
+#[derive(Debug, Clone, Copy)]
+pub struct Outcome {
+    /// Some counted stage started outside the noise.
+    pub mismatch: bool,
+    /// Share of the excess over noise the findings explain.
+    pub explained_fraction: f64,
+    /// The largest chi-square per residual a counted stage is left with.
+    pub worst_final: f64,
+    /// Identification of what the findings leave still finds a term that follows a
+    /// quantity no catalogue physics follows ([`crate::identify::regressor_has_physics`]).
+    pub left_outside_catalogue: bool,
+}
+
+/// The verdict from the best plausible finding (`top`) and what the fit left. A finding
+/// named by its signature is the answer. Otherwise a fit must explain at least
+/// [`crate::MIN_EXPLAINED`] of the excess; and one that leaves the residual far outside
+/// the noise ([`crate::RESIDUAL_CHI2`]) must explain [`crate::WELL_EXPLAINED`] of it, and
+/// leave nothing that depends on physics outside the catalogue: a floor mechanism with
+/// four free parameters can bend a heading kick at every reversal most of the way, but
+/// what it leaves still follows the reversals.
+pub fn decide(top: Option<&Finding>, o: &Outcome) -> Verdict {
+    use crate::{MIN_EXPLAINED, RESIDUAL_CHI2, WELL_EXPLAINED};
+    let far = o.mismatch && o.worst_final > RESIDUAL_CHI2;
+    match top {
+        None if o.mismatch => Verdict::Unexplained,
+        None => Verdict::None,
+        Some(f) if f.signature.is_some() => Verdict::Effect(f.effect.clone()),
+        Some(_) if o.mismatch && o.explained_fraction < MIN_EXPLAINED => Verdict::Unexplained,
+        Some(_) if far && o.explained_fraction < WELL_EXPLAINED => Verdict::Unexplained,
+        Some(_) if far && o.left_outside_catalogue => Verdict::Unexplained,
+        Some(f) => Verdict::Effect(f.effect.clone()),
+    }
 }
 
 /// A finding named by its signature alone.
@@ -1070,6 +1103,85 @@ fn partial(
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// A fitted (not signature) finding.
+    fn fitted(effect: &str) -> Finding {
+        let mut f = partial(
+            effect,
+            "default",
+            Stage::Ground,
+            0.05,
+            0.009,
+            0.9,
+            String::new(),
+        );
+        f.signature = None;
+        f.fit = Fit::Full;
+        f
+    }
+
+    fn outcome(explained_fraction: f64, worst_final: f64, left_outside: bool) -> Outcome {
+        Outcome {
+            mismatch: true,
+            explained_fraction,
+            worst_final,
+            left_outside_catalogue: left_outside,
+        }
+    }
+
+    /// The caster case in numbers: 96 % of the excess explained, 8.97 mm left against
+    /// 1.07 mm noise (chi-square 70 per residual) and the remainder still follows the
+    /// reversals: not the answer. The same fit with nothing outside the catalogue left
+    /// (a slippery patch fitted by a region: 8.9 mm left, nothing identified) is.
+    #[test]
+    fn a_remainder_outside_the_catalogue_keeps_a_far_fit_from_the_verdict() {
+        let f = fitted("floor_bumps");
+        assert_eq!(
+            decide(Some(&f), &outcome(0.96, 70.0, true)),
+            Verdict::Unexplained
+        );
+        assert_eq!(
+            decide(Some(&f), &outcome(0.96, 70.0, false)),
+            Verdict::Effect("floor_bumps".into())
+        );
+        // Near the noise (chi-square under RESIDUAL_CHI2) a small remainder does not
+        // overturn the finding, whatever it depends on.
+        assert_eq!(
+            decide(Some(&f), &outcome(0.99, 4.0, true)),
+            Verdict::Effect("floor_bumps".into())
+        );
+        // A far fit must explain WELL_EXPLAINED (95 %) whatever is left.
+        assert_eq!(
+            decide(Some(&f), &outcome(0.80, 70.0, false)),
+            Verdict::Unexplained
+        );
+        // Under MIN_EXPLAINED (50 %) never, however close to the noise.
+        assert_eq!(
+            decide(Some(&f), &outcome(0.4, 1.5, false)),
+            Verdict::Unexplained
+        );
+    }
+
+    /// A signature names its effect even when the fit is far off; no finding is `none`
+    /// on noise and `unexplained` on a mismatch.
+    #[test]
+    fn signatures_and_empty_findings_decide_as_before() {
+        let mut f = fitted("missed_steps");
+        f.signature = Some("12 jumps of whole electrical cycles".into());
+        assert_eq!(
+            decide(Some(&f), &outcome(0.3, 70.0, true)),
+            Verdict::Effect("missed_steps".into())
+        );
+        assert_eq!(
+            decide(None, &outcome(0.0, 70.0, true)),
+            Verdict::Unexplained
+        );
+        let quiet = Outcome {
+            mismatch: false,
+            ..outcome(1.0, 1.0, false)
+        };
+        assert_eq!(decide(None, &quiet), Verdict::None);
+    }
 
     fn score(effect: Effect, stage: Stage, delta_bic: f64, chi2_left: f64) -> DefaultScore {
         DefaultScore {
