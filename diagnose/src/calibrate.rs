@@ -42,6 +42,8 @@ mod sens;
 mod series;
 mod solve;
 mod step;
+#[cfg(test)]
+mod synth;
 mod turn_law;
 
 pub use choice::{LADDER_FOLDS, LADDER_TOLERANCE, MIN_ARC_SHARE, TURN_LAW_HOLDOUT_RATIO};

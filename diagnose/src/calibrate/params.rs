@@ -449,3 +449,95 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
 
 /// A differential drive's separation may depend on the turn by this much (tyre scrub).
 pub const DIFF_EB_ARC_RANGE: f64 = 0.1;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::synth;
+
+    /// Relative difference.
+    fn rel(a: f64, b: f64) -> f64 {
+        (a / b - 1.0).abs()
+    }
+
+    /// A differential drive's (scale, E_d, E_b) are Borenstein's: the right wheel's
+    /// radius over the left's is E_d, their mean is scale x nominal (c_L + c_R = 2), the
+    /// separation is E_b x nominal. A few roundings of numbers near 1: 1e-12.
+    #[test]
+    fn robot_with_applies_scale_ed_and_eb_as_borenstein_defines_them() {
+        let base = synth::robot("mobolab");
+        let specs = param_specs(&base, false);
+        let names: Vec<&str> = specs.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["scale", "ed", "eb"]);
+        let r = robot_with(&base, &specs, &[1.02, 1.01, 1.05]);
+        let (l, rt) = if r.wheels[0].is_left() {
+            (&r.wheels[0], &r.wheels[1])
+        } else {
+            (&r.wheels[1], &r.wheels[0])
+        };
+        assert!(rel(rt.radius_m / l.radius_m, 1.01) < 1e-12);
+        assert!(rel(0.5 * (l.radius_m + rt.radius_m), 1.02 * 0.05) < 1e-12);
+        let separation = l.position().1 - rt.position().1;
+        assert!(rel(separation, 1.05 * 0.40) < 1e-12, "{separation}");
+        for (a, b) in r.wheels.iter().zip(&base.wheels) {
+            assert_eq!((a.alpha_rad, a.gamma_rad), (b.alpha_rad, b.gamma_rad));
+        }
+        // The nominal values give the robot back, to the bit.
+        let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
+        assert_eq!(robot_with(&base, &specs, &nominal), base);
+    }
+
+    /// A per-wheel parameter moves its own wheel only; the roller angle offset widens
+    /// every mecanum wheel's |gamma| by its value, the sign (roller hand) kept, and leaves
+    /// a wheel without angled rollers alone. Exact but for one multiplication or addition
+    /// each: 1e-15 relative.
+    #[test]
+    fn robot_with_moves_only_the_named_wheel_and_widens_mecanum_rollers() {
+        let base = synth::robot("omni4");
+        let specs = param_specs(&base, false);
+        let at = |k: GeomKind| specs.iter().position(|s| s.kind == k).unwrap();
+        let mut v: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
+        v[at(GeomKind::Radius(1))] = 1.03;
+        v[at(GeomKind::Alpha(2))] = 0.01;
+        v[at(GeomKind::L(3))] = 0.95;
+        let r = robot_with(&base, &specs, &v);
+        for (i, (a, b)) in r.wheels.iter().zip(&base.wheels).enumerate() {
+            let want = (
+                b.radius_m * if i == 1 { 1.03 } else { 1.0 },
+                b.alpha_rad + if i == 2 { 0.01 } else { 0.0 },
+                b.l_m * if i == 3 { 0.95 } else { 1.0 },
+            );
+            assert!(rel(a.radius_m, want.0) < 1e-15, "wheel {i} radius");
+            assert!((a.alpha_rad - want.1).abs() < 1e-15, "wheel {i} alpha");
+            assert!(rel(a.l_m, want.2) < 1e-15, "wheel {i} l");
+        }
+
+        let mut mecanum = base.clone();
+        let g45 = std::f64::consts::FRAC_PI_4;
+        for (i, w) in mecanum.wheels.iter_mut().enumerate() {
+            // Alternating hands, and wheel 3 a plain omni wheel (0.5 deg: not mecanum).
+            w.gamma_rad = match i {
+                3 => 0.5f64.to_radians(),
+                _ if i % 2 == 0 => g45,
+                _ => -g45,
+            };
+        }
+        assert!(is_mecanum(&mecanum));
+        let specs = roller_specs(&mecanum, false);
+        let mut v: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
+        v[specs
+            .iter()
+            .position(|s| s.kind == GeomKind::Gamma)
+            .unwrap()] = 0.02;
+        let r = robot_with(&mecanum, &specs, &v);
+        for (i, (a, b)) in r.wheels.iter().zip(&mecanum.wheels).enumerate() {
+            let want = if i == 3 {
+                b.gamma_rad
+            } else {
+                b.gamma_rad + b.gamma_rad.signum() * 0.02
+            };
+            assert!(rel(a.gamma_rad, want) < 1e-15, "wheel {i} gamma");
+            assert_eq!(a.radius_m, b.radius_m);
+        }
+    }
+}

@@ -94,3 +94,50 @@ pub(super) fn par_jobs<J: Send, R: Send>(
             .collect()
     })
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Results come back in the items' order, each the item's own (integers: exact),
+    /// however the threads took them, and work started on a pool thread stays on it.
+    #[test]
+    fn pool_map_keeps_the_items_order_and_values() {
+        let items: Vec<u64> = (0..1000).collect();
+        let sq = pool_map(&items, |&i| i * i);
+        assert_eq!(sq, items.iter().map(|i| i * i).collect::<Vec<_>>());
+        // With two threads or more, the items run on pool threads, and a pool_map they
+        // start runs on the same thread (it sees the flag); with one, all run here.
+        let threads = std::thread::available_parallelism().map_or(1, |n| n.get());
+        let nested = pool_map(&items[..4], |&i| {
+            let on_pool = IN_POOL.with(|p| p.get());
+            let inner = pool_map(&items[..3], |&j| (j, IN_POOL.with(|p| p.get())));
+            (i, on_pool, inner)
+        });
+        for (k, (i, on_pool, inner)) in nested.iter().enumerate() {
+            assert_eq!(*i, k as u64);
+            assert_eq!(*on_pool, threads >= 2);
+            assert_eq!(inner, &[(0, *on_pool), (1, *on_pool), (2, *on_pool)]);
+        }
+    }
+
+    /// Each job is run once, in place, and its result lands at its index, whether the
+    /// jobs stay on one thread (under PAR_MIN_ROWS rows) or are split into runs.
+    #[test]
+    fn par_jobs_runs_each_job_once_in_order() {
+        for rows in [10, PAR_MIN_ROWS] {
+            let mut jobs: Vec<(usize, u64)> = (0..37).map(|i| (rows, i)).collect();
+            let out = par_jobs(
+                &mut jobs,
+                |j| j.0,
+                |j| {
+                    j.1 += 1000;
+                    j.1 * 2
+                },
+            );
+            let want: Vec<u64> = (0..37).map(|i| (i + 1000) * 2).collect();
+            assert_eq!(out, want);
+            assert!(jobs.iter().enumerate().all(|(i, j)| j.1 == i as u64 + 1000));
+        }
+    }
+}

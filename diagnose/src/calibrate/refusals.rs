@@ -101,3 +101,66 @@ pub(super) fn refuse_bad_fit(
     }
     Ok(())
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::params::param_specs;
+    use crate::calibrate::series::Nuisance;
+    use crate::calibrate::synth;
+
+    fn per(name: &str, before: f64, after: f64) -> PerRecording {
+        let nu = Nuisance {
+            x0_m: 0.0,
+            y0_m: 0.0,
+            theta0_rad: 0.0,
+            time_offset_s: 0.0,
+            clock_ratio: 1.0,
+        };
+        PerRecording {
+            name: name.into(),
+            pose_samples: 100,
+            compared_samples: 50,
+            rmse_before_m: before,
+            rmse_after_m: after,
+            aligned_before_m: f64::NAN,
+            aligned_after_m: f64::NAN,
+            dead_reckoning_before_m: f64::NAN,
+            dead_reckoning_after_m: f64::NAN,
+            nuisance: nu,
+            nuisance_nominal: nu,
+            time_offset_sigma_s: f64::NAN,
+            clock_ratio_sigma: f64::NAN,
+        }
+    }
+
+    /// A recording may get worse with the shared geometry up to WORSE_FACTOR x nominal +
+    /// WORSE_MARGIN_M: 3 x 4 mm + 10 mm = 22 mm. 21.9 mm passes, 22.1 mm is refused,
+    /// naming the recording and both figures; so is a NaN. An uncertainty of zero is
+    /// refused naming the parameter (and the recording, when there is only one).
+    #[test]
+    fn refuse_bad_fit_draws_the_line_at_three_times_nominal_plus_a_centimetre() {
+        let specs = param_specs(&synth::robot("mobolab"), false);
+        let geom = [1.0, 1.0, 1.0];
+        let cov = DMatrix::<f64>::identity(3, 3) * 1e-6;
+        let ok = [per("a", 0.004, 0.003), per("b", 0.004, 0.0219)];
+        assert_eq!(refuse_bad_fit(&ok, &specs, &geom, &cov), Ok(()));
+        let worse = [per("a", 0.004, 0.003), per("b", 0.004, 0.0221)];
+        let e = refuse_bad_fit(&worse, &specs, &geom, &cov).unwrap_err();
+        assert_eq!(e.recording.as_deref(), Some("b"));
+        assert!(e.message.contains("(4.00 -> 22.10 mm)"), "{e}");
+        let nan = [per("c", 0.004, f64::NAN)];
+        assert!(refuse_bad_fit(&nan, &specs, &geom, &cov).is_err());
+        let mut flat = cov.clone();
+        flat[(2, 2)] = 0.0;
+        let e = refuse_bad_fit(&ok[..1], &specs, &geom, &flat).unwrap_err();
+        assert_eq!(e.recording.as_deref(), Some("a"));
+        assert!(e.message.starts_with("eb = 1 with uncertainty 0"), "{e}");
+        assert_eq!(
+            refuse_bad_fit(&ok, &specs, &geom, &flat)
+                .unwrap_err()
+                .recording,
+            None
+        );
+    }
+}

@@ -566,3 +566,44 @@ impl fmt::Display for Calibration {
         Ok(())
     }
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(name: &str, v: [f64; 4]) -> Heldout {
+        Heldout {
+            name: name.into(),
+            group: None,
+            rmse_before_m: v[0],
+            rmse_after_m: v[1],
+            aligned_before_m: v[2],
+            aligned_after_m: v[3],
+        }
+    }
+
+    /// The column means of a hand-made table, each the sum of three values over 3 (a
+    /// couple of roundings of numbers near 0.01: 1e-16 absolute), and the JSON carries
+    /// them; without cross-validation there are none and the JSON says null.
+    #[test]
+    fn heldout_means_are_the_column_means() {
+        let t = HeldoutTable(vec![
+            row("a", [0.010, 0.004, 0.003, 0.002]),
+            row("b", [0.020, 0.005, 0.006, 0.001]),
+            row("c", [0.030, 0.009, 0.009, 0.003]),
+        ]);
+        let m = t.means().unwrap();
+        let want = [0.020, 0.006, 0.006, 0.002];
+        let got = [m.before_m, m.after_m, m.aligned_before_m, m.aligned_after_m];
+        for (g, w) in got.iter().zip(want) {
+            assert!((g - w).abs() < 1e-16, "{got:?}");
+        }
+        let j = serde_json::to_value(&t).unwrap();
+        assert_eq!(j["leave_one_out"].as_array().unwrap().len(), 3);
+        assert_eq!(j["leave_one_out_mean_before_m"], m.before_m);
+        assert_eq!(j["leave_one_out_aligned_after_m"], m.aligned_after_m);
+        let none = HeldoutTable::default();
+        assert_eq!(none.means(), None);
+        assert!(serde_json::to_value(&none).unwrap()["leave_one_out_mean_after_m"].is_null());
+    }
+}

@@ -683,3 +683,64 @@ pub struct Event {
     /// What the fit did with it.
     pub handled: &'static str,
 }
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    /// Travel counts |dp| + lever |dtheta|, a sample every `step` of it: steps of 0.25 m
+    /// (exact in binary, so the sums are exact) give a sample every fourth pose; the last
+    /// pose is always kept; a turn in place counts at the lever arm, back and forth alike.
+    #[test]
+    fn distance_samples_fall_every_step_of_travel() {
+        let line = |n: usize| -> Vec<f64> { (0..n).map(|j| 0.25 * j as f64).collect() };
+        let zeros = |n: usize| vec![0.0; n];
+        assert_eq!(
+            distance_samples(&line(21), &zeros(21), &zeros(21), 0.1, 1.0),
+            [0, 4, 8, 12, 16, 20]
+        );
+        assert_eq!(
+            distance_samples(&line(19), &zeros(19), &zeros(19), 0.1, 1.0),
+            [0, 4, 8, 12, 16, 18]
+        );
+        // In place, 0.125 rad a sample at a 2 m lever (0.25 m), out and back.
+        let th = [0.0, 0.125, 0.25, 0.375, 0.5, 0.375, 0.25, 0.125, 0.0];
+        assert_eq!(
+            distance_samples(&zeros(9), &zeros(9), &th, 2.0, 1.0),
+            [0, 4, 8]
+        );
+        // Standing still: the first and the last pose.
+        assert_eq!(
+            distance_samples(&zeros(5), &zeros(5), &zeros(5), 2.0, 1.0),
+            [0, 4]
+        );
+    }
+
+    /// A recording too short to calibrate is refused, naming it and the least it needs.
+    #[test]
+    fn a_recording_shorter_than_min_poses_is_refused_by_name() {
+        let robot = crate::calibrate::synth::robot("mobolab");
+        let rec = crate::calibrate::synth::recording(
+            &robot,
+            MIN_POSES - 1,
+            50.0,
+            Pose::new(0.0, 0.0, 0.0),
+            crate::calibrate::synth::wander(&robot),
+        );
+        let e = Series::new("short", &robot, &rec).unwrap_err();
+        assert_eq!(e.recording.as_deref(), Some("short"));
+        assert!(
+            e.message.contains(&format!("at least {MIN_POSES} rows")),
+            "{e}"
+        );
+        let rec = crate::calibrate::synth::recording(
+            &robot,
+            MIN_POSES,
+            50.0,
+            Pose::new(0.0, 0.0, 0.0),
+            crate::calibrate::synth::wander(&robot),
+        );
+        let s = Series::new("long enough", &robot, &rec).unwrap();
+        assert_eq!(s.pose_samples(), MIN_POSES);
+    }
+}

@@ -165,3 +165,74 @@ pub(crate) struct Turning {
 
 /// Turn ratios that count as arcs (rho = 1 is a turn in place, 0 a straight line).
 pub const ARC_RHO: (f64, f64) = (0.1, 0.8);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::synth;
+
+    /// A 200 Hz clock (5 ms) whose stamps jitter: every third stamp late by 1.5 ms (steps
+    /// 5, 6.5, 3.5 ms in turn), one row dropped (an 11.5 ms step) and one stamp repeated
+    /// (a zero step). A third of the steps are exactly nominal and they hold the middle of
+    /// the sorted steps, so the median is 5 ms; differences of times below 1 s carry
+    /// rounding of about 1e-16 s, hence 1e-12.
+    #[test]
+    fn median_step_of_a_jittered_clock_is_the_nominal_step() {
+        let (dt, late) = (0.005, 0.0015);
+        let mut t: Vec<f64> = (0..60)
+            .map(|k| k as f64 * dt + if k % 3 == 2 { late } else { 0.0 })
+            .collect();
+        t.remove(31);
+        t.insert(40, t[39]);
+        let m = median_step(&t).unwrap();
+        assert!((m - dt).abs() < 1e-12, "median step {m}");
+        // No step, or a clock that does not advance: no step to give.
+        assert_eq!(median_step(&[1.0]), None);
+        assert_eq!(median_step(&[2.0; 9]), None);
+    }
+
+    /// rho = |d_r - d_l| / (|d_r| + |d_l|) over the window (10 rows either side at 100
+    /// Hz): straight rows are 0 and rows in place 1, exactly; a window of s straight rows
+    /// (d_l = d_r = d) and p rows in place (d_l = -d, d_r = d), s >= p, gives
+    /// 2 p d / (2 s d) = p / s; standing still, 0. Sums of equal increments round at
+    /// 1e-16, hence 1e-12.
+    #[test]
+    fn turn_ratio_is_zero_straight_one_in_place_and_the_window_share_between() {
+        let robot = synth::robot("mobolab");
+        let t: Vec<f64> = (0..101).map(|k| k as f64 * 0.01).collect();
+        let d = 0.02; // rad per row
+        let side = |w: &calib_core::robot::Wheel| if w.is_left() { -1.0 } else { 1.0 };
+        // Rows 0..50 straight, 50..90 in place, 90..100 standing still.
+        let inc: Vec<Vec<f64>> = (0..100)
+            .map(|k| {
+                robot
+                    .wheels
+                    .iter()
+                    .map(|w| match k {
+                        0..=49 => d,
+                        50..=89 => side(w) * d,
+                        _ => 0.0,
+                    })
+                    .collect()
+            })
+            .collect();
+        let rho = turn_ratio(&robot, &inc, &t);
+        assert_eq!(rho.len(), 100);
+        assert!(
+            rho[..40].iter().all(|&r| r == 0.0),
+            "straight: {:?}",
+            &rho[..40]
+        );
+        assert!(
+            rho[60..80].iter().all(|&r| r == 1.0),
+            "in place: {:?}",
+            &rho[60..80]
+        );
+        // Row 45's window is rows 35..=55: 15 straight, 6 in place.
+        assert!((rho[45] - 6.0 / 15.0).abs() < 1e-12, "rho {}", rho[45]);
+        // Row 99's window is rows 89..=99: 1 in place, 10 still (the turn only).
+        assert_eq!(rho[99], 1.0);
+        let still: Vec<Vec<f64>> = vec![vec![0.0; 2]; 100];
+        assert!(turn_ratio(&robot, &still, &t).iter().all(|&r| r == 0.0));
+    }
+}
