@@ -11,7 +11,8 @@
 //! frame, the first pose is exactly (0, 0, 0)), RMS position error over every pose sample
 //! of a run ([`dead_reckoning_rmse`]).
 
-use super::{dead_reckoning_rmse, dead_reckoning_rmse_law, Series, TurnLaw};
+use crate::calibrate::series::{dead_reckoning_rmse, dead_reckoning_rmse_law, Series};
+use crate::calibrate::turn_law::TurnLaw;
 use calib_core::robot::Robot;
 use formats::recording::Recording;
 use serde::Serialize;

@@ -7,8 +7,11 @@
 //! for a robot stepped by its sides); the arc integration and the residuals are
 //! differentiated exactly.
 
-use super::step::Stepper;
-use super::{robot_with, GeomKind, ParamSpec, Series, Sides, TurnLaw, RES_UNIT_M};
+use crate::calibrate::objective::{PathAt, RES_UNIT_M};
+use crate::calibrate::params::{robot_with, GeomKind, ParamSpec};
+use crate::calibrate::series::Series;
+use crate::calibrate::step::{self, Stepper};
+use crate::calibrate::turn_law::{Sides, TurnLaw};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::robot::Robot;
@@ -165,6 +168,14 @@ pub(crate) struct Sensitivity {
     pub(crate) slopes: Vec<[f64; 3]>,
 }
 
+impl PathAt for &Sensitivity {
+    /// At a kept row only.
+    #[inline]
+    fn at(&self, k: usize) -> [f64; 3] {
+        self.values[self.need.binary_search(&k).expect("row kept")]
+    }
+}
+
 impl Series {
     /// The path rows the dead-reckoning residuals read: each compared sample's and each
     /// anchor's.
@@ -219,7 +230,7 @@ impl Series {
         let mut out = Vec::with_capacity(need.len() * p);
         let mut d = vec![[0.0f64; 3]; p];
         let mut dt = vec![[0.0f64; 3]; p];
-        let (mut x, mut y, mut h) = (0.0f64, 0.0f64, super::step::Heading::new());
+        let (mut x, mut y, mut h) = (0.0f64, 0.0f64, step::Heading::new());
         let mut next = 0usize;
         let mut keep = |k: usize, x: f64, y: f64, th: f64, d: &[[f64; 3]]| {
             if need.get(next) == Some(&k) {
@@ -237,7 +248,7 @@ impl Series {
             slopes.row(inc, r, &mut dt);
             // The arc step (as the path's), with the quantities its derivative needs.
             let (st, ct) = (h.sin, h.cos);
-            let (s, c, lx, ly) = super::step::arc_step(&mut x, &mut y, &mut h, &tw);
+            let (s, c, lx, ly) = step::arc_step(&mut x, &mut y, &mut h, &tw);
             let (ds, dc) = arc_slopes(tw.omega);
             let (ex, ey) = (ct * lx - st * ly, st * lx + ct * ly);
             for (dj, t) in d.iter_mut().zip(&dt) {
@@ -284,7 +295,7 @@ impl Series {
         let mut cum = vec![0.0f64; nw];
         // d0 and d1's weights of d2 at the segment's start.
         let (mut ey_sum, mut ex_sum) = (0.0f64, 0.0f64);
-        let (mut x, mut y, mut h) = (0.0f64, 0.0f64, super::step::Heading::new());
+        let (mut x, mut y, mut h) = (0.0f64, 0.0f64, step::Heading::new());
         let mut next = 0usize;
         if need.first() == Some(&0) {
             values.push([x, y, h.th]);
@@ -295,7 +306,7 @@ impl Series {
             let tw = stepper.forward(inc);
             // The arc step (as the path's), with the quantities its derivative needs.
             let (st, ct) = (h.sin, h.cos);
-            let (s, c, lx, ly) = super::step::arc_step(&mut x, &mut y, &mut h, &tw);
+            let (s, c, lx, ly) = step::arc_step(&mut x, &mut y, &mut h, &tw);
             let (ds, dc) = arc_slopes(tw.omega);
             let (ex, ey) = (ct * lx - st * ly, st * lx + ct * ly);
             let (a, b) = (ds * tw.vx - dc * tw.vy, dc * tw.vx + ds * tw.vy);
@@ -344,7 +355,7 @@ impl Series {
         }
     }
 
-    /// The Jacobian rows of [`super::dr_residuals_into`] (same order) from the
+    /// The Jacobian rows of [`dr_residuals_into`](crate::calibrate::objective::dr_residuals_into) (same order) from the
     /// sensitivities `sens` of the path parameters of `cols`, and its marker parameters,
     /// into `jac` rows from `row0`:
     /// columns are parameter indices.
@@ -440,8 +451,9 @@ pub(crate) struct Columns {
 
 #[cfg(test)]
 mod tests {
-    use super::super::{param_specs, turn_law_specs, Problem, Series};
     use super::*;
+    use crate::calibrate::params::{param_specs, turn_law_specs};
+    use crate::calibrate::problem::Problem;
     use nalgebra::DMatrix;
     use sim::{record, Motion, RandomMotion, RecordConfig, Surface};
 

@@ -1,0 +1,426 @@
+//! Which parameters to fit (model choice): a differential or skid-steer robot's turn law
+//! ([`choose_turn_law`]), an omni robot's model ladder ([`climb_ladder`]), a mecanum
+//! robot's roller model, each judged on held-out dead reckoning or by a likelihood ratio
+//! and said with its figures ([`choose_specs`]). The fit a choice made on all the
+//! recordings goes to the driver ([`Prefit`]), which takes it over.
+
+use crate::calibrate::options::Cfg;
+use crate::calibrate::params::{
+    is_mecanum, ladder, param_specs, roller_specs, turn_law_specs, GeomKind, ParamSpec,
+};
+use crate::calibrate::pool::pool_map;
+use crate::calibrate::problem::Problem;
+use crate::calibrate::series::{fitted_dead_reckoning_rmse, Series};
+use crate::calibrate::solve::{covariance, noise_scale, nuisance_start, refs, solve, Solved};
+use calib_core::robot::{Robot, RobotKind};
+use nalgebra::DMatrix;
+
+/// One joint fit of `specs` from nominal (nuisance first, then geometry with the prior
+/// weighed by the data): the fit, its residual variance x autocorrelation inflation, and
+/// its covariance (when `cov`, else empty: the fit's Jacobian is then the analytic one).
+pub(super) fn fit_specs(
+    robot: &Robot,
+    specs: &[ParamSpec],
+    series: &[&Series],
+    cfg: Cfg,
+    cov: bool,
+) -> Fit {
+    let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
+    let mut p = Problem::new(robot, specs, series.iter().copied());
+    cfg.apply(&mut p);
+    p.differences_at_solution = false;
+    let before = solve(&p, &nominal, &nuisance_start(series, cfg.free_start), false);
+    p.prior_scale = noise_scale(&p, &before);
+    let first = solve(&p, &nominal, &before.nuis, true);
+    p.prior_scale = noise_scale(&p, &first);
+    p.differences_at_solution = cov;
+    let f = solve(&p, &first.geom, &first.nuis, true);
+    let var = noise_scale(&p, &f).powi(2);
+    let cov = if cov {
+        covariance(&p, &f).0
+    } else {
+        DMatrix::zeros(0, 0)
+    };
+    let runs = before.evaluations + first.evaluations + f.evaluations;
+    Fit {
+        f,
+        var,
+        cov,
+        runs,
+        first,
+    }
+}
+
+/// A joint fit of [`fit_specs`].
+pub(super) struct Fit {
+    /// The fit (the prior weighed by the first fit's residuals).
+    pub(super) f: Solved,
+    /// Its residual variance x autocorrelation inflation.
+    pub(super) var: f64,
+    /// Its covariance (empty unless asked for).
+    pub(super) cov: DMatrix<f64>,
+    /// Model runs it took.
+    pub(super) runs: usize,
+    /// The first fit (the prior weighed by the nominal residuals).
+    pub(super) first: Solved,
+}
+
+/// A fit of the chosen parameters on all the recordings that choosing them made: the
+/// final fit repeats it (the same problem, the same steps) and takes it over.
+pub(super) struct Prefit {
+    pub(super) specs: Vec<ParamSpec>,
+    pub(super) first: Solved,
+    pub(super) f: Solved,
+}
+
+/// 0.999 quantile of chi-squared with `k` degrees of freedom (Wilson-Hilferty; within
+/// 1 % of the tables for k >= 1).
+fn chi2_999(k: usize) -> f64 {
+    let k = k.max(1) as f64;
+    let a = 2.0 / (9.0 * k);
+    k * (1.0 - a + 3.0902 * a.sqrt()).powi(3)
+}
+
+/// The parameters to fit. For a mecanum robot the roller angle is fitted when the data
+/// ask for it: the roller model (radii and one roller angle) is chosen when its angle is
+/// significant (3 sigma) and it fits as well as the full per-wheel model (likelihood
+/// ratio below the 0.999 quantile for the parameters it saves). Says which and why.
+pub(super) fn choose_specs(
+    robot: &Robot,
+    series: &[Series],
+    marker: bool,
+    cfg: Cfg,
+    notes: &mut Vec<String>,
+    runs: &mut usize,
+    prefit: &mut Option<Prefit>,
+) -> Vec<ParamSpec> {
+    let full = param_specs(robot, marker);
+    if robot.kind == RobotKind::SkidSteer
+        || (robot.kind == RobotKind::DiffDrive && robot.wheels.len() == 2)
+    {
+        return choose_turn_law(robot, series, cfg, notes, runs, prefit);
+    }
+    if robot.kind == RobotKind::Omni && series.len() >= 2 {
+        return climb_ladder(robot, series, marker, cfg, notes, runs, prefit);
+    }
+    if !is_mecanum(robot) {
+        return full;
+    }
+    let roller = roller_specs(robot, marker);
+    let Fit {
+        f: f_full,
+        var: var_full,
+        runs: r1,
+        ..
+    } = fit_specs(robot, &full, &refs(series), cfg, false);
+    let Fit {
+        f: f_roller,
+        cov: cov_roller,
+        runs: r2,
+        ..
+    } = fit_specs(robot, &roller, &refs(series), cfg, true);
+    *runs += r1 + r2;
+    let gi = roller
+        .iter()
+        .position(|s| s.kind == GeomKind::Gamma)
+        .unwrap_or(0);
+    let (dg, sg) = (f_roller.geom[gi], cov_roller[(gi, gi)].max(0.0).sqrt());
+    let k = full.len() - roller.len();
+    let stat = (f_roller.data_cost - f_full.data_cost).max(0.0) / var_full.max(1e-300);
+    let q = chi2_999(k);
+    let significant = dg.abs() >= 3.0 * sg;
+    let as_good = stat <= q;
+    let deg = |v: f64| v.to_degrees();
+    if significant && as_good {
+        notes.push(format!(
+            "mecanum: one roller angle offset ({:+.3} ± {:.3} deg) explains the data as well as per-wheel angles, distances and radii (likelihood ratio {stat:.1} <= {q:.1} for {k} fewer parameters): the roller model is fitted",
+            deg(dg),
+            deg(sg)
+        ));
+        roller
+    } else {
+        let why = if significant {
+            format!("a roller angle alone ({:+.3} ± {:.3} deg) leaves a likelihood ratio of {stat:.1} > {q:.1} against per-wheel geometry", deg(dg), deg(sg))
+        } else {
+            format!(
+                "the roller angle is not asked for by the data ({:+.3} ± {:.3} deg)",
+                deg(dg),
+                deg(sg)
+            )
+        };
+        notes.push(format!(
+            "mecanum: {why}; per-wheel angles, distances and radii are fitted (in the kinematics a wheel's roller angle is a combination of them)"
+        ));
+        full
+    }
+}
+
+/// A rung of the ladder is adequate when its held-out error is within this share of the
+/// best rung's: a model with more parameters must buy more than 3 % to be chosen.
+pub const LADDER_TOLERANCE: f64 = 0.03;
+/// Most folds the ladder's held-out comparison uses.
+pub const LADDER_FOLDS: usize = 5;
+
+/// Mean held-out dead-reckoning RMSE of the model `specs`: the recordings split into at
+/// most [`LADDER_FOLDS`] folds (recording j in fold j mod k; 44 recordings left out one
+/// by one for five models took six minutes), the model fitted without each fold and
+/// dead-reckoning it from each recording's first pose.
+///
+/// Of each model of `models`: the folds of all of them are fitted in parallel (each fit
+/// on one thread), each model's errors summed in fold order.
+fn heldout_errors(
+    robot: &Robot,
+    models: &[&[ParamSpec]],
+    series: &[Series],
+    cfg: Cfg,
+    runs: &mut usize,
+) -> Vec<f64> {
+    let n = series.len();
+    let k = n.min(LADDER_FOLDS);
+    let mut jobs: Vec<(usize, usize)> = (0..models.len())
+        .flat_map(|m| (0..k).map(move |fold| (m, fold)))
+        .collect();
+    // Largest models first: the threads finish together.
+    jobs.sort_by_key(|&(m, _)| std::cmp::Reverse(models[m].len()));
+    let done = pool_map(&jobs, |&(m, fold)| {
+        let rest: Vec<&Series> = (0..n)
+            .filter(|&j| j % k != fold)
+            .map(|j| &series[j])
+            .collect();
+        let Fit { f, runs: r, .. } = fit_specs(robot, models[m], &rest, cfg, false);
+        let errors: Vec<f64> = (0..n)
+            .filter(|&j| j % k == fold)
+            .map(|j| fitted_dead_reckoning_rmse(robot, models[m], &f.geom, cfg.law(), &series[j]))
+            .collect();
+        (errors, r)
+    });
+    let mut by_job: Vec<_> = jobs.into_iter().zip(done).collect();
+    by_job.sort_by_key(|j| j.0);
+    *runs += by_job.iter().map(|j| j.1 .1).sum::<usize>();
+    (0..models.len())
+        .map(|m| {
+            let mut e = 0.0;
+            for (_, (errors, _)) in by_job.iter().filter(|j| j.0 .0 == m) {
+                for v in errors {
+                    e += v;
+                }
+            }
+            e / n as f64
+        })
+        .collect()
+}
+
+/// Parsimony for an omni robot: each model of [`ladder`] is judged by its held-out
+/// dead reckoning ([`heldout_errors`]); the simplest model within
+/// [`LADDER_TOLERANCE`] of the best held-out error is kept, unless its fit on all the data
+/// leaves a parameter outside its plausible range (the model or the range is then
+/// wrong: said, and the next adequate model tried). Says which and why, with figures.
+fn climb_ladder(
+    robot: &Robot,
+    series: &[Series],
+    marker: bool,
+    cfg: Cfg,
+    notes: &mut Vec<String>,
+    runs: &mut usize,
+    prefit: &mut Option<Prefit>,
+) -> Vec<ParamSpec> {
+    let rungs = ladder(robot, marker);
+    let k = series.len().min(LADDER_FOLDS);
+    let models: Vec<&[ParamSpec]> = rungs.iter().map(|(_, specs)| specs.as_slice()).collect();
+    let errors = heldout_errors(robot, &models, series, cfg, runs);
+    let best = errors
+        .iter()
+        .copied()
+        .filter(|e| e.is_finite())
+        .fold(f64::INFINITY, f64::min);
+    let table = rungs
+        .iter()
+        .zip(&errors)
+        .map(|((name, specs), e)| format!("{name} ({} parameters) {:.1} mm", specs.len(), e * 1e3))
+        .collect::<Vec<_>>()
+        .join("; ");
+    let mut skipped = Vec::new();
+    let mut fitted: Vec<(usize, Fit)> = Vec::new();
+    for (rung, ((name, specs), e)) in rungs.iter().zip(&errors).enumerate() {
+        if !(e.is_finite() && *e <= (1.0 + LADDER_TOLERANCE) * best) {
+            continue;
+        }
+        let fit = fit_specs(robot, specs, &refs(series), cfg, false);
+        *runs += fit.runs;
+        let f = &fit.f;
+        let edge: Vec<String> = specs
+            .iter()
+            .zip(&f.geom)
+            .filter(|(s, v)| **v < s.plausible.0 || **v > s.plausible.1)
+            .map(|(s, v)| format!("{} {v:.4}", s.name))
+            .collect();
+        if !edge.is_empty() {
+            skipped.push(format!(
+                "{name} wants {} outside the plausible range",
+                edge.join(", ")
+            ));
+            fitted.push((rung, fit));
+            continue;
+        }
+        let why = if skipped.is_empty() {
+            String::new()
+        } else {
+            format!(" ({}: the next model is tried)", skipped.join("; "))
+        };
+        notes.push(format!(
+            "model ladder, held-out dead reckoning by recording ({k} folds): {table}; kept: {name}, the simplest within {:.0} % of the best{why}",
+            LADDER_TOLERANCE * 100.0
+        ));
+        *prefit = Some(Prefit {
+            specs: specs.clone(),
+            first: fit.first,
+            f: fit.f,
+        });
+        return specs.clone();
+    }
+    // Every adequate model wants an implausible value: the best one is fitted, its
+    // implausible values reported (the model or the range is wrong).
+    let chosen = rungs
+        .iter()
+        .zip(&errors)
+        .enumerate()
+        .filter(|(_, (_, e))| e.is_finite())
+        .min_by(|a, b| a.1 .1.total_cmp(b.1 .1))
+        .map(|(i, (r, _))| (i, r.clone()));
+    let (name, specs) = match chosen {
+        Some((i, r)) => {
+            if let Some((_, fit)) = fitted.into_iter().find(|(j, _)| *j == i) {
+                *prefit = Some(Prefit {
+                    specs: r.1.clone(),
+                    first: fit.first,
+                    f: fit.f,
+                });
+            }
+            r
+        }
+        None => ("full", param_specs(robot, marker)),
+    };
+    notes.push(format!(
+        "model ladder, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values outside the plausible ranges ({}): the best, {name}, is fitted and its implausible values are listed",
+        skipped.join("; ")
+    ));
+    specs
+}
+
+/// A turn-radius law needs the recordings to turn on arcs for at least this share of
+/// their turning: squares turn only in place, and a law fitted to them extrapolates
+/// (measured: on one real square session, eb_arc 0.33 ± 0.08 held out on its squares
+/// and made the circles nine times worse). Real squares turn 0-4 % on arcs (the starts
+/// and ends of turns), the simulator's free motion 24 %.
+pub const MIN_ARC_SHARE: f64 = 0.15;
+
+/// Held-out improvement a turn-radius law must bring to be kept: its mean held-out
+/// dead-reckoning error at most this share of the constant-E_b model's.
+pub const TURN_LAW_HOLDOUT_RATIO: f64 = 0.95;
+
+/// A differential or skid-steer robot's model: constant E_b, or the turn-radius law
+/// ([Mandow et al.]'s moving ICRs on a skid-steer robot, tyre scrub on a differential
+/// drive) when it holds out. The recordings are split into at most [`LADDER_FOLDS`]
+/// folds; both models are fitted without each fold and dead-reckon it; the law is kept
+/// when its mean held-out error is at most [`TURN_LAW_HOLDOUT_RATIO`] of the constant
+/// model's and one of its parameters is significant (3 sigma) on all the data. Says
+/// which and why, with the figures.
+fn choose_turn_law(
+    robot: &Robot,
+    series: &[Series],
+    cfg: Cfg,
+    notes: &mut Vec<String>,
+    runs: &mut usize,
+    prefit: &mut Option<Prefit>,
+) -> Vec<ParamSpec> {
+    let skid = robot.kind == RobotKind::SkidSteer;
+    let who = if skid { "skid-steer" } else { "turn law" };
+    let base = param_specs(robot, false);
+    let law = turn_law_specs(robot);
+    if let Some(known) = cfg.known_law {
+        notes.push(format!(
+            "turn law: given (--turn-law), held at eb_arc/eb {known:+.4}: the separation on arcs is {:.2} % wider than in a turn in place; the geometry is fitted with it",
+            known * 100.0
+        ));
+        return base;
+    }
+    if series.len() < 2 {
+        if skid {
+            notes.push(format!(
+                "{who}: one recording cannot cross-validate a turn-radius law; a constant effective separation (E_b) is fitted"
+            ));
+        }
+        return base;
+    }
+    let (arcs, all) = series.iter().fold((0.0, 0.0), |(a, b), s| {
+        let t = s.turning(robot);
+        (a + t.arcs, b + t.all)
+    });
+    let share = if all > 0.0 { arcs / all } else { 0.0 };
+    if share < MIN_ARC_SHARE {
+        notes.push(format!(
+            "{who}: the recordings turn on arcs for {:.0} % of their turning (the rest in place), under the {:.0} % a turn-radius law needs: a constant effective separation (E_b) is fitted; record arcs of several radii to test one",
+            share * 100.0,
+            MIN_ARC_SHARE * 100.0
+        ));
+        return base;
+    }
+    let fit_law = fit_specs(robot, &law, &refs(series), cfg, true);
+    *runs += fit_law.runs;
+    let (f_law, cov_law) = (&fit_law.f, &fit_law.cov);
+    let k = series.len().min(LADDER_FOLDS);
+    let e = heldout_errors(robot, &[&base, &law], series, cfg, runs);
+    let (e_base, e_law) = (e[0], e[1]);
+    let at = |k: GeomKind| law.iter().position(|s| s.kind == k);
+    let sd = |i: usize| cov_law[(i, i)].max(0.0).sqrt();
+    let ia = at(GeomKind::EbArc).unwrap_or(0);
+    let (arc, s_arc) = (f_law.geom[ia], sd(ia));
+    let mut significant = arc.abs() >= 3.0 * s_arc;
+    let mut figures = format!("eb_arc {arc:+.4} ± {s_arc:.4}");
+    if let Some(ix) = at(GeomKind::IcrX) {
+        let (x, s_x) = (f_law.geom[ix], sd(ix));
+        significant |= x.abs() >= 3.0 * s_x;
+        figures.push_str(&format!(", icr_x {:+.1} ± {:.1} mm", x * 1e3, s_x * 1e3));
+    }
+    figures.push_str(&format!(
+        "; held-out dead reckoning by recording ({k} folds) {:.1} mm with the law, {:.1} mm with a constant E_b",
+        e_law * 1e3,
+        e_base * 1e3
+    ));
+    let holds = e_law.is_finite() && e_law <= TURN_LAW_HOLDOUT_RATIO * e_base;
+    let plausible = law[ia].plausible;
+    let in_range = (plausible.0..=plausible.1).contains(&arc);
+    if !in_range {
+        figures.push_str(&format!(
+            "; eb_arc is outside its plausible {:+.2}..{:+.2}",
+            plausible.0, plausible.1
+        ));
+    }
+    if significant && holds && in_range {
+        let what = if skid {
+            "the tracks' ICRs move with the turn radius"
+        } else {
+            "the effective wheelbase depends on how the robot turns (tyre scrub)"
+        };
+        let consumers = if skid {
+            "ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn"
+        } else {
+            "the board applies it (factors set --e-b-arc); ROS 2's diff_drive_controller and the robot file get E_b at the recordings' mean turn"
+        };
+        notes.push(format!(
+            "{who}: {what} and the law holds out ({figures}): the law is fitted ({consumers})"
+        ));
+        *prefit = Some(Prefit {
+            specs: law.clone(),
+            first: fit_law.first,
+            f: fit_law.f,
+        });
+        law
+    } else {
+        notes.push(format!(
+            "{who}: a constant effective separation explains the data ({figures}; the law is kept only when significant and at most {:.0} % of the constant model's held-out error)",
+            TURN_LAW_HOLDOUT_RATIO * 100.0
+        ));
+        base
+    }
+}

@@ -1,0 +1,105 @@
+//! What the caller chooses ([`CalOptions`]; [`CvBy`]: how cross-validation groups the
+//! recordings), and the settings the driver derives from them ([`Cfg`]: objective, loss,
+//! lever arm, known turn law) that every problem of one calibration is given alike.
+
+use crate::calibrate::problem::Problem;
+use crate::calibrate::series::PART_SEP;
+
+/// Options of [`calibrate`](crate::calibrate::calibrate).
+#[derive(Debug, Clone, Default)]
+pub struct CalOptions {
+    /// Run leave-one-out cross-validation (when there are at least 2 recordings): the
+    /// same as `cv: Some(CvBy::Run)`.
+    pub leave_one_out: bool,
+    /// Also fit where motion capture tracks on the body (omni robots).
+    pub marker_offset: bool,
+    /// Fit each recording's start pose, time offset and clock ratio (for recordings whose
+    /// frame is not the robot's start frame); else dead-reckon from the first pose.
+    pub free_start: bool,
+    /// Huber's loss instead of least squares (dead-reckoning objective). Off by default:
+    /// on the held-out proxy it transferred worse (geometric mean ratio 1.041 against
+    /// 0.987 with squared loss, events kept out either way).
+    pub robust: bool,
+    /// Cross-validation: hold out whole runs, sessions or kinds of motion.
+    pub cv: Option<CvBy>,
+    /// Lever arm (m) of the heading residuals in the dead-reckoning objective (default
+    /// [`DR_HEADING_LEVER_M`](crate::calibrate::DR_HEADING_LEVER_M)).
+    pub heading_lever_m: Option<f64>,
+    /// A differential drive's known turn law, eb_arc / eb (the effective separation on
+    /// arcs against a turn in place, [`calib_core::kinematics::turn_law_share`]), from an
+    /// earlier calibration on runs with arcs: held fixed while the geometry is fitted.
+    /// Squares turn in place and cannot find it (measured: it transfers across days on
+    /// the OptiOdom robot).
+    pub turn_law: Option<f64>,
+}
+
+/// How cross-validation groups recordings.
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+pub enum CvBy {
+    /// Each recording alone.
+    Run,
+    /// Recordings of one session (the name without its `-run-NN` suffix).
+    Session,
+    /// Recordings of one kind of motion (the name's second dash field:
+    /// `<robot>-<path>-<session>-run-NN`, e.g. square, circular, ivanjko).
+    PathKind,
+}
+
+impl CvBy {
+    /// Its name on the command line.
+    pub fn name(self) -> &'static str {
+        match self {
+            CvBy::Run => "run",
+            CvBy::Session => "session",
+            CvBy::PathKind => "path-kind",
+        }
+    }
+
+    /// Parses `run`, `session` or `path-kind`.
+    pub fn parse(s: &str) -> Option<CvBy> {
+        match s {
+            "run" => Some(CvBy::Run),
+            "session" => Some(CvBy::Session),
+            "path-kind" | "path" => Some(CvBy::PathKind),
+            _ => None,
+        }
+    }
+
+    /// The group of a recording named `name` (a run folder's name, or a file name).
+    pub fn group(self, name: &str) -> String {
+        // The parts of a recording split at a pose jump stay together.
+        let name = name.split(PART_SEP).next().unwrap_or(name);
+        let base = name.trim_end_matches(".csv");
+        match self {
+            CvBy::Run => base.to_string(),
+            CvBy::Session => match base.rfind("-run-") {
+                Some(i) => base[..i].to_string(),
+                None => base.to_string(),
+            },
+            CvBy::PathKind => base.split('-').nth(1).unwrap_or(base).to_string(),
+        }
+    }
+}
+
+#[derive(Debug, Clone, Copy)]
+pub(super) struct Cfg {
+    pub(super) free_start: bool,
+    pub(super) huber: Option<f64>,
+    pub(super) dr_lever: f64,
+    /// A known turn law (eb_arc / eb, [`CalOptions::turn_law`]).
+    pub(super) known_law: Option<f64>,
+}
+
+impl Cfg {
+    /// The known turn law, 0 when none is given.
+    pub(super) fn law(&self) -> f64 {
+        self.known_law.unwrap_or(0.0)
+    }
+
+    pub(super) fn apply(&self, p: &mut Problem) {
+        p.free_start = self.free_start;
+        p.huber = self.huber;
+        p.dr_lever = self.dr_lever;
+        p.known_law = self.law();
+    }
+}

@@ -1,0 +1,543 @@
+//! The geometry parameters calibration can fit, as data about the robot: what each one is
+//! ([`GeomKind`], [`ParamSpec`]: name, nominal value, plausible range, what a value outside
+//! it most likely stands in for), which ones a robot gets (the full model, a mecanum
+//! robot's roller model, the turn law, the rungs of an omni robot's [`ladder`]), how a
+//! set of values changes the robot ([`robot_with`]), and which motion separates two of
+//! them ([`advice`]). Every other part of calibrate builds on this one.
+
+use calib_core::robot::{Robot, RobotKind};
+use serde::Serialize;
+
+/// One geometry parameter of the fit.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize)]
+#[serde(rename_all = "snake_case")]
+pub enum GeomKind {
+    /// Differential drive: mean actual / nominal wheel diameter (catalogue `wheel_scale`).
+    Scale,
+    /// Differential drive: D_right / D_left with the mean kept (Borenstein's E_d).
+    Ed,
+    /// Actual / nominal wheelbase (Borenstein's E_b).
+    Eb,
+    /// Actual / nominal radius of one wheel.
+    Radius(usize),
+    /// Mounting angle offset of one wheel, rad (position and rolling direction turn).
+    Alpha(usize),
+    /// Actual / nominal distance of one wheel from the centre.
+    L(usize),
+    /// Mecanum: roller angle offset shared by every mecanum wheel, rad; each wheel's
+    /// |gamma| grows by it (left- and right-handed rollers mirror each other).
+    Gamma,
+    /// Where motion capture tracks, body frame, m (a recording parameter shared by the
+    /// recordings of one rig: a marker set not at the kinematic centre).
+    MarkerX,
+    /// Where motion capture tracks, body frame y, m (see `MarkerX`).
+    MarkerY,
+    /// Skid-steer: how much E_b grows from a turn in place to a wide arc, the tracks'
+    /// ICRs moving with the turn radius: E_b(rho) = eb + eb_arc (1 - rho)^2, rho =
+    /// |d_r - d_l| / (|d_r| + |d_l|) (1 in place, 0 straight).
+    EbArc,
+    /// Skid-steer: longitudinal position of the ICRs ([Mandow et al.]'s x_ICR), m; the
+    /// body's sideways speed is -x_ICR omega.
+    IcrX,
+}
+
+/// A parameter's description: name, null value, plausible range and what a value
+/// outside it most likely stands for.
+#[derive(Debug, Clone, Serialize)]
+pub struct ParamSpec {
+    /// Which geometry parameter it is.
+    pub kind: GeomKind,
+    /// Its name in reports (`scale`, `ed`, `radius_scale_<wheel>`...).
+    pub name: String,
+    /// Catalogue effect the parameter belongs to.
+    pub effect: &'static str,
+    /// Its value in the nominal geometry (1 for a scale, 0 for an offset).
+    pub nominal: f64,
+    /// Physical range (low, high).
+    pub plausible: (f64, f64),
+    /// What a value outside the range most likely stands in for.
+    #[serde(skip)]
+    pub stands_for: &'static str,
+}
+
+fn spec(
+    kind: GeomKind,
+    name: String,
+    effect: &'static str,
+    nominal: f64,
+    half: f64,
+    stands_for: &'static str,
+) -> ParamSpec {
+    ParamSpec {
+        kind,
+        name,
+        effect,
+        nominal,
+        plausible: (nominal - half, nominal + half),
+        stands_for,
+    }
+}
+
+/// A skid-steer robot's E_b: its effective separation is 1 to 3 times the track
+/// ([`calib_core::correction::SKID_EB_MAX`]).
+pub const SKID_EB_RANGE: (f64, f64) = (1.0, calib_core::correction::SKID_EB_MAX);
+/// Skid-steer: change of E_b from a turn in place to a wide arc.
+pub const EB_ARC_RANGE: f64 = 0.5;
+/// Skid-steer: longitudinal ICR offset, m (a load far forward or back).
+pub const ICR_X_RANGE: f64 = 0.05;
+const EB_ARC_STANDS: &str =
+    "tyres whose lateral grip builds up with the slip angle (ICRs that move with the turn radius)";
+const ICR_X_STANDS: &str = "the load far forward or back of the wheels' centre";
+const SKID_EB_STANDS: &str =
+    "a wrong track in the robot file, or tracks that turn without skidding";
+
+/// Tyre radius: within a few per cent of nominal (wear, pressure, load).
+pub const RADIUS_RANGE: f64 = 0.05;
+/// Left/right diameter ratio.
+pub const ED_RANGE: f64 = 0.03;
+/// Wheelbase and wheel distances: the contact patch moves across a tyre's width.
+pub const BASE_RANGE: f64 = 0.08;
+/// Mounting angle, rad (3 degrees).
+pub const ALPHA_RANGE: f64 = 3.0 * std::f64::consts::PI / 180.0;
+/// Roller angle of a mecanum wheel set, rad (3 degrees: moulding tolerance and roller wear).
+pub const GAMMA_RANGE: f64 = 3.0 * std::f64::consts::PI / 180.0;
+/// A wheel with |gamma| above this (rad, 1 degree) is a mecanum wheel.
+pub const MECANUM_MIN_GAMMA: f64 = std::f64::consts::PI / 180.0;
+
+const SCALE_STANDS: &str = "a wrong nominal diameter, gear ratio or encoder resolution (counts_per_rev_error), or longitudinal slip";
+const ED_STANDS: &str =
+    "slip on one side, a tilted floor or a drift the motion does not separate from wheel size";
+const EB_STANDS: &str =
+    "tyre scrub in turns (the effective wheelbase of a skidding robot) or castor drag";
+const ALPHA_STANDS: &str =
+    "rollers slipping sideways, or the motion-capture frame turned against the body";
+/// Motion-capture marker offset from the kinematic centre, m.
+pub const MARKER_RANGE: f64 = 0.02;
+const MARKER_STANDS: &str =
+    "a marker set far from the kinematic centre, or wheel slip in turns in place";
+const L_STANDS: &str = "scrub in rotation or a radius error the motion does not separate";
+const GAMMA_STANDS: &str =
+    "rollers slipping along their axles, or wheels mounted at other angles (per-wheel alpha, l and radius)";
+
+/// True when some wheel has angled rollers (mecanum), so a roller angle can be fitted.
+pub fn is_mecanum(robot: &Robot) -> bool {
+    robot.kind == RobotKind::Omni
+        && robot
+            .wheels
+            .iter()
+            .any(|w| w.gamma_rad.abs() > MECANUM_MIN_GAMMA)
+}
+
+/// The roller model of a mecanum robot: per-wheel radius scales and one shared roller
+/// angle offset (with `marker`: the motion-capture marker offset too). In the kinematics a
+/// wheel's roller angle is exactly a combination of its mounting angle, distance and
+/// radius, so this is the parsimonious alternative to [`param_specs`]' full model, not an
+/// addition to it.
+pub fn roller_specs(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
+    let mut v: Vec<ParamSpec> = param_specs(robot, marker)
+        .into_iter()
+        .filter(|s| {
+            matches!(
+                s.kind,
+                GeomKind::Radius(_) | GeomKind::MarkerX | GeomKind::MarkerY
+            )
+        })
+        .collect();
+    let at = robot.wheels.len().min(v.len());
+    v.insert(
+        at,
+        spec(
+            GeomKind::Gamma,
+            "roller_angle_offset_rad".into(),
+            "roller_angle_error",
+            0.0,
+            GAMMA_RANGE,
+            GAMMA_STANDS,
+        ),
+    );
+    v
+}
+
+/// The parameters fitted for `robot` (with `marker`: the motion-capture marker offset
+/// too, for omni robots).
+pub fn param_specs(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
+    // A wheeled-legged robot steers like a skid-steer pair: its encoders fix a left and a
+    // right wheel size and a track, not four radii (consistent wheels are averaged).
+    let left_right = (robot.kind == RobotKind::DiffDrive && robot.wheels.len() == 2)
+        || robot.kind == RobotKind::WheeledLegged;
+    if robot.kind == RobotKind::SkidSteer {
+        let mut v = param_specs_left_right();
+        v[2].plausible = SKID_EB_RANGE;
+        v[2].stands_for = SKID_EB_STANDS;
+        return v;
+    }
+    if left_right {
+        return param_specs_left_right();
+    }
+    param_specs_wheels(robot, marker)
+}
+
+/// The turn-radius model of a robot with a left and a right side: [`param_specs`] plus
+/// the E_b law; a skid-steer robot also gets the longitudinal ICR offset of
+/// [Mandow et al.] (a two-wheel robot cannot slide sideways).
+pub fn turn_law_specs(robot: &Robot) -> Vec<ParamSpec> {
+    let mut v = param_specs(robot, false);
+    v.push(spec(
+        GeomKind::EbArc,
+        "eb_arc".into(),
+        "wheelbase_error",
+        0.0,
+        if robot.kind == RobotKind::SkidSteer {
+            EB_ARC_RANGE
+        } else {
+            DIFF_EB_ARC_RANGE
+        },
+        EB_ARC_STANDS,
+    ));
+    if robot.kind != RobotKind::SkidSteer {
+        return v;
+    }
+    v.push(spec(
+        GeomKind::IcrX,
+        "icr_x_m".into(),
+        "wheelbase_error",
+        0.0,
+        ICR_X_RANGE,
+        ICR_X_STANDS,
+    ));
+    v
+}
+
+fn param_specs_left_right() -> Vec<ParamSpec> {
+    vec![
+        spec(
+            GeomKind::Scale,
+            "scale".into(),
+            "wheel_scale",
+            1.0,
+            RADIUS_RANGE,
+            SCALE_STANDS,
+        ),
+        spec(
+            GeomKind::Ed,
+            "ed".into(),
+            "wheel_diameter_mismatch",
+            1.0,
+            ED_RANGE,
+            ED_STANDS,
+        ),
+        spec(
+            GeomKind::Eb,
+            "eb".into(),
+            "wheelbase_error",
+            1.0,
+            BASE_RANGE,
+            EB_STANDS,
+        ),
+    ]
+}
+
+fn param_specs_wheels(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
+    let marker_specs = [
+        spec(
+            GeomKind::MarkerX,
+            "marker_x_m".into(),
+            "marker_offset",
+            0.0,
+            MARKER_RANGE,
+            MARKER_STANDS,
+        ),
+        spec(
+            GeomKind::MarkerY,
+            "marker_y_m".into(),
+            "marker_offset",
+            0.0,
+            MARKER_RANGE,
+            MARKER_STANDS,
+        ),
+    ];
+    let mut v = Vec::new();
+    for (i, w) in robot.wheels.iter().enumerate() {
+        v.push(spec(
+            GeomKind::Radius(i),
+            format!("radius_scale_{}", w.name),
+            "wheel_diameter_mismatch",
+            1.0,
+            RADIUS_RANGE,
+            SCALE_STANDS,
+        ));
+    }
+    if robot.kind == RobotKind::Omni {
+        for (i, w) in robot.wheels.iter().enumerate() {
+            v.push(spec(
+                GeomKind::Alpha(i),
+                format!("alpha_offset_rad_{}", w.name),
+                "wheel_angle_error",
+                0.0,
+                ALPHA_RANGE,
+                ALPHA_STANDS,
+            ));
+        }
+        for (i, w) in robot.wheels.iter().enumerate() {
+            v.push(spec(
+                GeomKind::L(i),
+                format!("l_scale_{}", w.name),
+                "wheel_position_error",
+                1.0,
+                BASE_RANGE,
+                L_STANDS,
+            ));
+        }
+        if marker {
+            v.extend(marker_specs);
+        }
+    } else {
+        v.push(spec(
+            GeomKind::Eb,
+            "eb".into(),
+            "wheelbase_error",
+            1.0,
+            BASE_RANGE,
+            EB_STANDS,
+        ));
+    }
+    v
+}
+
+/// The robot with geometry parameters `values` (in `specs` order) applied.
+pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
+    let n = base.wheels.len();
+    let (mut rs, mut ls, mut da) = (vec![1.0; n], vec![1.0; n], vec![0.0; n]);
+    let mut dg = 0.0;
+    for (s, &x) in specs.iter().zip(values) {
+        match s.kind {
+            GeomKind::Scale => rs.iter_mut().for_each(|r| *r *= x),
+            GeomKind::Ed => {
+                for (i, w) in base.wheels.iter().enumerate() {
+                    rs[i] *= calib_core::umbmark::wheel_factor(w, x);
+                }
+            }
+            GeomKind::Eb => ls.iter_mut().for_each(|l| *l *= x),
+            GeomKind::Radius(i) => rs[i] *= x,
+            GeomKind::Alpha(i) => da[i] += x,
+            GeomKind::L(i) => ls[i] *= x,
+            GeomKind::Gamma => dg += x,
+            GeomKind::MarkerX | GeomKind::MarkerY | GeomKind::EbArc | GeomKind::IcrX => {}
+        }
+    }
+    let mut r = base.clone();
+    for (i, w) in r.wheels.iter_mut().enumerate() {
+        w.radius_m *= rs[i];
+        w.l_m *= ls[i];
+        w.alpha_rad += da[i];
+        if w.gamma_rad.abs() > MECANUM_MIN_GAMMA {
+            w.gamma_rad += w.gamma_rad.signum() * dg;
+        }
+    }
+    r
+}
+
+pub(super) fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
+    use GeomKind::*;
+    let pair =
+        |x: GeomKind, y: GeomKind| (a.kind == x && b.kind == y) || (a.kind == y && b.kind == x);
+    if pair(Ed, Eb) {
+        "drive the square the other way too (clockwise and counter-clockwise, as UMBmark does)"
+            .into()
+    } else if pair(Scale, Eb) || matches!((a.kind, b.kind), (Radius(_), L(_)) | (L(_), Radius(_))) {
+        "add a straight run of known length and a turn in place".into()
+    } else if a.kind == Gamma || b.kind == Gamma {
+        "add sideways and diagonal translations: the roller angle moves them, wheel size moves all motion alike".into()
+    } else if matches!(a.kind, Alpha(_)) || matches!(b.kind, Alpha(_)) {
+        "add pure translations in several directions without rotation, and a turn in place".into()
+    } else {
+        "add motion that moves them differently: straight runs both ways and turns in place both ways".into()
+    }
+}
+
+/// A mecanum wheel's effective radius: the rollers' contact moves with the direction of
+/// travel, and real mecanum robots dead-reckon with radii 5-12 % off the hub's (the
+/// real mecanum squares want 67 mm on a 60 mm wheel).
+pub const MECANUM_RADIUS_RANGE: f64 = 0.15;
+
+/// The models an omni robot's calibration climbs, simplest first: one common scale; a
+/// common scale and wheel distance; per-wheel radii and a common distance; per-wheel
+/// radii, angles and distances; on a mecanum robot, per-wheel radii and one roller angle.
+pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)> {
+    let mecanum = is_mecanum(robot);
+    let mut scale = spec(
+        GeomKind::Scale,
+        "scale".into(),
+        "wheel_scale",
+        1.0,
+        if mecanum {
+            MECANUM_RADIUS_RANGE
+        } else {
+            RADIUS_RANGE
+        },
+        SCALE_STANDS,
+    );
+    if mecanum {
+        scale.stands_for = "the rollers' effective radius, or a wrong nominal diameter";
+    }
+    let distance = spec(
+        GeomKind::Eb,
+        "l_scale".into(),
+        "wheelbase_error",
+        1.0,
+        BASE_RANGE,
+        L_STANDS,
+    );
+    let full = param_specs(robot, marker);
+    let markers: Vec<ParamSpec> = full
+        .iter()
+        .filter(|s| matches!(s.kind, GeomKind::MarkerX | GeomKind::MarkerY))
+        .cloned()
+        .collect();
+    let radii: Vec<ParamSpec> = full
+        .iter()
+        .filter(|s| matches!(s.kind, GeomKind::Radius(_)))
+        .cloned()
+        .map(|mut s| {
+            if mecanum {
+                s.plausible = (1.0 - MECANUM_RADIUS_RANGE, 1.0 + MECANUM_RADIUS_RANGE);
+            }
+            s
+        })
+        .collect();
+    let with_markers = |mut v: Vec<ParamSpec>| {
+        v.extend(markers.iter().cloned());
+        v
+    };
+    let mut rungs = vec![
+        ("common scale", with_markers(vec![scale.clone()])),
+        (
+            "common scale and wheel distance",
+            with_markers(vec![scale, distance.clone()]),
+        ),
+        ("per-wheel radii and a common wheel distance", {
+            let mut v = radii.clone();
+            v.push(distance);
+            with_markers(v)
+        }),
+        ("per-wheel radii, angles and distances", {
+            let mut f = full.clone();
+            for s in f.iter_mut() {
+                if let Some(r) = radii.iter().find(|r| r.kind == s.kind) {
+                    s.plausible = r.plausible;
+                }
+            }
+            f
+        }),
+    ];
+    if mecanum {
+        rungs.push((
+            "per-wheel radii and one roller angle",
+            roller_specs(robot, marker)
+                .into_iter()
+                .map(|mut s| {
+                    if let Some(r) = radii.iter().find(|r| r.kind == s.kind) {
+                        s.plausible = r.plausible;
+                    }
+                    s
+                })
+                .collect(),
+        ));
+    }
+    rungs
+}
+
+/// A differential drive's separation may depend on the turn by this much (tyre scrub).
+pub const DIFF_EB_ARC_RANGE: f64 = 0.1;
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::synth;
+
+    /// Relative difference.
+    fn rel(a: f64, b: f64) -> f64 {
+        (a / b - 1.0).abs()
+    }
+
+    /// A differential drive's (scale, E_d, E_b) are Borenstein's: the right wheel's
+    /// radius over the left's is E_d, their mean is scale x nominal (c_L + c_R = 2), the
+    /// separation is E_b x nominal. A few roundings of numbers near 1: 1e-12.
+    #[test]
+    fn robot_with_applies_scale_ed_and_eb_as_borenstein_defines_them() {
+        let base = synth::robot("mobolab");
+        let specs = param_specs(&base, false);
+        let names: Vec<&str> = specs.iter().map(|s| s.name.as_str()).collect();
+        assert_eq!(names, ["scale", "ed", "eb"]);
+        let r = robot_with(&base, &specs, &[1.02, 1.01, 1.05]);
+        let (l, rt) = if r.wheels[0].is_left() {
+            (&r.wheels[0], &r.wheels[1])
+        } else {
+            (&r.wheels[1], &r.wheels[0])
+        };
+        assert!(rel(rt.radius_m / l.radius_m, 1.01) < 1e-12);
+        assert!(rel(0.5 * (l.radius_m + rt.radius_m), 1.02 * 0.05) < 1e-12);
+        let separation = l.position().1 - rt.position().1;
+        assert!(rel(separation, 1.05 * 0.40) < 1e-12, "{separation}");
+        for (a, b) in r.wheels.iter().zip(&base.wheels) {
+            assert_eq!((a.alpha_rad, a.gamma_rad), (b.alpha_rad, b.gamma_rad));
+        }
+        // The nominal values give the robot back, to the bit.
+        let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
+        assert_eq!(robot_with(&base, &specs, &nominal), base);
+    }
+
+    /// A per-wheel parameter moves its own wheel only; the roller angle offset widens
+    /// every mecanum wheel's |gamma| by its value, the sign (roller hand) kept, and leaves
+    /// a wheel without angled rollers alone. Exact but for one multiplication or addition
+    /// each: 1e-15 relative.
+    #[test]
+    fn robot_with_moves_only_the_named_wheel_and_widens_mecanum_rollers() {
+        let base = synth::robot("omni4");
+        let specs = param_specs(&base, false);
+        let at = |k: GeomKind| specs.iter().position(|s| s.kind == k).unwrap();
+        let mut v: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
+        v[at(GeomKind::Radius(1))] = 1.03;
+        v[at(GeomKind::Alpha(2))] = 0.01;
+        v[at(GeomKind::L(3))] = 0.95;
+        let r = robot_with(&base, &specs, &v);
+        for (i, (a, b)) in r.wheels.iter().zip(&base.wheels).enumerate() {
+            let want = (
+                b.radius_m * if i == 1 { 1.03 } else { 1.0 },
+                b.alpha_rad + if i == 2 { 0.01 } else { 0.0 },
+                b.l_m * if i == 3 { 0.95 } else { 1.0 },
+            );
+            assert!(rel(a.radius_m, want.0) < 1e-15, "wheel {i} radius");
+            assert!((a.alpha_rad - want.1).abs() < 1e-15, "wheel {i} alpha");
+            assert!(rel(a.l_m, want.2) < 1e-15, "wheel {i} l");
+        }
+
+        let mut mecanum = base.clone();
+        let g45 = std::f64::consts::FRAC_PI_4;
+        for (i, w) in mecanum.wheels.iter_mut().enumerate() {
+            // Alternating hands, and wheel 3 a plain omni wheel (0.5 deg: not mecanum).
+            w.gamma_rad = match i {
+                3 => 0.5f64.to_radians(),
+                _ if i % 2 == 0 => g45,
+                _ => -g45,
+            };
+        }
+        assert!(is_mecanum(&mecanum));
+        let specs = roller_specs(&mecanum, false);
+        let mut v: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
+        v[specs
+            .iter()
+            .position(|s| s.kind == GeomKind::Gamma)
+            .unwrap()] = 0.02;
+        let r = robot_with(&mecanum, &specs, &v);
+        for (i, (a, b)) in r.wheels.iter().zip(&mecanum.wheels).enumerate() {
+            let want = if i == 3 {
+                b.gamma_rad
+            } else {
+                b.gamma_rad + b.gamma_rad.signum() * 0.02
+            };
+            assert!(rel(a.gamma_rad, want) < 1e-15, "wheel {i} gamma");
+            assert_eq!(a.radius_m, b.radius_m);
+        }
+    }
+}

@@ -1,0 +1,609 @@
+//! What [`calibrate`](crate::calibrate::calibrate) returns ([`Calibration`]): the fitted
+//! parameters with their uncertainty, each wheel's geometry, the firmware factors,
+//! per-recording and held-out errors, the pairs the data do not separate and the values
+//! outside their plausible range; its JSON layout and its text report.
+
+use crate::calibrate::params::{ParamSpec, MECANUM_MIN_GAMMA};
+use crate::calibrate::series::{Event, Nuisance};
+use crate::calibrate::turn_law::TurnLaw;
+use calib_core::robot::Robot;
+use serde::Serialize;
+use std::fmt;
+
+/// One fitted geometry parameter.
+#[derive(Debug, Clone, Serialize)]
+pub struct FittedParam {
+    /// What the parameter is: name, effect, nominal value, plausible range.
+    #[serde(flatten)]
+    pub spec: ParamSpec,
+    /// Fitted value.
+    pub value: f64,
+    /// One standard deviation, residual autocorrelation counted.
+    pub sigma: f64,
+}
+
+/// Fitted geometry of one wheel.
+#[derive(Debug, Clone, Serialize)]
+pub struct WheelGeometry {
+    /// The wheel's name.
+    pub name: String,
+    /// Fitted radius, m.
+    pub radius_m: f64,
+    /// Fitted distance from the body centre, m.
+    pub l_m: f64,
+    /// Fitted mounting angle (direction of the wheel's position), degrees.
+    pub alpha_deg: f64,
+    /// Roller angle, degrees (fitted for mecanum wheels in the roller model).
+    pub gamma_deg: f64,
+}
+
+/// Firmware correction factors.
+#[derive(Debug, Clone, Serialize)]
+#[serde(untagged)]
+pub enum Factors {
+    /// `factors set` values of a differential drive.
+    Diff {
+        /// Left wheel's effective radius / nominal radius.
+        c_l: f64,
+        /// Right wheel's effective radius / nominal radius.
+        c_r: f64,
+        /// Actual wheelbase / nominal wheelbase (with a turn law: at the recordings' mean
+        /// turn, for consumers that apply one constant: ROS 2, the robot file).
+        e_b: f64,
+        /// A differential drive's turn law, for a board that applies it: E_b in a turn in
+        /// place ...
+        #[serde(skip_serializing_if = "Option::is_none")]
+        e_b_turn_in_place: Option<f64>,
+        /// ... and the law's e_b_arc (`factors set --e-b-arc`).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        e_b_arc: Option<f64>,
+    },
+    /// Per wheel: the command multiplier f_lat (1 / radius scale), f_lon = 1. Wheel
+    /// angle and position errors have no firmware factor: use the fitted robot file.
+    Wheels {
+        /// Command multiplier per wheel, in the robot's wheel order.
+        f_lat: Vec<f64>,
+        /// Common multiplier (always 1 here).
+        f_lon: f64,
+    },
+}
+
+/// RMSE of one recording.
+#[derive(Debug, Clone, Serialize)]
+pub struct PerRecording {
+    /// The recording's name as given.
+    pub name: String,
+    /// Its ground-truth pose samples.
+    pub pose_samples: usize,
+    /// Pose samples the objective compared (every 5 cm of travel when dead-reckoning).
+    pub compared_samples: usize,
+    /// The fit's objective with the nominal geometry: position RMSE dead-reckoned from the
+    /// first pose at the compared samples (or with the start pose and clocks fitted,
+    /// `--free-start`), m.
+    pub rmse_before_m: f64,
+    /// The same with the fitted geometry, m.
+    pub rmse_after_m: f64,
+    /// Start pose and clocks fitted (geometry as given), nominal geometry, m.
+    pub aligned_before_m: f64,
+    /// Start pose and clocks fitted, fitted geometry, m.
+    pub aligned_after_m: f64,
+    /// Dead reckoning from the first measured pose, nominal and fitted geometry.
+    pub dead_reckoning_before_m: f64,
+    /// Dead reckoning from the first measured pose with the fitted geometry, m.
+    pub dead_reckoning_after_m: f64,
+    /// Its fitted start pose and clocks.
+    pub nuisance: Nuisance,
+    /// Its start pose and clocks fitted with the nominal geometry (the "before").
+    pub nuisance_nominal: Nuisance,
+    /// One standard deviation of `time_offset_s` and `clock_ratio` (autocorrelation
+    /// counted).
+    pub time_offset_sigma_s: f64,
+    /// One standard deviation of `clock_ratio`.
+    pub clock_ratio_sigma: f64,
+}
+
+/// RMSE on a recording the fit did not see (dead reckoning from its first pose).
+#[derive(Debug, Clone, Serialize)]
+pub struct Heldout {
+    /// The recording's name as given.
+    pub name: String,
+    /// The cross-validation group it was held out with (run, session or path kind).
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub group: Option<String>,
+    /// Dead reckoning with the nominal geometry, m.
+    pub rmse_before_m: f64,
+    /// Dead reckoning with the fitted geometry, m.
+    pub rmse_after_m: f64,
+    /// With its start pose and clocks fitted (geometry as given): what the geometry
+    /// explains without the start heading's noise, which dead reckoning carries to the end.
+    pub aligned_before_m: f64,
+    /// The same with the fitted geometry, m.
+    pub aligned_after_m: f64,
+}
+
+/// Two parameters (or a parameter and the rest) the data do not separate.
+#[derive(Debug, Clone, Serialize)]
+pub struct Inseparable {
+    /// The two parameters' names.
+    pub params: [String; 2],
+    /// Their correlation in the fit.
+    pub correlation: f64,
+    /// The combination the data do fix (unit vector over `params`).
+    pub identifiable: [f64; 2],
+    /// What recording would separate them.
+    pub advice: String,
+}
+
+/// A parameter outside its physical range.
+#[derive(Debug, Clone, Serialize)]
+pub struct Implausible {
+    /// The parameter's name (a recording's clocks: `<recording>: time_offset_s`...).
+    pub name: String,
+    /// The value the data ask for.
+    pub value: f64,
+    /// Physical range (low, high).
+    pub plausible: (f64, f64),
+    /// What the value most likely stands in for.
+    pub stands_for: String,
+}
+
+/// The result of [`calibrate`](crate::calibrate::calibrate).
+#[derive(Debug, Clone, Serialize)]
+pub struct Calibration {
+    /// The robot's name.
+    pub robot: String,
+    /// The robot's kind (`diff_drive`, `skid_steer`...): which factors and ranges apply.
+    pub kind: &'static str,
+    /// What the fit minimised.
+    pub objective: &'static str,
+    /// True when each recording's start pose and clocks were fitted (`--free-start`);
+    /// false when each was dead-reckoned from its first pose.
+    pub free_start: bool,
+    /// The robust loss and its scale (`None`: squared loss).
+    pub robust_loss: Option<String>,
+    /// Events one geometry cannot explain, found, reported and kept out of the fit.
+    pub events: Vec<Event>,
+    /// How cross-validation grouped the recordings (`run`, `session`, `path-kind`).
+    pub cv_by: Option<&'static str>,
+    /// The recordings' names, in the order given.
+    pub recordings: Vec<String>,
+    /// The fitted geometry parameters (in [`param_specs`](crate::calibrate::param_specs) order), each with its
+    /// description (which model was kept).
+    pub params: Vec<FittedParam>,
+    /// The fitted geometry as firmware correction factors.
+    pub factors: Factors,
+    /// Each recording's fit, in the order given.
+    pub per_recording: Vec<PerRecording>,
+    /// All recordings together, nuisance fitted: position RMSE with the nominal
+    /// geometry, m.
+    pub joint_rmse_before_m: f64,
+    /// The same with the fitted geometry, m.
+    pub joint_rmse_after_m: f64,
+    /// The prediction of the held-out recording, when one was given.
+    pub heldout: Option<Heldout>,
+    /// Cross-validation: fit on the rest, dead-reckon each group left out.
+    #[serde(flatten)]
+    pub leave_one_out: HeldoutTable,
+    /// Correlations between the geometry parameters (params order).
+    pub correlations: Vec<Vec<f64>>,
+    /// Pairs the data do not separate, with their correlation, identifiable combination
+    /// and advice.
+    #[serde(flatten)]
+    pub inseparable: Inseparables,
+    /// Directions over the geometry the data leave unconstrained (unit vectors).
+    pub unconstrained: Vec<Vec<(String, f64)>>,
+    /// Values the data ask for outside their physical range (the geometry is then
+    /// refitted within the ranges), and implausible clocks of a recording.
+    pub implausible: Vec<Implausible>,
+    /// Remarks for the reader.
+    pub notes: Vec<String>,
+    /// Model evaluations the whole fit took.
+    pub model_runs: usize,
+    /// The robot with the fitted geometry applied; the JSON gives each wheel's fitted
+    /// geometry (`geometry`).
+    #[serde(rename = "geometry", serialize_with = "serialize_geometry")]
+    pub fitted_robot: Robot,
+    /// The turn law the geometry was fitted with (fitted, given, or none: zero).
+    pub turn_law: TurnLaw,
+    /// With a turn law: the fitted robot with the separation of a turn in place, which
+    /// the law widens on arcs ([`dead_reckoning_rmse_law`](crate::calibrate::dead_reckoning_rmse_law)); else `fitted_robot`.
+    #[serde(skip)]
+    pub law_base_robot: Robot,
+}
+
+impl Calibration {
+    /// E_b of a differential drive's factors (at the recordings' mean turn), else 1.
+    pub fn factors_e_b(&self) -> f64 {
+        match self.factors {
+            Factors::Diff { e_b, .. } => e_b,
+            Factors::Wheels { .. } => 1.0,
+        }
+    }
+
+    /// Each wheel's fitted geometry, in the robot's wheel order.
+    pub fn geometry(&self) -> Vec<WheelGeometry> {
+        wheel_geometry(&self.fitted_robot)
+    }
+
+    /// The fitted parameters' descriptions, in `params` order.
+    pub fn specs(&self) -> Vec<ParamSpec> {
+        self.params.iter().map(|p| p.spec.clone()).collect()
+    }
+
+    /// The fitted parameter named `name`.
+    pub fn param(&self, name: &str) -> Option<&FittedParam> {
+        self.params.iter().find(|p| p.spec.name == name)
+    }
+}
+
+/// Each wheel's geometry in `robot`, in its wheel order.
+fn wheel_geometry(robot: &Robot) -> Vec<WheelGeometry> {
+    robot
+        .wheels
+        .iter()
+        .map(|w| WheelGeometry {
+            name: w.name.to_string(),
+            radius_m: w.radius_m,
+            l_m: w.l_m,
+            alpha_deg: w.alpha_rad.to_degrees(),
+            gamma_deg: w.gamma_rad.to_degrees(),
+        })
+        .collect()
+}
+
+fn serialize_geometry<S: serde::Serializer>(robot: &Robot, s: S) -> Result<S::Ok, S::Error> {
+    wheel_geometry(robot).serialize(s)
+}
+
+/// The held-out recordings of cross-validation. The JSON gives the table
+/// (`leave_one_out`) and its column means (`leave_one_out_mean_before_m`,
+/// `leave_one_out_mean_after_m`, `leave_one_out_aligned_before_m`,
+/// `leave_one_out_aligned_after_m`; `null` without cross-validation).
+#[derive(Debug, Clone, Default)]
+pub struct HeldoutTable(pub Vec<Heldout>);
+
+/// Column means of a [`HeldoutTable`], m.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct HeldoutMeans {
+    /// Dead reckoning with the nominal geometry.
+    pub before_m: f64,
+    /// Dead reckoning with the fitted geometry.
+    pub after_m: f64,
+    /// Aligned (start pose and clocks fitted), nominal geometry.
+    pub aligned_before_m: f64,
+    /// Aligned, fitted geometry.
+    pub aligned_after_m: f64,
+}
+
+impl HeldoutTable {
+    /// The column means, `None` without cross-validation.
+    pub fn means(&self) -> Option<HeldoutMeans> {
+        let n = self.0.len() as f64;
+        let mean = |f: fn(&Heldout) -> f64| self.0.iter().map(f).sum::<f64>() / n;
+        (!self.0.is_empty()).then(|| HeldoutMeans {
+            before_m: mean(|h| h.rmse_before_m),
+            after_m: mean(|h| h.rmse_after_m),
+            aligned_before_m: mean(|h| h.aligned_before_m),
+            aligned_after_m: mean(|h| h.aligned_after_m),
+        })
+    }
+}
+
+impl Serialize for HeldoutTable {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let m = self.means();
+        let mut map = s.serialize_map(Some(5))?;
+        map.serialize_entry("leave_one_out", &self.0)?;
+        map.serialize_entry("leave_one_out_mean_before_m", &m.map(|m| m.before_m))?;
+        map.serialize_entry("leave_one_out_mean_after_m", &m.map(|m| m.after_m))?;
+        map.serialize_entry(
+            "leave_one_out_aligned_before_m",
+            &m.map(|m| m.aligned_before_m),
+        )?;
+        map.serialize_entry(
+            "leave_one_out_aligned_after_m",
+            &m.map(|m| m.aligned_after_m),
+        )?;
+        map.end()
+    }
+}
+
+/// Geometry pairs the data do not separate. The JSON gives the pairs by name
+/// (`not_separable`) and in full (`inseparable`: correlation, the combination the data
+/// fix, and what would separate them).
+#[derive(Debug, Clone, Default)]
+pub struct Inseparables(pub Vec<Inseparable>);
+
+impl Inseparables {
+    /// Whether `param` is one side of a pair the data cannot separate.
+    pub fn involves(&self, param: &str) -> bool {
+        self.0.iter().any(|i| i.params.iter().any(|p| p == param))
+    }
+
+    /// The pairs by name.
+    pub fn pairs(&self) -> Vec<&[String; 2]> {
+        self.0.iter().map(|i| &i.params).collect()
+    }
+
+    /// `a / b: what would separate them`, one line per pair.
+    pub fn advice(&self) -> impl Iterator<Item = String> + '_ {
+        self.0
+            .iter()
+            .map(|i| format!("{} / {}: {}", i.params[0], i.params[1], i.advice))
+    }
+}
+
+impl Serialize for Inseparables {
+    fn serialize<S: serde::Serializer>(&self, s: S) -> Result<S::Ok, S::Error> {
+        use serde::ser::SerializeMap;
+        let mut map = s.serialize_map(Some(2))?;
+        map.serialize_entry("not_separable", &self.pairs())?;
+        map.serialize_entry("inseparable", &self.0)?;
+        map.end()
+    }
+}
+
+impl Calibration {
+    /// The fitted robot file text (all geometry), with a header naming the recordings.
+    pub fn robot_toml(&self) -> String {
+        format!(
+            "# {} with geometry fitted by wheelcal calibrate from {}\n{}",
+            self.robot,
+            self.recordings.join(", "),
+            formats::robot_file::to_toml(&self.fitted_robot)
+        )
+    }
+}
+
+fn mm(v: f64) -> String {
+    format!("{:.2} mm", v * 1e3)
+}
+
+impl fmt::Display for Calibration {
+    fn fmt(&self, f: &mut fmt::Formatter<'_>) -> fmt::Result {
+        writeln!(
+            f,
+            "calibrate {}: {} recording(s), geometry shared",
+            self.robot,
+            self.recordings.len()
+        )?;
+        writeln!(f, "minimised: {}", self.objective)?;
+        if let Some(l) = &self.robust_loss {
+            writeln!(f, "loss: {l}")?;
+        }
+        writeln!(f, "geometry:")?;
+        for p in &self.params {
+            let flag = if self.implausible.iter().any(|i| i.name == p.spec.name) {
+                "  (unbounded: implausible, see below)"
+            } else {
+                ""
+            };
+            writeln!(
+                f,
+                "  {:<24} {:.5} ± {:.5}  (nominal {}, plausible {:.4}..{:.4}){flag}",
+                p.spec.name,
+                p.value,
+                p.sigma,
+                p.spec.nominal,
+                p.spec.plausible.0,
+                p.spec.plausible.1
+            )?;
+        }
+        for w in &self.geometry() {
+            write!(
+                f,
+                "  wheel {:<8} radius {:.5} m, l {:.5} m, alpha {:.3} deg",
+                w.name, w.radius_m, w.l_m, w.alpha_deg
+            )?;
+            if w.gamma_deg.abs() > MECANUM_MIN_GAMMA.to_degrees() {
+                write!(f, ", gamma {:.3} deg", w.gamma_deg)?;
+            }
+            writeln!(f)?;
+        }
+        match &self.factors {
+            Factors::Diff {
+                c_l,
+                c_r,
+                e_b_turn_in_place: Some(e_b),
+                e_b_arc: Some(arc),
+                ..
+            } => writeln!(
+                f,
+                "firmware factors: factors set --c-l {c_l:.6} --c-r {c_r:.6} --e-b {e_b:.6} --e-b-arc {arc:.6} (the board applies the turn law; ROS 2 and the robot file get E_b {:.6} at the recordings' mean turn)",
+                self.factors_e_b()
+            )?,
+            Factors::Diff { c_l, c_r, e_b, .. } => writeln!(
+                f,
+                "firmware factors: factors set --c-l {c_l:.6} --c-r {c_r:.6} --e-b {e_b:.6}"
+            )?,
+            Factors::Wheels { f_lat, f_lon } => writeln!(
+                f,
+                "firmware factors: f_lat {} f_lon {f_lon:.6}",
+                f_lat
+                    .iter()
+                    .map(|v| format!("{v:.6}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            )?,
+        }
+        writeln!(
+            f,
+            "fit RMSE (what was minimised): joint {} -> {}",
+            mm(self.joint_rmse_before_m),
+            mm(self.joint_rmse_after_m)
+        )?;
+        writeln!(f, "per recording, nominal -> fitted: minimised; dead reckoning from the first pose (every pose sample); aligned (start pose and clocks fitted)")?;
+        for r in &self.per_recording {
+            write!(
+                f,
+                "  {:<24} {} -> {}   dead reckoning {} -> {}   aligned {} -> {}",
+                r.name,
+                mm(r.rmse_before_m),
+                mm(r.rmse_after_m),
+                mm(r.dead_reckoning_before_m),
+                mm(r.dead_reckoning_after_m),
+                mm(r.aligned_before_m),
+                mm(r.aligned_after_m),
+            )?;
+            if r.nuisance.time_offset_s != 0.0 || r.nuisance.clock_ratio != 1.0 {
+                write!(
+                    f,
+                    "   time_offset {:+.3} s, clock_ratio {:.4}",
+                    r.nuisance.time_offset_s, r.nuisance.clock_ratio
+                )?;
+            }
+            writeln!(f)?;
+            if r.rmse_after_m > r.rmse_before_m {
+                writeln!(
+                    f,
+                    "    worse than nominal with the shared geometry (its errors cancelled with the nominal one, or it disagrees with the others)"
+                )?;
+            }
+        }
+        for e in &self.events {
+            writeln!(
+                f,
+                "event {} {}: at {:.2} s for {:.2} s, heading {:+.3} rad (odometry minus motion capture){}; {}",
+                e.recording,
+                e.kind,
+                e.t_s,
+                e.duration_s,
+                e.heading_rad,
+                if e.position_m != 0.0 {
+                    format!(", size {:.4} m", e.position_m)
+                } else {
+                    String::new()
+                },
+                e.handled
+            )?;
+        }
+        if let Some(h) = &self.heldout {
+            writeln!(
+                f,
+                "held out {}: {} -> {} (dead reckoning, nominal -> fitted); {} -> {} with its start pose and clocks fitted",
+                h.name,
+                mm(h.rmse_before_m),
+                mm(h.rmse_after_m),
+                mm(h.aligned_before_m),
+                mm(h.aligned_after_m)
+            )?;
+        }
+        if !self.leave_one_out.0.is_empty() {
+            writeln!(f, "cross-validation by {} (fit on the rest; the held-out recordings dead-reckoned from their first pose, nominal -> fitted, and aligned: start pose and clocks fitted):", self.cv_by.unwrap_or("run"))?;
+            for h in &self.leave_one_out.0 {
+                writeln!(
+                    f,
+                    "  {:<24} {} -> {}   aligned {} -> {}",
+                    h.name,
+                    mm(h.rmse_before_m),
+                    mm(h.rmse_after_m),
+                    mm(h.aligned_before_m),
+                    mm(h.aligned_after_m)
+                )?;
+            }
+            if let Some(m) = self.leave_one_out.means() {
+                writeln!(
+                    f,
+                    "  mean                     {} -> {}   aligned {} -> {}",
+                    mm(m.before_m),
+                    mm(m.after_m),
+                    mm(m.aligned_before_m),
+                    mm(m.aligned_after_m)
+                )?;
+            }
+        }
+        if self.inseparable.0.is_empty() {
+            writeln!(
+                f,
+                "identifiability: every parameter is separable from these recordings"
+            )?;
+        }
+        // Many pairs (a 4-wheel per-wheel model) would bury the summary: the strongest
+        // few in words, the rest named; the JSON keeps every one.
+        const SHOWN: usize = 6;
+        let mut order: Vec<&Inseparable> = self.inseparable.0.iter().collect();
+        order.sort_by(|a, b| b.correlation.abs().total_cmp(&a.correlation.abs()));
+        for i in order.iter().take(SHOWN) {
+            writeln!(
+                f,
+                "not separable: {} and {} (correlation {:+.3}); the data fix only {:.3}*{} {:+.3}*{}, the rest rests on the plausibility prior; to separate them: {}",
+                i.params[0], i.params[1], i.correlation, i.identifiable[0], i.params[0], i.identifiable[1], i.params[1], i.advice
+            )?;
+        }
+        if order.len() > SHOWN {
+            writeln!(
+                f,
+                "not separable, {} more pairs (all in --json): {}",
+                order.len() - SHOWN,
+                order[SHOWN..]
+                    .iter()
+                    .map(|i| format!("{}/{}", i.params[0], i.params[1]))
+                    .collect::<Vec<_>>()
+                    .join(", ")
+            )?;
+        }
+        for d in &self.unconstrained {
+            writeln!(
+                f,
+                "unconstrained direction: {}",
+                d.iter()
+                    .map(|(n, v)| format!("{v:+.2} {n}"))
+                    .collect::<Vec<_>>()
+                    .join(" ")
+            )?;
+        }
+        for i in &self.implausible {
+            writeln!(
+                f,
+                "implausible: {} = {:.5} outside {:.4}..{:.4}; most likely stands in for {}",
+                i.name, i.value, i.plausible.0, i.plausible.1, i.stands_for
+            )?;
+        }
+        for n in &self.notes {
+            writeln!(f, "note: {n}")?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn row(name: &str, v: [f64; 4]) -> Heldout {
+        Heldout {
+            name: name.into(),
+            group: None,
+            rmse_before_m: v[0],
+            rmse_after_m: v[1],
+            aligned_before_m: v[2],
+            aligned_after_m: v[3],
+        }
+    }
+
+    /// The column means of a hand-made table, each the sum of three values over 3 (a
+    /// couple of roundings of numbers near 0.01: 1e-16 absolute), and the JSON carries
+    /// them; without cross-validation there are none and the JSON says null.
+    #[test]
+    fn heldout_means_are_the_column_means() {
+        let t = HeldoutTable(vec![
+            row("a", [0.010, 0.004, 0.003, 0.002]),
+            row("b", [0.020, 0.005, 0.006, 0.001]),
+            row("c", [0.030, 0.009, 0.009, 0.003]),
+        ]);
+        let m = t.means().unwrap();
+        let want = [0.020, 0.006, 0.006, 0.002];
+        let got = [m.before_m, m.after_m, m.aligned_before_m, m.aligned_after_m];
+        for (g, w) in got.iter().zip(want) {
+            assert!((g - w).abs() < 1e-16, "{got:?}");
+        }
+        let j = serde_json::to_value(&t).unwrap();
+        assert_eq!(j["leave_one_out"].as_array().unwrap().len(), 3);
+        assert_eq!(j["leave_one_out_mean_before_m"], m.before_m);
+        assert_eq!(j["leave_one_out_aligned_after_m"], m.aligned_after_m);
+        let none = HeldoutTable::default();
+        assert_eq!(none.means(), None);
+        assert!(serde_json::to_value(&none).unwrap()["leave_one_out_mean_after_m"].is_null());
+    }
+}

@@ -1,0 +1,238 @@
+//! How a robot with a left and a right side turns: the turn-radius law ([`TurnLaw`]: the
+//! separation widening from a turn in place to a wide arc, the ICRs' longitudinal
+//! offset), each row's turn ratio rho ([`turn_ratio`]: 1 in place, 0 straight) and the
+//! sides' stepping the law is applied through ([`Sides`]). Separate from the recording
+//! because the stepping ([`step`](crate::calibrate::step)) and the sensitivities need the
+//! same law at every geometry.
+
+use crate::calibrate::params::{GeomKind, ParamSpec};
+use calib_core::robot::{Robot, RobotKind};
+use serde::Serialize;
+
+/// A turn-radius law (zero when the separation does not depend on the turn).
+#[derive(Debug, Clone, Copy, PartialEq, Default, Serialize)]
+pub struct TurnLaw {
+    /// eb_arc / eb: relative growth of the separation from a turn in place to a wide arc.
+    pub arc_rel: f64,
+    /// Longitudinal ICR offset, m.
+    pub icr_x_m: f64,
+}
+
+impl TurnLaw {
+    /// The law in `values` (in `specs` order); `known_arc_rel` when the specs do not fit
+    /// eb_arc ([`CalOptions::turn_law`](crate::calibrate::CalOptions::turn_law), else 0).
+    pub fn of(specs: &[ParamSpec], values: &[f64], known_arc_rel: f64) -> TurnLaw {
+        let get = |k: GeomKind| specs.iter().position(|s| s.kind == k).map(|i| values[i]);
+        let eb = get(GeomKind::Eb).unwrap_or(1.0);
+        TurnLaw {
+            arc_rel: get(GeomKind::EbArc).map_or(known_arc_rel, |a| a / eb),
+            icr_x_m: get(GeomKind::IcrX).unwrap_or(0.0),
+        }
+    }
+}
+
+/// Time either side over which a recording's turn ratio rho is smoothed (s): one encoder
+/// count makes a row's own ratio noisy at low speed (20 rows at 200 rows/s, 2 at 20).
+const RHO_HALF_WINDOW_S: f64 = 0.1;
+
+/// The median step between consecutive times, when positive.
+fn median_step(t: &[f64]) -> Option<f64> {
+    let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
+    if d.is_empty() {
+        return None;
+    }
+    let mid = d.len() / 2;
+    let (_, m, _) = d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+    (*m > 0.0).then_some(*m)
+}
+
+/// Per increment, rho = |d_r - d_l| / (|d_r| + |d_l|) of the sides' travel (nominal
+/// radii), smoothed over [`RHO_HALF_WINDOW_S`] either side (in rows at the median row step).
+pub(super) fn turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> Vec<f64> {
+    let m = inc.len();
+    let half = median_step(t).map_or(1, |dt| ((RHO_HALF_WINDOW_S / dt).round() as usize).max(1));
+    let sides = Sides::new(robot);
+    let (mut pl, mut pr) = (vec![0.0; m + 1], vec![0.0; m + 1]);
+    for k in 0..m {
+        let (l, r) = sides.travel(&inc[k]);
+        pl[k + 1] = pl[k] + l;
+        pr[k + 1] = pr[k] + r;
+    }
+    (0..m)
+        .map(|k| {
+            let (a, b) = (k.saturating_sub(half), (k + half + 1).min(m));
+            let (dl, dr) = (pl[b] - pl[a], pr[b] - pr[a]);
+            let den = dl.abs() + dr.abs();
+            if den > 0.0 {
+                (dr - dl).abs() / den
+            } else {
+                0.0
+            }
+        })
+        .collect()
+}
+
+/// A robot's sides as the stepping needs them, computed once per geometry (the wheels'
+/// sides and the mean half separation take trigonometry): [`Sides::travel`] and
+/// [`Sides::step`] give the same values, to the bit, as computing them per row.
+#[derive(Debug, Clone)]
+pub(crate) struct Sides {
+    /// Per wheel: on the left side, and its radius (m).
+    wheels: Vec<(bool, f64)>,
+    /// Left and right wheel counts, at least 1.
+    counts: (f64, f64),
+    /// Mean |y| of the wheels (half the separation, E_b applied), m.
+    half: f64,
+    /// A skid-steer robot (the law's shape differs).
+    skid: bool,
+}
+
+impl Sides {
+    pub(crate) fn new(robot: &Robot) -> Sides {
+        let wheels: Vec<(bool, f64)> = robot
+            .wheels
+            .iter()
+            .map(|w| (w.is_left(), w.radius_m))
+            .collect();
+        let nl = wheels.iter().filter(|w| w.0).count() as f64;
+        let nr = wheels.len() as f64 - nl;
+        let half = robot
+            .wheels
+            .iter()
+            .map(|w| w.position().1.abs())
+            .sum::<f64>()
+            / robot.wheels.len().max(1) as f64;
+        Sides {
+            wheels,
+            counts: (f64::max(nl, 1.0), f64::max(nr, 1.0)),
+            half,
+            skid: robot.kind == RobotKind::SkidSteer,
+        }
+    }
+
+    /// Share of the law's widening at turn ratio `rho`: a differential drive's turn slip
+    /// ([`calib_core::kinematics::turn_law_share`]); a skid-steer robot's moving ICRs
+    /// (1 - rho)^2, as measured on the simulator's independent tyres.
+    #[inline]
+    pub(crate) fn law_share(&self, rho: f64) -> f64 {
+        if self.skid {
+            (1.0 - rho).powi(2)
+        } else {
+            calib_core::kinematics::turn_law_share(rho)
+        }
+    }
+
+    /// Mean travel of the left and the right wheels over one increment (m).
+    #[inline]
+    pub(crate) fn travel(&self, inc: &[f64]) -> (f64, f64) {
+        let (mut l, mut r) = (0.0, 0.0);
+        for (&(left, radius), d) in self.wheels.iter().zip(inc) {
+            if left {
+                l += radius * d;
+            } else {
+                r += radius * d;
+            }
+        }
+        (l / self.counts.0, r / self.counts.1)
+    }
+
+    /// One step of a robot driven by its sides (skid-steer, or a differential drive with
+    /// a turn law): each side's mean travel, the separation (E_b applied) widened by the
+    /// law at this turn ratio, the sideways speed of the ICR offset.
+    #[inline]
+    pub(crate) fn step(
+        &self,
+        law: &TurnLaw,
+        rho: f64,
+        inc: &[f64],
+    ) -> calib_core::kinematics::Twist<f64> {
+        let (l, r) = self.travel(inc);
+        let half = self.half * (1.0 + law.arc_rel * self.law_share(rho));
+        let dth = (r - l) / (2.0 * half);
+        calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)
+    }
+}
+
+/// How a recording turns: the side-travel difference |d_r - d_l| summed over all rows, over
+/// the rows on arcs ([`ARC_RHO`]), and weighted by (1 - rho)^2 (what averages the E_b law
+/// over the recording's turning).
+#[derive(Debug, Clone, Copy, Default)]
+pub(crate) struct Turning {
+    pub(crate) all: f64,
+    pub(crate) arcs: f64,
+    pub(crate) arc_term: f64,
+}
+
+/// Turn ratios that count as arcs (rho = 1 is a turn in place, 0 a straight line).
+pub const ARC_RHO: (f64, f64) = (0.1, 0.8);
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::synth;
+
+    /// A 200 Hz clock (5 ms) whose stamps jitter: every third stamp late by 1.5 ms (steps
+    /// 5, 6.5, 3.5 ms in turn), one row dropped (an 11.5 ms step) and one stamp repeated
+    /// (a zero step). A third of the steps are exactly nominal and they hold the middle of
+    /// the sorted steps, so the median is 5 ms; differences of times below 1 s carry
+    /// rounding of about 1e-16 s, hence 1e-12.
+    #[test]
+    fn median_step_of_a_jittered_clock_is_the_nominal_step() {
+        let (dt, late) = (0.005, 0.0015);
+        let mut t: Vec<f64> = (0..60)
+            .map(|k| k as f64 * dt + if k % 3 == 2 { late } else { 0.0 })
+            .collect();
+        t.remove(31);
+        t.insert(40, t[39]);
+        let m = median_step(&t).unwrap();
+        assert!((m - dt).abs() < 1e-12, "median step {m}");
+        // No step, or a clock that does not advance: no step to give.
+        assert_eq!(median_step(&[1.0]), None);
+        assert_eq!(median_step(&[2.0; 9]), None);
+    }
+
+    /// rho = |d_r - d_l| / (|d_r| + |d_l|) over the window (10 rows either side at 100
+    /// Hz): straight rows are 0 and rows in place 1, exactly; a window of s straight rows
+    /// (d_l = d_r = d) and p rows in place (d_l = -d, d_r = d), s >= p, gives
+    /// 2 p d / (2 s d) = p / s; standing still, 0. Sums of equal increments round at
+    /// 1e-16, hence 1e-12.
+    #[test]
+    fn turn_ratio_is_zero_straight_one_in_place_and_the_window_share_between() {
+        let robot = synth::robot("mobolab");
+        let t: Vec<f64> = (0..101).map(|k| k as f64 * 0.01).collect();
+        let d = 0.02; // rad per row
+        let side = |w: &calib_core::robot::Wheel| if w.is_left() { -1.0 } else { 1.0 };
+        // Rows 0..50 straight, 50..90 in place, 90..100 standing still.
+        let inc: Vec<Vec<f64>> = (0..100)
+            .map(|k| {
+                robot
+                    .wheels
+                    .iter()
+                    .map(|w| match k {
+                        0..=49 => d,
+                        50..=89 => side(w) * d,
+                        _ => 0.0,
+                    })
+                    .collect()
+            })
+            .collect();
+        let rho = turn_ratio(&robot, &inc, &t);
+        assert_eq!(rho.len(), 100);
+        assert!(
+            rho[..40].iter().all(|&r| r == 0.0),
+            "straight: {:?}",
+            &rho[..40]
+        );
+        assert!(
+            rho[60..80].iter().all(|&r| r == 1.0),
+            "in place: {:?}",
+            &rho[60..80]
+        );
+        // Row 45's window is rows 35..=55: 15 straight, 6 in place.
+        assert!((rho[45] - 6.0 / 15.0).abs() < 1e-12, "rho {}", rho[45]);
+        // Row 99's window is rows 89..=99: 1 in place, 10 still (the turn only).
+        assert_eq!(rho[99], 1.0);
+        let still: Vec<Vec<f64>> = vec![vec![0.0; 2]; 100];
+        assert!(turn_ratio(&robot, &still, &t).iter().all(|&r| r == 0.0));
+    }
+}
