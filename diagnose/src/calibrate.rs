@@ -88,7 +88,7 @@ use refusals::{check_inputs, refuse_bad_fit};
 use series::NUIS;
 use solve::{
     aligned_rmse, correlations, covariance, geom_bounds, noise_scale, nuisance_start, refs, solve,
-    solve_iter,
+    solve_iter, Solved,
 };
 
 /// |correlation| above which two parameters are reported not separable.
@@ -100,10 +100,11 @@ pub const WEAK_CORR: f64 = 0.5;
 /// a parameter fitted 0 ± 0.0002 is known, not lost.
 pub const MATERIAL_SHARE: f64 = 0.1;
 
-/// Fits the geometry of `robot` to `recordings` (name, recording) jointly.
-pub fn calibrate(
+/// Fits the geometry of `robot` to `recordings` (name, recording, owned or borrowed)
+/// jointly.
+pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     robot: &Robot,
-    recordings: &[(String, Recording)],
+    recordings: &[(String, R)],
     holdout: Option<&(String, Recording)>,
     opts: &CalOptions,
 ) -> Result<Calibration, CalibrateError> {
@@ -122,7 +123,7 @@ pub fn calibrate(
     check_inputs(robot, recordings, holdout, opts)?;
     let series = recordings
         .iter()
-        .map(|(n, r)| Series::new(n, robot, r))
+        .map(|(n, r)| Series::new(n, robot, r.borrow()))
         .collect::<Result<Vec<_>, _>>()?;
     let mut series: Vec<Series> = series
         .into_iter()
@@ -191,7 +192,7 @@ pub fn calibrate(
     // Nominal geometry (nuisance fitted when free): the "before".
     let mut p = Problem::new(robot, &specs, &series);
     cfg.apply(&mut p);
-    let before = solve(
+    let mut before = solve(
         &p,
         &nominal,
         &nuisance_start(&refs(&series), cfg.free_start),
@@ -205,6 +206,9 @@ pub fn calibrate(
     // When choosing the model fitted it on all the recordings already (the same problem
     // and steps), that fit is taken over, its Jacobian at the solution by differences.
     p.prior_scale = noise_scale(&p, &before);
+    // Each solve keeps its Jacobian (several MB on a long recording: diagnose's recording
+    // stage peaks here); the fits below hold their own, so the ones done with go first.
+    before.jac = DMatrix::zeros(0, 0);
     let mut fitted = match prefit {
         Some(pre) => {
             debug_assert!(pre
@@ -223,7 +227,8 @@ pub fn calibrate(
             // Weigh the plausibility prior against the data's real information (MAP),
             // and refit.
             p.prior_scale = noise_scale(&p, &first);
-            solve(&p, &first.geom, &first.nuis, true)
+            let Solved { geom, nuis, .. } = first;
+            solve(&p, &geom, &nuis, true)
         }
     };
     runs += fitted.evaluations;

@@ -564,7 +564,8 @@ fn clocks(
     robot: &Robot,
     rec: &mut Recording,
 ) -> (Vec<Artefact>, Option<crate::calibrate::Calibration>) {
-    let recs = [("recording".to_string(), rec.clone())];
+    // Borrowed: a copy of a long recording would be the stage's largest allocation.
+    let recs = [("recording".to_string(), &*rec)];
     let opts = CalOptions {
         free_start: true,
         ..Default::default()

@@ -19,14 +19,15 @@ pub const WORSE_MARGIN_M: f64 = 0.01;
 
 /// Inputs `calibrate` refuses before fitting: a held-out recording that is also fitted,
 /// a marker offset on a drive without one.
-pub(super) fn check_inputs(
+pub(super) fn check_inputs<R: std::borrow::Borrow<Recording>>(
     robot: &Robot,
-    recordings: &[(String, Recording)],
+    recordings: &[(String, R)],
     holdout: Option<&(String, Recording)>,
     opts: &CalOptions,
 ) -> Result<(), CalibrateError> {
     if let Some((hn, hr)) = holdout {
         if let Some((n, _)) = recordings.iter().find(|(_, r)| {
+            let r: &Recording = r.borrow();
             r.t == hr.t && r.x == hr.x && r.y == hr.y && r.theta == hr.theta && r.len() == hr.len()
         }) {
             return Err(CalibrateError {
