@@ -192,7 +192,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     // Nominal geometry (nuisance fitted when free): the "before".
     let mut p = Problem::new(robot, &specs, &series);
     cfg.apply(&mut p);
-    let mut before = solve(
+    let before = solve(
         &p,
         &nominal,
         &nuisance_start(&refs(&series), cfg.free_start),
@@ -206,9 +206,12 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     // When choosing the model fitted it on all the recordings already (the same problem
     // and steps), that fit is taken over, its Jacobian at the solution by differences.
     p.prior_scale = noise_scale(&p, &before);
-    // Each solve keeps its Jacobian (several MB on a long recording: diagnose's recording
-    // stage peaks here); the fits below hold their own, so the ones done with go first.
-    before.jac = DMatrix::zeros(0, 0);
+    // Only the nominal fit's nuisances are needed from here: its Jacobian (several MB on
+    // a long recording, where diagnose's recording stage peaks) goes before the fits
+    // below hold their own, as does the first fit's before the refit.
+    let Solved {
+        nuis: before_nuis, ..
+    } = before;
     let mut fitted = match prefit {
         Some(pre) => {
             debug_assert!(pre
@@ -221,7 +224,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         }
         None => {
             p.differences_at_solution = false;
-            let first = solve(&p, &nominal, &before.nuis, true);
+            let first = solve(&p, &nominal, &before_nuis, true);
             p.differences_at_solution = true;
             runs += first.evaluations;
             // Weigh the plausibility prior against the data's real information (MAP),
@@ -400,7 +403,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         let (nu, nu_nom, sig_t, sig_c) = if cfg.free_start {
             (
                 Nuisance::from(&fitted.nuis[i * NUIS..(i + 1) * NUIS]),
-                Nuisance::from(&before.nuis[i * NUIS..(i + 1) * NUIS]),
+                Nuisance::from(&before_nuis[i * NUIS..(i + 1) * NUIS]),
                 cov[(g + i * NUIS + 3, g + i * NUIS + 3)].max(0.0).sqrt(),
                 cov[(g + i * NUIS + 4, g + i * NUIS + 4)].max(0.0).sqrt(),
             )
