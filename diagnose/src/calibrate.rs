@@ -624,13 +624,33 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         if specs.iter().any(|s| {
             matches!(
                 s.kind,
-                GeomKind::Alpha(_) | GeomKind::L(_) | GeomKind::Gamma
+                GeomKind::Alpha(_)
+                    | GeomKind::L(_)
+                    | GeomKind::Gamma
+                    | GeomKind::CentreX
+                    | GeomKind::CentreY
             )
         }) {
             notes.push(
                 "wheel angle, position and roller angle have no firmware factor: use --write-robot to carry them"
                     .into(),
             );
+        }
+        let at = |k: GeomKind| specs.iter().position(|s| s.kind == k);
+        if let (Some(ix), Some(iy)) = (at(GeomKind::CentreX), at(GeomKind::CentreY)) {
+            let (x, y) = (fitted.geom[ix], fitted.geom[iy]);
+            let distances: Vec<String> = fitted_robot
+                .wheels
+                .iter()
+                .map(|w| format!("{} {:.1} mm", w.name, w.l_m * 1e3))
+                .collect();
+            notes.push(format!(
+                "the wheels are laid out about a point {:.1} mm from the one the odometry reports and motion capture tracks (x {:+.1} mm, y {:+.1} mm in the body frame): seen from the tracked point the wheels sit at {}",
+                x.hypot(y) * 1e3,
+                x * 1e3,
+                y * 1e3,
+                distances.join(", ")
+            ));
         }
         Factors::Wheels {
             f_lat: fitted_robot

@@ -723,7 +723,10 @@ fn omni_wheels_centre_off_the_tracked_point_is_found() {
     let (dx, dy) = (0.025, -0.015);
     let mut truth = nominal.clone();
     for w in truth.wheels.iter_mut() {
-        let (x, y) = (w.l_m * w.alpha_rad.cos() + dx, w.l_m * w.alpha_rad.sin() + dy);
+        let (x, y) = (
+            w.l_m * w.alpha_rad.cos() + dx,
+            w.l_m * w.alpha_rad.sin() + dy,
+        );
         let alpha = y.atan2(x);
         w.beta_rad += w.alpha_rad - alpha;
         w.alpha_rad = alpha;
@@ -735,9 +738,8 @@ fn omni_wheels_centre_off_the_tracked_point_is_found() {
     let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
     println!("{c}");
     assert!(
-        c.notes.iter().any(|n| n.contains(
-            "kept: per-wheel radii, a common wheel distance and the wheels' centre,"
-        )),
+        c.notes.iter().any(|n| n
+            .contains("kept: per-wheel radii, a common wheel distance and the wheels' centre,")),
         "{:?}",
         c.notes
     );

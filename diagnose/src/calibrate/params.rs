@@ -39,6 +39,12 @@ pub enum GeomKind {
     /// Skid-steer: longitudinal position of the ICRs ([Mandow et al.]'s x_ICR), m; the
     /// body's sideways speed is -x_ICR omega.
     IcrX,
+    /// Omni: where the wheels' centre is, body frame x, m: every wheel moved by it, its
+    /// rolling direction kept (the odometry's origin, the point motion capture tracks,
+    /// is not the centre the wheels were laid out about).
+    CentreX,
+    /// Omni: the wheels' centre, body frame y, m (see `CentreX`).
+    CentreY,
 }
 
 /// A parameter's description: name, null value, plausible range and what a value
@@ -111,6 +117,10 @@ const EB_STANDS: &str =
     "tyre scrub in turns (the effective wheelbase of a skidding robot) or castor drag";
 const ALPHA_STANDS: &str =
     "rollers slipping sideways, or the motion-capture frame turned against the body";
+/// The wheels' centre from the odometry's origin, m.
+pub const CENTRE_RANGE: f64 = 0.05;
+const CENTRE_STANDS: &str =
+    "the wheels laid out about another point than the one motion capture tracks";
 /// Motion-capture marker offset from the kinematic centre, m.
 pub const MARKER_RANGE: f64 = 0.02;
 const MARKER_STANDS: &str =
@@ -309,6 +319,7 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
     let n = base.wheels.len();
     let (mut rs, mut ls, mut da) = (vec![1.0; n], vec![1.0; n], vec![0.0; n]);
     let mut dg = 0.0;
+    let mut centre = (0.0, 0.0);
     for (s, &x) in specs.iter().zip(values) {
         match s.kind {
             GeomKind::Scale => rs.iter_mut().for_each(|r| *r *= x),
@@ -322,6 +333,8 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
             GeomKind::Alpha(i) => da[i] += x,
             GeomKind::L(i) => ls[i] *= x,
             GeomKind::Gamma => dg += x,
+            GeomKind::CentreX => centre.0 = x,
+            GeomKind::CentreY => centre.1 = x,
             GeomKind::MarkerX | GeomKind::MarkerY | GeomKind::EbArc | GeomKind::IcrX => {}
         }
     }
@@ -332,6 +345,15 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
         w.alpha_rad += da[i];
         if w.gamma_rad.abs() > MECANUM_MIN_GAMMA {
             w.gamma_rad += w.gamma_rad.signum() * dg;
+        }
+        if centre != (0.0, 0.0) {
+            // Moved with its rolling direction (alpha + beta) kept.
+            let (x, y) = w.position();
+            let (x, y) = (x + centre.0, y + centre.1);
+            let alpha = y.atan2(x);
+            w.beta_rad += w.alpha_rad - alpha;
+            w.alpha_rad = alpha;
+            w.l_m = x.hypot(y);
         }
     }
     r
@@ -348,6 +370,8 @@ pub(super) fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
         "add a straight run of known length and a turn in place".into()
     } else if a.kind == Gamma || b.kind == Gamma {
         "add sideways and diagonal translations: the roller angle moves them, wheel size moves all motion alike".into()
+    } else if matches!(a.kind, CentreX | CentreY) || matches!(b.kind, CentreX | CentreY) {
+        "add turns in place and translations while turning: the wheels' centre moves only motion that turns".into()
     } else if matches!(a.kind, Alpha(_)) || matches!(b.kind, Alpha(_)) {
         "add pure translations in several directions without rotation, and a turn in place".into()
     } else {
@@ -417,9 +441,33 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
         ),
         ("per-wheel radii and a common wheel distance", {
             let mut v = radii.clone();
-            v.push(distance);
+            v.push(distance.clone());
             with_markers(v)
         }),
+        (
+            "per-wheel radii, a common wheel distance and the wheels' centre",
+            {
+                let mut v = radii.clone();
+                v.push(distance.clone());
+                v.push(spec(
+                    GeomKind::CentreX,
+                    "centre_x_m".into(),
+                    "wheelbase_error",
+                    0.0,
+                    CENTRE_RANGE,
+                    CENTRE_STANDS,
+                ));
+                v.push(spec(
+                    GeomKind::CentreY,
+                    "centre_y_m".into(),
+                    "wheelbase_error",
+                    0.0,
+                    CENTRE_RANGE,
+                    CENTRE_STANDS,
+                ));
+                with_markers(v)
+            },
+        ),
         ("per-wheel radii, angles and distances", {
             let mut f = full.clone();
             for s in f.iter_mut() {
@@ -538,6 +586,44 @@ mod tests {
             };
             assert!(rel(a.gamma_rad, want) < 1e-15, "wheel {i} gamma");
             assert_eq!(a.radius_m, b.radius_m);
+        }
+    }
+
+    /// The wheels' centre moved by d: each wheel's position moves by d and its rolling
+    /// direction stays, so under a body twist (v, omega) at the origin every wheel rolls as
+    /// the nominal wheel does under (v + omega x d, omega), the twist carried to the
+    /// wheels' centre (rigid-body transport). Trigonometry of numbers near 1: 1e-12.
+    #[test]
+    fn the_wheels_centre_moves_every_wheel_and_keeps_its_rolling_direction() {
+        let base = synth::robot("omni3");
+        let specs: Vec<ParamSpec> = ladder(&base, false)
+            .into_iter()
+            .find(|(_, v)| v.iter().any(|s| s.kind == GeomKind::CentreX))
+            .unwrap()
+            .1;
+        let (dx, dy) = (0.03, -0.02);
+        let v: Vec<f64> = specs
+            .iter()
+            .map(|s| match s.kind {
+                GeomKind::CentreX => dx,
+                GeomKind::CentreY => dy,
+                _ => s.nominal,
+            })
+            .collect();
+        let r = robot_with(&base, &specs, &v);
+        let twist = [0.3, -0.2, 0.7];
+        let carried = [twist[0] - twist[2] * dy, twist[1] + twist[2] * dx, twist[2]];
+        let dot = |a: [f64; 3], b: [f64; 3]| a[0] * b[0] + a[1] * b[1] + a[2] * b[2];
+        for (a, b) in r.wheels.iter().zip(&base.wheels) {
+            let (p, q) = (a.position(), b.position());
+            assert!((p.0 - q.0 - dx).abs() < 1e-12 && (p.1 - q.1 - dy).abs() < 1e-12);
+            let turn = a.alpha_rad + a.beta_rad - b.alpha_rad - b.beta_rad;
+            assert!(
+                turn.sin().abs() < 1e-12,
+                "rolling direction turned by {turn}"
+            );
+            let (moved, nominal) = (dot(a.rolling_row(), twist), dot(b.rolling_row(), carried));
+            assert!((moved - nominal).abs() < 1e-12, "{moved} vs {nominal}");
         }
     }
 }
