@@ -194,3 +194,48 @@ fn omni3_squares_transfer_to_circles_with_plausible_geometry() {
     };
     assert!((ax - bx).hypot(ay - by) <= 0.01, "{centres:?}");
 }
+
+/// The plausible range of an omni robot's wheel radius (the ladder's common scale and
+/// per-wheel radii) holds what the real omni3 wheels measure: every one of the OptiOdom
+/// authors' own fits, on squares (0.959-0.982 of the published 102 mm) and on circles
+/// (0.940-0.962), lies inside it with 1 % of the range to spare. An omni wheel's contact
+/// moves across its rollers, under their outer envelope, which the published diameter
+/// is; the tyre range of 5 % put the authors' circle fits outside it.
+#[test]
+fn omni3_radius_range_holds_the_authors_fits() {
+    let Some(d) = dir() else { return };
+    let params: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("authors_params.json")).unwrap())
+            .unwrap();
+    let runs = proxy::list_runs(&d).unwrap();
+    let first = runs.iter().find(|r| r.robot == "omni3").unwrap();
+    let (nominal, _) = proxy::load_run(&d, &first.folder).unwrap();
+    for (_, specs) in diagnose::calibrate::ladder(&nominal, false) {
+        for s in specs
+            .iter()
+            .filter(|s| s.name == "scale" || s.name.starts_with("radius_scale_"))
+        {
+            let (lo, hi) = s.plausible;
+            let margin = 0.01 * (hi - lo);
+            let mut n = 0;
+            for row in params["omni3-sousa"].as_array().unwrap() {
+                for (w, w0) in row["wheels"]
+                    .as_array()
+                    .unwrap()
+                    .iter()
+                    .zip(row["initial"]["wheels"].as_array().unwrap())
+                {
+                    let v = w["radius_m"].as_f64().unwrap() / w0["radius_m"].as_f64().unwrap();
+                    assert!(
+                        v > lo + margin && v < hi - margin,
+                        "{} {v:.4} of session {} outside {lo}..{hi}",
+                        s.name,
+                        row["session"]
+                    );
+                    n += 1;
+                }
+            }
+            assert!(n >= 27, "{n} radii");
+        }
+    }
+}
