@@ -55,9 +55,10 @@ pub(crate) use objective::{residuals_into, RES_UNIT_M};
 pub use objective::{DR_HEADING_LEVER_M, HUBER_K};
 pub use options::{CalOptions, CvBy};
 pub use params::{
-    is_mecanum, ladder, param_specs, robot_with, roller_specs, turn_law_specs, GeomKind, ParamSpec,
-    ALPHA_RANGE, BASE_RANGE, DIFF_EB_ARC_RANGE, EB_ARC_RANGE, ED_RANGE, GAMMA_RANGE, ICR_X_RANGE,
-    MARKER_RANGE, MECANUM_MIN_GAMMA, MECANUM_RADIUS_RANGE, RADIUS_RANGE, SKID_EB_RANGE,
+    is_mecanum, ladder, param_specs, radius_range, robot_with, roller_specs, turn_law_specs,
+    GeomKind, ParamSpec, ALPHA_RANGE, BASE_RANGE, DIFF_EB_ARC_RANGE, EB_ARC_RANGE, ED_RANGE,
+    GAMMA_RANGE, ICR_X_RANGE, MARKER_RANGE, MECANUM_MIN_GAMMA, MECANUM_RADIUS_RANGE,
+    OMNI_RADIUS_RANGE, RADIUS_RANGE, SKID_EB_RANGE,
 };
 pub use refusals::{WORSE_FACTOR, WORSE_MARGIN_M};
 pub use result::{

@@ -99,6 +99,22 @@ const SKID_EB_STANDS: &str =
 
 /// Tyre radius: within a few per cent of nominal (wear, pressure, load).
 pub const RADIUS_RANGE: f64 = 0.05;
+/// An omni wheel's radius (90-degree rollers): its contact moves across the rollers,
+/// under their outer envelope, which the published diameter is. The real omni3's wheels
+/// measure 0.940-0.982 of theirs (the OptiOdom authors' fits on squares and circles).
+pub const OMNI_RADIUS_RANGE: f64 = 0.10;
+/// The plausible half-range of a wheel's radius scale on `robot`: a mecanum wheel's
+/// ([`MECANUM_RADIUS_RANGE`]), an omni wheel's ([`OMNI_RADIUS_RANGE`]), else a tyre's
+/// ([`RADIUS_RANGE`]).
+pub fn radius_range(robot: &Robot) -> f64 {
+    if is_mecanum(robot) {
+        MECANUM_RADIUS_RANGE
+    } else if robot.kind == RobotKind::Omni {
+        OMNI_RADIUS_RANGE
+    } else {
+        RADIUS_RANGE
+    }
+}
 /// Left/right diameter ratio.
 pub const ED_RANGE: f64 = 0.03;
 /// Wheelbase and wheel distances: the contact patch moves across a tyre's width.
@@ -273,7 +289,11 @@ fn param_specs_wheels(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
             format!("radius_scale_{}", w.name),
             "wheel_diameter_mismatch",
             1.0,
-            RADIUS_RANGE,
+            if robot.kind == RobotKind::Omni && !is_mecanum(robot) {
+                OMNI_RADIUS_RANGE
+            } else {
+                RADIUS_RANGE
+            },
             SCALE_STANDS,
         ));
     }
@@ -394,11 +414,7 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
         "scale".into(),
         "wheel_scale",
         1.0,
-        if mecanum {
-            MECANUM_RADIUS_RANGE
-        } else {
-            RADIUS_RANGE
-        },
+        radius_range(robot),
         SCALE_STANDS,
     );
     if mecanum {
