@@ -5,8 +5,10 @@
 //!
 //!     cargo run --release -p diagnose --example heldout_proxy [-- OPTIONS]
 //!
-//! Options: `--robot diff|omni3` (default diff; omni3 trains on its two square sessions and
-//! tests on the 44 circles of the same day, against `omni3-sousa`),
+//! Options: `--robot diff|omni3|omni4` (default diff; omni3 trains on its two square
+//! sessions and tests on the 44 circles of the same day, against `omni3-sousa`; omni4, the
+//! mecanum robot, whose circles are kept apart, trains on each of its four square sessions
+//! and tests on the other three's squares, against `omni4-sousa`),
 //! `--sessions DIR` (default: `shared/real/sessions` beside the checkout),
 //! `--only S1,S2`, `--max-tests N`, `--json` (per-run numbers), `--free-start`,
 //! `--robust`, `--marker-offset`, `--heading-lever M` (calibrate's options), `--law-from-other-month`: first

@@ -30,8 +30,13 @@ fn train(
 /// Issue 21's goal over every square session: none above the authors (ratio <= 1.0),
 /// geometric mean of the ratios at most 0.94.
 fn assert_meets_the_goal(r: &[proxy::SessionResult]) {
+    assert_meets_the_goal_of(r, 8);
+}
+
+/// [`assert_meets_the_goal`] over `sessions` sessions.
+fn assert_meets_the_goal_of(r: &[proxy::SessionResult], sessions: usize) {
     print!("{}", proxy::table(r));
-    assert_eq!(r.len(), 8);
+    assert_eq!(r.len(), sessions);
     for s in r {
         assert!(s.ratio() <= 1.0, "{}: ratio {:.3}", s.session, s.ratio());
     }
@@ -238,4 +243,23 @@ fn omni3_radius_range_holds_the_authors_fits() {
             assert!(n >= 27, "{n} radii");
         }
     }
+}
+
+/// The mecanum robot (issue 21): its circles are kept apart, so each of its four square
+/// sessions is tested on the squares of the other three (32-36 runs, two days), against
+/// the authors' parameters from the training session. The goal as for the others: no
+/// session above the authors, geometric mean at most 0.94. Measured: 0.909, worst 0.937
+/// (session 080920201715). Parameters on their edges are not asserted here: on two
+/// sessions the per-wheel model still pins a radius at +15 % and a distance at +8 %.
+#[test]
+fn mecanum_squares_transfer_to_other_sessions() {
+    let Some(d) = dir() else { return };
+    let r = proxy::run_robot(&d, "omni4", None, None, &|robot, recs, _| {
+        calibrate(robot, recs, None, &CalOptions::default())
+            .map(|c| (c.law_base_robot, c.turn_law))
+            .map_err(|e| e.to_string())
+    })
+    .unwrap();
+    assert_eq!(r.len(), 4);
+    assert_meets_the_goal_of(&r, 4);
 }

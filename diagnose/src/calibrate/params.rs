@@ -460,30 +460,6 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
             v.push(distance.clone());
             with_markers(v)
         }),
-        (
-            "per-wheel radii, a common wheel distance and the wheels' centre",
-            {
-                let mut v = radii.clone();
-                v.push(distance.clone());
-                v.push(spec(
-                    GeomKind::CentreX,
-                    "centre_x_m".into(),
-                    "wheelbase_error",
-                    0.0,
-                    CENTRE_RANGE,
-                    CENTRE_STANDS,
-                ));
-                v.push(spec(
-                    GeomKind::CentreY,
-                    "centre_y_m".into(),
-                    "wheelbase_error",
-                    0.0,
-                    CENTRE_RANGE,
-                    CENTRE_STANDS,
-                ));
-                with_markers(v)
-            },
-        ),
         ("per-wheel radii, angles and distances", {
             let mut f = full.clone();
             for s in f.iter_mut() {
@@ -494,6 +470,38 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
             f
         }),
     ];
+    if !mecanum {
+        // On the mecanum robot the centre does not hold out across sessions (trained on
+        // one square session, tested on the other three's squares: 1.002 of the authors
+        // where the per-wheel model gives 0.937).
+        rungs.insert(
+            3,
+            (
+                "per-wheel radii, a common wheel distance and the wheels' centre",
+                {
+                    let mut v = radii.clone();
+                    v.push(distance.clone());
+                    v.push(spec(
+                        GeomKind::CentreX,
+                        "centre_x_m".into(),
+                        "wheelbase_error",
+                        0.0,
+                        CENTRE_RANGE,
+                        CENTRE_STANDS,
+                    ));
+                    v.push(spec(
+                        GeomKind::CentreY,
+                        "centre_y_m".into(),
+                        "wheelbase_error",
+                        0.0,
+                        CENTRE_RANGE,
+                        CENTRE_STANDS,
+                    ));
+                    with_markers(v)
+                },
+            ),
+        );
+    }
     if mecanum {
         rungs.push((
             "per-wheel radii and one roller angle",
@@ -508,6 +516,7 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
                 .collect(),
         ));
     }
+    rungs.sort_by_key(|r| r.1.len());
     rungs
 }
 
@@ -640,6 +649,34 @@ mod tests {
             );
             let (moved, nominal) = (dot(a.rolling_row(), twist), dot(b.rolling_row(), carried));
             assert!((moved - nominal).abs() < 1e-12, "{moved} vs {nominal}");
+        }
+    }
+
+    /// The ladder climbs by parameter count (the simplest adequate model is the first
+    /// adequate one): on the three-wheel omni, the four-wheel omni and the mecanum robot.
+    /// The wheels' centre is a rung of the omni robots, not of the mecanum one.
+    #[test]
+    fn the_ladder_climbs_by_parameter_count() {
+        for name in ["omni3", "omni4", "mecanum"] {
+            let robot = if name == "mecanum" {
+                let mut r = synth::robot("omni4");
+                for w in r.wheels.iter_mut() {
+                    w.gamma_rad = std::f64::consts::FRAC_PI_4;
+                }
+                r
+            } else {
+                synth::robot(name)
+            };
+            let rungs = ladder(&robot, false);
+            let counts: Vec<usize> = rungs.iter().map(|r| r.1.len()).collect();
+            assert!(
+                counts.windows(2).all(|w| w[0] <= w[1]),
+                "{name}: {counts:?}"
+            );
+            let centre = rungs
+                .iter()
+                .any(|r| r.1.iter().any(|s| s.kind == GeomKind::CentreX));
+            assert_eq!(centre, name != "mecanum", "{name}");
         }
     }
 }

@@ -69,7 +69,8 @@ fn day_number(d: (u32, u32, u32)) -> i64 {
 }
 
 /// The test runs of a training session: the circular and Ivanjko runs of the same robot
-/// on the nearest day that has any.
+/// on the nearest day that has any; for a robot with none (the mecanum robot: its circles
+/// are kept apart), the squares of its other sessions.
 pub fn test_runs<'a>(all: &'a [RunDir], train: &RunDir) -> Vec<&'a RunDir> {
     let tests: Vec<&RunDir> = all
         .iter()
@@ -77,7 +78,10 @@ pub fn test_runs<'a>(all: &'a [RunDir], train: &RunDir) -> Vec<&'a RunDir> {
         .collect();
     let d0 = day_number(train.day());
     let Some(best) = tests.iter().map(|r| (day_number(r.day()) - d0).abs()).min() else {
-        return vec![];
+        return all
+            .iter()
+            .filter(|r| r.robot == train.robot && r.path == "square" && r.session != train.session)
+            .collect();
     };
     tests
         .into_iter()
