@@ -210,9 +210,14 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     // Only the nominal fit's nuisances are needed from here: its Jacobian (several MB on
     // a long recording, where diagnose's recording stage peaks) goes before the fits
     // below hold their own, as does the first fit's before the refit.
+    // (A partial move would keep the other fields until the end of the scope: the
+    // Jacobian is moved out and dropped by name.)
     let Solved {
-        nuis: before_nuis, ..
+        nuis: before_nuis,
+        jac,
+        ..
     } = before;
+    drop(jac);
     let mut fitted = match prefit {
         Some(pre) => {
             debug_assert!(pre
@@ -231,7 +236,10 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             // Weigh the plausibility prior against the data's real information (MAP),
             // and refit.
             p.prior_scale = noise_scale(&p, &first);
-            let Solved { geom, nuis, .. } = first;
+            let Solved {
+                geom, nuis, jac, ..
+            } = first;
+            drop(jac);
             solve(&p, &geom, &nuis, true)
         }
     };

@@ -169,18 +169,24 @@ pub(super) fn solve_iter(
             p.differences_at_solution,
         )
     };
-    let jac = &r.jac;
     let (geom, nuis) = if fit_geom {
         (r.x[..g].to_vec(), r.x[g..].to_vec())
     } else {
-        (geom0.to_vec(), r.x.clone())
+        (geom0.to_vec(), r.x)
     };
+    // The data rows kept in place (a copy would double the largest matrix of diagnose's
+    // recording stage for a moment).
+    let mut jac = r.jac;
+    let priors = jac.nrows() - m;
+    if priors > 0 {
+        jac = jac.remove_rows(m, priors);
+    }
     let data = p.residuals(&geom, &nuis, false);
     let data_cost = data.iter().map(|v| v * v).sum();
     Solved {
         geom,
         nuis,
-        jac: jac.rows(0, m).into_owned(),
+        jac,
         data_cost,
         evaluations: r.evaluations,
     }
