@@ -95,6 +95,41 @@ pub(super) fn par_jobs<J: Send, R: Send>(
     })
 }
 
+/// Threads worth splitting `items` pieces of work over `rows` rows each into: up to
+/// `available_parallelism`, one under [`PAR_MIN_ROWS`] rows or on a pool thread.
+pub(super) fn threads_for(rows: usize, items: usize) -> usize {
+    let threads = std::thread::available_parallelism()
+        .map_or(1, |n| n.get())
+        .min(items);
+    if rows < PAR_MIN_ROWS || IN_POOL.with(|p| p.get()) {
+        1
+    } else {
+        threads.max(1)
+    }
+}
+
+/// Deals `items` round-robin over one thread per state of `states`, each thread running
+/// `f(its state, item)` on its items in turn (as a pool thread: what they start stays on
+/// them). For work whose state cannot be shared between threads (a problem's caches).
+pub(super) fn deal<S: Send, T: Send>(states: Vec<S>, items: Vec<T>, f: impl Fn(&mut S, T) + Sync) {
+    let n = states.len().max(1);
+    let mut hands: Vec<Vec<T>> = (0..n).map(|_| Vec::new()).collect();
+    for (k, item) in items.into_iter().enumerate() {
+        hands[k % n].push(item);
+    }
+    let f = &f;
+    std::thread::scope(|sc| {
+        for (mut state, hand) in states.into_iter().zip(hands) {
+            sc.spawn(move || {
+                IN_POOL.with(|p| p.set(true));
+                for item in hand {
+                    f(&mut state, item);
+                }
+            });
+        }
+    });
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -139,5 +174,27 @@ mod tests {
             assert_eq!(out, want);
             assert!(jobs.iter().enumerate().all(|(i, j)| j.1 == i as u64 + 1000));
         }
+    }
+
+    /// Every item is dealt once, to the thread of one state; the states see their own
+    /// items only (integers: exact).
+    #[test]
+    fn deal_hands_every_item_to_one_state() {
+        let sums = std::sync::Mutex::new(vec![0u64; 3]);
+        let states: Vec<usize> = (0..3).collect();
+        deal(states, (1..=100u64).collect(), |k, item| {
+            sums.lock().unwrap()[*k] += item;
+        });
+        let sums = sums.into_inner().unwrap();
+        assert_eq!(sums.iter().sum::<u64>(), 5050);
+        // Round robin: state k gets k+1, k+4, ... (34, 33 and 33 items).
+        assert_eq!(
+            sums,
+            vec![
+                (0..34).map(|i| 1 + 3 * i).sum::<u64>(),
+                (0..33).map(|i| 2 + 3 * i).sum(),
+                (0..33).map(|i| 3 + 3 * i).sum()
+            ]
+        );
     }
 }

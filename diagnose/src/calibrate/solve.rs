@@ -6,6 +6,7 @@
 
 use crate::calibrate::objective::{huber, position_rmse};
 use crate::calibrate::params::ParamSpec;
+use crate::calibrate::pool::{deal, threads_for};
 use crate::calibrate::problem::Problem;
 use crate::calibrate::series::{Series, NUIS};
 use calib_core::robot::Robot;
@@ -78,17 +79,7 @@ pub(super) fn solve_iter(
         (nuis0.to_vec(), nlo, nhi)
     };
     let m = p.data_len();
-    let mut f = |x: &[f64]| -> Vec<f64> {
-        let mut r = if fit_geom {
-            p.residuals(&x[..g], &x[g..], true)
-        } else {
-            p.residuals(geom0, x, false)
-        };
-        if let Some(c) = p.huber {
-            r[..m].iter_mut().for_each(|v| *v = huber(*v, c));
-        }
-        r
-    };
+    let mut f = |x: &[f64]| -> Vec<f64> { objective_at(p, fit_geom, geom0, x) };
     if x0.is_empty() {
         // Nothing free (dead reckoning with the geometry given).
         let data = p.residuals(geom0, nuis0, false);
@@ -154,11 +145,28 @@ pub(super) fn solve_iter(
         }
         r
     } else {
+        // One long recording: its evaluations cannot be split by recording, so the
+        // differences' columns are (the same numbers, sooner).
+        let threads = if fit_geom && p.series.len() == 1 {
+            threads_for(p.series[0].t.len(), x0.len())
+        } else {
+            1
+        };
         let mut jac_fn: Box<dyn crate::fit::Jacobian> = if !fit_geom && p.free_start {
             Box::new(Nuisances(p, geom0))
+        } else if threads > 1 {
+            Box::new(SplitDifferences {
+                p,
+                geom0,
+                hi: &hi,
+                threads,
+                cols: x0.len(),
+            })
         } else {
             Box::new(crate::fit::Differences)
         };
+        // Split differences are differences: at the solution too.
+        let final_differences = p.differences_at_solution && threads < 2;
         crate::fit::levenberg_marquardt_with(
             &mut f,
             jac_fn.as_mut(),
@@ -166,7 +174,7 @@ pub(super) fn solve_iter(
             &lo,
             &hi,
             max_iter,
-            p.differences_at_solution,
+            final_differences,
         )
     };
     let (geom, nuis) = if fit_geom {
@@ -189,6 +197,67 @@ pub(super) fn solve_iter(
         jac,
         data_cost,
         evaluations: r.evaluations,
+    }
+}
+
+/// The residuals a fit of the joint problem minimises at `x` (the geometry then the
+/// nuisance when `fit_geom`, else the nuisance at `geom0`), through Huber's loss when
+/// robust.
+fn objective_at(p: &Problem, fit_geom: bool, geom0: &[f64], x: &[f64]) -> Vec<f64> {
+    let g = p.specs.len();
+    let m = p.data_len();
+    let mut r = if fit_geom {
+        p.residuals(&x[..g], &x[g..], true)
+    } else {
+        p.residuals(geom0, x, false)
+    };
+    if let Some(c) = p.huber {
+        r[..m].iter_mut().for_each(|v| *v = huber(*v, c));
+    }
+    r
+}
+
+/// Forward differences of [`objective_at`] with `fit::forward_differences`'s steps, their
+/// columns dealt over `threads` threads, each with its own copy of the problem: the same
+/// Jacobian, bit for bit, from one long recording in about 1 / threads of the time.
+struct SplitDifferences<'a, 'b> {
+    p: &'b Problem<'a>,
+    geom0: &'b [f64],
+    hi: &'b [f64],
+    threads: usize,
+    /// Parameters (columns).
+    cols: usize,
+}
+
+impl crate::fit::Jacobian for SplitDifferences<'_, '_> {
+    fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
+        let (m, n) = (r.len(), x.len());
+        if jac.nrows() != m || jac.ncols() != n {
+            *jac = DMatrix::zeros(m, n);
+        }
+        let twins: Vec<Problem> = (0..self.threads).map(|_| self.p.twin()).collect();
+        let columns: Vec<(usize, &mut [f64])> = jac
+            .as_mut_slice()
+            .chunks_mut(m.max(1))
+            .enumerate()
+            .collect();
+        let (geom0, hi) = (self.geom0, self.hi);
+        deal(twins, columns, |q, (j, col)| {
+            let mut h = 1e-4 * x[j].abs().max(1e-2);
+            if x[j] + h > hi[j] {
+                h = -h;
+            }
+            let mut xp = x.to_vec();
+            xp[j] += h;
+            let rp = objective_at(q, true, geom0, &xp);
+            for (i, c) in col.iter_mut().enumerate() {
+                *c = (rp.get(i).copied().unwrap_or(0.0) - r[i]) / h;
+            }
+        });
+        true
+    }
+    fn runs(&self) -> usize {
+        self.cols
     }
 }
 
@@ -343,5 +412,59 @@ mod tests {
         assert_eq!(c[0][0], 1.0);
         assert!((c[0][1] - 0.2).abs() < 1e-15 && (c[1][0] - 0.2).abs() < 1e-15);
         assert_eq!((c[0][2], c[2][1], c[2][2]), (0.0, 0.0, 1.0));
+    }
+
+    /// The free-start fit of one long recording takes its differences' columns on
+    /// several threads, each with its own copy of the problem: the Jacobian must be
+    /// serial forward differences' bit for bit (the same steps and the same evaluations;
+    /// any other rounding would move every free-start result), with Huber's loss too.
+    #[test]
+    fn split_differences_are_forward_differences_bit_for_bit() {
+        let nominal = synth::robot("mobolab");
+        let specs = param_specs(&nominal, false);
+        let robot = robot_with(&nominal, &specs, &[1.02, 1.01, 1.05]);
+        // 25,000 rows: over the rows below which one thread does (PAR_MIN_ROWS).
+        let rec = synth::recording(
+            &robot,
+            25_000,
+            50.0,
+            Pose::new(0.5, -0.3, 0.4),
+            synth::wander(&robot),
+        );
+        let s = Series::new("synthetic", &nominal, &rec).unwrap();
+        for huber in [None, Some(2.0)] {
+            let mut p = Problem::new(&nominal, &specs, [&s]);
+            p.huber = huber;
+            let geom: Vec<f64> = vec![1.01, 1.005, 1.02];
+            let x: Vec<f64> = [geom.clone(), nuisance_start(&[&s], true)].concat();
+            let hi = vec![f64::INFINITY; x.len()];
+            let r = objective_at(&p, true, &geom, &x);
+            let mut serial = DMatrix::zeros(0, 0);
+            crate::fit::forward_differences(
+                &mut |x: &[f64]| objective_at(&p, true, &geom, x),
+                &x,
+                &r,
+                &hi,
+                &mut serial,
+            );
+            let mut split = DMatrix::zeros(0, 0);
+            let mut j = SplitDifferences {
+                p: &p,
+                geom0: &geom,
+                hi: &hi,
+                threads: 2,
+                cols: x.len(),
+            };
+            assert!(crate::fit::Jacobian::at(&mut j, &x, &r, &mut split));
+            assert_eq!(serial.shape(), split.shape());
+            assert!(serial.iter().any(|v| *v != 0.0));
+            assert!(
+                serial
+                    .iter()
+                    .zip(split.iter())
+                    .all(|(a, b)| a.to_bits() == b.to_bits()),
+                "huber {huber:?}: the split columns differ"
+            );
+        }
     }
 }
