@@ -225,7 +225,7 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
     }
     let mut out = vec![];
     let mut skip: Vec<(usize, usize)> = vec![];
-    for (a, b, h, kind) in merged {
+    for (a, b, h, kind) in coalesce(merged) {
         let slip = kind == "slip";
         out.push(Event {
             recording: s.name.clone(),
@@ -250,6 +250,30 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
     s.anchors.sort();
     s.samples
         .retain(|&j| !skip.iter().any(|&(a, b)| j > a && j < b));
+    out
+}
+
+/// A found event: first and last sample of its window, its heading, its kind.
+type Found = (usize, usize, f64, &'static str);
+
+/// One report per stretch of time: a `time_lead` whose window starts before the previous
+/// `time_lead`'s ends (a transient and a pair of opposite steps over the same turn) joins
+/// it, with the union of their windows and the larger heading. A slip keeps its own window
+/// (dead reckoning restarts after it). `events` sorted by their first sample.
+fn coalesce(events: Vec<Found>) -> Vec<Found> {
+    let mut out: Vec<Found> = Vec::with_capacity(events.len());
+    for ev in events {
+        if let Some(last) = out.last_mut() {
+            if ev.3 == "time_lead" && last.3 == "time_lead" && ev.0 <= last.1 {
+                last.1 = last.1.max(ev.1);
+                if ev.2.abs() > last.2.abs() {
+                    last.2 = ev.2;
+                }
+                continue;
+            }
+        }
+        out.push(ev);
+    }
     out
 }
 
@@ -352,5 +376,28 @@ mod tests {
             .samples
             .iter()
             .any(|&j| at(j) > e.t_s && at(j) < e.t_s + e.duration_s));
+    }
+
+    /// Overlapping or touching time leads become one (the union of the windows, the
+    /// larger heading: exact), apart ones and slips stay as they are.
+    #[test]
+    fn overlapping_time_leads_are_one_event() {
+        let found = vec![
+            (0, 10, -0.06, "slip"),
+            (245, 306, -0.107, "time_lead"),
+            (249, 412, 0.145, "time_lead"),
+            (412, 420, 0.02, "time_lead"),
+            (590, 756, 0.095, "time_lead"),
+            (700, 720, 0.3, "slip"),
+        ];
+        assert_eq!(
+            coalesce(found),
+            vec![
+                (0, 10, -0.06, "slip"),
+                (245, 420, 0.145, "time_lead"),
+                (590, 756, 0.095, "time_lead"),
+                (700, 720, 0.3, "slip"),
+            ]
+        );
     }
 }
