@@ -195,6 +195,17 @@ fn sumsq(r: &[f64]) -> f64 {
     r.iter().map(|v| v * v).sum()
 }
 
+/// The forward-difference step of a parameter at `x` below its upper bound `hi`:
+/// backwards when a step forwards would cross it.
+pub(crate) fn difference_step(x: f64, hi: f64) -> f64 {
+    let h = 1e-4 * x.abs().max(1e-2);
+    if x + h > hi {
+        -h
+    } else {
+        h
+    }
+}
+
 /// Forward differences, stepping backwards at the upper bound.
 pub(crate) fn forward_differences(
     f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
@@ -208,10 +219,7 @@ pub(crate) fn forward_differences(
         *jac = DMatrix::zeros(m, x.len());
     }
     for j in 0..x.len() {
-        let mut h = 1e-4 * x[j].abs().max(1e-2);
-        if x[j] + h > hi[j] {
-            h = -h;
-        }
+        let h = difference_step(x[j], hi[j]);
         let mut xp = x.to_vec();
         xp[j] += h;
         let rp = f(&xp);

@@ -404,9 +404,10 @@ pub(super) fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
 /// real mecanum squares want 67 mm on a 60 mm wheel).
 pub const MECANUM_RADIUS_RANGE: f64 = 0.15;
 
-/// The models an omni robot's calibration climbs, simplest first: one common scale; a
-/// common scale and wheel distance; per-wheel radii and a common distance; per-wheel
-/// radii, angles and distances; on a mecanum robot, per-wheel radii and one roller angle.
+/// The models an omni robot's calibration climbs, by parameter count: one common scale;
+/// a common scale and wheel distance; per-wheel radii and a common distance; on a mecanum
+/// robot per-wheel radii and one roller angle, on another omni robot per-wheel radii, a
+/// common distance and the wheels' centre; per-wheel radii, angles and distances.
 pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)> {
     let mecanum = is_mecanum(robot);
     let mut scale = spec(
@@ -470,38 +471,6 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
             f
         }),
     ];
-    if !mecanum {
-        // On the mecanum robot the centre does not hold out across sessions (trained on
-        // one square session, tested on the other three's squares: 1.002 of the authors
-        // where the per-wheel model gives 0.937).
-        rungs.insert(
-            3,
-            (
-                "per-wheel radii, a common wheel distance and the wheels' centre",
-                {
-                    let mut v = radii.clone();
-                    v.push(distance.clone());
-                    v.push(spec(
-                        GeomKind::CentreX,
-                        "centre_x_m".into(),
-                        "wheelbase_error",
-                        0.0,
-                        CENTRE_RANGE,
-                        CENTRE_STANDS,
-                    ));
-                    v.push(spec(
-                        GeomKind::CentreY,
-                        "centre_y_m".into(),
-                        "wheelbase_error",
-                        0.0,
-                        CENTRE_RANGE,
-                        CENTRE_STANDS,
-                    ));
-                    with_markers(v)
-                },
-            ),
-        );
-    }
     if mecanum {
         rungs.push((
             "per-wheel radii and one roller angle",
@@ -514,6 +483,34 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
                     s
                 })
                 .collect(),
+        ));
+    } else {
+        // On the mecanum robot the centre does not hold out across sessions (trained on
+        // one square session, tested on the other three's squares: 1.002 of the authors
+        // where the per-wheel model gives 0.937).
+        rungs.push((
+            "per-wheel radii, a common wheel distance and the wheels' centre",
+            {
+                let mut v = radii.clone();
+                v.push(distance.clone());
+                v.push(spec(
+                    GeomKind::CentreX,
+                    "centre_x_m".into(),
+                    "wheelbase_error",
+                    0.0,
+                    CENTRE_RANGE,
+                    CENTRE_STANDS,
+                ));
+                v.push(spec(
+                    GeomKind::CentreY,
+                    "centre_y_m".into(),
+                    "wheelbase_error",
+                    0.0,
+                    CENTRE_RANGE,
+                    CENTRE_STANDS,
+                ));
+                with_markers(v)
+            },
         ));
     }
     rungs.sort_by_key(|r| r.1.len());

@@ -108,23 +108,16 @@ impl<'a> Problem<'a> {
     /// The same problem (recordings, priors, settings) with empty caches: a copy for
     /// another thread, whose evaluations equal this one's bit for bit.
     pub(super) fn twin(&self) -> Problem<'a> {
-        let n = self.series.len();
-        Problem {
-            robot: self.robot,
-            specs: self.specs,
-            series: self.series.clone(),
-            priors: self.priors.clone(),
-            prior_scale: self.prior_scale,
-            plausible_bounds: self.plausible_bounds,
-            free_start: self.free_start,
-            huber: self.huber,
-            dr_lever: self.dr_lever,
-            known_law: self.known_law,
-            differences_at_solution: self.differences_at_solution,
-            cache: RefCell::new((vec![f64::NAN], vec![Path::default(); n])),
-            sens: RefCell::new((vec![f64::NAN], Vec::new())),
-            speculate: std::cell::Cell::new(false),
-        }
+        let mut q = Problem::new(self.robot, self.specs, self.series.iter().copied());
+        q.priors = self.priors.clone();
+        q.prior_scale = self.prior_scale;
+        q.plausible_bounds = self.plausible_bounds;
+        q.free_start = self.free_start;
+        q.huber = self.huber;
+        q.dr_lever = self.dr_lever;
+        q.known_law = self.known_law;
+        q.differences_at_solution = self.differences_at_solution;
+        q
     }
 
     fn paths(&self, geom: &[f64]) -> bool {

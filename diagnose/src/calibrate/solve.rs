@@ -243,10 +243,7 @@ impl crate::fit::Jacobian for SplitDifferences<'_, '_> {
             .collect();
         let (geom0, hi) = (self.geom0, self.hi);
         deal(twins, columns, |q, (j, col)| {
-            let mut h = 1e-4 * x[j].abs().max(1e-2);
-            if x[j] + h > hi[j] {
-                h = -h;
-            }
+            let h = crate::fit::difference_step(x[j], hi[j]);
             let mut xp = x.to_vec();
             xp[j] += h;
             let rp = objective_at(q, true, geom0, &xp);
