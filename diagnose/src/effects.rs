@@ -394,6 +394,25 @@ impl Effect {
         }
     }
 
+    /// Whether the cost of this one-parameter effect is rugged at a finer scale than its
+    /// start grid: piecewise flat for a threshold that changes the model only where a
+    /// command or an acceleration crosses it (a dead band, a pull-out or stall limit), or
+    /// with several valleys within a grid cell for a traction limit (which engages at some
+    /// speed changes and not others). `select` zooms into the grid's best cell first; a
+    /// smooth effect (a lag, a delay, a slew limit, play, droop) goes straight to the local
+    /// fit, which finds the same minimum (the mechanisms and generator suites agree to 1e-8).
+    pub fn rugged_cost(self) -> bool {
+        matches!(
+            self,
+            Effect::CoulombFriction
+                | Effect::MissedSteps
+                | Effect::MissedStall
+                | Effect::LongitudinalSlip
+                | Effect::SlipBody
+                | Effect::SlipCreep
+        )
+    }
+
     /// Grid of starting points (values) for the parameters, or `None` to start at the
     /// null value: threshold effects have flat cost on one side, so a local optimiser
     /// started in the flat part never moves.

@@ -228,9 +228,9 @@ fn fit_params(
             best = Some((u, c));
         }
     }
-    // One-parameter threshold effects have piecewise-flat costs: zoom in on the best
-    // grid cell four times before the local optimiser takes over.
-    if flat_specs.len() == 1 && start.len() > 2 {
+    // One-parameter effects with rugged costs (thresholds, traction limits): zoom in on
+    // the best grid cell four times before the local optimiser takes over.
+    if flat_specs.len() == 1 && start.len() > 2 && effects[0].rugged_cost() {
         if let Some((bu, bc)) = best.clone() {
             let grid_u: Vec<f64> = start.iter().map(|s| flat_specs[0].internal(s[0])).collect();
             let (lo_u, hi_u) = grid_u
