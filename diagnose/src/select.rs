@@ -11,7 +11,7 @@
 
 use crate::effects::{Effect, Model, ParamSpec, Stage};
 use crate::finding::{Finding, Fit, Verdict};
-use crate::fit::levenberg_marquardt;
+use crate::fit::{levenberg_marquardt, SCREENING_REL};
 use crate::residuals::{Eval, Evaluator, Fold, StageRss};
 use serde::Serialize;
 
@@ -260,7 +260,7 @@ fn fit_params(
             .map(|s| s.internal(s.null.clamp(s.min, s.max)))
             .collect()
     });
-    let mut r = levenberg_marquardt(&mut f, &u0, &lo, &hi, 20);
+    let mut r = levenberg_marquardt(&mut f, &u0, &lo, &hi, 20, SCREENING_REL);
     // The region mechanism's bounds: the cost is flat in a bound between two cables, so
     // the local optimiser keeps them where it started. Scan each bound over where the
     // robot went (5 cm steps, then 1 cm around the best) from the optimum; refit from
@@ -290,7 +290,7 @@ fn fit_params(
                 starts = vec![u];
             }
             for u in &starts {
-                let rr = levenberg_marquardt(&mut f, u, &lo, &hi, 20);
+                let rr = levenberg_marquardt(&mut f, u, &lo, &hi, 20, SCREENING_REL);
                 let c = sum_sq(&f(&rr.x));
                 if c.is_finite() && c < best_cost {
                     (best_cost, r) = (c, rr);

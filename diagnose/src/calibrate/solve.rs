@@ -133,6 +133,7 @@ pub(super) fn solve_iter(
             &lo,
             &hi,
             max_iter,
+            crate::fit::CONVERGED_REL,
             false,
         );
         p.speculate.set(false);
@@ -174,6 +175,7 @@ pub(super) fn solve_iter(
             &lo,
             &hi,
             max_iter,
+            crate::fit::CONVERGED_REL,
             final_differences,
         )
     };
