@@ -320,6 +320,14 @@ impl<'a> Evaluator<'a> {
             .collect()
     }
 
+    /// A stepper drive's electrical cycle (four full steps) in wheel radians: the steps
+    /// a pulled-out rotor loses at once. `None` for other drives.
+    pub fn stepper_cycle_rad(&self) -> Option<f64> {
+        let d = &self.p.robot.drive;
+        (d.kind == calib_core::robot::DriveType::Stepper && d.steps_per_rev > 0)
+            .then(|| 4.0 * std::f64::consts::TAU / (d.steps_per_rev as f64 * d.gear_ratio))
+    }
+
     /// True when the ground stage depends on the actuator model (a wheel without encoder
     /// is driven by its commands).
     pub fn ground_uses_actuator(&self) -> bool {
@@ -341,12 +349,7 @@ impl<'a> Evaluator<'a> {
         self.runs.set((g, a + 1));
         let mut params = ActuatorParams::from_model(m);
         params.linear = self.linear_commands.get();
-        let d = &self.p.robot.drive;
-        if d.kind == calib_core::robot::DriveType::Stepper && d.steps_per_rev > 0 {
-            // Four full steps, in wheel radians.
-            params.step_cycle_rad =
-                Some(4.0 * std::f64::consts::TAU / (d.steps_per_rev as f64 * d.gear_ratio));
-        }
+        params.step_cycle_rad = self.stepper_cycle_rad();
         // Each wheel's own play, when the model has it per wheel.
         let per_wheel = m.get(Effect::BacklashPerWheel);
         let v: Vec<Option<Vec<f64>>> = self

@@ -746,13 +746,14 @@ fn fit_candidates(
         .min(todo.len().max(1));
     let (p, spec) = (ev.p, ev.fork());
     let uses_act = ev.ground_uses_actuator();
+    let stepper = ev.stepper_cycle_rad().is_some();
     let next = AtomicUsize::new(0);
     // The dearest fits first: a long fit started last would leave the other cores idle
     // (the results are put back in `todo`'s order, so the order changes no result).
     let order = dearest_first(
         todo,
         |e| e.params(&p.robot).len(),
-        |e| fit_run_cost(e.stage(), uses_act),
+        |e| fit_run_cost(e, uses_act, stepper),
     );
     let mut results: Vec<(usize, Tried)> = Vec::new();
     let mut runs = ev.runs.get();
@@ -815,21 +816,28 @@ fn fit_candidates(
     results.into_iter().map(|(_, t)| t).collect()
 }
 
-/// Relative cost of one model run of an effect of `stage`: a ground run integrates the
-/// body (about twice an actuator run's wheel integration, measured with `perf` on the
-/// 120k-row bench); an actuator effect also reruns the ground stage when the ground
-/// stage is driven by the actuator model.
-fn fit_run_cost(stage: Stage, ground_uses_actuator: bool) -> f64 {
-    match (stage, ground_uses_actuator) {
+/// Relative cost of one model run of effect `e`: a ground run integrates the body (about
+/// twice an actuator run's wheel integration, measured with `perf` on the 120k-row
+/// bench); an actuator effect also reruns the ground stage when the ground stage is
+/// driven by the actuator model. On a `stepper` robot an acceleration limit is a rotor
+/// sub-stepped wherever it is out of step (measured on the 3.6 M-row bench: 92 ms a run
+/// for the pull-out limit against 21 ms for the stall).
+fn fit_run_cost(e: Effect, ground_uses_actuator: bool, stepper: bool) -> f64 {
+    let rotor = stepper && matches!(e, Effect::MissedSteps | Effect::LagSlew);
+    (match (e.stage(), ground_uses_actuator) {
         (Stage::Ground, _) => 2.0,
         (Stage::Actuator, false) => 1.0,
         (Stage::Actuator, true) => 3.0,
-    }
+    }) * if rotor { ROTOR_RUN_COST } else { 1.0 }
 }
 
+/// Cost of a sub-stepped rotor run over a plain actuator run (see [`fit_run_cost`]).
+const ROTOR_RUN_COST: f64 = 4.0;
+
 /// The indices of `todo` by the expected cost of their fits, dearest first (ties in
-/// `todo`'s order): the starts, the zoom of a one-parameter grid (`fit_params`: 28
-/// runs) and the local fit (about 8 iterations of p + 1 runs), times the cost of a run.
+/// `todo`'s order): the starts, the zoom of a one-parameter grid on a rugged cost
+/// (`fit_params`: 28 runs) and the local fit (about 8 iterations of p + 1 runs), times
+/// the cost of a run.
 fn dearest_first(
     todo: &[(Effect, Vec<Vec<f64>>)],
     params: impl Fn(Effect) -> usize,
@@ -837,7 +845,11 @@ fn dearest_first(
 ) -> Vec<usize> {
     let cost = |(e, starts): &(Effect, Vec<Vec<f64>>)| -> f64 {
         let k = params(*e);
-        let zoom = if k == 1 && starts.len() > 2 { 28 } else { 0 };
+        let zoom = if k == 1 && starts.len() > 2 && e.rugged_cost() {
+            28
+        } else {
+            0
+        };
         (starts.len() + zoom + 8 * (k + 1)) as f64 * run_cost(*e)
     };
     let mut order: Vec<usize> = (0..todo.len()).collect();
@@ -1184,8 +1196,9 @@ mod tests {
     }
 
     /// The bench's first round in the order the pool takes it: the floor bumps' 36
-    /// starts on the ground stage before the slip's 12 (+28 zoom), before the actuator
-    /// fits, before the geometry's single start; equal costs keep their order.
+    /// starts on the ground stage before the slip's 12 (+28 zoom: a rugged cost), before
+    /// the actuator fits, before the geometry's single start; equal costs keep their
+    /// order. On a stepper robot the pull-out limit's sub-stepped rotor goes first.
     #[test]
     fn the_dearest_fits_are_started_first() {
         let one = |n: usize| vec![vec![1.0]; n];
@@ -1196,14 +1209,28 @@ mod tests {
             (Effect::FloorBumps, vec![vec![0.1, 0.001]; 36]),
             (Effect::CoulombFriction, one(12)),
             (Effect::Backlash, one(10)),
+            (Effect::MissedSteps, one(64)),
         ];
         let params = |e: Effect| if e == Effect::FloorBumps { 2 } else { 1 };
-        let cost = |e: Effect| fit_run_cost(e.stage(), false);
-        // Costs: 17x2, 56x2, 54, (36+24)x2, 56, 54.
-        assert_eq!(dearest_first(&todo, params, cost), vec![3, 1, 4, 2, 5, 0]);
-        // With the ground stage driven by the actuator model, an actuator fit costs 3.
-        let cost3 = |e: Effect| fit_run_cost(e.stage(), true);
-        assert_eq!(dearest_first(&todo, params, cost3), vec![4, 2, 5, 3, 1, 0]);
+        let cost = |e: Effect| fit_run_cost(e, false, false);
+        // Costs: 17x2, 56x2, 26, (36+24)x2, 56, 26, 108.
+        assert_eq!(
+            dearest_first(&todo, params, cost),
+            vec![3, 1, 6, 4, 0, 2, 5]
+        );
+        // With the ground stage driven by the actuator model, an actuator run costs 3.
+        let cost3 = |e: Effect| fit_run_cost(e, true, false);
+        assert_eq!(
+            dearest_first(&todo, params, cost3),
+            vec![6, 4, 3, 1, 2, 5, 0]
+        );
+        // A stepper's rotor is sub-stepped wherever it is out of step: 4 runs' worth
+        // (92 against 21 ms a run for the pull-out limit and the stall on 1 M rows).
+        let stepper = |e: Effect| fit_run_cost(e, false, true);
+        assert_eq!(
+            dearest_first(&todo, params, stepper),
+            vec![6, 3, 1, 4, 0, 2, 5]
+        );
     }
 
     /// The caster case in numbers: 96 % of the excess explained, 8.97 mm left against
