@@ -661,6 +661,9 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
                 distances.join(", ")
             ));
         }
+        if let Some(note) = sideways_note(robot, &fitted_robot) {
+            notes.push(note);
+        }
         Factors::Wheels {
             f_lat: fitted_robot
                 .wheels
@@ -709,4 +712,22 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         turn_law,
         law_base_robot,
     })
+}
+
+/// When the fit moved the mecanum rollers' angle: how far a wheel turn carries the robot
+/// sideways against along, relative to the nominal rollers (the body-frame lateral and
+/// longitudinal gains, in words). A wheel's rolling direction at alpha + beta + gamma
+/// makes the distance along per unit sideways |tan(alpha + beta + gamma)|.
+fn sideways_note(nominal: &Robot, fitted: &Robot) -> Option<String> {
+    let (n, f) = nominal.wheels.iter().zip(&fitted.wheels).find(|(n, f)| {
+        n.gamma_rad.abs() > 1f64.to_radians() && (f.gamma_rad - n.gamma_rad).abs() > 1e-6
+    })?;
+    let lean = |w: &calib_core::robot::Wheel| (w.alpha_rad + w.beta_rad + w.gamma_rad).tan().abs();
+    let share = lean(f) / lean(n);
+    Some(format!(
+        "the rollers grip sideways otherwise than along: a wheel turn carries the robot {:.1} % as far sideways as along, relative to the nominal rollers (|gamma| {:.2} deg for {:.2} deg)",
+        share * 100.0,
+        f.gamma_rad.abs().to_degrees(),
+        n.gamma_rad.abs().to_degrees()
+    ))
 }

@@ -286,6 +286,80 @@ fn mecanum_mounting_errors_keep_the_per_wheel_model() {
     assert!(c.joint_rmse_after_m < 2e-3, "{c}");
 }
 
+/// A mecanum robot whose rollers grip sideways otherwise than along (every roller 2
+/// degrees steeper), on wheels 3 % large and 2 % closer in: in the body frame a
+/// longitudinal, a lateral and a turning scale (the Jacobian's F_lon and F_lat). The
+/// ladder keeps the three-parameter rung (scale, wheel distance and roller angle) over
+/// per-wheel models, each value within 4 sigma plus the simulator's floor (0.1 % and
+/// 0.1 degree, as above). The control, wheels only 3 % large, keeps the common scale.
+#[test]
+fn mecanum_lateral_and_longitudinal_scales_are_a_three_parameter_rung() {
+    let nominal = mecanum();
+    let runs = |truth: &Robot| -> Vec<(String, Recording)> {
+        (0..3)
+            .map(|i| (format!("run{i}"), random(truth, 40.0, 60 + i).recording))
+            .collect()
+    };
+    let specs = param_specs(&nominal, false);
+    let mut truth = vec![1.03; 4];
+    truth.extend([0.0; 4]);
+    truth.extend([0.98; 4]);
+    let mut steeper = robot_with(&nominal, &specs, &truth);
+    for w in steeper.wheels.iter_mut() {
+        w.gamma_rad += w.gamma_rad.signum() * 2f64.to_radians();
+    }
+    let c = calibrate(&nominal, &runs(&steeper), None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    assert!(
+        c.notes
+            .iter()
+            .any(|n| n.contains("kept: common scale, wheel distance and roller angle,")),
+        "{:?}",
+        c.notes
+    );
+    assert!(c.implausible.is_empty(), "{:?}", c.implausible);
+    let get = |name: &str| {
+        c.params
+            .iter()
+            .find(|p| p.spec.name == name)
+            .unwrap_or_else(|| panic!("no {name}\n{c}"))
+    };
+    let (s, l, g) = (get("scale"), get("l_scale"), get("roller_angle_offset_rad"));
+    assert!((s.value - 1.03).abs() <= 4.0 * s.sigma + 1e-3, "{c}");
+    assert!((l.value - 0.98).abs() <= 4.0 * l.sigma + 1e-3, "{c}");
+    assert!(
+        (g.value - 2f64.to_radians()).abs() <= 4.0 * g.sigma + 0.1f64.to_radians(),
+        "{c}"
+    );
+    // Said as a roboticist would: sideways, a wheel turn carries the robot tan 45 / tan 47
+    // = 93.3 % as far as along (the printed percentage within 0.3 of it: 0.1 degree).
+    let note = c
+        .notes
+        .iter()
+        .find(|n| n.contains("sideways"))
+        .unwrap_or_else(|| panic!("no sideways note: {:?}", c.notes));
+    let pct: f64 = note
+        .split(" % ")
+        .next()
+        .and_then(|head| head.rsplit(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no percentage in {note}"));
+    let want = 100.0 * 45f64.to_radians().tan() / 47f64.to_radians().tan();
+    assert!((pct - want).abs() < 0.3, "{pct} against {want}: {note}");
+    // The control: nothing but the wheels' size.
+    let mut common = vec![1.03; 4];
+    common.extend([0.0; 4]);
+    common.extend([1.0; 4]);
+    let plain = robot_with(&nominal, &specs, &common);
+    let c = calibrate(&nominal, &runs(&plain), None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    assert!(
+        c.notes.iter().any(|n| n.contains("kept: common scale,")),
+        "{:?}",
+        c.notes
+    );
+}
+
 /// [Korayem et al.]'s wheeled-legged robot with its legs sweeping (the wheel contacts move along x
 /// with them): wheel scale, left/right ratio and track recovered from a free run, the
 /// kinematics following the recorded leg angles. (Four radii are not identifiable: the

@@ -405,9 +405,10 @@ pub(super) fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
 pub const MECANUM_RADIUS_RANGE: f64 = 0.15;
 
 /// The models an omni robot's calibration climbs, by parameter count: one common scale;
-/// a common scale and wheel distance; per-wheel radii and a common distance; on a mecanum
-/// robot per-wheel radii and one roller angle, on another omni robot per-wheel radii, a
-/// common distance and the wheels' centre; per-wheel radii, angles and distances.
+/// a common scale and wheel distance; on a mecanum robot a common scale, wheel distance
+/// and roller angle; per-wheel radii and a common distance; on a mecanum robot per-wheel
+/// radii and one roller angle, on another omni robot per-wheel radii, a common distance
+/// and the wheels' centre; per-wheel radii, angles and distances.
 pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)> {
     let mecanum = is_mecanum(robot);
     let mut scale = spec(
@@ -454,7 +455,7 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
         ("common scale", with_markers(vec![scale.clone()])),
         (
             "common scale and wheel distance",
-            with_markers(vec![scale, distance.clone()]),
+            with_markers(vec![scale.clone(), distance.clone()]),
         ),
         ("per-wheel radii and a common wheel distance", {
             let mut v = radii.clone();
@@ -472,6 +473,19 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
         }),
     ];
     if mecanum {
+        // In the body frame: longitudinal, lateral and turning scales (the Jacobian's
+        // F_lon, F_lat and the distance), as rollers that grip sideways otherwise than
+        // along make them. A common roller angle moves the lateral gain against the
+        // longitudinal one; the distance restores the turn.
+        let gamma = roller_specs(robot, false)
+            .into_iter()
+            .find(|s| s.kind == GeomKind::Gamma);
+        if let Some(gamma) = gamma {
+            rungs.push((
+                "common scale, wheel distance and roller angle",
+                with_markers(vec![scale.clone(), distance.clone(), gamma]),
+            ));
+        }
         rungs.push((
             "per-wheel radii and one roller angle",
             roller_specs(robot, marker)
