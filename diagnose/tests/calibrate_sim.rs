@@ -295,11 +295,7 @@ fn mecanum_mounting_errors_keep_the_per_wheel_model() {
 #[test]
 fn mecanum_lateral_and_longitudinal_scales_are_a_three_parameter_rung() {
     let nominal = mecanum();
-    let runs = |truth: &Robot| -> Vec<(String, Recording)> {
-        (0..3)
-            .map(|i| (format!("run{i}"), random(truth, 40.0, 60 + i).recording))
-            .collect()
-    };
+    let runs = |truth: &Robot| free_runs(truth, 60);
     let specs = param_specs(&nominal, false);
     let mut truth = vec![1.03; 4];
     truth.extend([0.0; 4]);
@@ -310,13 +306,7 @@ fn mecanum_lateral_and_longitudinal_scales_are_a_three_parameter_rung() {
     }
     let c = calibrate(&nominal, &runs(&steeper), None, &CalOptions::default()).unwrap();
     println!("{c}");
-    assert!(
-        c.notes
-            .iter()
-            .any(|n| n.contains("kept: common scale, wheel distance and roller angle,")),
-        "{:?}",
-        c.notes
-    );
+    assert_kept(&c, "common scale, wheel distance and roller angle");
     assert!(c.implausible.is_empty(), "{:?}", c.implausible);
     let get = |name: &str| {
         c.params
@@ -353,11 +343,7 @@ fn mecanum_lateral_and_longitudinal_scales_are_a_three_parameter_rung() {
     let plain = robot_with(&nominal, &specs, &common);
     let c = calibrate(&nominal, &runs(&plain), None, &CalOptions::default()).unwrap();
     println!("{c}");
-    assert!(
-        c.notes.iter().any(|n| n.contains("kept: common scale,")),
-        "{:?}",
-        c.notes
-    );
+    assert_kept(&c, "common scale");
 }
 
 /// [Korayem et al.]'s wheeled-legged robot with its legs sweeping (the wheel contacts move along x
@@ -654,6 +640,19 @@ fn single_sample_glitches_are_reported_not_fitted() {
     }
 }
 
+/// Three 40 s runs of free motion of `truth`, seeds from `seed`.
+fn free_runs(truth: &Robot, seed: u64) -> Vec<(String, Recording)> {
+    (0..3)
+        .map(|i| (format!("run{i}"), random(truth, 40.0, seed + i).recording))
+        .collect()
+}
+
+/// Asserts that the model ladder kept the rung named `rung`.
+fn assert_kept(c: &Calibration, rung: &str) {
+    let kept = format!("kept: {rung},");
+    assert!(c.notes.iter().any(|n| n.contains(&kept)), "{:?}", c.notes);
+}
+
 /// The model ladder on omni robots (three 40 s runs of free motion): a robot whose wheels
 /// are all 3 % large keeps the one-parameter model, recovered within 4 sigma; a robot
 /// with wheels of different sizes climbs to per-wheel radii, each recovered within 4
@@ -661,11 +660,7 @@ fn single_sample_glitches_are_reported_not_fitted() {
 #[test]
 fn omni_ladder_keeps_the_simplest_model_that_holds_out() {
     let nominal = robot("omni3");
-    let runs = |truth: &Robot| -> Vec<(String, Recording)> {
-        (0..3)
-            .map(|i| (format!("run{i}"), random(truth, 40.0, 30 + i).recording))
-            .collect()
-    };
+    let runs = |truth: &Robot| free_runs(truth, 30);
     let specs = param_specs(&nominal, false);
     // All three radii 3 % large, nothing else.
     let common = robot_with(
@@ -675,11 +670,7 @@ fn omni_ladder_keeps_the_simplest_model_that_holds_out() {
     );
     let c = calibrate(&nominal, &runs(&common), None, &CalOptions::default()).unwrap();
     println!("{c}");
-    assert!(
-        c.notes.iter().any(|n| n.contains("kept: common scale,")),
-        "{:?}",
-        c.notes
-    );
+    assert_kept(&c, "common scale");
     assert_eq!(c.params.len(), 1, "{c}");
     let p = &c.params[0];
     // Floor 0.1 %: what the simulator does that a rigid model does not (as above).
@@ -694,13 +685,7 @@ fn omni_ladder_keeps_the_simplest_model_that_holds_out() {
     let c = calibrate(&nominal, &runs(&uneven), None, &CalOptions::default()).unwrap();
     println!("{c}");
     // Per-wheel radii, not the wheels' centre nor per-wheel distances: no false centre.
-    assert!(
-        c.notes
-            .iter()
-            .any(|n| n.contains("kept: per-wheel radii and a common wheel distance,")),
-        "{:?}",
-        c.notes
-    );
+    assert_kept(&c, "per-wheel radii and a common wheel distance");
     for (i, r) in radii.iter().enumerate() {
         let p = c
             .params
