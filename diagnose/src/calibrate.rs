@@ -716,8 +716,8 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
 
 /// When the fit moved the mecanum rollers' angle: how far a wheel turn carries the robot
 /// sideways against along, relative to the nominal rollers (the body-frame lateral and
-/// longitudinal gains, in words). A wheel's rolling direction at alpha + beta + gamma
-/// makes the distance along per unit sideways |tan(alpha + beta + gamma)|.
+/// longitudinal gains, in words). A wheel whose rolling direction is at alpha + beta +
+/// gamma carries the robot |tan(alpha + beta + gamma)| as far sideways as along per turn.
 fn sideways_note(nominal: &Robot, fitted: &Robot) -> Option<String> {
     let (n, f) = nominal.wheels.iter().zip(&fitted.wheels).find(|(n, f)| {
         n.gamma_rad.abs() > 1f64.to_radians() && (f.gamma_rad - n.gamma_rad).abs() > 1e-6

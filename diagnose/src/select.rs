@@ -229,8 +229,8 @@ fn fit_params(
         }
     }
     // One-parameter effects with rugged costs (thresholds, traction limits): zoom in on
-    // the best grid cell four times before the local optimiser takes over.
-    if flat_specs.len() == 1 && start.len() > 2 && effects[0].rugged_cost() {
+    // the best grid cell before the local optimiser takes over.
+    if zooms(effects[0], flat_specs.len(), start.len()) {
         if let Some((bu, bc)) = best.clone() {
             let grid_u: Vec<f64> = start.iter().map(|s| flat_specs[0].internal(s[0])).collect();
             let (lo_u, hi_u) = grid_u
@@ -240,10 +240,10 @@ fn fit_params(
                 });
             let mut half = (hi_u - lo_u) / (grid_u.len() - 1) as f64;
             let (mut cu, mut cc) = (bu[0], bc);
-            for _ in 0..4 {
+            for _ in 0..ZOOM_PASSES {
                 let centre = cu;
-                for i in 1..8 {
-                    let u = centre - half + 2.0 * half * i as f64 / 8.0;
+                for i in 1..=ZOOM_POINTS {
+                    let u = centre - half + 2.0 * half * i as f64 / (ZOOM_POINTS + 1) as f64;
                     let c: f64 = f(&[u]).iter().map(|v| v * v).sum();
                     if c.is_finite() && c < cc {
                         (cu, cc) = (u, c);
@@ -816,6 +816,17 @@ fn fit_candidates(
     results.into_iter().map(|(_, t)| t).collect()
 }
 
+/// Passes of the zoom into a grid's best cell, each a third as wide as the one before.
+const ZOOM_PASSES: usize = 4;
+/// Points tried across the cell in each zoom pass.
+const ZOOM_POINTS: usize = 7;
+
+/// Whether `fit_params` zooms into the best cell of `e`'s start grid: a one-parameter
+/// effect with a rugged cost ([`Effect::rugged_cost`]) and a grid of more than two starts.
+fn zooms(e: Effect, params: usize, starts: usize) -> bool {
+    params == 1 && starts > 2 && e.rugged_cost()
+}
+
 /// Relative cost of one model run of effect `e`: a ground run integrates the body (about
 /// twice an actuator run's wheel integration, measured with `perf` on the 120k-row
 /// bench); an actuator effect also reruns the ground stage when the ground stage is
@@ -835,8 +846,7 @@ fn fit_run_cost(e: Effect, ground_uses_actuator: bool, stepper: bool) -> f64 {
 const ROTOR_RUN_COST: f64 = 4.0;
 
 /// The indices of `todo` by the expected cost of their fits, dearest first (ties in
-/// `todo`'s order): the starts, the zoom of a one-parameter grid on a rugged cost
-/// (`fit_params`: 28 runs) and the local fit (about 8 iterations of p + 1 runs), times
+/// `todo`'s order): the starts, the zoom ([`zooms`]: 28 runs) and the local fit (about 8 iterations of p + 1 runs), times
 /// the cost of a run.
 fn dearest_first(
     todo: &[(Effect, Vec<Vec<f64>>)],
@@ -845,8 +855,8 @@ fn dearest_first(
 ) -> Vec<usize> {
     let cost = |(e, starts): &(Effect, Vec<Vec<f64>>)| -> f64 {
         let k = params(*e);
-        let zoom = if k == 1 && starts.len() > 2 && e.rugged_cost() {
-            28
+        let zoom = if zooms(*e, k, starts.len()) {
+            ZOOM_PASSES * ZOOM_POINTS
         } else {
             0
         };

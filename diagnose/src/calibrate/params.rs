@@ -170,18 +170,20 @@ pub fn roller_specs(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
         })
         .collect();
     let at = robot.wheels.len().min(v.len());
-    v.insert(
-        at,
-        spec(
-            GeomKind::Gamma,
-            "roller_angle_offset_rad".into(),
-            "roller_angle_error",
-            0.0,
-            GAMMA_RANGE,
-            GAMMA_STANDS,
-        ),
-    );
+    v.insert(at, roller_angle_spec());
     v
+}
+
+/// The roller angle offset shared by every mecanum wheel.
+fn roller_angle_spec() -> ParamSpec {
+    spec(
+        GeomKind::Gamma,
+        "roller_angle_offset_rad".into(),
+        "roller_angle_error",
+        0.0,
+        GAMMA_RANGE,
+        GAMMA_STANDS,
+    )
 }
 
 /// The parameters fitted for `robot` (with `marker`: the motion-capture marker offset
@@ -477,15 +479,10 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
         // F_lon, F_lat and the distance), as rollers that grip sideways otherwise than
         // along make them. A common roller angle moves the lateral gain against the
         // longitudinal one; the distance restores the turn.
-        let gamma = roller_specs(robot, false)
-            .into_iter()
-            .find(|s| s.kind == GeomKind::Gamma);
-        if let Some(gamma) = gamma {
-            rungs.push((
-                "common scale, wheel distance and roller angle",
-                with_markers(vec![scale.clone(), distance.clone(), gamma]),
-            ));
-        }
+        rungs.push((
+            "common scale, wheel distance and roller angle",
+            with_markers(vec![scale.clone(), distance.clone(), roller_angle_spec()]),
+        ));
         rungs.push((
             "per-wheel radii and one roller angle",
             roller_specs(robot, marker)
