@@ -88,6 +88,69 @@ pub trait Jacobian {
     fn column_dots(&self) -> bool {
         false
     }
+    /// Whether the Jacobian is block-sparse: columns nonzero on a span of rows each (a
+    /// joint fit of several recordings, each with its own nuisance). The normal
+    /// equations then take each pair of columns' dot product over the rows both span
+    /// ([`block_normal_equations`]): the dense product would spend almost all its time
+    /// multiplying zeros.
+    fn block_sparse(&self) -> bool {
+        false
+    }
+}
+
+/// J^T J and J^T r from each pair of columns' dot product over the rows both can be
+/// nonzero on (from a column's first nonzero row to its last): the same sums as the
+/// dense products less the zero terms, for a block-sparse Jacobian in a fraction of the
+/// time (m (g + k)^2 instead of m (g + b k)^2 for g shared columns and b blocks of k).
+pub(crate) fn block_normal_equations(
+    jac: &DMatrix<f64>,
+    r: &[f64],
+) -> (DMatrix<f64>, DVector<f64>) {
+    let (m, n) = jac.shape();
+    let col = |j: usize| &jac.as_slice()[j * m..(j + 1) * m];
+    let span: Vec<(usize, usize)> = (0..n)
+        .map(|j| {
+            let c = col(j);
+            let first = c.iter().position(|v| *v != 0.0).unwrap_or(m);
+            let end = c.iter().rposition(|v| *v != 0.0).map_or(first, |i| i + 1);
+            (first, end)
+        })
+        .collect();
+    let mut jtj = DMatrix::zeros(n, n);
+    let mut g = DVector::zeros(n);
+    for a in 0..n {
+        let (fa, ea) = span[a];
+        g[a] = dot(&col(a)[fa..ea], &r[fa..ea]);
+        for b in a..n {
+            let (lo, hi) = (fa.max(span[b].0), ea.min(span[b].1));
+            let v = if lo < hi {
+                dot(&col(a)[lo..hi], &col(b)[lo..hi])
+            } else {
+                0.0
+            };
+            jtj[(a, b)] = v;
+            jtj[(b, a)] = v;
+        }
+    }
+    (jtj, g)
+}
+
+/// A dot product with four running sums (vectorised).
+fn dot(a: &[f64], b: &[f64]) -> f64 {
+    let mut acc = [0.0f64; 4];
+    let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));
+    let tail: f64 = ca
+        .remainder()
+        .iter()
+        .zip(cb.remainder())
+        .map(|(x, y)| x * y)
+        .sum();
+    for (x, y) in ca.zip(cb) {
+        for k in 0..4 {
+            acc[k] += x[k] * y[k];
+        }
+    }
+    (acc[0] + acc[1]) + (acc[2] + acc[3]) + tail
 }
 
 /// No analytic Jacobian: forward differences everywhere.
@@ -145,6 +208,7 @@ pub fn levenberg_marquardt_with(
     let mut lambda = 1e-3;
     let mut jac = DMatrix::<f64>::zeros(r.len(), p);
     let dots = jac_fn.column_dots();
+    let blocks = jac_fn.block_sparse();
     let mut jacobian = |f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
                         x: &[f64],
                         r: &[f64],
@@ -159,7 +223,9 @@ pub fn levenberg_marquardt_with(
     };
     for _ in 0..max_iter {
         evaluations += jacobian(f, &x, &r, &mut jac, false);
-        let (jtj, g) = if dots {
+        let (jtj, g) = if blocks {
+            block_normal_equations(&jac, &r)
+        } else if dots {
             let rv = DVector::from_column_slice(&r);
             (jac.tr_mul(&jac), jac.tr_mul(&rv))
         } else {
@@ -271,6 +337,48 @@ pub fn covariance_sigma(jac: &DMatrix<f64>, cost: f64, m: usize) -> Vec<f64> {
 #[cfg(test)]
 mod tests {
     use super::*;
+
+    /// The normal equations of a block-sparse Jacobian (shared columns, then each block's
+    /// own, zero elsewhere, prior rows below) from the columns' overlaps equal the dense
+    /// products to rounding.
+    #[test]
+    fn block_normal_equations_are_the_dense_ones() {
+        let (blocks, rows, shared, own) = (4, 37, 3, 5);
+        let (m, n) = (blocks * rows + shared, shared + blocks * own);
+        let mut jac = DMatrix::zeros(m, n);
+        // A deterministic spread of values, signs and magnitudes.
+        let v = |i: usize, j: usize| ((i * 7 + j * 13) % 23) as f64 / 7.0 - 1.5;
+        for b in 0..blocks {
+            for i in b * rows..(b + 1) * rows {
+                for j in 0..shared {
+                    jac[(i, j)] = v(i, j);
+                }
+                for j in shared + b * own..shared + (b + 1) * own {
+                    jac[(i, j)] = v(i, j) * 1e3;
+                }
+            }
+        }
+        for k in 0..shared {
+            jac[(blocks * rows + k, k)] = 2.0;
+        }
+        let r: Vec<f64> = (0..m).map(|i| v(i, 1) * 10.0).collect();
+        let (jtj, g) = block_normal_equations(&jac, &r);
+        let dense = jac.transpose() * &jac;
+        let gd = jac.transpose() * DVector::from_column_slice(&r);
+        let scale = dense.amax();
+        for a in 0..n {
+            assert!((g[a] - gd[a]).abs() <= 1e-12 * gd.amax(), "g[{a}]");
+            for b in 0..n {
+                let (x, y) = (jtj[(a, b)], dense[(a, b)]);
+                assert!(
+                    (x - y).abs() <= 1e-12 * scale,
+                    "({a}, {b}): {x} against {y}"
+                );
+            }
+        }
+        // The blocks' own columns never meet: exactly zero where the dense product is.
+        assert_eq!(jtj[(shared, shared + own)], 0.0);
+    }
 
     #[test]
     fn fits_an_exponential() {

@@ -13,7 +13,7 @@ use nalgebra::DMatrix;
 /// observed scatter.
 pub(crate) const RES_UNIT_M: f64 = 1e-3;
 /// Heading residuals count as position errors at this lever arm (m).
-const HEADING_LEVER_M: f64 = 0.1;
+pub(crate) const HEADING_LEVER_M: f64 = 0.1;
 /// Default lever arm (m) of the heading residuals in the dead-reckoning objective (as the
 /// aligned fit's). On the held-out proxy a longer lever transfers better (geometric mean
 /// ratio to OptiOdom for 0.1, 0.3, 1, 3, 10 m: 1.004, 0.997, 0.964, 0.940, 0.934), but at
@@ -38,7 +38,7 @@ pub(super) fn huber_rows(jac: &mut DMatrix<f64>, r: &[f64], c: f64, cols: usize)
 
 /// Each pose sample on the encoders' clock: (sample j, its row time, its time tau on the
 /// encoders' clock, the row segment k with t[k] <= tau < t[k + 1] where there is one).
-fn pose_segments<'a>(
+pub(crate) fn pose_segments<'a>(
     s: &'a Series,
     nu: &Nuisance,
 ) -> impl Iterator<Item = (usize, f64, f64, usize)> + 'a {

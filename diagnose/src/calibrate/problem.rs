@@ -3,7 +3,7 @@
 //! [`objective`](crate::calibrate::objective)'s residuals over all the recordings (in
 //! parallel), keeps the paths of the last geometry, and gives the analytic Jacobians: the
 //! geometry's from the paths' sensitivities ([`sens`]) when
-//! dead-reckoning, the nuisance's when aligning.
+//! dead-reckoning; those and the nuisance's when aligning.
 
 use crate::calibrate::objective::{
     dr_residuals_into, huber_rows, nuisance_jacobian_into, residuals_into, PathAt,
@@ -187,26 +187,7 @@ impl<'a> Problem<'a> {
         if self.sens.borrow().0.as_slice() == geom {
             return true;
         }
-        let robot = robot_with(self.robot, self.specs, geom);
-        let law = TurnLaw::of(self.specs, geom, self.known_law);
-        let Ok(kin) = Kinematics::<f64>::new(&robot, &Corrections::None) else {
-            return false;
-        };
-        let stepper = Stepper::new(&robot, &kin, &law);
-        let cols = sens::split_params(self.specs);
-        let sides = self.robot.kind == RobotKind::SkidSteer
-            || self
-                .specs
-                .iter()
-                .any(|s| matches!(s.kind, GeomKind::EbArc | GeomKind::IcrX));
-        let Some(slopes) = sens::TwistSlopes::new(
-            self.robot,
-            self.specs,
-            geom,
-            self.known_law,
-            &cols.path,
-            sides,
-        ) else {
+        let Some((stepper, slopes, _)) = self.stepping(geom) else {
             return false;
         };
         let mut jobs: Vec<(&Series, Option<sens::Sensitivity>)> =
@@ -218,6 +199,76 @@ impl<'a> Problem<'a> {
             return false;
         };
         *self.sens.borrow_mut() = (geom.to_vec(), all);
+        true
+    }
+
+    /// The stepping at `geom`, the twist's slopes of its path parameters and the
+    /// Jacobian's columns. None when the geometry is singular nearby.
+    fn stepping(&self, geom: &[f64]) -> Option<(Stepper, sens::TwistSlopes, sens::Columns)> {
+        let robot = robot_with(self.robot, self.specs, geom);
+        let law = TurnLaw::of(self.specs, geom, self.known_law);
+        let kin = Kinematics::<f64>::new(&robot, &Corrections::None).ok()?;
+        let stepper = Stepper::new(&robot, &kin, &law);
+        let cols = sens::split_params(self.specs);
+        let sides = self.robot.kind == RobotKind::SkidSteer
+            || self
+                .specs
+                .iter()
+                .any(|s| matches!(s.kind, GeomKind::EbArc | GeomKind::IcrX));
+        let slopes = sens::TwistSlopes::new(
+            self.robot,
+            self.specs,
+            geom,
+            self.known_law,
+            &cols.path,
+            sides,
+        )?;
+        Some((stepper, slopes, cols))
+    }
+
+    /// The analytic Jacobian of [`Problem::residuals`] with the prior rows when the start
+    /// poses and clocks are fitted, at `x` = [geometry, every recording's nuisance]: the
+    /// geometry's columns from the sensitivities stepped along each path (one pass per
+    /// recording instead of one model run per parameter), the nuisance's as
+    /// [`Problem::nuisance_jacobian`]; the data rows through Huber's loss when robust
+    /// (`r`: the residuals at `x` as the fit sees them). False when it has none (start
+    /// poses not fitted, a wheeled-legged robot, a singular geometry).
+    pub(super) fn free_jacobian(&self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
+        let g = self.specs.len();
+        if !self.free_start || x.len() != g + NUIS * self.series.len() {
+            return false;
+        }
+        let (geom, nuis) = x.split_at(g);
+        if !self.paths(geom) {
+            return false;
+        }
+        let Some((stepper, slopes, cols)) = self.stepping(geom) else {
+            return false;
+        };
+        let m = self.data_len();
+        if jac.nrows() != m + self.priors.len() || jac.ncols() != x.len() {
+            *jac = DMatrix::zeros(m + self.priors.len(), x.len());
+        }
+        jac.fill(0.0);
+        let marker = self.marker(geom);
+        let c = self.cache.borrow();
+        let mut row = 0;
+        for (i, s) in self.series.iter().enumerate() {
+            let nu = Nuisance::from(&nuis[i * NUIS..(i + 1) * NUIS]);
+            if !s.free_jacobian(&stepper, &slopes, &cols, &nu, marker, jac, row) {
+                return false;
+            }
+            nuisance_jacobian_into(s, &c.1[i], &nu, marker, jac, row, g + i * NUIS);
+            row += 3 * s.pose_samples();
+        }
+        if let Some(h) = self.huber {
+            huber_rows(jac, &r[..m], h, x.len());
+        }
+        for (i, (w, _, sigma)) in self.priors.iter().enumerate() {
+            for a in 0..g {
+                jac[(m + i, a)] = w[a] / sigma * self.prior_scale;
+            }
+        }
         true
     }
 

@@ -7,9 +7,9 @@
 //! for a robot stepped by its sides); the arc integration and the residuals are
 //! differentiated exactly.
 
-use crate::calibrate::objective::{PathAt, RES_UNIT_M};
+use crate::calibrate::objective::{pose_segments, PathAt, HEADING_LEVER_M, RES_UNIT_M};
 use crate::calibrate::params::{robot_with, GeomKind, ParamSpec};
-use crate::calibrate::series::Series;
+use crate::calibrate::series::{Nuisance, Series};
 use crate::calibrate::step::{self, Stepper};
 use crate::calibrate::turn_law::{Sides, TurnLaw};
 use calib_core::correction::Corrections;
@@ -220,26 +220,44 @@ impl Series {
         need: Vec<usize>,
     ) -> Sensitivity {
         let p = slopes.count();
+        let mut values = Vec::with_capacity(need.len());
+        let mut out = Vec::with_capacity(need.len() * p);
+        let mut next = 0usize;
+        self.walk_sensitivities(stepper, slopes, |k, v, d| {
+            if need.get(next) == Some(&k) {
+                values.push(v);
+                out.extend_from_slice(d);
+                next += 1;
+            }
+        });
+        Sensitivity {
+            need,
+            values,
+            slopes: out,
+        }
+    }
+
+    /// Steps the path of `stepper` (as [`Series::path_by`], to the bit) with its
+    /// sensitivities to the parameters of `slopes`, row by row: `visit` gets each row's
+    /// index, (x, y, theta) and d(x, y, theta)/d q_j, from row 0 (the origin, no
+    /// sensitivity) on.
+    fn walk_sensitivities(
+        &self,
+        stepper: &Stepper,
+        slopes: &TwistSlopes,
+        mut visit: impl FnMut(usize, [f64; 3], &[[f64; 3]]),
+    ) {
+        let p = slopes.count();
         let sides = match (&self.rho, stepper.sides()) {
             (Some(rho), Some(s)) => Some((rho, s)),
             _ => None,
         };
         let no_rho = vec![0.0; self.inc.len() / self.wheels.max(1)];
         let rho = self.rho.as_deref().unwrap_or(&no_rho);
-        let mut values = Vec::with_capacity(need.len());
-        let mut out = Vec::with_capacity(need.len() * p);
         let mut d = vec![[0.0f64; 3]; p];
         let mut dt = vec![[0.0f64; 3]; p];
         let (mut x, mut y, mut h) = (0.0f64, 0.0f64, step::Heading::new());
-        let mut next = 0usize;
-        let mut keep = |k: usize, x: f64, y: f64, th: f64, d: &[[f64; 3]]| {
-            if need.get(next) == Some(&k) {
-                values.push([x, y, th]);
-                out.extend_from_slice(d);
-                next += 1;
-            }
-        };
-        keep(0, x, y, h.th, &d);
+        visit(0, [x, y, h.th], &d);
         for (k, (inc, &r)) in self.incs().zip(rho).enumerate() {
             let tw: Twist<f64> = match sides {
                 Some((_, (s, law))) => s.step(law, r, inc),
@@ -258,13 +276,96 @@ impl Series {
                 dj[1] += ex * dj[2] + st * dlx + ct * dly;
                 dj[2] += t[2];
             }
-            keep(k + 1, x, y, h.th, &d);
+            visit(k + 1, [x, y, h.th], &d);
         }
-        Sensitivity {
-            need,
-            values,
-            slopes: out,
+    }
+
+    /// The Jacobian rows of [`residuals_into`](crate::calibrate::objective::residuals_into)
+    /// (the aligned residuals: start pose and clocks `nu`) with respect to the path
+    /// parameters of `cols` (sensitivities stepped along with the path, one pass) and
+    /// the marker's, into `jac` rows from `row0`; columns are parameter indices. The path
+    /// is read linearly between rows at each pose sample's time on the encoders' clock,
+    /// so its sensitivities are too. False for a wheeled-legged robot (its kinematics
+    /// follow the legs: not handled here).
+    #[allow(clippy::too_many_arguments)]
+    pub(crate) fn free_jacobian(
+        &self,
+        stepper: &Stepper,
+        slopes: &TwistSlopes,
+        cols: &Columns,
+        nu: &Nuisance,
+        marker: (f64, f64),
+        jac: &mut nalgebra::DMatrix<f64>,
+        row0: usize,
+    ) -> bool {
+        if self.legs.is_some() {
+            return false;
         }
+        let (path_params, marker_params) = (&cols.path, cols.marker);
+        let p = path_params.len();
+        let n = self.t.len();
+        let u = 1.0 / RES_UNIT_M;
+        let lever = HEADING_LEVER_M * u;
+        let (c, sn) = (nu.theta0_rad.cos(), nu.theta0_rad.sin());
+        // Each pose sample with the row at which its path point is known (its segment's
+        // end; the first or last row outside the rows' span) and the weight of that row
+        // (1 - f of the row before). Samples come in order of time, so of rows.
+        let mut samples = pose_segments(self, nu)
+            .map(|(j, _, tau, k)| {
+                if n < 2 || tau <= self.t[0] {
+                    (j, 0, 1.0)
+                } else if tau >= self.t[n - 1] {
+                    (j, n - 1, 1.0)
+                } else {
+                    (j, k + 1, (tau - self.t[k]) / (self.t[k + 1] - self.t[k]))
+                }
+            })
+            .peekable();
+        // The row before the visited one: its values and sensitivities.
+        let (mut prev_v, mut prev_d) = ([0.0f64; 3], vec![[0.0f64; 3]; p]);
+        let mut dq = vec![[0.0f64; 3]; p];
+        self.walk_sensitivities(stepper, slopes, |k, v, d| {
+            while let Some(&(j, _, f)) = samples.peek().filter(|s| s.1 == k) {
+                samples.next();
+                let th = prev_v[2] + (v[2] - prev_v[2]) * f;
+                for (o, (a, b)) in dq.iter_mut().zip(prev_d.iter().zip(d)) {
+                    *o = [
+                        a[0] + (b[0] - a[0]) * f,
+                        a[1] + (b[1] - a[1]) * f,
+                        a[2] + (b[2] - a[2]) * f,
+                    ];
+                }
+                // d(wx, wy)/d theta of the marker's offset (zero without one).
+                let (sm, cm) = (nu.theta0_rad + th).sin_cos();
+                let (mx, my) = if marker != (0.0, 0.0) {
+                    (
+                        -sm * marker.0 - cm * marker.1,
+                        cm * marker.0 - sm * marker.1,
+                    )
+                } else {
+                    (0.0, 0.0)
+                };
+                let row = row0 + 3 * j;
+                for (t, &col) in dq.iter().zip(path_params) {
+                    jac[(row, col)] = (c * t[0] - sn * t[1] + mx * t[2]) * u;
+                    jac[(row + 1, col)] = (sn * t[0] + c * t[1] + my * t[2]) * u;
+                    jac[(row + 2, col)] = t[2] * lever;
+                }
+                if let Some(col) = marker_params.0 {
+                    jac[(row, col)] = cm * u;
+                    jac[(row + 1, col)] = sm * u;
+                    jac[(row + 2, col)] = 0.0;
+                }
+                if let Some(col) = marker_params.1 {
+                    jac[(row, col)] = -sm * u;
+                    jac[(row + 1, col)] = cm * u;
+                    jac[(row + 2, col)] = 0.0;
+                }
+            }
+            prev_v = v;
+            prev_d.copy_from_slice(d);
+        });
+        true
     }
 
     /// [`Series::sensitivity`] of a kinematics matrix's slopes `slopes` (per parameter,
@@ -510,6 +611,53 @@ mod tests {
         }
     }
 
+    /// The analytic Jacobian of the aligned residuals (start pose and clocks fitted per
+    /// recording), geometry and nuisance columns together with the prior rows, against
+    /// central differences of the residuals, off nominal and off the recordings' clocks.
+    fn free_agrees(robot: &Robot, specs: &[ParamSpec], geom: &[f64]) {
+        let all = [series(robot, 1), series(robot, 2)];
+        let mut p = Problem::new(robot, specs, &all);
+        p.prior_scale = 3.0;
+        let g = specs.len();
+        // Start poses a few cm and degrees off, clocks about 20-30 ms and 0.2 % off (not
+        // round: no pose sample's time on the encoders' clock falls on a row's, where the
+        // interpolated path has a kink that differences straddle).
+        let nuis = [
+            0.01, -0.02, 0.05, 0.0317, 1.00213, -0.015, 0.01, -0.04, -0.0183, 0.99788,
+        ];
+        let x = [geom, &nuis[..]].concat();
+        let res = |x: &[f64]| p.residuals(&x[..g], &x[g..], true);
+        let r = res(&x);
+        let mut jac = DMatrix::zeros(0, 0);
+        assert!(p.free_jacobian(&x, &r, &mut jac));
+        assert_eq!((jac.nrows(), jac.ncols()), (r.len(), x.len()));
+        for j in 0..x.len() {
+            // The path is piecewise linear in time: a clock's step small enough that no
+            // sample's difference straddles a row (1e-9 of 20 s against 20 ms rows).
+            let h = if j < g {
+                1e-6 * x[j].abs().max(1e-2)
+            } else {
+                1e-9 * x[j].abs().max(1.0)
+            };
+            let (mut a, mut b) = (x.clone(), x.clone());
+            a[j] += h;
+            b[j] -= h;
+            let (ra, rb) = (res(&a), res(&b));
+            let scale = (0..r.len())
+                .map(|i| ((ra[i] - rb[i]) / (2.0 * h)).abs())
+                .fold(1e-9, f64::max);
+            let name = specs.get(j).map_or("nuisance", |s| s.name.as_str());
+            for i in 0..r.len() {
+                let fd = (ra[i] - rb[i]) / (2.0 * h);
+                assert!(
+                    (jac[(i, j)] - fd).abs() <= 1e-5 * scale,
+                    "{name} (column {j}): row {i}: analytic {} differences {fd}",
+                    jac[(i, j)]
+                );
+            }
+        }
+    }
+
     fn off_nominal(specs: &[ParamSpec]) -> Vec<f64> {
         specs
             .iter()
@@ -555,6 +703,20 @@ mod tests {
         let r = robot("omni4");
         let specs = param_specs(&r, true);
         agrees(&r, &specs, &off_nominal(&specs));
+    }
+
+    /// The aligned fit's Jacobian (diagnose's clock fit, `--free-start`) on an omni robot
+    /// with the marker's offset, and on robots stepped by their sides.
+    #[test]
+    fn free_start_jacobian_matches_differences() {
+        let r = robot("omni4");
+        let specs = param_specs(&r, true);
+        free_agrees(&r, &specs, &off_nominal(&specs));
+        for name in ["mobolab", "rover4"] {
+            let r = robot(name);
+            let specs = turn_law_specs(&r);
+            free_agrees(&r, &specs, &off_nominal(&specs));
+        }
     }
 
     #[test]

@@ -119,9 +119,48 @@ pub(super) fn solve_iter(
         fn column_dots(&self) -> bool {
             true
         }
+        fn block_sparse(&self) -> bool {
+            self.0.series.len() > 1
+        }
+    }
+    /// The geometry and every recording's start pose and clocks: their analytic Jacobian.
+    struct Aligned<'a, 'b>(&'b Problem<'a>);
+    impl crate::fit::Jacobian for Aligned<'_, '_> {
+        fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
+            self.0.free_jacobian(x, r, jac)
+        }
+        fn runs(&self) -> usize {
+            // One pass over the rows carrying the sensitivities, counted as the dead
+            // reckoning's is (its cost grows with the parameters: each one's
+            // sensitivity is stepped at every row).
+            3
+        }
+        fn column_dots(&self) -> bool {
+            true
+        }
+        fn block_sparse(&self) -> bool {
+            // Each recording's start pose and clocks move its rows alone.
+            self.0.series.len() > 1
+        }
     }
     let analytic = fit_geom && !p.free_start;
-    let r = if analytic {
+    // A wheeled-legged robot's paths carry no sensitivities: differences, split below.
+    let aligned = fit_geom && p.free_start && p.series.iter().all(|s| s.legs.is_none());
+    let r = if aligned {
+        // The analytic Jacobian at the solution too: exact where forward differences
+        // are not, and a fit's last Jacobian costs one pass instead of one run per
+        // parameter.
+        crate::fit::levenberg_marquardt_with(
+            &mut f,
+            &mut Aligned(p),
+            &x0,
+            &lo,
+            &hi,
+            max_iter,
+            crate::fit::CONVERGED_REL,
+            false,
+        )
+    } else if analytic {
         // Each point evaluated carries its sensitivities: the Jacobian that follows an
         // accepted step costs no pass over the rows.
         p.speculate.set(true);
