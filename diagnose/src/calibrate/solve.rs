@@ -146,28 +146,15 @@ pub(super) fn solve_iter(
     let analytic = fit_geom && !p.free_start;
     // A wheeled-legged robot's paths carry no sensitivities: differences, split below.
     let aligned = fit_geom && p.free_start && p.series.iter().all(|s| s.legs.is_none());
-    let r = if aligned {
-        // The analytic Jacobian at the solution too: exact where forward differences
-        // are not, and a fit's last Jacobian costs one pass instead of one run per
-        // parameter.
-        crate::fit::levenberg_marquardt_with(
-            &mut f,
-            &mut Aligned(p),
-            &x0,
-            &lo,
-            &hi,
-            max_iter,
-            crate::fit::CONVERGED_REL,
-            false,
-        )
-    } else if analytic {
-        // Each point evaluated carries its sensitivities: the Jacobian that follows an
-        // accepted step costs no pass over the rows.
-        p.speculate.set(true);
-        let mut jac_fn = Analytic(p, g, false);
+    let r = if aligned || analytic {
+        // Dead reckoning: each point evaluated carries its sensitivities, so the
+        // Jacobian that follows an accepted step costs no pass over the rows.
+        p.speculate.set(analytic);
+        let (mut dr, mut al) = (Analytic(p, g, false), Aligned(p));
+        let jac_fn: &mut dyn crate::fit::Jacobian = if aligned { &mut al } else { &mut dr };
         let mut r = crate::fit::levenberg_marquardt_with(
             &mut f,
-            &mut jac_fn,
+            jac_fn,
             &x0,
             &lo,
             &hi,
@@ -176,12 +163,14 @@ pub(super) fn solve_iter(
             false,
         );
         p.speculate.set(false);
-        if p.differences_at_solution && jac_fn.2 {
+        // Aligned, the analytic Jacobian at the solution too: exact where forward
+        // differences are not, one pass instead of one run per parameter.
+        if p.differences_at_solution && dr.2 {
             // Forward differences at the solution, as the fit gives them (its analytic
             // Jacobian there is counted as its runs; the differences as one per parameter).
             let at = f(&r.x);
             crate::fit::forward_differences(&mut f, &r.x, &at, &hi, &mut r.jac);
-            r.evaluations = r.evaluations - crate::fit::Jacobian::runs(&jac_fn) + r.x.len();
+            r.evaluations = r.evaluations - crate::fit::Jacobian::runs(&dr) + r.x.len();
         }
         r
     } else {
