@@ -91,7 +91,7 @@ pub trait Jacobian {
     /// Whether the Jacobian is block-sparse: columns nonzero on a span of rows each (a
     /// joint fit of several recordings, each with its own nuisance). The normal
     /// equations then take each pair of columns' dot product over the rows both span
-    /// ([`block_normal_equations`]): the dense product would spend almost all its time
+    /// (`block_normal_equations`): the dense product would spend almost all its time
     /// multiplying zeros.
     fn block_sparse(&self) -> bool {
         false
