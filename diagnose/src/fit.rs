@@ -135,7 +135,7 @@ pub(crate) fn block_normal_equations(
     (jtj, g)
 }
 
-/// A dot product with four running sums (vectorised).
+/// A dot product with four independent running sums (the loop need not wait on one).
 fn dot(a: &[f64], b: &[f64]) -> f64 {
     let mut acc = [0.0f64; 4];
     let (ca, cb) = (a.chunks_exact(4), b.chunks_exact(4));

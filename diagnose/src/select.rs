@@ -846,8 +846,8 @@ fn fit_run_cost(e: Effect, ground_uses_actuator: bool, stepper: bool) -> f64 {
 const ROTOR_RUN_COST: f64 = 4.0;
 
 /// The indices of `todo` by the expected cost of their fits, dearest first (ties in
-/// `todo`'s order): the starts, the zoom ([`zooms`]: 28 runs) and the local fit (about 8 iterations of p + 1 runs), times
-/// the cost of a run.
+/// `todo`'s order): the starts, the zoom ([`zooms`]: `ZOOM_PASSES` x `ZOOM_POINTS` runs)
+/// and the local fit (about 8 iterations of p + 1 runs), times the cost of a run.
 fn dearest_first(
     todo: &[(Effect, Vec<Vec<f64>>)],
     params: impl Fn(Effect) -> usize,
