@@ -241,25 +241,36 @@ impl<'a> Evaluator<'a> {
                 }
                 (best, floor)
             };
-            let held = best_with_lag(&ev);
             // Merged rows carry interval means: held is the reading that keeps their
-            // travel exact, so the linear one is not tried.
-            let linear = (!p.commands_are_means).then(|| {
+            // travel exact, so the linear one is not tried. Each reading on its own
+            // evaluator and thread (the same numbers as one after the other).
+            let noise = ev.noise;
+            let (held, linear) = std::thread::scope(|s| {
+                let linear = (!p.commands_are_means).then(|| {
+                    s.spawn(move || {
+                        let other = Evaluator::with_noise(p, noise);
+                        other.linear_commands.set(true);
+                        (best_with_lag(&other), other.runs.get())
+                    })
+                });
+                let held = best_with_lag(&ev);
+                let linear =
+                    linear.map(|h| h.join().unwrap_or_else(|e| std::panic::resume_unwind(e)));
+                (held, linear)
+            });
+            let linear = linear.map(|(best, (g, a))| {
+                let (g0, a0) = ev.runs.get();
+                ev.runs.set((g0 + g, a0 + a));
+                best
+            });
+            if let Some(linear) = linear.filter(|l| l.0 < held.0) {
                 ev.linear_commands.set(true);
                 *ev.act_cache.borrow_mut() = None;
                 *ev.ground_cache.borrow_mut() = None;
-                best_with_lag(&ev)
-            });
-            if let Some(linear) = linear.filter(|l| l.0 < held.0) {
                 nominal = ev.evaluate(&Model::default(), Fold::All);
                 ev.act_floor_rss.set(linear.1);
             } else {
                 ev.act_floor_rss.set(held.1);
-                if linear.is_some() {
-                    ev.linear_commands.set(false);
-                    *ev.act_cache.borrow_mut() = None;
-                    *ev.ground_cache.borrow_mut() = None;
-                }
             }
         }
         ev.noise = estimate_noise(p, &nominal);
@@ -787,7 +798,10 @@ mod tests {
             // The same path, another actuator model: ground residuals from the cache.
             (both.clone(), Fold::All),
             // The same angles, another path: actuator residuals from the cache.
-            (both.with(Effect::WheelDiameterMismatch, vec![0.99]), Fold::All),
+            (
+                both.with(Effect::WheelDiameterMismatch, vec![0.99]),
+                Fold::All,
+            ),
             (lag(0.05), Fold::Even),
             // Another fold on the same path and angles.
             (lag(0.05), Fold::Odd),

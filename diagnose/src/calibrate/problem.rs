@@ -10,8 +10,8 @@ use crate::calibrate::objective::{
     DR_HEADING_LEVER_M,
 };
 use crate::calibrate::params::{robot_with, GeomKind, ParamSpec};
-use crate::calibrate::pool::par_jobs;
-use crate::calibrate::sens;
+use crate::calibrate::pool::{par_jobs, threads_for};
+use crate::calibrate::sens::{self, ColumnSlab};
 use crate::calibrate::series::{Nuisance, Path, Series, NUIS};
 use crate::calibrate::step::Stepper;
 use crate::calibrate::turn_law::TurnLaw;
@@ -234,6 +234,20 @@ impl<'a> Problem<'a> {
     /// (`r`: the residuals at `x` as the fit sees them). False when it has none (start
     /// poses not fitted, a wheeled-legged robot, a singular geometry).
     pub(super) fn free_jacobian(&self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
+        let rows = self.series.iter().map(|s| s.t.len()).max().unwrap_or(0);
+        self.free_jacobian_on(x, r, jac, threads_for(rows, 2))
+    }
+
+    /// [`Problem::free_jacobian`] with each recording's parameter columns split over
+    /// `threads` (1 or 2) threads: the same numbers, to the bit (each parameter's
+    /// sensitivity is stepped on its own; both threads step the path itself).
+    pub(super) fn free_jacobian_on(
+        &self,
+        x: &[f64],
+        r: &[f64],
+        jac: &mut DMatrix<f64>,
+        threads: usize,
+    ) -> bool {
         let g = self.specs.len();
         if !self.free_start || x.len() != g + NUIS * self.series.len() {
             return false;
@@ -253,9 +267,32 @@ impl<'a> Problem<'a> {
         let marker = self.marker(geom);
         let c = self.cache.borrow();
         let mut row = 0;
+        let p = cols.path.len();
+        let nrows = jac.nrows();
         for (i, s) in self.series.iter().enumerate() {
             let nu = Nuisance::from(&nuis[i * NUIS..(i + 1) * NUIS]);
-            if !s.free_jacobian(&stepper, &slopes, &cols, &nu, marker, jac, row) {
+            let walk = |part: std::ops::Range<usize>, out: &mut ColumnSlab| {
+                s.free_jacobian(&stepper, &slopes, &cols, &nu, marker, part, out, row)
+            };
+            let ok = if threads > 1 && p >= 2 {
+                // Columns before the second half's first to this thread, the rest (the
+                // marker's and the nuisance's among them) to the other.
+                let half = p / 2;
+                let (left, right) = jac.as_mut_slice().split_at_mut(cols.path[half] * nrows);
+                let mut a = ColumnSlab::new(left, nrows, 0);
+                let mut b = ColumnSlab::new(right, nrows, cols.path[half]);
+                std::thread::scope(|sc| {
+                    let other = sc.spawn(|| walk(half..p, &mut b));
+                    let mine = walk(0..half, &mut a);
+                    let theirs = other
+                        .join()
+                        .unwrap_or_else(|e| std::panic::resume_unwind(e));
+                    mine && theirs
+                })
+            } else {
+                walk(0..p, &mut ColumnSlab::new(jac.as_mut_slice(), nrows, 0))
+            };
+            if !ok {
                 return false;
             }
             nuisance_jacobian_into(s, &c.1[i], &nu, marker, jac, row, g + i * NUIS);

@@ -15,6 +15,7 @@ use crate::calibrate::turn_law::{Sides, TurnLaw};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::robot::Robot;
+use std::ops::Range;
 
 /// d/dd of [`arc_coefficients`]: (d(sin d / d), d((1 - cos d) / d)).
 #[inline]
@@ -127,12 +128,12 @@ impl TwistSlopes {
         }
     }
 
-    /// The twist derivatives of one row into `out` (one per parameter).
+    /// The twist derivatives of one row into `out` (one per parameter of `params`).
     #[inline]
-    fn row(&self, inc: &[f64], rho: f64, out: &mut [[f64; 3]]) {
+    fn row(&self, params: Range<usize>, inc: &[f64], rho: f64, out: &mut [[f64; 3]]) {
         match self {
             TwistSlopes::Linear(v) => {
-                for (o, cols) in out.iter_mut().zip(v) {
+                for (o, cols) in out.iter_mut().zip(&v[params]) {
                     let mut t = [0.0; 3];
                     for (c, w) in cols.iter().zip(inc) {
                         t[0] += c[0] * w;
@@ -143,7 +144,7 @@ impl TwistSlopes {
                 }
             }
             TwistSlopes::Sides(v) => {
-                for (o, d) in out.iter_mut().zip(v) {
+                for (o, d) in out.iter_mut().zip(&v[params]) {
                     let (a, b) = (
                         d.plus.0.step(&d.plus.1, rho, inc),
                         d.minus.0.step(&d.minus.1, rho, inc),
@@ -223,7 +224,7 @@ impl Series {
         let mut values = Vec::with_capacity(need.len());
         let mut out = Vec::with_capacity(need.len() * p);
         let mut next = 0usize;
-        self.walk_sensitivities(stepper, slopes, |k, v, d| {
+        self.walk_sensitivities(stepper, slopes, 0..p, |k, v, d| {
             if need.get(next) == Some(&k) {
                 values.push(v);
                 out.extend_from_slice(d);
@@ -238,16 +239,17 @@ impl Series {
     }
 
     /// Steps the path of `stepper` (as [`Series::path_by`], to the bit) with its
-    /// sensitivities to the parameters of `slopes`, row by row: `visit` gets each row's
-    /// index, (x, y, theta) and d(x, y, theta)/d q_j, from row 0 (the origin, no
-    /// sensitivity) on.
+    /// sensitivities to the parameters `params` of `slopes`, row by row: `visit` gets
+    /// each row's index, (x, y, theta) and d(x, y, theta)/d q_j, from row 0 (the origin,
+    /// no sensitivity) on.
     fn walk_sensitivities(
         &self,
         stepper: &Stepper,
         slopes: &TwistSlopes,
+        params: Range<usize>,
         mut visit: impl FnMut(usize, [f64; 3], &[[f64; 3]]),
     ) {
-        let p = slopes.count();
+        let p = params.len();
         let sides = match (&self.rho, stepper.sides()) {
             (Some(rho), Some(s)) => Some((rho, s)),
             _ => None,
@@ -263,7 +265,7 @@ impl Series {
                 Some((_, (s, law))) => s.step(law, r, inc),
                 None => stepper.forward(inc),
             };
-            slopes.row(inc, r, &mut dt);
+            slopes.row(params.clone(), inc, r, &mut dt);
             // The arc step (as the path's), with the quantities its derivative needs.
             let (st, ct) = (h.sin, h.cos);
             let (s, c, lx, ly) = step::arc_step(&mut x, &mut y, &mut h, &tw);
@@ -282,11 +284,11 @@ impl Series {
 
     /// The Jacobian rows of [`residuals_into`](crate::calibrate::objective::residuals_into)
     /// (the aligned residuals: start pose and clocks `nu`) with respect to the path
-    /// parameters of `cols` (sensitivities stepped along with the path, one pass) and
-    /// the marker's, into `jac` rows from `row0`; columns are parameter indices. The path
-    /// is read linearly between rows at each pose sample's time on the encoders' clock,
-    /// so its sensitivities are too. False for a wheeled-legged robot (its kinematics
-    /// follow the legs: not handled here).
+    /// parameters `part` of `cols` (sensitivities stepped along with the path, one pass)
+    /// and the marker's that `out` holds, into `out`'s rows from `row0`; columns are
+    /// parameter indices. The path is read linearly between rows at each pose sample's
+    /// time on the encoders' clock, so its sensitivities are too. False for a
+    /// wheeled-legged robot (its kinematics follow the legs: not handled here).
     #[allow(clippy::too_many_arguments)]
     pub(crate) fn free_jacobian(
         &self,
@@ -295,13 +297,18 @@ impl Series {
         cols: &Columns,
         nu: &Nuisance,
         marker: (f64, f64),
-        jac: &mut nalgebra::DMatrix<f64>,
+        part: Range<usize>,
+        jac: &mut ColumnSlab,
         row0: usize,
     ) -> bool {
         if self.legs.is_some() {
             return false;
         }
-        let (path_params, marker_params) = (&cols.path, cols.marker);
+        let path_params = &cols.path[part.clone()];
+        let marker_params = (
+            cols.marker.0.filter(|c| jac.holds(*c)),
+            cols.marker.1.filter(|c| jac.holds(*c)),
+        );
         let p = path_params.len();
         let n = self.t.len();
         let u = 1.0 / RES_UNIT_M;
@@ -324,7 +331,7 @@ impl Series {
         // The row before the visited one: its values and sensitivities.
         let (mut prev_v, mut prev_d) = ([0.0f64; 3], vec![[0.0f64; 3]; p]);
         let mut dq = vec![[0.0f64; 3]; p];
-        self.walk_sensitivities(stepper, slopes, |k, v, d| {
+        self.walk_sensitivities(stepper, slopes, part, |k, v, d| {
             while let Some(&(j, _, f)) = samples.peek().filter(|s| s.1 == k) {
                 samples.next();
                 let th = prev_v[2] + (v[2] - prev_v[2]) * f;
@@ -347,19 +354,19 @@ impl Series {
                 };
                 let row = row0 + 3 * j;
                 for (t, &col) in dq.iter().zip(path_params) {
-                    jac[(row, col)] = (c * t[0] - sn * t[1] + mx * t[2]) * u;
-                    jac[(row + 1, col)] = (sn * t[0] + c * t[1] + my * t[2]) * u;
-                    jac[(row + 2, col)] = t[2] * lever;
+                    jac.set(row, col, (c * t[0] - sn * t[1] + mx * t[2]) * u);
+                    jac.set(row + 1, col, (sn * t[0] + c * t[1] + my * t[2]) * u);
+                    jac.set(row + 2, col, t[2] * lever);
                 }
                 if let Some(col) = marker_params.0 {
-                    jac[(row, col)] = cm * u;
-                    jac[(row + 1, col)] = sm * u;
-                    jac[(row + 2, col)] = 0.0;
+                    jac.set(row, col, cm * u);
+                    jac.set(row + 1, col, sm * u);
+                    jac.set(row + 2, col, 0.0);
                 }
                 if let Some(col) = marker_params.1 {
-                    jac[(row, col)] = -sm * u;
-                    jac[(row + 1, col)] = cm * u;
-                    jac[(row + 2, col)] = 0.0;
+                    jac.set(row, col, -sm * u);
+                    jac.set(row + 1, col, cm * u);
+                    jac.set(row + 2, col, 0.0);
                 }
             }
             prev_v = v;
@@ -543,6 +550,31 @@ pub(crate) fn split_params(specs: &[ParamSpec]) -> Columns {
     }
 }
 
+/// Some whole columns of a column-major Jacobian (nalgebra's layout), from column
+/// `first` on: what one thread writes while another writes the columns before them.
+pub(crate) struct ColumnSlab<'m> {
+    data: &'m mut [f64],
+    nrows: usize,
+    first: usize,
+}
+
+impl<'m> ColumnSlab<'m> {
+    /// The columns of `data` (whole columns of `nrows` rows), the first being `first`.
+    pub(crate) fn new(data: &'m mut [f64], nrows: usize, first: usize) -> Self {
+        ColumnSlab { data, nrows, first }
+    }
+
+    /// Whether column `col` is in the slab.
+    pub(crate) fn holds(&self, col: usize) -> bool {
+        col >= self.first && (col - self.first + 1) * self.nrows <= self.data.len()
+    }
+
+    #[inline]
+    fn set(&mut self, row: usize, col: usize, v: f64) {
+        self.data[(col - self.first) * self.nrows + row] = v;
+    }
+}
+
 /// Jacobian columns (parameter indices) of the parameters the paths depend on, and of
 /// the marker's x and y.
 pub(crate) struct Columns {
@@ -631,6 +663,14 @@ mod tests {
         let mut jac = DMatrix::zeros(0, 0);
         assert!(p.free_jacobian(&x, &r, &mut jac));
         assert_eq!((jac.nrows(), jac.ncols()), (r.len(), x.len()));
+        // The parameters' columns split over two threads (the marker's with the second
+        // half) are the one thread's, to the bit.
+        let (mut one, mut two) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
+        assert!(p.free_jacobian_on(&x, &r, &mut one, 1));
+        assert!(p.free_jacobian_on(&x, &r, &mut two, 2));
+        let bits = |m: &DMatrix<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
+        assert_eq!(bits(&one), bits(&two), "split over two threads");
+        assert_eq!(bits(&one), bits(&jac), "as the fit takes it");
         for j in 0..x.len() {
             // The path is piecewise linear in time: a clock's step small enough that no
             // sample's difference straddles a row (1e-9 of 20 s against 20 ms rows).
