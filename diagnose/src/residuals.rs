@@ -26,6 +26,10 @@ pub struct ForkSpec {
 
 /// Simulated angle series per wheel (`None` for wheels without commands), shared.
 type WheelAngles = Rc<Vec<Option<Vec<f64>>>>;
+/// Per actuator-compared wheel: (wheel index, error per compared row), as [`Eval::act`].
+type WheelResiduals = Vec<(usize, Vec<f64>)>;
+/// The ground residuals of one path, on one fold, weighed by one noise.
+type GroundResiduals = (Rc<Path>, Fold, Noise, Eval);
 
 /// Which samples take part: all, or alternate time blocks (for held-out validation).
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -143,10 +147,10 @@ pub struct Evaluator<'a> {
     /// The ground residuals of the last path evaluated, on its fold and with the noise
     /// that weighs its start pose: a fit of an actuator effect leaves the path as it was
     /// (the same `Rc`).
-    ground_res_cache: RefCell<Option<(Rc<Path>, Fold, Noise, Eval)>>,
+    ground_res_cache: RefCell<Option<GroundResiduals>>,
     /// The actuator residuals of the last wheel angles evaluated, on its fold: a fit of
     /// a ground effect leaves the angles as they were (the same `Rc`).
-    act_res_cache: RefCell<Option<(WheelAngles, Fold, Vec<(usize, Vec<f64>)>)>>,
+    act_res_cache: RefCell<Option<(WheelAngles, Fold, WheelResiduals)>>,
 }
 
 /// Cap of the lag-1 autocorrelation used to discount the sample count: a residual that
@@ -776,8 +780,10 @@ mod tests {
     #[test]
     fn cached_residuals_are_a_fresh_evaluators_to_the_bit() {
         let robot = presets::diff_drive("dc_diff", 0.05, 0.40, Drive::default());
-        let mut cfg = RecordConfig::default();
-        cfg.row_rate_hz = 50.0;
+        let cfg = RecordConfig {
+            row_rate_hz: 50.0,
+            ..RecordConfig::default()
+        };
         let motion = Motion::Random(RandomMotion {
             duration_s: 20.0,
             v_max_m_s: 0.3,
