@@ -285,7 +285,7 @@ impl Series {
     /// The Jacobian rows of [`residuals_into`](crate::calibrate::objective::residuals_into)
     /// (the aligned residuals: start pose and clocks `nu`) with respect to the path
     /// parameters `part` of `cols` (sensitivities stepped along with the path, one pass)
-    /// and the marker's that `out` holds, into `out`'s rows from `row0`; columns are
+    /// and the marker's that `jac` holds, into `jac`'s rows from `row0`; columns are
     /// parameter indices. The path is read linearly between rows at each pose sample's
     /// time on the encoders' clock, so its sensitivities are too. False for a
     /// wheeled-legged robot (its kinematics follow the legs: not handled here).
