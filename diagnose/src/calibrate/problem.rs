@@ -234,19 +234,19 @@ impl<'a> Problem<'a> {
     /// (`r`: the residuals at `x` as the fit sees them). False when it has none (start
     /// poses not fitted, a wheeled-legged robot, a singular geometry).
     pub(super) fn free_jacobian(&self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
-        let rows = self.series.iter().map(|s| s.t.len()).max().unwrap_or(0);
-        self.free_jacobian_on(x, r, jac, threads_for(rows, 2))
+        self.free_jacobian_on(x, r, jac, None)
     }
 
     /// [`Problem::free_jacobian`] with each recording's parameter columns split over
-    /// `threads` (1 or 2) threads: the same numbers, to the bit (each parameter's
-    /// sensitivity is stepped on its own; both threads step the path itself).
+    /// `threads` (1 or 2) threads, or as many as its rows are worth ([`threads_for`])
+    /// when `None`: the same numbers, to the bit (each parameter's sensitivity is stepped
+    /// on its own; both threads step the path itself).
     pub(super) fn free_jacobian_on(
         &self,
         x: &[f64],
         r: &[f64],
         jac: &mut DMatrix<f64>,
-        threads: usize,
+        threads: Option<usize>,
     ) -> bool {
         let g = self.specs.len();
         if !self.free_start || x.len() != g + NUIS * self.series.len() {
@@ -274,6 +274,7 @@ impl<'a> Problem<'a> {
             let walk = |part: std::ops::Range<usize>, out: &mut ColumnSlab| {
                 s.free_jacobian(&stepper, &slopes, &cols, &nu, marker, part, out, row)
             };
+            let threads = threads.unwrap_or_else(|| threads_for(s.t.len(), 2));
             let ok = if threads > 1 && p >= 2 {
                 // Columns before the second half's first to this thread, the rest (the
                 // marker's and the nuisance's among them) to the other.

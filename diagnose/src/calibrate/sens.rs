@@ -666,8 +666,8 @@ mod tests {
         // The parameters' columns split over two threads (the marker's with the second
         // half) are the one thread's, to the bit.
         let (mut one, mut two) = (DMatrix::zeros(0, 0), DMatrix::zeros(0, 0));
-        assert!(p.free_jacobian_on(&x, &r, &mut one, 1));
-        assert!(p.free_jacobian_on(&x, &r, &mut two, 2));
+        assert!(p.free_jacobian_on(&x, &r, &mut one, Some(1)));
+        assert!(p.free_jacobian_on(&x, &r, &mut two, Some(2)));
         let bits = |m: &DMatrix<f64>| m.iter().map(|v| v.to_bits()).collect::<Vec<_>>();
         assert_eq!(bits(&one), bits(&two), "split over two threads");
         assert_eq!(bits(&one), bits(&jac), "as the fit takes it");
