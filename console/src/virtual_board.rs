@@ -241,6 +241,10 @@ impl VirtualBoard {
         match (self.running_trial, status.trial) {
             (None, Some(id)) if before != Some(id) || !idle => {
                 // Odometry restarts at zero when a program starts: remember the true start.
+                // Each trial draws its own floor noise: the idle board steps in real time,
+                // and a coasting wheel's tail would otherwise move every later trial's
+                // realisation by however long the host paused.
+                self.hw.sim.reseed_travel_noise(u64::from(id));
                 self.running_trial = Some((id, self.hw.sim.true_pose()));
             }
             (Some((id, start)), _) if idle => {

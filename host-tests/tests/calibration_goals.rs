@@ -269,7 +269,8 @@ fn omni_procedure_over_cables_improves_at_least_80_percent() {
     // after runs) on [Redundant omni]'s robot with wheels 1 % to 3 % off their nominal radius, over
     // cables every 30 mm costing 0.8 mm of travel per crossing (world-fixed, across x:
     // 4W-1 crosses them). Ten runs per path before and after, as in [Redundant omni] (Table II: 80 %).
-    // Measured: 42.3 mm -> 5.5 mm, 87 %.
+    // Measured: 42.3 mm -> 5.8 mm, 86 % (the same on every run since each trial draws its
+    // own floor noise; before, 80-87 % by how long the host paused between runs).
     use wheelcal::calibration::procedure::{Kind, ProcedureReport};
     let r = robot("omni4.toml");
     let effects = [

@@ -330,6 +330,15 @@ impl SimRobot {
         Ok(())
     }
 
+    /// Restarts the travel-noise stream at the one `key` names (with the config's seed), so
+    /// a caller that steps for a time it does not control (a virtual board idling in real
+    /// time) can still give each trial the same realisation on every run.
+    pub fn reseed_travel_noise(&mut self, key: u64) {
+        let mut seeder = ChaCha8Rng::seed_from_u64(self.cfg.seed);
+        let base: u64 = seeder.random();
+        self.rng_ground = ChaCha8Rng::seed_from_u64(base ^ key.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+    }
+
     /// Simulated time, s.
     pub fn time(&self) -> f64 {
         self.t
