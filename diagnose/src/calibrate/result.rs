@@ -22,6 +22,37 @@ pub struct FittedParam {
     pub sigma: f64,
 }
 
+impl FittedParam {
+    /// Whether the 1-sigma uncertainty is wider than the whole plausible range: the
+    /// data then fix the parameter no better than the range itself (the covariance takes
+    /// the prior at a millionth of its weight, so such a sigma is the data's alone).
+    pub fn sigma_exceeds_range(&self) -> bool {
+        self.sigma > self.spec.plausible.1 - self.spec.plausible.0
+    }
+}
+
+/// One geometry line of the text report.
+fn param_line(p: &FittedParam, implausible: bool) -> String {
+    let flag = if implausible {
+        "  (unbounded: implausible, see below)"
+    } else {
+        ""
+    };
+    let value = if p.sigma_exceeds_range() {
+        // The figure is in the JSON; printed it reads as a +-795 % error.
+        format!(
+            "{:.5} (not fixed by the data: its sigma is wider than the plausible range)",
+            p.value
+        )
+    } else {
+        format!("{:.5} ± {:.5}", p.value, p.sigma)
+    };
+    format!(
+        "  {:<24} {value}  (nominal {}, plausible {:.4}..{:.4}){flag}",
+        p.spec.name, p.spec.nominal, p.spec.plausible.0, p.spec.plausible.1
+    )
+}
+
 /// Fitted geometry of one wheel.
 #[derive(Debug, Clone, Serialize)]
 pub struct WheelGeometry {
@@ -374,21 +405,8 @@ impl fmt::Display for Calibration {
         }
         writeln!(f, "geometry:")?;
         for p in &self.params {
-            let flag = if self.implausible.iter().any(|i| i.name == p.spec.name) {
-                "  (unbounded: implausible, see below)"
-            } else {
-                ""
-            };
-            writeln!(
-                f,
-                "  {:<24} {:.5} ± {:.5}  (nominal {}, plausible {:.4}..{:.4}){flag}",
-                p.spec.name,
-                p.value,
-                p.sigma,
-                p.spec.nominal,
-                p.spec.plausible.0,
-                p.spec.plausible.1
-            )?;
+            let implausible = self.implausible.iter().any(|i| i.name == p.spec.name);
+            writeln!(f, "{}", param_line(p, implausible))?;
         }
         for w in &self.geometry() {
             write!(
@@ -570,6 +588,7 @@ impl fmt::Display for Calibration {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::calibrate::params::GeomKind;
 
     fn row(name: &str, v: [f64; 4]) -> Heldout {
         Heldout {
@@ -580,6 +599,41 @@ mod tests {
             aligned_before_m: v[2],
             aligned_after_m: v[3],
         }
+    }
+
+    fn param(sigma: f64) -> FittedParam {
+        FittedParam {
+            spec: ParamSpec {
+                kind: GeomKind::Radius(0),
+                name: "radius_scale_w1".into(),
+                effect: "wheel_diameter_mismatch",
+                nominal: 1.0,
+                plausible: (0.85, 1.15),
+                stands_for: "",
+            },
+            value: 1.10198,
+            sigma,
+        }
+    }
+
+    /// A sigma wider than the whole plausible range (0.30 here) says the data do not fix
+    /// the parameter: the line says so in words instead of printing "± 7.95" (a mecanum
+    /// square session's radius, whose directions only the prior holds). A sigma inside
+    /// the range is printed as it is.
+    #[test]
+    fn a_sigma_wider_than_the_plausible_range_reads_as_not_fixed() {
+        let loose = param_line(&param(7.95184), false);
+        assert!(loose.contains("1.10198 (not fixed by the data"), "{loose}");
+        assert!(!loose.contains("7.95"), "{loose}");
+        let tight = param_line(&param(0.00213), false);
+        assert!(tight.contains("1.10198 ± 0.00213"), "{tight}");
+        // Just inside the range's width the data still say as much as the range does.
+        let edge = param_line(&param(0.299), true);
+        assert!(
+            edge.contains("± 0.29900") && edge.contains("implausible"),
+            "{edge}"
+        );
+        assert!(param(0.31).sigma_exceeds_range() && !param(0.29).sigma_exceeds_range());
     }
 
     /// The column means of a hand-made table, each the sum of three values over 3 (a
