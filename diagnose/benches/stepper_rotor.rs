@@ -1,8 +1,9 @@
 //! Bench binary: one replay of a stepper wheel with pull-out (`missed_steps`' default
 //! mechanism, the rotor sub-stepped at 1 ms) over 1,000,000 rows at 7 ms, a command that
 //! swings over the acceleration limit twice a second, so most rows are sub-stepped.
-//! This replay is the critical path of round 0 on the 3.6 M-row diagnose bench. Prints
-//! the best of seven runs.
+//! The pull-out fit made of these replays was the longest of round 0's fits on the
+//! 3.6 M-row diagnose bench (8.9 s of its 10 s, BENCHMARKS.md). Prints the best of seven
+//! runs.
 //!
 //!     cargo bench -p diagnose --bench stepper_rotor
 

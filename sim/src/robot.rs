@@ -99,6 +99,8 @@ pub struct SimRobot {
     t: f64,
     dphi: Vec<f64>,
     rng_ground: ChaCha8Rng,
+    /// The seed `rng_ground` started from (each trial of a virtual board restarts from it).
+    ground_seed: u64,
     rng_vision: ChaCha8Rng,
     rng_imu: ChaCha8Rng,
     next_vision_t: f64,
@@ -170,7 +172,8 @@ impl SimRobot {
         check_range("dc.viscous", dc.viscous, 0.0, 1e6)?;
         check_range("dc.coulomb", dc.coulomb, 0.0, 1e6)?;
         let mut seeder = ChaCha8Rng::seed_from_u64(cfg.seed);
-        let rng_ground = ChaCha8Rng::seed_from_u64(seeder.random());
+        let ground_seed: u64 = seeder.random();
+        let rng_ground = ChaCha8Rng::seed_from_u64(ground_seed);
         let rng_vision = ChaCha8Rng::seed_from_u64(seeder.random());
         let rng_imu = ChaCha8Rng::seed_from_u64(seeder.random());
         let actuators = (0..n)
@@ -225,6 +228,7 @@ impl SimRobot {
             t: 0.0,
             dphi: vec![0.0; n],
             rng_ground,
+            ground_seed,
             rng_vision,
             rng_imu,
             next_vision_t: 0.0,
@@ -334,9 +338,8 @@ impl SimRobot {
     /// a caller that steps for a time it does not control (a virtual board idling in real
     /// time) can still give each trial the same realisation on every run.
     pub fn reseed_travel_noise(&mut self, key: u64) {
-        let mut seeder = ChaCha8Rng::seed_from_u64(self.cfg.seed);
-        let base: u64 = seeder.random();
-        self.rng_ground = ChaCha8Rng::seed_from_u64(base ^ key.wrapping_mul(0x9e37_79b9_7f4a_7c15));
+        let seed = self.ground_seed ^ key.wrapping_mul(0x9e37_79b9_7f4a_7c15);
+        self.rng_ground = ChaCha8Rng::seed_from_u64(seed);
     }
 
     /// Simulated time, s.

@@ -276,8 +276,9 @@ impl<'a> Problem<'a> {
             };
             let threads = threads.unwrap_or_else(|| threads_for(s.t.len(), 2));
             let ok = if threads > 1 && p >= 2 {
-                // Columns before the second half's first to this thread, the rest (the
-                // marker's and the nuisance's among them) to the other.
+                // The columns before the second half's first to this thread, the rest to
+                // the other; each writes the marker's columns its slab holds (the
+                // nuisance's are written below, on this thread).
                 let half = p / 2;
                 let (left, right) = jac.as_mut_slice().split_at_mut(cols.path[half] * nrows);
                 let mut a = ColumnSlab::new(left, nrows, 0);
