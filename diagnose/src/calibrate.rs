@@ -88,8 +88,8 @@ use problem::Problem;
 use refusals::{check_inputs, refuse_bad_fit};
 use series::NUIS;
 use solve::{
-    aligned_rmse, correlations, covariance, geom_bounds, noise_scale, nuisance_start, refs, solve,
-    solve_iter, Solved,
+    aligned_rmse, correlations, covariance, noise_scale, nuisance_start, refs, solve, solve_iter,
+    OneStep, Solved,
 };
 
 /// |correlation| above which two parameters are reported not separable.
@@ -468,51 +468,13 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         // Dead reckoning (squared loss): each fold is one Gauss-Newton step from the full
         // solution with the held-out recordings' rows taken out of the normal equations
         // (no refit: CV costs next to nothing). Otherwise a refit from the full solution.
-        let gn = (!cfg.free_start && cfg.huber.is_none()).then(|| {
-            let r = p.residuals(&fitted.geom, &fitted.nuis, false);
-            let jac = &fitted.jac;
-            let mut h = jac.transpose() * jac;
-            let mut grad = jac.transpose() * nalgebra::DVector::from_column_slice(&r);
-            for (w, target, sigma) in &p.priors {
-                let v: f64 = w.iter().zip(&fitted.geom).map(|(a, b)| a * b).sum();
-                let pr = (v - target) / sigma * p.prior_scale;
-                for a in 0..g {
-                    grad[a] += w[a] / sigma * p.prior_scale * pr;
-                    for b in 0..g {
-                        h[(a, b)] += w[a] * w[b] / (sigma * sigma) * p.prior_scale * p.prior_scale;
-                    }
-                }
-            }
-            let mut at = vec![0usize];
-            for s in &series {
-                at.push(at.last().copied().unwrap_or(0) + 3 * s.samples.len());
-            }
-            (h, grad, r, at)
-        });
-        let (blo, bhi) = if p.plausible_bounds {
-            specs.iter().map(|s| s.plausible).unzip()
-        } else {
-            geom_bounds(&specs)
-        };
+        let gn = (!cfg.free_start && cfg.huber.is_none()).then(|| OneStep::new(&p, &fitted));
         let t0 = std::time::Instant::now();
         // One-step folds: (recording, group, geometry without the group), replayed after.
         let mut stepped: Vec<(usize, &String, Vec<f64>)> = Vec::new();
         for (k, gname) in distinct.iter().enumerate().filter(|_| distinct.len() >= 2) {
-            if let Some((h, grad, r, at)) = &gn {
-                let (mut h, mut grad) = (h.clone(), grad.clone());
-                for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
-                    let ji = fitted.jac.rows(at[i], at[i + 1] - at[i]);
-                    h -= ji.transpose() * ji;
-                    grad -=
-                        ji.transpose() * nalgebra::DVector::from_column_slice(&r[at[i]..at[i + 1]]);
-                }
-                let step = h
-                    .lu()
-                    .solve(&(-grad))
-                    .unwrap_or_else(|| nalgebra::DVector::zeros(g));
-                let geom: Vec<f64> = (0..g)
-                    .map(|a| (fitted.geom[a] + step[a]).clamp(blo[a], bhi[a]))
-                    .collect();
+            if let Some(one) = &gn {
+                let geom = one.without((0..series.len()).filter(|&j| &groups[j] == gname));
                 for i in (0..series.len()).filter(|&j| &groups[j] == gname) {
                     stepped.push((i, gname, geom.clone()));
                 }

@@ -288,6 +288,83 @@ impl crate::fit::Jacobian for SplitDifferences<'_, '_> {
     }
 }
 
+/// A dead-reckoning fit's normal equations at its solution (squared loss, the prior rows
+/// included), from which the fit without some recordings is one Gauss-Newton step with
+/// their rows taken out: cross-validation's folds and the model ladder's, at next to no
+/// cost instead of a refit each (within 0.01 mm of refits on the real squares).
+pub(super) struct OneStep<'s> {
+    /// J^T J and J^T r over every recording, with the prior rows.
+    h: DMatrix<f64>,
+    grad: nalgebra::DVector<f64>,
+    /// The data residuals at the solution.
+    r: Vec<f64>,
+    /// First data row of each recording (and the end).
+    at: Vec<usize>,
+    fitted: &'s Solved,
+    lo: Vec<f64>,
+    hi: Vec<f64>,
+}
+
+impl<'s> OneStep<'s> {
+    /// The normal equations of `p` at its solution `fitted` (geometry only: dead
+    /// reckoning fits nothing per recording).
+    pub(super) fn new(p: &Problem, fitted: &'s Solved) -> OneStep<'s> {
+        let g = p.specs.len();
+        let r = p.residuals(&fitted.geom, &fitted.nuis, false);
+        let jac = &fitted.jac;
+        let mut h = jac.transpose() * jac;
+        let mut grad = jac.transpose() * nalgebra::DVector::from_column_slice(&r);
+        for (w, target, sigma) in &p.priors {
+            let v: f64 = w.iter().zip(&fitted.geom).map(|(a, b)| a * b).sum();
+            let pr = (v - target) / sigma * p.prior_scale;
+            for a in 0..g {
+                grad[a] += w[a] / sigma * p.prior_scale * pr;
+                for b in 0..g {
+                    h[(a, b)] += w[a] * w[b] / (sigma * sigma) * p.prior_scale * p.prior_scale;
+                }
+            }
+        }
+        let mut at = vec![0usize];
+        for s in &p.series {
+            at.push(at.last().copied().unwrap_or(0) + 3 * s.samples.len());
+        }
+        let (lo, hi) = if p.plausible_bounds {
+            p.specs.iter().map(|s| s.plausible).unzip()
+        } else {
+            geom_bounds(p.specs)
+        };
+        OneStep {
+            h,
+            grad,
+            r,
+            at,
+            fitted,
+            lo,
+            hi,
+        }
+    }
+
+    /// The geometry fitted without the recordings `out` (indices into the problem's):
+    /// one Gauss-Newton step from the solution, within the fit's bounds.
+    pub(super) fn without(&self, out: impl IntoIterator<Item = usize>) -> Vec<f64> {
+        let g = self.h.nrows();
+        let (mut h, mut grad) = (self.h.clone(), self.grad.clone());
+        for i in out {
+            let (a, b) = (self.at[i], self.at[i + 1]);
+            let ji = self.fitted.jac.rows(a, b - a);
+            h -= ji.transpose() * ji;
+            grad -= ji.transpose() * nalgebra::DVector::from_column_slice(&self.r[a..b]);
+        }
+        let step = h
+            .lu()
+            .solve(&(-grad))
+            .unwrap_or_else(|| nalgebra::DVector::zeros(g));
+        (0..g)
+            .map(|a| (self.fitted.geom[a] + step[a]).clamp(self.lo[a], self.hi[a]))
+            .collect()
+    }
+}
+
 /// The recordings borrowed one by one.
 pub(super) fn refs(series: &[Series]) -> Vec<&Series> {
     series.iter().collect()
