@@ -4,7 +4,8 @@
 //! Diagnose's models are simulations (thresholds, clamps, integrations), so analytic
 //! Jacobians would be long and fragile; with at most a few parameters, p + 1 model runs
 //! per iteration are affordable. Calibration's dead reckoning carries its sensitivities
-//! and passes them in ([`Jacobian`]). Bounds are enforced by clamping.
+//! and passes them in ([`Jacobian`]). Bounds: a parameter on its bound whose step points
+//! beyond it is held for that step (an active set), and every step is clamped.
 
 use nalgebra::{DMatrix, DVector};
 
@@ -179,7 +180,7 @@ pub struct Fitted {
 }
 
 /// The one Levenberg-Marquardt loop: minimises the sum of squares of `f(x)` from `x0`
-/// within `[lo, hi]` (bounds by clamping), with `jac_fn`'s Jacobian during the
+/// within `[lo, hi]` (an active set at the bounds, then clamping), with `jac_fn`'s Jacobian during the
 /// iterations. The Jacobian returned at the solution is `jac_fn`'s too unless
 /// `final_differences`, then forward differences. Stops when a step lowers the cost by
 /// less than `rel_tol` of it.
