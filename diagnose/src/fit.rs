@@ -180,10 +180,10 @@ pub struct Fitted {
 }
 
 /// The one Levenberg-Marquardt loop: minimises the sum of squares of `f(x)` from `x0`
-/// within `[lo, hi]` (an active set at the bounds, then clamping), with `jac_fn`'s Jacobian during the
-/// iterations. The Jacobian returned at the solution is `jac_fn`'s too unless
-/// `final_differences`, then forward differences. Stops when a step lowers the cost by
-/// less than `rel_tol` of it.
+/// within `[lo, hi]` (an active set at the bounds, then clamping), with `jac_fn`'s
+/// Jacobian during the iterations. The Jacobian returned at the solution is `jac_fn`'s too
+/// unless `final_differences`, then forward differences. Stops when a step lowers the
+/// cost by less than `rel_tol` of it.
 #[allow(clippy::too_many_arguments)]
 pub fn levenberg_marquardt_with(
     f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
