@@ -203,20 +203,23 @@ fn heldout_errors(
         }))
         .collect();
     fits.sort_by_key(|f| f.0);
-    let steps: Vec<(Problem, &Fit)> = fits
+    // Each model's problem as its fit was weighed, and its normal equations there.
+    let problems: Vec<Problem> = fits
         .iter()
         .map(|(m, fit)| {
             let mut p = Problem::new(robot, models[*m], all.iter().copied());
             cfg.apply(&mut p);
             p.prior_scale = fit.prior_scale;
-            (p, fit)
+            p
         })
         .collect();
-    let steps: Vec<OneStep> = steps
+    let steps: Vec<OneStep> = problems
         .iter()
-        .map(|(p, fit)| OneStep::new(p, &fit.f))
+        .zip(&fits)
+        .map(|(p, (_, fit))| OneStep::new(p, &fit.f))
         .collect();
     *runs += fits.iter().map(|(_, f)| f.runs + 1).sum::<usize>();
+    // Model by model, fold by fold: the sum of the fold's held-out errors.
     let jobs: Vec<(usize, usize)> = (0..models.len())
         .flat_map(|m| (0..k).map(move |fold| (m, fold)))
         .collect();
@@ -227,14 +230,9 @@ fn heldout_errors(
             .map(|j| fitted_dead_reckoning_rmse(robot, models[m], &geom, cfg.law(), &series[j]))
             .sum::<f64>()
     });
-    let mean = (0..models.len())
-        .map(|m| {
-            let mut e = 0.0;
-            for (_, v) in jobs.iter().zip(&errors).filter(|(j, _)| j.0 == m) {
-                e += v;
-            }
-            e / n as f64
-        })
+    let mean = errors
+        .chunks(k)
+        .map(|folds| folds.iter().sum::<f64>() / n as f64)
         .collect();
     (mean, fits.into_iter().map(|(_, f)| Some(f)).collect())
 }
