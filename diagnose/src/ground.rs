@@ -299,6 +299,14 @@ pub fn simulate(
     // the rows between are interpolated (counts are cumulative, so the coarser
     // step loses no odometry, and the stage runs at a fraction of the cost).
     let gr = &p.ground_rows;
+    // Each driven wheel's cable cell at the step's start (its end's at the step before).
+    let mut cells: Vec<f64> = match (bumps, gr.first()) {
+        (Some((spacing, _, lo, hi)), Some(&k0)) => wheels
+            .iter()
+            .map(|w| variants::cable_cell(world_x(k0, w.2), spacing.max(1e-6), lo, hi))
+            .collect(),
+        _ => Vec::new(),
+    };
     for s_idx in 0..gr.len().saturating_sub(1) {
         let (k, k_next) = (gr[s_idx], gr[s_idx + 1]);
         let dt = p.t[k_next] - p.t[k];
@@ -402,13 +410,9 @@ pub fn simulate(
                 if !wheels[j].3 {
                     continue;
                 }
-                let crossed = variants::crossings(
-                    world_x(k, wheels[j].2),
-                    world_x(k_next, wheels[j].2),
-                    spacing,
-                    lo,
-                    hi,
-                );
+                let cell = variants::cable_cell(world_x(k_next, wheels[j].2), spacing, lo, hi);
+                let crossed = (cell - cells[j]).abs();
+                cells[j] = cell;
                 if crossed > 0.0 {
                     owed[j] += crossed * loss * world_dir(k_next, wheels[j].1).abs();
                 }

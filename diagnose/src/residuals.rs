@@ -201,6 +201,10 @@ impl<'a> Evaluator<'a> {
         if !nominal.act.is_empty() {
             // (best RSS with any lag, best RSS with a sub-quarter-row lag)
             let quarter_row = 0.25 * p.row_dt_s();
+            // Merged rows carry interval means: held is the reading that keeps their
+            // travel exact, so the linear one is not tried, and of the held reading only
+            // the floor is needed (its best lag is compared with nothing).
+            let compare = !p.commands_are_means;
             let best_with_lag = |ev: &Evaluator| -> (f64, f64) {
                 let base = ev
                     .rss(&ev.evaluate(&Model::default(), Fold::All), Fold::All)
@@ -216,6 +220,9 @@ impl<'a> Evaluator<'a> {
                 let mut best_u = lo;
                 for i in 0..16 {
                     let u = lo + step * i as f64;
+                    if !compare && u.exp() > quarter_row {
+                        break;
+                    }
                     let r = rss_at(u);
                     if r < best {
                         (best, best_u) = (r, u);
@@ -223,6 +230,9 @@ impl<'a> Evaluator<'a> {
                     if u.exp() <= quarter_row {
                         floor = floor.min(r);
                     }
+                }
+                if !compare {
+                    return (best, floor);
                 }
                 let mut half = step;
                 for _ in 0..2 {
@@ -245,12 +255,11 @@ impl<'a> Evaluator<'a> {
                 }
                 (best, floor)
             };
-            // Merged rows carry interval means: held is the reading that keeps their
-            // travel exact, so the linear one is not tried. Each reading on its own
-            // evaluator and thread (the same numbers as one after the other).
+            // Each reading on its own evaluator and thread (the same numbers as one after
+            // the other).
             let noise = ev.noise;
             let (held, linear) = std::thread::scope(|s| {
-                let linear = (!p.commands_are_means).then(|| {
+                let linear = compare.then(|| {
                     s.spawn(move || {
                         let other = Evaluator::with_noise(p, noise);
                         other.linear_commands.set(true);

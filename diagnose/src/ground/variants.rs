@@ -34,13 +34,11 @@ pub fn cables(m: &Model) -> Option<(f64, f64, f64, f64)> {
         .map(|p| (p[0], p[1], f64::NEG_INFINITY, f64::INFINITY))
 }
 
-/// Cables crossed between world x0 and x1 within [lo, hi].
-pub fn crossings(x0: f64, x1: f64, spacing: f64, lo: f64, hi: f64) -> f64 {
-    let (a, b) = (x0.min(x1).max(lo), x0.max(x1).min(hi));
-    if a >= b {
-        return 0.0;
-    }
-    ((b / spacing).floor() - (a / spacing).floor()).abs()
+/// The cable cell of world x within [lo, hi] (x clamped to them): the cables crossed
+/// between two points within [lo, hi] are the difference of their cells, so a path's walk
+/// computes each point's cell once.
+pub fn cable_cell(x: f64, spacing: f64, lo: f64, hi: f64) -> f64 {
+    (x.max(lo).min(hi) / spacing).floor()
 }
 
 /// Whether a mechanism variant can act on this recording. Creep rewrites the driven
@@ -363,5 +361,42 @@ mod tests {
             got.vy
         );
         assert!((got.omega + 0.8).abs() < 1e-5 * 0.8, "omega {}", got.omega);
+    }
+
+    /// The cells' difference counts the cables between two points within the region:
+    /// the multiples of the spacing in (min, max] clamped to [lo, hi], counted one by one.
+    #[test]
+    fn cable_cells_count_the_cables_between_two_points_in_the_region() {
+        let spacing = 0.05;
+        let count = |x0: f64, x1: f64, lo: f64, hi: f64| -> f64 {
+            let (a, b) = (x0.min(x1).max(lo), x0.max(x1).min(hi));
+            (-100..=100)
+                .map(|k| k as f64 * spacing)
+                .filter(|c| *c > a && *c <= b)
+                .count() as f64
+        };
+        let xs = [
+            -1.013, -0.26, -0.051, 0.0001, 0.049, 0.151, 0.333, 0.72, 1.207,
+        ];
+        let regions = [
+            (f64::NEG_INFINITY, f64::INFINITY),
+            (-0.27, 0.34),
+            (0.16, 0.18),
+        ];
+        for &(lo, hi) in &regions {
+            for &x0 in &xs {
+                for &x1 in &xs {
+                    let cells =
+                        (cable_cell(x1, spacing, lo, hi) - cable_cell(x0, spacing, lo, hi)).abs();
+                    assert_eq!(cells, count(x0, x1, lo, hi), "{x0} -> {x1} in [{lo}, {hi}]");
+                }
+            }
+        }
+        // Over the whole floor from -1.013 to 1.207 m: the cables at -1.00, -0.95, ..., 1.20 m.
+        assert_eq!(
+            cable_cell(1.207, spacing, f64::NEG_INFINITY, f64::INFINITY)
+                - cable_cell(-1.013, spacing, f64::NEG_INFINITY, f64::INFINITY),
+            45.0
+        );
     }
 }
