@@ -1423,9 +1423,10 @@ mod tests {
 
     /// Round 0 shaped as the 120k-row bench's (its BIC changes; the chi-squares per
     /// residual made up): the four radii bring the ground stage from 50 to 1.4 (a
-    /// mismatch is 2): floor bumps and traction slip wait for round 1. Not when the stage started within ten mismatches of
-    /// the noise (a concealed effect), nor when the best default leaves it at 2.5, nor
-    /// for a stage that only another stage's default settled.
+    /// mismatch is 2): floor bumps and traction slip wait for round 1. Not when the stage
+    /// started within ten mismatches of the noise (a concealed effect), nor when the best
+    /// default leaves it at 2.5, nor for a stage that only another stage's default
+    /// settled.
     #[test]
     fn a_default_that_brings_its_stage_back_to_the_noise_settles_round_0() {
         let d = [
