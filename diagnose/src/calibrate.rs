@@ -55,10 +55,10 @@ pub(crate) use objective::{residuals_into, RES_UNIT_M};
 pub use objective::{DR_HEADING_LEVER_M, HUBER_K};
 pub use options::{CalOptions, CvBy};
 pub use params::{
-    is_mecanum, ladder, param_specs, radius_range, robot_with, roller_specs, turn_law_specs,
-    GeomKind, ParamSpec, ALPHA_RANGE, BASE_RANGE, DIFF_EB_ARC_RANGE, EB_ARC_RANGE, ED_RANGE,
-    GAMMA_RANGE, ICR_X_RANGE, MARKER_RANGE, MECANUM_MIN_GAMMA, MECANUM_RADIUS_RANGE,
-    OMNI_RADIUS_RANGE, RADIUS_RANGE, SKID_EB_RANGE,
+    alike_priors, is_mecanum, ladder, param_specs, radius_range, robot_with, roller_specs,
+    turn_law_specs, GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE, ALPHA_RANGE, BASE_RANGE,
+    DIFF_EB_ARC_RANGE, EB_ARC_RANGE, ED_RANGE, GAMMA_RANGE, ICR_X_RANGE, MARKER_RANGE,
+    MECANUM_MIN_GAMMA, MECANUM_RADIUS_RANGE, OMNI_RADIUS_RANGE, RADIUS_RANGE, SKID_EB_RANGE,
 };
 pub use refusals::{WORSE_FACTOR, WORSE_MARGIN_M};
 pub use result::{
@@ -88,8 +88,8 @@ use problem::Problem;
 use refusals::{check_inputs, refuse_bad_fit};
 use series::NUIS;
 use solve::{
-    aligned_rmse, correlations, covariance, noise_scale, nuisance_start, refs, solve, solve_iter,
-    OneStep, Solved,
+    aligned_rmse, correlations, covariance, noise_scale, nuisance_start, refs, reweighed, solve,
+    solve_iter, OneStep, Solved,
 };
 
 /// |correlation| above which two parameters are reported not separable.
@@ -225,7 +225,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
                 .iter()
                 .map(|s| &s.name)
                 .eq(specs.iter().map(|s| &s.name)));
-            p.prior_scale = noise_scale(&p, &pre.first);
+            p.prior_scale = pre.prior_scale;
             solve_iter(&p, &pre.f.geom, &pre.f.nuis, true, 0)
         }
         None => {
@@ -240,7 +240,10 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
                 geom, nuis, jac, ..
             } = first;
             drop(jac);
-            solve(&p, &geom, &nuis, true)
+            let f = solve(&p, &geom, &nuis, true);
+            let (f, refits) = reweighed(&mut p, f);
+            runs += refits;
+            f
         }
     };
     runs += fitted.evaluations;

@@ -6,13 +6,14 @@
 
 use crate::calibrate::options::Cfg;
 use crate::calibrate::params::{
-    is_mecanum, ladder, param_specs, roller_specs, turn_law_specs, GeomKind, ParamSpec,
+    alike_priors, is_mecanum, ladder, param_specs, roller_specs, turn_law_specs, GeomKind,
+    ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
 };
 use crate::calibrate::pool::pool_map;
 use crate::calibrate::problem::Problem;
 use crate::calibrate::series::{fitted_dead_reckoning_rmse, Series};
 use crate::calibrate::solve::{
-    covariance, noise_scale, nuisance_start, refs, solve, OneStep, Solved,
+    covariance, noise_scale, nuisance_start, refs, reweighed, solve, OneStep, Solved,
 };
 use calib_core::robot::{Robot, RobotKind};
 use nalgebra::DMatrix;
@@ -37,26 +38,26 @@ pub(super) fn fit_specs(
     p.prior_scale = noise_scale(&p, &first);
     p.differences_at_solution = cov;
     let f = solve(&p, &first.geom, &first.nuis, true);
+    let (f, refits) = reweighed(&mut p, f);
     let var = noise_scale(&p, &f).powi(2);
     let cov = if cov {
         covariance(&p, &f).0
     } else {
         DMatrix::zeros(0, 0)
     };
-    let runs = before.evaluations + first.evaluations + f.evaluations;
+    let runs = before.evaluations + first.evaluations + f.evaluations + refits;
     Fit {
         f,
         var,
         cov,
         runs,
-        first,
         prior_scale: p.prior_scale,
     }
 }
 
 /// A joint fit of [`fit_specs`].
 pub(super) struct Fit {
-    /// The fit (the prior weighed by the first fit's residuals).
+    /// The fit (the prior weighed by the residuals at its solution).
     pub(super) f: Solved,
     /// Its residual variance x autocorrelation inflation.
     pub(super) var: f64,
@@ -64,9 +65,8 @@ pub(super) struct Fit {
     pub(super) cov: DMatrix<f64>,
     /// Model runs it took.
     pub(super) runs: usize,
-    /// The first fit (the prior weighed by the nominal residuals).
-    pub(super) first: Solved,
-    /// The prior rows' scale the fit was weighed with (the first fit's noise scale).
+    /// The prior rows' scale the fit was weighed with (the noise scale at its solution,
+    /// [`reweighed`]).
     pub(super) prior_scale: f64,
 }
 
@@ -74,8 +74,9 @@ pub(super) struct Fit {
 /// final fit repeats it (the same problem, the same steps) and takes it over.
 pub(super) struct Prefit {
     pub(super) specs: Vec<ParamSpec>,
-    pub(super) first: Solved,
     pub(super) f: Solved,
+    /// The prior rows' scale `f` was weighed with.
+    pub(super) prior_scale: f64,
 }
 
 /// 0.999 quantile of chi-squared with `k` degrees of freedom (Wilson-Hilferty). Above
@@ -344,12 +345,13 @@ fn climb_ladder(
             format!(" ({}: the next model is tried)", skipped.join("; "))
         };
         notes.push(format!(
-            "model ladder, held-out dead reckoning by recording ({k} folds): {table}; kept: {name}, the simplest within {:.0} % of the best{why}",
-            LADDER_TOLERANCE * 100.0
+            "model ladder, held-out dead reckoning by recording ({k} folds): {table}; kept: {name}, the simplest within {:.0} % of the best{why}{}",
+            LADDER_TOLERANCE * 100.0,
+            alike_note(specs)
         ));
         *prefit = Some(Prefit {
             specs: specs.clone(),
-            first: fit.first,
+            prior_scale: fit.prior_scale,
             f: fit.f,
         });
         return specs.clone();
@@ -368,7 +370,7 @@ fn climb_ladder(
             if let Some((_, fit)) = fitted.into_iter().find(|(j, _)| *j == i) {
                 *prefit = Some(Prefit {
                     specs: r.1.clone(),
-                    first: fit.first,
+                    prior_scale: fit.prior_scale,
                     f: fit.f,
                 });
             }
@@ -377,10 +379,23 @@ fn climb_ladder(
         None => ("full", param_specs(robot, marker)),
     };
     notes.push(format!(
-        "model ladder, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values outside the plausible ranges ({}): the best, {name}, is fitted and its implausible values are listed",
-        skipped.join("; ")
+        "model ladder, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values outside the plausible ranges ({}): the best, {name}, is fitted and its implausible values are listed{}",
+        skipped.join("; "),
+        alike_note(&specs)
     ));
     specs
+}
+
+/// What the ladder's note says of a rung whose wheels are held alike ([`alike_priors`]).
+fn alike_note(specs: &[ParamSpec]) -> String {
+    if alike_priors(specs).is_empty() {
+        return String::new();
+    }
+    format!(
+        "; its wheels are held alike (each wheel's radius and distance within {:.0} % of the wheels' mean, its angle within {:.0} deg, one sigma: a symmetric robot's wheels differ by their tolerances, and directions the data leave free rest there)",
+        ALIKE_SCALE * 100.0,
+        ALIKE_ANGLE.to_degrees()
+    )
 }
 
 /// A turn-radius law needs the recordings to turn on arcs for at least this share of
@@ -488,7 +503,7 @@ fn choose_turn_law(
         ));
         *prefit = Some(Prefit {
             specs: law.clone(),
-            first: fit_law.first,
+            prior_scale: fit_law.prior_scale,
             f: fit_law.f,
         });
         law

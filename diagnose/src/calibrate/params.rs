@@ -64,6 +64,10 @@ pub struct ParamSpec {
     /// What a value outside the range most likely stands in for.
     #[serde(skip)]
     pub stands_for: &'static str,
+    /// A per-wheel parameter of a symmetric robot: held to the mean of the same parameter
+    /// of the other wheels with this sigma ([`alike_priors`]); `None`: free.
+    #[serde(skip)]
+    pub alike: Option<f64>,
 }
 
 fn spec(
@@ -81,6 +85,7 @@ fn spec(
         nominal,
         plausible: (nominal - half, nominal + half),
         stands_for,
+        alike: None,
     }
 }
 
@@ -144,6 +149,51 @@ const MARKER_STANDS: &str =
 const L_STANDS: &str = "scrub in rotation or a radius error the motion does not separate";
 const GAMMA_STANDS: &str =
     "rollers slipping along their axles, or wheels mounted at other angles (per-wheel alpha, l and radius)";
+
+/// The wheels of a symmetric robot are alike: in the ladder's per-wheel rungs each
+/// wheel's radius and distance scale is held to the wheels' mean with this sigma (one
+/// batch of wheels, one machined frame), so "within 3 % of each other" is three sigmas.
+/// Real squares (forward legs and turns in place) fix a few combinations of a mecanum
+/// robot's twelve per-wheel parameters; held only by their plausible ranges, the others
+/// went to the ranges' edges (a radius at +15 %, a distance at +8 %).
+pub const ALIKE_SCALE: f64 = 0.01;
+/// A wheel's mounting angle offset is held to the wheels' mean with this sigma, rad
+/// (1 degree: see [`ALIKE_SCALE`]).
+pub const ALIKE_ANGLE: f64 = std::f64::consts::PI / 180.0;
+
+/// The prior rows that hold alike wheels alike: for each family (radius, angle, distance)
+/// with two or more members whose [`ParamSpec::alike`] is set, one row per member, its
+/// value less the family's mean, target 0, sigma `alike` (weights over `specs`).
+pub fn alike_priors(specs: &[ParamSpec]) -> Vec<(Vec<f64>, f64, f64)> {
+    let family = |k: GeomKind| match k {
+        GeomKind::Radius(_) => Some(0),
+        GeomKind::Alpha(_) => Some(1),
+        GeomKind::L(_) => Some(2),
+        _ => None,
+    };
+    let mut rows = Vec::new();
+    for f in 0..3 {
+        let members: Vec<(usize, f64)> = specs
+            .iter()
+            .enumerate()
+            .filter(|(_, s)| family(s.kind) == Some(f))
+            .filter_map(|(i, s)| s.alike.map(|sigma| (i, sigma)))
+            .collect();
+        if members.len() < 2 {
+            continue;
+        }
+        let share = 1.0 / members.len() as f64;
+        for &(i, sigma) in &members {
+            let mut w = vec![0.0; specs.len()];
+            for &(j, _) in &members {
+                w[j] = -share;
+            }
+            w[i] += 1.0;
+            rows.push((w, 0.0, sigma));
+        }
+    }
+    rows
+}
 
 /// True when some wheel has angled rollers (mecanum), so a roller angle can be fitted.
 pub fn is_mecanum(robot: &Robot) -> bool {
@@ -524,6 +574,17 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
             },
         ));
     }
+    // Per-wheel parameters of the nominally alike wheels stay alike unless the data say
+    // otherwise (ALIKE_SCALE).
+    for (_, specs) in rungs.iter_mut() {
+        for s in specs.iter_mut() {
+            s.alike = match s.kind {
+                GeomKind::Radius(_) | GeomKind::L(_) => Some(ALIKE_SCALE),
+                GeomKind::Alpha(_) => Some(ALIKE_ANGLE),
+                _ => None,
+            };
+        }
+    }
     rungs.sort_by_key(|r| r.1.len());
     rungs
 }
@@ -566,6 +627,58 @@ mod tests {
         // The nominal values give the robot back, to the bit.
         let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
         assert_eq!(robot_with(&base, &specs, &nominal), base);
+    }
+
+    /// The ladder's per-wheel rungs hold alike wheels alike: one prior row per radius,
+    /// angle and distance of the full omni4 rung, each the wheel's value less its
+    /// family's mean (weights summing to zero within 1e-15), sigma 1 % or 1 degree; a
+    /// common scale or one distance gets none, and neither does the full model outside
+    /// the ladder (diagnose's recording stage).
+    #[test]
+    fn alike_wheels_are_held_to_their_family_mean() {
+        let base = synth::robot("omni4");
+        assert!(alike_priors(&param_specs(&base, false)).is_empty());
+        let rungs = ladder(&base, false);
+        let (_, full) = rungs
+            .iter()
+            .find(|(n, _)| *n == "per-wheel radii, angles and distances")
+            .unwrap();
+        let rows = alike_priors(full);
+        assert_eq!(rows.len(), 12);
+        let mut v: Vec<f64> = full.iter().map(|s| s.nominal).collect();
+        let radii = [1.10, 1.11, 1.12, 1.15];
+        for (w, r) in radii.iter().enumerate() {
+            let i = full
+                .iter()
+                .position(|s| s.kind == GeomKind::Radius(w))
+                .unwrap();
+            v[i] = *r;
+        }
+        let mean = radii.iter().sum::<f64>() / 4.0;
+        for (w, target, sigma) in &rows {
+            assert!(w.iter().sum::<f64>().abs() < 1e-15);
+            assert_eq!(*target, 0.0);
+            let own = w.iter().position(|x| *x > 0.0).unwrap();
+            let value: f64 = w.iter().zip(&v).map(|(a, b)| a * b).sum();
+            match full[own].kind {
+                GeomKind::Radius(k) => {
+                    assert!((value - (radii[k] - mean)).abs() < 1e-12);
+                    assert_eq!(*sigma, ALIKE_SCALE);
+                }
+                GeomKind::L(_) => {
+                    assert!(value.abs() < 1e-12);
+                    assert_eq!(*sigma, ALIKE_SCALE);
+                }
+                GeomKind::Alpha(_) => assert_eq!(*sigma, ALIKE_ANGLE),
+                k => panic!("a row for {k:?}"),
+            }
+        }
+        for (name, specs) in &rungs {
+            let n = alike_priors(specs).len();
+            if name.starts_with("common scale") {
+                assert_eq!(n, 0, "{name}");
+            }
+        }
     }
 
     /// A per-wheel parameter moves its own wheel only; the roller angle offset widens

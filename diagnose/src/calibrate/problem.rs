@@ -1,15 +1,15 @@
 //! The joint problem ([`Problem`]): the geometry shared by the recordings, a start pose
-//! and clocks per recording, a weak prior at nominal. It evaluates the
-//! [`objective`](crate::calibrate::objective)'s residuals over all the recordings (in
-//! parallel), keeps the paths of the last geometry, and gives the analytic Jacobians: the
-//! geometry's from the paths' sensitivities ([`sens`]) when
+//! and clocks per recording, a weak prior at nominal (and alike wheels held alike). It
+//! evaluates the [`objective`](crate::calibrate::objective)'s residuals over all the
+//! recordings (in parallel), keeps the paths of the last geometry, and gives the analytic
+//! Jacobians: the geometry's from the paths' sensitivities ([`sens`]) when
 //! dead-reckoning; those and the nuisance's when aligning.
 
 use crate::calibrate::objective::{
     dr_residuals_into, huber_rows, nuisance_jacobian_into, residuals_into, PathAt,
     DR_HEADING_LEVER_M,
 };
-use crate::calibrate::params::{robot_with, GeomKind, ParamSpec};
+use crate::calibrate::params::{alike_priors, robot_with, GeomKind, ParamSpec};
 use crate::calibrate::pool::{par_jobs, threads_for};
 use crate::calibrate::sens::{self, ColumnSlab};
 use crate::calibrate::series::{Nuisance, Path, Series, NUIS};
@@ -78,7 +78,7 @@ impl<'a> Problem<'a> {
         // do not constrain where they are; it is negligible against thousands of
         // millimetre residuals wherever the data speak.
         let g = specs.len();
-        let priors = specs
+        let mut priors: Vec<(Vec<f64>, f64, f64)> = specs
             .iter()
             .enumerate()
             .map(|(i, s)| {
@@ -87,6 +87,8 @@ impl<'a> Problem<'a> {
                 (w, s.nominal, s.plausible.1 - s.nominal)
             })
             .collect();
+        // Alike wheels held to their mean (the ladder's per-wheel rungs).
+        priors.extend(alike_priors(specs));
         Problem {
             robot,
             specs,

@@ -610,6 +610,7 @@ mod tests {
                 nominal: 1.0,
                 plausible: (0.85, 1.15),
                 stands_for: "",
+                alike: None,
             },
             value: 1.10198,
             sigma,
