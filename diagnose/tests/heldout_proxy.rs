@@ -284,3 +284,35 @@ fn mecanum_squares_transfer_to_other_sessions() {
         assert_plausible_and_alike(c);
     }
 }
+
+/// One square alone (issue 21: "one mecanum square alone gives 12 parameters on their
+/// prior edges"): the first run of each square session calibrated by itself, dead-reckoned
+/// on the same test runs as above (mecanum: the other sessions' squares; omni3: the day's
+/// circles), against the authors' parameters from the whole session. On one recording
+/// the ladder's models are scored by BIC. No fitted parameter may sit on its range's edge.
+/// Measured: mecanum 1.265 (one square cannot match the authors' fit on 8-12), omni3
+/// 0.700. With the full per-wheel model that one recording used to get: mecanum 2.237,
+/// worst 3.704, with radii on the edges of their range.
+#[test]
+fn one_square_keeps_a_model_that_transfers() {
+    let Some(d) = dir() else { return };
+    for (robot, goal) in [("omni4", 1.3), ("omni3", 0.94)] {
+        let fits = std::cell::RefCell::new(Vec::new());
+        let r = proxy::run_robot(&d, robot, None, None, &|nominal, recs, _| {
+            let c = calibrate(nominal, &recs[..1], None, &CalOptions::default())
+                .map_err(|e| e.to_string())?;
+            let out = (c.law_base_robot.clone(), c.turn_law);
+            fits.borrow_mut().push(c);
+            Ok(out)
+        })
+        .unwrap();
+        print!("{robot}\n{}", proxy::table(&r));
+        let g = proxy::geometric_mean_ratio(&r);
+        println!("{robot}: geometric mean {g:.3}");
+        for c in &fits.into_inner() {
+            println!("{c}");
+            assert_plausible_and_alike(c);
+        }
+        assert!(g <= goal, "{robot}: geometric mean {g:.3}");
+    }
+}

@@ -110,6 +110,9 @@ pub(super) fn choose_specs(
     if robot.kind == RobotKind::Omni && series.len() >= 2 {
         return climb_ladder(robot, series, marker, cfg, notes, runs, prefit);
     }
+    if robot.kind == RobotKind::Omni && !cfg.free_start {
+        return bic_ladder(robot, series, marker, cfg, notes, runs, prefit);
+    }
     if !is_mecanum(robot) {
         return full;
     }
@@ -328,12 +331,12 @@ fn climb_ladder(
         let edge: Vec<String> = specs
             .iter()
             .zip(&f.geom)
-            .filter(|(s, v)| **v < s.plausible.0 || **v > s.plausible.1)
+            .filter(|(s, v)| s.on_edge_or_past(**v))
             .map(|(s, v)| format!("{} {v:.4}", s.name))
             .collect();
         if !edge.is_empty() {
             skipped.push(format!(
-                "{name} wants {} outside the plausible range",
+                "{name} wants {} on or past the plausible range's edge",
                 edge.join(", ")
             ));
             fitted.push((rung, fit));
@@ -379,10 +382,103 @@ fn climb_ladder(
         None => ("full", param_specs(robot, marker)),
     };
     notes.push(format!(
-        "model ladder, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values outside the plausible ranges ({}): the best, {name}, is fitted and its implausible values are listed{}",
+        "model ladder, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values on or past the plausible ranges' edges ({}): the best, {name}, is fitted and its implausible values are listed{}",
         skipped.join("; "),
         alike_note(&specs)
     ));
+    specs
+}
+
+/// Parsimony for an omni robot on one recording, dead-reckoned (nothing to hold out):
+/// each model of [`ladder`] fitted on it and scored by BIC, the residuals'
+/// autocorrelation counted (BIC = cost / s^2 + k ln n_eff, with s^2 the largest model's
+/// residual variance x inflation and n_eff the residuals over that inflation). The
+/// lowest score whose fit stays inside the plausible ranges is kept; when none does, the
+/// lowest is fitted and its implausible values listed. Says which, with every score.
+/// (`--free-start` keeps the full model: diagnose's recording stage reads its clocks.)
+fn bic_ladder(
+    robot: &Robot,
+    series: &[Series],
+    marker: bool,
+    cfg: Cfg,
+    notes: &mut Vec<String>,
+    runs: &mut usize,
+    prefit: &mut Option<Prefit>,
+) -> Vec<ParamSpec> {
+    let rungs = ladder(robot, marker);
+    let all = refs(series);
+    let mut fits: Vec<Option<Fit>> = pool_map(&rungs, |(_, specs)| {
+        fit_specs(robot, specs, &all, cfg, false)
+    })
+    .into_iter()
+    .map(Some)
+    .collect();
+    *runs += fits.iter().flatten().map(|f| f.runs).sum::<usize>();
+    let largest = (0..rungs.len())
+        .max_by_key(|&i| rungs[i].1.len())
+        .unwrap_or(0);
+    let (s2, n_eff) = match &fits[largest] {
+        Some(f) => {
+            let m = f.f.jac.nrows().max(1) as f64;
+            let dof = (m - rungs[largest].1.len() as f64).max(1.0);
+            let inflation = (f.var * dof / f.f.data_cost.max(1e-300)).max(1.0);
+            (f.var.max(1e-300), (m / inflation).max(2.0))
+        }
+        None => (1.0, 2.0),
+    };
+    let scores: Vec<f64> = fits
+        .iter()
+        .zip(&rungs)
+        .map(|(f, (_, specs))| match f {
+            Some(f) => f.f.data_cost / s2 + specs.len() as f64 * n_eff.ln(),
+            None => f64::INFINITY,
+        })
+        .collect();
+    let table = rungs
+        .iter()
+        .zip(&scores)
+        .map(|((name, specs), b)| format!("{name} ({} parameters) {b:.1}", specs.len()))
+        .collect::<Vec<_>>()
+        .join("; ");
+    let mut order: Vec<usize> = (0..rungs.len())
+        .filter(|&i| scores[i].is_finite())
+        .collect();
+    order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]));
+    let inside = |i: usize| {
+        fits[i].as_ref().is_some_and(|f| {
+            rungs[i]
+                .1
+                .iter()
+                .zip(&f.f.geom)
+                .all(|(s, v)| !s.on_edge_or_past(*v))
+        })
+    };
+    let (chosen, why) = match order.iter().copied().find(|&i| inside(i)) {
+        Some(i) if Some(&i) == order.first() => (i, "the lowest".to_string()),
+        Some(i) => (
+            i,
+            format!(
+                "the lowest whose fit stays off the plausible ranges' edges ({} wants values on or past them)",
+                rungs[order[0]].0
+            ),
+        ),
+        None => (
+            order.first().copied().unwrap_or(largest),
+            "the lowest; every model wants values on or past the plausible ranges' edges, and its implausible values are listed".to_string(),
+        ),
+    };
+    let (name, specs) = rungs[chosen].clone();
+    notes.push(format!(
+        "model ladder on one recording, BIC (the residuals' autocorrelation counted: {n_eff:.0} independent residuals): {table}; kept: {name}, {why}{}",
+        alike_note(&specs)
+    ));
+    if let Some(fit) = fits[chosen].take() {
+        *prefit = Some(Prefit {
+            specs: specs.clone(),
+            f: fit.f,
+            prior_scale: fit.prior_scale,
+        });
+    }
     specs
 }
 
