@@ -88,8 +88,11 @@ fn chi2_999(k: usize) -> f64 {
     k * (1.0 - a + 3.0902 * a.sqrt()).powi(3)
 }
 
-/// The parameters to fit. For a mecanum robot the roller angle is fitted when the data
-/// ask for it: the roller model (radii and one roller angle) is chosen when its angle is
+/// The parameters to fit: a differential or skid-steer robot's turn law
+/// ([`choose_turn_law`]); an omni robot's rung of the model ladder, judged on held-out
+/// recordings ([`climb_ladder`]) or, on one dead-reckoned recording, by BIC
+/// ([`bic_ladder`]). With one recording and `--free-start`, the full model; for a mecanum
+/// robot the roller angle is then fitted when the data ask for it: the roller model (radii and one roller angle) is chosen when its angle is
 /// significant (3 sigma) and it fits as well as the full per-wheel model (likelihood
 /// ratio below the 0.999 quantile for the parameters it saves). Says which and why.
 pub(super) fn choose_specs(
@@ -393,8 +396,9 @@ fn climb_ladder(
 /// each model of [`ladder`] fitted on it and scored by BIC, the residuals'
 /// autocorrelation counted (BIC = cost / s^2 + k ln n_eff, with s^2 the largest model's
 /// residual variance x inflation and n_eff the residuals over that inflation). The
-/// lowest score whose fit stays inside the plausible ranges is kept; when none does, the
-/// lowest is fitted and its implausible values listed. Says which, with every score.
+/// lowest score whose fit keeps every parameter off its range's edges
+/// ([`ParamSpec::on_edge_or_past`]) is kept; when none does, the lowest is fitted and its
+/// implausible values listed. Says which, with every score.
 /// (`--free-start` keeps the full model: diagnose's recording stage reads its clocks.)
 fn bic_ladder(
     robot: &Robot,
