@@ -57,7 +57,7 @@ pub use options::{CalOptions, CvBy};
 pub use params::{
     alike_priors, is_mecanum, ladder, param_specs, radius_range, robot_with, roller_specs,
     turn_law_specs, GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE, ALPHA_RANGE, BASE_RANGE,
-    DIFF_EB_ARC_RANGE, EB_ARC_RANGE, ED_RANGE, GAMMA_RANGE, ICR_X_RANGE, MARKER_RANGE,
+    DIFF_EB_ARC_RANGE, EB_ARC_RANGE, EDGE_SHARE, ED_RANGE, GAMMA_RANGE, ICR_X_RANGE, MARKER_RANGE,
     MECANUM_MIN_GAMMA, MECANUM_RADIUS_RANGE, OMNI_RADIUS_RANGE, RADIUS_RANGE, SKID_EB_RANGE,
 };
 pub use refusals::{WORSE_FACTOR, WORSE_MARGIN_M};
