@@ -92,9 +92,10 @@ fn chi2_999(k: usize) -> f64 {
 /// ([`choose_turn_law`]); an omni robot's rung of the model ladder, judged on held-out
 /// recordings ([`climb_ladder`]) or, on one dead-reckoned recording, by BIC
 /// ([`bic_ladder`]). With one recording and `--free-start`, the full model; for a mecanum
-/// robot the roller angle is then fitted when the data ask for it: the roller model (radii and one roller angle) is chosen when its angle is
-/// significant (3 sigma) and it fits as well as the full per-wheel model (likelihood
-/// ratio below the 0.999 quantile for the parameters it saves). Says which and why.
+/// robot the roller angle is then fitted when the data ask for it: the roller model
+/// (radii and one roller angle) is chosen when its angle is significant (3 sigma) and it
+/// fits as well as the full per-wheel model (likelihood ratio below the 0.999 quantile
+/// for the parameters it saves). Says which and why.
 pub(super) fn choose_specs(
     robot: &Robot,
     series: &[Series],
@@ -468,7 +469,7 @@ fn bic_ladder(
         ),
         None => (
             order.first().copied().unwrap_or(largest),
-            "the lowest; every model wants values on or past the plausible ranges' edges, and its implausible values are listed".to_string(),
+            "the lowest; every model wants values on or past the plausible ranges' edges (those past them are listed as implausible)".to_string(),
         ),
     };
     let (name, specs) = rungs[chosen].clone();
