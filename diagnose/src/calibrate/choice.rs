@@ -412,32 +412,24 @@ fn bic_ladder(
 ) -> Vec<ParamSpec> {
     let rungs = ladder(robot, marker);
     let all = refs(series);
-    let mut fits: Vec<Option<Fit>> = pool_map(&rungs, |(_, specs)| {
+    let mut fits: Vec<Fit> = pool_map(&rungs, |(_, specs)| {
         fit_specs(robot, specs, &all, cfg, false)
-    })
-    .into_iter()
-    .map(Some)
-    .collect();
-    *runs += fits.iter().flatten().map(|f| f.runs).sum::<usize>();
+    });
+    *runs += fits.iter().map(|f| f.runs).sum::<usize>();
     let largest = (0..rungs.len())
         .max_by_key(|&i| rungs[i].1.len())
         .unwrap_or(0);
-    let (s2, n_eff) = match &fits[largest] {
-        Some(f) => {
-            let m = f.f.jac.nrows().max(1) as f64;
-            let dof = (m - rungs[largest].1.len() as f64).max(1.0);
-            let inflation = (f.var * dof / f.f.data_cost.max(1e-300)).max(1.0);
-            (f.var.max(1e-300), (m / inflation).max(2.0))
-        }
-        None => (1.0, 2.0),
+    let (s2, n_eff) = {
+        let f = &fits[largest];
+        let m = f.f.jac.nrows().max(1) as f64;
+        let dof = (m - rungs[largest].1.len() as f64).max(1.0);
+        let inflation = (f.var * dof / f.f.data_cost.max(1e-300)).max(1.0);
+        (f.var.max(1e-300), (m / inflation).max(2.0))
     };
     let scores: Vec<f64> = fits
         .iter()
         .zip(&rungs)
-        .map(|(f, (_, specs))| match f {
-            Some(f) => f.f.data_cost / s2 + specs.len() as f64 * n_eff.ln(),
-            None => f64::INFINITY,
-        })
+        .map(|(f, (_, specs))| f.f.data_cost / s2 + specs.len() as f64 * n_eff.ln())
         .collect();
     let table = rungs
         .iter()
@@ -450,13 +442,11 @@ fn bic_ladder(
         .collect();
     order.sort_by(|&a, &b| scores[a].total_cmp(&scores[b]));
     let inside = |i: usize| {
-        fits[i].as_ref().is_some_and(|f| {
-            rungs[i]
-                .1
-                .iter()
-                .zip(&f.f.geom)
-                .all(|(s, v)| !s.on_edge_or_past(*v))
-        })
+        rungs[i]
+            .1
+            .iter()
+            .zip(&fits[i].f.geom)
+            .all(|(s, v)| !s.on_edge_or_past(*v))
     };
     let (chosen, why) = match order.iter().copied().find(|&i| inside(i)) {
         Some(i) if Some(&i) == order.first() => (i, "the lowest".to_string()),
@@ -477,13 +467,12 @@ fn bic_ladder(
         "model ladder on one recording, BIC (the residuals' autocorrelation counted: {n_eff:.0} independent residuals): {table}; kept: {name}, {why}{}",
         alike_note(&specs)
     ));
-    if let Some(fit) = fits[chosen].take() {
-        *prefit = Some(Prefit {
-            specs: specs.clone(),
-            f: fit.f,
-            prior_scale: fit.prior_scale,
-        });
-    }
+    let fit = fits.swap_remove(chosen);
+    *prefit = Some(Prefit {
+        specs: specs.clone(),
+        f: fit.f,
+        prior_scale: fit.prior_scale,
+    });
     specs
 }
 
