@@ -340,6 +340,23 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     let turn_law = TurnLaw::of(&specs, &fitted.geom, cfg.law());
     let law_base_robot = fitted_robot.clone();
     let mut law_eb_shift = 0.0;
+    // A speed law likewise: they get the wheel size at the recordings' mean speed
+    // (weighted by distance).
+    let mut law_scale = 1.0;
+    if turn_law.speed_rel != 0.0 {
+        let (mut d, mut dv) = (0.0, 0.0);
+        for s in &series {
+            let t = s.turning(robot);
+            d += t.travel;
+            dv += t.speed_term;
+        }
+        if d > 0.0 {
+            law_scale = 1.0 + turn_law.speed_rel * dv / d;
+            for w in fitted_robot.wheels.iter_mut() {
+                w.radius_m *= law_scale;
+            }
+        }
+    }
     if turn_law.arc_rel != 0.0 {
         let (mut sw, mut st) = (0.0, 0.0);
         for s in &series {
@@ -587,6 +604,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         let board_law = (robot.kind == RobotKind::DiffDrive && turn_law.arc_rel != 0.0)
             .then_some((eb, turn_law.arc_rel));
         let (c_l, c_r) = calib_core::umbmark::wheel_factors(ed);
+        let sc = sc * law_scale;
         Factors::Diff {
             c_l: sc * c_l,
             c_r: sc * c_r,

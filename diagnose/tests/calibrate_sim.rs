@@ -765,6 +765,56 @@ fn turn_dependent_separation_is_found_and_not_invented() {
     );
 }
 
+/// Wheels whose effective size depends on their speed (`SimConfig::speed_scale`: each
+/// driven wheel rolls 10 % further per m/s of its rolling speed, so 3 % at the random
+/// runs' 0.3 m/s) on a differential drive, three 40 s runs of free motion: the speed law
+/// is found (speed_rel within 4 sigma and 0.01 per m/s of 0.1) and kept because it holds
+/// out, and no turn law with it (one law at a time). The controls get no speed law: the
+/// same robot with plain wheels, and the robot whose separation depends on the turn
+/// (`turn_scrub` 4 %), which gets its turn law instead.
+#[test]
+fn speed_dependent_scale_is_found_and_not_invented() {
+    let nominal = robot("mobolab");
+    let runs = |speed: f64, scrub: f64| -> Vec<(String, Recording)> {
+        (0..3)
+            .map(|i| {
+                let mut c = cfg(50 + i);
+                c.sim.speed_scale = speed;
+                c.sim.turn_scrub = scrub;
+                let motion = Motion::Random(RandomMotion {
+                    duration_s: 40.0,
+                    ..RandomMotion::default()
+                });
+                let r = record(&nominal, &[], Surface::flat(), &motion, &c).unwrap();
+                (format!("run{i}"), r.recording)
+            })
+            .collect()
+    };
+    let named = |c: &Calibration, name: &str| c.params.iter().any(|p| p.spec.name == name);
+    let c = calibrate(&nominal, &runs(0.1, 0.0), None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    let law = c
+        .params
+        .iter()
+        .find(|p| p.spec.name == "speed_rel")
+        .unwrap_or_else(|| panic!("no speed law\n{c}"));
+    assert!((law.value - 0.1).abs() <= 4.0 * law.sigma + 0.01, "{c}");
+    assert!(!named(&c, "eb_arc"), "{c}");
+    assert!(
+        c.notes
+            .iter()
+            .any(|n| n.contains("speed law: the wheels' effective size depends on their speed")),
+        "{:?}",
+        c.notes
+    );
+    let c = calibrate(&nominal, &runs(0.0, 0.0), None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    assert!(!named(&c, "speed_rel") && !named(&c, "eb_arc"), "{c}");
+    let c = calibrate(&nominal, &runs(0.0, 0.04), None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    assert!(!named(&c, "speed_rel") && named(&c, "eb_arc"), "{c}");
+}
+
 /// A known turn law (`--turn-law`): outside its plausible ±0.1, not finite, or given for
 /// a robot that is not a differential drive, it is refused with a message naming the
 /// option; within range on a differential drive, it is held and reported.

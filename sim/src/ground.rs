@@ -53,6 +53,8 @@ pub struct GroundParams {
     /// Growth of a wheeled robot's effective separation from a turn in place to a wide
     /// arc (wide tyres' contact moving across the tread); 0 for none.
     pub turn_scrub: f64,
+    /// Growth of a driven wheel's rolling radius per m/s of its rolling speed; 0 for none.
+    pub speed_scale: f64,
 }
 
 /// The body's state on the ground.
@@ -108,6 +110,9 @@ impl Ground {
                 continue;
             }
             let mut d = g.r_eff * dphi[i];
+            if params.speed_scale != 0.0 {
+                d *= 1.0 + params.speed_scale * (d / dt).abs();
+            }
             moving |= d != 0.0;
             if params.travel_noise_m_per_sqrt_m > 0.0 && d != 0.0 {
                 let n: f64 = rng.sample(StandardNormal);

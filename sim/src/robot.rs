@@ -60,6 +60,10 @@ pub struct SimConfig {
     /// (|v_r| + |v_l|) (`calib_core::kinematics::turn_law_share`). 0: the separation
     /// does not depend on the turn.
     pub turn_scrub: f64,
+    /// Growth of each driven wheel's effective rolling radius with its rolling speed, per
+    /// m/s: a wheel turning at v rolls (1 + speed_scale |v|) times its radius (tyres that
+    /// deform or slip more the faster they turn). 0: the size does not depend on speed.
+    pub speed_scale: f64,
 }
 
 impl Default for SimConfig {
@@ -76,6 +80,7 @@ impl Default for SimConfig {
             random_counter_start: true,
             tyre: crate::skid::Tyre::default(),
             turn_scrub: 0.0,
+            speed_scale: 0.0,
         }
     }
 }
@@ -148,6 +153,7 @@ impl SimRobot {
         cfg.imu.validate()?;
         cfg.tyre.validate()?;
         crate::error::check_range("turn_scrub", cfg.turn_scrub, -0.5, 0.5)?;
+        crate::error::check_range("speed_scale", cfg.speed_scale, -0.5, 0.5)?;
         for (field, v) in [
             ("start.x", cfg.start.x),
             ("start.y", cfg.start.y),
@@ -210,6 +216,7 @@ impl SimRobot {
             side_slip_s: faults.side_slip_s,
             tyre: cfg.tyre,
             turn_scrub: cfg.turn_scrub,
+            speed_scale: cfg.speed_scale,
             travel_noise_m_per_sqrt_m: faults.travel_noise_m_per_sqrt_m,
             mech: faults.mech,
         };

@@ -246,6 +246,36 @@ fn side_slip_in_a_turn() {
     assert!((t.vy + 0.015).abs() < 1e-12 && (t.vx - 0.3).abs() < 1e-12);
 }
 
+/// `SimConfig::speed_scale` 0.1 per m/s: wheels commanded for 0.3 m/s roll 3 % further
+/// than their radius says, so the body moves at 0.309 m/s; at 0.1 m/s, 1 % (0.101 m/s).
+/// A wheel's rolling speed is the only input, so this is exact to rounding.
+#[test]
+fn wheels_whose_size_grows_with_speed_roll_further_the_faster_they_turn() {
+    let r = robot("mobolab");
+    let cfg = SimConfig {
+        speed_scale: 0.1,
+        ..quiet()
+    };
+    let mut sim = SimRobot::new(&r, Faults::none(2), Surface::flat(), cfg).unwrap();
+    let k = Kinematics::<f64>::new(&r, &Corrections::None).unwrap();
+    for v in [0.3, 0.1] {
+        let inp = rates(&sim, &k, &Twist::new(v, 0.0, 0.0));
+        sim.step(1e-3, &inp).unwrap();
+        let t = sim.true_twist();
+        let want = v * (1.0 + 0.1 * v);
+        assert!(
+            (t.vx - want).abs() < 1e-12 && t.omega.abs() < 1e-12,
+            "{v}: {t:?}"
+        );
+    }
+    // Out of its range (|speed_scale| <= 0.5): refused.
+    let bad = SimConfig {
+        speed_scale: 0.8,
+        ..quiet()
+    };
+    assert!(SimRobot::new(&r, Faults::none(2), Surface::flat(), bad).is_err());
+}
+
 #[test]
 fn free_wheels_roll_with_the_ground() {
     // [Korayem et al.]'s robot: front wheels driven, rear free. Driving straight 0.5 m, the

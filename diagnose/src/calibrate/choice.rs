@@ -6,8 +6,8 @@
 
 use crate::calibrate::options::Cfg;
 use crate::calibrate::params::{
-    alike_priors, is_mecanum, ladder, param_specs, roller_specs, turn_law_specs, GeomKind,
-    ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
+    alike_priors, is_mecanum, ladder, param_specs, roller_specs, speed_law_specs, turn_law_specs,
+    GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
 };
 use crate::calibrate::pool::pool_map;
 use crate::calibrate::problem::Problem;
@@ -501,11 +501,13 @@ pub const TURN_LAW_HOLDOUT_RATIO: f64 = 0.95;
 
 /// A differential or skid-steer robot's model: constant E_b, or the turn-radius law
 /// ([Mandow et al.]'s moving ICRs on a skid-steer robot, tyre scrub on a differential
-/// drive) when it holds out. The recordings are split into at most [`LADDER_FOLDS`]
-/// folds; both models are fitted without each fold and dead-reckon it; the law is kept
-/// when its mean held-out error is at most [`TURN_LAW_HOLDOUT_RATIO`] of the constant
-/// model's and one of its parameters is significant (3 sigma) on all the data. Says
-/// which and why, with the figures.
+/// drive) when it holds out; on a differential drive, also the speed law (wheels whose
+/// effective size grows with their speed), tested on its own, one law at a time. The
+/// recordings are split into at most [`LADDER_FOLDS`] folds; each model is fitted without
+/// each fold and dead-reckons it; a law is kept when its mean held-out error is at most
+/// [`TURN_LAW_HOLDOUT_RATIO`] of the constant model's, one of its parameters is
+/// significant (3 sigma) on all the data and within its plausible range; of two that
+/// qualify, the one that holds out better. Says which and why, with the figures.
 fn choose_turn_law(
     robot: &Robot,
     series: &[Series],
@@ -517,7 +519,6 @@ fn choose_turn_law(
     let skid = robot.kind == RobotKind::SkidSteer;
     let who = if skid { "skid-steer" } else { "turn law" };
     let base = param_specs(robot, false);
-    let law = turn_law_specs(robot);
     if let Some(known) = cfg.known_law {
         notes.push(format!(
             "turn law: given (--turn-law), held at eb_arc/eb {known:+.4}: the separation on arcs is {:.2} % wider than in a turn in place; the geometry is fitted with it",
@@ -538,72 +539,153 @@ fn choose_turn_law(
         (a + t.arcs, b + t.all)
     });
     let share = if all > 0.0 { arcs / all } else { 0.0 };
-    if share < MIN_ARC_SHARE {
+    // The laws tested against the constant model, each on its own.
+    let mut laws: Vec<(&str, Vec<ParamSpec>)> = Vec::new();
+    if share >= MIN_ARC_SHARE {
+        laws.push(("turn", turn_law_specs(robot)));
+    } else {
         notes.push(format!(
             "{who}: the recordings turn on arcs for {:.0} % of their turning (the rest in place), under the {:.0} % a turn-radius law needs: a constant effective separation (E_b) is fitted; record arcs of several radii to test one",
             share * 100.0,
             MIN_ARC_SHARE * 100.0
         ));
+    }
+    if !skid {
+        laws.push(("speed", speed_law_specs(robot)));
+    }
+    if laws.is_empty() {
         return base;
     }
-    let fit_law = fit_specs(robot, &law, &refs(series), cfg, true);
-    *runs += fit_law.runs;
-    let (f_law, cov_law) = (&fit_law.f, &fit_law.cov);
+    let fits: Vec<Fit> = pool_map(&laws, |(_, specs)| {
+        fit_specs(robot, specs, &refs(series), cfg, true)
+    });
+    *runs += fits.iter().map(|f| f.runs).sum::<usize>();
     let k = series.len().min(LADDER_FOLDS);
-    let (e, _) = heldout_errors(robot, &[&base, &law], series, cfg, runs);
-    let (e_base, e_law) = (e[0], e[1]);
-    let at = |k: GeomKind| law.iter().position(|s| s.kind == k);
-    let sd = |i: usize| cov_law[(i, i)].max(0.0).sqrt();
-    let ia = at(GeomKind::EbArc).unwrap_or(0);
-    let (arc, s_arc) = (f_law.geom[ia], sd(ia));
-    let mut significant = arc.abs() >= 3.0 * s_arc;
-    let mut figures = format!("eb_arc {arc:+.4} ± {s_arc:.4}");
-    if let Some(ix) = at(GeomKind::IcrX) {
-        let (x, s_x) = (f_law.geom[ix], sd(ix));
-        significant |= x.abs() >= 3.0 * s_x;
-        figures.push_str(&format!(", icr_x {:+.1} ± {:.1} mm", x * 1e3, s_x * 1e3));
-    }
-    figures.push_str(&format!(
-        "; held-out dead reckoning by recording ({k} folds) {:.1} mm with the law, {:.1} mm with a constant E_b",
-        e_law * 1e3,
-        e_base * 1e3
-    ));
-    let holds = e_law.is_finite() && e_law <= TURN_LAW_HOLDOUT_RATIO * e_base;
-    let plausible = law[ia].plausible;
-    let in_range = (plausible.0..=plausible.1).contains(&arc);
-    if !in_range {
+    let mut models: Vec<&[ParamSpec]> = vec![&base];
+    models.extend(laws.iter().map(|(_, specs)| specs.as_slice()));
+    let (e, _) = heldout_errors(robot, &models, series, cfg, runs);
+    let e_base = e[0];
+    // The laws that qualify: index, held-out error, their note.
+    let mut qualified: Vec<(usize, f64, usize)> = Vec::new();
+    for (i, ((kind, specs), fit)) in laws.iter().zip(&fits).enumerate() {
+        let e_law = e[i + 1];
+        let at = |k: GeomKind| specs.iter().position(|s| s.kind == k);
+        let sd = |i: usize| fit.cov[(i, i)].max(0.0).sqrt();
+        let main = if *kind == "turn" {
+            GeomKind::EbArc
+        } else {
+            GeomKind::SpeedRel
+        };
+        let ia = at(main).unwrap_or(0);
+        let (v, s_v) = (fit.f.geom[ia], sd(ia));
+        let mut significant = v.abs() >= 3.0 * s_v;
+        let mut figures = if *kind == "turn" {
+            format!("eb_arc {v:+.4} ± {s_v:.4}")
+        } else {
+            format!("speed_rel {v:+.4} ± {s_v:.4} per m/s")
+        };
+        if let Some(ix) = at(GeomKind::IcrX) {
+            let (x, s_x) = (fit.f.geom[ix], sd(ix));
+            significant |= x.abs() >= 3.0 * s_x;
+            figures.push_str(&format!(", icr_x {:+.1} ± {:.1} mm", x * 1e3, s_x * 1e3));
+        }
+        let with = if *kind == "turn" {
+            "the law"
+        } else {
+            "the speed law"
+        };
         figures.push_str(&format!(
-            "; eb_arc is outside its plausible {:+.2}..{:+.2}",
-            plausible.0, plausible.1
+            "; held-out dead reckoning by recording ({k} folds) {:.1} mm with {with}, {:.1} mm with a constant {}",
+            e_law * 1e3,
+            e_base * 1e3,
+            if *kind == "turn" { "E_b" } else { "wheel size" }
         ));
-    }
-    if significant && holds && in_range {
-        let what = if skid {
-            "the tracks' ICRs move with the turn radius"
-        } else {
-            "the effective wheelbase depends on how the robot turns (tyre scrub)"
-        };
-        let consumers = if skid {
-            "ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn"
-        } else {
-            "the board applies it (factors set --e-b-arc); ROS 2's diff_drive_controller and the robot file get E_b at the recordings' mean turn"
-        };
-        notes.push(format!(
-            "{who}: {what} and the law holds out ({figures}): the law is fitted ({consumers})"
-        ));
-        *prefit = Some(Prefit {
-            specs: law.clone(),
-            prior_scale: fit_law.prior_scale,
-            f: fit_law.f,
-        });
-        law
-    } else {
-        notes.push(format!(
-            "{who}: a constant effective separation explains the data ({figures}; the law is kept only when significant and at most {:.0} % of the constant model's held-out error)",
+        let holds = e_law.is_finite() && e_law <= TURN_LAW_HOLDOUT_RATIO * e_base;
+        let plausible = specs[ia].plausible;
+        let in_range = (plausible.0..=plausible.1).contains(&v);
+        if !in_range {
+            figures.push_str(&format!(
+                "; {} is outside its plausible {:+.2}..{:+.2}",
+                specs[ia].name, plausible.0, plausible.1
+            ));
+        }
+        // A speed law the recordings cannot tell from the wheel size (squares run at one
+        // cruise speed: on two simulated squares with a slip, correlation -0.999) is not
+        // kept, however it holds out.
+        let is = at(GeomKind::Scale);
+        let corr = is.map_or(0.0, |is| fit.cov[(ia, is)] / (s_v * sd(is)).max(1e-300));
+        let separable = *kind == "turn" || corr.abs() <= crate::calibrate::CORR_LIMIT;
+        if !separable {
+            figures.push_str(&format!(
+                "; it cannot be told from the wheel size on these recordings (correlation {corr:+.3}): record runs at several speeds to test it"
+            ));
+        }
+        let qualifies = significant && holds && in_range && separable;
+        let rule = format!(
+            "kept only when significant and at most {:.0} % of the constant model's held-out error",
             TURN_LAW_HOLDOUT_RATIO * 100.0
-        ));
-        base
+        );
+        let note = match (*kind, qualifies) {
+            ("turn", true) => {
+                let what = if skid {
+                    "the tracks' ICRs move with the turn radius"
+                } else {
+                    "the effective wheelbase depends on how the robot turns (tyre scrub)"
+                };
+                format!("{who}: {what} and the law holds out ({figures})")
+            }
+            ("turn", false) => format!(
+                "{who}: a constant effective separation explains the data ({figures}; the law is {rule})"
+            ),
+            (_, true) => format!(
+                "speed law: the wheels' effective size depends on their speed and the law holds out ({figures})"
+            ),
+            (_, false) => format!(
+                "speed law: a wheel size that does not depend on speed explains the data ({figures}; the law is {rule})"
+            ),
+        };
+        if qualifies {
+            qualified.push((i, e_law, notes.len()));
+        }
+        notes.push(note);
     }
+    let Some(&(best, e_best, _)) = qualified.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
+        return base;
+    };
+    // Within the ladder's tolerance of the best, the turn law: the board applies it.
+    let turn = qualified
+        .iter()
+        .find(|(i, e, _)| laws[*i].0 == "turn" && *e <= (1.0 + LADDER_TOLERANCE) * e_best);
+    let i = turn.map_or(best, |t| t.0);
+    for &(j, _, at) in &qualified {
+        let tail = if j != i {
+            let why = if i == best {
+                format!("the {} law holds out better", laws[i].0)
+            } else {
+                format!(
+                    "the turn law holds out within {:.0} % of it and the board can apply that one",
+                    LADDER_TOLERANCE * 100.0
+                )
+            };
+            format!(": not fitted, one law at a time ({why})")
+        } else if laws[j].0 == "speed" {
+            ": the law is fitted (the board, ROS 2 and the robot file get the wheel size at the recordings' mean speed; the board cannot apply the law)".to_string()
+        } else if skid {
+            ": the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn)".to_string()
+        } else {
+            ": the law is fitted (the board applies it (factors set --e-b-arc); ROS 2's diff_drive_controller and the robot file get E_b at the recordings' mean turn)".to_string()
+        };
+        notes[at].push_str(&tail);
+    }
+    let fit = fits.into_iter().nth(i).map(|f| (f.prior_scale, f.f));
+    if let Some((prior_scale, f)) = fit {
+        *prefit = Some(Prefit {
+            specs: laws[i].1.clone(),
+            prior_scale,
+            f,
+        });
+    }
+    laws.swap_remove(i).1
 }
 
 #[cfg(test)]

@@ -39,6 +39,10 @@ pub enum GeomKind {
     /// Skid-steer: longitudinal position of the ICRs ([Mandow et al.]'s x_ICR), m; the
     /// body's sideways speed is -x_ICR omega.
     IcrX,
+    /// Differential drive: growth of each side's effective wheel size per m/s of its
+    /// rolling speed (a side rolling at v travels (1 + speed_rel |v|) times what its
+    /// radius says; the speed from the counts at nominal radii, smoothed as rho is).
+    SpeedRel,
     /// Omni: where the wheels' centre is, body frame x, m: every wheel moved by it, its
     /// rolling direction kept (the odometry's origin, the point motion capture tracks,
     /// is not the centre the wheels were laid out about).
@@ -301,6 +305,27 @@ pub fn turn_law_specs(robot: &Robot) -> Vec<ParamSpec> {
     v
 }
 
+/// The speed model of a differential drive: [`param_specs`] plus the wheels' growth
+/// with speed ([`GeomKind::SpeedRel`]).
+pub fn speed_law_specs(robot: &Robot) -> Vec<ParamSpec> {
+    let mut v = param_specs(robot, false);
+    v.push(spec(
+        GeomKind::SpeedRel,
+        "speed_rel".into(),
+        "wheel_scale",
+        0.0,
+        SPEED_REL_RANGE,
+        SPEED_REL_STANDS,
+    ));
+    v
+}
+
+/// A differential drive's wheels may roll this much further (or shorter) per m/s of
+/// their speed: 6 % at 0.3 m/s, more than tyre deflection or slip give a small robot.
+pub const SPEED_REL_RANGE: f64 = 0.2;
+const SPEED_REL_STANDS: &str =
+    "slip that depends on acceleration or load rather than speed, or encoder counts lost at speed";
+
 fn param_specs_left_right() -> Vec<ParamSpec> {
     vec![
         spec(
@@ -422,7 +447,11 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
             GeomKind::Gamma => dg += x,
             GeomKind::CentreX => centre.0 = x,
             GeomKind::CentreY => centre.1 = x,
-            GeomKind::MarkerX | GeomKind::MarkerY | GeomKind::EbArc | GeomKind::IcrX => {}
+            GeomKind::MarkerX
+            | GeomKind::MarkerY
+            | GeomKind::EbArc
+            | GeomKind::IcrX
+            | GeomKind::SpeedRel => {}
         }
     }
     let mut r = base.clone();

@@ -213,10 +213,12 @@ impl<'a> Problem<'a> {
         let stepper = Stepper::new(&robot, &kin, &law);
         let cols = sens::split_params(self.specs);
         let sides = self.robot.kind == RobotKind::SkidSteer
-            || self
-                .specs
-                .iter()
-                .any(|s| matches!(s.kind, GeomKind::EbArc | GeomKind::IcrX));
+            || self.specs.iter().any(|s| {
+                matches!(
+                    s.kind,
+                    GeomKind::EbArc | GeomKind::IcrX | GeomKind::SpeedRel
+                )
+            });
         let slopes = sens::TwistSlopes::new(
             self.robot,
             self.specs,

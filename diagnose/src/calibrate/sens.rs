@@ -130,7 +130,14 @@ impl TwistSlopes {
 
     /// The twist derivatives of one row into `out` (one per parameter of `params`).
     #[inline]
-    fn row(&self, params: Range<usize>, inc: &[f64], rho: f64, out: &mut [[f64; 3]]) {
+    fn row(
+        &self,
+        params: Range<usize>,
+        inc: &[f64],
+        rho: f64,
+        speed: [f64; 2],
+        out: &mut [[f64; 3]],
+    ) {
         match self {
             TwistSlopes::Linear(v) => {
                 for (o, cols) in out.iter_mut().zip(&v[params]) {
@@ -146,8 +153,8 @@ impl TwistSlopes {
             TwistSlopes::Sides(v) => {
                 for (o, d) in out.iter_mut().zip(&v[params]) {
                     let (a, b) = (
-                        d.plus.0.step(&d.plus.1, rho, inc),
-                        d.minus.0.step(&d.minus.1, rho, inc),
+                        d.plus.0.step(&d.plus.1, rho, speed, inc),
+                        d.minus.0.step(&d.minus.1, rho, speed, inc),
                     );
                     let k = d.k;
                     *o = [
@@ -254,18 +261,21 @@ impl Series {
             (Some(rho), Some(s)) => Some((rho, s)),
             _ => None,
         };
-        let no_rho = vec![0.0; self.inc.len() / self.wheels.max(1)];
+        let rows = self.inc.len() / self.wheels.max(1);
+        let no_rho = vec![0.0; rows];
         let rho = self.rho.as_deref().unwrap_or(&no_rho);
+        let no_speed = vec![[0.0; 2]; rows];
+        let speed = self.speed.as_deref().unwrap_or(&no_speed);
         let mut d = vec![[0.0f64; 3]; p];
         let mut dt = vec![[0.0f64; 3]; p];
         let (mut x, mut y, mut h) = (0.0f64, 0.0f64, step::Heading::new());
         visit(0, [x, y, h.th], &d);
-        for (k, (inc, &r)) in self.incs().zip(rho).enumerate() {
+        for (k, ((inc, &r), &v)) in self.incs().zip(rho).zip(speed).enumerate() {
             let tw: Twist<f64> = match sides {
-                Some((_, (s, law))) => s.step(law, r, inc),
+                Some((_, (s, law))) => s.step(law, r, v, inc),
                 None => stepper.forward(inc),
             };
-            slopes.row(params.clone(), inc, r, &mut dt);
+            slopes.row(params.clone(), inc, r, v, &mut dt);
             // The arc step (as the path's), with the quantities its derivative needs.
             let (st, ct) = (h.sin, h.cos);
             let (s, c, lx, ly) = step::arc_step(&mut x, &mut y, &mut h, &tw);

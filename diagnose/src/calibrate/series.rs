@@ -46,8 +46,11 @@ pub struct Series {
     /// Wheeled-legged robots: (front, rear) leg angles per row, rad; they move the wheel
     /// contacts along x, so the kinematics follow them.
     pub(super) legs: Option<Vec<(f64, f64)>>,
-    /// Skid-steer robots: turn ratio rho per increment ([`turn_ratio`]).
+    /// Robots with sides: turn ratio rho per increment ([`turn_ratio`]).
     pub(super) rho: Option<Vec<f64>>,
+    /// Robots with sides: the left and right sides' speeds per increment, m/s at nominal
+    /// radii ([`turn_ratio`]).
+    pub(super) speed: Option<Vec<[f64; 2]>>,
     /// Pose samples (indices into px...) the dead-reckoning objective compares: one every
     /// [`SAMPLE_STEP_M`] of travel (turns in place counted at the wheels' lever arm).
     pub(crate) samples: Vec<usize>,
@@ -248,8 +251,12 @@ impl Series {
             None
         };
         let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
-        let rho = matches!(robot.kind, RobotKind::SkidSteer | RobotKind::DiffDrive)
-            .then(|| turn_ratio(robot, &inc, &rec.t));
+        let (rho, speed) = match matches!(robot.kind, RobotKind::SkidSteer | RobotKind::DiffDrive)
+            .then(|| turn_ratio(robot, &inc, &rec.t))
+        {
+            Some((r, v)) => (Some(r), Some(v)),
+            None => (None, None),
+        };
         let wheels = robot.wheels.len();
         let mut s = Series {
             name: name.to_string(),
@@ -262,6 +269,7 @@ impl Series {
             pth,
             legs,
             rho,
+            speed,
             samples,
             anchors: vec![0],
             glitches,
@@ -435,6 +443,7 @@ impl Series {
                 pth,
                 legs: self.legs.as_ref().map(|l| l[rows.clone()].to_vec()),
                 rho: self.rho.as_ref().map(|r| r[r0..r1 - 1].to_vec()),
+                speed: self.speed.as_ref().map(|v| v[r0..r1 - 1].to_vec()),
                 samples,
                 anchors: vec![0],
                 glitches: if k == 0 {
@@ -473,8 +482,12 @@ impl Series {
             return t;
         };
         let sides = Sides::new(robot);
-        for (inc, &rho) in self.incs().zip(rho) {
+        for (k, (inc, &rho)) in self.incs().zip(rho).enumerate() {
             let (l, r) = sides.travel(inc);
+            if let Some(v) = self.speed.as_ref().map(|v| v[k]) {
+                t.travel += l.abs() + r.abs();
+                t.speed_term += l.abs() * v[0] + r.abs() * v[1];
+            }
             let d = (r - l).abs();
             t.all += d;
             t.arc_term += d * sides.law_share(rho);
@@ -524,9 +537,11 @@ impl Series {
         let mut p = Pose::new(0.0, 0.0, 0.0);
         out.push(p);
         let (mut x, mut y, mut h) = (0.0, 0.0, step::Heading::new());
-        if let (Some(rho), Some((sides, law))) = (&self.rho, stepper.sides()) {
-            for (inc, &rho) in self.incs().zip(rho) {
-                step::arc_step(&mut x, &mut y, &mut h, &sides.step(law, rho, inc));
+        if let (Some(rho), Some(speed), Some((sides, law))) =
+            (&self.rho, &self.speed, stepper.sides())
+        {
+            for ((inc, &rho), &v) in self.incs().zip(rho).zip(speed) {
+                step::arc_step(&mut x, &mut y, &mut h, &sides.step(law, rho, v, inc));
                 out.push(Pose::new(x, y, h.th));
             }
             return true;

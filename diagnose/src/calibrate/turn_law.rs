@@ -16,6 +16,9 @@ pub struct TurnLaw {
     pub arc_rel: f64,
     /// Longitudinal ICR offset, m.
     pub icr_x_m: f64,
+    /// Differential drive: growth of the wheels' effective size per m/s of their speed
+    /// (0: the size does not depend on speed).
+    pub speed_rel: f64,
 }
 
 impl TurnLaw {
@@ -27,6 +30,7 @@ impl TurnLaw {
         TurnLaw {
             arc_rel: get(GeomKind::EbArc).map_or(known_arc_rel, |a| a / eb),
             icr_x_m: get(GeomKind::IcrX).unwrap_or(0.0),
+            speed_rel: get(GeomKind::SpeedRel).unwrap_or(0.0),
         }
     }
 }
@@ -47,8 +51,9 @@ fn median_step(t: &[f64]) -> Option<f64> {
 }
 
 /// Per increment, rho = |d_r - d_l| / (|d_r| + |d_l|) of the sides' travel (nominal
-/// radii), smoothed over [`RHO_HALF_WINDOW_S`] either side (in rows at the median row step).
-pub(super) fn turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> Vec<f64> {
+/// radii), and the sides' speeds |d_l| / dt and |d_r| / dt (m/s), both smoothed over
+/// [`RHO_HALF_WINDOW_S`] either side (in rows at the median row step).
+pub(super) fn turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> (Vec<f64>, Vec<[f64; 2]>) {
     let m = inc.len();
     let half = median_step(t).map_or(1, |dt| ((RHO_HALF_WINDOW_S / dt).round() as usize).max(1));
     let sides = Sides::new(robot);
@@ -63,13 +68,20 @@ pub(super) fn turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> Vec<f64>
             let (a, b) = (k.saturating_sub(half), (k + half + 1).min(m));
             let (dl, dr) = (pl[b] - pl[a], pr[b] - pr[a]);
             let den = dl.abs() + dr.abs();
-            if den > 0.0 {
+            let rho = if den > 0.0 {
                 (dr - dl).abs() / den
             } else {
                 0.0
-            }
+            };
+            let dt = t[b.min(t.len() - 1)] - t[a];
+            let speed = if dt > 0.0 {
+                [dl.abs() / dt, dr.abs() / dt]
+            } else {
+                [0.0; 2]
+            };
+            (rho, speed)
         })
-        .collect()
+        .unzip()
 }
 
 /// A robot's sides as the stepping needs them, computed once per geometry (the wheels'
@@ -137,16 +149,22 @@ impl Sides {
     }
 
     /// One step of a robot driven by its sides (skid-steer, or a differential drive with
-    /// a turn law): each side's mean travel, the separation (E_b applied) widened by the
-    /// law at this turn ratio, the sideways speed of the ICR offset.
+    /// a law): each side's mean travel (grown by the speed law at the side's `speed`),
+    /// the separation (E_b applied) widened by the turn law at this turn ratio, the
+    /// sideways speed of the ICR offset.
     #[inline]
     pub(crate) fn step(
         &self,
         law: &TurnLaw,
         rho: f64,
+        speed: [f64; 2],
         inc: &[f64],
     ) -> calib_core::kinematics::Twist<f64> {
-        let (l, r) = self.travel(inc);
+        let (mut l, mut r) = self.travel(inc);
+        if law.speed_rel != 0.0 {
+            l *= 1.0 + law.speed_rel * speed[0];
+            r *= 1.0 + law.speed_rel * speed[1];
+        }
         let half = self.half * (1.0 + law.arc_rel * self.law_share(rho));
         let dth = (r - l) / (2.0 * half);
         calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)
@@ -161,6 +179,11 @@ pub(crate) struct Turning {
     pub(crate) all: f64,
     pub(crate) arcs: f64,
     pub(crate) arc_term: f64,
+    /// The sides' travel |d_l| + |d_r|, m.
+    pub(crate) travel: f64,
+    /// The sides' travel weighted by their speed, sum |d| |v| (m^2/s): over `travel`,
+    /// the recording's mean speed by distance.
+    pub(crate) speed_term: f64,
 }
 
 /// Turn ratios that count as arcs (rho = 1 is a turn in place, 0 a straight line).
@@ -192,7 +215,8 @@ mod tests {
     }
 
     /// rho = |d_r - d_l| / (|d_r| + |d_l|) over the window (10 rows either side at 100
-    /// Hz): straight rows are 0 and rows in place 1, exactly; a window of s straight rows
+    /// Hz): straight rows are 0 and rows in place 1, exactly; each side's speed is its
+    /// travel over the window's time, r d / 0.01 s straight and in place alike; a window of s straight rows
     /// (d_l = d_r = d) and p rows in place (d_l = -d, d_r = d), s >= p, gives
     /// 2 p d / (2 s d) = p / s; standing still, 0. Sums of equal increments round at
     /// 1e-16, hence 1e-12.
@@ -216,8 +240,19 @@ mod tests {
                     .collect()
             })
             .collect();
-        let rho = turn_ratio(&robot, &inc, &t);
+        let (rho, speed) = turn_ratio(&robot, &inc, &t);
         assert_eq!(rho.len(), 100);
+        // Every wheel turns d per 10 ms row, straight or in place: each side at r d / 0.01 s.
+        let v = robot.wheels[0].radius_m * d / 0.01;
+        for k in (10..40).chain(60..80) {
+            for side in speed[k] {
+                assert!(
+                    (side - v).abs() < 1e-9 * v,
+                    "row {k}: {:?} against {v}",
+                    speed[k]
+                );
+            }
+        }
         assert!(
             rho[..40].iter().all(|&r| r == 0.0),
             "straight: {:?}",
@@ -233,6 +268,8 @@ mod tests {
         // Row 99's window is rows 89..=99: 1 in place, 10 still (the turn only).
         assert_eq!(rho[99], 1.0);
         let still: Vec<Vec<f64>> = vec![vec![0.0; 2]; 100];
-        assert!(turn_ratio(&robot, &still, &t).iter().all(|&r| r == 0.0));
+        let (rho, speed) = turn_ratio(&robot, &still, &t);
+        assert!(rho.iter().all(|&r| r == 0.0));
+        assert!(speed.iter().all(|&s| s == [0.0; 2]));
     }
 }
