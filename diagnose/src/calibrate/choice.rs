@@ -6,8 +6,8 @@
 
 use crate::calibrate::options::Cfg;
 use crate::calibrate::params::{
-    alike_priors, is_mecanum, ladder, param_specs, roller_specs, speed_law_specs, turn_law_specs,
-    GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
+    accel_law_specs, alike_priors, is_mecanum, ladder, param_specs, roller_specs, speed_law_specs,
+    turn_law_specs, GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
 };
 use crate::calibrate::pool::pool_map;
 use crate::calibrate::problem::Problem;
@@ -552,6 +552,7 @@ fn choose_turn_law(
     }
     if !skid {
         laws.push(("speed", speed_law_specs(robot)));
+        laws.push(("acceleration", accel_law_specs(robot)));
     }
     if laws.is_empty() {
         return base;
@@ -571,34 +572,28 @@ fn choose_turn_law(
         let e_law = e[i + 1];
         let at = |k: GeomKind| specs.iter().position(|s| s.kind == k);
         let sd = |i: usize| fit.cov[(i, i)].max(0.0).sqrt();
-        let main = if *kind == "turn" {
-            GeomKind::EbArc
-        } else {
-            GeomKind::SpeedRel
+        let (main, what, constant) = match *kind {
+            "turn" => (GeomKind::EbArc, "the law", "a constant E_b"),
+            "speed" => (GeomKind::SpeedRel, "the speed law", "a constant wheel size"),
+            _ => (GeomKind::AccelSlip, "the acceleration law", "no slip"),
         };
         let ia = at(main).unwrap_or(0);
         let (v, s_v) = (fit.f.geom[ia], sd(ia));
         let mut significant = v.abs() >= 3.0 * s_v;
-        let mut figures = if *kind == "turn" {
-            format!("eb_arc {v:+.4} ± {s_v:.4}")
-        } else {
-            format!("speed_rel {v:+.4} ± {s_v:.4} per m/s")
+        let mut figures = match main {
+            GeomKind::EbArc => format!("eb_arc {v:+.4} ± {s_v:.4}"),
+            GeomKind::SpeedRel => format!("speed_rel {v:+.4} ± {s_v:.4} per m/s"),
+            _ => format!("accel_slip_s {:+.1} ± {:.1} ms", v * 1e3, s_v * 1e3),
         };
         if let Some(ix) = at(GeomKind::IcrX) {
             let (x, s_x) = (fit.f.geom[ix], sd(ix));
             significant |= x.abs() >= 3.0 * s_x;
             figures.push_str(&format!(", icr_x {:+.1} ± {:.1} mm", x * 1e3, s_x * 1e3));
         }
-        let with = if *kind == "turn" {
-            "the law"
-        } else {
-            "the speed law"
-        };
         figures.push_str(&format!(
-            "; held-out dead reckoning by recording ({k} folds) {:.1} mm with {with}, {:.1} mm with a constant {}",
+            "; held-out dead reckoning by recording ({k} folds) {:.1} mm with {what}, {:.1} mm with {constant}",
             e_law * 1e3,
             e_base * 1e3,
-            if *kind == "turn" { "E_b" } else { "wheel size" }
         ));
         let holds = e_law.is_finite() && e_law <= TURN_LAW_HOLDOUT_RATIO * e_base;
         let plausible = specs[ia].plausible;
@@ -609,15 +604,25 @@ fn choose_turn_law(
                 specs[ia].name, plausible.0, plausible.1
             ));
         }
-        // A speed law the recordings cannot tell from the wheel size (squares run at one
-        // cruise speed: on two simulated squares with a slip, correlation -0.999) is not
-        // kept, however it holds out.
-        let is = at(GeomKind::Scale);
-        let corr = is.map_or(0.0, |is| fit.cov[(ia, is)] / (s_v * sd(is)).max(1e-300));
+        // A speed or acceleration law the recordings cannot tell from the geometry
+        // (squares run at one cruise speed: on two simulated squares with a slip, the
+        // speed law's correlation with the scale is -0.999) is not kept, however it holds
+        // out.
+        let (corr, with) = (0..specs.len())
+            .filter(|&j| j != ia)
+            .map(|j| (fit.cov[(ia, j)] / (s_v * sd(j)).max(1e-300), j))
+            .max_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
+            .unwrap_or((0.0, ia));
         let separable = *kind == "turn" || corr.abs() <= crate::calibrate::CORR_LIMIT;
         if !separable {
+            let record = if *kind == "speed" {
+                "runs at several speeds"
+            } else {
+                "runs with more starts, stops and changes of speed"
+            };
             figures.push_str(&format!(
-                "; it cannot be told from the wheel size on these recordings (correlation {corr:+.3}): record runs at several speeds to test it"
+                "; it cannot be told from {} on these recordings (correlation {corr:+.3}): record {record} to test it",
+                specs[with].name
             ));
         }
         let qualifies = significant && holds && in_range && separable;
@@ -637,11 +642,17 @@ fn choose_turn_law(
             ("turn", false) => format!(
                 "{who}: a constant effective separation explains the data ({figures}; the law is {rule})"
             ),
-            (_, true) => format!(
+            ("speed", true) => format!(
                 "speed law: the wheels' effective size depends on their speed and the law holds out ({figures})"
             ),
-            (_, false) => format!(
+            ("speed", false) => format!(
                 "speed law: a wheel size that does not depend on speed explains the data ({figures}; the law is {rule})"
+            ),
+            (_, true) => format!(
+                "acceleration law: the wheels slip in proportion to their acceleration (the ground lags their speed) and the law holds out ({figures})"
+            ),
+            (_, false) => format!(
+                "acceleration law: wheels that do not slip as they accelerate explain the data ({figures}; the law is {rule})"
             ),
         };
         if qualifies {
@@ -668,6 +679,8 @@ fn choose_turn_law(
                 )
             };
             format!(": not fitted, one law at a time ({why})")
+        } else if laws[j].0 == "acceleration" {
+            ": the law is fitted (the board cannot apply it; the robot file, ROS and the board get the geometry without it: over a run that starts and ends at rest the lag cancels)".to_string()
         } else if laws[j].0 == "speed" {
             ": the law is fitted (the board, ROS 2 and the robot file get the wheel size at the recordings' mean speed; the board cannot apply the law)".to_string()
         } else if skid {

@@ -43,6 +43,10 @@ pub enum GeomKind {
     /// rolling speed (a side rolling at v travels (1 + speed_rel |v|) times what its
     /// radius says; the speed from the counts at nominal radii, smoothed as rho is).
     SpeedRel,
+    /// Differential drive: the ground's lag behind each side's speed, s (slip in
+    /// proportion to acceleration: each side's travel less accel_slip_s times its change
+    /// of speed).
+    AccelSlip,
     /// Omni: where the wheels' centre is, body frame x, m: every wheel moved by it, its
     /// rolling direction kept (the odometry's origin, the point motion capture tracks,
     /// is not the centre the wheels were laid out about).
@@ -320,6 +324,27 @@ pub fn speed_law_specs(robot: &Robot) -> Vec<ParamSpec> {
     v
 }
 
+/// The acceleration model of a differential drive: [`param_specs`] plus the ground's
+/// lag behind the wheels' speed ([`GeomKind::AccelSlip`]).
+pub fn accel_law_specs(robot: &Robot) -> Vec<ParamSpec> {
+    let mut v = param_specs(robot, false);
+    v.push(spec(
+        GeomKind::AccelSlip,
+        "accel_slip_s".into(),
+        "longitudinal_slip",
+        0.0,
+        ACCEL_SLIP_RANGE,
+        ACCEL_SLIP_STANDS,
+    ));
+    v
+}
+
+/// The ground may lag a differential drive's wheels by this much (s): 0.2 s of slip
+/// per change of speed is a wheel spinning on ice.
+pub const ACCEL_SLIP_RANGE: f64 = 0.2;
+const ACCEL_SLIP_STANDS: &str =
+    "a clock offset between the encoders and the poses rather than slip";
+
 /// A differential drive's wheels may roll this much further (or shorter) per m/s of
 /// their speed: 6 % at 0.3 m/s, more than tyre deflection or slip give a small robot.
 pub const SPEED_REL_RANGE: f64 = 0.2;
@@ -451,7 +476,8 @@ pub fn robot_with(base: &Robot, specs: &[ParamSpec], values: &[f64]) -> Robot {
             | GeomKind::MarkerY
             | GeomKind::EbArc
             | GeomKind::IcrX
-            | GeomKind::SpeedRel => {}
+            | GeomKind::SpeedRel
+            | GeomKind::AccelSlip => {}
         }
     }
     let mut r = base.clone();

@@ -216,7 +216,7 @@ impl<'a> Problem<'a> {
             || self.specs.iter().any(|s| {
                 matches!(
                     s.kind,
-                    GeomKind::EbArc | GeomKind::IcrX | GeomKind::SpeedRel
+                    GeomKind::EbArc | GeomKind::IcrX | GeomKind::SpeedRel | GeomKind::AccelSlip
                 )
             });
         let slopes = sens::TwistSlopes::new(

@@ -11,7 +11,7 @@ use crate::calibrate::objective::{pose_segments, PathAt, HEADING_LEVER_M, RES_UN
 use crate::calibrate::params::{robot_with, GeomKind, ParamSpec};
 use crate::calibrate::series::{Nuisance, Series};
 use crate::calibrate::step::{self, Stepper};
-use crate::calibrate::turn_law::{Sides, TurnLaw};
+use crate::calibrate::turn_law::{SideMotion, Sides, TurnLaw};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::robot::Robot;
@@ -135,7 +135,7 @@ impl TwistSlopes {
         params: Range<usize>,
         inc: &[f64],
         rho: f64,
-        speed: [f64; 2],
+        side: SideMotion,
         out: &mut [[f64; 3]],
     ) {
         match self {
@@ -153,8 +153,8 @@ impl TwistSlopes {
             TwistSlopes::Sides(v) => {
                 for (o, d) in out.iter_mut().zip(&v[params]) {
                     let (a, b) = (
-                        d.plus.0.step(&d.plus.1, rho, speed, inc),
-                        d.minus.0.step(&d.minus.1, rho, speed, inc),
+                        d.plus.0.step(&d.plus.1, rho, side, inc),
+                        d.minus.0.step(&d.minus.1, rho, side, inc),
                     );
                     let k = d.k;
                     *o = [
@@ -264,13 +264,13 @@ impl Series {
         let rows = self.inc.len() / self.wheels.max(1);
         let no_rho = vec![0.0; rows];
         let rho = self.rho.as_deref().unwrap_or(&no_rho);
-        let no_speed = vec![[0.0; 2]; rows];
-        let speed = self.speed.as_deref().unwrap_or(&no_speed);
+        let no_motion = vec![SideMotion::default(); rows];
+        let motion = self.motion.as_deref().unwrap_or(&no_motion);
         let mut d = vec![[0.0f64; 3]; p];
         let mut dt = vec![[0.0f64; 3]; p];
         let (mut x, mut y, mut h) = (0.0f64, 0.0f64, step::Heading::new());
         visit(0, [x, y, h.th], &d);
-        for (k, ((inc, &r), &v)) in self.incs().zip(rho).zip(speed).enumerate() {
+        for (k, ((inc, &r), &v)) in self.incs().zip(rho).zip(motion).enumerate() {
             let tw: Twist<f64> = match sides {
                 Some((_, (s, law))) => s.step(law, r, v, inc),
                 None => stepper.forward(inc),

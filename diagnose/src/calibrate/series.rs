@@ -8,7 +8,7 @@
 use crate::calibrate::error::CalibrateError;
 use crate::calibrate::params::{robot_with, ParamSpec};
 use crate::calibrate::step::{self, Stepper};
-use crate::calibrate::turn_law::{turn_ratio, Sides, TurnLaw, Turning, ARC_RHO};
+use crate::calibrate::turn_law::{turn_ratio, SideMotion, Sides, TurnLaw, Turning, ARC_RHO};
 use crate::replay::unwrap_angles;
 use calib_core::correction::Corrections;
 use calib_core::kinematics::Kinematics;
@@ -48,9 +48,9 @@ pub struct Series {
     pub(super) legs: Option<Vec<(f64, f64)>>,
     /// Robots with sides: turn ratio rho per increment ([`turn_ratio`]).
     pub(super) rho: Option<Vec<f64>>,
-    /// Robots with sides: the left and right sides' speeds per increment, m/s at nominal
+    /// Robots with sides: how the left and right sides move per increment, at nominal
     /// radii ([`turn_ratio`]).
-    pub(super) speed: Option<Vec<[f64; 2]>>,
+    pub(super) motion: Option<Vec<SideMotion>>,
     /// Pose samples (indices into px...) the dead-reckoning objective compares: one every
     /// [`SAMPLE_STEP_M`] of travel (turns in place counted at the wheels' lever arm).
     pub(crate) samples: Vec<usize>,
@@ -251,7 +251,7 @@ impl Series {
             None
         };
         let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
-        let (rho, speed) = match matches!(robot.kind, RobotKind::SkidSteer | RobotKind::DiffDrive)
+        let (rho, motion) = match matches!(robot.kind, RobotKind::SkidSteer | RobotKind::DiffDrive)
             .then(|| turn_ratio(robot, &inc, &rec.t))
         {
             Some((r, v)) => (Some(r), Some(v)),
@@ -269,7 +269,7 @@ impl Series {
             pth,
             legs,
             rho,
-            speed,
+            motion,
             samples,
             anchors: vec![0],
             glitches,
@@ -443,7 +443,7 @@ impl Series {
                 pth,
                 legs: self.legs.as_ref().map(|l| l[rows.clone()].to_vec()),
                 rho: self.rho.as_ref().map(|r| r[r0..r1 - 1].to_vec()),
-                speed: self.speed.as_ref().map(|v| v[r0..r1 - 1].to_vec()),
+                motion: self.motion.as_ref().map(|v| v[r0..r1 - 1].to_vec()),
                 samples,
                 anchors: vec![0],
                 glitches: if k == 0 {
@@ -484,7 +484,7 @@ impl Series {
         let sides = Sides::new(robot);
         for (k, (inc, &rho)) in self.incs().zip(rho).enumerate() {
             let (l, r) = sides.travel(inc);
-            if let Some(v) = self.speed.as_ref().map(|v| v[k]) {
+            if let Some(v) = self.motion.as_ref().map(|m| m[k].speed) {
                 t.travel += l.abs() + r.abs();
                 t.speed_term += l.abs() * v[0] + r.abs() * v[1];
             }
@@ -537,10 +537,10 @@ impl Series {
         let mut p = Pose::new(0.0, 0.0, 0.0);
         out.push(p);
         let (mut x, mut y, mut h) = (0.0, 0.0, step::Heading::new());
-        if let (Some(rho), Some(speed), Some((sides, law))) =
-            (&self.rho, &self.speed, stepper.sides())
+        if let (Some(rho), Some(motion), Some((sides, law))) =
+            (&self.rho, &self.motion, stepper.sides())
         {
-            for ((inc, &rho), &v) in self.incs().zip(rho).zip(speed) {
+            for ((inc, &rho), &v) in self.incs().zip(rho).zip(motion) {
                 step::arc_step(&mut x, &mut y, &mut h, &sides.step(law, rho, v, inc));
                 out.push(Pose::new(x, y, h.th));
             }

@@ -19,6 +19,9 @@ pub struct TurnLaw {
     /// Differential drive: growth of the wheels' effective size per m/s of their speed
     /// (0: the size does not depend on speed).
     pub speed_rel: f64,
+    /// Differential drive: the ground's lag behind each side's speed, s (slip in
+    /// proportion to acceleration: the ground moves at v - accel_slip_s dv/dt).
+    pub accel_slip_s: f64,
 }
 
 impl TurnLaw {
@@ -31,6 +34,7 @@ impl TurnLaw {
             arc_rel: get(GeomKind::EbArc).map_or(known_arc_rel, |a| a / eb),
             icr_x_m: get(GeomKind::IcrX).unwrap_or(0.0),
             speed_rel: get(GeomKind::SpeedRel).unwrap_or(0.0),
+            accel_slip_s: get(GeomKind::AccelSlip).unwrap_or(0.0),
         }
     }
 }
@@ -50,10 +54,24 @@ fn median_step(t: &[f64]) -> Option<f64> {
     (*m > 0.0).then_some(*m)
 }
 
+/// How a robot's sides move over one increment, from the counts at nominal radii,
+/// smoothed as rho is ([`turn_ratio`]).
+#[derive(Debug, Clone, Copy, Default, PartialEq)]
+pub(crate) struct SideMotion {
+    /// The left and right sides' speeds, |v| (m/s).
+    pub(crate) speed: [f64; 2],
+    /// The change of each side's signed speed over the increment (m/s).
+    pub(crate) dv: [f64; 2],
+}
+
 /// Per increment, rho = |d_r - d_l| / (|d_r| + |d_l|) of the sides' travel (nominal
-/// radii), and the sides' speeds |d_l| / dt and |d_r| / dt (m/s), both smoothed over
-/// [`RHO_HALF_WINDOW_S`] either side (in rows at the median row step).
-pub(super) fn turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> (Vec<f64>, Vec<[f64; 2]>) {
+/// radii), and the sides' motion ([`SideMotion`]: speeds d / dt and their change), both
+/// smoothed over [`RHO_HALF_WINDOW_S`] either side (in rows at the median row step).
+pub(super) fn turn_ratio(
+    robot: &Robot,
+    inc: &[Vec<f64>],
+    t: &[f64],
+) -> (Vec<f64>, Vec<SideMotion>) {
     let m = inc.len();
     let half = median_step(t).map_or(1, |dt| ((RHO_HALF_WINDOW_S / dt).round() as usize).max(1));
     let sides = Sides::new(robot);
@@ -63,7 +81,7 @@ pub(super) fn turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> (Vec<f64
         pl[k + 1] = pl[k] + l;
         pr[k + 1] = pr[k] + r;
     }
-    (0..m)
+    let (rho, v): (Vec<f64>, Vec<[f64; 2]>) = (0..m)
         .map(|k| {
             let (a, b) = (k.saturating_sub(half), (k + half + 1).min(m));
             let (dl, dr) = (pl[b] - pl[a], pr[b] - pr[a]);
@@ -74,14 +92,24 @@ pub(super) fn turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> (Vec<f64
                 0.0
             };
             let dt = t[b.min(t.len() - 1)] - t[a];
-            let speed = if dt > 0.0 {
-                [dl.abs() / dt, dr.abs() / dt]
+            let v = if dt > 0.0 {
+                [dl / dt, dr / dt]
             } else {
                 [0.0; 2]
             };
-            (rho, speed)
+            (rho, v)
         })
-        .unzip()
+        .unzip();
+    let motion = (0..m)
+        .map(|k| {
+            let next = v.get(k + 1).copied().unwrap_or(v[k]);
+            SideMotion {
+                speed: [v[k][0].abs(), v[k][1].abs()],
+                dv: [next[0] - v[k][0], next[1] - v[k][1]],
+            }
+        })
+        .collect();
+    (rho, motion)
 }
 
 /// A robot's sides as the stepping needs them, computed once per geometry (the wheels'
@@ -149,21 +177,26 @@ impl Sides {
     }
 
     /// One step of a robot driven by its sides (skid-steer, or a differential drive with
-    /// a law): each side's mean travel (grown by the speed law at the side's `speed`),
-    /// the separation (E_b applied) widened by the turn law at this turn ratio, the
-    /// sideways speed of the ICR offset.
+    /// a law): each side's mean travel (grown by the speed law at the side's speed, less
+    /// the acceleration law's lag times its change of speed), the separation (E_b
+    /// applied) widened by the turn law at this turn ratio, the sideways speed of the ICR
+    /// offset.
     #[inline]
     pub(crate) fn step(
         &self,
         law: &TurnLaw,
         rho: f64,
-        speed: [f64; 2],
+        side: SideMotion,
         inc: &[f64],
     ) -> calib_core::kinematics::Twist<f64> {
         let (mut l, mut r) = self.travel(inc);
         if law.speed_rel != 0.0 {
-            l *= 1.0 + law.speed_rel * speed[0];
-            r *= 1.0 + law.speed_rel * speed[1];
+            l *= 1.0 + law.speed_rel * side.speed[0];
+            r *= 1.0 + law.speed_rel * side.speed[1];
+        }
+        if law.accel_slip_s != 0.0 {
+            l -= law.accel_slip_s * side.dv[0];
+            r -= law.accel_slip_s * side.dv[1];
         }
         let half = self.half * (1.0 + law.arc_rel * self.law_share(rho));
         let dth = (r - l) / (2.0 * half);
@@ -240,7 +273,8 @@ mod tests {
                     .collect()
             })
             .collect();
-        let (rho, speed) = turn_ratio(&robot, &inc, &t);
+        let (rho, motion) = turn_ratio(&robot, &inc, &t);
+        let speed: Vec<[f64; 2]> = motion.iter().map(|m| m.speed).collect();
         assert_eq!(rho.len(), 100);
         // Every wheel turns d per 10 ms row, straight or in place: each side at r d / 0.01 s.
         let v = robot.wheels[0].radius_m * d / 0.01;
@@ -268,8 +302,8 @@ mod tests {
         // Row 99's window is rows 89..=99: 1 in place, 10 still (the turn only).
         assert_eq!(rho[99], 1.0);
         let still: Vec<Vec<f64>> = vec![vec![0.0; 2]; 100];
-        let (rho, speed) = turn_ratio(&robot, &still, &t);
+        let (rho, motion) = turn_ratio(&robot, &still, &t);
         assert!(rho.iter().all(|&r| r == 0.0));
-        assert!(speed.iter().all(|&s| s == [0.0; 2]));
+        assert!(motion.iter().all(|m| *m == SideMotion::default()));
     }
 }
