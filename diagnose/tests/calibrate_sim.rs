@@ -723,6 +723,30 @@ fn omni_ladder_keeps_the_simplest_model_that_holds_out() {
     }
 }
 
+/// Three 40 s runs of free motion (seeds 50-52) of `nominal` with `effects` and the
+/// simulator's wheels growing by `speed_scale` per m/s and its separation by `turn_scrub`
+/// from a turn in place to an arc: what the laws' tests calibrate on.
+fn law_runs(
+    nominal: &Robot,
+    effects: &[sim::Effect],
+    speed_scale: f64,
+    turn_scrub: f64,
+) -> Vec<(String, Recording)> {
+    (0..3)
+        .map(|i| {
+            let mut c = cfg(50 + i);
+            c.sim.speed_scale = speed_scale;
+            c.sim.turn_scrub = turn_scrub;
+            let motion = Motion::Random(RandomMotion {
+                duration_s: 40.0,
+                ..RandomMotion::default()
+            });
+            let r = record(nominal, effects, Surface::flat(), &motion, &c).unwrap();
+            (format!("run{i}"), r.recording)
+        })
+        .collect()
+}
+
 /// Separation that depends on the turn (wide tyres: `SimConfig::turn_scrub`, E_b 4 %
 /// wider on a straight line than in a turn in place) on a differential drive, three
 /// 40 s runs of free motion: the law is found (eb_arc 0.04 within 4 sigma and 0.01) and
@@ -731,20 +755,7 @@ fn omni_ladder_keeps_the_simplest_model_that_holds_out() {
 #[test]
 fn turn_dependent_separation_is_found_and_not_invented() {
     let nominal = robot("mobolab");
-    let runs = |scrub: f64| -> Vec<(String, Recording)> {
-        (0..3)
-            .map(|i| {
-                let mut c = cfg(50 + i);
-                c.sim.turn_scrub = scrub;
-                let motion = Motion::Random(RandomMotion {
-                    duration_s: 40.0,
-                    ..RandomMotion::default()
-                });
-                let r = record(&nominal, &[], Surface::flat(), &motion, &c).unwrap();
-                (format!("run{i}"), r.recording)
-            })
-            .collect()
-    };
+    let runs = |scrub: f64| law_runs(&nominal, &[], 0.0, scrub);
     let c = calibrate(&nominal, &runs(0.04), None, &CalOptions::default()).unwrap();
     println!("{c}");
     let arc = c
@@ -775,21 +786,7 @@ fn turn_dependent_separation_is_found_and_not_invented() {
 #[test]
 fn speed_dependent_scale_is_found_and_not_invented() {
     let nominal = robot("mobolab");
-    let runs = |speed: f64, scrub: f64| -> Vec<(String, Recording)> {
-        (0..3)
-            .map(|i| {
-                let mut c = cfg(50 + i);
-                c.sim.speed_scale = speed;
-                c.sim.turn_scrub = scrub;
-                let motion = Motion::Random(RandomMotion {
-                    duration_s: 40.0,
-                    ..RandomMotion::default()
-                });
-                let r = record(&nominal, &[], Surface::flat(), &motion, &c).unwrap();
-                (format!("run{i}"), r.recording)
-            })
-            .collect()
-    };
+    let runs = |speed: f64, scrub: f64| law_runs(&nominal, &[], speed, scrub);
     let named = |c: &Calibration, name: &str| c.params.iter().any(|p| p.spec.name == name);
     let c = calibrate(&nominal, &runs(0.1, 0.0), None, &CalOptions::default()).unwrap();
     println!("{c}");
@@ -833,23 +830,7 @@ fn speed_dependent_scale_is_found_and_not_invented() {
 fn acceleration_slip_is_found_and_not_invented() {
     let nominal = robot("mobolab");
     let creep = sim::Effect::parse("longitudinal_slip=mechanism:creep,creep_s:0.05").unwrap();
-    let recs: Vec<(String, Recording)> = (0..3)
-        .map(|i| {
-            let motion = Motion::Random(RandomMotion {
-                duration_s: 40.0,
-                ..RandomMotion::default()
-            });
-            let r = record(
-                &nominal,
-                std::slice::from_ref(&creep),
-                Surface::flat(),
-                &motion,
-                &cfg(50 + i),
-            )
-            .unwrap();
-            (format!("run{i}"), r.recording)
-        })
-        .collect();
+    let recs = law_runs(&nominal, &[creep], 0.0, 0.0);
     let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
     println!("{c}");
     let law = c
