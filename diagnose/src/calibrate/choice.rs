@@ -502,12 +502,16 @@ pub const TURN_LAW_HOLDOUT_RATIO: f64 = 0.95;
 /// A differential or skid-steer robot's model: constant E_b, or the turn-radius law
 /// ([Mandow et al.]'s moving ICRs on a skid-steer robot, tyre scrub on a differential
 /// drive) when it holds out; on a differential drive, also the speed law (wheels whose
-/// effective size grows with their speed), tested on its own, one law at a time. The
-/// recordings are split into at most [`LADDER_FOLDS`] folds; each model is fitted without
-/// each fold and dead-reckons it; a law is kept when its mean held-out error is at most
+/// effective size grows with their speed) and the acceleration law (slip in proportion
+/// to acceleration), each tested on its own: one law at a time. The recordings are split
+/// into at most [`LADDER_FOLDS`] folds; each model is fitted without each fold and
+/// dead-reckons it; a law qualifies when its mean held-out error is at most
 /// [`TURN_LAW_HOLDOUT_RATIO`] of the constant model's, one of its parameters is
-/// significant (3 sigma) on all the data and within its plausible range; of two that
-/// qualify, the one that holds out better. Says which and why, with the figures.
+/// significant (3 sigma) on all the data and within its plausible range, and (speed and
+/// acceleration) the data tell it from the geometry (|correlation| at most
+/// [`CORR_LIMIT`](crate::calibrate::CORR_LIMIT)). Of those that qualify, the best held
+/// out, or the turn law when within [`LADDER_TOLERANCE`] of it (the board applies it).
+/// Says which and why, with the figures.
 fn choose_turn_law(
     robot: &Robot,
     series: &[Series],
