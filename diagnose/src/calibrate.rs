@@ -71,6 +71,7 @@ pub use series::{
     Series, JUMP_MIN_M, JUMP_ONE_STEP, JUMP_SIGMAS, JUMP_WINDOW, MIN_POSES, NOISY_POSES_M,
     PART_SEP, PLAUSIBLE_CLOCK_DRIFT, PLAUSIBLE_TIME_OFFSET_S, SAMPLE_STEP_M,
 };
+use turn_law::Turning;
 pub use turn_law::{TurnLaw, ARC_RHO};
 
 use calib_core::correction::Corrections;
@@ -343,33 +344,20 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     // A speed law likewise: they get the wheel size at the recordings' mean speed
     // (weighted by distance).
     let mut law_scale = 1.0;
-    if turn_law.speed_rel != 0.0 {
-        let (mut d, mut dv) = (0.0, 0.0);
-        for s in &series {
-            let t = s.turning(robot);
-            d += t.travel;
-            dv += t.speed_term;
-        }
-        if d > 0.0 {
-            law_scale = 1.0 + turn_law.speed_rel * dv / d;
+    if turn_law.speed_rel != 0.0 || turn_law.arc_rel != 0.0 {
+        let t = Turning::of_all(&series, robot);
+        if turn_law.speed_rel != 0.0 && t.travel > 0.0 {
+            law_scale = 1.0 + turn_law.speed_rel * t.speed_term / t.travel;
             for w in fitted_robot.wheels.iter_mut() {
                 w.radius_m *= law_scale;
             }
-        }
-    }
-    if turn_law.arc_rel != 0.0 {
-        let (mut sw, mut st) = (0.0, 0.0);
-        for s in &series {
-            let t = s.turning(robot);
-            sw += t.all;
-            st += t.arc_term;
         }
         let eb = specs
             .iter()
             .position(|s| s.kind == GeomKind::Eb)
             .map_or(1.0, |i| fitted.geom[i]);
-        if sw > 0.0 {
-            law_eb_shift = turn_law.arc_rel * eb * st / sw;
+        if turn_law.arc_rel != 0.0 && t.all > 0.0 {
+            law_eb_shift = turn_law.arc_rel * eb * t.arc_term / t.all;
             for w in fitted_robot.wheels.iter_mut() {
                 w.l_m *= (eb + law_eb_shift) / eb;
             }

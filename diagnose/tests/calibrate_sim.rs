@@ -796,6 +796,13 @@ fn speed_dependent_scale_is_found_and_not_invented() {
         .find(|p| p.spec.name == "speed_rel")
         .unwrap_or_else(|| panic!("no speed law\n{c}"));
     assert!((law.value - 0.1).abs() <= 4.0 * law.sigma + 0.01, "{c}");
+    // The robot file gets the wheel size at the runs' mean speed: grown by speed_rel
+    // times a mean side speed between 0.03 m/s and the 0.5 m/s a side reaches (0.3 m/s
+    // forward plus 1 rad/s times the 0.2 m half track; measured 0.223 m/s).
+    let grown = c.fitted_robot.wheels[0].radius_m / c.law_base_robot.wheels[0].radius_m - 1.0;
+    let mean_speed = grown / law.value;
+    println!("robot file's wheel size grown by {grown:.5}: mean speed {mean_speed:.3} m/s");
+    assert!((0.03..=0.5).contains(&mean_speed), "{mean_speed}");
     assert!(!named(&c, "eb_arc"), "{c}");
     assert!(
         c.notes

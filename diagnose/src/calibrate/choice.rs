@@ -15,6 +15,7 @@ use crate::calibrate::series::{fitted_dead_reckoning_rmse, Series};
 use crate::calibrate::solve::{
     covariance, noise_scale, nuisance_start, refs, reweighed, solve, OneStep, Solved,
 };
+use crate::calibrate::turn_law::Turning;
 use calib_core::robot::{Robot, RobotKind};
 use nalgebra::DMatrix;
 
@@ -538,15 +539,12 @@ fn choose_turn_law(
         }
         return base;
     }
-    let (arcs, all) = series.iter().fold((0.0, 0.0), |(a, b), s| {
-        let t = s.turning(robot);
-        (a + t.arcs, b + t.all)
-    });
-    let share = if all > 0.0 { arcs / all } else { 0.0 };
+    let t = Turning::of_all(series, robot);
+    let share = if t.all > 0.0 { t.arcs / t.all } else { 0.0 };
     // The laws tested against the constant model, each on its own.
-    let mut laws: Vec<(&str, Vec<ParamSpec>)> = Vec::new();
+    let mut laws: Vec<(Law, Vec<ParamSpec>)> = Vec::new();
     if share >= MIN_ARC_SHARE {
-        laws.push(("turn", turn_law_specs(robot)));
+        laws.push((Law::Turn, turn_law_specs(robot)));
     } else {
         notes.push(format!(
             "{who}: the recordings turn on arcs for {:.0} % of their turning (the rest in place), under the {:.0} % a turn-radius law needs: a constant effective separation (E_b) is fitted; record arcs of several radii to test one",
@@ -555,13 +553,13 @@ fn choose_turn_law(
         ));
     }
     if !skid {
-        laws.push(("speed", speed_law_specs(robot)));
-        laws.push(("acceleration", accel_law_specs(robot)));
+        laws.push((Law::Speed, speed_law_specs(robot)));
+        laws.push((Law::Acceleration, accel_law_specs(robot)));
     }
     if laws.is_empty() {
         return base;
     }
-    let fits: Vec<Fit> = pool_map(&laws, |(_, specs)| {
+    let mut fits: Vec<Fit> = pool_map(&laws, |(_, specs)| {
         fit_specs(robot, specs, &refs(series), cfg, true)
     });
     *runs += fits.iter().map(|f| f.runs).sum::<usize>();
@@ -572,22 +570,22 @@ fn choose_turn_law(
     let e_base = e[0];
     // The laws that qualify: index, held-out error, their note.
     let mut qualified: Vec<(usize, f64, usize)> = Vec::new();
-    for (i, ((kind, specs), fit)) in laws.iter().zip(&fits).enumerate() {
+    for (i, ((law, specs), fit)) in laws.iter().zip(&fits).enumerate() {
         let e_law = e[i + 1];
         let at = |k: GeomKind| specs.iter().position(|s| s.kind == k);
         let sd = |i: usize| fit.cov[(i, i)].max(0.0).sqrt();
-        let (main, what, constant) = match *kind {
-            "turn" => (GeomKind::EbArc, "the law", "a constant E_b"),
-            "speed" => (GeomKind::SpeedRel, "the speed law", "a constant wheel size"),
-            _ => (GeomKind::AccelSlip, "the acceleration law", "no slip"),
+        let (main, what, constant) = match law {
+            Law::Turn => (GeomKind::EbArc, "the law", "a constant E_b"),
+            Law::Speed => (GeomKind::SpeedRel, "the speed law", "a constant wheel size"),
+            Law::Acceleration => (GeomKind::AccelSlip, "the acceleration law", "no slip"),
         };
         let ia = at(main).unwrap_or(0);
         let (v, s_v) = (fit.f.geom[ia], sd(ia));
         let mut significant = v.abs() >= 3.0 * s_v;
-        let mut figures = match main {
-            GeomKind::EbArc => format!("eb_arc {v:+.4} ± {s_v:.4}"),
-            GeomKind::SpeedRel => format!("speed_rel {v:+.4} ± {s_v:.4} per m/s"),
-            _ => format!("accel_slip_s {:+.1} ± {:.1} ms", v * 1e3, s_v * 1e3),
+        let mut figures = match law {
+            Law::Turn => format!("eb_arc {v:+.4} ± {s_v:.4}"),
+            Law::Speed => format!("speed_rel {v:+.4} ± {s_v:.4} per m/s"),
+            Law::Acceleration => format!("accel_slip_s {:+.1} ± {:.1} ms", v * 1e3, s_v * 1e3),
         };
         if let Some(ix) = at(GeomKind::IcrX) {
             let (x, s_x) = (fit.f.geom[ix], sd(ix));
@@ -617,9 +615,9 @@ fn choose_turn_law(
             .map(|j| (fit.cov[(ia, j)] / (s_v * sd(j)).max(1e-300), j))
             .max_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
             .unwrap_or((0.0, ia));
-        let separable = *kind == "turn" || corr.abs() <= crate::calibrate::CORR_LIMIT;
+        let separable = *law == Law::Turn || corr.abs() <= crate::calibrate::CORR_LIMIT;
         if !separable {
-            let record = if *kind == "speed" {
+            let record = if *law == Law::Speed {
                 "runs at several speeds"
             } else {
                 "runs with more starts, stops and changes of speed"
@@ -634,8 +632,8 @@ fn choose_turn_law(
             "kept only when significant and at most {:.0} % of the constant model's held-out error",
             TURN_LAW_HOLDOUT_RATIO * 100.0
         );
-        let note = match (*kind, qualifies) {
-            ("turn", true) => {
+        let note = match (law, qualifies) {
+            (Law::Turn, true) => {
                 let what = if skid {
                     "the tracks' ICRs move with the turn radius"
                 } else {
@@ -643,19 +641,19 @@ fn choose_turn_law(
                 };
                 format!("{who}: {what} and the law holds out ({figures})")
             }
-            ("turn", false) => format!(
+            (Law::Turn, false) => format!(
                 "{who}: a constant effective separation explains the data ({figures}; the law is {rule})"
             ),
-            ("speed", true) => format!(
+            (Law::Speed, true) => format!(
                 "speed law: the wheels' effective size depends on their speed and the law holds out ({figures})"
             ),
-            ("speed", false) => format!(
+            (Law::Speed, false) => format!(
                 "speed law: a wheel size that does not depend on speed explains the data ({figures}; the law is {rule})"
             ),
-            (_, true) => format!(
+            (Law::Acceleration, true) => format!(
                 "acceleration law: the wheels slip in proportion to their acceleration (the ground lags their speed) and the law holds out ({figures})"
             ),
-            (_, false) => format!(
+            (Law::Acceleration, false) => format!(
                 "acceleration law: wheels that do not slip as they accelerate explain the data ({figures}; the law is {rule})"
             ),
         };
@@ -670,12 +668,12 @@ fn choose_turn_law(
     // Within the ladder's tolerance of the best, the turn law: the board applies it.
     let turn = qualified
         .iter()
-        .find(|(i, e, _)| laws[*i].0 == "turn" && *e <= (1.0 + LADDER_TOLERANCE) * e_best);
+        .find(|(i, e, _)| laws[*i].0 == Law::Turn && *e <= (1.0 + LADDER_TOLERANCE) * e_best);
     let i = turn.map_or(best, |t| t.0);
     for &(j, _, at) in &qualified {
         let tail = if j != i {
             let why = if i == best {
-                format!("the {} law holds out better", laws[i].0)
+                format!("the {} law holds out better", laws[i].0.name())
             } else {
                 format!(
                     "the turn law holds out within {:.0} % of it and the board can apply that one",
@@ -683,9 +681,9 @@ fn choose_turn_law(
                 )
             };
             format!(": not fitted, one law at a time ({why})")
-        } else if laws[j].0 == "acceleration" {
+        } else if laws[j].0 == Law::Acceleration {
             ": the law is fitted (the board cannot apply it; the robot file, ROS and the board get the geometry without it: over a run that starts and ends at rest the lag cancels)".to_string()
-        } else if laws[j].0 == "speed" {
+        } else if laws[j].0 == Law::Speed {
             ": the law is fitted (the board, ROS 2 and the robot file get the wheel size at the recordings' mean speed; the board cannot apply the law)".to_string()
         } else if skid {
             ": the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn)".to_string()
@@ -694,15 +692,37 @@ fn choose_turn_law(
         };
         notes[at].push_str(&tail);
     }
-    let fit = fits.into_iter().nth(i).map(|f| (f.prior_scale, f.f));
-    if let Some((prior_scale, f)) = fit {
-        *prefit = Some(Prefit {
-            specs: laws[i].1.clone(),
-            prior_scale,
-            f,
-        });
-    }
+    let fit = fits.swap_remove(i);
+    *prefit = Some(Prefit {
+        specs: laws[i].1.clone(),
+        prior_scale: fit.prior_scale,
+        f: fit.f,
+    });
     laws.swap_remove(i).1
+}
+
+/// A law a differential or skid-steer robot's motion may follow beyond its geometry
+/// ([`choose_turn_law`] tests each on its own).
+#[derive(Debug, Clone, Copy, PartialEq, Eq)]
+enum Law {
+    /// The separation depends on the turn ([`GeomKind::EbArc`], and a skid-steer
+    /// robot's [`GeomKind::IcrX`]).
+    Turn,
+    /// The wheels' effective size depends on their speed ([`GeomKind::SpeedRel`]).
+    Speed,
+    /// The wheels slip in proportion to their acceleration ([`GeomKind::AccelSlip`]).
+    Acceleration,
+}
+
+impl Law {
+    /// Its name in the notes ("the turn law").
+    fn name(self) -> &'static str {
+        match self {
+            Law::Turn => "turn",
+            Law::Speed => "speed",
+            Law::Acceleration => "acceleration",
+        }
+    }
 }
 
 #[cfg(test)]

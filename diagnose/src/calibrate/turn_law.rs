@@ -219,6 +219,22 @@ pub(crate) struct Turning {
     pub(crate) speed_term: f64,
 }
 
+impl Turning {
+    /// The sums over every recording of `series` ([`Series::turning`](crate::calibrate::Series)).
+    pub(crate) fn of_all(series: &[crate::calibrate::Series], robot: &Robot) -> Turning {
+        series.iter().fold(Turning::default(), |a, s| {
+            let t = s.turning(robot);
+            Turning {
+                all: a.all + t.all,
+                arcs: a.arcs + t.arcs,
+                arc_term: a.arc_term + t.arc_term,
+                travel: a.travel + t.travel,
+                speed_term: a.speed_term + t.speed_term,
+            }
+        })
+    }
+}
+
 /// Turn ratios that count as arcs (rho = 1 is a turn in place, 0 a straight line).
 pub const ARC_RHO: (f64, f64) = (0.1, 0.8);
 
@@ -248,11 +264,12 @@ mod tests {
     }
 
     /// rho = |d_r - d_l| / (|d_r| + |d_l|) over the window (10 rows either side at 100
-    /// Hz): straight rows are 0 and rows in place 1, exactly; each side's speed is its
-    /// travel over the window's time, r d / 0.01 s straight and in place alike; a window of s straight rows
+    /// Hz): straight rows are 0 and rows in place 1, exactly; a window of s straight rows
     /// (d_l = d_r = d) and p rows in place (d_l = -d, d_r = d), s >= p, gives
     /// 2 p d / (2 s d) = p / s; standing still, 0. Sums of equal increments round at
-    /// 1e-16, hence 1e-12.
+    /// 1e-16, hence 1e-12. Each side's speed is its travel over the window's time,
+    /// r d / 0.01 s straight and in place alike (1e-9: the window's time is a difference
+    /// of stamps); standing still, no motion.
     #[test]
     fn turn_ratio_is_zero_straight_one_in_place_and_the_window_share_between() {
         let robot = synth::robot("mobolab");
