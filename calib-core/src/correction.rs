@@ -26,6 +26,56 @@ pub const SKID_EB_MAX: f64 = 3.0;
 /// per cent at most (the OptiOdom robot: 0.5 %).
 pub const E_B_ARC_MAX: f64 = 0.1;
 
+/// A speed law's speed_rel is refused beyond ±this (per m/s): calibration's plausible
+/// range (a tyre that rolls 20 % further at 1 m/s is not a tyre).
+pub const SPEED_REL_MAX: f64 = 0.2;
+
+/// An acceleration law's accel_slip_s is refused beyond ±this (s): calibration's
+/// plausible range.
+pub const ACCEL_SLIP_MAX_S: f64 = 0.2;
+
+/// A differential drive's laws of motion beyond constant factors, each fitted by
+/// `wheelcal calibrate` when its data show it (0: no such law). The board's odometry
+/// applies them ([`crate::diff_laws`]); wheel commands use the constant factors (the
+/// closed loop on odometry steers the rest).
+#[derive(
+    Debug, Clone, Copy, PartialEq, Default, Serialize, Deserialize, postcard_schema::Schema,
+)]
+pub struct DiffLaws {
+    /// Turn law: how much wider the effective separation is on arcs than in a turn in
+    /// place (0.005 is 0.5 %; [`crate::kinematics::turn_law_share`]).
+    pub e_b_arc: f64,
+    /// Speed law: growth of the wheels' effective size per m/s of their side's speed.
+    pub speed_rel: f64,
+    /// Acceleration law: the ground's lag behind each side's speed (s); each side's
+    /// travel less accel_slip_s times its change of speed.
+    pub accel_slip_s: f64,
+}
+
+impl DiffLaws {
+    /// Two calibration passes' laws: small growths and lags add.
+    pub fn plus(self, o: DiffLaws) -> DiffLaws {
+        DiffLaws {
+            e_b_arc: self.e_b_arc + o.e_b_arc,
+            speed_rel: self.speed_rel + o.speed_rel,
+            accel_slip_s: self.accel_slip_s + o.accel_slip_s,
+        }
+    }
+
+    /// Each law finite and within its range (±[`E_B_ARC_MAX`], ±[`SPEED_REL_MAX`],
+    /// ±[`ACCEL_SLIP_MAX_S`]).
+    pub fn validate(&self) -> Result<(), CorrectionError> {
+        check_within("e_b_arc", self.e_b_arc, -E_B_ARC_MAX, E_B_ARC_MAX)?;
+        check_within("speed_rel", self.speed_rel, -SPEED_REL_MAX, SPEED_REL_MAX)?;
+        check_within(
+            "accel_slip_s",
+            self.accel_slip_s,
+            -ACCEL_SLIP_MAX_S,
+            ACCEL_SLIP_MAX_S,
+        )
+    }
+}
+
 /// The correction factors a board stores.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Corrections {
@@ -63,6 +113,22 @@ pub enum Corrections {
         e_b: f64,
         /// How much wider the effective separation is on arcs (0.005 is 0.5 %).
         e_b_arc: f64,
+    },
+    /// [`Corrections::DiffDrive`] with any of a differential drive's laws ([`DiffLaws`]:
+    /// turn, speed, acceleration), applied by the odometry ([`crate::diff_laws`]).
+    /// Protocol v6; last on the wire, so stored and sent values of the other kinds read as
+    /// before. [`Corrections::diff_drive`] gives a turn law alone as
+    /// [`Corrections::DiffDriveTurnLaw`], which v5 boards understand.
+    DiffDriveLaws {
+        /// Left wheel's effective radius / nominal radius (at standstill, with a speed
+        /// law).
+        c_l: f64,
+        /// Right wheel's effective radius / nominal radius (likewise).
+        c_r: f64,
+        /// Actual wheelbase / nominal wheelbase (in a turn in place, with a turn law).
+        e_b: f64,
+        /// The laws.
+        laws: DiffLaws,
     },
 }
 
@@ -121,9 +187,10 @@ impl fmt::Display for CorrectionError {
                 max,
             } => {
                 at(f, name, index)?;
-                // A turn law's e_b_arc is a growth, symmetric about 0; factors start at
-                // FACTOR_MIN.
-                let min = if *name == "e_b_arc" { -*max } else { FACTOR_MIN };
+                // A law (e_b_arc, speed_rel, accel_slip_s) is symmetric about 0; factors
+                // start at FACTOR_MIN.
+                let law = matches!(*name, "e_b_arc" | "speed_rel" | "accel_slip_s");
+                let min = if law { -*max } else { FACTOR_MIN };
                 write!(
                     f,
                     " = {} is outside [{}, {}]",
@@ -185,8 +252,32 @@ impl Corrections {
         Corrections::None
     }
 
-    /// Checks the factors are finite, within [0.5, 2.0] and fit the robot (a turn law's
-    /// `e_b_arc` within ±[`E_B_ARC_MAX`], on a differential drive only).
+    /// A differential drive's factors with `laws`, as the narrowest kind that holds them:
+    /// plain factors without a law, [`Corrections::DiffDriveTurnLaw`] for a turn law
+    /// alone (what boards of protocol v5 take), else [`Corrections::DiffDriveLaws`].
+    pub fn diff_drive(c_l: f64, c_r: f64, e_b: f64, laws: DiffLaws) -> Corrections {
+        if laws == DiffLaws::default() {
+            Corrections::DiffDrive { c_l, c_r, e_b }
+        } else if laws.speed_rel == 0.0 && laws.accel_slip_s == 0.0 {
+            Corrections::DiffDriveTurnLaw {
+                c_l,
+                c_r,
+                e_b,
+                e_b_arc: laws.e_b_arc,
+            }
+        } else {
+            Corrections::DiffDriveLaws {
+                c_l,
+                c_r,
+                e_b,
+                laws,
+            }
+        }
+    }
+
+    /// Checks the factors are finite, within [0.5, 2.0] and fit the robot (a
+    /// differential drive's laws within their ranges ([`DiffLaws::validate`]), on a
+    /// differential drive only).
     pub fn validate(&self, robot: &Robot) -> Result<(), CorrectionError> {
         match self {
             Corrections::None => Ok(()),
@@ -203,6 +294,20 @@ impl Corrections {
                 check("c_r", None, *c_r)?;
                 check("e_b", None, *e_b)?;
                 check_within("e_b_arc", *e_b_arc, -E_B_ARC_MAX, E_B_ARC_MAX)
+            }
+            Corrections::DiffDriveLaws {
+                c_l,
+                c_r,
+                e_b,
+                laws,
+            } => {
+                if robot.kind != RobotKind::DiffDrive {
+                    return Err(CorrectionError::WrongKind { robot: robot.kind });
+                }
+                check("c_l", None, *c_l)?;
+                check("c_r", None, *c_r)?;
+                check("e_b", None, *e_b)?;
+                laws.validate()
             }
             Corrections::DiffDrive { c_l, c_r, e_b } => {
                 if robot.kind == RobotKind::Omni {
@@ -240,7 +345,8 @@ impl Corrections {
         match self {
             Corrections::None => 1.0,
             Corrections::DiffDrive { c_l, c_r, .. }
-            | Corrections::DiffDriveTurnLaw { c_l, c_r, .. } => {
+            | Corrections::DiffDriveTurnLaw { c_l, c_r, .. }
+            | Corrections::DiffDriveLaws { c_l, c_r, .. } => {
                 if robot.wheels[i].is_left() {
                     *c_l
                 } else {
@@ -257,7 +363,9 @@ impl Corrections {
     /// its value in a turn in place).
     pub fn wheelbase_scale(&self) -> f64 {
         match self {
-            Corrections::DiffDrive { e_b, .. } | Corrections::DiffDriveTurnLaw { e_b, .. } => *e_b,
+            Corrections::DiffDrive { e_b, .. }
+            | Corrections::DiffDriveTurnLaw { e_b, .. }
+            | Corrections::DiffDriveLaws { e_b, .. } => *e_b,
             _ => 1.0,
         }
     }
@@ -266,17 +374,27 @@ impl Corrections {
     pub fn diff_factors(&self) -> Option<(f64, f64, f64)> {
         match self {
             Corrections::DiffDrive { c_l, c_r, e_b }
-            | Corrections::DiffDriveTurnLaw { c_l, c_r, e_b, .. } => Some((*c_l, *c_r, *e_b)),
+            | Corrections::DiffDriveTurnLaw { c_l, c_r, e_b, .. }
+            | Corrections::DiffDriveLaws { c_l, c_r, e_b, .. } => Some((*c_l, *c_r, *e_b)),
             _ => None,
+        }
+    }
+
+    /// A differential drive's laws (all 0 without any).
+    pub fn laws(&self) -> DiffLaws {
+        match self {
+            Corrections::DiffDriveTurnLaw { e_b_arc, .. } => DiffLaws {
+                e_b_arc: *e_b_arc,
+                ..DiffLaws::default()
+            },
+            Corrections::DiffDriveLaws { laws, .. } => *laws,
+            _ => DiffLaws::default(),
         }
     }
 
     /// The turn law's e_b_arc (0 without one).
     pub fn turn_law(&self) -> f64 {
-        match self {
-            Corrections::DiffDriveTurnLaw { e_b_arc, .. } => *e_b_arc,
-            _ => 0.0,
-        }
+        self.laws().e_b_arc
     }
 
     /// A second calibration pass ([Redundant omni]): runs measured with `self` in force give
@@ -296,21 +414,18 @@ impl Corrections {
                 f_lat: f_lat.iter().zip(l2).map(|(a, b)| a * b).collect(),
                 f_lon: f_lon * o2,
             }),
-            // Differential factors multiply; the turn laws' small growths add. Anything
-            // else (omni with differential, or other wheel counts) does not compose.
+            // Differential factors multiply; the laws' small growths and lags add.
+            // Anything else (omni with differential, or other wheel counts) does not
+            // compose.
             _ => {
                 let (l1, r1, b1) = self.diff_factors()?;
                 let (l2, r2, b2) = secondary.diff_factors()?;
-                let (c_l, c_r, e_b) = (l1 * l2, r1 * r2, b1 * b2);
-                match self.turn_law() + secondary.turn_law() {
-                    0.0 => Some(Corrections::DiffDrive { c_l, c_r, e_b }),
-                    e_b_arc => Some(Corrections::DiffDriveTurnLaw {
-                        c_l,
-                        c_r,
-                        e_b,
-                        e_b_arc,
-                    }),
-                }
+                Some(Corrections::diff_drive(
+                    l1 * l2,
+                    r1 * r2,
+                    b1 * b2,
+                    self.laws().plus(secondary.laws()),
+                ))
             }
         }
     }
@@ -364,6 +479,76 @@ mod tests {
             f_lon: 1.0,
         };
         assert_eq!(law(0.005).compose(&omni), None);
+    }
+
+    /// A differential drive's laws: each is refused past its range with its name (and
+    /// the symmetric range in words), not on an omni robot; laws of two passes add (to
+    /// 1e-12); the narrowest kind holds them (a turn law alone stays v5's
+    /// `DiffDriveTurnLaw`, no law is plain factors).
+    #[test]
+    fn laws_are_checked_compose_and_take_the_narrowest_kind() {
+        let dd = presets::mobolab();
+        let with = |speed_rel, accel_slip_s| {
+            Corrections::diff_drive(
+                1.0,
+                1.0,
+                1.0,
+                DiffLaws {
+                    e_b_arc: 0.0,
+                    speed_rel,
+                    accel_slip_s,
+                },
+            )
+        };
+        assert_eq!(with(0.1, -0.05).validate(&dd), Ok(()));
+        let e = with(0.25, 0.0).validate(&dd).unwrap_err();
+        assert_eq!(
+            e,
+            CorrectionError::OutOfRange {
+                name: "speed_rel",
+                index: None,
+                value: 0.25,
+                max: SPEED_REL_MAX,
+            }
+        );
+        assert_eq!(
+            std::format!("{e}"),
+            "speed_rel = 0.25 is outside [-0.2, 0.2]"
+        );
+        assert!(matches!(
+            with(0.0, f64::NAN).validate(&dd),
+            Err(CorrectionError::NotFinite {
+                name: "accel_slip_s",
+                ..
+            })
+        ));
+        assert!(matches!(
+            with(0.0, -0.3).validate(&dd),
+            Err(CorrectionError::OutOfRange {
+                name: "accel_slip_s",
+                ..
+            })
+        ));
+        assert!(matches!(
+            with(0.1, 0.0).validate(&presets::omni4()),
+            Err(CorrectionError::WrongKind { .. })
+        ));
+        let c = with(0.1, 0.02).compose(&with(-0.03, 0.01)).unwrap();
+        let l = c.laws();
+        assert!((l.speed_rel - 0.07).abs() < 1e-12 && (l.accel_slip_s - 0.03).abs() < 1e-12);
+        assert!(matches!(c, Corrections::DiffDriveLaws { .. }));
+        assert!(matches!(
+            with(0.1, 0.0).compose(&with(-0.1, 0.0)),
+            Some(Corrections::DiffDrive { .. })
+        ));
+        let turn = DiffLaws {
+            e_b_arc: 0.005,
+            ..DiffLaws::default()
+        };
+        assert!(matches!(
+            Corrections::diff_drive(1.0, 1.0, 1.0, turn),
+            Corrections::DiffDriveTurnLaw { e_b_arc, .. } if e_b_arc == 0.005
+        ));
     }
 
     #[test]

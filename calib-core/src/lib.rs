@@ -25,6 +25,6 @@ pub mod motion;
 pub mod odometry;
 pub use odometry::{Odometry, Pose};
 pub mod control;
+pub mod diff_laws;
 pub mod encoder;
 pub mod stepper;
-pub mod turn_law;

@@ -205,8 +205,18 @@ pub struct SetArgs {
     /// Differential drive: the turn law, how much wider the effective separation is on
     /// arcs than in a turn in place (`calibrate`'s eb_arc / eb; 0.005 is 0.5 %; 0 removes
     /// it). The board's odometry applies it; wheel commands use E_b.
-    #[arg(long, value_name = "EB_ARC")]
+    #[arg(long, value_name = "EB_ARC", allow_negative_numbers = true)]
     pub e_b_arc: Option<f64>,
+    /// Differential drive: the speed law, how much larger the wheels roll per m/s of
+    /// their side's speed (`calibrate`'s speed_rel; 0.01 is 1 % per m/s; 0 removes it;
+    /// c_L and c_R are then the sizes at standstill). The board's odometry applies it.
+    #[arg(long, value_name = "PER_M_S", allow_negative_numbers = true)]
+    pub speed_rel: Option<f64>,
+    /// Differential drive: the acceleration law, the ground's lag behind each side's speed
+    /// in seconds (`calibrate`'s accel_slip_s; 0 removes it). The board's odometry takes
+    /// this lag times each side's change of speed off its travel.
+    #[arg(long, value_name = "S", allow_negative_numbers = true)]
+    pub accel_slip_s: Option<f64>,
     /// Omni: one factor per wheel, comma-separated, in the robot file's order.
     #[arg(long, value_delimiter = ',', value_parser = trimmed_f64)]
     pub f_lat: Option<Vec<f64>>,
@@ -683,7 +693,7 @@ pub struct CalibrateArgs {
     /// (eb_arc / eb; 0.005 is 0.5 %). Take it from an earlier calibrate on runs with arcs
     /// (circles, free driving): the JSON's `turn_law.arc_rel`. Squares turn in place and
     /// cannot find it themselves.
-    #[arg(long, value_name = "EB_ARC")]
+    #[arg(long, value_name = "EB_ARC", allow_negative_numbers = true)]
     pub turn_law: Option<f64>,
     /// How to read recordings given as ROS 2 bags.
     #[command(flatten)]

@@ -4,6 +4,7 @@
 //! the left/right wheel radius multipliers and the wheel separation multiplier.
 
 use anyhow::{Context, Result};
+use calib_core::correction::DiffLaws;
 use std::path::Path;
 
 /// Differential-drive factors.
@@ -19,10 +20,24 @@ pub struct DiffFactors {
     /// (the board accepts it for that kind), and the file says what the multiplier
     /// cannot express.
     pub skid_steer: Option<SkidNote>,
-    /// A differential drive's turn law, when calibrate kept or was given one: E_b in a
-    /// turn in place and e_b_arc (the growth on arcs). The file says the controller
-    /// cannot express it.
-    pub turn_law: Option<(f64, f64)>,
+    /// A differential drive's laws, when calibrate kept or was given one, with the
+    /// factors the board takes alongside. The file says the controller cannot express
+    /// them.
+    pub board: Option<BoardLaw>,
+}
+
+/// A differential drive's laws (turn, speed, acceleration) and the factors a board that
+/// applies them takes: E_b in a turn in place, c_L and c_R at standstill.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct BoardLaw {
+    /// c_L at standstill.
+    pub c_l: f64,
+    /// c_R at standstill.
+    pub c_r: f64,
+    /// E_b in a turn in place.
+    pub e_b: f64,
+    /// The laws.
+    pub laws: DiffLaws,
 }
 
 /// What a skid-steer export adds to the file.
@@ -41,7 +56,7 @@ impl DiffFactors {
             c_r,
             e_b,
             skid_steer: None,
-            turn_law: None,
+            board: None,
         }
     }
 }
@@ -85,20 +100,70 @@ pub fn diff_drive_yaml(f: &DiffFactors, controller: &str, source: &str) -> Resul
             ));
         }
     }
-    if let Some((spin, arc)) = f.turn_law {
-        head.push_str(&format!(
-            "# The fitted turn law is more than diff_drive_controller can express: the\n\
-             # effective separation is E_b {spin:.4} in a turn in place and {:.2} % wider on\n\
-             # arcs (tyre turn slip); the controller has no turn dependence. The multiplier\n\
-             # below is E_b at the recordings' mean turn. The wheelcal board applies the law\n\
-             # itself: factors set --e-b {spin:.6} --e-b-arc {arc:.6}.\n",
-            arc * 100.0
-        ));
+    if let Some(b) = f.board {
+        head.push_str(&law_note(&b)?);
     }
     Ok(format!(
         "{head}{controller}:\n  ros__parameters:\n    left_wheel_radius_multiplier: {:.9}\n    right_wheel_radius_multiplier: {:.9}\n    wheel_separation_multiplier: {:.9}\n",
         f.c_l, f.c_r, f.e_b
     ))
+}
+
+/// What the file says about a differential drive's laws: each in words, that the
+/// controller cannot express it and what the multipliers hold instead, and the board's
+/// `factors set` (laws the board would refuse are not exported).
+fn law_note(b: &BoardLaw) -> Result<String> {
+    let not_exported = |e| anyhow::anyhow!("not exported: {e}");
+    for (name, v) in [("c_l", b.c_l), ("c_r", b.c_r), ("e_b", b.e_b)] {
+        calib_core::correction::check(name, None, v).map_err(not_exported)?;
+    }
+    b.laws.validate().map_err(not_exported)?;
+    let l = b.laws;
+    let mut s = String::new();
+    if l.e_b_arc != 0.0 {
+        s.push_str(&format!(
+            "# The fitted turn law is more than diff_drive_controller can express: the\n\
+             # effective separation is E_b {:.4} in a turn in place and {:.2} % wider on\n\
+             # arcs (tyre turn slip); the controller has no turn dependence. The separation\n\
+             # multiplier below is E_b at the recordings' mean turn.\n",
+            b.e_b,
+            l.e_b_arc * 100.0
+        ));
+    }
+    if l.speed_rel != 0.0 {
+        s.push_str(&format!(
+            "# The fitted speed law is more than diff_drive_controller can express: the\n\
+             # wheels roll {:+.2} % per m/s of their speed further; the controller has no\n\
+             # speed dependence. The radius multipliers below are the wheels' size at the\n\
+             # recordings' mean speed.\n",
+            l.speed_rel * 100.0
+        ));
+    }
+    if l.accel_slip_s != 0.0 {
+        s.push_str(&format!(
+            "# The fitted acceleration law is more than diff_drive_controller can express:\n\
+             # the ground lags the wheels by {:.0} ms of their change of speed. It cancels\n\
+             # over a run from rest to rest, so the multipliers below leave it out.\n",
+            l.accel_slip_s * 1e3
+        ));
+    }
+    let mut cmd = format!(
+        "factors set --c-l {:.6} --c-r {:.6} --e-b {:.6}",
+        b.c_l, b.c_r, b.e_b
+    );
+    for (flag, v) in [
+        ("--e-b-arc", l.e_b_arc),
+        ("--speed-rel", l.speed_rel),
+        ("--accel-slip-s", l.accel_slip_s),
+    ] {
+        if v != 0.0 {
+            cmd.push_str(&format!(" {flag} {v:.6}"));
+        }
+    }
+    s.push_str(&format!(
+        "# The wheelcal board applies the laws itself: {cmd}.\n"
+    ));
+    Ok(s)
 }
 
 /// A ROS 2 node name: letters, digits and underscores, not starting with a digit,
@@ -146,14 +211,46 @@ pub fn factors_from_json(path: &Path) -> Result<DiffFactors> {
             .with_context(|| format!("{}: no numeric field {}", path.display(), keys.join(" or ")))
     };
     let skid = v.get("kind").and_then(serde_json::Value::as_str) == Some("skid_steer");
-    // A calibrate result with a differential drive's turn law carries both halves.
-    let law = ["e_b_turn_in_place", "e_b_arc"].map(|k| get(&[k]).ok());
+    let (c_l, c_r) = (get(&["c_l"])?, get(&["c_r"])?);
+    // A calibrate result with a differential drive's law carries the board's factors
+    // (`factors.board`); one written before the speed and acceleration laws, only the
+    // turn law's two halves.
+    let board_field = |k: &str| {
+        v.get("factors")
+            .and_then(|f| f.get("board"))
+            .and_then(|b| b.get(k))
+            .and_then(serde_json::Value::as_f64)
+    };
+    let board = match board_field("e_b") {
+        Some(e_b) => Some(BoardLaw {
+            c_l: board_field("c_l").unwrap_or(c_l),
+            c_r: board_field("c_r").unwrap_or(c_r),
+            e_b,
+            laws: DiffLaws {
+                e_b_arc: board_field("e_b_arc").unwrap_or(0.0),
+                speed_rel: board_field("speed_rel").unwrap_or(0.0),
+                accel_slip_s: board_field("accel_slip_s").unwrap_or(0.0),
+            },
+        }),
+        None => {
+            let law = ["e_b_turn_in_place", "e_b_arc"].map(|k| get(&[k]).ok());
+            law[0].zip(law[1]).map(|(e_b, e_b_arc)| BoardLaw {
+                c_l,
+                c_r,
+                e_b,
+                laws: DiffLaws {
+                    e_b_arc,
+                    ..DiffLaws::default()
+                },
+            })
+        }
+    };
     Ok(DiffFactors {
-        c_l: get(&["c_l"])?,
-        c_r: get(&["c_r"])?,
+        c_l,
+        c_r,
         e_b: get(&["e_b", "eb"])?,
         skid_steer: skid.then_some(SkidNote { law: None }),
-        turn_law: law[0].zip(law[1]),
+        board,
     })
 }
 
@@ -167,7 +264,15 @@ mod tests {
     #[test]
     fn a_turn_law_is_named_and_the_mean_turn_e_b_exported() {
         let f = DiffFactors {
-            turn_law: Some((1.0057, 0.0057)),
+            board: Some(BoardLaw {
+                c_l: 0.997,
+                c_r: 0.996,
+                e_b: 1.0057,
+                laws: DiffLaws {
+                    e_b_arc: 0.0057,
+                    ..DiffLaws::default()
+                },
+            }),
             ..DiffFactors::diff(0.997, 0.996, 1.0076)
         };
         let y = diff_drive_yaml(&f, "diff_drive_controller", "a fit").unwrap();
@@ -184,6 +289,45 @@ mod tests {
         assert!(y.contains("--e-b 1.005700 --e-b-arc 0.005700"), "{y}");
     }
 
+    /// A speed law and an acceleration law: the multipliers are the constant factors (the
+    /// wheel size at the recordings' mean speed), and the file names both laws in words,
+    /// what the controller cannot express, and the board's `factors set` with c_L and c_R
+    /// at standstill.
+    #[test]
+    fn speed_and_acceleration_laws_are_named() {
+        let f = DiffFactors {
+            board: Some(BoardLaw {
+                c_l: 0.995,
+                c_r: 0.994,
+                e_b: 1.01,
+                laws: DiffLaws {
+                    e_b_arc: 0.0,
+                    speed_rel: -0.035,
+                    accel_slip_s: 0.047,
+                },
+            }),
+            ..DiffFactors::diff(0.9878, 0.9868, 1.01)
+        };
+        let y = diff_drive_yaml(&f, "diff_drive_controller", "a fit").unwrap();
+        let v: serde_yaml::Value = serde_yaml::from_str(&y).expect("valid YAML");
+        let p = &v["diff_drive_controller"]["ros__parameters"];
+        let m = p["left_wheel_radius_multiplier"].as_f64().unwrap();
+        assert!((m - 0.9878).abs() < 1e-9, "{m}");
+        assert!(y.contains("-3.50 % per m/s"), "{y}");
+        assert!(y.contains("47 ms"), "{y}");
+        assert!(
+            y.contains(
+                "factors set --c-l 0.995000 --c-r 0.994000 --e-b 1.010000 --speed-rel -0.035000 --accel-slip-s 0.047000"
+            ),
+            "{y}"
+        );
+        // The laws out of the board's range: not exported.
+        let mut bad = f;
+        bad.board.as_mut().unwrap().laws.speed_rel = 0.5;
+        let e = diff_drive_yaml(&bad, "c", "a fit").unwrap_err().to_string();
+        assert!(e.contains("speed_rel = 0.5 is outside [-0.2, 0.2]"), "{e}");
+    }
+
     /// A skid-steer robot's E_b (1.5-2x the track, up to 3) is exported, and a kept
     /// turn-radius law is said to be more than the controller can express.
     #[test]
@@ -193,7 +337,7 @@ mod tests {
             c_r: 1.0,
             e_b: 2.4,
             skid_steer: Some(SkidNote { law: None }),
-            turn_law: None,
+            board: None,
         };
         let y = diff_drive_yaml(&f, "diff_drive_controller", "a fit").unwrap();
         let v: serde_yaml::Value = serde_yaml::from_str(&y).expect("valid YAML");

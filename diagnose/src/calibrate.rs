@@ -62,8 +62,8 @@ pub use params::{
 };
 pub use refusals::{WORSE_FACTOR, WORSE_MARGIN_M};
 pub use result::{
-    Calibration, Factors, FittedParam, Heldout, HeldoutMeans, HeldoutTable, Implausible,
-    Inseparable, Inseparables, PerRecording, WheelGeometry,
+    BoardFactors, BoardLaws, Calibration, Factors, FittedParam, Heldout, HeldoutMeans,
+    HeldoutTable, Implausible, Inseparable, Inseparables, PerRecording, WheelGeometry,
 };
 pub(crate) use series::Path;
 pub use series::{
@@ -587,11 +587,28 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             scale(GeomKind::Ed),
             scale(GeomKind::Eb),
         );
-        // With a turn-radius law: E_b at the recordings' mean turn (as the robot file);
-        // a differential drive's board applies the law itself, from a turn in place.
+        // With a law: the constant factors at the recordings' mean turn and speed (as the
+        // robot file); a differential drive's board applies the law itself, from a turn
+        // in place and standstill.
+        let (c_l, c_r) = calib_core::umbmark::wheel_factors(ed);
         let board_law = (robot.kind == RobotKind::DiffDrive && turn_law.arc_rel != 0.0)
             .then_some((eb, turn_law.arc_rel));
-        let (c_l, c_r) = calib_core::umbmark::wheel_factors(ed);
+        let laws = BoardLaws {
+            e_b_arc: if robot.kind == RobotKind::DiffDrive {
+                turn_law.arc_rel
+            } else {
+                0.0
+            },
+            speed_rel: turn_law.speed_rel,
+            accel_slip_s: turn_law.accel_slip_s,
+        };
+        let board = (laws.e_b_arc != 0.0 || laws.speed_rel != 0.0 || laws.accel_slip_s != 0.0)
+            .then_some(BoardFactors {
+                c_l: sc * c_l,
+                c_r: sc * c_r,
+                e_b: eb,
+                laws,
+            });
         let sc = sc * law_scale;
         Factors::Diff {
             c_l: sc * c_l,
@@ -599,6 +616,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             e_b: eb + law_eb_shift,
             e_b_turn_in_place: board_law.map(|l| l.0),
             e_b_arc: board_law.map(|l| l.1),
+            board,
         }
     } else {
         if specs.iter().any(|s| {

@@ -6,7 +6,9 @@
 
 use calib_core::motion::{Direction, Program};
 use calib_core::robot::Robot;
-use diagnose::calibrate::{calibrate, param_specs, robot_with, CalOptions, Calibration};
+use diagnose::calibrate::{
+    calibrate, param_specs, robot_with, BoardFactors, CalOptions, Calibration, Factors,
+};
 use formats::recording::Recording;
 use sim::{record, Motion, RandomMotion, RecordConfig, Surface};
 use std::path::Path;
@@ -803,6 +805,11 @@ fn speed_dependent_scale_is_found_and_not_invented() {
     let mean_speed = grown / law.value;
     println!("robot file's wheel size grown by {grown:.5}: mean speed {mean_speed:.3} m/s");
     assert!((0.03..=0.5).contains(&mean_speed), "{mean_speed}");
+    // The board takes the law itself, with c_L and c_R at standstill: the constant
+    // factors over the board's are the robot file's growth (to rounding).
+    let (c_l, b) = board_factors(&c);
+    assert_eq!(b.laws.speed_rel, law.value);
+    assert!((c_l / b.c_l - 1.0 - grown).abs() < 1e-12, "{c_l} {b:?}");
     assert!(!named(&c, "eb_arc"), "{c}");
     assert!(
         c.notes
@@ -816,6 +823,10 @@ fn speed_dependent_scale_is_found_and_not_invented() {
     println!("{c}");
     assert!(
         !named(&c, "speed_rel") && !named(&c, "eb_arc") && !named(&c, "accel_slip_s"),
+        "{c}"
+    );
+    assert!(
+        matches!(c.factors, Factors::Diff { board: None, .. }),
         "{c}"
     );
     let c = calibrate(&nominal, &runs(0.0, 0.04), None, &CalOptions::default()).unwrap();
@@ -852,6 +863,23 @@ fn acceleration_slip_is_found_and_not_invented() {
             .all(|p| p.spec.name != "eb_arc" && p.spec.name != "speed_rel"),
         "{c}"
     );
+    // The board takes the law and the same geometry as everyone else.
+    let (c_l, b) = board_factors(&c);
+    assert_eq!(b.laws.accel_slip_s, law.value);
+    assert_eq!((b.laws.e_b_arc, b.laws.speed_rel), (0.0, 0.0));
+    assert_eq!(c_l, b.c_l);
+}
+
+/// A differential drive's constant c_L and the factors its board takes with the law.
+fn board_factors(c: &Calibration) -> (f64, BoardFactors) {
+    match &c.factors {
+        Factors::Diff {
+            c_l,
+            board: Some(b),
+            ..
+        } => (*c_l, *b),
+        other => panic!("no board law: {other:?}"),
+    }
 }
 
 /// A known turn law (`--turn-law`): outside its plausible ±0.1, not finite, or given for

@@ -8,6 +8,7 @@
 use crate::log::TrialLog;
 use crate::wheel::WheelState;
 use crate::{defaults, EncoderSource, WheelDriver, FIRMWARE_VERSION};
+use calib_core::diff_laws::DiffLawOdometry;
 use calib_core::kinematics::Kinematics;
 use calib_core::motion::{Program, ProgramRunner, Setpoint};
 use calib_core::odometry::{Odometry, Pose};
@@ -18,7 +19,6 @@ use calib_core::protocol::{
     SCHEMA_FINGERPRINT,
 };
 use calib_core::robot::{DriveType, MAX_WHEELS};
-use calib_core::turn_law::TurnLawOdometry;
 use calib_core::{Corrections, Twist};
 use heapless::String;
 
@@ -112,8 +112,8 @@ pub struct App<'a> {
     corrections: Corrections,
     boot: BootReport,
     kin: Kinematics<f32>,
-    /// The corrections' turn law (none: twists pass unchanged).
-    turn_law: TurnLawOdometry<f32>,
+    /// The corrections' laws of a differential drive (none: twists pass unchanged).
+    laws: DiffLawOdometry<f32>,
     n: usize,
     dc: bool,
     /// None without encoders (open-loop steppers: odometry from the steps emitted).
@@ -178,14 +178,14 @@ impl<'a> App<'a> {
                 (Corrections::None, k)
             }
         };
-        let turn_law = TurnLawOdometry::new(&params.robot, corrections.turn_law(), DT as f64);
+        let laws = DiffLawOdometry::new(&params.robot, &corrections, DT as f64);
         let mut app = App {
             wheels: core::array::from_fn(|_| WheelState::new(params.gains, 1.0)),
             params,
             corrections,
             boot,
             kin,
-            turn_law,
+            laws,
             n: 0,
             dc: true,
             rad_per_count: None,
@@ -216,15 +216,14 @@ impl<'a> App<'a> {
         app
     }
 
-    /// The turn law of the active corrections for the active robot (its smoothing restarts).
-    fn configure_turn_law(&mut self) {
-        self.turn_law =
-            TurnLawOdometry::new(&self.params.robot, self.corrections.turn_law(), DT as f64);
+    /// The laws of the active corrections for the active robot (their smoothing restarts).
+    fn configure_laws(&mut self) {
+        self.laws = DiffLawOdometry::new(&self.params.robot, &self.corrections, DT as f64);
     }
 
     /// Derives the per-wheel state from params (after boot or SetParams).
     fn configure(&mut self) {
-        self.configure_turn_law();
+        self.configure_laws();
         let p = &self.params;
         self.n = p.robot.wheel_count().min(MAX_WHEELS);
         self.dc = p.robot.drive.kind == DriveType::Dc;
@@ -325,10 +324,9 @@ impl<'a> App<'a> {
         if !wheels {
             drv.stop_all();
         }
-        // Odometry with the corrected geometry (and its turn law).
-        let d = self
-            .turn_law
-            .apply(&dphi[..self.n], self.kin.forward(&dphi[..self.n]));
+        // Odometry with the corrected geometry (and its laws).
+        let kin = &self.kin;
+        let d = self.laws.apply(&dphi[..self.n], |p| kin.forward(p));
         self.odo.update(&d);
         self.log_tick(now_us);
     }
@@ -830,7 +828,7 @@ impl<'a> App<'a> {
             .ok_or(Rejection::InvalidCorrections(CorrectionFault::Singular))?;
         self.kin = kin;
         self.corrections = c;
-        self.configure_turn_law();
+        self.configure_laws();
         Ok(())
     }
 

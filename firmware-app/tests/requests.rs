@@ -3,6 +3,7 @@
 
 mod common;
 
+use calib_core::correction::DiffLaws;
 use calib_core::motion::{Direction, Segment};
 use calib_core::protocol::{
     encode, record_size, Params, ProgramSpec, Record, Rejection, Request, Response, TrialEnd,
@@ -196,6 +197,29 @@ fn rejected_requests_change_nothing_and_say_why() {
             index: None,
             value: 0.3,
             max: 0.1,
+        }),
+        "{r:?}"
+    );
+    // A speed law beyond ±0.2 per m/s (protocol v6): refused, named.
+    let r = rejected(
+        &mut b,
+        &mut l,
+        Request::SetCorrections(Corrections::DiffDriveLaws {
+            c_l: 1.0,
+            c_r: 1.0,
+            e_b: 1.0,
+            laws: DiffLaws {
+                speed_rel: 0.5,
+                ..DiffLaws::default()
+            },
+        }),
+    );
+    assert!(
+        r == Rejection::InvalidCorrections(CorrectionFault::OutOfRange {
+            factor: Factor::SpeedRel,
+            index: None,
+            value: 0.5,
+            max: 0.2,
         }),
         "{r:?}"
     );

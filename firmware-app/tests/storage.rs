@@ -326,3 +326,34 @@ fn a_saved_turn_law_survives_a_reboot() {
     assert_eq!(l.corrections, law);
     assert_eq!(l.boot.corrections, Stored::Loaded);
 }
+
+/// A differential drive's three laws (protocol v6's `DiffDriveLaws`) saved over a turn
+/// law survive a reboot to the bit; the turn law saved before them read back as written.
+#[test]
+fn saved_laws_survive_a_reboot() {
+    let mut s = store(fresh());
+    let turn = Corrections::DiffDriveTurnLaw {
+        c_l: 1.01,
+        c_r: 0.99,
+        e_b: 1.02,
+        e_b_arc: 0.0057,
+    };
+    block_on(s.save(&PersistItem::Corrections(turn.clone()))).unwrap();
+    let mut s = store(s.into_flash());
+    assert_eq!(block_on(s.load()).corrections, turn);
+    let laws = Corrections::DiffDriveLaws {
+        c_l: 1.01,
+        c_r: 0.99,
+        e_b: 1.02,
+        laws: calib_core::correction::DiffLaws {
+            e_b_arc: 0.0057,
+            speed_rel: -0.035,
+            accel_slip_s: 0.047,
+        },
+    };
+    block_on(s.save(&PersistItem::Corrections(laws.clone()))).unwrap();
+    let mut s = store(s.into_flash());
+    let l = block_on(s.load());
+    assert_eq!(l.corrections, laws);
+    assert_eq!(l.boot.corrections, Stored::Loaded);
+}

@@ -25,6 +25,8 @@
 #![no_std]
 #![no_main]
 
+use calib_core::correction::DiffLaws;
+use calib_core::diff_laws::DiffLawOdometry;
 use calib_core::encoder::CounterWidth;
 use calib_core::motion::Segment;
 use calib_core::protocol::{encode, MAX_WIRE};
@@ -205,17 +207,35 @@ fn main() -> ! {
     let got = SAVE.try_receive().is_ok();
     bench_mark(15);
     core::hint::black_box((sent, got));
-    // The odometry's turn-law step of a differential drive with a law stored (the omni
-    // robot above stores none, so its tick skips it): N ticks on an arc.
+    // The odometry's law step of a differential drive with a law stored (the omni robot
+    // above stores none, so its tick skips it): N ticks on an arc, first the turn law
+    // alone, then all three laws (turn, speed, acceleration).
     let diff = presets::mobolab();
-    let mut law = calib_core::turn_law::TurnLawOdometry::<f32>::new(&diff, 0.0057, 1e-3);
     let mut d = calib_core::Twist::new(0.0f32, 0.0, 0.0);
-    bench_mark(16);
-    for i in 0..N {
-        let k = core::hint::black_box(i as f32 * 1e-6);
-        d = law.apply(&[2e-3 + k, 3e-3 - k], calib_core::Twist::new(1e-4, 0.0, 5e-4 + k));
+    for (mark, laws) in [
+        (16, DiffLaws {
+            e_b_arc: 0.0057,
+            ..DiffLaws::default()
+        }),
+        (18, DiffLaws {
+            e_b_arc: 0.0057,
+            speed_rel: -0.03,
+            accel_slip_s: 0.02,
+        }),
+    ] {
+        let c = calib_core::Corrections::diff_drive(1.0, 1.0, 1.0, laws);
+        let mut law = DiffLawOdometry::<f32>::new(&diff, &c, 1e-3);
+        bench_mark(mark);
+        for i in 0..N {
+            let k = core::hint::black_box(i as f32 * 1e-6);
+            // A stand-in for the kinematics that reads the rotations (else the speed and
+            // acceleration laws' work on them would be optimised away).
+            d = law.apply(&[2e-3 + k, 3e-3 - k], |p| {
+                calib_core::Twist::new(p[0] * 0.05, 0.0, (p[1] - p[0]) * 0.25)
+            });
+        }
+        bench_mark(mark + 1);
     }
-    bench_mark(17);
     core::hint::black_box(d);
     hprintln!(
         "read-log answer {} bytes, telemetry {} bytes, signal {:?}",

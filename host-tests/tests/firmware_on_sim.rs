@@ -2,6 +2,7 @@
 //! simulator, through the virtual board with no link: tick by tick, requests handed to
 //! the application directly, physics and encoders from the simulator.
 
+use calib_core::correction::DiffLaws;
 use calib_core::kinematics::Twist;
 use calib_core::motion::{Direction, OmniPath};
 use calib_core::protocol::{Mode, ProgramSpec, Request, StopReason};
@@ -330,4 +331,139 @@ fn a_stored_turn_law_keeps_the_boards_odometry_on_an_arc() {
         "with the law {law} rad"
     );
     assert!(law_pos < 0.01, "with the law {law_pos} m off");
+}
+
+/// The virtual board driven straight at `speed` m/s for `secs` seconds (a Drive request
+/// renewed every 0.1 s) on `sim`, with `c` stored: the board's odometry x and the true x
+/// after `secs`, and again once it has stood still for 1 s more.
+fn straight_run(sim: SimRobot, c: Corrections, speed: f32, secs: f64) -> [(f64, f64); 2] {
+    let robot =
+        robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml"))
+            .unwrap();
+    let mut b = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
+    request(&mut b, Request::SetCorrections(c));
+    let start = b.now_us();
+    let at = |b: &VirtualBoard| (b.app.pose().x as f64, b.hw.sim.true_pose().x);
+    let end_us = (secs * 1e6) as u64;
+    while b.now_us() - start < end_us {
+        if (b.now_us() - start).is_multiple_of(100_000) {
+            request(
+                &mut b,
+                Request::Drive {
+                    twist: Twist::new(speed, 0.0, 0.0),
+                    timeout_ms: 0,
+                },
+            );
+        }
+        b.step(&mut Quiet);
+    }
+    let moving = at(&b);
+    request(&mut b, Request::Stop);
+    let stop = b.now_us();
+    while b.now_us() - stop < 1_000_000 {
+        b.step(&mut Quiet);
+    }
+    [moving, at(&b)]
+}
+
+fn mobolab_sim(effects: &[&str], cfg: SimConfig) -> SimRobot {
+    let robot =
+        robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml"))
+            .unwrap();
+    let effects: Vec<sim::Effect> = effects
+        .iter()
+        .map(|e| sim::Effect::parse(e).unwrap())
+        .collect();
+    SimRobot::with_effects(&robot, &effects, Surface::flat(), cfg).unwrap()
+}
+
+/// Plain factors of 1: what a board without a law holds.
+const PLAIN: Corrections = Corrections::DiffDrive {
+    c_l: 1.0,
+    c_r: 1.0,
+    e_b: 1.0,
+};
+
+/// Tyres whose rolling size grows with speed (the simulator's `speed_scale`, 0.1 per m/s):
+/// driven straight at 0.25 m/s (the board's speed limit is 0.3) the wheels roll 1.025
+/// times what their counts say, so after 5 s (about 1.25 m) the board's odometry falls
+/// short of the truth by 0.1 x 0.25 / 1.025 of the distance, 30 mm (asserted within 30 %:
+/// the start's ramp is slower). With the law
+/// stored (`speed_rel` 0.1) the odometry must follow the truth to a tenth of that and
+/// within 3 mm, moving and at rest.
+#[test]
+fn a_stored_speed_law_keeps_the_boards_odometry_at_speed() {
+    let cfg = || SimConfig {
+        speed_scale: 0.1,
+        ..SimConfig::default()
+    };
+    let law = Corrections::diff_drive(
+        1.0,
+        1.0,
+        1.0,
+        DiffLaws {
+            speed_rel: 0.1,
+            ..DiffLaws::default()
+        },
+    );
+    let [(plain_odo, truth), _] = straight_run(mobolab_sim(&[], cfg()), PLAIN, 0.25, 5.0);
+    let [moving, rest] = straight_run(mobolab_sim(&[], cfg()), law, 0.25, 5.0);
+    let short = truth - plain_odo;
+    let expect = truth * 0.1 * 0.25 / 1.025;
+    eprintln!(
+        "truth {truth:.4} m; plain odometry short by {short:.4} m (physics {expect:.4}); with the law {:+.4} m moving, {:+.4} m at rest",
+        moving.1 - moving.0,
+        rest.1 - rest.0
+    );
+    assert!(
+        (short - expect).abs() < 0.3 * expect,
+        "plain factors short by {short} m, physics says {expect}"
+    );
+    for (odo, truth) in [moving, rest] {
+        let err = (truth - odo).abs();
+        assert!(err < 0.1 * short && err < 0.003, "with the law {err} m off");
+    }
+}
+
+/// Tyres that creep (the simulator's `creep`, 0.05 s: the ground lags each wheel's speed
+/// by a first-order 0.05 s): cruising at 0.25 m/s, the body is 0.05 x 0.25 = 12.5 mm behind
+/// what the wheels rolled (asserted within 30 %), and catches up once stopped. With the
+/// acceleration law stored (`accel_slip_s` 0.05) the board's odometry must follow the
+/// truth while cruising to a fifth of that and within 3 mm, and stay within 3 mm at rest.
+#[test]
+fn a_stored_acceleration_law_keeps_the_boards_odometry_while_cruising() {
+    let creep = ["longitudinal_slip=mechanism:creep,creep_s:0.05"];
+    let law = Corrections::diff_drive(
+        1.0,
+        1.0,
+        1.0,
+        DiffLaws {
+            accel_slip_s: 0.05,
+            ..DiffLaws::default()
+        },
+    );
+    let [(plain_odo, plain_truth), plain_rest] =
+        straight_run(mobolab_sim(&creep, SimConfig::default()), PLAIN, 0.25, 3.0);
+    let [moving, rest] = straight_run(mobolab_sim(&creep, SimConfig::default()), law, 0.25, 3.0);
+    let ahead = plain_odo - plain_truth;
+    let expect = 0.05 * 0.25;
+    eprintln!(
+        "plain odometry ahead by {ahead:.4} m cruising (physics {expect:.4}), {:+.4} m at rest; with the law {:+.4} m cruising, {:+.4} m at rest",
+        plain_rest.0 - plain_rest.1,
+        moving.0 - moving.1,
+        rest.0 - rest.1
+    );
+    assert!(
+        (ahead - expect).abs() < 0.3 * expect,
+        "plain factors ahead by {ahead} m, physics says {expect}"
+    );
+    let cruising = (moving.0 - moving.1).abs();
+    assert!(
+        cruising < 0.2 * ahead && cruising < 0.003,
+        "with the law {cruising} m off while cruising"
+    );
+    assert!(
+        (rest.0 - rest.1).abs() < 0.003,
+        "with the law at rest: {rest:?}"
+    );
 }

@@ -72,10 +72,13 @@ pub struct Ground {
     pub crossings: Vec<u64>,
     contacts: Vec<f64>,
     /// The left and right sides' contact speeds smoothed over
-    /// `calib_core::turn_law::TURN_RATIO_TIME_S` (m/s): how the robot turns, for the
+    /// `calib_core::diff_laws::TURN_RATIO_TIME_S` (m/s): how the robot turns, for the
     /// turn scrub. A stepper's wheels move in pulses, one wheel per tick at times, so a
     /// single tick's ratio says nothing about the turn.
     sides: (f64, f64),
+    /// Each wheel's rolling speed smoothed likewise (m/s), for the speed scale: a
+    /// stepper's single tick moves a whole step or none, which is not its speed.
+    rolling: Vec<f64>,
 }
 
 impl Ground {
@@ -89,6 +92,7 @@ impl Ground {
             crossings: vec![0; n_wheels],
             contacts: vec![0.0; n_wheels],
             sides: (0.0, 0.0),
+            rolling: vec![0.0; n_wheels],
         }
     }
 
@@ -111,7 +115,10 @@ impl Ground {
             }
             let mut d = g.r_eff * dphi[i];
             if params.speed_scale != 0.0 {
-                d *= 1.0 + params.speed_scale * (d / dt).abs();
+                let k = dt / (calib_core::diff_laws::TURN_RATIO_TIME_S + dt);
+                let v = &mut self.rolling[i];
+                *v += k * (d / dt - *v);
+                d *= 1.0 + params.speed_scale * v.abs();
             }
             moving |= d != 0.0;
             if params.travel_noise_m_per_sqrt_m > 0.0 && d != 0.0 {
@@ -185,7 +192,7 @@ impl Ground {
                 }
             }
             let (l, r) = (l / f64::max(nl, 1.0), r / f64::max(nr, 1.0));
-            let k = dt / (calib_core::turn_law::TURN_RATIO_TIME_S + dt);
+            let k = dt / (calib_core::diff_laws::TURN_RATIO_TIME_S + dt);
             let (sl, sr) = self.sides;
             self.sides = (sl + k * (l - sl), sr + k * (r - sr));
             let (l, r) = self.sides;

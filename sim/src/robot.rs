@@ -62,7 +62,8 @@ pub struct SimConfig {
     pub turn_scrub: f64,
     /// Growth of each driven wheel's effective rolling radius with its rolling speed, per
     /// m/s: a wheel turning at v rolls (1 + speed_scale |v|) times its radius (tyres that
-    /// deform or slip more the faster they turn). 0: the size does not depend on speed.
+    /// deform or slip more the faster they turn), v its rolling speed smoothed over 0.1 s
+    /// (a stepper moves in whole steps). 0: the size does not depend on speed.
     pub speed_scale: f64,
 }
 

@@ -383,12 +383,16 @@ pub enum Factor {
     FLat,
     /// F_lon, the longitudinal factor.
     FLon,
-    /// A turn law's e_b_arc (last on the wire).
+    /// A turn law's e_b_arc.
     EBArc,
+    /// A speed law's speed_rel (protocol v6, last on the wire).
+    SpeedRel,
+    /// An acceleration law's accel_slip_s (protocol v6, last on the wire).
+    AccelSlip,
 }
 
 impl Factor {
-    /// From the name `correction::check` was given (always one of the six; anything
+    /// From the name `correction::check` was given (always one of the eight; anything
     /// else reads as f_lat).
     pub fn from_name(name: &str) -> Factor {
         match name {
@@ -397,6 +401,8 @@ impl Factor {
             "e_b" => Factor::EB,
             "f_lon" => Factor::FLon,
             "e_b_arc" => Factor::EBArc,
+            "speed_rel" => Factor::SpeedRel,
+            "accel_slip_s" => Factor::AccelSlip,
             _ => Factor::FLat,
         }
     }
@@ -410,6 +416,8 @@ impl Factor {
             Factor::FLat => "f_lat",
             Factor::FLon => "f_lon",
             Factor::EBArc => "e_b_arc",
+            Factor::SpeedRel => "speed_rel",
+            Factor::AccelSlip => "accel_slip_s",
         }
     }
 }

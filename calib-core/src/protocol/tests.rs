@@ -634,6 +634,16 @@ fn schema_golden() {
             f_lat: Vec::from_slice(&[1.0, 1.1]).unwrap(),
             f_lon: 0.9,
         }),
+        Request::SetCorrections(Corrections::DiffDriveLaws {
+            c_l: 1.01,
+            c_r: 0.99,
+            e_b: 1.02,
+            laws: crate::correction::DiffLaws {
+                e_b_arc: 0.005,
+                speed_rel: 0.1,
+                accel_slip_s: 0.05,
+            },
+        }),
         Request::SaveCorrections,
         Request::ResetCorrections,
         Request::GetParams,
@@ -728,7 +738,7 @@ fn schema_golden() {
     std::println!("golden {golden:#010x}, fingerprint {SCHEMA_FINGERPRINT:#010x}");
     assert_eq!(
         (golden, SCHEMA_FINGERPRINT),
-        (0x2fee10f3, 0x2bcb2951),
+        (0x2fbfdd72, 0x3e254e0d),
         "message types changed: record the new values (and bump PROTOCOL_VERSION if needed)"
     );
 }

@@ -2,6 +2,7 @@
 //! `factors set`'s merge with the board's current factors, the factors in words.
 
 use anyhow::{bail, Result};
+use calib_core::correction::DiffLaws;
 use calib_core::robot::MAX_WHEELS;
 use calib_core::Corrections;
 use serde::Serialize;
@@ -23,6 +24,12 @@ pub enum FactorsView {
         /// The turn law: how much wider the separation is on arcs (absent: none).
         #[serde(skip_serializing_if = "Option::is_none")]
         e_b_arc: Option<f64>,
+        /// The speed law: growth of the wheels' size per m/s (absent: none).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        speed_rel: Option<f64>,
+        /// The acceleration law: the ground's lag behind the wheels, s (absent: none).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        accel_slip_s: Option<f64>,
     },
     /// Omnidirectional robot.
     Omni {
@@ -37,23 +44,21 @@ impl From<&Corrections> for FactorsView {
     fn from(c: &Corrections) -> Self {
         match c {
             Corrections::None => FactorsView::None,
-            Corrections::DiffDrive { c_l, c_r, e_b } => FactorsView::DiffDrive {
-                c_l: *c_l,
-                c_r: *c_r,
-                e_b: *e_b,
-                e_b_arc: None,
-            },
-            Corrections::DiffDriveTurnLaw {
-                c_l,
-                c_r,
-                e_b,
-                e_b_arc,
-            } => FactorsView::DiffDrive {
-                c_l: *c_l,
-                c_r: *c_r,
-                e_b: *e_b,
-                e_b_arc: Some(*e_b_arc),
-            },
+            Corrections::DiffDrive { .. }
+            | Corrections::DiffDriveTurnLaw { .. }
+            | Corrections::DiffDriveLaws { .. } => {
+                let (c_l, c_r, e_b) = c.diff_factors().unwrap_or((1.0, 1.0, 1.0));
+                let laws = c.laws();
+                let some = |v: f64| (v != 0.0).then_some(v);
+                FactorsView::DiffDrive {
+                    c_l,
+                    c_r,
+                    e_b,
+                    e_b_arc: some(laws.e_b_arc),
+                    speed_rel: some(laws.speed_rel),
+                    accel_slip_s: some(laws.accel_slip_s),
+                }
+            }
             Corrections::Omni { f_lat, f_lon } => FactorsView::Omni {
                 f_lat: f_lat.to_vec(),
                 f_lon: *f_lon,
@@ -71,17 +76,32 @@ impl FactorsView {
                 c_l,
                 c_r,
                 e_b,
-                e_b_arc: None,
-            } => format!("c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6}\n"),
-            FactorsView::DiffDrive {
-                c_l,
-                c_r,
-                e_b,
-                e_b_arc: Some(a),
-            } => format!(
-                "c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6} in a turn in place, {:+.3} % wider on arcs (turn law e_b_arc {a:+.6})\n",
-                a * 100.0
-            ),
+                e_b_arc,
+                speed_rel,
+                accel_slip_s,
+            } => {
+                let mut s = format!("c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6}");
+                if let Some(a) = e_b_arc {
+                    s.push_str(&format!(
+                        " in a turn in place, {:+.3} % wider on arcs (turn law e_b_arc {a:+.6})",
+                        a * 100.0
+                    ));
+                }
+                if let Some(v) = speed_rel {
+                    s.push_str(&format!(
+                        "; wheels {:+.3} % larger per m/s (speed law speed_rel {v:+.6}, c_L and c_R at standstill)",
+                        v * 100.0
+                    ));
+                }
+                if let Some(a) = accel_slip_s {
+                    s.push_str(&format!(
+                        "; the ground lags the wheels by {:.1} ms of their change of speed (acceleration law accel_slip_s {a:+.6})",
+                        a * 1e3
+                    ));
+                }
+                s.push('\n');
+                s
+            }
             FactorsView::Omni { f_lat, f_lon } => format!(
                 "F_lat = [{}]  F_lon = {f_lon:.6}\n",
                 f_lat
@@ -98,7 +118,7 @@ impl FactorsView {
 /// replaced (nominal where the board holds none or the other kind, `n_wheels` F_lat of 1
 /// for an omni robot; the board refuses factors of the wrong kind in its own words).
 /// Differential and omni factors do not mix, and at least one factor must be given. A
-/// turn law (`e_b_arc`) is kept unless replaced; 0 removes it.
+/// law (`e_b_arc`, `speed_rel`, `accel_slip_s`) is kept unless replaced; 0 removes it.
 pub fn merge_corrections(
     current: &Corrections,
     n_wheels: usize,
@@ -109,32 +129,37 @@ pub fn merge_corrections(
         c_r,
         e_b,
         e_b_arc,
+        speed_rel,
+        accel_slip_s,
         f_lat,
         f_lon,
     } = *given;
-    let diff = c_l.is_some() || c_r.is_some() || e_b.is_some() || e_b_arc.is_some();
+    let diff = c_l.is_some()
+        || c_r.is_some()
+        || e_b.is_some()
+        || e_b_arc.is_some()
+        || speed_rel.is_some()
+        || accel_slip_s.is_some();
     let omni = f_lat.is_some() || f_lon.is_some();
     match (diff, omni) {
         (false, false) => bail!(
-            "give the factors to change: --c-l, --c-r, --e-b, --e-b-arc (differential drive) or --f-lat, --f-lon (omni)"
+            "give the factors to change: --c-l, --c-r, --e-b, --e-b-arc, --speed-rel, --accel-slip-s (differential drive) or --f-lat, --f-lon (omni)"
         ),
         (true, true) => {
-            bail!("differential (--c-l, --c-r, --e-b, --e-b-arc) and omni (--f-lat, --f-lon) factors do not mix")
+            bail!("differential (--c-l, --c-r, --e-b, --e-b-arc, --speed-rel, --accel-slip-s) and omni (--f-lat, --f-lon) factors do not mix")
         }
         (true, false) => {
             // Factors of the other kind on the board: nominal here, and the board refuses
             // differential factors on an omni robot in its own words.
             let (l, r, b) = current.diff_factors().unwrap_or((1.0, 1.0, 1.0));
             let (c_l, c_r, e_b) = (c_l.unwrap_or(l), c_r.unwrap_or(r), e_b.unwrap_or(b));
-            match e_b_arc.unwrap_or(current.turn_law()) {
-                0.0 => Ok(Corrections::DiffDrive { c_l, c_r, e_b }),
-                e_b_arc => Ok(Corrections::DiffDriveTurnLaw {
-                    c_l,
-                    c_r,
-                    e_b,
-                    e_b_arc,
-                }),
-            }
+            let held = current.laws();
+            let laws = DiffLaws {
+                e_b_arc: e_b_arc.unwrap_or(held.e_b_arc),
+                speed_rel: speed_rel.unwrap_or(held.speed_rel),
+                accel_slip_s: accel_slip_s.unwrap_or(held.accel_slip_s),
+            };
+            Ok(Corrections::diff_drive(c_l, c_r, e_b, laws))
         }
         (false, true) => {
             let (lat, lon) = match current {
@@ -163,6 +188,10 @@ pub struct GivenFactors<'a> {
     pub e_b: Option<f64>,
     /// The turn law's e_b_arc (0: none).
     pub e_b_arc: Option<f64>,
+    /// The speed law's speed_rel (0: none).
+    pub speed_rel: Option<f64>,
+    /// The acceleration law's accel_slip_s (0: none).
+    pub accel_slip_s: Option<f64>,
     /// F_lat, one per wheel.
     pub f_lat: Option<&'a [f64]>,
     /// F_lon.
@@ -284,5 +313,48 @@ mod tests {
         )
         .unwrap();
         assert!(matches!(gone, Corrections::DiffDrive { .. }), "{gone:?}");
+    }
+
+    /// `--speed-rel` and `--accel-slip-s` join a turn law already on the board (protocol
+    /// v6's `DiffDriveLaws`), and removing them leaves the turn law as v5 boards hold it.
+    /// The text names each law with its figure.
+    #[test]
+    fn speed_and_acceleration_laws_join_and_leave_a_turn_law() {
+        let turn = Corrections::DiffDriveTurnLaw {
+            c_l: 0.998,
+            c_r: 1.002,
+            e_b: 1.01,
+            e_b_arc: 0.0057,
+        };
+        let all = merge_corrections(
+            &turn,
+            2,
+            &GivenFactors {
+                speed_rel: Some(-0.035),
+                accel_slip_s: Some(0.047),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        let l = all.laws();
+        assert_eq!(
+            (l.e_b_arc, l.speed_rel, l.accel_slip_s),
+            (0.0057, -0.035, 0.047)
+        );
+        assert_eq!(all.diff_factors(), Some((0.998, 1.002, 1.01)));
+        let text = factors_text(&all);
+        assert!(text.contains("-3.500 % larger per m/s"), "{text}");
+        assert!(text.contains("by 47.0 ms"), "{text}");
+        let back = merge_corrections(
+            &all,
+            2,
+            &GivenFactors {
+                speed_rel: Some(0.0),
+                accel_slip_s: Some(0.0),
+                ..Default::default()
+            },
+        )
+        .unwrap();
+        assert_eq!(back, turn);
     }
 }

@@ -222,15 +222,20 @@ fn ros2_yaml(cal: &Calibration) -> Option<String> {
             c_l,
             c_r,
             e_b,
-            e_b_turn_in_place,
-            e_b_arc,
+            board,
+            ..
         } => Some(
             ros2::diff_drive_yaml(
                 &ros2::DiffFactors {
                     c_l,
                     c_r,
                     e_b,
-                    turn_law: e_b_turn_in_place.zip(e_b_arc),
+                    board: board.map(|b| ros2::BoardLaw {
+                        c_l: b.c_l,
+                        c_r: b.c_r,
+                        e_b: b.e_b,
+                        laws: b.corrections().laws(),
+                    }),
                     skid_steer: (cal.kind == "skid_steer").then(|| {
                         let get = |n: &str| cal.params.iter().find(|p| p.spec.name == n);
                         ros2::SkidNote {

@@ -37,6 +37,8 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
             c_r: a.c_r,
             e_b: a.e_b,
             e_b_arc: a.e_b_arc,
+            speed_rel: a.speed_rel,
+            accel_slip_s: a.accel_slip_s,
             f_lat: a.f_lat.as_deref(),
             f_lon: a.f_lon,
         },

@@ -511,8 +511,8 @@ pub const TURN_LAW_HOLDOUT_RATIO: f64 = 0.95;
 /// significant (3 sigma) on all the data and within its plausible range, and (speed and
 /// acceleration) the data tell it from the geometry (|correlation| at most
 /// [`CORR_LIMIT`](crate::calibrate::CORR_LIMIT)). Of those that qualify, the best held
-/// out, or the turn law when within [`LADDER_TOLERANCE`] of it (the board applies it).
-/// Says which and why, with the figures.
+/// out, or the turn law when within [`LADDER_TOLERANCE`] of it (preferred on a tie: it carried
+/// better across months on the real robot). Says which and why, with the figures.
 fn choose_turn_law(
     robot: &Robot,
     series: &[Series],
@@ -665,7 +665,9 @@ fn choose_turn_law(
     let Some(&(best, e_best, _)) = qualified.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
         return base;
     };
-    // Within the ladder's tolerance of the best, the turn law: the board applies it.
+    // Within the ladder's tolerance of the best, the turn law: on the real robot it
+    // carried better to another month's runs than the speed law that mimics it on arcs,
+    // and boards of protocol v5 apply it too.
     let turn = qualified
         .iter()
         .find(|(i, e, _)| laws[*i].0 == Law::Turn && *e <= (1.0 + LADDER_TOLERANCE) * e_best);
@@ -676,15 +678,15 @@ fn choose_turn_law(
                 format!("the {} law holds out better", laws[i].0.name())
             } else {
                 format!(
-                    "the turn law holds out within {:.0} % of it and the board can apply that one",
+                    "the turn law holds out within {:.0} % of it and is preferred on a tie",
                     LADDER_TOLERANCE * 100.0
                 )
             };
             format!(": not fitted, one law at a time ({why})")
         } else if laws[j].0 == Law::Acceleration {
-            ": the law is fitted (the board cannot apply it; the robot file, ROS and the board get the geometry without it: over a run that starts and ends at rest the lag cancels)".to_string()
+            ": the law is fitted (the board applies it (factors set --accel-slip-s); the robot file and ROS 2 get the geometry without it: over a run that starts and ends at rest the lag cancels)".to_string()
         } else if laws[j].0 == Law::Speed {
-            ": the law is fitted (the board, ROS 2 and the robot file get the wheel size at the recordings' mean speed; the board cannot apply the law)".to_string()
+            ": the law is fitted (the board applies it (factors set --speed-rel, c_L and c_R at standstill); ROS 2 and the robot file get the wheel size at the recordings' mean speed)".to_string()
         } else if skid {
             ": the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn)".to_string()
         } else {

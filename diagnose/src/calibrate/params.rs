@@ -340,14 +340,16 @@ pub fn accel_law_specs(robot: &Robot) -> Vec<ParamSpec> {
 }
 
 /// The ground may lag a differential drive's wheels by this much (s): 0.2 s of slip
-/// per change of speed is a wheel spinning on ice.
-pub const ACCEL_SLIP_RANGE: f64 = 0.2;
+/// per change of speed is a wheel spinning on ice. The board's own limit, so a kept law
+/// is one it takes.
+pub const ACCEL_SLIP_RANGE: f64 = calib_core::correction::ACCEL_SLIP_MAX_S;
 const ACCEL_SLIP_STANDS: &str =
     "a clock offset between the encoders and the poses rather than slip";
 
 /// A differential drive's wheels may roll this much further (or shorter) per m/s of
 /// their speed: 6 % at 0.3 m/s, more than tyre deflection or slip give a small robot.
-pub const SPEED_REL_RANGE: f64 = 0.2;
+/// The board's own limit, so a kept law is one it takes.
+pub const SPEED_REL_RANGE: f64 = calib_core::correction::SPEED_REL_MAX;
 const SPEED_REL_STANDS: &str =
     "slip that depends on acceleration or load rather than speed, or encoder counts lost at speed";
 
@@ -659,8 +661,9 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
     rungs
 }
 
-/// A differential drive's separation may depend on the turn by this much (tyre scrub).
-pub const DIFF_EB_ARC_RANGE: f64 = 0.1;
+/// A differential drive's separation may depend on the turn by this much (tyre scrub):
+/// the board's own limit.
+pub const DIFF_EB_ARC_RANGE: f64 = calib_core::correction::E_B_ARC_MAX;
 
 #[cfg(test)]
 mod tests {

@@ -88,6 +88,11 @@ pub enum Factors {
         /// ... and the law's e_b_arc (`factors set --e-b-arc`).
         #[serde(skip_serializing_if = "Option::is_none")]
         e_b_arc: Option<f64>,
+        /// With any law kept (turn, speed or acceleration): everything a board that
+        /// applies the law takes (`factors set` in full). The constant factors above are
+        /// for consumers that cannot apply it.
+        #[serde(skip_serializing_if = "Option::is_none")]
+        board: Option<BoardFactors>,
     },
     /// Per wheel: the command multiplier f_lat (1 / radius scale), f_lon = 1. Wheel
     /// angle and position errors have no firmware factor: use the fitted robot file.
@@ -97,6 +102,67 @@ pub enum Factors {
         /// Common multiplier (always 1 here).
         f_lon: f64,
     },
+}
+
+/// A differential drive's factors with its laws, as a board that applies them takes them
+/// (`factors set --c-l --c-r --e-b --e-b-arc --speed-rel --accel-slip-s`).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BoardFactors {
+    /// c_L (at standstill, with a speed law).
+    pub c_l: f64,
+    /// c_R (likewise).
+    pub c_r: f64,
+    /// E_b (in a turn in place, with a turn law).
+    pub e_b: f64,
+    /// The laws (0: none).
+    #[serde(flatten)]
+    pub laws: BoardLaws,
+}
+
+/// [`calib_core::correction::DiffLaws`] in the JSON (the same three fields).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct BoardLaws {
+    /// The turn law's e_b_arc.
+    pub e_b_arc: f64,
+    /// The speed law's speed_rel, per m/s.
+    pub speed_rel: f64,
+    /// The acceleration law's accel_slip_s, s.
+    pub accel_slip_s: f64,
+}
+
+impl BoardFactors {
+    /// The board's corrections.
+    pub fn corrections(&self) -> calib_core::Corrections {
+        calib_core::Corrections::diff_drive(
+            self.c_l,
+            self.c_r,
+            self.e_b,
+            calib_core::correction::DiffLaws {
+                e_b_arc: self.laws.e_b_arc,
+                speed_rel: self.laws.speed_rel,
+                accel_slip_s: self.laws.accel_slip_s,
+            },
+        )
+    }
+
+    /// The `factors set` options that give the board these factors.
+    pub fn command(&self) -> String {
+        let mut s = format!(
+            "factors set --c-l {:.6} --c-r {:.6} --e-b {:.6}",
+            self.c_l, self.c_r, self.e_b
+        );
+        let l = &self.laws;
+        for (flag, v) in [
+            ("--e-b-arc", l.e_b_arc),
+            ("--speed-rel", l.speed_rel),
+            ("--accel-slip-s", l.accel_slip_s),
+        ] {
+            if v != 0.0 {
+                s.push_str(&format!(" {flag} {v:.6}"));
+            }
+        }
+        s
+    }
 }
 
 /// RMSE of one recording.
@@ -421,15 +487,18 @@ impl fmt::Display for Calibration {
         }
         match &self.factors {
             Factors::Diff {
-                c_l,
-                c_r,
-                e_b_turn_in_place: Some(e_b),
-                e_b_arc: Some(arc),
+                board: Some(b),
+                e_b,
                 ..
             } => writeln!(
                 f,
-                "firmware factors: factors set --c-l {c_l:.6} --c-r {c_r:.6} --e-b {e_b:.6} --e-b-arc {arc:.6} (the board applies the turn law; ROS 2 and the robot file get E_b {:.6} at the recordings' mean turn)",
-                self.factors_e_b()
+                "firmware factors: {} (the board applies the law; ROS 2 and the robot file get the constant factors: {}E_b {e_b:.6} at the recordings' mean turn)",
+                b.command(),
+                if b.laws.speed_rel != 0.0 {
+                    "c_L and c_R at the recordings' mean speed, "
+                } else {
+                    ""
+                }
             )?,
             Factors::Diff { c_l, c_r, e_b, .. } => writeln!(
                 f,
