@@ -467,3 +467,66 @@ fn a_stored_acceleration_law_keeps_the_boards_odometry_while_cruising() {
         "with the law at rest: {rest:?}"
     );
 }
+
+/// From calibration to the board: three 40 s random runs of a robot whose wheels grow by
+/// 0.1 per m/s (`speed_scale`), recorded at 50 rows/s, are calibrated; the speed law and
+/// the board's factors (c_L and c_R at standstill) it writes are stored on a virtual board
+/// of the same robot, which then drives 8 s straight at 0.1 m/s, slower than the runs'
+/// mean side speed (about 0.22 m/s). The constant factors (the wheel size at the mean
+/// speed, what ROS 2 and the robot file get) overstate the travel by about 0.1 x 0.12 of
+/// the 0.8 m, 10 mm; the board with the law must end within 3 mm of the truth and within
+/// a third of the constant factors' error.
+#[test]
+fn a_speed_law_from_calibration_carries_to_the_board() {
+    use diagnose::calibrate::{calibrate, CalOptions, Factors};
+    let nominal =
+        robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml"))
+            .unwrap();
+    let cfg = || SimConfig {
+        speed_scale: 0.1,
+        ..SimConfig::default()
+    };
+    let runs: Vec<(String, formats::recording::Recording)> = (0..3)
+        .map(|i| {
+            let mut c = sim::RecordConfig {
+                row_rate_hz: 50.0,
+                ..sim::RecordConfig::default()
+            };
+            c.sim = SimConfig {
+                seed: 50 + i,
+                ..cfg()
+            };
+            let motion = sim::Motion::Random(sim::RandomMotion {
+                duration_s: 40.0,
+                ..sim::RandomMotion::default()
+            });
+            let r = sim::record(&nominal, &[], Surface::flat(), &motion, &c).unwrap();
+            (format!("run{i}"), r.recording)
+        })
+        .collect();
+    let cal = calibrate(&nominal, &runs, None, &CalOptions::default()).unwrap();
+    let Factors::Diff {
+        c_l,
+        c_r,
+        e_b,
+        board: Some(board),
+        ..
+    } = cal.factors
+    else {
+        panic!("no board law:\n{cal}")
+    };
+    let constant = Corrections::DiffDrive { c_l, c_r, e_b };
+    let [(odo_c, truth_c), _] = straight_run(mobolab_sim(&[], cfg()), constant, 0.1, 8.0);
+    let [(odo_l, truth_l), _] =
+        straight_run(mobolab_sim(&[], cfg()), board.corrections(), 0.1, 8.0);
+    let (err_c, err_l) = (odo_c - truth_c, odo_l - truth_l);
+    eprintln!(
+        "speed_rel {:+.4}; at 0.1 m/s over {truth_l:.3} m: constant factors {err_c:+.4} m, the law {err_l:+.4} m",
+        board.laws.speed_rel
+    );
+    assert!(err_c > 0.005, "constant factors {err_c} m over");
+    assert!(
+        err_l.abs() < 0.003 && err_l.abs() < err_c / 3.0,
+        "with the law {err_l} m"
+    );
+}
