@@ -281,33 +281,15 @@ impl Corrections {
     pub fn validate(&self, robot: &Robot) -> Result<(), CorrectionError> {
         match self {
             Corrections::None => Ok(()),
-            Corrections::DiffDriveTurnLaw {
-                c_l,
-                c_r,
-                e_b,
-                e_b_arc,
-            } => {
+            Corrections::DiffDriveTurnLaw { c_l, c_r, e_b, .. }
+            | Corrections::DiffDriveLaws { c_l, c_r, e_b, .. } => {
                 if robot.kind != RobotKind::DiffDrive {
                     return Err(CorrectionError::WrongKind { robot: robot.kind });
                 }
                 check("c_l", None, *c_l)?;
                 check("c_r", None, *c_r)?;
                 check("e_b", None, *e_b)?;
-                check_within("e_b_arc", *e_b_arc, -E_B_ARC_MAX, E_B_ARC_MAX)
-            }
-            Corrections::DiffDriveLaws {
-                c_l,
-                c_r,
-                e_b,
-                laws,
-            } => {
-                if robot.kind != RobotKind::DiffDrive {
-                    return Err(CorrectionError::WrongKind { robot: robot.kind });
-                }
-                check("c_l", None, *c_l)?;
-                check("c_r", None, *c_r)?;
-                check("e_b", None, *e_b)?;
-                laws.validate()
+                self.laws().validate()
             }
             Corrections::DiffDrive { c_l, c_r, e_b } => {
                 if robot.kind == RobotKind::Omni {

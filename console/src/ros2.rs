@@ -5,6 +5,7 @@
 
 use anyhow::{Context, Result};
 use calib_core::correction::DiffLaws;
+pub use diagnose::calibrate::BoardFactors;
 use std::path::Path;
 
 /// Differential-drive factors.
@@ -23,21 +24,7 @@ pub struct DiffFactors {
     /// A differential drive's laws, when calibrate kept or was given one, with the
     /// factors the board takes alongside. The file says the controller cannot express
     /// them.
-    pub board: Option<BoardLaw>,
-}
-
-/// A differential drive's laws (turn, speed, acceleration) and the factors a board that
-/// applies them takes: E_b in a turn in place, c_L and c_R at standstill.
-#[derive(Debug, Clone, Copy, PartialEq)]
-pub struct BoardLaw {
-    /// c_L at standstill.
-    pub c_l: f64,
-    /// c_R at standstill.
-    pub c_r: f64,
-    /// E_b in a turn in place.
-    pub e_b: f64,
-    /// The laws.
-    pub laws: DiffLaws,
+    pub board: Option<BoardFactors>,
 }
 
 /// What a skid-steer export adds to the file.
@@ -112,7 +99,7 @@ pub fn diff_drive_yaml(f: &DiffFactors, controller: &str, source: &str) -> Resul
 /// What the file says about a differential drive's laws: each in words, that the
 /// controller cannot express it and what the multipliers hold instead, and the board's
 /// `factors set` (laws the board would refuse are not exported).
-fn law_note(b: &BoardLaw) -> Result<String> {
+fn law_note(b: &BoardFactors) -> Result<String> {
     let not_exported = |e| anyhow::anyhow!("not exported: {e}");
     for (name, v) in [("c_l", b.c_l), ("c_r", b.c_r), ("e_b", b.e_b)] {
         calib_core::correction::check(name, None, v).map_err(not_exported)?;
@@ -147,21 +134,9 @@ fn law_note(b: &BoardLaw) -> Result<String> {
             l.accel_slip_s * 1e3
         ));
     }
-    let mut cmd = format!(
-        "factors set --c-l {:.6} --c-r {:.6} --e-b {:.6}",
-        b.c_l, b.c_r, b.e_b
-    );
-    for (flag, v) in [
-        ("--e-b-arc", l.e_b_arc),
-        ("--speed-rel", l.speed_rel),
-        ("--accel-slip-s", l.accel_slip_s),
-    ] {
-        if v != 0.0 {
-            cmd.push_str(&format!(" {flag} {v:.6}"));
-        }
-    }
     s.push_str(&format!(
-        "# The wheelcal board applies the laws itself: {cmd}.\n"
+        "# The wheelcal board applies the laws itself: {}.\n",
+        b.command()
     ));
     Ok(s)
 }
@@ -222,7 +197,7 @@ pub fn factors_from_json(path: &Path) -> Result<DiffFactors> {
             .and_then(serde_json::Value::as_f64)
     };
     let board = match board_field("e_b") {
-        Some(e_b) => Some(BoardLaw {
+        Some(e_b) => Some(BoardFactors {
             c_l: board_field("c_l").unwrap_or(c_l),
             c_r: board_field("c_r").unwrap_or(c_r),
             e_b,
@@ -234,7 +209,7 @@ pub fn factors_from_json(path: &Path) -> Result<DiffFactors> {
         }),
         None => {
             let law = ["e_b_turn_in_place", "e_b_arc"].map(|k| get(&[k]).ok());
-            law[0].zip(law[1]).map(|(e_b, e_b_arc)| BoardLaw {
+            law[0].zip(law[1]).map(|(e_b, e_b_arc)| BoardFactors {
                 c_l,
                 c_r,
                 e_b,
@@ -264,7 +239,7 @@ mod tests {
     #[test]
     fn a_turn_law_is_named_and_the_mean_turn_e_b_exported() {
         let f = DiffFactors {
-            board: Some(BoardLaw {
+            board: Some(BoardFactors {
                 c_l: 0.997,
                 c_r: 0.996,
                 e_b: 1.0057,
@@ -296,7 +271,7 @@ mod tests {
     #[test]
     fn speed_and_acceleration_laws_are_named() {
         let f = DiffFactors {
-            board: Some(BoardLaw {
+            board: Some(BoardFactors {
                 c_l: 0.995,
                 c_r: 0.994,
                 e_b: 1.01,

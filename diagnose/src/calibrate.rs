@@ -62,8 +62,8 @@ pub use params::{
 };
 pub use refusals::{WORSE_FACTOR, WORSE_MARGIN_M};
 pub use result::{
-    BoardFactors, BoardLaws, Calibration, Factors, FittedParam, Heldout, HeldoutMeans,
-    HeldoutTable, Implausible, Inseparable, Inseparables, PerRecording, WheelGeometry,
+    BoardFactors, Calibration, Factors, FittedParam, Heldout, HeldoutMeans, HeldoutTable,
+    Implausible, Inseparable, Inseparables, PerRecording, WheelGeometry,
 };
 pub(crate) use series::Path;
 pub use series::{
@@ -593,7 +593,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         let (c_l, c_r) = calib_core::umbmark::wheel_factors(ed);
         let board_law = (robot.kind == RobotKind::DiffDrive && turn_law.arc_rel != 0.0)
             .then_some((eb, turn_law.arc_rel));
-        let laws = BoardLaws {
+        let laws = calib_core::correction::DiffLaws {
             e_b_arc: if robot.kind == RobotKind::DiffDrive {
                 turn_law.arc_rel
             } else {

@@ -230,12 +230,7 @@ fn ros2_yaml(cal: &Calibration) -> Option<String> {
                     c_l,
                     c_r,
                     e_b,
-                    board: board.map(|b| ros2::BoardLaw {
-                        c_l: b.c_l,
-                        c_r: b.c_r,
-                        e_b: b.e_b,
-                        laws: b.corrections().laws(),
-                    }),
+                    board,
                     skid_steer: (cal.kind == "skid_steer").then(|| {
                         let get = |n: &str| cal.params.iter().find(|p| p.spec.name == n);
                         ros2::SkidNote {

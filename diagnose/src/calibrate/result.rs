@@ -116,33 +116,13 @@ pub struct BoardFactors {
     pub e_b: f64,
     /// The laws (0: none).
     #[serde(flatten)]
-    pub laws: BoardLaws,
-}
-
-/// [`calib_core::correction::DiffLaws`] in the JSON (the same three fields).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
-pub struct BoardLaws {
-    /// The turn law's e_b_arc.
-    pub e_b_arc: f64,
-    /// The speed law's speed_rel, per m/s.
-    pub speed_rel: f64,
-    /// The acceleration law's accel_slip_s, s.
-    pub accel_slip_s: f64,
+    pub laws: calib_core::correction::DiffLaws,
 }
 
 impl BoardFactors {
     /// The board's corrections.
     pub fn corrections(&self) -> calib_core::Corrections {
-        calib_core::Corrections::diff_drive(
-            self.c_l,
-            self.c_r,
-            self.e_b,
-            calib_core::correction::DiffLaws {
-                e_b_arc: self.laws.e_b_arc,
-                speed_rel: self.laws.speed_rel,
-                accel_slip_s: self.laws.accel_slip_s,
-            },
-        )
+        calib_core::Corrections::diff_drive(self.c_l, self.c_r, self.e_b, self.laws)
     }
 
     /// The `factors set` options that give the board these factors.
