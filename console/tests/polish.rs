@@ -88,3 +88,37 @@ fn a_port_that_is_not_a_terminal_is_named_so() {
         assert!(!err.contains("ioctl"), "{err}");
     }
 }
+
+/// A differential drive's speed and acceleration laws through the binary, as typed at a
+/// mobolab board: negative values read as numbers, the board stores them beside the
+/// factors and the text says each in words; a speed law past ±0.2 per m/s is refused in
+/// words naming it, and the stored factors do not change.
+#[test]
+fn speed_and_acceleration_laws_are_set_in_words() {
+    let dir = scratch("laws");
+    let board = Board::start("mobolab", &dir);
+    let (o, out, err) = board.run_text(&[
+        "factors",
+        "set",
+        "--c-l",
+        "0.995",
+        "--speed-rel",
+        "-0.035",
+        "--accel-slip-s",
+        "0.047",
+    ]);
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("-3.500 % larger per m/s"), "{out}");
+    assert!(out.contains("47.0 ms"), "{out}");
+    let (o, _, err) = board.run_text(&["factors", "set", "--speed-rel", "0.5"]);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("speed_rel = 0.5 is outside [-0.2, 0.2]"),
+        "{err}"
+    );
+    let (_, out, _) = board.run_text(&["--json", "factors", "get"]);
+    let v: serde_json::Value = serde_json::from_str(&out).expect("JSON");
+    assert_eq!(v["speed_rel"], -0.035, "{v}");
+    assert_eq!(v["accel_slip_s"], 0.047, "{v}");
+    assert_eq!(v["c_l"], 0.995, "{v}");
+}
