@@ -511,8 +511,9 @@ pub const TURN_LAW_HOLDOUT_RATIO: f64 = 0.95;
 /// significant (3 sigma) on all the data and within its plausible range, and (speed and
 /// acceleration) the data tell it from the geometry (|correlation| at most
 /// [`CORR_LIMIT`](crate::calibrate::CORR_LIMIT)). Of those that qualify, the best held
-/// out, or the turn law when within [`LADDER_TOLERANCE`] of it (preferred on a tie: it carried
-/// better across months on the real robot). Says which and why, with the figures.
+/// out, or the turn law when within [`LADDER_TOLERANCE`] of it (preferred on a tie: it
+/// carried better across months on the real robot). Says which and why, with the
+/// figures.
 fn choose_turn_law(
     robot: &Robot,
     series: &[Series],
