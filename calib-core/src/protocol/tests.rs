@@ -44,6 +44,26 @@ fn corrections() -> impl Strategy<Value = Corrections> {
                 f_lon,
             }
         }),
+        (f64s(), f64s(), f64s(), f64s()).prop_map(|(c_l, c_r, e_b, e_b_arc)| {
+            Corrections::DiffDriveTurnLaw {
+                c_l,
+                c_r,
+                e_b,
+                e_b_arc,
+            }
+        }),
+        (f64s(), f64s(), f64s(), f64s(), f64s(), f64s()).prop_map(
+            |(c_l, c_r, e_b, e_b_arc, speed_rel, accel_slip_s)| Corrections::DiffDriveLaws {
+                c_l,
+                c_r,
+                e_b,
+                laws: crate::correction::DiffLaws {
+                    e_b_arc,
+                    speed_rel,
+                    accel_slip_s,
+                },
+            }
+        ),
     ]
 }
 
