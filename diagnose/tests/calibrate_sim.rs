@@ -819,6 +819,15 @@ fn speed_dependent_scale_is_found_and_not_invented() {
         c.notes
     );
     assert!(!named(&c, "accel_slip_s"), "{c}");
+    // In words: at 0.5 m/s the simulated wheels roll 5 % further (within 0.5 %).
+    let pct: f64 = c
+        .notes
+        .iter()
+        .find_map(|n| n.split("at 0.5 m/s a wheel rolls ").nth(1))
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no words for the speed law: {:?}", c.notes));
+    assert!((pct - 5.0).abs() < 0.5, "{pct} %");
     let c = calibrate(&nominal, &runs(0.0, 0.0), None, &CalOptions::default()).unwrap();
     println!("{c}");
     assert!(
@@ -863,6 +872,16 @@ fn acceleration_slip_is_found_and_not_invented() {
             .all(|p| p.spec.name != "eb_arc" && p.spec.name != "speed_rel"),
         "{c}"
     );
+    // In words: cruising at 0.3 m/s, 0.05 s x 0.3 m/s = 15 mm behind (within the law's
+    // own tolerance above, 0.01 s: 3 mm).
+    let mm: f64 = c
+        .notes
+        .iter()
+        .find_map(|n| n.split("cruising at 0.3 m/s the robot is ").nth(1))
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no words for the acceleration law: {:?}", c.notes));
+    assert!((mm - 15.0).abs() < 3.0, "{mm} mm");
     // The board takes the law and the same geometry as everyone else.
     let (c_l, b) = board_factors(&c);
     assert_eq!(b.laws.accel_slip_s, law.value);
