@@ -820,13 +820,7 @@ fn speed_dependent_scale_is_found_and_not_invented() {
     );
     assert!(!named(&c, "accel_slip_s"), "{c}");
     // In words: at 0.5 m/s the simulated wheels roll 5 % further (within 0.5 %).
-    let pct: f64 = c
-        .notes
-        .iter()
-        .find_map(|n| n.split("at 0.5 m/s a wheel rolls ").nth(1))
-        .and_then(|t| t.split(' ').next())
-        .and_then(|t| t.parse().ok())
-        .unwrap_or_else(|| panic!("no words for the speed law: {:?}", c.notes));
+    let pct = number_after(&c, "at 0.5 m/s a wheel rolls ");
     assert!((pct - 5.0).abs() < 0.5, "{pct} %");
     let c = calibrate(&nominal, &runs(0.0, 0.0), None, &CalOptions::default()).unwrap();
     println!("{c}");
@@ -874,19 +868,23 @@ fn acceleration_slip_is_found_and_not_invented() {
     );
     // In words: cruising at 0.3 m/s, 0.05 s x 0.3 m/s = 15 mm behind (within the law's
     // own tolerance above, 0.01 s: 3 mm).
-    let mm: f64 = c
-        .notes
-        .iter()
-        .find_map(|n| n.split("cruising at 0.3 m/s the robot is ").nth(1))
-        .and_then(|t| t.split(' ').next())
-        .and_then(|t| t.parse().ok())
-        .unwrap_or_else(|| panic!("no words for the acceleration law: {:?}", c.notes));
+    let mm = number_after(&c, "cruising at 0.3 m/s the robot is ");
     assert!((mm - 15.0).abs() < 3.0, "{mm} mm");
     // The board takes the law and the same geometry as everyone else.
     let (c_l, b) = board_factors(&c);
     assert_eq!(b.laws.accel_slip_s, law.value);
     assert_eq!((b.laws.e_b_arc, b.laws.speed_rel), (0.0, 0.0));
     assert_eq!(c_l, b.c_l);
+}
+
+/// The number that follows `words` in one of the calibration's notes.
+fn number_after(c: &Calibration, words: &str) -> f64 {
+    c.notes
+        .iter()
+        .find_map(|n| n.split(words).nth(1))
+        .and_then(|t| t.split(' ').next())
+        .and_then(|t| t.parse().ok())
+        .unwrap_or_else(|| panic!("no note says {words:?}: {:?}", c.notes))
 }
 
 /// A differential drive's constant c_L and the factors its board takes with the law.
