@@ -187,39 +187,23 @@ pub fn factors_from_json(path: &Path) -> Result<DiffFactors> {
     };
     let skid = v.get("kind").and_then(serde_json::Value::as_str) == Some("skid_steer");
     let (c_l, c_r) = (get(&["c_l"])?, get(&["c_r"])?);
-    // A calibrate result with a differential drive's law carries the board's factors
-    // (`factors.board`); one written before the speed and acceleration laws, only the
-    // turn law's two halves.
+    // A calibrate result with a differential drive's law carries the board's factors.
     let board_field = |k: &str| {
         v.get("factors")
             .and_then(|f| f.get("board"))
             .and_then(|b| b.get(k))
             .and_then(serde_json::Value::as_f64)
     };
-    let board = match board_field("e_b") {
-        Some(e_b) => Some(BoardFactors {
-            c_l: board_field("c_l").unwrap_or(c_l),
-            c_r: board_field("c_r").unwrap_or(c_r),
-            e_b,
-            laws: DiffLaws {
-                e_b_arc: board_field("e_b_arc").unwrap_or(0.0),
-                speed_rel: board_field("speed_rel").unwrap_or(0.0),
-                accel_slip_s: board_field("accel_slip_s").unwrap_or(0.0),
-            },
-        }),
-        None => {
-            let law = ["e_b_turn_in_place", "e_b_arc"].map(|k| get(&[k]).ok());
-            law[0].zip(law[1]).map(|(e_b, e_b_arc)| BoardFactors {
-                c_l,
-                c_r,
-                e_b,
-                laws: DiffLaws {
-                    e_b_arc,
-                    ..DiffLaws::default()
-                },
-            })
-        }
-    };
+    let board = board_field("e_b").map(|e_b| BoardFactors {
+        c_l: board_field("c_l").unwrap_or(c_l),
+        c_r: board_field("c_r").unwrap_or(c_r),
+        e_b,
+        laws: DiffLaws {
+            e_b_arc: board_field("e_b_arc").unwrap_or(0.0),
+            speed_rel: board_field("speed_rel").unwrap_or(0.0),
+            accel_slip_s: board_field("accel_slip_s").unwrap_or(0.0),
+        },
+    });
     Ok(DiffFactors {
         c_l,
         c_r,
@@ -296,6 +280,19 @@ mod tests {
             ),
             "{y}"
         );
+        // Read back from a calibrate result's JSON (`factors.board`), the same factors.
+        let path =
+            std::env::temp_dir().join(format!("wheelcal-ros2-laws-{}.json", std::process::id()));
+        std::fs::write(
+            &path,
+            r#"{"kind": "diff_drive", "factors": {"c_l": 0.9878, "c_r": 0.9868, "e_b": 1.01,
+                "board": {"c_l": 0.995, "c_r": 0.994, "e_b": 1.01, "e_b_arc": 0.0,
+                          "speed_rel": -0.035, "accel_slip_s": 0.047}}}"#,
+        )
+        .unwrap();
+        let read = factors_from_json(&path);
+        std::fs::remove_file(&path).unwrap();
+        assert_eq!(read.unwrap(), f);
         // The laws out of the board's range: not exported.
         let mut bad = f;
         bad.board.as_mut().unwrap().laws.speed_rel = 0.5;

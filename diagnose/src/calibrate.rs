@@ -591,8 +591,6 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         // robot file); a differential drive's board applies the law itself, from a turn
         // in place and standstill.
         let (c_l, c_r) = calib_core::umbmark::wheel_factors(ed);
-        let board_law = (robot.kind == RobotKind::DiffDrive && turn_law.arc_rel != 0.0)
-            .then_some((eb, turn_law.arc_rel));
         let laws = calib_core::correction::DiffLaws {
             e_b_arc: if robot.kind == RobotKind::DiffDrive {
                 turn_law.arc_rel
@@ -602,20 +600,17 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             speed_rel: turn_law.speed_rel,
             accel_slip_s: turn_law.accel_slip_s,
         };
-        let board = (laws.e_b_arc != 0.0 || laws.speed_rel != 0.0 || laws.accel_slip_s != 0.0)
-            .then_some(BoardFactors {
-                c_l: sc * c_l,
-                c_r: sc * c_r,
-                e_b: eb,
-                laws,
-            });
+        let board = (laws != calib_core::correction::DiffLaws::default()).then_some(BoardFactors {
+            c_l: sc * c_l,
+            c_r: sc * c_r,
+            e_b: eb,
+            laws,
+        });
         let sc = sc * law_scale;
         Factors::Diff {
             c_l: sc * c_l,
             c_r: sc * c_r,
             e_b: eb + law_eb_shift,
-            e_b_turn_in_place: board_law.map(|l| l.0),
-            e_b_arc: board_law.map(|l| l.1),
             board,
         }
     } else {

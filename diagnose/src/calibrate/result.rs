@@ -81,16 +81,10 @@ pub enum Factors {
         /// Actual wheelbase / nominal wheelbase (with a turn law: at the recordings' mean
         /// turn, for consumers that apply one constant: ROS 2, the robot file).
         e_b: f64,
-        /// A differential drive's turn law, for a board that applies it: E_b in a turn in
-        /// place ...
-        #[serde(skip_serializing_if = "Option::is_none")]
-        e_b_turn_in_place: Option<f64>,
-        /// ... and the law's e_b_arc (`factors set --e-b-arc`).
-        #[serde(skip_serializing_if = "Option::is_none")]
-        e_b_arc: Option<f64>,
         /// With any law kept (turn, speed or acceleration): everything a board that
-        /// applies the law takes (`factors set` in full). The constant factors above are
-        /// for consumers that cannot apply it.
+        /// applies the law takes (`factors set` in full: E_b in a turn in place, c_L and
+        /// c_R at standstill, the laws). The constant factors above are for consumers
+        /// that cannot apply it.
         #[serde(skip_serializing_if = "Option::is_none")]
         board: Option<BoardFactors>,
     },
