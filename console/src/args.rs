@@ -695,6 +695,13 @@ pub struct CalibrateArgs {
     /// cannot find it themselves.
     #[arg(long, value_name = "EB_ARC", allow_negative_numbers = true)]
     pub turn_law: Option<f64>,
+    /// A differential drive's known speed law, held fixed while the geometry is fitted:
+    /// how much further a wheel rolls per m/s of its speed (speed_rel; 0.02 is 1 % at
+    /// 0.5 m/s). Take it from an earlier calibrate on runs at several speeds: the JSON's
+    /// `turn_law.speed_rel`, or its `law_tests`. Squares run at one cruise speed and
+    /// cannot tell it from the wheel size.
+    #[arg(long, value_name = "SPEED_REL", allow_negative_numbers = true)]
+    pub speed_law: Option<f64>,
     /// How to read recordings given as ROS 2 bags.
     #[command(flatten)]
     pub bag: BagFlags,

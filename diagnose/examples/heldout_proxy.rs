@@ -11,10 +11,12 @@
 //! and tests on the other three's squares, against `omni4-sousa`),
 //! `--sessions DIR` (default: `shared/real/sessions` beside the checkout),
 //! `--only S1,S2`, `--max-tests N`, `--json` (per-run numbers), `--free-start`,
-//! `--robust`, `--marker-offset`, `--heading-lever M` (calibrate's options), `--law-from-other-month`: first
-//! fit the turn law on each month's runs (June: 23 June squares, 25 June circles and
-//! Ivanjko paths; December: 23 December), then train each square session with the other
-//! month's law held fixed (`--turn-law`) and dead-reckon its test runs with that law.
+//! `--robust`, `--marker-offset`, `--heading-lever M` (calibrate's options),
+//! `--law-from-other-month [turn|speed]`: first fit the law on each month's runs (June: 23
+//! June squares, 25 June circles and Ivanjko paths; December: 23 December; the turn law
+//! as calibrate keeps it, the speed law as its `law_tests` fit it on its own), then train
+//! each square session with the other month's law held fixed (`--turn-law` or
+//! `--speed-law`) and dead-reckon its test runs with that law.
 
 use diagnose::calibrate::{calibrate, proxy, CalOptions};
 use std::path::PathBuf;
@@ -47,13 +49,19 @@ fn main() {
         ..Default::default()
     };
     let t0 = std::time::Instant::now();
+    let speed = val("--law-from-other-month").as_deref() == Some("speed");
     let laws = flag("--law-from-other-month").then(|| {
         ["06", "12"].map(|m| {
-            let law = month_law(&dir, m).unwrap_or_else(|e| {
+            let law = month_law(&dir, m, speed).unwrap_or_else(|e| {
                 eprintln!("{e}");
                 std::process::exit(1)
             });
-            eprintln!("turn law fitted on month {m}: eb_arc/eb {law:+.4}");
+            let what = if speed {
+                "speed law, speed_rel per m/s"
+            } else {
+                "turn law, eb_arc/eb"
+            };
+            eprintln!("{what} fitted on month {m}: {law:+.4}");
             law
         })
     });
@@ -64,14 +72,16 @@ fn main() {
         only_refs.as_deref(),
         max_tests,
         &|robot, recs, session| {
+            let other = laws.map(|l| {
+                if session.get(2..4) == Some("06") {
+                    l[1]
+                } else {
+                    l[0]
+                }
+            });
             let opts = CalOptions {
-                turn_law: laws.map(|l| {
-                    if session.get(2..4) == Some("06") {
-                        l[1]
-                    } else {
-                        l[0]
-                    }
-                }),
+                turn_law: other.filter(|_| !speed),
+                speed_law: other.filter(|_| speed),
                 ..opts.clone()
             };
             let t = std::time::Instant::now();
@@ -109,10 +119,18 @@ fn main() {
     eprintln!("total {:.1} s", t0.elapsed().as_secs_f64());
 }
 
-/// The turn law (eb_arc / eb) `calibrate` fits on every differential-drive run of month
-/// `month` (`"06"`, `"12"`), 0 when it keeps none.
-fn month_law(dir: &std::path::Path, month: &str) -> Result<f64, String> {
+/// The turn law (eb_arc / eb) `calibrate` keeps on every differential-drive run of month
+/// `month` (`"06"`, `"12"`), 0 when it keeps none; with `speed`, the speed law it fits
+/// there on its own (its `law_tests`), kept or not.
+fn month_law(dir: &std::path::Path, month: &str, speed: bool) -> Result<f64, String> {
     let (robot, recs) = proxy::month_runs(dir, "diff", month)?;
     let c = calibrate(&robot, &recs, None, &CalOptions::default()).map_err(|e| e.to_string())?;
-    Ok(c.turn_law.arc_rel)
+    if !speed {
+        return Ok(c.turn_law.arc_rel);
+    }
+    c.law_tests
+        .iter()
+        .find(|t| t.law == "speed")
+        .map(|t| t.value)
+        .ok_or(format!("no speed law was tested on month {month}"))
 }

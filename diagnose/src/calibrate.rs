@@ -63,7 +63,7 @@ pub use params::{
 pub use refusals::{WORSE_FACTOR, WORSE_MARGIN_M};
 pub use result::{
     BoardFactors, Calibration, Factors, FittedParam, Heldout, HeldoutMeans, HeldoutTable,
-    Implausible, Inseparable, Inseparables, PerRecording, WheelGeometry,
+    Implausible, Inseparable, Inseparables, LawTest, PerRecording, WheelGeometry,
 };
 pub(crate) use series::Path;
 pub use series::{
@@ -138,7 +138,11 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         free_start: opts.free_start,
         huber: None,
         dr_lever: opts.heading_lever_m.unwrap_or(DR_HEADING_LEVER_M),
-        known_law: opts.turn_law,
+        known_law: (opts.turn_law.is_some() || opts.speed_law.is_some()).then(|| TurnLaw {
+            arc_rel: opts.turn_law.unwrap_or(0.0),
+            speed_rel: opts.speed_law.unwrap_or(0.0),
+            ..TurnLaw::default()
+        }),
     };
     // SLAM-like poses: dead reckoning from one pose sample of centimetre noise tilts the
     // whole recording (measured on the simulator: scale, E_d and E_b 8-11 sigma off), so
@@ -179,7 +183,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             }
         }
     }
-    let mut prefit = None;
+    let mut made = choice::Made::default();
     let specs = choose_specs(
         robot,
         &series,
@@ -187,8 +191,9 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         cfg,
         &mut notes,
         &mut runs,
-        &mut prefit,
+        &mut made,
     );
+    let choice::Made { prefit, law_tests } = made;
     let nominal: Vec<f64> = specs.iter().map(|s| s.nominal).collect();
 
     // Nominal geometry (nuisance fitted when free): the "before".
@@ -694,6 +699,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         model_runs: runs,
         fitted_robot,
         turn_law,
+        law_tests,
         law_base_robot,
     })
 }

@@ -141,31 +141,58 @@ fn the_turn_law_is_the_same_in_june_and_december() {
 /// The law learned on the other month's runs (never the test day's), held fixed while
 /// the geometry is fitted on a square session, and applied when dead-reckoning the test
 /// runs: the issue's goal (no session above the authors, geometric mean at most 0.94).
+/// The speed law, its rival reading of the same arcs (fitted on its own on each month,
+/// June -0.076, December -0.036 per m/s), held the same way (`--speed-law`), transfers
+/// worse: 0.851 (worst 1.273) against the turn law's 0.670. This is the measurement
+/// behind calibrate's preferring the turn law on a tie (`LADDER_TOLERANCE`); asserted as
+/// the turn law's geometric mean below the speed law's by more than a tenth.
 #[test]
 fn a_law_from_the_other_month_beats_optiodom() {
     let Some(d) = dir() else { return };
-    let mut law = std::collections::BTreeMap::new();
+    let mut laws = std::collections::BTreeMap::new();
     for month in ["06", "12"] {
         let (robot, recs) = proxy::month_runs(&d, "diff", month).unwrap();
         let c = calibrate(&robot, &recs, None, &CalOptions::default()).unwrap();
-        law.insert(month, c.turn_law.arc_rel);
+        let speed = c.law_tests.iter().find(|t| t.law == "speed").unwrap().value;
+        laws.insert(month, (c.turn_law.arc_rel, speed));
     }
-    let r = proxy::run_diff_with_law(&d, None, None, &|robot, recs, session| {
-        let other = if session.get(2..4) == Some("06") {
-            "12"
-        } else {
-            "06"
-        };
-        let opts = CalOptions {
-            turn_law: Some(law[other]),
-            ..Default::default()
-        };
-        calibrate(robot, recs, None, &opts)
-            .map(|c| (c.law_base_robot, c.turn_law))
-            .map_err(|e| e.to_string())
-    })
-    .unwrap();
-    assert_meets_the_goal(&r);
+    let proxy_with = |speed_law: bool| {
+        proxy::run_diff_with_law(&d, None, None, &|robot, recs, session| {
+            let other = if session.get(2..4) == Some("06") {
+                "12"
+            } else {
+                "06"
+            };
+            let (turn, speed) = laws[other];
+            let opts = if speed_law {
+                CalOptions {
+                    speed_law: Some(speed),
+                    ..Default::default()
+                }
+            } else {
+                CalOptions {
+                    turn_law: Some(turn),
+                    ..Default::default()
+                }
+            };
+            calibrate(robot, recs, None, &opts)
+                .map(|c| (c.law_base_robot, c.turn_law))
+                .map_err(|e| e.to_string())
+        })
+        .unwrap()
+    };
+    let turn = proxy_with(false);
+    assert_meets_the_goal(&turn);
+    let speed = proxy_with(true);
+    print!("speed law from the other month:\n{}", proxy::table(&speed));
+    let (g_turn, g_speed) = (
+        proxy::geometric_mean_ratio(&turn),
+        proxy::geometric_mean_ratio(&speed),
+    );
+    assert!(
+        g_turn + 0.1 < g_speed,
+        "turn {g_turn:.3}, speed {g_speed:.3}"
+    );
 }
 
 /// The three-wheel omni robot (issue 21): each of its two square sessions calibrated with

@@ -176,6 +176,7 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         cv: if a.no_cross_validation { None } else { cv },
         heading_lever_m: a.heading_lever,
         turn_law: a.turn_law,
+        speed_law: a.speed_law,
     };
     let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|mut e| {
         // Name the file, not only the short name; the error stays the calibration's.
@@ -337,6 +338,7 @@ mod tests {
             cv: None,
             heading_lever: None,
             turn_law: None,
+            speed_law: None,
             bag: default_bag_flags(),
         }
     }

@@ -11,6 +11,7 @@ use crate::calibrate::params::{
 };
 use crate::calibrate::pool::pool_map;
 use crate::calibrate::problem::Problem;
+use crate::calibrate::result::LawTest;
 use crate::calibrate::series::{fitted_dead_reckoning_rmse, Series};
 use crate::calibrate::solve::{
     covariance, noise_scale, nuisance_start, refs, reweighed, solve, OneStep, Solved,
@@ -71,6 +72,14 @@ pub(super) struct Fit {
     pub(super) prior_scale: f64,
 }
 
+/// What choosing the parameters made besides them: the chosen model's fit on all the
+/// recordings, and a two-sided robot's tests of its laws.
+#[derive(Default)]
+pub(super) struct Made {
+    pub(super) prefit: Option<Prefit>,
+    pub(super) law_tests: Vec<LawTest>,
+}
+
 /// A fit of the chosen parameters on all the recordings that choosing them made: the
 /// final fit repeats it (the same problem, the same steps) and takes it over.
 pub(super) struct Prefit {
@@ -104,14 +113,15 @@ pub(super) fn choose_specs(
     cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
-    prefit: &mut Option<Prefit>,
+    made: &mut Made,
 ) -> Vec<ParamSpec> {
     let full = param_specs(robot, marker);
     if robot.kind == RobotKind::SkidSteer
         || (robot.kind == RobotKind::DiffDrive && robot.wheels.len() == 2)
     {
-        return choose_turn_law(robot, series, cfg, notes, runs, prefit);
+        return choose_turn_law(robot, series, cfg, notes, runs, made);
     }
+    let prefit = &mut made.prefit;
     if robot.kind == RobotKind::Omni && series.len() >= 2 {
         return climb_ladder(robot, series, marker, cfg, notes, runs, prefit);
     }
@@ -520,16 +530,26 @@ fn choose_turn_law(
     cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
-    prefit: &mut Option<Prefit>,
+    made: &mut Made,
 ) -> Vec<ParamSpec> {
     let skid = robot.kind == RobotKind::SkidSteer;
     let who = if skid { "skid-steer" } else { "turn law" };
     let base = param_specs(robot, false);
     if let Some(known) = cfg.known_law {
-        notes.push(format!(
-            "turn law: given (--turn-law), held at eb_arc/eb {known:+.4}: the separation on arcs is {:.2} % wider than in a turn in place; the geometry is fitted with it",
-            known * 100.0
-        ));
+        if known.arc_rel != 0.0 {
+            notes.push(format!(
+                "turn law: given (--turn-law), held at eb_arc/eb {:+.4}: the separation on arcs is {:.2} % wider than in a turn in place; the geometry is fitted with it",
+                known.arc_rel,
+                known.arc_rel * 100.0
+            ));
+        }
+        if known.speed_rel != 0.0 {
+            notes.push(format!(
+                "speed law: given (--speed-law), held at speed_rel {:+.4} per m/s: at 0.5 m/s a wheel rolls {:+.1} % further than at a crawl; the geometry (the wheel size at standstill) is fitted with it",
+                known.speed_rel,
+                known.speed_rel * 50.0
+            ));
+        }
         return base;
     }
     if series.len() < 2 {
@@ -629,6 +649,25 @@ fn choose_turn_law(
             ));
         }
         let qualifies = significant && holds && in_range && separable;
+        made.law_tests.push(LawTest {
+            law: law.name(),
+            parameter: specs[ia].name.clone(),
+            value: if *law == Law::Turn {
+                v / eb_of(&fit.f.geom, specs)
+            } else {
+                v
+            },
+            sigma: if *law == Law::Turn {
+                s_v / eb_of(&fit.f.geom, specs)
+            } else {
+                s_v
+            },
+            heldout_m: e_law,
+            constant_heldout_m: e_base,
+            folds: k,
+            qualifies,
+            kept: false,
+        });
         let rule = format!(
             "kept only when significant and at most {:.0} % of the constant model's held-out error",
             TURN_LAW_HOLDOUT_RATIO * 100.0
@@ -697,13 +736,25 @@ fn choose_turn_law(
         };
         notes[at].push_str(&tail);
     }
+    // The law tests were pushed in `laws` order, after any of an earlier call.
+    let first = made.law_tests.len() - laws.len();
+    made.law_tests[first + i].kept = true;
     let fit = fits.swap_remove(i);
-    *prefit = Some(Prefit {
+    made.prefit = Some(Prefit {
         specs: laws[i].1.clone(),
         prior_scale: fit.prior_scale,
         f: fit.f,
     });
     laws.swap_remove(i).1
+}
+
+/// E_b in `geom` (`specs` order), 1 when not fitted: the turn law's eb_arc over it is
+/// the law's relative size, [`TurnLaw::arc_rel`](crate::calibrate::TurnLaw).
+fn eb_of(geom: &[f64], specs: &[ParamSpec]) -> f64 {
+    specs
+        .iter()
+        .position(|s| s.kind == GeomKind::Eb)
+        .map_or(1.0, |i| geom[i])
 }
 
 /// A law a differential or skid-steer robot's motion may follow beyond its geometry

@@ -4,6 +4,7 @@
 
 use crate::calibrate::problem::Problem;
 use crate::calibrate::series::PART_SEP;
+use crate::calibrate::turn_law::TurnLaw;
 
 /// Options of [`calibrate`](crate::calibrate::calibrate).
 #[derive(Debug, Clone, Default)]
@@ -31,6 +32,11 @@ pub struct CalOptions {
     /// Squares turn in place and cannot find it (measured: it transfers across days on
     /// the OptiOdom robot).
     pub turn_law: Option<f64>,
+    /// A differential drive's known speed law, speed_rel per m/s (each side's wheels roll
+    /// 1 + speed_rel |v| times what their radius says), from an earlier calibration on
+    /// runs at several speeds: held fixed while the geometry is fitted. Squares run at
+    /// one cruise speed and cannot tell it from the wheel size.
+    pub speed_law: Option<f64>,
 }
 
 /// How cross-validation groups recordings.
@@ -86,14 +92,14 @@ pub(super) struct Cfg {
     pub(super) free_start: bool,
     pub(super) huber: Option<f64>,
     pub(super) dr_lever: f64,
-    /// A known turn law (eb_arc / eb, [`CalOptions::turn_law`]).
-    pub(super) known_law: Option<f64>,
+    /// Known laws ([`CalOptions::turn_law`], [`CalOptions::speed_law`]), when given.
+    pub(super) known_law: Option<TurnLaw>,
 }
 
 impl Cfg {
-    /// The known turn law, 0 when none is given.
-    pub(super) fn law(&self) -> f64 {
-        self.known_law.unwrap_or(0.0)
+    /// The known laws, zero when none is given.
+    pub(super) fn law(&self) -> TurnLaw {
+        self.known_law.unwrap_or_default()
     }
 
     pub(super) fn apply(&self, p: &mut Problem) {

@@ -48,8 +48,8 @@ pub(super) struct Problem<'a> {
     pub(super) huber: Option<f64>,
     /// Lever arm of the dead-reckoning heading residuals, m.
     pub(super) dr_lever: f64,
-    /// A known turn law (eb_arc / eb) when the specs do not fit one.
-    pub(super) known_law: f64,
+    /// Known laws, for the terms the specs do not fit (zero: none).
+    pub(super) known_law: TurnLaw,
     /// The Jacobian of a fit's solution (its covariance, the cross-validation's steps)
     /// by forward differences, as the iterations' used to be; else the analytic one.
     pub(super) differences_at_solution: bool,
@@ -99,7 +99,7 @@ impl<'a> Problem<'a> {
             free_start: true,
             huber: None,
             dr_lever: DR_HEADING_LEVER_M,
-            known_law: 0.0,
+            known_law: TurnLaw::default(),
             differences_at_solution: true,
             cache: RefCell::new((vec![f64::NAN], vec![Path::default(); n])),
             sens: RefCell::new((vec![f64::NAN], Vec::new())),
@@ -213,6 +213,7 @@ impl<'a> Problem<'a> {
         let stepper = Stepper::new(&robot, &kin, &law);
         let cols = sens::split_params(self.specs);
         let sides = self.robot.kind == RobotKind::SkidSteer
+            || self.known_law != TurnLaw::default()
             || self.specs.iter().any(|s| {
                 matches!(
                     s.kind,

@@ -55,6 +55,23 @@ pub(super) fn check_inputs<R: std::borrow::Borrow<Recording>>(
             });
         }
     }
+    if let Some(law) = opts.speed_law {
+        if robot.kind != RobotKind::DiffDrive {
+            return Err(CalibrateError {
+                recording: None,
+                message: "a known speed law (--speed-law) is for differential drives".into(),
+            });
+        }
+        let r = calib_core::correction::SPEED_REL_MAX;
+        if !law.is_finite() || law.abs() > r {
+            return Err(CalibrateError {
+                recording: None,
+                message: format!(
+                    "--speed-law {law} is outside the -{r}..{r} per m/s a board applies (speed_rel: how much further a wheel rolls per m/s of its speed)"
+                ),
+            });
+        }
+    }
     if opts.marker_offset && robot.kind != RobotKind::Omni {
         return Err(CalibrateError {
             recording: None,

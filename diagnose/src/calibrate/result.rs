@@ -218,6 +218,31 @@ pub struct Implausible {
     pub stands_for: String,
 }
 
+/// One law a two-sided robot was tested for, on its own against the constant model
+/// (the held-out comparison the notes give in words).
+#[derive(Debug, Clone, Serialize)]
+pub struct LawTest {
+    /// `turn`, `speed` or `acceleration`.
+    pub law: &'static str,
+    /// Its parameter (`eb_arc`, `speed_rel`, `accel_slip_s`).
+    pub parameter: String,
+    /// Fitted on all the recordings: the turn law as eb_arc / eb, the speed law per m/s,
+    /// the acceleration law in s.
+    pub value: f64,
+    /// One standard deviation of `value`.
+    pub sigma: f64,
+    /// Mean held-out dead-reckoning RMSE with the law, m.
+    pub heldout_m: f64,
+    /// The same with the constant model (no law), m.
+    pub constant_heldout_m: f64,
+    /// Folds (by recording) of the held-out comparison.
+    pub folds: usize,
+    /// Significant, within its range, told from the geometry, and held out enough.
+    pub qualifies: bool,
+    /// Kept (at most one law is).
+    pub kept: bool,
+}
+
 /// The result of [`calibrate`](crate::calibrate::calibrate).
 #[derive(Debug, Clone, Serialize)]
 pub struct Calibration {
@@ -276,6 +301,9 @@ pub struct Calibration {
     pub fitted_robot: Robot,
     /// The turn law the geometry was fitted with (fitted, given, or none: zero).
     pub turn_law: TurnLaw,
+    /// A differential or skid-steer robot's laws tested (none when a law was given or
+    /// the recordings are too few): each with its fit and held-out figures.
+    pub law_tests: Vec<LawTest>,
     /// With a turn law: the fitted robot with the separation of a turn in place, which
     /// the law widens on arcs ([`dead_reckoning_rmse_law`](crate::calibrate::dead_reckoning_rmse_law)); else `fitted_robot`.
     #[serde(skip)]

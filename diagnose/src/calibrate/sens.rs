@@ -67,7 +67,7 @@ impl TwistSlopes {
         robot: &Robot,
         specs: &[ParamSpec],
         geom: &[f64],
-        known_law: f64,
+        known_law: TurnLaw,
         path_params: &[usize],
         sides: bool,
     ) -> Option<TwistSlopes> {
@@ -728,9 +728,9 @@ mod tests {
         let s = series(&r, 3);
         let rb = robot_with(&r, &specs, &geom);
         let kin = Kinematics::<f64>::new(&rb, &Corrections::None).unwrap();
-        let stepper = Stepper::new(&rb, &kin, &TurnLaw::of(&specs, &geom, 0.0));
+        let stepper = Stepper::new(&rb, &kin, &TurnLaw::of(&specs, &geom, TurnLaw::default()));
         let cols = split_params(&specs);
-        let slopes = TwistSlopes::new(&r, &specs, &geom, 0.0, &cols.path, false).unwrap();
+        let slopes = TwistSlopes::new(&r, &specs, &geom, TurnLaw::default(), &cols.path, false).unwrap();
         let TwistSlopes::Linear(v) = &slopes else {
             panic!("a kinematics matrix's slopes")
         };

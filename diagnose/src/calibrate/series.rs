@@ -643,11 +643,11 @@ pub fn fitted_dead_reckoning_rmse(
     base: &Robot,
     specs: &[ParamSpec],
     values: &[f64],
-    known_arc_rel: f64,
+    known: TurnLaw,
     s: &Series,
 ) -> f64 {
     let r = robot_with(base, specs, values);
-    dead_reckoning_rmse_with(&r, &TurnLaw::of(specs, values, known_arc_rel), s).unwrap_or(f64::NAN)
+    dead_reckoning_rmse_with(&r, &TurnLaw::of(specs, values, known), s).unwrap_or(f64::NAN)
 }
 
 fn dead_reckoning_rmse_with(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<f64> {

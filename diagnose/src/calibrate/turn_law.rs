@@ -25,16 +25,17 @@ pub struct TurnLaw {
 }
 
 impl TurnLaw {
-    /// The law in `values` (in `specs` order); `known_arc_rel` when the specs do not fit
-    /// eb_arc ([`CalOptions::turn_law`](crate::calibrate::CalOptions::turn_law), else 0).
-    pub fn of(specs: &[ParamSpec], values: &[f64], known_arc_rel: f64) -> TurnLaw {
+    /// The law in `values` (in `specs` order); each term the specs do not fit is
+    /// `known`'s ([`CalOptions::turn_law`](crate::calibrate::CalOptions::turn_law) and
+    /// [`CalOptions::speed_law`](crate::calibrate::CalOptions::speed_law), else 0).
+    pub fn of(specs: &[ParamSpec], values: &[f64], known: TurnLaw) -> TurnLaw {
         let get = |k: GeomKind| specs.iter().position(|s| s.kind == k).map(|i| values[i]);
         let eb = get(GeomKind::Eb).unwrap_or(1.0);
         TurnLaw {
-            arc_rel: get(GeomKind::EbArc).map_or(known_arc_rel, |a| a / eb),
-            icr_x_m: get(GeomKind::IcrX).unwrap_or(0.0),
-            speed_rel: get(GeomKind::SpeedRel).unwrap_or(0.0),
-            accel_slip_s: get(GeomKind::AccelSlip).unwrap_or(0.0),
+            arc_rel: get(GeomKind::EbArc).map_or(known.arc_rel, |a| a / eb),
+            icr_x_m: get(GeomKind::IcrX).unwrap_or(known.icr_x_m),
+            speed_rel: get(GeomKind::SpeedRel).unwrap_or(known.speed_rel),
+            accel_slip_s: get(GeomKind::AccelSlip).unwrap_or(known.accel_slip_s),
         }
     }
 }
