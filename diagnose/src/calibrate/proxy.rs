@@ -380,3 +380,112 @@ pub fn run_robot(
     }
     Ok(out)
 }
+
+/// One session left out of its month by [`laws_across_sessions`]: the mean dead-reckoned
+/// RMS of its runs (m) with the geometry `calibrate` fitted on the month's other
+/// sessions, by model.
+#[derive(Debug, Clone, Serialize)]
+pub struct LawFold {
+    /// `"06"` or `"12"`.
+    pub month: String,
+    /// The left-out session (`diff-circular-250620202104`).
+    pub session: String,
+    /// Its runs.
+    pub runs: usize,
+    /// No law (`--turn-law 0`).
+    pub none_m: f64,
+    /// The turn law held at its value fitted on the other sessions (`law_tests`).
+    pub turn_m: f64,
+    /// The speed law held likewise.
+    pub speed_m: f64,
+    /// `calibrate`'s defaults (its own choice of law).
+    pub chosen_m: f64,
+    /// The turn and speed laws held (eb_arc / eb, per m/s).
+    pub laws: (f64, f64),
+}
+
+/// Within each month of the differential robot's runs in `dir` (June, December), each
+/// session left out in turn: `calibrate` on the month's other sessions with its defaults,
+/// with the turn law and with the speed law each held at the value it fitted there on
+/// its own (`law_tests`), and with none; each dead-reckons the left-out runs from their
+/// first row, applying its law. The evidence across sessions for choosing between the
+/// two rival laws (`examples/laws_across_sessions.rs` prints it).
+pub fn laws_across_sessions(dir: &Path) -> Result<Vec<LawFold>, String> {
+    use crate::calibrate::{calibrate, CalOptions, Calibration};
+    let mut out = Vec::new();
+    for month in ["06", "12"] {
+        let (robot, recs) = month_runs(dir, "diff", month)?;
+        let series: Vec<Series> = recs
+            .iter()
+            .map(|(n, r)| Series::new(n, &robot, r).map_err(|e| e.to_string()))
+            .collect::<Result<_, _>>()?;
+        let mut sessions: BTreeMap<String, Vec<usize>> = BTreeMap::new();
+        for (i, (name, _)) in recs.iter().enumerate() {
+            let session = name.rsplit_once("-run-").map_or(name.as_str(), |p| p.0);
+            sessions.entry(session.to_string()).or_default().push(i);
+        }
+        for (session, held) in sessions {
+            let train: Vec<(String, &Recording)> = recs
+                .iter()
+                .enumerate()
+                .filter(|(i, _)| !held.contains(i))
+                .map(|(_, (n, r))| (n.clone(), r))
+                .collect();
+            let run = |opts: &CalOptions| {
+                calibrate(&robot, &train, None, opts).map_err(|e| format!("{session}: {e}"))
+            };
+            let chosen = run(&CalOptions::default())?;
+            let tested = |law: &str| {
+                chosen
+                    .law_tests
+                    .iter()
+                    .find(|t| t.law == law)
+                    .map_or(0.0, |t| t.value)
+            };
+            let laws = (tested("turn"), tested("speed"));
+            let none = run(&CalOptions {
+                turn_law: Some(0.0),
+                ..Default::default()
+            })?;
+            let turn = run(&CalOptions {
+                turn_law: Some(laws.0),
+                ..Default::default()
+            })?;
+            let speed = run(&CalOptions {
+                speed_law: Some(laws.1),
+                ..Default::default()
+            })?;
+            let mean = |c: &Calibration| {
+                held.iter()
+                    .map(|&i| {
+                        dead_reckoning_rmse_law(&c.law_base_robot, &c.turn_law, &series[i])
+                            .unwrap_or(f64::NAN)
+                    })
+                    .sum::<f64>()
+                    / held.len() as f64
+            };
+            out.push(LawFold {
+                month: month.to_string(),
+                session,
+                runs: held.len(),
+                none_m: mean(&none),
+                turn_m: mean(&turn),
+                speed_m: mean(&speed),
+                chosen_m: mean(&chosen),
+                laws,
+            });
+        }
+    }
+    Ok(out)
+}
+
+/// The geometric mean over `folds` of `model`'s error over no law's.
+pub fn geometric_mean_over_none(folds: &[LawFold], model: impl Fn(&LawFold) -> f64) -> f64 {
+    let n = folds.len().max(1) as f64;
+    (folds
+        .iter()
+        .map(|f| (model(f) / f.none_m).ln())
+        .sum::<f64>()
+        / n)
+        .exp()
+}

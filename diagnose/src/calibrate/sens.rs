@@ -730,7 +730,8 @@ mod tests {
         let kin = Kinematics::<f64>::new(&rb, &Corrections::None).unwrap();
         let stepper = Stepper::new(&rb, &kin, &TurnLaw::of(&specs, &geom, TurnLaw::default()));
         let cols = split_params(&specs);
-        let slopes = TwistSlopes::new(&r, &specs, &geom, TurnLaw::default(), &cols.path, false).unwrap();
+        let slopes =
+            TwistSlopes::new(&r, &specs, &geom, TurnLaw::default(), &cols.path, false).unwrap();
         let TwistSlopes::Linear(v) = &slopes else {
             panic!("a kinematics matrix's slopes")
         };
