@@ -585,15 +585,28 @@ fn slip_at_start_is_reported_and_does_not_bend_the_geometry() {
     // Odometry minus motion capture: -0.08 rad, within the 10 % a 3 s window's noise
     // and geometry error leave; reported within its window of the slip's time.
     assert!((e.heading_rad + 0.08).abs() < 0.008, "{e:?}");
-    assert!(e.t_s <= 0.5 + 0.2 && e.t_s + e.duration_s >= 0.5, "{e:?}");
-    // Issue 21 asks for at most one sigma. Measured: scale moves 1.15 sigma_clean (0.99009
-    // with the slip, 0.99037 ± 0.00025 clean, truth 0.99: the 3 s event window dropped
-    // carries scale information), ed and eb under one sigma. Asserted: 2 sigma_clean,
-    // and every parameter within 4 sigma of the truth.
+    // Reported where it happens: the span covers the 0.5-0.7 s ramp, and is kept under
+    // 1 s (two 50 Hz samples of margin either side are 0.04 s; the detection window is
+    // 3 s).
+    println!("slip reported at {:.2} s for {:.2} s", e.t_s, e.duration_s);
+    assert!(e.t_s <= 0.5 && e.t_s + e.duration_s >= 0.5 + 0.2, "{e:?}");
+    assert!(e.duration_s < 1.0, "{e:?}");
+    // Issue 21: at most one sigma (of the clean fit). Only the slip's span is kept out;
+    // when the whole 3 s window was, scale moved 1.15 sigma (0.99009 with the slip,
+    // 0.99037 ± 0.00025 clean, truth 0.99). And every parameter within 4 sigma of the
+    // truth.
     assert_recovered(&c, &truth, 1e-3);
     for (p, p0) in c.params.iter().zip(&c0.params) {
+        println!(
+            "{}: {:.5} with the slip, {:.5} ± {:.5} clean: {:.2} sigma",
+            p.spec.name,
+            p.value,
+            p0.value,
+            p0.sigma,
+            (p.value - p0.value).abs() / p0.sigma
+        );
         assert!(
-            (p.value - p0.value).abs() <= 2.0 * p0.sigma,
+            (p.value - p0.value).abs() <= p0.sigma,
             "{}: {} with the slip, {} ± {} without",
             p.spec.name,
             p.value,

@@ -710,7 +710,7 @@ fn choose_turn_law(
     // Within the ladder's tolerance of the best, the turn law: on the real robot the two
     // tie across sessions within a month (0.847 against 0.854 of no law's error,
     // `proxy::laws_across_sessions`), the turn law carried better from one month to the
-    // other's squares (0.670 against 0.851 of the authors'), and boards of protocol v5
+    // other's squares (0.671 against 0.858 of the authors'), and boards of protocol v5
     // apply it too.
     let turn = qualified
         .iter()

@@ -6,7 +6,7 @@
 //! pose jumps as events too.
 
 use crate::calibrate::objective::HUBER_K;
-use crate::calibrate::series::{Event, Path, Series};
+use crate::calibrate::series::{Anchor, Event, Path, Series};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::Kinematics;
 use calib_core::robot::Robot;
@@ -25,6 +25,15 @@ pub const EVENT_PER_TURN: f64 = 0.02;
 /// Least transient heading discrepancy (rad) reported as a clock leading for a moment
 /// (0.1 s at 1 rad/s).
 pub const EVENT_TRANSIENT_RAD: f64 = 0.08;
+/// A slip's span within its window: the discrepancy has left the level before it by more
+/// than this many sample-to-sample noise sigmas (or [`SLIP_BAND_SHARE`] of the step) and
+/// not yet settled within as much of the level after it.
+pub const SLIP_BAND_SIGMAS: f64 = 4.0;
+/// ... or this share of the slip's step, when larger.
+pub const SLIP_BAND_SHARE: f64 = 0.05;
+/// Dead reckoning restarts after a slip from the heading the samples of this long after
+/// it give, s (the odometry's turn over it taken off): their mean, not one sample's noise.
+pub const ANCHOR_WINDOW_S: f64 = 0.25;
 
 /// 1.4826 x the median absolute residual (a robust standard deviation).
 pub(super) fn robust_sigma(r: &[f64]) -> f64 {
@@ -158,6 +167,13 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
     for j in 0..n {
         step[j] -= coef.0 * reg[j].0 + coef.1 * reg[j].1;
     }
+    // The discrepancy less what the regressed geometry error makes of it along the
+    // recording, and its sample-to-sample noise: where within a slip's window it moves.
+    let e_geo: Vec<f64> = (0..n)
+        .map(|j| e[j] - coef.0 * s.pth[j] - coef.1 * dist[j])
+        .collect();
+    let d: Vec<f64> = e_geo.windows(2).map(|w| w[1] - w[0]).collect();
+    let noise = robust_sigma(&d) / std::f64::consts::SQRT_2;
     let sigma = robust_sigma(&step);
     let thr = |j: usize| {
         EVENT_MIN_RAD
@@ -227,6 +243,15 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
     let mut skip: Vec<(usize, usize)> = vec![];
     for (a, b, h, kind) in coalesce(merged) {
         let slip = kind == "slip";
+        // A slip keeps out only the samples where it happens, not its whole window
+        // (dropping 3 s of a square's data moved its wheel size by a sigma).
+        let (a, b) = if slip {
+            let a0 = first_at(t(a) - EVENT_GUARD_S).min(a);
+            let b1 = first_at(t(b) + EVENT_GUARD_S).max(b);
+            slip_span(&e_geo, (a0, a), (b, b1), noise)
+        } else {
+            (a, b)
+        };
         out.push(Event {
             recording: s.name.clone(),
             kind,
@@ -235,7 +260,7 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
             heading_rad: h,
             position_m: 0.0,
             handled: if slip {
-                "dead reckoning restarts from the measured pose after it"
+                "dead reckoning restarts from the measured pose after it (its heading averaged over the next 0.25 s)"
             } else {
                 "reported only: the heading it leads by is given back when the turn ends"
             },
@@ -243,14 +268,57 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
         if slip {
             skip.push((a, b));
         }
-        if slip && !s.anchors.contains(&b) {
-            s.anchors.push(b);
+        if slip && !s.anchors.iter().any(|x| x.sample == b) {
+            // The heading dead reckoning restarts from: the measured heading at b less
+            // the odometry's turn since, averaged over the samples of the next
+            // ANCHOR_WINDOW_S (one sample's noise would tilt the rest of the recording).
+            let (mut sum, mut m) = (0.0, 0usize);
+            for k in (b..n).take_while(|&k| t(k) - t(b) <= ANCHOR_WINDOW_S) {
+                sum += s.pth[k] - (path.th[s.pose_row[k]] - path.th[s.pose_row[b]]);
+                m += 1;
+            }
+            s.anchors.push(Anchor {
+                sample: b,
+                pose: [s.px[b], s.py[b], sum / m.max(1) as f64],
+            });
         }
     }
-    s.anchors.sort();
+    s.anchors.sort_by_key(|x| x.sample);
     s.samples
         .retain(|&j| !skip.iter().any(|&(a, b)| j > a && j < b));
     out
+}
+
+/// Where a slip found in the window `(before.1, after.0)` happens: the last sample of the
+/// window still within the band of the discrepancy's mean level over `before`, and the
+/// first from which it stays within the band of the level over `after` (the band:
+/// [`SLIP_BAND_SIGMAS`] x `noise`, or [`SLIP_BAND_SHARE`] of the step). The whole window
+/// when the levels are not finite or the span would be empty.
+fn slip_span(
+    e: &[f64],
+    before: (usize, usize),
+    after: (usize, usize),
+    noise: f64,
+) -> (usize, usize) {
+    let (a, b) = (before.1, after.0);
+    let level = |(i, j): (usize, usize)| e[i..=j].iter().sum::<f64>() / (j + 1 - i) as f64;
+    let (m0, m1) = (level(before), level(after));
+    let band = (SLIP_BAND_SIGMAS * noise).max(SLIP_BAND_SHARE * (m1 - m0).abs());
+    if !band.is_finite() || !m0.is_finite() || !m1.is_finite() || b <= a + 1 {
+        return (a, b);
+    }
+    let start = (a..=b)
+        .find(|&k| (e[k] - m0).abs() > band)
+        .map_or(a, |k| k.saturating_sub(1).max(a));
+    let end = (a..=b)
+        .rev()
+        .find(|&k| (e[k] - m1).abs() > band)
+        .map_or(b, |k| (k + 1).min(b));
+    if start < end {
+        (start, end)
+    } else {
+        (a, b)
+    }
 }
 
 /// A found event: first and last sample of its window, its heading, its kind.
@@ -313,12 +381,16 @@ mod tests {
     /// the encoders with the robot itself), and the same with a slip planted at 20 s: the
     /// poses after it turned by 0.1 rad about the pose there (motion capture and odometry
     /// part for good). Clean, the heading discrepancy is rounding (1e-15 rad) against a
-    /// 0.04 rad threshold: no event. With the slip: a `slip` whose 3 s window holds 20 s,
-    /// its size the planted step with the sign of odometry minus motion capture. The
+    /// 0.04 rad threshold: no event. With the slip: a `slip` found in a 3 s window that
+    /// holds 20 s and reported where it happens, from the sample at 20 s to the next (one
+    /// 50 Hz step; its span: [`slip_span`]), its size the planted step with the sign of
+    /// odometry minus motion capture. The
     /// robust regression of the steps on the turned heading and the distance cannot take
     /// the step: the rows it shows in have Huber weights about 1e-5 against the others' 1,
-    /// so 1 % is loose. Dead reckoning restarts at that window's end and no sample inside
-    /// it is compared. The windows beside it see the same step in part (as a transient
+    /// so 1 % is loose. Dead reckoning restarts at the span's end, from the heading
+    /// measured there (averaged over [`ANCHOR_WINDOW_S`] with the odometry's turn taken
+    /// off: noise-free, the measured heading to 1e-9 rad), and no sample inside the span
+    /// is compared. The windows beside it see the same step in part (as a transient
     /// against their linear ramp, or through a guard interval reaching over it) and may
     /// report it again, smaller: every event stays within a window and a guard of 20 s.
     #[test]
@@ -334,7 +406,7 @@ mod tests {
         );
         let mut s = Series::new("clean", &robot, &clean).unwrap();
         assert!(detect_events(&robot, &mut s).is_empty());
-        assert_eq!(s.anchors, [0]);
+        assert_eq!(s.anchors.iter().map(|a| a.sample).collect::<Vec<_>>(), [0]);
 
         let mut slipped = clean.clone();
         let k0 = (slip_t * rate) as usize;
@@ -363,15 +435,17 @@ mod tests {
         let e = full[0];
         assert_eq!(e.kind, "slip");
         assert!(e.t_s > slip_t - EVENT_WINDOW_S && e.t_s <= slip_t, "{e:?}");
-        assert!((e.duration_s - EVENT_WINDOW_S).abs() <= 1.0 / rate, "{e:?}");
-        // Its window's end is an anchor, and no sample inside the window is compared.
+        assert!(e.duration_s <= 1.0 / rate + 1e-9, "{e:?}");
+        // Its span's end is an anchor, and no sample inside the span is compared.
         let at = |j: usize| s.t[s.pose_row[j]] - s.t[0];
-        let b = *s
+        let anchor = *s
             .anchors
             .iter()
-            .find(|&&j| (at(j) - (e.t_s + e.duration_s)).abs() < 1e-9)
+            .find(|a| (at(a.sample) - (e.t_s + e.duration_s)).abs() < 1e-9)
             .expect("an anchor at the slip's end");
+        let b = anchor.sample;
         assert!(at(b) > slip_t);
+        assert!((anchor.pose[2] - s.pth[b]).abs() < 1e-9, "{anchor:?}");
         assert!(!s
             .samples
             .iter()

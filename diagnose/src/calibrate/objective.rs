@@ -6,7 +6,7 @@
 //! problem so that the sensitivities ([`sens`](crate::calibrate::sens)) differentiate
 //! the same residuals.
 
-use crate::calibrate::series::{Nuisance, Path, Series};
+use crate::calibrate::series::{Anchor, Nuisance, Path, Series};
 use nalgebra::DMatrix;
 
 /// Unit of the position residuals (m): only scales the cost, uncertainties use the
@@ -188,19 +188,22 @@ pub(crate) fn dr_residuals_into(
     let mut set = usize::MAX;
     let (mut pa, mut dth, mut c, mut sn, mut bx, mut by) = ([0.0; 3], 0.0, 1.0, 0.0, 0.0, 0.0);
     for &j in &s.samples {
-        while seg + 1 < s.anchors.len() && s.anchors[seg + 1] <= j {
+        while seg + 1 < s.anchors.len() && s.anchors[seg + 1].sample <= j {
             seg += 1;
         }
         if set != seg {
             set = seg;
-            let a = s.anchors[seg];
+            let Anchor {
+                sample: a,
+                pose: [ax, ay, ath],
+            } = s.anchors[seg];
             pa = path.at(s.pose_row[a]);
-            dth = s.pth[a] - pa[2];
+            dth = ath - pa[2];
             (c, sn) = (dth.cos(), dth.sin());
             // Body position at the anchor from the measured marker position.
-            let (ca, sa) = (s.pth[a].cos(), s.pth[a].sin());
-            bx = s.px[a] - (ca * marker.0 - sa * marker.1);
-            by = s.py[a] - (sa * marker.0 + ca * marker.1);
+            let (ca, sa) = (ath.cos(), ath.sin());
+            bx = ax - (ca * marker.0 - sa * marker.1);
+            by = ay - (sa * marker.0 + ca * marker.1);
         }
         let pj = path.at(s.pose_row[j]);
         let (dx, dy) = (pj[0] - pa[0], pj[1] - pa[1]);

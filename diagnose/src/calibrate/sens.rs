@@ -191,8 +191,9 @@ impl Series {
         let mut v: Vec<usize> = self
             .samples
             .iter()
-            .chain(&self.anchors)
-            .map(|&j| self.pose_row[j])
+            .copied()
+            .chain(self.anchors.iter().map(|a| a.sample))
+            .map(|j| self.pose_row[j])
             .collect();
         v.sort_unstable();
         v.dedup();
@@ -498,16 +499,16 @@ impl Series {
         let mut set = usize::MAX;
         let (mut ia, mut dth, mut c, mut sn, mut ca, mut sa) = (0, 0.0, 1.0, 0.0, 1.0, 0.0);
         for (n, &j) in self.samples.iter().enumerate() {
-            while seg + 1 < self.anchors.len() && self.anchors[seg + 1] <= j {
+            while seg + 1 < self.anchors.len() && self.anchors[seg + 1].sample <= j {
                 seg += 1;
             }
             if set != seg {
                 set = seg;
-                let a = self.anchors[seg];
+                let (a, ath) = (self.anchors[seg].sample, self.anchors[seg].pose[2]);
                 ia = at(self.pose_row[a]);
-                dth = self.pth[a] - sens.values[ia][2];
+                dth = ath - sens.values[ia][2];
                 (c, sn) = (dth.cos(), dth.sin());
-                (ca, sa) = (self.pth[a].cos(), self.pth[a].sin());
+                (ca, sa) = (ath.cos(), ath.sin());
             }
             let ij = at(self.pose_row[j]);
             let (va, vj) = (sens.values[ia], sens.values[ij]);

@@ -55,8 +55,8 @@ pub struct Series {
     /// [`SAMPLE_STEP_M`] of travel (turns in place counted at the wheels' lever arm).
     pub(crate) samples: Vec<usize>,
     /// Pose samples where dead reckoning restarts from the measured pose (the first one,
-    /// and the end of every event one geometry cannot explain).
-    pub(crate) anchors: Vec<usize>,
+    /// and the end of every event one geometry cannot explain), sorted.
+    pub(crate) anchors: Vec<Anchor>,
     /// Single-sample glitches and pose jumps found while reading (reported as events).
     pub(crate) glitches: Vec<Event>,
     /// Pose noise per sample (m) the poses' steps show against the wheels', from their
@@ -258,6 +258,7 @@ impl Series {
             None => (None, None),
         };
         let wheels = robot.wheels.len();
+        let first = Anchor::first(&px, &py, &pth);
         let mut s = Series {
             name: name.to_string(),
             t: rec.t.clone(),
@@ -271,7 +272,7 @@ impl Series {
             rho,
             motion,
             samples,
-            anchors: vec![0],
+            anchors: vec![first],
             glitches,
             pose_noise_m: None,
             jumps: vec![],
@@ -428,6 +429,7 @@ impl Series {
                 self.pth[p0..p1].to_vec(),
             );
             let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
+            let first = Anchor::first(&px, &py, &pth);
             out.push(Series {
                 name: if k == 0 {
                     self.name.clone()
@@ -445,7 +447,7 @@ impl Series {
                 rho: self.rho.as_ref().map(|r| r[r0..r1 - 1].to_vec()),
                 motion: self.motion.as_ref().map(|v| v[r0..r1 - 1].to_vec()),
                 samples,
-                anchors: vec![0],
+                anchors: vec![first],
                 glitches: if k == 0 {
                     self.glitches.clone()
                 } else {
@@ -571,6 +573,28 @@ impl Series {
             out.push(p);
         }
         true
+    }
+}
+
+/// Where dead reckoning restarts: a pose sample and the pose it restarts from.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Anchor {
+    /// The pose sample (index into px...).
+    pub(crate) sample: usize,
+    /// The body pose (x, y, theta) dead reckoning restarts from: the measured one at the
+    /// first sample (motion capture in the robot's start frame), an estimate from the
+    /// samples after a slip ([`detect_events`](crate::calibrate::events)).
+    pub(crate) pose: [f64; 3],
+}
+
+impl Anchor {
+    /// At the first pose sample, from its measured pose (zeros when there is none).
+    pub(crate) fn first(px: &[f64], py: &[f64], pth: &[f64]) -> Anchor {
+        let at = |v: &[f64]| v.first().copied().unwrap_or(0.0);
+        Anchor {
+            sample: 0,
+            pose: [at(px), at(py), at(pth)],
+        }
     }
 }
 
