@@ -381,3 +381,56 @@ fn report_has_plots_index_and_mcap() {
     }
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// `--speed-law` through the binary: a negative law reads as a number, is held (the
+/// JSON's `turn_law.speed_rel`, no law tested, the board's factors carry it exactly with
+/// c_L and c_R at standstill), and one outside the board's ±0.2 per m/s is refused with a
+/// message naming the option, writing nothing.
+#[test]
+fn a_known_speed_law_reaches_the_json_and_a_bad_one_is_refused() {
+    let dir = common::scratch("calibrate-speed-law");
+    let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
+    let mut args = vec![];
+    for (name, d, seed) in [("cw", Direction::Cw, 3), ("ccw", Direction::Ccw, 4)] {
+        std::fs::create_dir_all(dir.join(name)).unwrap();
+        let file = dir.join(name).join("recording.csv");
+        square(&nominal, d, seed).save(&file).unwrap();
+        args.push("--recording".into());
+        args.push(dir.join(name).into_os_string());
+    }
+    let run = |law: &str, json: &Path| {
+        common::wheelcal()
+            .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
+            .arg(common::robot("mobolab"))
+            .args(&args)
+            .args(["--speed-law", law, "--write-robot"])
+            .arg(json.with_extension("toml"))
+            .output()
+            .unwrap()
+    };
+    let out = run("-0.05", &dir.join("good"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cal: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    assert_eq!(cal["turn_law"]["speed_rel"].as_f64(), Some(-0.05));
+    assert_eq!(cal["law_tests"].as_array().map(|a| a.len()), Some(0));
+    assert_eq!(
+        cal["factors"]["board"]["speed_rel"].as_f64(),
+        Some(-0.05),
+        "{}",
+        cal["factors"]
+    );
+    // The robot file's and ROS's constant c_L is the wheel at the squares' mean speed:
+    // 1 - 0.05 x a speed between 0.03 and 0.5 m/s of the board's at standstill.
+    let f = &cal["factors"];
+    let grown = f["c_l"].as_f64().unwrap() / f["board"]["c_l"].as_f64().unwrap() - 1.0;
+    assert!((-0.025..=-0.0015).contains(&grown), "{grown}");
+    let out = run("0.5", &dir.join("bad"));
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--speed-law 0.5 is outside"), "{err}");
+    assert!(!dir.join("bad.toml").exists());
+}
