@@ -4,7 +4,6 @@
 //! the left/right wheel radius multipliers and the wheel separation multiplier.
 
 use anyhow::{Context, Result};
-use calib_core::correction::DiffLaws;
 pub use diagnose::calibrate::BoardFactors;
 use std::path::Path;
 
@@ -188,22 +187,12 @@ pub fn factors_from_json(path: &Path) -> Result<DiffFactors> {
     let skid = v.get("kind").and_then(serde_json::Value::as_str) == Some("skid_steer");
     let (c_l, c_r) = (get(&["c_l"])?, get(&["c_r"])?);
     // A calibrate result with a differential drive's law carries the board's factors.
-    let board_field = |k: &str| {
-        v.get("factors")
-            .and_then(|f| f.get("board"))
-            .and_then(|b| b.get(k))
-            .and_then(serde_json::Value::as_f64)
-    };
-    let board = board_field("e_b").map(|e_b| BoardFactors {
-        c_l: board_field("c_l").unwrap_or(c_l),
-        c_r: board_field("c_r").unwrap_or(c_r),
-        e_b,
-        laws: DiffLaws {
-            e_b_arc: board_field("e_b_arc").unwrap_or(0.0),
-            speed_rel: board_field("speed_rel").unwrap_or(0.0),
-            accel_slip_s: board_field("accel_slip_s").unwrap_or(0.0),
-        },
-    });
+    let board = v
+        .get("factors")
+        .and_then(|f| f.get("board"))
+        .map(|b| serde_json::from_value::<BoardFactors>(b.clone()))
+        .transpose()
+        .with_context(|| format!("{}: factors.board", path.display()))?;
     Ok(DiffFactors {
         c_l,
         c_r,
@@ -216,6 +205,7 @@ pub fn factors_from_json(path: &Path) -> Result<DiffFactors> {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use calib_core::correction::DiffLaws;
 
     /// A differential drive's turn law: the multiplier is E_b at the mean turn (what the
     /// controller can apply), and the file says what it cannot express and what the
@@ -291,8 +281,20 @@ mod tests {
         )
         .unwrap();
         let read = factors_from_json(&path);
-        std::fs::remove_file(&path).unwrap();
         assert_eq!(read.unwrap(), f);
+        // A board set that lacks a law is refused, naming the file and the field.
+        std::fs::write(
+            &path,
+            r#"{"kind": "diff_drive", "factors": {"c_l": 0.9878, "c_r": 0.9868, "e_b": 1.01,
+                "board": {"c_l": 0.995, "c_r": 0.994, "e_b": 1.01, "e_b_arc": 0.0}}}"#,
+        )
+        .unwrap();
+        let e = format!("{:#}", factors_from_json(&path).unwrap_err());
+        std::fs::remove_file(&path).unwrap();
+        assert!(
+            e.contains("factors.board") && e.contains("speed_rel") && e.contains("wheelcal-ros2"),
+            "{e}"
+        );
         // The laws out of the board's range: not exported.
         let mut bad = f;
         bad.board.as_mut().unwrap().laws.speed_rel = 0.5;

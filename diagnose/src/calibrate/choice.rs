@@ -649,19 +649,17 @@ fn choose_turn_law(
             ));
         }
         let qualifies = significant && holds && in_range && separable;
+        // The turn law is reported relative to E_b, as TurnLaw::arc_rel.
+        let per = if *law == Law::Turn {
+            eb_of(&fit.f.geom, specs)
+        } else {
+            1.0
+        };
         made.law_tests.push(LawTest {
             law: law.name(),
             parameter: specs[ia].name.clone(),
-            value: if *law == Law::Turn {
-                v / eb_of(&fit.f.geom, specs)
-            } else {
-                v
-            },
-            sigma: if *law == Law::Turn {
-                s_v / eb_of(&fit.f.geom, specs)
-            } else {
-                s_v
-            },
+            value: v / per,
+            sigma: s_v / per,
             heldout_m: e_law,
             constant_heldout_m: e_base,
             folds: k,
@@ -738,9 +736,8 @@ fn choose_turn_law(
         };
         notes[at].push_str(&tail);
     }
-    // The law tests were pushed in `laws` order, after any of an earlier call.
-    let first = made.law_tests.len() - laws.len();
-    made.law_tests[first + i].kept = true;
+    // One test per law, pushed in `laws` order.
+    made.law_tests[i].kept = true;
     let fit = fits.swap_remove(i);
     made.prefit = Some(Prefit {
         specs: laws[i].1.clone(),

@@ -7,7 +7,7 @@ use crate::calibrate::params::{ParamSpec, MECANUM_MIN_GAMMA};
 use crate::calibrate::series::{Event, Nuisance};
 use crate::calibrate::turn_law::TurnLaw;
 use calib_core::robot::Robot;
-use serde::Serialize;
+use serde::{Deserialize, Serialize};
 use std::fmt;
 
 /// One fitted geometry parameter.
@@ -100,7 +100,7 @@ pub enum Factors {
 
 /// A differential drive's factors with its laws, as a board that applies them takes them
 /// (`factors set --c-l --c-r --e-b --e-b-arc --speed-rel --accel-slip-s`).
-#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize)]
 pub struct BoardFactors {
     /// c_L (at standstill, with a speed law).
     pub c_l: f64,
