@@ -65,6 +65,19 @@ fn main() {
             law
         })
     });
+    // The other month's circles and Ivanjko paths, as a log of the driving the robot
+    // file is for (their encoders only).
+    let driving = flag("--e-b-for-other-month").then(|| {
+        ["06", "12"].map(|m| {
+            let (_, recs) = proxy::month_runs(&dir, "diff", m).unwrap_or_else(|e| {
+                eprintln!("{e}");
+                std::process::exit(1)
+            });
+            recs.into_iter()
+                .filter(|(n, _)| !n.contains("-square-"))
+                .collect::<Vec<_>>()
+        })
+    });
     let robot_name = val("--robot").unwrap_or_else(|| "diff".into());
     let res = proxy::run_robot(
         &dir,
@@ -79,9 +92,14 @@ fn main() {
                     l[0]
                 }
             });
+            let june = session.get(2..4) == Some("06");
             let opts = CalOptions {
                 turn_law: other.filter(|_| !speed),
                 speed_law: other.filter(|_| speed),
+                e_b_for: driving
+                    .as_ref()
+                    .map(|d| d[usize::from(june)].clone())
+                    .unwrap_or_default(),
                 ..opts.clone()
             };
             let t = std::time::Instant::now();
@@ -104,6 +122,9 @@ fn main() {
                     "  event {} {} at {:.2} s for {:.2} s: {:+.3} rad",
                     e.recording, e.kind, e.t_s, e.duration_s, e.heading_rad
                 );
+            }
+            if flag("--robot-file") {
+                return Ok((c.fitted_robot, Default::default()));
             }
             Ok((c.law_base_robot, c.turn_law))
         },

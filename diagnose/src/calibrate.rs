@@ -340,9 +340,10 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     }
     let after_res = p.residuals(&fitted.geom, &fitted.nuis, false);
     let mut fitted_robot = robot_with(robot, &specs, &fitted.geom);
-    // A turn-radius law is more than a robot file, the board or ROS 2's
-    // diff_drive_controller express: they all get E_b at the recordings' mean turn,
-    // weighted by how much each row turns.
+    // A turn-radius law is more than a robot file or ROS 2's diff_drive_controller
+    // express: they get E_b at the recordings' mean turn, weighted by how much each row
+    // turns, or the constant closest to the law on the motion of `--e-b-for`; the board
+    // applies the law.
     let turn_law = TurnLaw::of(&specs, &fitted.geom, cfg.law());
     let law_base_robot = fitted_robot.clone();
     let mut law_eb_shift = 0.0;
@@ -361,12 +362,34 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             .iter()
             .position(|s| s.kind == GeomKind::Eb)
             .map_or(1.0, |i| fitted.geom[i]);
-        if turn_law.arc_rel != 0.0 && t.all > 0.0 {
-            law_eb_shift = turn_law.arc_rel * eb * t.arc_term / t.all;
+        let share = if opts.e_b_for.is_empty() || turn_law.arc_rel == 0.0 {
+            (t.all > 0.0).then(|| t.arc_term / t.all)
+        } else {
+            let motion = e_b_motion(robot, &opts.e_b_for)?;
+            let share = turn_law::closest_constant_share(&law_base_robot, &turn_law, &motion);
+            if let Some(share) = share {
+                notes.push(format!(
+                    "robot file and ROS 2: E_b {:.6}, the constant whose dead reckoning of --e-b-for's {} recording(s) stays closest to the law's ({:.0} % of its widening; {:.0} % at the fitted recordings' mean turn)",
+                    eb * (1.0 + turn_law.arc_rel * share),
+                    motion.len(),
+                    share * 100.0,
+                    if t.all > 0.0 { 100.0 * t.arc_term / t.all } else { 0.0 }
+                ));
+            }
+            share
+        };
+        if let Some(share) = share.filter(|_| turn_law.arc_rel != 0.0) {
+            law_eb_shift = turn_law.arc_rel * eb * share;
             for w in fitted_robot.wheels.iter_mut() {
                 w.l_m *= (eb + law_eb_shift) / eb;
             }
         }
+    }
+    if !opts.e_b_for.is_empty() && turn_law.arc_rel == 0.0 {
+        notes.push(
+            "--e-b-for: no turn law was fitted or given, so one E_b serves every turn and the recordings given are not used"
+                .into(),
+        );
     }
 
     // Unconstrained directions: eigenvectors of the correlation matrix with tiny
@@ -720,4 +743,22 @@ fn sideways_note(nominal: &Robot, fitted: &Robot) -> Option<String> {
         f.gamma_rad.abs().to_degrees(),
         n.gamma_rad.abs().to_degrees()
     ))
+}
+
+/// `--e-b-for`'s recordings as series of their encoders alone (their poses, if any, are
+/// not read: the closest constant E_b compares two dead reckonings).
+fn e_b_motion(
+    robot: &Robot,
+    recordings: &[(String, Recording)],
+) -> Result<Vec<Series>, CalibrateError> {
+    recordings
+        .iter()
+        .map(|(name, rec)| {
+            let mut r = rec.clone();
+            for v in [&mut r.x, &mut r.y, &mut r.theta] {
+                v.iter_mut().for_each(|c| *c = Some(0.0));
+            }
+            Series::new(name, robot, &r)
+        })
+        .collect()
 }

@@ -37,6 +37,11 @@ pub struct CalOptions {
     /// runs at several speeds: held fixed while the geometry is fitted. Squares run at
     /// one cruise speed and cannot tell it from the wheel size.
     pub speed_law: Option<f64>,
+    /// Recordings of the motion the robot file and ROS 2 are for (`--e-b-for`: a log of
+    /// everyday driving; only the encoders are read). With a turn law, which neither can
+    /// apply, their one E_b is the constant whose dead reckoning of this motion stays
+    /// closest to the law's; without, E_b is at the fitted recordings' mean turn.
+    pub e_b_for: Vec<(String, formats::recording::Recording)>,
 }
 
 /// How cross-validation groups recordings.

@@ -72,6 +72,14 @@ pub(super) fn check_inputs<R: std::borrow::Borrow<Recording>>(
             });
         }
     }
+    if !opts.e_b_for.is_empty()
+        && !matches!(robot.kind, RobotKind::DiffDrive | RobotKind::SkidSteer)
+    {
+        return Err(CalibrateError {
+            recording: Some(opts.e_b_for[0].0.clone()),
+            message: "--e-b-for places a turn law's one E_b for the robot file; only differential-drive and skid-steer robots have one".into(),
+        });
+    }
     if opts.marker_offset && robot.kind != RobotKind::Omni {
         return Err(CalibrateError {
             recording: None,

@@ -236,6 +236,75 @@ impl Turning {
     }
 }
 
+/// How far along a turn law's widening (0: a turn in place, 1: arcs) the one constant
+/// E_b sits whose dead reckoning of `motion` stays closest to the law's own: the mean
+/// squared position gap over every row, minimised by golden-section search on [0, 1].
+/// No ground truth enters, so `motion` may be any log of the robot's driving. `base` has
+/// the separation of a turn in place
+/// ([`Calibration::law_base_robot`](crate::calibrate::Calibration::law_base_robot)).
+pub(crate) fn closest_constant_share(
+    base: &Robot,
+    law: &TurnLaw,
+    motion: &[crate::calibrate::Series],
+) -> Option<f64> {
+    use calib_core::correction::Corrections;
+    use calib_core::kinematics::Kinematics;
+    let kin = Kinematics::<f64>::new(base, &Corrections::None).ok()?;
+    let mut target = Vec::new();
+    for s in motion {
+        let mut p = crate::calibrate::Path::default();
+        s.path_with(base, &kin, law, &mut p).then_some(())?;
+        target.push(p);
+    }
+    let constant = TurnLaw {
+        arc_rel: 0.0,
+        ..*law
+    };
+    let mut p = crate::calibrate::Path::default();
+    let mut gap = |share: f64| -> f64 {
+        let mut r = base.clone();
+        for w in r.wheels.iter_mut() {
+            w.l_m *= 1.0 + law.arc_rel * share;
+        }
+        let Ok(kin) = Kinematics::<f64>::new(&r, &Corrections::None) else {
+            return f64::INFINITY;
+        };
+        let (mut acc, mut n) = (0.0, 0usize);
+        for (s, t) in motion.iter().zip(&target) {
+            if !s.path_with(&r, &kin, &constant, &mut p) {
+                return f64::INFINITY;
+            }
+            for k in 0..t.x.len() {
+                acc += (p.x[k] - t.x[k]).powi(2) + (p.y[k] - t.y[k]).powi(2);
+            }
+            n += t.x.len();
+        }
+        acc / n.max(1) as f64
+    };
+    // Golden section: the gap is one smooth valley in the share.
+    let g = 0.5 * (5f64.sqrt() - 1.0);
+    let (mut a, mut b) = (0.0, 1.0);
+    let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
+    let (mut fc, mut fd) = (gap(c), gap(d));
+    for _ in 0..40 {
+        if fc <= fd {
+            (b, d, fd) = (d, c, fc);
+            c = b - g * (b - a);
+            fc = gap(c);
+        } else {
+            (a, c, fc) = (c, d, fd);
+            d = a + g * (b - a);
+            fd = gap(d);
+        }
+    }
+    let (share, best) = if fc <= fd { (c, fc) } else { (d, fd) };
+    // The search never tries the ends themselves.
+    [(0.0, gap(0.0)), (1.0, gap(1.0)), (share, best)]
+        .into_iter()
+        .min_by(|x, y| x.1.total_cmp(&y.1))
+        .map(|x| x.0)
+}
+
 /// Turn ratios that count as arcs (rho = 1 is a turn in place, 0 a straight line).
 pub const ARC_RHO: (f64, f64) = (0.1, 0.8);
 
