@@ -226,7 +226,7 @@ fn a_law_from_the_other_month_beats_optiodom() {
         g_turn + 0.1 < g_speed,
         "turn {g_turn:.3}, speed {g_speed:.3}"
     );
-    print!("the robot file alone, --e-b-for the other month's circles and Ivanjko paths:\n");
+    println!("the robot file alone, --e-b-for the other month's circles and Ivanjko paths:");
     let file_for = proxy_with(Consumer::RobotFile { e_b_for: true });
     assert_meets_the_goal(&file_for);
     let file = proxy_with(Consumer::RobotFile { e_b_for: false });
