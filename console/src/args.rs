@@ -702,6 +702,13 @@ pub struct CalibrateArgs {
     /// cannot tell it from the wheel size.
     #[arg(long, value_name = "SPEED_REL", allow_negative_numbers = true)]
     pub speed_law: Option<f64>,
+    /// A log of the driving the robot file and ros2.yaml are for (as --recording: a file,
+    /// a run folder, a directory of them or a bag; repeatable; only the encoders are
+    /// read). With a turn law, which neither can apply, their one E_b is then the constant
+    /// whose dead reckoning of this driving stays closest to the law's; by default it is
+    /// at the recordings' mean turn. The board applies the law either way.
+    #[arg(long, value_name = "RECORDING")]
+    pub e_b_for: Vec<PathBuf>,
     /// How to read recordings given as ROS 2 bags.
     #[command(flatten)]
     pub bag: BagFlags,

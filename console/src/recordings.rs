@@ -101,6 +101,41 @@ pub fn load(
     robot_path: &Path,
     bag: &BagFlags,
 ) -> Result<(String, Recording)> {
+    load_checked(f, robot, robot_path)?;
+    let rec = load_recording(f, robot, bag)?;
+    Ok((short_name(f), rec))
+}
+
+/// [`load`] for a log whose poses are not read (`calibrate --e-b-for`): a CSV file's pose
+/// cells may all be blank (each row's pose is taken as the origin). A bag is read as by
+/// [`load`].
+pub fn load_encoders(
+    f: &Path,
+    robot: &Robot,
+    robot_path: &Path,
+    bag: &BagFlags,
+) -> Result<(String, Recording)> {
+    if is_bag(f) {
+        return load(f, robot, robot_path, bag);
+    }
+    /// Every row as read, its pose the origin.
+    struct PosesUnread;
+    impl formats::recording::RowSink for PosesUnread {
+        fn push(&mut self, rec: &mut Recording, mut row: formats::recording::Cells) {
+            row.pose = Some((0.0, 0.0, 0.0));
+            row.push_to(rec);
+        }
+        fn finish(&mut self, _: &mut Recording) {}
+    }
+    load_checked(f, robot, robot_path)?;
+    Ok((
+        short_name(f),
+        Recording::load_into(f, robot, &mut PosesUnread)?,
+    ))
+}
+
+/// Refuses `f` when a robot.toml beside it names another robot than `robot`.
+fn load_checked(f: &Path, robot: &Robot, robot_path: &Path) -> Result<()> {
     if let Some(beside) = f
         .parent()
         .map(|d| d.join("robot.toml"))
@@ -119,6 +154,5 @@ pub fn load(
             }
         }
     }
-    let rec = load_recording(f, robot, bag)?;
-    Ok((short_name(f), rec))
+    Ok(())
 }

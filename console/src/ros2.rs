@@ -81,7 +81,8 @@ pub fn diff_drive_yaml(f: &DiffFactors, controller: &str, source: &str) -> Resul
                 "# The fitted ICR model is more than diff_drive_controller can express: E_b\n\
                  # goes from {spin:.4} in a turn in place to {:.4} on wide arcs, and the\n\
                  # controller has no turn-radius dependence. The multiplier below is E_b at\n\
-                 # the recordings' mean turn; expect larger heading errors on other motion.\n",
+                 # the recordings' mean turn (or for calibrate --e-b-for's driving); expect\n\
+                 # larger heading errors on other motion.\n",
                 spin + arc
             ));
         }
@@ -111,7 +112,8 @@ fn law_note(b: &BoardFactors) -> Result<String> {
             "# The fitted turn law is more than diff_drive_controller can express: the\n\
              # effective separation is E_b {:.4} in a turn in place and {:.2} % wider on\n\
              # arcs (tyre turn slip); the controller has no turn dependence. The separation\n\
-             # multiplier below is E_b at the recordings' mean turn.\n",
+             # multiplier below is E_b at the recordings' mean turn (or for calibrate\n\
+             # --e-b-for's driving).\n",
             b.e_b,
             l.e_b_arc * 100.0
         ));

@@ -434,3 +434,79 @@ fn a_known_speed_law_reaches_the_json_and_a_bad_one_is_refused() {
     assert!(err.contains("--speed-law 0.5 is outside"), "{err}");
     assert!(!dir.join("bad.toml").exists());
 }
+
+/// `--e-b-for` through the binary: with `--turn-law 0.04` held on two squares, a log of
+/// driving on paths (a 40 s random run whose yaw rate stays under 0.3 rad/s, saved
+/// without poses: only the encoders are read) places the robot file's one E_b between the
+/// board's in-place E_b and 4 % above it, well past the squares' mean turn (at least a
+/// tenth of the law: the simulator's runs of this kind want 3-72 %); the JSON's notes
+/// say so. A log that does not exist is refused naming it, writing nothing.
+#[test]
+fn a_log_of_driving_places_the_robot_files_e_b() {
+    let dir = common::scratch("calibrate-e-b-for");
+    let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
+    let mut args = vec![];
+    for (name, d, seed) in [("cw", Direction::Cw, 3), ("ccw", Direction::Ccw, 4)] {
+        std::fs::create_dir_all(dir.join(name)).unwrap();
+        let file = dir.join(name).join("recording.csv");
+        square(&nominal, d, seed).save(&file).unwrap();
+        args.push("--recording".into());
+        args.push(dir.join(name).into_os_string());
+    }
+    let mut cfg = sim::RecordConfig {
+        row_rate_hz: 50.0,
+        ..sim::RecordConfig::default()
+    };
+    cfg.sim.seed = 61;
+    cfg.sim.turn_scrub = 0.04;
+    let motion = sim::Motion::Random(sim::RandomMotion {
+        duration_s: 40.0,
+        omega_max_rad_s: 0.3,
+        ..sim::RandomMotion::default()
+    });
+    let mut log = sim::record(&nominal, &[], sim::Surface::flat(), &motion, &cfg)
+        .unwrap()
+        .recording;
+    for v in [&mut log.x, &mut log.y, &mut log.theta] {
+        v.iter_mut().for_each(|c| *c = None);
+    }
+    let log_file = dir.join("driving.csv");
+    log.save(&log_file).unwrap();
+    let run = |log: &Path, out: &Path| {
+        common::wheelcal()
+            .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
+            .arg(common::robot("mobolab"))
+            .args(&args)
+            .args(["--turn-law", "0.04", "--e-b-for"])
+            .arg(log)
+            .arg("--write-robot")
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let out = run(&log_file, &dir.join("good.toml"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cal: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let f = &cal["factors"];
+    let wider = f["e_b"].as_f64().unwrap() / f["board"]["e_b"].as_f64().unwrap() - 1.0;
+    assert!((0.1 * 0.04..=0.04 + 1e-12).contains(&wider), "{f}");
+    assert!(
+        cal["notes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n.as_str().unwrap().contains("--e-b-for's 1 recording(s)")),
+        "{}",
+        cal["notes"]
+    );
+    let missing = dir.join("no-such-log.csv");
+    let out = run(&missing, &dir.join("bad.toml"));
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("no-such-log.csv"), "{err}");
+    assert!(!dir.join("bad.toml").exists());
+}

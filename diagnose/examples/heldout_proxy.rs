@@ -16,7 +16,11 @@
 //! June squares, 25 June circles and Ivanjko paths; December: 23 December; the turn law
 //! as calibrate keeps it, the speed law as its `law_tests` fit it on its own), then train
 //! each square session with the other month's law held fixed (`--turn-law` or
-//! `--speed-law`) and dead-reckon its test runs with that law.
+//! `--speed-law`) and dead-reckon its test runs with that law;
+//! `--robot-file`: dead-reckon the test runs with the robot file `calibrate` writes (one
+//! E_b, no law: what ROS 2 or another tool gets) instead of the law;
+//! `--e-b-for-other-month`: give calibrate the other month's circles and Ivanjko paths as
+//! `--e-b-for`, the driving the robot file's E_b is placed for.
 
 use diagnose::calibrate::{calibrate, proxy, CalOptions};
 use std::path::PathBuf;

@@ -368,6 +368,12 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             let motion = e_b_motion(robot, &opts.e_b_for)?;
             let share = turn_law::closest_constant_share(&law_base_robot, &turn_law, &motion);
             if let Some(share) = share {
+                for n in notes
+                    .iter_mut()
+                    .filter(|n| n.contains(": the law is fitted"))
+                {
+                    *n = n.replace(MEAN_TURN, E_B_FOR);
+                }
                 notes.push(format!(
                     "robot file and ROS 2: E_b {:.6}, the constant whose dead reckoning of --e-b-for's {} recording(s) stays closest to the law's ({:.0} % of its widening; {:.0} % at the fitted recordings' mean turn)",
                     eb * (1.0 + turn_law.arc_rel * share),
@@ -744,6 +750,11 @@ fn sideways_note(nominal: &Robot, fitted: &Robot) -> Option<String> {
         n.gamma_rad.abs().to_degrees()
     ))
 }
+
+/// Where a law's one E_b sits by default, in the notes' words.
+const MEAN_TURN: &str = "at the recordings' mean turn";
+/// The same with `--e-b-for`.
+pub(crate) const E_B_FOR: &str = "for --e-b-for's driving";
 
 /// `--e-b-for`'s recordings as series of their encoders alone (their poses, if any, are
 /// not read: the closest constant E_b compares two dead reckonings).

@@ -1054,6 +1054,14 @@ fn a_known_turn_law_reaches_the_robot_file_for_the_motion_given() {
         "{:?}",
         for_paths.notes
     );
+    assert!(
+        for_paths.to_string().contains("for --e-b-for's driving"),
+        "{for_paths}"
+    );
+    assert!(
+        default.to_string().contains("at the recordings' mean turn"),
+        "{default}"
+    );
     let held: Vec<Series> = [60, 65, 66, 67, 68]
         .into_iter()
         .map(|seed| {

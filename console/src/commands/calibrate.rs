@@ -5,7 +5,7 @@
 use crate::args::CalibrateArgs;
 use crate::mcap_out::{write_paths_under, PathSeries};
 use crate::output::Output;
-use crate::recordings::{load, recording_files};
+use crate::recordings::{load, load_encoders, recording_files};
 use crate::ros2;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::Robot;
@@ -167,6 +167,14 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         )
         .collect();
     refuse_mixed_robots(&robot, &all)?;
+    let mut driving = Vec::new();
+    let mut driving_paths = Vec::new();
+    for p in &a.e_b_for {
+        for f in recording_files(p)? {
+            driving.push(load_encoders(&f, &robot, &a.robot, &a.bag)?);
+            driving_paths.push(f);
+        }
+    }
     let cv = a.cv.as_deref().and_then(CvBy::parse);
     let opts = CalOptions {
         leave_one_out: !a.no_cross_validation && cv.is_none(),
@@ -177,6 +185,7 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         heading_lever_m: a.heading_lever,
         turn_law: a.turn_law,
         speed_law: a.speed_law,
+        e_b_for: driving,
     };
     let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|mut e| {
         // Name the file, not only the short name; the error stays the calibration's.
@@ -187,6 +196,12 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
                 recs.iter()
                     .position(|(r, _)| r == n)
                     .map(|i| paths[i].display().to_string())
+                    .or_else(|| {
+                        opts.e_b_for
+                            .iter()
+                            .position(|(r, _)| r == n)
+                            .map(|i| driving_paths[i].display().to_string())
+                    })
             })
             .or_else(|| {
                 e.recording
@@ -339,6 +354,7 @@ mod tests {
             heading_lever: None,
             turn_law: None,
             speed_law: None,
+            e_b_for: Vec::new(),
             bag: default_bag_flags(),
         }
     }

@@ -311,7 +311,8 @@ pub struct Calibration {
 }
 
 impl Calibration {
-    /// E_b of a differential drive's factors (at the recordings' mean turn), else 1.
+    /// E_b of a differential drive's factors (with a law: at the recordings' mean turn, or
+    /// for `--e-b-for`'s driving), else 1.
     pub fn factors_e_b(&self) -> f64 {
         match self.factors {
             Factors::Diff { e_b, .. } => e_b,
@@ -494,12 +495,17 @@ impl fmt::Display for Calibration {
                 ..
             } => writeln!(
                 f,
-                "firmware factors: {} (the board applies the law; ROS 2 and the robot file get the constant factors: {}E_b {e_b:.6} at the recordings' mean turn)",
+                "firmware factors: {} (the board applies the law; ROS 2 and the robot file get the constant factors: {}E_b {e_b:.6} {})",
                 b.command(),
                 if b.laws.speed_rel != 0.0 {
                     "c_L and c_R at the recordings' mean speed, "
                 } else {
                     ""
+                },
+                if self.notes.iter().any(|n| n.contains("--e-b-for's")) {
+                    crate::calibrate::E_B_FOR
+                } else {
+                    "at the recordings' mean turn"
                 }
             )?,
             Factors::Diff { c_l, c_r, e_b, .. } => writeln!(
