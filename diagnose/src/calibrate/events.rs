@@ -260,9 +260,9 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
             heading_rad: h,
             position_m: 0.0,
             handled: if slip {
-                "dead reckoning restarts from the measured pose after it (its heading averaged over the next 0.25 s)"
+                format!("dead reckoning restarts from the measured pose after it (its heading averaged over the next {ANCHOR_WINDOW_S} s)")
             } else {
-                "reported only: the heading it leads by is given back when the turn ends"
+                "reported only: the heading it leads by is given back when the turn ends".into()
             },
         });
         if slip {

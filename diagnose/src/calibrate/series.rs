@@ -183,7 +183,7 @@ impl Series {
                     duration_s: 0.0,
                     heading_rad: 0.0,
                     position_m: v * robot.wheels[w].radius_m,
-                    handled: "replaced by its neighbours' mean",
+                    handled: "replaced by its neighbours' mean".into(),
                 });
                 let _ = wheel;
             }
@@ -210,7 +210,7 @@ impl Series {
                     duration_s: 0.0,
                     heading_rad: 0.0,
                     position_m: dev,
-                    handled: "the sample is dropped",
+                    handled: "the sample is dropped".into(),
                 });
                 for v in [&mut px, &mut py, &mut pth] {
                     v.remove(j);
@@ -392,7 +392,8 @@ impl Series {
                 duration_s: self.t[self.pose_row[j]] - self.t[self.pose_row[j - 1]],
                 heading_rad: dh[j],
                 position_m: dp[j],
-                handled: "the recording is split there and each part fitted from its own start",
+                handled: "the recording is split there and each part fitted from its own start"
+                    .into(),
             });
             self.jumps.push(j);
         }
@@ -720,7 +721,7 @@ pub struct Event {
     /// Position size of the event (a glitch's jump), m.
     pub position_m: f64,
     /// What the fit did with it.
-    pub handled: &'static str,
+    pub handled: String,
 }
 
 #[cfg(test)]
