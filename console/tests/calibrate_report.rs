@@ -382,6 +382,20 @@ fn report_has_plots_index_and_mcap() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// Two squares of `nominal` (cw seed 3, ccw seed 4) saved in run folders under `dir`,
+/// as `--recording` arguments.
+fn two_squares(dir: &Path, nominal: &Robot) -> Vec<std::ffi::OsString> {
+    let mut args = vec![];
+    for (name, d, seed) in [("cw", Direction::Cw, 3), ("ccw", Direction::Ccw, 4)] {
+        std::fs::create_dir_all(dir.join(name)).unwrap();
+        let file = dir.join(name).join("recording.csv");
+        square(nominal, d, seed).save(&file).unwrap();
+        args.push("--recording".into());
+        args.push(dir.join(name).into_os_string());
+    }
+    args
+}
+
 /// `--speed-law` through the binary: a negative law reads as a number, is held (the
 /// JSON's `turn_law.speed_rel`, no law tested, the board's factors carry it exactly with
 /// c_L and c_R at standstill), and one outside the board's ±0.2 per m/s is refused with a
@@ -390,14 +404,7 @@ fn report_has_plots_index_and_mcap() {
 fn a_known_speed_law_reaches_the_json_and_a_bad_one_is_refused() {
     let dir = common::scratch("calibrate-speed-law");
     let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
-    let mut args = vec![];
-    for (name, d, seed) in [("cw", Direction::Cw, 3), ("ccw", Direction::Ccw, 4)] {
-        std::fs::create_dir_all(dir.join(name)).unwrap();
-        let file = dir.join(name).join("recording.csv");
-        square(&nominal, d, seed).save(&file).unwrap();
-        args.push("--recording".into());
-        args.push(dir.join(name).into_os_string());
-    }
+    let args = two_squares(&dir, &nominal);
     let run = |law: &str, json: &Path| {
         common::wheelcal()
             .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
@@ -445,14 +452,7 @@ fn a_known_speed_law_reaches_the_json_and_a_bad_one_is_refused() {
 fn a_log_of_driving_places_the_robot_files_e_b() {
     let dir = common::scratch("calibrate-e-b-for");
     let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
-    let mut args = vec![];
-    for (name, d, seed) in [("cw", Direction::Cw, 3), ("ccw", Direction::Ccw, 4)] {
-        std::fs::create_dir_all(dir.join(name)).unwrap();
-        let file = dir.join(name).join("recording.csv");
-        square(&nominal, d, seed).save(&file).unwrap();
-        args.push("--recording".into());
-        args.push(dir.join(name).into_os_string());
-    }
+    let args = two_squares(&dir, &nominal);
     let mut cfg = sim::RecordConfig {
         row_rate_hz: 50.0,
         ..sim::RecordConfig::default()

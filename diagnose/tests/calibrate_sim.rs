@@ -968,6 +968,23 @@ fn a_known_turn_law_is_checked_and_held() {
     assert!(c.params.iter().all(|p| p.spec.name != "eb_arc"), "{c}");
 }
 
+/// Two squares (cw seed 11, ccw seed 12) of `nominal`, the simulator set by `tweak`.
+fn two_squares(nominal: &Robot, tweak: impl Fn(&mut RecordConfig)) -> Vec<(String, Recording)> {
+    [(Direction::Cw, 11), (Direction::Ccw, 12)]
+        .into_iter()
+        .map(|(dir, seed)| {
+            let motion = Motion::Program {
+                program: Box::new(Program::umbmark_square(1.0, dir)),
+                limits: Default::default(),
+            };
+            let mut c = cfg(seed);
+            tweak(&mut c);
+            let r = record(nominal, &[], Surface::flat(), &motion, &c).unwrap();
+            (format!("square{seed}"), r.recording)
+        })
+        .collect()
+}
+
 /// Where the robot file's one E_b sits on a known turn law (`--e-b-for`): two squares
 /// (cw and ccw) of the simulator's 4 % turn-scrub robot, fitted with the law held at
 /// 0.04. The board's factors are the same with or without `--e-b-for` (it applies the
@@ -985,30 +1002,17 @@ fn a_known_turn_law_is_checked_and_held() {
 #[test]
 fn a_known_turn_law_reaches_the_robot_file_for_the_motion_given() {
     let nominal = robot("mobolab");
-    let recorded = |motion: Motion, seed: u64| {
-        let mut c = cfg(seed);
-        c.sim.turn_scrub = 0.04;
-        record(&nominal, &[], Surface::flat(), &motion, &c)
-            .unwrap()
-            .recording
-    };
-    let squares: Vec<(String, Recording)> = [(Direction::Cw, 11), (Direction::Ccw, 12)]
-        .into_iter()
-        .map(|(dir, seed)| {
-            let motion = Motion::Program {
-                program: Box::new(Program::umbmark_square(1.0, dir)),
-                limits: Default::default(),
-            };
-            (format!("square{seed}"), recorded(motion, seed))
-        })
-        .collect();
+    let squares = two_squares(&nominal, |c| c.sim.turn_scrub = 0.04);
     let paths = |seed: u64| {
         let motion = Motion::Random(RandomMotion {
             duration_s: 40.0,
             omega_max_rad_s: 0.3,
             ..RandomMotion::default()
         });
-        (format!("paths{seed}"), recorded(motion, seed))
+        let mut c = cfg(seed);
+        c.sim.turn_scrub = 0.04;
+        let r = record(&nominal, &[], Surface::flat(), &motion, &c).unwrap();
+        (format!("paths{seed}"), r.recording)
     };
     let log: Vec<(String, Recording)> = (61..65)
         .map(|seed| {
@@ -1117,19 +1121,7 @@ fn a_known_turn_law_reaches_the_robot_file_for_the_motion_given() {
 #[test]
 fn a_known_speed_law_is_checked_and_held() {
     let nominal = robot("mobolab");
-    let squares: Vec<(String, Recording)> = [(Direction::Cw, 11), (Direction::Ccw, 12)]
-        .into_iter()
-        .map(|(dir, seed)| {
-            let motion = Motion::Program {
-                program: Box::new(Program::umbmark_square(1.0, dir)),
-                limits: Default::default(),
-            };
-            let mut c = cfg(seed);
-            c.sim.speed_scale = 0.1;
-            let r = record(&nominal, &[], Surface::flat(), &motion, &c).unwrap();
-            (format!("square{seed}"), r.recording)
-        })
-        .collect();
+    let squares = two_squares(&nominal, |c| c.sim.speed_scale = 0.1);
     for bad in [0.3, -0.25, f64::NAN] {
         let opts = CalOptions {
             speed_law: Some(bad),
