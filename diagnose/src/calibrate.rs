@@ -362,8 +362,9 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             .iter()
             .position(|s| s.kind == GeomKind::Eb)
             .map_or(1.0, |i| fitted.geom[i]);
+        let mean_turn = (t.all > 0.0).then(|| t.arc_term / t.all);
         let share = if opts.e_b_for.is_empty() || turn_law.arc_rel == 0.0 {
-            (t.all > 0.0).then(|| t.arc_term / t.all)
+            mean_turn
         } else {
             let motion = e_b_motion(robot, &opts.e_b_for)?;
             let share = turn_law::closest_constant_share(&law_base_robot, &turn_law, &motion);
@@ -379,10 +380,11 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
                     eb * (1.0 + turn_law.arc_rel * share),
                     motion.len(),
                     share * 100.0,
-                    if t.all > 0.0 { 100.0 * t.arc_term / t.all } else { 0.0 }
+                    100.0 * mean_turn.unwrap_or(0.0)
                 ));
             }
-            share
+            // A log that cannot be dead-reckoned leaves E_b at the mean turn.
+            share.or(mean_turn)
         };
         if let Some(share) = share.filter(|_| turn_law.arc_rel != 0.0) {
             law_eb_shift = turn_law.arc_rel * eb * share;
