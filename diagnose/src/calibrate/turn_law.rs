@@ -393,4 +393,47 @@ mod tests {
         assert!(rho.iter().all(|&r| r == 0.0));
         assert!(motion.iter().all(|m| *m == SideMotion::default()));
     }
+
+    /// On a steady arc the law's separation is constant, E_b (1 + arc_rel (1 - rho^2)),
+    /// so the constant closest to it is that share, 1 - rho^2 (rho = |d_r - d_l| /
+    /// (|d_r| + |d_l|)): wheel rates 4 and 5.3 rad/s give rho 1.3 / 9.3 and a share of
+    /// 0.980, rates 1 and 5 give rho 4 / 6 and 0.556. The law's turn ratio is smoothed
+    /// over 0.1 s, so the first rows of a 20 s run see less of the turn: 1e-4 (measured
+    /// 1e-5; the golden-section search itself narrows to 1e-8).
+    /// Standing still, every constant dead-reckons alike and the in-place end (0) is
+    /// kept.
+    #[test]
+    fn the_closest_constant_on_a_steady_arc_is_its_share_of_the_law() {
+        let robot = synth::robot("mobolab");
+        let law = TurnLaw {
+            arc_rel: 0.04,
+            ..TurnLaw::default()
+        };
+        let start = calib_core::odometry::Pose::new(0.0, 0.0, 0.0);
+        let arc = |left: f64, right: f64| {
+            let rec = synth::recording(&robot, 1000, 50.0, start, |_| {
+                robot
+                    .wheels
+                    .iter()
+                    .map(|w| if w.is_left() { left } else { right })
+                    .collect()
+            });
+            crate::calibrate::Series::new("arc", &robot, &rec).unwrap()
+        };
+        for (left, right) in [(4.0, 5.3), (1.0, 5.0)] {
+            let rho: f64 = (right - left) / (right + left);
+            let share = closest_constant_share(&robot, &law, &[arc(left, right)]).unwrap();
+            println!(
+                "rates {left}, {right}: share {share:.5}, 1 - rho^2 {:.5}",
+                1.0 - rho * rho
+            );
+            assert!(
+                (share - (1.0 - rho * rho)).abs() < 1e-4,
+                "rates {left}, {right}: share {share} against {}",
+                1.0 - rho * rho
+            );
+        }
+        let still = closest_constant_share(&robot, &law, &[arc(0.0, 0.0)]).unwrap();
+        assert_eq!(still, 0.0);
+    }
 }
