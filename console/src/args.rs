@@ -709,6 +709,12 @@ pub struct CalibrateArgs {
     /// at the recordings' mean turn. The board applies the law either way.
     #[arg(long, value_name = "RECORDING")]
     pub e_b_for: Vec<PathBuf>,
+    /// Hold a differential drive's or skid-steer robot's parameter at the robot file's
+    /// value instead of fitting it (repeatable): `scale` (both wheels' size), `ed` (their
+    /// ratio), `eb` (the separation). For a dimension measured some other way, or to
+    /// compare a smaller model on held-out runs.
+    #[arg(long, value_name = "PARAM", value_parser = ["scale", "ed", "eb"])]
+    pub hold: Vec<String>,
     /// How to read recordings given as ROS 2 bags.
     #[command(flatten)]
     pub bag: BagFlags,

@@ -510,3 +510,54 @@ fn a_log_of_driving_places_the_robot_files_e_b() {
     assert!(err.contains("no-such-log.csv"), "{err}");
     assert!(!dir.join("bad.toml").exists());
 }
+
+/// `--hold` through the binary: `--hold ed` on two squares leaves scale and eb in the
+/// JSON's `params`, the robot file's factors alike (c_L = c_R to the printed digits), and
+/// a note naming what was held; a name that is not a parameter is refused by the
+/// argument parser, naming the option, writing nothing.
+#[test]
+fn a_held_parameter_is_not_fitted() {
+    let dir = common::scratch("calibrate-hold");
+    let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
+    let args = two_squares(&dir, &nominal);
+    let run = |hold: &str, out: &Path| {
+        common::wheelcal()
+            .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
+            .arg(common::robot("mobolab"))
+            .args(&args)
+            .args(["--hold", hold, "--write-robot"])
+            .arg(out)
+            .output()
+            .unwrap()
+    };
+    let out = run("ed", &dir.join("good.toml"));
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    let cal: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let names: Vec<&str> = cal["params"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|p| p["name"].as_str().unwrap_or(""))
+        .collect();
+    assert_eq!(names, ["scale", "eb"], "{}", cal["params"]);
+    let f = &cal["factors"];
+    assert_eq!(f["c_l"].as_f64(), f["c_r"].as_f64(), "{f}");
+    assert!(
+        cal["notes"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .any(|n| n.as_str().unwrap().contains("(--hold): ed")),
+        "{}",
+        cal["notes"]
+    );
+    let out = run("wheel", &dir.join("bad.toml"));
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(err.contains("--hold"), "{err}");
+    assert!(!dir.join("bad.toml").exists());
+}

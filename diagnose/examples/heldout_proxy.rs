@@ -11,7 +11,8 @@
 //! and tests on the other three's squares, against `omni4-sousa`),
 //! `--sessions DIR` (default: `shared/real/sessions` beside the checkout),
 //! `--only S1,S2`, `--max-tests N`, `--json` (per-run numbers), `--free-start`,
-//! `--robust`, `--marker-offset`, `--heading-lever M` (calibrate's options),
+//! `--robust`, `--marker-offset`, `--heading-lever M`, `--hold P1,P2` (calibrate's
+//! options),
 //! `--law-from-other-month [turn|speed]`: first fit the law on each month's runs (June: 23
 //! June squares, 25 June circles and Ivanjko paths; December: 23 December; the turn law
 //! as calibrate keeps it, the speed law as its `law_tests` fit it on its own), then train
@@ -50,6 +51,9 @@ fn main() {
         robust: flag("--robust"),
         marker_offset: flag("--marker-offset"),
         heading_lever_m: val("--heading-lever").and_then(|v| v.parse().ok()),
+        hold: val("--hold")
+            .map(|h| h.split(',').map(String::from).collect())
+            .unwrap_or_default(),
         ..Default::default()
     };
     let t0 = std::time::Instant::now();

@@ -53,7 +53,7 @@ pub use events::{
 };
 pub(crate) use objective::{residuals_into, RES_UNIT_M};
 pub use objective::{DR_HEADING_LEVER_M, HUBER_K};
-pub use options::{CalOptions, CvBy};
+pub use options::{CalOptions, CvBy, HOLDABLE};
 pub use params::{
     alike_priors, is_mecanum, ladder, param_specs, radius_range, robot_with, roller_specs,
     turn_law_specs, GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE, ALPHA_RANGE, BASE_RANGE,
@@ -143,6 +143,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             speed_rel: opts.speed_law.unwrap_or(0.0),
             ..TurnLaw::default()
         }),
+        held: HOLDABLE.map(|n| opts.hold.iter().any(|h| h == n)),
     };
     // SLAM-like poses: dead reckoning from one pose sample of centimetre noise tilts the
     // whole recording (measured on the simulator: scale, E_d and E_b 8-11 sigma off), so
@@ -165,7 +166,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     // event are not compared).
     let mut events: Vec<Event> = series.iter().flat_map(|s| s.glitches.clone()).collect();
     if !cfg.free_start {
-        let specs0 = param_specs(robot, opts.marker_offset);
+        let specs0 = cfg.unheld(param_specs(robot, opts.marker_offset));
         let f0 = fit_specs(robot, &specs0, &refs(&series), cfg, false).f;
         let r0 = robot_with(robot, &specs0, &f0.geom);
         for s in series.iter_mut() {
@@ -610,7 +611,12 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         }
     }
 
-    let factors = if specs.iter().any(|s| s.kind == GeomKind::Ed) {
+    // A left and a right side (whatever `--hold` left of scale, ed and eb): c_L, c_R, E_b.
+    let sides = robot.kind != RobotKind::Omni
+        && specs
+            .iter()
+            .any(|s| matches!(s.kind, GeomKind::Scale | GeomKind::Ed | GeomKind::Eb));
+    let factors = if sides {
         let scale_or = |k: GeomKind, or: f64| {
             specs
                 .iter()

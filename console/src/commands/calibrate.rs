@@ -186,6 +186,7 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         turn_law: a.turn_law,
         speed_law: a.speed_law,
         e_b_for: driving,
+        hold: a.hold.clone(),
     };
     let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|mut e| {
         // Name the file, not only the short name; the error stays the calibration's.
@@ -355,6 +356,7 @@ mod tests {
             turn_law: None,
             speed_law: None,
             e_b_for: Vec::new(),
+            hold: Vec::new(),
             bag: default_bag_flags(),
         }
     }

@@ -534,7 +534,23 @@ fn choose_turn_law(
 ) -> Vec<ParamSpec> {
     let skid = robot.kind == RobotKind::SkidSteer;
     let who = if skid { "skid-steer" } else { "turn law" };
-    let base = param_specs(robot, false);
+    let base = cfg.unheld(param_specs(robot, false));
+    if cfg.held.iter().any(|&h| h) {
+        let held: Vec<&str> = crate::calibrate::HOLDABLE
+            .iter()
+            .zip(cfg.held)
+            .filter(|(_, h)| *h)
+            .map(|(n, _)| *n)
+            .collect();
+        notes.push(format!(
+            "held at the robot file's values (--hold): {}; fitted: {}",
+            held.join(", "),
+            base.iter()
+                .map(|s| s.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ));
+    }
     if let Some(known) = cfg.known_law {
         if known.arc_rel != 0.0 {
             notes.push(format!(
@@ -565,7 +581,7 @@ fn choose_turn_law(
     // The laws tested against the constant model, each on its own.
     let mut laws: Vec<(Law, Vec<ParamSpec>)> = Vec::new();
     if share >= MIN_ARC_SHARE {
-        laws.push((Law::Turn, turn_law_specs(robot)));
+        laws.push((Law::Turn, cfg.unheld(turn_law_specs(robot))));
     } else {
         notes.push(format!(
             "{who}: the recordings turn on arcs for {:.0} % of their turning (the rest in place), under the {:.0} % a turn-radius law needs: a constant effective separation (E_b) is fitted; record arcs of several radii to test one",
@@ -574,8 +590,8 @@ fn choose_turn_law(
         ));
     }
     if !skid {
-        laws.push((Law::Speed, speed_law_specs(robot)));
-        laws.push((Law::Acceleration, accel_law_specs(robot)));
+        laws.push((Law::Speed, cfg.unheld(speed_law_specs(robot))));
+        laws.push((Law::Acceleration, cfg.unheld(accel_law_specs(robot))));
     }
     if laws.is_empty() {
         return base;
@@ -840,6 +856,7 @@ mod tests {
             huber: None,
             dr_lever: DR_HEADING_LEVER_M,
             known_law: None,
+            held: [false; 3],
         };
         let mut runs = 0;
         let (stepped, fits) = heldout_errors(&nominal, &models, &series, cfg, &mut runs);

@@ -2,6 +2,7 @@
 //! recordings), and the settings the driver derives from them ([`Cfg`]: objective, loss,
 //! lever arm, known turn law) that every problem of one calibration is given alike.
 
+use crate::calibrate::params::ParamSpec;
 use crate::calibrate::problem::Problem;
 use crate::calibrate::series::PART_SEP;
 use crate::calibrate::turn_law::TurnLaw;
@@ -42,7 +43,15 @@ pub struct CalOptions {
     /// apply, their one E_b is the constant whose dead reckoning of this motion stays
     /// closest to the law's; without, E_b is at the fitted recordings' mean turn.
     pub e_b_for: Vec<(String, formats::recording::Recording)>,
+    /// Parameters held at the robot file's values (`--hold scale|ed|eb`, a differential
+    /// drive or skid-steer robot): measured some other way (a wheel's diameter with
+    /// calipers), or a smaller model to compare on held-out runs.
+    pub hold: Vec<String>,
 }
+
+/// The parameters `--hold` may name, in a differential drive's or skid-steer robot's
+/// [`param_specs`](crate::calibrate::param_specs) order.
+pub const HOLDABLE: [&str; 3] = ["scale", "ed", "eb"];
 
 /// How cross-validation groups recordings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -99,12 +108,27 @@ pub(super) struct Cfg {
     pub(super) dr_lever: f64,
     /// Known laws ([`CalOptions::turn_law`], [`CalOptions::speed_law`]), when given.
     pub(super) known_law: Option<TurnLaw>,
+    /// Which of [`HOLDABLE`] are held ([`CalOptions::hold`]).
+    pub(super) held: [bool; 3],
 }
 
 impl Cfg {
     /// The known laws, zero when none is given.
     pub(super) fn law(&self) -> TurnLaw {
         self.known_law.unwrap_or_default()
+    }
+
+    /// `specs` less the parameters held.
+    pub(super) fn unheld(&self, specs: Vec<ParamSpec>) -> Vec<ParamSpec> {
+        specs
+            .into_iter()
+            .filter(|s| {
+                !HOLDABLE
+                    .iter()
+                    .zip(self.held)
+                    .any(|(name, held)| held && s.name == *name)
+            })
+            .collect()
     }
 
     pub(super) fn apply(&self, p: &mut Problem) {

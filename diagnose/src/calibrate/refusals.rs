@@ -72,6 +72,33 @@ pub(super) fn check_inputs<R: std::borrow::Borrow<Recording>>(
             });
         }
     }
+    if !opts.hold.is_empty() {
+        use crate::calibrate::HOLDABLE;
+        if !matches!(robot.kind, RobotKind::DiffDrive | RobotKind::SkidSteer) {
+            return Err(CalibrateError {
+                recording: None,
+                message: "--hold is for differential-drive and skid-steer robots (scale, ed, eb); an omni robot's model is chosen by its ladder".into(),
+            });
+        }
+        if let Some(bad) = opts.hold.iter().find(|h| !HOLDABLE.contains(&h.as_str())) {
+            return Err(CalibrateError {
+                recording: None,
+                message: format!(
+                    "--hold {bad}: not a parameter that can be held (one of {})",
+                    HOLDABLE.join(", ")
+                ),
+            });
+        }
+        if HOLDABLE.iter().all(|n| opts.hold.iter().any(|h| h == n)) {
+            return Err(CalibrateError {
+                recording: None,
+                message: format!(
+                    "--hold {}: every parameter held leaves nothing to fit",
+                    HOLDABLE.join(" --hold ")
+                ),
+            });
+        }
+    }
     if !opts.e_b_for.is_empty()
         && !matches!(robot.kind, RobotKind::DiffDrive | RobotKind::SkidSteer)
     {
