@@ -396,6 +396,24 @@ fn two_squares(dir: &Path, nominal: &Robot) -> Vec<std::ffi::OsString> {
     args
 }
 
+/// `wheelcal --json calibrate --no-cross-validation` of the mobolab robot on `args`
+/// (`--recording ...`) with `extra` options, writing the robot file to `out`.
+fn calibrate_mobolab(
+    args: &[std::ffi::OsString],
+    extra: &[&std::ffi::OsStr],
+    out: &Path,
+) -> std::process::Output {
+    common::wheelcal()
+        .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
+        .arg(common::robot("mobolab"))
+        .args(args)
+        .args(extra)
+        .arg("--write-robot")
+        .arg(out)
+        .output()
+        .unwrap()
+}
+
 /// `--speed-law` through the binary: a negative law reads as a number, is held (the
 /// JSON's `turn_law.speed_rel`, no law tested, the board's factors carry it exactly with
 /// c_L and c_R at standstill), and one outside the board's ±0.2 per m/s is refused with a
@@ -406,14 +424,11 @@ fn a_known_speed_law_reaches_the_json_and_a_bad_one_is_refused() {
     let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
     let args = two_squares(&dir, &nominal);
     let run = |law: &str, json: &Path| {
-        common::wheelcal()
-            .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
-            .arg(common::robot("mobolab"))
-            .args(&args)
-            .args(["--speed-law", law, "--write-robot"])
-            .arg(json.with_extension("toml"))
-            .output()
-            .unwrap()
+        calibrate_mobolab(
+            &args,
+            &["--speed-law".as_ref(), law.as_ref()],
+            &json.with_extension("toml"),
+        )
     };
     let out = run("-0.05", &dir.join("good"));
     assert!(
@@ -473,16 +488,13 @@ fn a_log_of_driving_places_the_robot_files_e_b() {
     let log_file = dir.join("driving.csv");
     log.save(&log_file).unwrap();
     let run = |log: &Path, out: &Path| {
-        common::wheelcal()
-            .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
-            .arg(common::robot("mobolab"))
-            .args(&args)
-            .args(["--turn-law", "0.04", "--e-b-for"])
-            .arg(log)
-            .arg("--write-robot")
-            .arg(out)
-            .output()
-            .unwrap()
+        let extra = [
+            "--turn-law".as_ref(),
+            "0.04".as_ref(),
+            "--e-b-for".as_ref(),
+            log.as_os_str(),
+        ];
+        calibrate_mobolab(&args, &extra, out)
     };
     let out = run(&log_file, &dir.join("good.toml"));
     assert!(
@@ -520,16 +532,8 @@ fn a_held_parameter_is_not_fitted() {
     let dir = common::scratch("calibrate-hold");
     let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
     let args = two_squares(&dir, &nominal);
-    let run = |hold: &str, out: &Path| {
-        common::wheelcal()
-            .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
-            .arg(common::robot("mobolab"))
-            .args(&args)
-            .args(["--hold", hold, "--write-robot"])
-            .arg(out)
-            .output()
-            .unwrap()
-    };
+    let run =
+        |hold: &str, out: &Path| calibrate_mobolab(&args, &["--hold".as_ref(), hold.as_ref()], out);
     let out = run("ed", &dir.join("good.toml"));
     assert!(
         out.status.success(),
