@@ -462,7 +462,8 @@ fn a_known_speed_law_reaches_the_json_and_a_bad_one_is_refused() {
 /// without poses: only the encoders are read) places the robot file's one E_b between the
 /// board's in-place E_b and 4 % above it, and past where it sits without the log (the
 /// squares' mean turn) by at least a tenth of the law (the simulator's runs of this kind
-/// want 3-72 %; measured 2.2 % against 0); the JSON's notes say so. A log that does not exist is refused naming it, writing nothing.
+/// want 3-72 %; measured 2.2 % against 0); the JSON's notes say so. A log that does not
+/// exist is refused naming it, writing nothing.
 #[test]
 fn a_log_of_driving_places_the_robot_files_e_b() {
     let dir = common::scratch("calibrate-e-b-for");
