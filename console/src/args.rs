@@ -685,7 +685,8 @@ pub struct CalibrateArgs {
     #[arg(long, value_parser = ["run", "session", "path-kind"])]
     pub cv: Option<String>,
     /// Lever arm (m) at which heading errors count in the dead-reckoning objective
-    /// (default 0.1; 3 transferred better on real runs, see the README).
+    /// (default 0.1; longer levers transferred better on the differential robot's real
+    /// runs and worse on the omni robots', see the README).
     #[arg(long)]
     pub heading_lever: Option<f64>,
     /// A differential drive's known turn law, held fixed while the geometry is fitted:
