@@ -706,8 +706,9 @@ pub struct CalibrateArgs {
     /// A log of the driving the robot file and ros2.yaml are for (as --recording: a file,
     /// a run folder, a directory of them or a bag; repeatable; only the encoders are
     /// read). With a turn law, which neither can apply, their one E_b is then the constant
-    /// whose dead reckoning of this driving stays closest to the law's; by default it is
-    /// at the recordings' mean turn. The board applies the law either way.
+    /// whose dead reckoning of this driving stays closest to the law's (by default: at the
+    /// recordings' mean turn); with a speed law, their one wheel size likewise (by
+    /// default: at the recordings' mean speed). The board applies the laws either way.
     #[arg(long, value_name = "RECORDING")]
     pub e_b_for: Vec<PathBuf>,
     /// Hold a differential drive's or skid-steer robot's parameter at the robot file's

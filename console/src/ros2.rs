@@ -123,7 +123,7 @@ fn law_note(b: &BoardFactors) -> Result<String> {
             "# The fitted speed law is more than diff_drive_controller can express: the\n\
              # wheels roll {:+.2} % per m/s of their speed further; the controller has no\n\
              # speed dependence. The radius multipliers below are the wheels' size at the\n\
-             # recordings' mean speed.\n",
+             # recordings' mean speed (or for calibrate --e-b-for's driving).\n",
             l.speed_rel * 100.0
         ));
     }

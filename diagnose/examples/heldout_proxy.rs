@@ -21,7 +21,8 @@
 //! `--robot-file`: dead-reckon the test runs with the robot file `calibrate` writes (one
 //! E_b, no law: what ROS 2 or another tool gets) instead of the law;
 //! `--e-b-for-other-month`: give calibrate the other month's circles and Ivanjko paths as
-//! `--e-b-for`, the driving the robot file's E_b is placed for.
+//! `--e-b-for`, the driving the robot file's E_b (or, with a speed law, its wheel size) is
+//! placed for.
 
 use diagnose::calibrate::{calibrate, proxy, CalOptions};
 use std::path::PathBuf;

@@ -349,12 +349,35 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     let law_base_robot = fitted_robot.clone();
     let mut law_eb_shift = 0.0;
     // A speed law likewise: they get the wheel size at the recordings' mean speed
-    // (weighted by distance).
+    // (weighted by distance), or the constant closest to the law on `--e-b-for`'s motion.
     let mut law_scale = 1.0;
     if turn_law.speed_rel != 0.0 || turn_law.arc_rel != 0.0 {
         let t = Turning::of_all(&series, robot);
+        // `--e-b-for`'s log, read once for both laws.
+        let motion = if opts.e_b_for.is_empty() {
+            None
+        } else {
+            Some(e_b_motion(robot, &opts.e_b_for)?)
+        };
         if turn_law.speed_rel != 0.0 && t.travel > 0.0 {
-            law_scale = 1.0 + turn_law.speed_rel * t.speed_term / t.travel;
+            let mean_speed = t.speed_term / t.travel;
+            let for_log = motion
+                .as_ref()
+                .and_then(|m| turn_law::closest_constant_speed(&law_base_robot, &turn_law, m));
+            if let (Some(v), Some(m)) = (for_log, &motion) {
+                for n in notes
+                    .iter_mut()
+                    .filter(|n| n.contains(": the law is fitted"))
+                {
+                    *n = n.replace(MEAN_SPEED, E_B_FOR);
+                }
+                notes.push(format!(
+                    "{FOR_LOG_NOTE} wheel size {:+.3} % over standstill, the constant whose dead reckoning of --e-b-for's {} recording(s) stays closest to the speed law's (its size at {v:.3} m/s; {mean_speed:.3} m/s is the fitted recordings' mean speed)",
+                    turn_law.speed_rel * v * 100.0,
+                    m.len()
+                ));
+            }
+            law_scale = 1.0 + turn_law.speed_rel * for_log.unwrap_or(mean_speed);
             for w in fitted_robot.wheels.iter_mut() {
                 w.radius_m *= law_scale;
             }
@@ -364,28 +387,28 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             .position(|s| s.kind == GeomKind::Eb)
             .map_or(1.0, |i| fitted.geom[i]);
         let mean_turn = (t.all > 0.0).then(|| t.arc_term / t.all);
-        let share = if opts.e_b_for.is_empty() || turn_law.arc_rel == 0.0 {
-            mean_turn
-        } else {
-            let motion = e_b_motion(robot, &opts.e_b_for)?;
-            let share = turn_law::closest_constant_share(&law_base_robot, &turn_law, &motion);
-            if let Some(share) = share {
-                for n in notes
-                    .iter_mut()
-                    .filter(|n| n.contains(": the law is fitted"))
-                {
-                    *n = n.replace(MEAN_TURN, E_B_FOR);
+        let share = match motion.as_ref().filter(|_| turn_law.arc_rel != 0.0) {
+            None => mean_turn,
+            Some(motion) => {
+                let share = turn_law::closest_constant_share(&law_base_robot, &turn_law, motion);
+                if let Some(share) = share {
+                    for n in notes
+                        .iter_mut()
+                        .filter(|n| n.contains(": the law is fitted"))
+                    {
+                        *n = n.replace(MEAN_TURN, E_B_FOR);
+                    }
+                    notes.push(format!(
+                        "{FOR_LOG_NOTE} E_b {:.6}, the constant whose dead reckoning of --e-b-for's {} recording(s) stays closest to the law's ({:.0} % of its widening; {:.0} % at the fitted recordings' mean turn)",
+                        eb * (1.0 + turn_law.arc_rel * share),
+                        motion.len(),
+                        share * 100.0,
+                        100.0 * mean_turn.unwrap_or(0.0)
+                    ));
                 }
-                notes.push(format!(
-                    "robot file and ROS 2: E_b {:.6}, the constant whose dead reckoning of --e-b-for's {} recording(s) stays closest to the law's ({:.0} % of its widening; {:.0} % at the fitted recordings' mean turn)",
-                    eb * (1.0 + turn_law.arc_rel * share),
-                    motion.len(),
-                    share * 100.0,
-                    100.0 * mean_turn.unwrap_or(0.0)
-                ));
+                // A log that cannot be dead-reckoned leaves E_b at the mean turn.
+                share.or(mean_turn)
             }
-            // A log that cannot be dead-reckoned leaves E_b at the mean turn.
-            share.or(mean_turn)
         };
         if let Some(share) = share.filter(|_| turn_law.arc_rel != 0.0) {
             law_eb_shift = turn_law.arc_rel * eb * share;
@@ -394,9 +417,9 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             }
         }
     }
-    if !opts.e_b_for.is_empty() && turn_law.arc_rel == 0.0 {
+    if !opts.e_b_for.is_empty() && turn_law.arc_rel == 0.0 && turn_law.speed_rel == 0.0 {
         notes.push(
-            "--e-b-for: no turn law was fitted or given, so one E_b serves every turn and the recordings given are not used"
+            "--e-b-for: no turn or speed law was fitted or given, so one E_b serves every turn, one wheel size every speed, and the recordings given are not used"
                 .into(),
         );
     }
@@ -761,6 +784,10 @@ fn sideways_note(nominal: &Robot, fitted: &Robot) -> Option<String> {
 
 /// Where a law's one E_b sits by default, in the notes' words.
 const MEAN_TURN: &str = "at the recordings' mean turn";
+/// Where a speed law's one wheel size sits by default, in the notes' words.
+const MEAN_SPEED: &str = "at the recordings' mean speed";
+/// How the notes of `--e-b-for`'s placements begin.
+pub(crate) const FOR_LOG_NOTE: &str = "robot file and ROS 2:";
 /// The same with `--e-b-for`.
 pub(crate) const E_B_FOR: &str = "for --e-b-for's driving";
 

@@ -152,7 +152,9 @@ fn the_turn_law_is_the_same_in_june_and_december() {
 /// Ivanjko paths (their encoders only: a log of the driving the robot file is for), also
 /// meets the goal: measured 0.661 (worst 0.816). Without `--e-b-for` its E_b is at the
 /// squares' mean turn, nearly in place: 0.856 (worst 0.918); asserted worse by more than
-/// a tenth.
+/// a tenth. With the speed law held instead, the robot file's one wheel size placed by
+/// `--e-b-for` gives 0.787 (worst 0.974), against 0.885 (worst 0.977) at the squares'
+/// mean speed; asserted better by more than 0.05.
 #[test]
 fn a_law_from_the_other_month_beats_optiodom() {
     let Some(d) = dir() else { return };
@@ -175,8 +177,9 @@ fn a_law_from_the_other_month_beats_optiodom() {
         TurnLaw,
         /// The board, applying the speed law.
         SpeedLaw,
-        /// The robot file (turn law held), with `--e-b-for` or without.
-        RobotFile { e_b_for: bool },
+        /// The robot file (the turn law held, or the speed law), with `--e-b-for` or
+        /// without.
+        RobotFile { speed: bool, e_b_for: bool },
     }
     let proxy_with = |consumer: Consumer| {
         proxy::run_diff_with_law(&d, None, None, &|robot, recs, session| {
@@ -195,8 +198,9 @@ fn a_law_from_the_other_month_beats_optiodom() {
                     turn_law: Some(turn),
                     ..Default::default()
                 },
-                Consumer::RobotFile { e_b_for } => CalOptions {
-                    turn_law: Some(turn),
+                Consumer::RobotFile { speed: s, e_b_for } => CalOptions {
+                    turn_law: (!s).then_some(turn),
+                    speed_law: s.then_some(speed),
                     e_b_for: if e_b_for {
                         driving[other].clone()
                     } else {
@@ -227,9 +231,15 @@ fn a_law_from_the_other_month_beats_optiodom() {
         "turn {g_turn:.3}, speed {g_speed:.3}"
     );
     println!("the robot file alone, --e-b-for the other month's circles and Ivanjko paths:");
-    let file_for = proxy_with(Consumer::RobotFile { e_b_for: true });
+    let file_for = proxy_with(Consumer::RobotFile {
+        speed: false,
+        e_b_for: true,
+    });
     assert_meets_the_goal(&file_for);
-    let file = proxy_with(Consumer::RobotFile { e_b_for: false });
+    let file = proxy_with(Consumer::RobotFile {
+        speed: false,
+        e_b_for: false,
+    });
     print!(
         "the robot file alone, E_b at the squares' mean turn:\n{}",
         proxy::table(&file)
@@ -241,6 +251,20 @@ fn a_law_from_the_other_month_beats_optiodom() {
     assert!(
         g_for + 0.1 < g_file,
         "--e-b-for {g_for:.3}, without {g_file:.3}"
+    );
+    // The speed law's wheel size in the robot file, likewise.
+    let [speed_for, speed_file] = [true, false].map(|e_b_for| {
+        proxy::geometric_mean_ratio(&proxy_with(Consumer::RobotFile {
+            speed: true,
+            e_b_for,
+        }))
+    });
+    println!(
+        "the robot file alone, speed law: {speed_for:.3} with --e-b-for, {speed_file:.3} without"
+    );
+    assert!(
+        speed_for + 0.05 < speed_file,
+        "--e-b-for {speed_for:.3}, without {speed_file:.3}"
     );
 }
 

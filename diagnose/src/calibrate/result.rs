@@ -320,6 +320,15 @@ impl Calibration {
         }
     }
 
+    /// Whether `--e-b-for` placed the robot file's `what` (`"E_b"`, `"wheel size"`): its
+    /// note says so.
+    fn placed_for_log(&self, what: &str) -> bool {
+        let lead = format!("{} {what} ", crate::calibrate::FOR_LOG_NOTE);
+        self.notes
+            .iter()
+            .any(|n| n.starts_with(&lead) && n.contains("--e-b-for's"))
+    }
+
     /// Each wheel's fitted geometry, in the robot's wheel order.
     pub fn geometry(&self) -> Vec<WheelGeometry> {
         wheel_geometry(&self.fitted_robot)
@@ -497,12 +506,14 @@ impl fmt::Display for Calibration {
                 f,
                 "firmware factors: {} (the board applies the law; ROS 2 and the robot file get the constant factors: {}E_b {e_b:.6} {})",
                 b.command(),
-                if b.laws.speed_rel != 0.0 {
-                    "c_L and c_R at the recordings' mean speed, "
+                if b.laws.speed_rel == 0.0 {
+                    String::new()
+                } else if self.placed_for_log("wheel size") {
+                    format!("c_L and c_R {}, ", crate::calibrate::E_B_FOR)
                 } else {
-                    ""
+                    "c_L and c_R at the recordings' mean speed, ".into()
                 },
-                if self.notes.iter().any(|n| n.contains("--e-b-for's")) {
+                if self.placed_for_log("E_b") {
                     crate::calibrate::E_B_FOR
                 } else {
                     "at the recordings' mean turn"

@@ -241,11 +241,60 @@ impl Turning {
 /// squared position gap over every row, minimised by golden-section search on [0, 1].
 /// No ground truth enters, so `motion` may be any log of the robot's driving. `base` has
 /// the separation of a turn in place
-/// ([`Calibration::law_base_robot`](crate::calibrate::Calibration::law_base_robot)).
+/// ([`Calibration::law_base_robot`](crate::calibrate::Calibration::law_base_robot)); the
+/// law's other terms (a speed law) are kept on both sides.
 pub(crate) fn closest_constant_share(
     base: &Robot,
     law: &TurnLaw,
     motion: &[crate::calibrate::Series],
+) -> Option<f64> {
+    let constant = TurnLaw {
+        arc_rel: 0.0,
+        ..*law
+    };
+    closest_constant(base, law, motion, &constant, (0.0, 1.0), |r, share| {
+        for w in r.wheels.iter_mut() {
+            w.l_m *= 1.0 + law.arc_rel * share;
+        }
+    })
+}
+
+/// The speed law's counterpart of [`closest_constant_share`]: the speed (m/s, from 0 to
+/// the fastest side's speed in `motion`) at which the law's wheel size, 1 + speed_rel v
+/// times `base`'s (the size at standstill), dead-reckons `motion` closest to the law's
+/// own. The law's other terms (a turn law) are kept on both sides.
+pub(crate) fn closest_constant_speed(
+    base: &Robot,
+    law: &TurnLaw,
+    motion: &[crate::calibrate::Series],
+) -> Option<f64> {
+    let fastest = motion
+        .iter()
+        .flat_map(|s| s.motion.iter().flatten())
+        .flat_map(|m| m.speed)
+        .fold(0.0, f64::max);
+    let constant = TurnLaw {
+        speed_rel: 0.0,
+        ..*law
+    };
+    closest_constant(base, law, motion, &constant, (0.0, fastest), |r, v| {
+        for w in r.wheels.iter_mut() {
+            w.radius_m *= 1.0 + law.speed_rel * v;
+        }
+    })
+}
+
+/// The value in `range` whose robot (`base` changed by `apply`), dead-reckoning `motion`
+/// under `constant`, stays closest to `base` under `law`: the mean squared position gap
+/// over every row, one smooth valley, minimised by golden-section search (the ends
+/// themselves compared too). None when `motion` cannot be dead-reckoned.
+fn closest_constant(
+    base: &Robot,
+    law: &TurnLaw,
+    motion: &[crate::calibrate::Series],
+    constant: &TurnLaw,
+    range: (f64, f64),
+    apply: impl Fn(&mut Robot, f64),
 ) -> Option<f64> {
     use calib_core::correction::Corrections;
     use calib_core::kinematics::Kinematics;
@@ -256,22 +305,16 @@ pub(crate) fn closest_constant_share(
         s.path_with(base, &kin, law, &mut p).then_some(())?;
         target.push(p);
     }
-    let constant = TurnLaw {
-        arc_rel: 0.0,
-        ..*law
-    };
     let mut p = crate::calibrate::Path::default();
-    let mut gap = |share: f64| -> f64 {
+    let mut gap = |x: f64| -> f64 {
         let mut r = base.clone();
-        for w in r.wheels.iter_mut() {
-            w.l_m *= 1.0 + law.arc_rel * share;
-        }
+        apply(&mut r, x);
         let Ok(kin) = Kinematics::<f64>::new(&r, &Corrections::None) else {
             return f64::INFINITY;
         };
         let (mut acc, mut n) = (0.0, 0usize);
         for (s, t) in motion.iter().zip(&target) {
-            if !s.path_with(&r, &kin, &constant, &mut p) {
+            if !s.path_with(&r, &kin, constant, &mut p) {
                 return f64::INFINITY;
             }
             for k in 0..t.x.len() {
@@ -281,9 +324,8 @@ pub(crate) fn closest_constant_share(
         }
         acc / n.max(1) as f64
     };
-    // Golden section: the gap is one smooth valley in the share.
     let g = 0.5 * (5f64.sqrt() - 1.0);
-    let (mut a, mut b) = (0.0, 1.0);
+    let (mut a, mut b) = range;
     let (mut c, mut d) = (b - g * (b - a), a + g * (b - a));
     let (mut fc, mut fd) = (gap(c), gap(d));
     for _ in 0..40 {
@@ -297,12 +339,11 @@ pub(crate) fn closest_constant_share(
             fd = gap(d);
         }
     }
-    let (share, best) = if fc <= fd { (c, fc) } else { (d, fd) };
-    // The search never tries the ends themselves.
-    [(0.0, gap(0.0)), (1.0, gap(1.0)), (share, best)]
+    let (x, best) = if fc <= fd { (c, fc) } else { (d, fd) };
+    [(range.0, gap(range.0)), (range.1, gap(range.1)), (x, best)]
         .into_iter()
-        .min_by(|x, y| x.1.total_cmp(&y.1))
-        .map(|x| x.0)
+        .min_by(|p, q| p.1.total_cmp(&q.1))
+        .map(|p| p.0)
 }
 
 /// Turn ratios that count as arcs (rho = 1 is a turn in place, 0 a straight line).
@@ -434,6 +475,55 @@ mod tests {
             );
         }
         let still = closest_constant_share(&robot, &law, &[arc(0.0, 0.0)]).unwrap();
+        assert_eq!(still, 0.0);
+    }
+
+    /// The speed law's counterpart: on a straight run at one speed the law's wheel size
+    /// is constant, 1 + speed_rel v, so the closest constant is the law's at that speed
+    /// (wheel rates 5 rad/s on mobolab's 0.05 m wheels: 0.25 m/s; 2 rad/s: 0.1 m/s), to
+    /// 1e-4 m/s as above. On an arc whose sides run at different speeds (4 and 5.3 rad/s)
+    /// no constant keeps both the forward speed and the turn rate: the closest lies
+    /// between the speed whose size keeps the one (0.237 m/s) and the other (0.465 m/s).
+    /// Standing still, the lower end (0) is kept.
+    #[test]
+    fn the_closest_constant_wheel_size_on_a_steady_run_is_the_laws_at_its_speed() {
+        let robot = synth::robot("mobolab");
+        let law = TurnLaw {
+            speed_rel: 0.1,
+            ..TurnLaw::default()
+        };
+        let start = calib_core::odometry::Pose::new(0.0, 0.0, 0.0);
+        let run = |left: f64, right: f64| {
+            let rec = synth::recording(&robot, 1000, 50.0, start, |_| {
+                robot
+                    .wheels
+                    .iter()
+                    .map(|w| if w.is_left() { left } else { right })
+                    .collect()
+            });
+            crate::calibrate::Series::new("run", &robot, &rec).unwrap()
+        };
+        let r = robot.wheels[0].radius_m;
+        for rate in [5.0, 2.0] {
+            let v = closest_constant_speed(&robot, &law, &[run(rate, rate)]).unwrap();
+            println!("rate {rate}: speed {v:.6} m/s, wheel {:.6} m/s", r * rate);
+            assert!(
+                (v - r * rate).abs() < 1e-4,
+                "rate {rate}: {v} against {}",
+                r * rate
+            );
+        }
+        // Sides at 4 and 5.3 rad/s: the law grows each side by its own speed, so the
+        // size that keeps the forward speed (the sides' mean) and the size that keeps the
+        // turn rate (their difference) differ; the closest constant lies between them.
+        let (vl, vr) = (4.0 * r, 5.3 * r);
+        let grow = |v: f64| 1.0 + 0.1 * v;
+        let forward = ((grow(vl) * vl + grow(vr) * vr) / (vl + vr) - 1.0) / 0.1;
+        let turn = ((grow(vr) * vr - grow(vl) * vl) / (vr - vl) - 1.0) / 0.1;
+        let v = closest_constant_speed(&robot, &law, &[run(4.0, 5.3)]).unwrap();
+        println!("rates 4, 5.3: speed {v:.6} m/s, forward {forward:.4}, turn {turn:.4}");
+        assert!(v > forward && v < turn, "{v}");
+        let still = closest_constant_speed(&robot, &law, &[run(0.0, 0.0)]).unwrap();
         assert_eq!(still, 0.0);
     }
 }
