@@ -435,6 +435,20 @@ mod tests {
         assert!(motion.iter().all(|m| *m == SideMotion::default()));
     }
 
+    /// 20 s of `robot` with its left wheels at `left` rad/s and its right ones at
+    /// `right`, from the origin (synthetic, noise-free).
+    fn steady(robot: &Robot, left: f64, right: f64) -> crate::calibrate::Series {
+        let start = calib_core::odometry::Pose::new(0.0, 0.0, 0.0);
+        let rec = synth::recording(robot, 1000, 50.0, start, |_| {
+            robot
+                .wheels
+                .iter()
+                .map(|w| if w.is_left() { left } else { right })
+                .collect()
+        });
+        crate::calibrate::Series::new("steady", robot, &rec).unwrap()
+    }
+
     /// On a steady arc the law's separation is constant, E_b (1 + arc_rel (1 - rho^2)),
     /// so the constant closest to it is that share, 1 - rho^2 (rho = |d_r - d_l| /
     /// (|d_r| + |d_l|)): wheel rates 4 and 5.3 rad/s give rho 1.3 / 9.3 and a share of
@@ -450,17 +464,7 @@ mod tests {
             arc_rel: 0.04,
             ..TurnLaw::default()
         };
-        let start = calib_core::odometry::Pose::new(0.0, 0.0, 0.0);
-        let arc = |left: f64, right: f64| {
-            let rec = synth::recording(&robot, 1000, 50.0, start, |_| {
-                robot
-                    .wheels
-                    .iter()
-                    .map(|w| if w.is_left() { left } else { right })
-                    .collect()
-            });
-            crate::calibrate::Series::new("arc", &robot, &rec).unwrap()
-        };
+        let arc = |left: f64, right: f64| steady(&robot, left, right);
         for (left, right) in [(4.0, 5.3), (1.0, 5.0)] {
             let rho: f64 = (right - left) / (right + left);
             let share = closest_constant_share(&robot, &law, &[arc(left, right)]).unwrap();
@@ -492,17 +496,7 @@ mod tests {
             speed_rel: 0.1,
             ..TurnLaw::default()
         };
-        let start = calib_core::odometry::Pose::new(0.0, 0.0, 0.0);
-        let run = |left: f64, right: f64| {
-            let rec = synth::recording(&robot, 1000, 50.0, start, |_| {
-                robot
-                    .wheels
-                    .iter()
-                    .map(|w| if w.is_left() { left } else { right })
-                    .collect()
-            });
-            crate::calibrate::Series::new("run", &robot, &rec).unwrap()
-        };
+        let run = |left: f64, right: f64| steady(&robot, left, right);
         let r = robot.wheels[0].radius_m;
         for rate in [5.0, 2.0] {
             let v = closest_constant_speed(&robot, &law, &[run(rate, rate)]).unwrap();
