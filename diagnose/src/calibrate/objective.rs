@@ -18,10 +18,11 @@ pub(crate) const HEADING_LEVER_M: f64 = 0.1;
 /// aligned fit's). On the differential robot's held-out proxy a longer lever transfers
 /// better (geometric mean ratio to OptiOdom for 0.1, 1, 3, 10 m: 1.003, 0.969, 0.944,
 /// 0.937), because it lowers the heading gain of December's squares the way the arcs'
-/// turn law wants; held out within the squares it is no better, and on the mecanum robot's
-/// proxy it is worse (0.934, 0.963, 1.021, 1.205), as on omni3's. At 3 m the heading
-/// gain dominates and scale/eb are reported not separable even on two-direction squares
-/// (sim and real): [`CalOptions::heading_lever_m`] sets it (README, `--heading-lever`).
+/// turn law wants; held out within the squares it is no better, and on the mecanum
+/// robot's proxy it is worse (0.934, 0.963, 1.021, 1.205), as on omni3's. At 3 m the
+/// heading gain dominates and scale/eb are reported not separable even on two-direction
+/// squares (sim and real): [`CalOptions::heading_lever_m`] sets it (README,
+/// `--heading-lever`).
 ///
 /// [`CalOptions::heading_lever_m`]: crate::calibrate::CalOptions::heading_lever_m
 pub const DR_HEADING_LEVER_M: f64 = 0.1;
