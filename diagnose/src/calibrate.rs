@@ -63,7 +63,7 @@ pub use params::{
 pub use refusals::{WORSE_FACTOR, WORSE_MARGIN_M};
 pub use result::{
     BoardFactors, Calibration, Factors, FittedParam, Heldout, HeldoutMeans, HeldoutTable,
-    Implausible, Inseparable, Inseparables, LawTest, PerRecording, WheelGeometry,
+    Implausible, Inseparable, Inseparables, LawTest, PerRecording, PlacedForLog, WheelGeometry,
 };
 pub(crate) use series::Path;
 pub use series::{
@@ -348,6 +348,16 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     let turn_law = TurnLaw::of(&specs, &fitted.geom, cfg.law());
     let law_base_robot = fitted_robot.clone();
     let mut law_eb_shift = 0.0;
+    let mut placed_for_log = PlacedForLog::default();
+    // The "law is fitted" notes then say where the robot file's constant sits.
+    let say_for_log = |notes: &mut Vec<String>, default: &str| {
+        for n in notes
+            .iter_mut()
+            .filter(|n| n.contains(": the law is fitted"))
+        {
+            *n = n.replace(default, E_B_FOR);
+        }
+    };
     // A speed law likewise: they get the wheel size at the recordings' mean speed
     // (weighted by distance), or the constant closest to the law on `--e-b-for`'s motion.
     let mut law_scale = 1.0;
@@ -365,14 +375,10 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
                 .as_ref()
                 .and_then(|m| turn_law::closest_constant_speed(&law_base_robot, &turn_law, m));
             if let (Some(v), Some(m)) = (for_log, &motion) {
-                for n in notes
-                    .iter_mut()
-                    .filter(|n| n.contains(": the law is fitted"))
-                {
-                    *n = n.replace(MEAN_SPEED, E_B_FOR);
-                }
+                placed_for_log.wheel_size = true;
+                say_for_log(&mut notes, MEAN_SPEED);
                 notes.push(format!(
-                    "{FOR_LOG_NOTE} wheel size {:+.3} % over standstill, the constant whose dead reckoning of --e-b-for's {} recording(s) stays closest to the speed law's (its size at {v:.3} m/s; {mean_speed:.3} m/s is the fitted recordings' mean speed)",
+                    "robot file and ROS 2: wheel size {:+.3} % over standstill, the constant whose dead reckoning of --e-b-for's {} recording(s) stays closest to the speed law's (its size at {v:.3} m/s; {mean_speed:.3} m/s is the fitted recordings' mean speed)",
                     turn_law.speed_rel * v * 100.0,
                     m.len()
                 ));
@@ -392,14 +398,10 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             Some(motion) => {
                 let share = turn_law::closest_constant_share(&law_base_robot, &turn_law, motion);
                 if let Some(share) = share {
-                    for n in notes
-                        .iter_mut()
-                        .filter(|n| n.contains(": the law is fitted"))
-                    {
-                        *n = n.replace(MEAN_TURN, E_B_FOR);
-                    }
+                    placed_for_log.e_b = true;
+                    say_for_log(&mut notes, MEAN_TURN);
                     notes.push(format!(
-                        "{FOR_LOG_NOTE} E_b {:.6}, the constant whose dead reckoning of --e-b-for's {} recording(s) stays closest to the law's ({:.0} % of its widening; {:.0} % at the fitted recordings' mean turn)",
+                        "robot file and ROS 2: E_b {:.6}, the constant whose dead reckoning of --e-b-for's {} recording(s) stays closest to the law's ({:.0} % of its widening; {:.0} % at the fitted recordings' mean turn)",
                         eb * (1.0 + turn_law.arc_rel * share),
                         motion.len(),
                         share * 100.0,
@@ -761,6 +763,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         turn_law,
         law_tests,
         law_base_robot,
+        placed_for_log,
     })
 }
 
@@ -786,8 +789,6 @@ fn sideways_note(nominal: &Robot, fitted: &Robot) -> Option<String> {
 const MEAN_TURN: &str = "at the recordings' mean turn";
 /// Where a speed law's one wheel size sits by default, in the notes' words.
 const MEAN_SPEED: &str = "at the recordings' mean speed";
-/// How the notes of `--e-b-for`'s placements begin.
-pub(crate) const FOR_LOG_NOTE: &str = "robot file and ROS 2:";
 /// The same with `--e-b-for`.
 pub(crate) const E_B_FOR: &str = "for --e-b-for's driving";
 

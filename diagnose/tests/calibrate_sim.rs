@@ -8,7 +8,7 @@ use calib_core::motion::{Direction, Program};
 use calib_core::robot::Robot;
 use diagnose::calibrate::{
     calibrate, dead_reckoning_rmse, dead_reckoning_rmse_law, param_specs, robot_with, BoardFactors,
-    CalOptions, Calibration, Factors, Series,
+    CalOptions, Calibration, Factors, PlacedForLog, Series,
 };
 use formats::recording::Recording;
 use sim::{record, Motion, RandomMotion, RecordConfig, Surface};
@@ -1129,6 +1129,16 @@ fn a_known_turn_law_reaches_the_robot_file_for_the_motion_given() {
         for_paths.to_string().contains("for --e-b-for's driving"),
         "{for_paths}"
     );
+    assert_eq!(
+        (default.placed_for_log, for_paths.placed_for_log),
+        (
+            PlacedForLog::default(),
+            PlacedForLog {
+                e_b: true,
+                wheel_size: false
+            }
+        )
+    );
     assert!(
         default.to_string().contains("at the recordings' mean turn"),
         "{default}"
@@ -1237,6 +1247,16 @@ fn a_known_speed_law_reaches_the_robot_file_for_the_motion_given() {
     assert!(
         for_slow.to_string().contains("for --e-b-for's driving"),
         "{for_slow}"
+    );
+    assert_eq!(
+        (default.placed_for_log, for_slow.placed_for_log),
+        (
+            PlacedForLog::default(),
+            PlacedForLog {
+                e_b: false,
+                wheel_size: true
+            }
+        )
     );
     let held = series(&nominal, [70, 75, 76, 77, 78].map(slow));
     let err = |c: &Calibration| mean_dead_reckoning_rmse(&c.fitted_robot, &held);

@@ -308,6 +308,19 @@ pub struct Calibration {
     /// the law widens on arcs ([`dead_reckoning_rmse_law`](crate::calibrate::dead_reckoning_rmse_law)); else `fitted_robot`.
     #[serde(skip)]
     pub law_base_robot: Robot,
+    /// What `--e-b-for` placed in the robot file and ROS 2 (its notes give the values).
+    #[serde(skip)]
+    pub placed_for_log: PlacedForLog,
+}
+
+/// Which of the robot file's constants `--e-b-for` placed for the driving logged,
+/// instead of at the fitted recordings' mean turn and mean speed.
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub struct PlacedForLog {
+    /// E_b, on a turn law.
+    pub e_b: bool,
+    /// The wheel size, on a speed law.
+    pub wheel_size: bool,
 }
 
 impl Calibration {
@@ -318,15 +331,6 @@ impl Calibration {
             Factors::Diff { e_b, .. } => e_b,
             Factors::Wheels { .. } => 1.0,
         }
-    }
-
-    /// Whether `--e-b-for` placed the robot file's `what` (`"E_b"`, `"wheel size"`): its
-    /// note says so.
-    fn placed_for_log(&self, what: &str) -> bool {
-        let lead = format!("{} {what} ", crate::calibrate::FOR_LOG_NOTE);
-        self.notes
-            .iter()
-            .any(|n| n.starts_with(&lead) && n.contains("--e-b-for's"))
     }
 
     /// Each wheel's fitted geometry, in the robot's wheel order.
@@ -508,12 +512,12 @@ impl fmt::Display for Calibration {
                 b.command(),
                 if b.laws.speed_rel == 0.0 {
                     String::new()
-                } else if self.placed_for_log("wheel size") {
+                } else if self.placed_for_log.wheel_size {
                     format!("c_L and c_R {}, ", crate::calibrate::E_B_FOR)
                 } else {
                     "c_L and c_R at the recordings' mean speed, ".into()
                 },
-                if self.placed_for_log("E_b") {
+                if self.placed_for_log.e_b {
                     crate::calibrate::E_B_FOR
                 } else {
                     "at the recordings' mean turn"
