@@ -711,11 +711,16 @@ pub struct CalibrateArgs {
     /// default: at the recordings' mean speed). The board applies the laws either way.
     #[arg(long, value_name = "RECORDING")]
     pub e_b_for: Vec<PathBuf>,
-    /// Hold a differential drive's or skid-steer robot's parameter at the robot file's
-    /// value instead of fitting it (repeatable): `scale` (both wheels' size), `ed` (their
-    /// ratio), `eb` (the separation). For a dimension measured some other way, or to
-    /// compare a smaller model on held-out runs.
-    #[arg(long, value_name = "PARAM", value_parser = ["scale", "ed", "eb"])]
+    /// Hold parameters at the robot file's values instead of fitting them (repeatable).
+    /// A differential drive or skid-steer robot: `scale` (both wheels' size), `ed` (their
+    /// ratio), `eb` (the separation). An omni robot, a family of its model ladder:
+    /// `radius` (wheel sizes), `distance` (wheels' distances from the centre), `angle`
+    /// (mounting angles), `roller` (a mecanum robot's roller angle), `centre` (the wheels'
+    /// centre). For a dimension measured some other way, or to compare a smaller model on
+    /// held-out runs.
+    #[arg(long, value_name = "PARAM", value_parser = [
+        "scale", "ed", "eb", "radius", "distance", "angle", "roller", "centre",
+    ])]
     pub hold: Vec<String>,
     /// How to read recordings given as ROS 2 bags.
     #[command(flatten)]

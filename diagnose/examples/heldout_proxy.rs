@@ -22,7 +22,9 @@
 //! E_b, no law: what ROS 2 or another tool gets) instead of the law;
 //! `--e-b-for-other-month`: give calibrate the other month's circles and Ivanjko paths as
 //! `--e-b-for`, the driving the robot file's E_b (or, with a speed law, its wheel size) is
-//! placed for.
+//! placed for;
+//! `--first-run`: train on each session's first square alone (the one-recording ladder,
+//! as the `one_square_keeps_a_model_that_transfers` test does).
 
 use diagnose::calibrate::{calibrate, proxy, CalOptions};
 use std::path::PathBuf;
@@ -112,6 +114,11 @@ fn main() {
                 ..opts.clone()
             };
             let t = std::time::Instant::now();
+            let recs = if flag("--first-run") {
+                &recs[..1]
+            } else {
+                recs
+            };
             let c = calibrate(robot, recs, None, &opts).map_err(|e| e.to_string())?;
             eprintln!(
                 "trained on {} recordings in {:.2} s: {}",

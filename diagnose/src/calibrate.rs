@@ -53,7 +53,7 @@ pub use events::{
 };
 pub(crate) use objective::{residuals_into, RES_UNIT_M};
 pub use objective::{DR_HEADING_LEVER_M, HUBER_K};
-pub use options::{CalOptions, CvBy, HOLDABLE};
+pub use options::{CalOptions, CvBy, HOLDABLE, OMNI_HOLDABLE};
 pub use params::{
     alike_priors, is_mecanum, ladder, param_specs, radius_range, robot_with, roller_specs,
     turn_law_specs, GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE, ALPHA_RANGE, BASE_RANGE,
@@ -143,7 +143,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             speed_rel: opts.speed_law.unwrap_or(0.0),
             ..TurnLaw::default()
         }),
-        held: HOLDABLE.map(|n| opts.hold.iter().any(|h| h == n)),
+        held: options::Held::of(&opts.hold),
     };
     // SLAM-like poses: dead reckoning from one pose sample of centimetre noise tilts the
     // whole recording (measured on the simulator: scale, E_d and E_b 8-11 sigma off), so

@@ -783,6 +783,102 @@ fn omni_ladder_keeps_the_simplest_model_that_holds_out() {
     }
 }
 
+/// `--hold` on an omni robot: the families of its ladder (radius, distance, angle, centre
+/// on the omni3; roller instead of centre on a mecanum robot) are held at the robot
+/// file's values. Three 40 s runs of free motion.
+/// - Wheels 2 % apart in size on true distances, `--hold distance`: the ladder climbs
+///   without the distance (per-wheel radii), each radius within 4 sigma and the
+///   simulator's 0.1 % floor (as above), and the robot file's distances are the nominal
+///   ones to the micrometre.
+/// - Distances 3 % long on true wheels, `--hold radius`: only the distance is fitted,
+///   within 4 sigma + 0.1 %, and the robot file's radii are nominal.
+/// - One recording (the BIC ladder) holds the same.
+/// - Refused, naming the option: a differential drive's names on an omni robot, a family
+///   the robot's models do not have (centre on the mecanum robot), and every family held.
+#[test]
+fn omni_held_families_stay_at_the_robot_files_values() {
+    let nominal = robot("omni3");
+    let specs = param_specs(&nominal, false);
+    let hold = |names: &[&str]| CalOptions {
+        hold: names.iter().map(|n| n.to_string()).collect(),
+        ..Default::default()
+    };
+    let held_note = |c: &Calibration, what: &str| {
+        c.notes
+            .iter()
+            .any(|n| n.contains("--hold") && n.contains(what))
+    };
+    let radii = [1.02, 0.99, 1.0];
+    let uneven = robot_with(
+        &nominal,
+        &specs,
+        &[radii[0], radii[1], radii[2], 0.0, 0.0, 0.0, 1.0, 1.0, 1.0],
+    );
+    let runs = free_runs(&uneven, 30);
+    let c = calibrate(&nominal, &runs, None, &hold(&["distance"])).unwrap();
+    println!("{c}");
+    assert!(held_note(&c, "distance"), "{:?}", c.notes);
+    assert!(
+        c.params.iter().all(|p| !p.spec.name.starts_with("l_scale")),
+        "{c}"
+    );
+    for (i, r) in radii.iter().enumerate() {
+        let name = format!("radius_scale_{}", nominal.wheels[i].name);
+        let p = c
+            .params
+            .iter()
+            .find(|p| p.spec.name == name)
+            .unwrap_or_else(|| panic!("no {name}\n{c}"));
+        assert!((p.value - r).abs() <= 4.0 * p.sigma + 1e-3, "{name}\n{c}");
+    }
+    for (w, n) in c.fitted_robot.wheels.iter().zip(&nominal.wheels) {
+        assert!((w.l_m - n.l_m).abs() < 1e-6, "{}: {} m", w.name, w.l_m);
+    }
+    // One recording: the BIC ladder holds it too.
+    let one = calibrate(&nominal, &runs[..1], None, &hold(&["distance"])).unwrap();
+    assert!(
+        one.params
+            .iter()
+            .all(|p| !p.spec.name.starts_with("l_scale")),
+        "{one}"
+    );
+    assert!(held_note(&one, "distance"), "{:?}", one.notes);
+
+    let long = robot_with(
+        &nominal,
+        &specs,
+        &[1.0, 1.0, 1.0, 0.0, 0.0, 0.0, 1.03, 1.03, 1.03],
+    );
+    let c = calibrate(&nominal, &free_runs(&long, 30), None, &hold(&["radius"])).unwrap();
+    println!("{c}");
+    assert!(held_note(&c, "radius"), "{:?}", c.notes);
+    let names: Vec<&str> = c.params.iter().map(|p| p.spec.name.as_str()).collect();
+    assert_eq!(names, ["l_scale"], "{c}");
+    let p = &c.params[0];
+    assert!((p.value - 1.03).abs() <= 4.0 * p.sigma + 1e-3, "{c}");
+    for (w, n) in c.fitted_robot.wheels.iter().zip(&nominal.wheels) {
+        assert!(
+            (w.radius_m - n.radius_m).abs() < 1e-9,
+            "{}: {} m",
+            w.name,
+            w.radius_m
+        );
+    }
+
+    for (robot, bad) in [
+        (&nominal, &["eb"][..]),
+        (&mecanum(), &["centre"][..]),
+        (&nominal, &["radius", "distance", "angle", "centre"][..]),
+    ] {
+        let e = calibrate(robot, &runs, None, &hold(bad)).unwrap_err();
+        assert!(
+            e.to_string().contains("--hold"),
+            "{} {bad:?}: {e}",
+            robot.name
+        );
+    }
+}
+
 /// Three 40 s runs of free motion (seeds 50-52) of `nominal` with `effects` and the
 /// simulator's wheels growing by `speed_scale` per m/s and its separation by `turn_scrub`
 /// from a turn in place to an arc: what the laws' tests calibrate on.

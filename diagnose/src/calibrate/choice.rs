@@ -122,16 +122,20 @@ pub(super) fn choose_specs(
         return choose_turn_law(robot, series, cfg, notes, runs, made);
     }
     let prefit = &mut made.prefit;
+    if robot.kind == RobotKind::Omni {
+        held_note(cfg, None, notes);
+    }
     if robot.kind == RobotKind::Omni && series.len() >= 2 {
         return climb_ladder(robot, series, marker, cfg, notes, runs, prefit);
     }
     if robot.kind == RobotKind::Omni && !cfg.free_start {
         return bic_ladder(robot, series, marker, cfg, notes, runs, prefit);
     }
-    if !is_mecanum(robot) {
+    let full = cfg.unheld(full);
+    let roller = cfg.unheld(roller_specs(robot, marker));
+    if !is_mecanum(robot) || !roller.iter().any(|s| s.kind == GeomKind::Gamma) {
         return full;
     }
-    let roller = roller_specs(robot, marker);
     let Fit {
         f: f_full,
         var: var_full,
@@ -315,7 +319,7 @@ fn climb_ladder(
     runs: &mut usize,
     prefit: &mut Option<Prefit>,
 ) -> Vec<ParamSpec> {
-    let rungs = ladder(robot, marker);
+    let rungs = cfg.unheld_ladder(ladder(robot, marker));
     let k = series.len().min(LADDER_FOLDS);
     let models: Vec<&[ParamSpec]> = rungs.iter().map(|(_, specs)| specs.as_slice()).collect();
     let (errors, mut all_fits) = heldout_errors(robot, &models, series, cfg, runs);
@@ -394,7 +398,7 @@ fn climb_ladder(
             }
             r
         }
-        None => ("full", param_specs(robot, marker)),
+        None => ("full".to_string(), cfg.unheld(param_specs(robot, marker))),
     };
     notes.push(format!(
         "model ladder, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values on or past the plausible ranges' edges ({}): the best, {name}, is fitted and its implausible values are listed{}",
@@ -421,7 +425,7 @@ fn bic_ladder(
     runs: &mut usize,
     prefit: &mut Option<Prefit>,
 ) -> Vec<ParamSpec> {
-    let rungs = ladder(robot, marker);
+    let rungs = cfg.unheld_ladder(ladder(robot, marker));
     let all = refs(series);
     let mut fits: Vec<Fit> = pool_map(&rungs, |(_, specs)| {
         fit_specs(robot, specs, &all, cfg, false)
@@ -487,6 +491,30 @@ fn bic_ladder(
     specs
 }
 
+/// Notes what `--hold` keeps at the robot file's values and what is left to fit
+/// (`fitted`, the held parameters taken out; `None` on an omni robot, whose ladder
+/// climbs without them).
+fn held_note(cfg: Cfg, fitted: Option<&[ParamSpec]>, notes: &mut Vec<String>) {
+    if !cfg.held.any() {
+        return;
+    }
+    let rest = match fitted {
+        Some(specs) => format!(
+            "fitted: {}",
+            specs
+                .iter()
+                .map(|s| s.name.as_str())
+                .collect::<Vec<_>>()
+                .join(", ")
+        ),
+        None => "the model ladder climbs without them".into(),
+    };
+    notes.push(format!(
+        "held at the robot file's values (--hold): {}; {rest}",
+        cfg.held.names().join(", ")
+    ));
+}
+
 /// What the ladder's note says of a rung whose wheels are held alike ([`alike_priors`]).
 fn alike_note(specs: &[ParamSpec]) -> String {
     if alike_priors(specs).is_empty() {
@@ -535,22 +563,7 @@ fn choose_turn_law(
     let skid = robot.kind == RobotKind::SkidSteer;
     let who = if skid { "skid-steer" } else { "turn law" };
     let base = cfg.unheld(param_specs(robot, false));
-    if cfg.held.iter().any(|&h| h) {
-        let held: Vec<&str> = crate::calibrate::HOLDABLE
-            .iter()
-            .zip(cfg.held)
-            .filter(|(_, h)| *h)
-            .map(|(n, _)| *n)
-            .collect();
-        notes.push(format!(
-            "held at the robot file's values (--hold): {}; fitted: {}",
-            held.join(", "),
-            base.iter()
-                .map(|s| s.name.as_str())
-                .collect::<Vec<_>>()
-                .join(", ")
-        ));
-    }
+    held_note(cfg, Some(&base), notes);
     if let Some(known) = cfg.known_law {
         if known.arc_rel != 0.0 {
             notes.push(format!(

@@ -2,7 +2,7 @@
 //! recordings), and the settings the driver derives from them ([`Cfg`]: objective, loss,
 //! lever arm, known turn law) that every problem of one calibration is given alike.
 
-use crate::calibrate::params::ParamSpec;
+use crate::calibrate::params::{GeomKind, ParamSpec};
 use crate::calibrate::problem::Problem;
 use crate::calibrate::series::PART_SEP;
 use crate::calibrate::turn_law::TurnLaw;
@@ -43,15 +43,78 @@ pub struct CalOptions {
     /// apply, their one E_b is the constant whose dead reckoning of this motion stays
     /// closest to the law's; without, E_b is at the fitted recordings' mean turn.
     pub e_b_for: Vec<(String, formats::recording::Recording)>,
-    /// Parameters held at the robot file's values (`--hold scale|ed|eb`, a differential
-    /// drive or skid-steer robot): measured some other way (a wheel's diameter with
-    /// calipers), or a smaller model to compare on held-out runs.
+    /// Parameters held at the robot file's values: measured some other way (a wheel's
+    /// diameter with calipers), or a smaller model to compare on held-out runs.
+    /// `--hold scale|ed|eb` on a differential drive or skid-steer robot ([`HOLDABLE`]);
+    /// `--hold radius|distance|angle|roller|centre` on an omni robot
+    /// ([`OMNI_HOLDABLE`]), each a family of its model ladder's parameters.
     pub hold: Vec<String>,
 }
 
 /// The parameters `--hold` may name, in a differential drive's or skid-steer robot's
 /// [`param_specs`](crate::calibrate::param_specs) order.
 pub const HOLDABLE: [&str; 3] = ["scale", "ed", "eb"];
+
+/// The families of an omni robot's ladder ([`ladder`](crate::calibrate::ladder)) that
+/// `--hold` may name: the wheels' size (common scale and per-wheel radii), their
+/// distances from the centre (common and per wheel), their mounting angles, a mecanum
+/// robot's roller angle, and the wheels' centre.
+pub const OMNI_HOLDABLE: [&str; 5] = ["radius", "distance", "angle", "roller", "centre"];
+
+/// Which of [`HOLDABLE`] and [`OMNI_HOLDABLE`] are held (bit i: the i-th name of the two
+/// lists in turn).
+#[derive(Debug, Clone, Copy, Default, PartialEq, Eq)]
+pub(super) struct Held(u8);
+
+impl Held {
+    const NAMES: [&'static str; 8] = [
+        "scale", "ed", "eb", "radius", "distance", "angle", "roller", "centre",
+    ];
+
+    /// The families named in `hold` (names of neither list are checked before).
+    pub(super) fn of(hold: &[String]) -> Held {
+        Held(
+            Self::NAMES
+                .iter()
+                .enumerate()
+                .filter(|(_, n)| hold.iter().any(|h| h == *n))
+                .fold(0, |m, (i, _)| m | 1 << i),
+        )
+    }
+
+    /// Whether anything is held.
+    pub(super) fn any(self) -> bool {
+        self.0 != 0
+    }
+
+    /// The held families' names.
+    pub(super) fn names(self) -> Vec<&'static str> {
+        Self::NAMES
+            .iter()
+            .enumerate()
+            .filter(|(i, _)| self.0 & 1 << i != 0)
+            .map(|(_, n)| *n)
+            .collect()
+    }
+
+    /// Whether `s` belongs to a held family. A common scale is a differential drive's
+    /// `scale` and an omni robot's `radius`; a common distance its `eb` and `distance`
+    /// (the names are checked against the robot's kind before).
+    pub(super) fn holds(self, s: &ParamSpec) -> bool {
+        let families: &[&str] = match s.kind {
+            GeomKind::Scale => &["scale", "radius"],
+            GeomKind::Ed => &["ed"],
+            GeomKind::Eb => &["eb", "distance"],
+            GeomKind::Radius(_) => &["radius"],
+            GeomKind::L(_) => &["distance"],
+            GeomKind::Alpha(_) => &["angle"],
+            GeomKind::Gamma => &["roller"],
+            GeomKind::CentreX | GeomKind::CentreY => &["centre"],
+            _ => &[],
+        };
+        self.names().iter().any(|n| families.contains(n))
+    }
+}
 
 /// How cross-validation groups recordings.
 #[derive(Debug, Clone, Copy, PartialEq, Eq)]
@@ -108,8 +171,8 @@ pub(super) struct Cfg {
     pub(super) dr_lever: f64,
     /// Known laws ([`CalOptions::turn_law`], [`CalOptions::speed_law`]), when given.
     pub(super) known_law: Option<TurnLaw>,
-    /// Which of [`HOLDABLE`] are held ([`CalOptions::hold`]).
-    pub(super) held: [bool; 3],
+    /// The families held ([`CalOptions::hold`]).
+    pub(super) held: Held,
 }
 
 impl Cfg {
@@ -120,15 +183,33 @@ impl Cfg {
 
     /// `specs` less the parameters held.
     pub(super) fn unheld(&self, specs: Vec<ParamSpec>) -> Vec<ParamSpec> {
-        specs
-            .into_iter()
-            .filter(|s| {
-                !HOLDABLE
-                    .iter()
-                    .zip(self.held)
-                    .any(|(name, held)| held && s.name == *name)
-            })
-            .collect()
+        specs.into_iter().filter(|s| !self.held.holds(s)).collect()
+    }
+
+    /// An omni robot's model ladder less the families held: a rung that lost parameters
+    /// is named for what is held, an empty rung and a rung the same as a simpler one go.
+    pub(super) fn unheld_ladder(
+        &self,
+        rungs: Vec<(&'static str, Vec<ParamSpec>)>,
+    ) -> Vec<(String, Vec<ParamSpec>)> {
+        let mut out: Vec<(String, Vec<ParamSpec>)> = Vec::new();
+        for (name, specs) in rungs {
+            let n = specs.len();
+            let kept = self.unheld(specs);
+            let same = |o: &(String, Vec<ParamSpec>)| {
+                o.1.iter().map(|s| &s.name).eq(kept.iter().map(|s| &s.name))
+            };
+            if kept.is_empty() || out.iter().any(same) {
+                continue;
+            }
+            let name = if kept.len() == n {
+                name.to_string()
+            } else {
+                format!("{name}, {} held", self.held.names().join(" and "))
+            };
+            out.push((name, kept));
+        }
+        out
     }
 
     pub(super) fn apply(&self, p: &mut Problem) {

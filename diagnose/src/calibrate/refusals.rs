@@ -5,7 +5,7 @@
 
 use crate::calibrate::error::CalibrateError;
 use crate::calibrate::options::CalOptions;
-use crate::calibrate::params::{ParamSpec, DIFF_EB_ARC_RANGE};
+use crate::calibrate::params::{GeomKind, ParamSpec, DIFF_EB_ARC_RANGE};
 use crate::calibrate::result::PerRecording;
 use calib_core::robot::{Robot, RobotKind};
 use formats::recording::Recording;
@@ -73,31 +73,7 @@ pub(super) fn check_inputs<R: std::borrow::Borrow<Recording>>(
         }
     }
     if !opts.hold.is_empty() {
-        use crate::calibrate::HOLDABLE;
-        if !matches!(robot.kind, RobotKind::DiffDrive | RobotKind::SkidSteer) {
-            return Err(CalibrateError {
-                recording: None,
-                message: "--hold is for differential-drive and skid-steer robots (scale, ed, eb); an omni robot's model is chosen by its ladder".into(),
-            });
-        }
-        if let Some(bad) = opts.hold.iter().find(|h| !HOLDABLE.contains(&h.as_str())) {
-            return Err(CalibrateError {
-                recording: None,
-                message: format!(
-                    "--hold {bad}: not a parameter that can be held (one of {})",
-                    HOLDABLE.join(", ")
-                ),
-            });
-        }
-        if HOLDABLE.iter().all(|n| opts.hold.iter().any(|h| h == n)) {
-            return Err(CalibrateError {
-                recording: None,
-                message: format!(
-                    "--hold {}: every parameter held leaves nothing to fit",
-                    HOLDABLE.join(" --hold ")
-                ),
-            });
-        }
+        hold_refusal(robot, opts)?;
     }
     if !opts.e_b_for.is_empty()
         && !matches!(robot.kind, RobotKind::DiffDrive | RobotKind::SkidSteer)
@@ -216,4 +192,63 @@ mod tests {
             None
         );
     }
+}
+
+/// `--hold`: names of the robot kind's list ([`HOLDABLE`] for a differential drive or
+/// skid-steer robot, [`OMNI_HOLDABLE`] for an omni robot), each a family the robot's
+/// models have, and something left to fit.
+fn hold_refusal(robot: &Robot, opts: &CalOptions) -> Result<(), CalibrateError> {
+    use crate::calibrate::options::Held;
+    use crate::calibrate::{ladder, HOLDABLE, OMNI_HOLDABLE};
+    let refuse = |message: String| {
+        Err(CalibrateError {
+            recording: None,
+            message,
+        })
+    };
+    let omni = robot.kind == RobotKind::Omni;
+    let names: &[&str] = if omni { &OMNI_HOLDABLE } else { &HOLDABLE };
+    let kind = if omni {
+        "an omni robot"
+    } else {
+        "a differential-drive or skid-steer robot"
+    };
+    if let Some(bad) = opts.hold.iter().find(|h| !names.contains(&h.as_str())) {
+        return refuse(format!(
+            "--hold {bad}: not a parameter that can be held on {kind} (one of {})",
+            names.join(", ")
+        ));
+    }
+    if !omni {
+        if HOLDABLE.iter().all(|n| opts.hold.iter().any(|h| h == n)) {
+            return refuse(format!(
+                "--hold {}: every parameter held leaves nothing to fit",
+                HOLDABLE.join(" --hold ")
+            ));
+        }
+        return Ok(());
+    }
+    let rungs = ladder(robot, opts.marker_offset);
+    for h in &opts.hold {
+        let one = Held::of(std::slice::from_ref(h));
+        if !rungs.iter().flat_map(|r| &r.1).any(|s| one.holds(s)) {
+            return refuse(format!(
+                "--hold {h}: this robot's models have no such parameter (its ladder: {})",
+                rungs.iter().map(|r| r.0).collect::<Vec<_>>().join("; ")
+            ));
+        }
+    }
+    let held = Held::of(&opts.hold);
+    if rungs
+        .iter()
+        .flat_map(|r| &r.1)
+        .filter(|s| !matches!(s.kind, GeomKind::MarkerX | GeomKind::MarkerY))
+        .all(|s| held.holds(s))
+    {
+        return refuse(format!(
+            "--hold {}: every family of this robot's models held leaves nothing to fit",
+            opts.hold.join(" --hold ")
+        ));
+    }
+    Ok(())
 }
