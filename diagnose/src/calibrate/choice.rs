@@ -869,7 +869,7 @@ mod tests {
             huber: None,
             dr_lever: DR_HEADING_LEVER_M,
             known_law: None,
-            held: [false; 3],
+            held: Default::default(),
         };
         let mut runs = 0;
         let (stepped, fits) = heldout_errors(&nominal, &models, &series, cfg, &mut runs);
