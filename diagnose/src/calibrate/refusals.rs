@@ -1,6 +1,6 @@
 //! What calibrate refuses to answer: inputs it cannot fit ([`check_inputs`]: a held-out
-//! recording that is also fitted, a turn law or a marker offset on a drive without one)
-//! and a fit that would be confident and wrong ([`refuse_bad_fit`]: a recording made
+//! recording that is also fitted, a turn law or a marker offset on a drive without one,
+//! `--hold` names the robot's models lack) and a fit that would be confident and wrong ([`refuse_bad_fit`]: a recording made
 //! several times worse than nominal, an uncertainty zero or infinite).
 
 use crate::calibrate::error::CalibrateError;
@@ -131,6 +131,65 @@ pub(super) fn refuse_bad_fit(
     Ok(())
 }
 
+/// `--hold`: names of the robot kind's list ([`HOLDABLE`] for a differential drive or
+/// skid-steer robot, [`OMNI_HOLDABLE`] for an omni robot), each a family the robot's
+/// models have, and something left to fit.
+fn hold_refusal(robot: &Robot, opts: &CalOptions) -> Result<(), CalibrateError> {
+    use crate::calibrate::options::Held;
+    use crate::calibrate::{ladder, HOLDABLE, OMNI_HOLDABLE};
+    let refuse = |message: String| {
+        Err(CalibrateError {
+            recording: None,
+            message,
+        })
+    };
+    let omni = robot.kind == RobotKind::Omni;
+    let names: &[&str] = if omni { &OMNI_HOLDABLE } else { &HOLDABLE };
+    let kind = if omni {
+        "an omni robot"
+    } else {
+        "a differential-drive or skid-steer robot"
+    };
+    if let Some(bad) = opts.hold.iter().find(|h| !names.contains(&h.as_str())) {
+        return refuse(format!(
+            "--hold {bad}: not a parameter that can be held on {kind} (one of {})",
+            names.join(", ")
+        ));
+    }
+    if !omni {
+        if HOLDABLE.iter().all(|n| opts.hold.iter().any(|h| h == n)) {
+            return refuse(format!(
+                "--hold {}: every parameter held leaves nothing to fit",
+                HOLDABLE.join(" --hold ")
+            ));
+        }
+        return Ok(());
+    }
+    let rungs = ladder(robot, opts.marker_offset);
+    for h in &opts.hold {
+        let one = Held::of(std::slice::from_ref(h));
+        if !rungs.iter().flat_map(|r| &r.1).any(|s| one.holds(s)) {
+            return refuse(format!(
+                "--hold {h}: this robot's models have no such parameter (its ladder: {})",
+                rungs.iter().map(|r| r.0).collect::<Vec<_>>().join("; ")
+            ));
+        }
+    }
+    let held = Held::of(&opts.hold);
+    if rungs
+        .iter()
+        .flat_map(|r| &r.1)
+        .filter(|s| !matches!(s.kind, GeomKind::MarkerX | GeomKind::MarkerY))
+        .all(|s| held.holds(s))
+    {
+        return refuse(format!(
+            "--hold {}: every family of this robot's models held leaves nothing to fit",
+            opts.hold.join(" --hold ")
+        ));
+    }
+    Ok(())
+}
+
 #[cfg(test)]
 mod tests {
     use super::*;
@@ -192,63 +251,4 @@ mod tests {
             None
         );
     }
-}
-
-/// `--hold`: names of the robot kind's list ([`HOLDABLE`] for a differential drive or
-/// skid-steer robot, [`OMNI_HOLDABLE`] for an omni robot), each a family the robot's
-/// models have, and something left to fit.
-fn hold_refusal(robot: &Robot, opts: &CalOptions) -> Result<(), CalibrateError> {
-    use crate::calibrate::options::Held;
-    use crate::calibrate::{ladder, HOLDABLE, OMNI_HOLDABLE};
-    let refuse = |message: String| {
-        Err(CalibrateError {
-            recording: None,
-            message,
-        })
-    };
-    let omni = robot.kind == RobotKind::Omni;
-    let names: &[&str] = if omni { &OMNI_HOLDABLE } else { &HOLDABLE };
-    let kind = if omni {
-        "an omni robot"
-    } else {
-        "a differential-drive or skid-steer robot"
-    };
-    if let Some(bad) = opts.hold.iter().find(|h| !names.contains(&h.as_str())) {
-        return refuse(format!(
-            "--hold {bad}: not a parameter that can be held on {kind} (one of {})",
-            names.join(", ")
-        ));
-    }
-    if !omni {
-        if HOLDABLE.iter().all(|n| opts.hold.iter().any(|h| h == n)) {
-            return refuse(format!(
-                "--hold {}: every parameter held leaves nothing to fit",
-                HOLDABLE.join(" --hold ")
-            ));
-        }
-        return Ok(());
-    }
-    let rungs = ladder(robot, opts.marker_offset);
-    for h in &opts.hold {
-        let one = Held::of(std::slice::from_ref(h));
-        if !rungs.iter().flat_map(|r| &r.1).any(|s| one.holds(s)) {
-            return refuse(format!(
-                "--hold {h}: this robot's models have no such parameter (its ladder: {})",
-                rungs.iter().map(|r| r.0).collect::<Vec<_>>().join("; ")
-            ));
-        }
-    }
-    let held = Held::of(&opts.hold);
-    if rungs
-        .iter()
-        .flat_map(|r| &r.1)
-        .filter(|s| !matches!(s.kind, GeomKind::MarkerX | GeomKind::MarkerY))
-        .all(|s| held.holds(s))
-    {
-        return refuse(format!(
-            "--hold {}: every family of this robot's models held leaves nothing to fit",
-            opts.hold.join(" --hold ")
-        ));
-    }
-    Ok(())
 }
