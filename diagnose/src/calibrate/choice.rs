@@ -7,7 +7,7 @@
 use crate::calibrate::options::Cfg;
 use crate::calibrate::params::{
     accel_law_specs, alike_priors, is_mecanum, ladder, param_specs, roller_specs, speed_law_specs,
-    turn_law_specs, GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
+    turn_law_specs, with_wheel_radius_range, GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
 };
 use crate::calibrate::pool::pool_map;
 use crate::calibrate::problem::Problem;
@@ -131,8 +131,8 @@ pub(super) fn choose_specs(
     if robot.kind == RobotKind::Omni && !cfg.free_start {
         return bic_ladder(robot, series, marker, cfg, notes, runs, prefit);
     }
-    let full = cfg.unheld(full);
-    let roller = cfg.unheld(roller_specs(robot, marker));
+    let full = cfg.unheld(with_wheel_radius_range(robot, full));
+    let roller = cfg.unheld(with_wheel_radius_range(robot, roller_specs(robot, marker)));
     if !is_mecanum(robot) || !roller.iter().any(|s| s.kind == GeomKind::Gamma) {
         return full;
     }
@@ -177,8 +177,13 @@ pub(super) fn choose_specs(
                 deg(sg)
             )
         };
+        let less = if cfg.held.any() {
+            format!(" (less the {} held)", cfg.held.names().join(" and "))
+        } else {
+            String::new()
+        };
         notes.push(format!(
-            "mecanum: {why}; per-wheel angles, distances and radii are fitted (in the kinematics a wheel's roller angle is a combination of them)"
+            "mecanum: {why}; per-wheel angles, distances and radii are fitted{less} (in the kinematics a wheel's roller angle is a combination of them)"
         ));
         full
     }
@@ -492,8 +497,8 @@ fn bic_ladder(
 }
 
 /// Notes what `--hold` keeps at the robot file's values and what is left to fit
-/// (`fitted`, the held parameters taken out; `None` on an omni robot, whose ladder
-/// climbs without them).
+/// (`fitted`, the held parameters taken out; `None` on an omni robot, whose models are
+/// fitted without them).
 fn held_note(cfg: Cfg, fitted: Option<&[ParamSpec]>, notes: &mut Vec<String>) {
     if !cfg.held.any() {
         return;
@@ -507,7 +512,7 @@ fn held_note(cfg: Cfg, fitted: Option<&[ParamSpec]>, notes: &mut Vec<String>) {
                 .collect::<Vec<_>>()
                 .join(", ")
         ),
-        None => "the model ladder climbs without them".into(),
+        None => "the models are fitted without them".into(),
     };
     notes.push(format!(
         "held at the robot file's values (--hold): {}; {rest}",
