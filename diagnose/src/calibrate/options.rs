@@ -67,17 +67,17 @@ pub const OMNI_HOLDABLE: [&str; 5] = ["radius", "distance", "angle", "roller", "
 pub(super) struct Held(u8);
 
 impl Held {
-    const NAMES: [&'static str; 8] = [
-        "scale", "ed", "eb", "radius", "distance", "angle", "roller", "centre",
-    ];
+    /// Every name, bit by bit.
+    fn all() -> impl Iterator<Item = &'static str> {
+        HOLDABLE.into_iter().chain(OMNI_HOLDABLE)
+    }
 
     /// The families named in `hold` (names of neither list are checked before).
     pub(super) fn of(hold: &[String]) -> Held {
         Held(
-            Self::NAMES
-                .iter()
+            Self::all()
                 .enumerate()
-                .filter(|(_, n)| hold.iter().any(|h| h == *n))
+                .filter(|(_, n)| hold.iter().any(|h| h == n))
                 .fold(0, |m, (i, _)| m | 1 << i),
         )
     }
@@ -89,11 +89,10 @@ impl Held {
 
     /// The held families' names.
     pub(super) fn names(self) -> Vec<&'static str> {
-        Self::NAMES
-            .iter()
+        Self::all()
             .enumerate()
             .filter(|(i, _)| self.0 & 1 << i != 0)
-            .map(|(_, n)| *n)
+            .map(|(_, n)| n)
             .collect()
     }
 
