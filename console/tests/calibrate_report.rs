@@ -546,7 +546,8 @@ fn a_log_of_driving_places_the_robot_files_e_b() {
 /// `--hold` through the binary: `--hold ed` on two squares leaves scale and eb in the
 /// JSON's `params`, the robot file's factors alike (c_L = c_R to the printed digits), and
 /// a note naming what was held; a name that is not a parameter is refused by the
-/// argument parser, naming the option, writing nothing.
+/// argument parser, and an omni robot's family (`radius`) by calibrate, each naming the
+/// option and writing nothing.
 #[test]
 fn a_held_parameter_is_not_fitted() {
     let dir = common::scratch("calibrate-hold");
@@ -584,4 +585,14 @@ fn a_held_parameter_is_not_fitted() {
     let err = String::from_utf8_lossy(&out.stderr);
     assert!(err.contains("--hold"), "{err}");
     assert!(!dir.join("bad.toml").exists());
+    // An omni robot's family on a differential drive: past the parser, refused by
+    // calibrate with the names this robot may hold.
+    let out = run("radius", &dir.join("omni.toml"));
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--hold radius") && err.contains("scale, ed, eb"),
+        "{err}"
+    );
+    assert!(!dir.join("omni.toml").exists());
 }
