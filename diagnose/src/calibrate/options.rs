@@ -186,14 +186,21 @@ impl Cfg {
     }
 
     /// An omni robot's model ladder less the families held: a rung that lost parameters
-    /// is named for what is held, an empty rung and a rung the same as a simpler one go.
+    /// is named for the held families it had, an empty rung and a rung the same as a
+    /// simpler one go.
     pub(super) fn unheld_ladder(
         &self,
         rungs: Vec<(&'static str, Vec<ParamSpec>)>,
     ) -> Vec<(String, Vec<ParamSpec>)> {
         let mut out: Vec<(String, Vec<ParamSpec>)> = Vec::new();
         for (name, specs) in rungs {
-            let n = specs.len();
+            // The held families this rung has: what its name must say it lost.
+            let lost: Vec<&str> = self
+                .held
+                .names()
+                .into_iter()
+                .filter(|&f| specs.iter().any(|s| Held::of(&[f.into()]).holds(s)))
+                .collect();
             let kept = self.unheld(specs);
             let same = |o: &(String, Vec<ParamSpec>)| {
                 o.1.iter().map(|s| &s.name).eq(kept.iter().map(|s| &s.name))
@@ -201,10 +208,10 @@ impl Cfg {
             if kept.is_empty() || out.iter().any(same) {
                 continue;
             }
-            let name = if kept.len() == n {
+            let name = if lost.is_empty() {
                 name.to_string()
             } else {
-                format!("{name}, {} held", self.held.names().join(" and "))
+                format!("{name}, {} held", lost.join(" and "))
             };
             out.push((name, kept));
         }
@@ -216,5 +223,44 @@ impl Cfg {
         p.huber = self.huber;
         p.dr_lever = self.dr_lever;
         p.known_law = self.law();
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::ladder;
+    use crate::calibrate::synth::robot;
+
+    /// The omni3's ladder with the distance and the centre held: the common-scale rung
+    /// keeps its name, the rung that had only the distance names the distance alone, the
+    /// centre rung (the same as the per-wheel radii rung once both go) goes, and every
+    /// remaining rung has one parameter fewer per held family it had.
+    #[test]
+    fn a_held_ladder_names_what_each_rung_lost() {
+        let omni3 = robot("omni3");
+        let cfg = Cfg {
+            free_start: false,
+            huber: None,
+            dr_lever: 0.1,
+            known_law: None,
+            held: Held::of(&["distance".into(), "centre".into()]),
+        };
+        let full = ladder(&omni3, false);
+        let held = cfg.unheld_ladder(full.clone());
+        let got: Vec<(&str, usize)> = held.iter().map(|(n, s)| (n.as_str(), s.len())).collect();
+        assert_eq!(
+            got,
+            [
+                ("common scale", 1),
+                (
+                    "per-wheel radii and a common wheel distance, distance held",
+                    3
+                ),
+                ("per-wheel radii, angles and distances, distance held", 6),
+            ],
+            "from {:?}",
+            full.iter().map(|r| (r.0, r.1.len())).collect::<Vec<_>>()
+        );
     }
 }
