@@ -24,9 +24,13 @@
 //! `--e-b-for`, the driving the robot file's E_b (or, with a speed law, its wheel size) is
 //! placed for;
 //! `--first-run`: train on each session's first square alone (the one-recording ladder,
-//! as the `one_square_keeps_a_model_that_transfers` test does).
+//! as the `one_square_keeps_a_model_that_transfers` test does);
+//! `--eb-scale F`: multiply the trained geometry's wheel distances (E_b) by F before the
+//! test runs, and print what that costs on the training squares themselves (each run
+//! dead-reckoned from its first pose, every pose sample: the mean change over the runs
+//! and its standard error), to show how well the squares pin E_b.
 
-use diagnose::calibrate::{calibrate, proxy, CalOptions};
+use diagnose::calibrate::{calibrate, dead_reckoning_rmse_law, proxy, CalOptions, Series};
 use std::path::PathBuf;
 
 fn main() {
@@ -139,10 +143,38 @@ fn main() {
                     e.recording, e.kind, e.t_s, e.duration_s, e.heading_rad
                 );
             }
-            if flag("--robot-file") {
-                return Ok((c.fitted_robot, Default::default()));
+            let (mut robot, law) = if flag("--robot-file") {
+                (c.fitted_robot, Default::default())
+            } else {
+                (c.law_base_robot, c.turn_law)
+            };
+            if let Some(f) = val("--eb-scale").and_then(|v| v.parse::<f64>().ok()) {
+                let mut wider = robot.clone();
+                for w in wider.wheels.iter_mut() {
+                    w.l_m *= f;
+                }
+                let d: Vec<f64> = recs
+                    .iter()
+                    .filter_map(|(name, rec)| {
+                        let s = Series::new(name, &robot, rec).ok()?;
+                        Some(
+                            dead_reckoning_rmse_law(&wider, &law, &s)?
+                                - dead_reckoning_rmse_law(&robot, &law, &s)?,
+                        )
+                    })
+                    .collect();
+                let n = d.len() as f64;
+                let mean = d.iter().sum::<f64>() / n;
+                let sd = (d.iter().map(|x| (x - mean).powi(2)).sum::<f64>() / (n - 1.0)).sqrt();
+                eprintln!(
+                    "  E_b x {f}: training squares' dead reckoning {:+.2} ± {:.2} mm (mean change over {} runs ± its standard error)",
+                    mean * 1e3,
+                    sd / n.sqrt() * 1e3,
+                    d.len()
+                );
+                robot = wider;
             }
-            Ok((c.law_base_robot, c.turn_law))
+            Ok((robot, law))
         },
     )
     .unwrap_or_else(|e| {
