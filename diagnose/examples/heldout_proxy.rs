@@ -148,7 +148,12 @@ fn main() {
             } else {
                 (c.law_base_robot, c.turn_law)
             };
-            if let Some(f) = val("--eb-scale").and_then(|v| v.parse::<f64>().ok()) {
+            if let Some(f) = val("--eb-scale").map(|v| {
+                v.parse::<f64>().ok().filter(|f| *f > 0.0).unwrap_or_else(|| {
+                    eprintln!("--eb-scale {v}: give a positive factor, e.g. 1.001");
+                    std::process::exit(2)
+                })
+            }) {
                 let mut wider = robot.clone();
                 for w in wider.wheels.iter_mut() {
                     w.l_m *= f;
