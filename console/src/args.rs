@@ -703,6 +703,12 @@ pub struct CalibrateArgs {
     /// cannot tell it from the wheel size.
     #[arg(long, value_name = "SPEED_REL", allow_negative_numbers = true)]
     pub speed_law: Option<f64>,
+    /// Hold the turn and speed laws an earlier calibration kept, as --turn-law and
+    /// --speed-law hold them: its JSON (the `--json` output), or a --report folder (its
+    /// calibration.json). Calibrate once on runs with arcs or at several speeds, then on
+    /// squares with this. A law the earlier calibration did not keep is tested as usual.
+    #[arg(long, value_name = "CALIBRATION", conflicts_with_all = ["turn_law", "speed_law"])]
+    pub laws_from: Option<PathBuf>,
     /// A log of the driving the robot file and ros2.yaml are for (as --recording: a file,
     /// a run folder, a directory of them or a bag; repeatable; only the encoders are
     /// read). With a turn law, which neither can apply, their one E_b is then the constant

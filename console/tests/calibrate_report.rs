@@ -596,3 +596,103 @@ fn a_held_parameter_is_not_fitted() {
     );
     assert!(!dir.join("omni.toml").exists());
 }
+
+/// `--laws-from` through the binary: the laws of an earlier calibration's JSON (its
+/// `--json` output, or a `--report` folder) are held as `--turn-law` and `--speed-law` hold
+/// them: the same law values to the last digit, the same fit to the last digit, a note
+/// naming the file. A file that is not JSON is refused naming its line and column, one
+/// without `turn_law` or of another kind of robot naming what is wrong, and the option
+/// beside `--turn-law` by the parser; none writes a robot file.
+#[test]
+fn laws_from_an_earlier_calibration_are_held() {
+    let dir = common::scratch("calibrate-laws-from");
+    let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
+    let args = two_squares(&dir, &nominal);
+    let earlier = calibrate_mobolab(
+        &args,
+        &[
+            "--turn-law".as_ref(),
+            "0.004".as_ref(),
+            "--speed-law".as_ref(),
+            "-0.05".as_ref(),
+            "--report".as_ref(),
+            dir.join("earlier").as_os_str(),
+        ],
+        &dir.join("earlier.toml"),
+    );
+    assert!(
+        earlier.status.success(),
+        "{}",
+        String::from_utf8_lossy(&earlier.stderr)
+    );
+    std::fs::write(dir.join("earlier.json"), &earlier.stdout).unwrap();
+    let a: serde_json::Value = serde_json::from_slice(&earlier.stdout).unwrap();
+    let from = |what: &Path, out: &Path| {
+        calibrate_mobolab(&args, &["--laws-from".as_ref(), what.as_os_str()], out)
+    };
+    for source in [dir.join("earlier.json"), dir.join("earlier")] {
+        let out = from(&source, &dir.join("later.toml"));
+        assert!(
+            out.status.success(),
+            "{}",
+            String::from_utf8_lossy(&out.stderr)
+        );
+        let b: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+        assert_eq!(b["turn_law"]["arc_rel"].as_f64(), Some(0.004));
+        assert_eq!(b["turn_law"]["speed_rel"].as_f64(), Some(-0.05));
+        assert_eq!(b["params"], a["params"]);
+        assert_eq!(b["factors"], a["factors"]);
+        let notes = b["notes"].as_array().unwrap();
+        assert!(
+            notes.iter().any(|n| {
+                let n = n.as_str().unwrap();
+                n.starts_with("laws from ") && n.contains("+0.004") && n.contains("-0.05")
+            }),
+            "{notes:?}"
+        );
+    }
+    let refused = |name: &str, text: &str, wants: &[&str]| {
+        let file = dir.join(name);
+        std::fs::write(&file, text).unwrap();
+        let out_toml = dir.join(format!("{name}.toml"));
+        let out = from(&file, &out_toml);
+        assert!(!out.status.success(), "{name} was taken");
+        let err = String::from_utf8_lossy(&out.stderr);
+        for w in wants {
+            assert!(err.contains(w), "{name}: wants {w:?} in {err}");
+        }
+        assert!(!out_toml.exists());
+    };
+    refused(
+        "broken.json",
+        "{\"kind\": \"diff_drive\",\n \"turn_law\": {\"arc_rel\": 0.004,}}\n",
+        &["broken.json:2:", "not a calibration's JSON"],
+    );
+    refused(
+        "nolaw.json",
+        "{\"kind\": \"diff_drive\"}",
+        &["nolaw.json", "turn_law"],
+    );
+    refused(
+        "omni.json",
+        "{\"kind\": \"omni\", \"robot\": \"x\", \"turn_law\": {\"arc_rel\": 0.0, \"speed_rel\": 0.0}}",
+        &["omni.json", "omni", "diff_drive"],
+    );
+    let out = calibrate_mobolab(
+        &args,
+        &[
+            "--laws-from".as_ref(),
+            dir.join("earlier.json").as_os_str(),
+            "--turn-law".as_ref(),
+            "0.001".as_ref(),
+        ],
+        &dir.join("both.toml"),
+    );
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--laws-from") && err.contains("--turn-law"),
+        "{err}"
+    );
+    assert!(!dir.join("both.toml").exists());
+}

@@ -175,6 +175,10 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
             driving_paths.push(f);
         }
     }
+    let known = match &a.laws_from {
+        Some(p) => Some(laws_from(p, &robot)?),
+        None => None,
+    };
     let cv = a.cv.as_deref().and_then(CvBy::parse);
     let opts = CalOptions {
         leave_one_out: !a.no_cross_validation && cv.is_none(),
@@ -183,12 +187,12 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         robust: a.robust,
         cv: if a.no_cross_validation { None } else { cv },
         heading_lever_m: a.heading_lever,
-        turn_law: a.turn_law,
-        speed_law: a.speed_law,
+        turn_law: known.as_ref().map_or(a.turn_law, |k| k.turn),
+        speed_law: known.as_ref().map_or(a.speed_law, |k| k.speed),
         e_b_for: driving,
         hold: a.hold.clone(),
     };
-    let cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|mut e| {
+    let mut cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|mut e| {
         // Name the file, not only the short name; the error stays the calibration's.
         let file = e
             .recording
@@ -214,6 +218,9 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         }
         e
     })?;
+    if let Some(k) = known {
+        cal.notes.insert(0, k.note);
+    }
     if let Some(p) = &a.write_robot {
         formats::safe_write::write_file(
             p,
@@ -230,6 +237,68 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         out.note(&format!("report: {}", dir.display()));
     }
     out.emit(&cal, || human(&cal))
+}
+
+/// The laws `--laws-from` holds: an earlier calibration's kept turn and speed laws (a
+/// zero is a law it did not keep: `None`, tested here as usual), and a note saying where
+/// they came from.
+struct KnownLaws {
+    turn: Option<f64>,
+    speed: Option<f64>,
+    note: String,
+}
+
+/// Reads `--laws-from`: a calibration's JSON, or a `--report` folder holding one.
+/// Refused, naming the file: unreadable, not JSON (with its line and column), without
+/// `turn_law`'s numbers, or a calibration of another kind of robot than `robot`.
+fn laws_from(path: &Path, robot: &Robot) -> Result<KnownLaws> {
+    let file = if path.is_dir() {
+        path.join("calibration.json")
+    } else {
+        path.to_path_buf()
+    };
+    let shown = file.display();
+    let text = std::fs::read_to_string(&file)
+        .with_context(|| format!("--laws-from: cannot read {shown}"))?;
+    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
+        anyhow::anyhow!(
+            "{shown}:{}:{}: not a calibration's JSON (--laws-from takes calibrate's --json output or a --report folder): {e}",
+            e.line(),
+            e.column()
+        )
+    })?;
+    let kind = v["kind"].as_str().unwrap_or("unknown");
+    if kind != robot.kind.as_str() {
+        bail!(
+            "{shown}: a calibration of a {kind} robot ('{}'); --robot '{}' is a {}: --laws-from takes the laws of the same kind of robot",
+            v["robot"].as_str().unwrap_or("?"),
+            robot.name,
+            robot.kind.as_str()
+        );
+    }
+    let law = |k: &str| v["turn_law"][k].as_f64();
+    let (Some(arc), Some(speed)) = (law("arc_rel"), law("speed_rel")) else {
+        bail!(
+            "{shown}: no turn_law.arc_rel and turn_law.speed_rel numbers: --laws-from takes calibrate's --json output or a --report folder"
+        );
+    };
+    let said = |v: f64, unit: &str| {
+        if v == 0.0 {
+            "not kept there, tested here".to_string()
+        } else {
+            format!("{v:+}{unit}, held")
+        }
+    };
+    Ok(KnownLaws {
+        turn: (arc != 0.0).then_some(arc),
+        speed: (speed != 0.0).then_some(speed),
+        note: format!(
+            "laws from {shown} (robot '{}'): turn law eb_arc / eb {}; speed law {}",
+            v["robot"].as_str().unwrap_or("?"),
+            said(arc, ""),
+            said(speed, " per m/s")
+        ),
+    })
 }
 
 fn ros2_yaml(cal: &Calibration) -> Option<String> {
@@ -355,6 +424,7 @@ mod tests {
             heading_lever: None,
             turn_law: None,
             speed_law: None,
+            laws_from: None,
             e_b_for: Vec::new(),
             hold: Vec::new(),
             bag: default_bag_flags(),

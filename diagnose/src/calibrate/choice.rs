@@ -572,14 +572,14 @@ fn choose_turn_law(
     if let Some(known) = cfg.known_law {
         if known.arc_rel != 0.0 {
             notes.push(format!(
-                "turn law: given (--turn-law), held at eb_arc/eb {:+.4}: the separation on arcs is {:.2} % wider than in a turn in place; the geometry is fitted with it",
+                "turn law: given (--turn-law or --laws-from), held at eb_arc/eb {:+.4}: the separation on arcs is {:.2} % wider than in a turn in place; the geometry is fitted with it",
                 known.arc_rel,
                 known.arc_rel * 100.0
             ));
         }
         if known.speed_rel != 0.0 {
             notes.push(format!(
-                "speed law: given (--speed-law), held at speed_rel {:+.4} per m/s: at 0.5 m/s a wheel rolls {:+.1} % further than at a crawl; the geometry (the wheel size at standstill) is fitted with it",
+                "speed law: given (--speed-law or --laws-from), held at speed_rel {:+.4} per m/s: at 0.5 m/s a wheel rolls {:+.1} % further than at a crawl; the geometry (the wheel size at standstill) is fitted with it",
                 known.speed_rel,
                 known.speed_rel * 50.0
             ));
