@@ -7,7 +7,7 @@
 use crate::calibrate::options::Cfg;
 use crate::calibrate::params::{
     accel_law_specs, alike_priors, is_mecanum, ladder, param_specs, roller_specs, speed_law_specs,
-    turn_law_specs, with_wheel_radius_range, GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
+    turn_law_specs, with_one_recording_radius_range, GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
 };
 use crate::calibrate::pool::pool_map;
 use crate::calibrate::problem::Problem;
@@ -131,8 +131,11 @@ pub(super) fn choose_specs(
     if robot.kind == RobotKind::Omni && !cfg.free_start {
         return bic_ladder(robot, series, marker, cfg, notes, runs, prefit);
     }
-    let full = cfg.unheld(with_wheel_radius_range(robot, full));
-    let roller = cfg.unheld(with_wheel_radius_range(robot, roller_specs(robot, marker)));
+    let full = cfg.unheld(with_one_recording_radius_range(robot, full));
+    let roller = cfg.unheld(with_one_recording_radius_range(
+        robot,
+        roller_specs(robot, marker),
+    ));
     if !is_mecanum(robot) || !roller.iter().any(|s| s.kind == GeomKind::Gamma) {
         return full;
     }
@@ -430,7 +433,11 @@ fn bic_ladder(
     runs: &mut usize,
     prefit: &mut Option<Prefit>,
 ) -> Vec<ParamSpec> {
-    let rungs = cfg.unheld_ladder(ladder(robot, marker));
+    let rungs: Vec<_> = cfg
+        .unheld_ladder(ladder(robot, marker))
+        .into_iter()
+        .map(|(name, specs)| (name, with_one_recording_radius_range(robot, specs)))
+        .collect();
     let all = refs(series);
     let mut fits: Vec<Fit> = pool_map(&rungs, |(_, specs)| {
         fit_specs(robot, specs, &all, cfg, false)
