@@ -620,6 +620,46 @@ fn diagnose_names_a_mean_wheel_scale() {
     assert!(rep.implausible.is_empty());
 }
 
+/// The mobolab robot with scale 0.99, E_d 1.006 and E_b 1.03 (the nominal robot, the
+/// truth) driven around a clockwise and a counter-clockwise 1 m square (seeds 3 and 4),
+/// named `Cw` and `Ccw`: the clean recordings the event tests spoil.
+fn two_clean_squares() -> (Robot, [f64; 3], Vec<(String, Recording)>) {
+    let nominal = robot("mobolab");
+    let specs = param_specs(&nominal, false);
+    let truth = [0.99, 1.006, 1.03];
+    let actual = robot_with(&nominal, &specs, &truth);
+    let clean = [Direction::Cw, Direction::Ccw]
+        .into_iter()
+        .enumerate()
+        .map(|(i, d)| (format!("{d:?}"), square(&actual, d, 3 + i as u64).recording))
+        .collect();
+    (nominal, truth, clean)
+}
+
+/// Issue 21: an event must not bend the geometry. Every parameter of `c` (fitted with
+/// `event` in the recordings) within one sigma of the clean fit `c0`; the shifts printed
+/// in sigmas.
+fn assert_within_clean_sigma(c: &Calibration, c0: &Calibration, event: &str) {
+    for (p, p0) in c.params.iter().zip(&c0.params) {
+        println!(
+            "{}: {:.5} with {event}, {:.5} ± {:.5} clean: {:.2} sigma",
+            p.spec.name,
+            p.value,
+            p0.value,
+            p0.sigma,
+            (p.value - p0.value).abs() / p0.sigma
+        );
+        assert!(
+            (p.value - p0.value).abs() <= p0.sigma,
+            "{}: {} with {event}, {} ± {} clean",
+            p.spec.name,
+            p.value,
+            p0.value,
+            p0.sigma
+        );
+    }
+}
+
 /// The recording with motion capture turned by `dth` (rad) about the pose at row `k`
 /// from then on, ramped in over `ramp` rows: the robot turned where its encoders say it
 /// did not (a wheel slipped), as run 02 of the real square 231220200029 starts.
@@ -644,15 +684,7 @@ fn with_slip(rec: &Recording, k: usize, ramp: usize, dth: f64) -> Recording {
 /// would bend eb and ed to explain it).
 #[test]
 fn slip_at_start_is_reported_and_does_not_bend_the_geometry() {
-    let nominal = robot("mobolab");
-    let specs = param_specs(&nominal, false);
-    let truth = [0.99, 1.006, 1.03];
-    let actual = robot_with(&nominal, &specs, &truth);
-    let clean: Vec<(String, Recording)> = [Direction::Cw, Direction::Ccw]
-        .into_iter()
-        .enumerate()
-        .map(|(i, d)| (format!("{d:?}"), square(&actual, d, 3 + i as u64).recording))
-        .collect();
+    let (nominal, truth, clean) = two_clean_squares();
     let c0 = calibrate(&nominal, &clean, None, &CalOptions::default()).unwrap();
     assert!(c0.events.is_empty(), "{:?}", c0.events);
     let mut slipped = clean.clone();
@@ -678,24 +710,7 @@ fn slip_at_start_is_reported_and_does_not_bend_the_geometry() {
     // 0.99037 ± 0.00025 clean, truth 0.99). And every parameter within 4 sigma of the
     // truth.
     assert_recovered(&c, &truth, 1e-3);
-    for (p, p0) in c.params.iter().zip(&c0.params) {
-        println!(
-            "{}: {:.5} with the slip, {:.5} ± {:.5} clean: {:.2} sigma",
-            p.spec.name,
-            p.value,
-            p0.value,
-            p0.sigma,
-            (p.value - p0.value).abs() / p0.sigma
-        );
-        assert!(
-            (p.value - p0.value).abs() <= p0.sigma,
-            "{}: {} with the slip, {} ± {} without",
-            p.spec.name,
-            p.value,
-            p0.value,
-            p0.sigma
-        );
-    }
+    assert_within_clean_sigma(&c, &c0, "the slip");
 }
 
 /// `rec` with motion capture `lead` rows ahead of the encoders through every turn
@@ -735,15 +750,7 @@ fn with_turn_lead(rec: &Recording, lead: usize) -> Recording {
 /// ed 0.11, eb 0.50 sigma, eb narrower as a lead through the turns asks).
 #[test]
 fn a_clock_lead_through_turns_is_reported_and_does_not_bend_the_geometry() {
-    let nominal = robot("mobolab");
-    let specs = param_specs(&nominal, false);
-    let truth = [0.99, 1.006, 1.03];
-    let actual = robot_with(&nominal, &specs, &truth);
-    let clean: Vec<(String, Recording)> = [Direction::Cw, Direction::Ccw]
-        .into_iter()
-        .enumerate()
-        .map(|(i, d)| (format!("{d:?}"), square(&actual, d, 3 + i as u64).recording))
-        .collect();
+    let (nominal, truth, clean) = two_clean_squares();
     let c0 = calibrate(&nominal, &clean, None, &CalOptions::default()).unwrap();
     // 50 Hz rows: 5 rows are 0.1 s.
     let led: Vec<(String, Recording)> = clean
@@ -764,24 +771,7 @@ fn a_clock_lead_through_turns_is_reported_and_does_not_bend_the_geometry() {
         assert!((0.08..0.125).contains(&e.heading_rad.abs()), "{e:?}");
     }
     assert_recovered(&c, &truth, 1e-3);
-    for (p, p0) in c.params.iter().zip(&c0.params) {
-        println!(
-            "{}: {:.5} with the lead, {:.5} ± {:.5} clean: {:.2} sigma",
-            p.spec.name,
-            p.value,
-            p0.value,
-            p0.sigma,
-            (p.value - p0.value).abs() / p0.sigma
-        );
-        assert!(
-            (p.value - p0.value).abs() <= p0.sigma,
-            "{}: {} with the lead, {} ± {} without",
-            p.spec.name,
-            p.value,
-            p0.value,
-            p0.sigma
-        );
-    }
+    assert_within_clean_sigma(&c, &c0, "the lead");
 }
 
 /// Issue 23 §4: one motion-capture sample 2 m off and one encoder glitch of 1e12 counts
@@ -789,15 +779,7 @@ fn a_clock_lead_through_turns_is_reported_and_does_not_bend_the_geometry() {
 /// uncertainty of the clean fit.
 #[test]
 fn single_sample_glitches_are_reported_not_fitted() {
-    let nominal = robot("mobolab");
-    let specs = param_specs(&nominal, false);
-    let truth = [0.99, 1.006, 1.03];
-    let actual = robot_with(&nominal, &specs, &truth);
-    let clean: Vec<(String, Recording)> = [Direction::Cw, Direction::Ccw]
-        .into_iter()
-        .enumerate()
-        .map(|(i, d)| (format!("{d:?}"), square(&actual, d, 3 + i as u64).recording))
-        .collect();
+    let (nominal, _, clean) = two_clean_squares();
     let c0 = calibrate(&nominal, &clean, None, &CalOptions::default()).unwrap();
     let mut bad = clean.clone();
     let k = bad[1]
@@ -834,16 +816,7 @@ fn single_sample_glitches_are_reported_not_fitted() {
         encs.iter().any(|e| (e.t_s - row_t).abs() < 1e-9),
         "{encs:?}"
     );
-    for (p, p0) in c.params.iter().zip(&c0.params) {
-        assert!(
-            (p.value - p0.value).abs() <= p0.sigma,
-            "{}: {} with the glitches, {} ± {} clean",
-            p.spec.name,
-            p.value,
-            p0.value,
-            p0.sigma
-        );
-    }
+    assert_within_clean_sigma(&c, &c0, "the glitches");
 }
 
 /// Three 40 s runs of free motion of `truth`, seeds from `seed`.
