@@ -601,8 +601,9 @@ fn a_held_parameter_is_not_fitted() {
 /// `--json` output, or a `--report` folder) are held as `--turn-law` and `--speed-law` hold
 /// them: the same law values to the last digit, the same fit to the last digit, a note
 /// naming the file. A file that is not JSON is refused naming its line and column, one
-/// without `turn_law` or of another kind of robot naming what is wrong, and the option
-/// beside `--turn-law` by the parser; none writes a robot file.
+/// without `turn_law` or of another kind of robot naming what is wrong, the option
+/// beside `--turn-law` by the parser, and on a robot that is not a differential drive
+/// before any recording is read; none writes a robot file.
 #[test]
 fn laws_from_an_earlier_calibration_are_held() {
     let dir = common::scratch("calibrate-laws-from");
@@ -695,4 +696,23 @@ fn laws_from_an_earlier_calibration_are_held() {
         "{err}"
     );
     assert!(!dir.join("both.toml").exists());
+    // A robot that is not a differential drive, before any recording is read (these are
+    // the mobolab's).
+    let out = common::wheelcal()
+        .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
+        .arg(common::robot("omni3"))
+        .args(&args)
+        .arg("--laws-from")
+        .arg(dir.join("earlier.json"))
+        .arg("--write-robot")
+        .arg(dir.join("omni3.toml"))
+        .output()
+        .unwrap();
+    assert!(!out.status.success());
+    let err = String::from_utf8_lossy(&out.stderr);
+    assert!(
+        err.contains("--laws-from") && err.contains("kind omni"),
+        "{err}"
+    );
+    assert!(!dir.join("omni3.toml").exists());
 }

@@ -108,6 +108,11 @@ fn refuse_mixed_robots(robot: &Robot, recs: &[(&Path, &Recording)]) -> Result<()
 /// Runs `wheelcal calibrate`: fits the robot's geometry to the recordings and prints or writes the result.
 pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
     let robot = robot_file::load(&a.robot)?;
+    // Before any recording is read: a bad --laws-from costs nothing.
+    let known = match &a.laws_from {
+        Some(p) => Some(laws_from(p, &robot)?),
+        None => None,
+    };
     let mut recs = Vec::new();
     let mut paths: Vec<PathBuf> = Vec::new();
     for p in &a.recording {
@@ -175,10 +180,6 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
             driving_paths.push(f);
         }
     }
-    let known = match &a.laws_from {
-        Some(p) => Some(laws_from(p, &robot)?),
-        None => None,
-    };
     let cv = a.cv.as_deref().and_then(CvBy::parse);
     let opts = CalOptions {
         leave_one_out: !a.no_cross_validation && cv.is_none(),
@@ -249,9 +250,17 @@ struct KnownLaws {
 }
 
 /// Reads `--laws-from`: a calibration's JSON, or a `--report` folder holding one.
-/// Refused, naming the file: unreadable, not JSON (with its line and column), without
-/// `turn_law`'s numbers, or a calibration of another kind of robot than `robot`.
+/// Refused: a robot other than a differential drive; naming the file, unreadable, not
+/// JSON (with its line and column), without `turn_law`'s numbers, or a calibration of
+/// another kind of robot than `robot`.
 fn laws_from(path: &Path, robot: &Robot) -> Result<KnownLaws> {
+    if robot.kind != calib_core::robot::RobotKind::DiffDrive {
+        bail!(
+            "--laws-from: known turn and speed laws are for differential drives; --robot '{}' is of kind {} (a skid-steer robot's turn law is fitted from its recordings)",
+            robot.name,
+            robot.kind.as_str()
+        );
+    }
     let file = if path.is_dir() {
         path.join("calibration.json")
     } else {
