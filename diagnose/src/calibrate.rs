@@ -89,8 +89,8 @@ use problem::Problem;
 use refusals::{check_inputs, refuse_bad_fit};
 use series::NUIS;
 use solve::{
-    aligned_rmse, correlations, covariance, noise_scale, nuisance_start, refs, reweighed, solve,
-    solve_iter, OneStep, Solved,
+    aligned_rmse, correlations, covariance, noise_scale, nuisance_start, posterior_covariance,
+    refs, reweighed, solve, solve_iter, OneStep, Solved,
 };
 
 /// |correlation| above which two parameters are reported not separable.
@@ -605,6 +605,14 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         }));
     }
 
+    let loose = |i: usize, s: &ParamSpec| {
+        cov[(i, i)].max(0.0).sqrt() > s.plausible.1 - s.plausible.0 || !cov[(i, i)].is_finite()
+    };
+    let posterior = specs
+        .iter()
+        .enumerate()
+        .any(|(i, s)| loose(i, s))
+        .then(|| posterior_covariance(&p, &fitted));
     let params: Vec<FittedParam> = specs
         .iter()
         .enumerate()
@@ -612,6 +620,10 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             spec: s.clone(),
             value: fitted.geom[i],
             sigma: cov[(i, i)].max(0.0).sqrt(),
+            sigma_with_priors: posterior
+                .as_ref()
+                .filter(|_| loose(i, s))
+                .map(|c| c[(i, i)].max(0.0).sqrt()),
         })
         .collect();
     let mut implausible = implausible;

@@ -20,6 +20,11 @@ pub struct FittedParam {
     pub value: f64,
     /// One standard deviation, residual autocorrelation counted.
     pub sigma: f64,
+    /// When the data alone do not fix it ([`FittedParam::sigma_exceeds_range`]): its
+    /// standard deviation with the priors the fit used (the plausible range, and alike
+    /// wheels held alike), on which the directions the data leave free rest.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_with_priors: Option<f64>,
 }
 
 impl FittedParam {
@@ -40,8 +45,12 @@ fn param_line(p: &FittedParam, implausible: bool) -> String {
     };
     let value = if p.sigma_exceeds_range() {
         // The figure is in the JSON; printed it reads as a +-795 % error.
+        let priors = p
+            .sigma_with_priors
+            .map(|s| format!("; ± {s:.5} with the priors the fit used"))
+            .unwrap_or_default();
         format!(
-            "{:.5} (not fixed by the data: its sigma is wider than the plausible range)",
+            "{:.5} (not fixed by the data: its sigma is wider than the plausible range{priors})",
             p.value
         )
     } else {
@@ -706,6 +715,7 @@ mod tests {
             },
             value: 1.10198,
             sigma,
+            sigma_with_priors: None,
         }
     }
 
@@ -727,6 +737,17 @@ mod tests {
             "{edge}"
         );
         assert!(param(0.31).sigma_exceeds_range() && !param(0.29).sigma_exceeds_range());
+        // With the sigma the priors give (the wheels held alike), the line says it too.
+        let held = FittedParam {
+            sigma_with_priors: Some(0.00812),
+            ..param(7.95184)
+        };
+        let line = param_line(&held, false);
+        assert!(
+            line.contains("not fixed by the data") && line.contains("± 0.00812 with the priors"),
+            "{line}"
+        );
+        assert!(!line.contains("7.95"), "{line}");
     }
 
     /// The column means of a hand-made table, each the sum of three values over 3 (a

@@ -457,6 +457,18 @@ fn autocorrelation_inflation(p: &Problem, s: &Solved) -> f64 {
 /// shows as one), scaled by the residual variance and the autocorrelation inflation
 /// (returned).
 pub(super) fn covariance(p: &Problem, s: &Solved) -> (DMatrix<f64>, f64) {
+    covariance_with_priors(p, s, 1e-6)
+}
+
+/// [`covariance`] with the priors at the weight the fit gave them (the plausibility prior
+/// and the wheels-alike prior, each one sigma against the residuals' variance): what the
+/// fitted values' spread is, directions the data leave free resting on the priors.
+pub(super) fn posterior_covariance(p: &Problem, s: &Solved) -> DMatrix<f64> {
+    covariance_with_priors(p, s, 1.0).0
+}
+
+/// The covariance with the priors' information scaled by `weight`.
+fn covariance_with_priors(p: &Problem, s: &Solved, weight: f64) -> (DMatrix<f64>, f64) {
     let m = s.jac.nrows();
     let np = s.jac.ncols();
     let g = p.specs.len();
@@ -467,7 +479,7 @@ pub(super) fn covariance(p: &Problem, s: &Solved) -> (DMatrix<f64>, f64) {
     for (w, _, sigma) in &p.priors {
         for a in 0..g {
             for b in 0..g {
-                info[(a, b)] += w[a] * w[b] / (sigma * sigma) * 1e-6 * s2 * inflation;
+                info[(a, b)] += w[a] * w[b] / (sigma * sigma) * weight * s2 * inflation;
             }
         }
     }
