@@ -415,9 +415,9 @@ fn mecanum_squares_transfer_to_other_sessions() {
     for c in &fits.into_inner() {
         println!("{c}");
         assert_plausible_and_alike(c);
-        // A parameter the data alone leave free (the 12 per-wheel numbers of 080920201810:
-        // motion shows at most 9, squares fewer) gives its spread with the priors the fit
-        // used: a wheel
+        // A parameter the data alone leave free (none since the six-parameter rung; the
+        // 12 per-wheel numbers 080920201810 kept before it: motion shows at most 9,
+        // squares fewer) gives its spread with the priors the fit used: a wheel
         // held to the wheels' mean within ALIKE_SCALE (1 %) or ALIKE_ANGLE (1 degree), the
         // mean fixed by the data far better, so at most twice the alike sigma.
         for p in c.params.iter().filter(|p| p.sigma_exceeds_range()) {
