@@ -445,12 +445,7 @@ fn mecanum_unequal_wheels_with_steeper_rollers_keep_radii_distance_and_roller() 
         "per-wheel radii, a common wheel distance and one roller angle",
     );
     assert!(c.implausible.is_empty(), "{:?}", c.implausible);
-    let get = |name: &str| {
-        c.params
-            .iter()
-            .find(|p| p.spec.name == name)
-            .unwrap_or_else(|| panic!("no {name}\n{c}"))
-    };
+    let get = |name: &str| param(&c, name);
     for (i, want) in radii.iter().enumerate() {
         let p = get(&format!("radius_scale_{}", nominal.wheels[i].name));
         assert!(
@@ -489,12 +484,7 @@ fn mecanum_lateral_and_longitudinal_scales_are_a_three_parameter_rung() {
     println!("{c}");
     assert_kept(&c, "common scale, wheel distance and roller angle");
     assert!(c.implausible.is_empty(), "{:?}", c.implausible);
-    let get = |name: &str| {
-        c.params
-            .iter()
-            .find(|p| p.spec.name == name)
-            .unwrap_or_else(|| panic!("no {name}\n{c}"))
-    };
+    let get = |name: &str| param(&c, name);
     let (s, l, g) = (get("scale"), get("l_scale"), get("roller_angle_offset_rad"));
     assert!((s.value - 1.03).abs() <= 4.0 * s.sigma + 1e-3, "{c}");
     assert!((l.value - 0.98).abs() <= 4.0 * l.sigma + 1e-3, "{c}");
@@ -898,6 +888,14 @@ fn free_runs(truth: &Robot, seed: u64) -> Vec<(String, Recording)> {
     (0..3)
         .map(|i| (format!("run{i}"), random(truth, 40.0, seed + i).recording))
         .collect()
+}
+
+/// The fitted parameter `name` of `c` (a panic naming it, with the report, when absent).
+fn param<'a>(c: &'a Calibration, name: &str) -> &'a diagnose::calibrate::FittedParam {
+    c.params
+        .iter()
+        .find(|p| p.spec.name == name)
+        .unwrap_or_else(|| panic!("no {name}\n{c}"))
 }
 
 /// Asserts that the model ladder kept the rung named `rung`.
