@@ -524,8 +524,8 @@ pub(super) fn advice(a: &ParamSpec, b: &ParamSpec) -> String {
 }
 
 /// A mecanum wheel's effective radius: the rollers' contact moves with the direction of
-/// travel, and real mecanum robots dead-reckon with radii 5-15 % off the hub's (the
-/// real mecanum squares want 67 mm on a 60 mm wheel; whole sessions fit up to 1.147).
+/// travel, and real mecanum robots dead-reckon with radii 5-16 % off the hub's (the
+/// real mecanum squares want 67 mm on a 60 mm wheel; whole sessions fit up to 1.161).
 pub const MECANUM_RADIUS_RANGE: f64 = 0.20;
 /// A mecanum wheel's effective radius fitted on one recording (the BIC ladder, and
 /// `--free-start`'s models there): the narrower range of before. One square cannot tell
