@@ -605,27 +605,25 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         }));
     }
 
-    let loose = |i: usize, s: &ParamSpec| {
-        cov[(i, i)].max(0.0).sqrt() > s.plausible.1 - s.plausible.0 || !cov[(i, i)].is_finite()
-    };
-    let posterior = specs
-        .iter()
-        .enumerate()
-        .any(|(i, s)| loose(i, s))
-        .then(|| posterior_covariance(&p, &fitted));
-    let params: Vec<FittedParam> = specs
+    let mut params: Vec<FittedParam> = specs
         .iter()
         .enumerate()
         .map(|(i, s)| FittedParam {
             spec: s.clone(),
             value: fitted.geom[i],
             sigma: cov[(i, i)].max(0.0).sqrt(),
-            sigma_with_priors: posterior
-                .as_ref()
-                .filter(|_| loose(i, s))
-                .map(|c| c[(i, i)].max(0.0).sqrt()),
+            sigma_with_priors: None,
         })
         .collect();
+    // What the data alone leave free rests on the priors: its spread with them.
+    if params.iter().any(FittedParam::sigma_exceeds_range) {
+        let post = posterior_covariance(&p, &fitted);
+        for (i, q) in params.iter_mut().enumerate() {
+            if q.sigma_exceeds_range() {
+                q.sigma_with_priors = Some(post[(i, i)].max(0.0).sqrt());
+            }
+        }
+    }
     let mut implausible = implausible;
     for pr in &per_recording {
         let nu = pr.nuisance;

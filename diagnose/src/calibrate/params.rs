@@ -535,7 +535,7 @@ pub const MECANUM_RADIUS_RANGE: f64 = 0.20;
 /// the authors with this range and 1.658 with [`MECANUM_RADIUS_RANGE`].
 pub const MECANUM_RADIUS_RANGE_ONE_RECORDING: f64 = 0.15;
 
-/// `specs` with a mecanum robot's per-wheel radii given [`MECANUM_RADIUS_RANGE`] (the
+/// `specs` with a mecanum robot's wheel sizes given [`MECANUM_RADIUS_RANGE`] (the
 /// ladder's models); unchanged on other robots. [`param_specs`] keeps a tyre's range for
 /// them: the first fit that finds events uses it (with the mecanum range there, the real
 /// mecanum proxy went from 0.934 to 0.947 of the authors, and one square from 1.269 to
@@ -544,27 +544,21 @@ pub(crate) fn with_wheel_radius_range(robot: &Robot, specs: Vec<ParamSpec>) -> V
     with_mecanum_radius_range(robot, specs, MECANUM_RADIUS_RANGE)
 }
 
-/// `specs` with a mecanum robot's wheel sizes (common scale and per-wheel radii) given
+/// `specs` with a mecanum robot's wheel sizes given
 /// [`MECANUM_RADIUS_RANGE_ONE_RECORDING`]: the models fitted on one recording.
 pub(crate) fn with_one_recording_radius_range(
     robot: &Robot,
-    mut specs: Vec<ParamSpec>,
+    specs: Vec<ParamSpec>,
 ) -> Vec<ParamSpec> {
-    if is_mecanum(robot) {
-        let r = MECANUM_RADIUS_RANGE_ONE_RECORDING;
-        for s in specs.iter_mut() {
-            if matches!(s.kind, GeomKind::Radius(_) | GeomKind::Scale) {
-                s.plausible = (1.0 - r, 1.0 + r);
-            }
-        }
-    }
-    specs
+    with_mecanum_radius_range(robot, specs, MECANUM_RADIUS_RANGE_ONE_RECORDING)
 }
 
+/// `specs` with a mecanum robot's wheel sizes (the common scale and the per-wheel radii)
+/// plausible within ±`r`; unchanged on other robots.
 fn with_mecanum_radius_range(robot: &Robot, mut specs: Vec<ParamSpec>, r: f64) -> Vec<ParamSpec> {
     if is_mecanum(robot) {
         for s in specs.iter_mut() {
-            if matches!(s.kind, GeomKind::Radius(_)) {
+            if matches!(s.kind, GeomKind::Radius(_) | GeomKind::Scale) {
                 s.plausible = (1.0 - r, 1.0 + r);
             }
         }

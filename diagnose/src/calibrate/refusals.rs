@@ -1,7 +1,8 @@
 //! What calibrate refuses to answer: inputs it cannot fit ([`check_inputs`]: a held-out
 //! recording that is also fitted, a turn law or a marker offset on a drive without one,
-//! `--hold` names the robot's models lack) and a fit that would be confident and wrong ([`refuse_bad_fit`]: a recording made
-//! several times worse than nominal, an uncertainty zero or infinite).
+//! `--hold` names the robot's models lack) and a fit that would be confident and wrong
+//! ([`refuse_bad_fit`]: a recording made several times worse than nominal, an
+//! uncertainty zero or infinite).
 
 use crate::calibrate::error::CalibrateError;
 use crate::calibrate::options::CalOptions;
