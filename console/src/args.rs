@@ -79,6 +79,9 @@ pub enum Command {
     Diagnose(DiagnoseArgs),
     /// The robot's geometry fitted to whole trajectories with motion-capture ground truth.
     Calibrate(CalibrateArgs),
+    /// How well robot files dead-reckon recordings they were not fitted to: the judge of a
+    /// calibration, against others.
+    Evaluate(EvaluateArgs),
     /// Simulator tools.
     #[command(subcommand)]
     Sim(SimCmd),
@@ -728,6 +731,28 @@ pub struct CalibrateArgs {
         "scale", "ed", "eb", "radius", "distance", "angle", "roller", "centre",
     ])]
     pub hold: Vec<String>,
+    /// How to read recordings given as ROS 2 bags.
+    #[command(flatten)]
+    pub bag: BagFlags,
+}
+
+/// Arguments of `wheelcal evaluate`.
+#[derive(Debug, Args)]
+pub struct EvaluateArgs {
+    /// The robot file judged (docs/formats.md §1): for example one `calibrate
+    /// --write-robot` wrote.
+    #[arg(long)]
+    pub robot: PathBuf,
+    /// A robot file to compare it with: the nominal, an earlier calibration, another
+    /// tool's parameters (the same wheels, by name and order); repeatable.
+    #[arg(long, value_name = "ROBOT")]
+    pub against: Vec<PathBuf>,
+    /// Recording with motion-capture poses in the robot's start frame (docs/formats.md
+    /// §2), best one the robot file was not fitted to: a CSV file, a run folder holding
+    /// recording.csv, a directory of run folders, or a ROS 2 bag (with `--pose-topic`);
+    /// repeatable.
+    #[arg(long, required = true)]
+    pub recording: Vec<PathBuf>,
     /// How to read recordings given as ROS 2 bags.
     #[command(flatten)]
     pub bag: BagFlags,

@@ -36,7 +36,9 @@ pub fn main() -> ExitCode {
 /// Runs a parsed command line: dispatch only, each command is a module of
 /// [`crate::commands`].
 pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
-    use crate::commands::{board, calibrate, diagnose, factors, log, omni, program, sim, umbmark};
+    use crate::commands::{
+        board, calibrate, diagnose, evaluate, factors, log, omni, program, sim, umbmark,
+    };
     let out = Output::from_flag(cli.json);
     formats::safe_write::set_force(cli.force);
     match cli.command {
@@ -56,6 +58,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Demo(a) => sim::demo(a, out),
         Command::Diagnose(a) => diagnose::run(a, out),
         Command::Calibrate(a) => calibrate::run(&a, out),
+        Command::Evaluate(a) => evaluate::run(&a, out),
         Command::Sim(cmd) => sim::run(cmd, out),
         Command::Import(cmd) => crate::commands::import::run(cmd, out),
     }

@@ -1,8 +1,11 @@
 //! Finding and reading the recordings a command is given: a CSV file, a run folder
 //! holding recording.csv, a directory of run folders, or a ROS 2 bag. Shared by
-//! `calibrate` and `diagnose`, so both accept the same paths in the same way.
+//! `calibrate`, `evaluate` and `diagnose`, so all accept the same paths in the same way,
+//! and a set of recordings of one robot is gathered and checked once ([`load_all`],
+//! [`refuse_mixed_robots`]).
 
 use crate::args::BagFlags;
+use crate::output::Output;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::Robot;
 use formats::recording::Recording;
@@ -155,4 +158,158 @@ fn load_checked(f: &Path, robot: &Robot, robot_path: &Path) -> Result<()> {
         }
     }
     Ok(())
+}
+
+/// Travel by motion capture over travel by the nominal odometry of `robot`: about 1 (the
+/// robot's scale, within a few percent) for a recording of this robot, far from it for a
+/// recording of another robot given without its robot.toml. `None` where it cannot tell:
+/// legs (the kinematics follow them), mecanum rollers (the real mecanum sessions' ratio
+/// ranges from 1.37 to 2.01 with the motion: roller slip), no encoder scale, or under 1 m
+/// of travel.
+fn travel_ratio(robot: &Robot, rec: &Recording) -> Option<f64> {
+    let rollers = robot
+        .wheels
+        .iter()
+        .any(|w| w.gamma_rad.abs() > 1f64.to_radians());
+    if robot.legs.is_some() || rollers {
+        return None;
+    }
+    let rpc = robot.drive.rad_per_count()?;
+    let kin = calib_core::kinematics::Kinematics::<f64>::new(robot, &calib_core::Corrections::None)
+        .ok()?;
+    let counts_at = |k: usize| -> Option<Vec<i64>> {
+        rec.wheels
+            .iter()
+            .map(|w| w.enc.as_ref().and_then(|e| e.get(k).copied().flatten()))
+            .collect()
+    };
+    let (mut odo, mut mocap) = (0.0, 0.0);
+    let mut prev: Option<Vec<i64>> = None;
+    let mut prev_pose: Option<(f64, f64)> = None;
+    let mut dphi = vec![0.0; rec.wheels.len()];
+    for k in 0..rec.t.len() {
+        if let Some(c) = counts_at(k) {
+            if let Some(p) = &prev {
+                for (i, d) in dphi.iter_mut().enumerate() {
+                    *d = (c[i] - p[i]) as f64 * rpc;
+                }
+                let d = kin.forward(&dphi);
+                odo += d.vx.hypot(d.vy);
+            }
+            prev = Some(c);
+        }
+        if let (Some(x), Some(y)) = (rec.x[k], rec.y[k]) {
+            if let Some((px, py)) = prev_pose {
+                mocap += (x - px).hypot(y - py);
+            }
+            prev_pose = Some((x, y));
+        }
+    }
+    (odo >= 1.0 && mocap >= 1.0).then(|| mocap / odo)
+}
+
+/// Recordings of this robot agree on [`travel_ratio`] within this fraction of their
+/// median: twice the plausible scale range (+-5 %), above what slip or path kind change
+/// (all 164 real runs of the differential robot and all 67 of the three-wheel omni, squares,
+/// circles and Ivanjko paths together, pass).
+const MIXED_ROBOT_TOLERANCE: f64 = 0.10;
+
+/// Refuses a set of recordings one of which moves a different distance per encoder count
+/// than the others: another robot's bare CSV (no robot.toml beside it to compare) would
+/// otherwise be fitted as this robot's, with a confident, wrong geometry.
+pub fn refuse_mixed_robots(robot: &Robot, recs: &[(&Path, &Recording)]) -> Result<()> {
+    let ratios: Vec<(&Path, f64)> = recs
+        .iter()
+        .filter_map(|(p, r)| travel_ratio(robot, r).map(|q| (*p, q)))
+        .collect();
+    if ratios.len() < 2 {
+        return Ok(());
+    }
+    let mut sorted: Vec<f64> = ratios.iter().map(|(_, q)| *q).collect();
+    sorted.sort_by(f64::total_cmp);
+    let m = sorted.len();
+    let median = if m % 2 == 1 {
+        sorted[m / 2]
+    } else {
+        0.5 * (sorted[m / 2 - 1] + sorted[m / 2])
+    };
+    let odd: Vec<String> = ratios
+        .iter()
+        .filter(|(_, q)| (q / median - 1.0).abs() > MIXED_ROBOT_TOLERANCE)
+        .map(|(p, q)| format!("{} ({q:.3})", p.display()))
+        .collect();
+    if !odd.is_empty() {
+        bail!(
+            "{}: motion capture over odometry travel differs by more than {:.0} % from the \
+             recordings' median {median:.3}: a recording of another robot (give it with its \
+             robot.toml beside it), or encoder counts of another resolution; not fitted",
+            odd.join(", "),
+            MIXED_ROBOT_TOLERANCE * 100.0
+        );
+    }
+    Ok(())
+}
+
+/// The recordings [`load_all`] gathered, in the order given.
+pub struct Gathered {
+    /// Each recording's file.
+    pub paths: Vec<PathBuf>,
+    /// Each recording's short name and contents.
+    pub recs: Vec<(String, Recording)>,
+}
+
+impl Gathered {
+    /// (file, recording) pairs, as [`refuse_mixed_robots`] takes them.
+    pub fn by_file(&self) -> Vec<(&Path, &Recording)> {
+        self.paths
+            .iter()
+            .map(PathBuf::as_path)
+            .zip(self.recs.iter().map(|(_, r)| r))
+            .collect()
+    }
+
+    /// The file of the recording named `name` (its short name).
+    pub fn file_of(&self, name: &str) -> Option<&Path> {
+        self.recs
+            .iter()
+            .position(|(n, _)| n == name)
+            .map(|i| self.paths[i].as_path())
+    }
+}
+
+/// Loads every recording `args` name (files, run folders, directories of them, bags)
+/// against `robot`, in order: a recording given twice (by another path too) is read once,
+/// with a warning; a robot.toml beside one naming another robot is an error.
+pub fn load_all(
+    args: &[PathBuf],
+    robot: &Robot,
+    robot_path: &Path,
+    bag: &BagFlags,
+    out: Output,
+) -> Result<Gathered> {
+    let mut recs = Vec::new();
+    let mut paths: Vec<PathBuf> = Vec::new();
+    for p in args {
+        for f in recording_files(p)? {
+            let canon = std::fs::canonicalize(&f).unwrap_or_else(|_| f.clone());
+            if let Some(prev) = paths
+                .iter()
+                .find(|q| std::fs::canonicalize(q).unwrap_or_else(|_| (*q).clone()) == canon)
+            {
+                out.note(&format!(
+                    "warning: {} is given twice (also as {}): read once",
+                    f.display(),
+                    prev.display()
+                ));
+                continue;
+            }
+            let r = load(&f, robot, robot_path, bag)?;
+            for n in &r.1.notes {
+                out.note(&format!("{}: {n}", f.display()));
+            }
+            recs.push(r);
+            paths.push(f);
+        }
+    }
+    Ok(Gathered { paths, recs })
 }

@@ -5,27 +5,12 @@
 
 mod common;
 
-use calib_core::motion::{Direction, Program};
+use calib_core::motion::Direction;
 use calib_core::robot::Robot;
 use diagnose::calibrate::{param_specs, robot_with};
 use formats::recording::Recording;
 use std::collections::BTreeMap;
 use std::path::Path;
-
-fn square(truth: &Robot, dir: Direction, seed: u64) -> Recording {
-    let mut cfg = sim::RecordConfig {
-        row_rate_hz: 50.0,
-        ..sim::RecordConfig::default()
-    };
-    cfg.sim.seed = seed;
-    let motion = sim::Motion::Program {
-        program: Box::new(Program::umbmark_square(1.0, dir)),
-        limits: Default::default(),
-    };
-    sim::record(truth, &[], sim::Surface::flat(), &motion, &cfg)
-        .unwrap()
-        .recording
-}
 
 /// An XML element: its name and attributes.
 type Element = (String, BTreeMap<String, String>);
@@ -215,7 +200,7 @@ fn report_has_plots_index_and_mcap() {
     for (name, d, seed) in runs {
         std::fs::create_dir_all(dir.join(name)).unwrap();
         let file = dir.join(name).join("recording.csv");
-        square(&actual, d, seed).save(&file).unwrap();
+        common::sim_square(&actual, d, seed).save(&file).unwrap();
         // What the binary reads (the CSV's rounding included).
         recs.insert(name, Recording::load(&file, &nominal).unwrap());
     }
@@ -389,7 +374,7 @@ fn two_squares(dir: &Path, nominal: &Robot) -> Vec<std::ffi::OsString> {
     for (name, d, seed) in [("cw", Direction::Cw, 3), ("ccw", Direction::Ccw, 4)] {
         std::fs::create_dir_all(dir.join(name)).unwrap();
         let file = dir.join(name).join("recording.csv");
-        square(nominal, d, seed).save(&file).unwrap();
+        common::sim_square(nominal, d, seed).save(&file).unwrap();
         args.push("--recording".into());
         args.push(dir.join(name).into_os_string());
     }

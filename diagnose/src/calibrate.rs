@@ -19,7 +19,8 @@
 //! `error` (why calibration cannot run), `params` (the parameters, their ranges and
 //! models), `turn_law` (a two-sided robot's turn-radius law and turn ratio), `step` (the
 //! per-geometry stepping), `series` (a recording reduced to what is replayed, its
-//! dead-reckoned path, glitches and pose jumps), `objective` (the residuals a fit
+//! dead-reckoned path, glitches and pose jumps), `evaluate` (the judge: given robot files'
+//! dead reckoning of recordings they were not fitted to), `objective` (the residuals a fit
 //! minimises), `sens` (the paths' sensitivities to the geometry), `pool` (threads),
 //! `problem` (the joint problem), `solve` (the fit and its covariance), `events` (slips
 //! and clock leads), `options` (what the caller chooses), `result` (what calibration
@@ -29,6 +30,7 @@
 
 mod choice;
 mod error;
+mod evaluate;
 mod events;
 mod objective;
 mod options;
@@ -48,6 +50,7 @@ mod turn_law;
 
 pub use choice::{LADDER_FOLDS, LADDER_TOLERANCE, MIN_ARC_SHARE, TURN_LAW_HOLDOUT_RATIO};
 pub use error::CalibrateError;
+pub use evaluate::{evaluate, same_wheels, Evaluation, RecordingErrors, RobotSummary};
 pub use events::{
     EVENT_GUARD_S, EVENT_MIN_RAD, EVENT_PER_TURN, EVENT_SIGMAS, EVENT_TRANSIENT_RAD, EVENT_WINDOW_S,
 };
@@ -67,9 +70,10 @@ pub use result::{
 };
 pub(crate) use series::Path;
 pub use series::{
-    dead_reckoning_rmse, dead_reckoning_rmse_law, fitted_dead_reckoning_rmse, Event, Nuisance,
-    Series, JUMP_MIN_M, JUMP_ONE_STEP, JUMP_SIGMAS, JUMP_WINDOW, MIN_POSES, NOISY_POSES_M,
-    PART_SEP, PLAUSIBLE_CLOCK_DRIFT, PLAUSIBLE_TIME_OFFSET_S, SAMPLE_STEP_M,
+    dead_reckoning_errors, dead_reckoning_rmse, dead_reckoning_rmse_law,
+    fitted_dead_reckoning_rmse, Event, Nuisance, Series, JUMP_MIN_M, JUMP_ONE_STEP, JUMP_SIGMAS,
+    JUMP_WINDOW, MIN_POSES, NOISY_POSES_M, PART_SEP, PLAUSIBLE_CLOCK_DRIFT,
+    PLAUSIBLE_TIME_OFFSET_S, SAMPLE_STEP_M,
 };
 use turn_law::Turning;
 pub use turn_law::{TurnLaw, ARC_RHO};

@@ -5,7 +5,7 @@
 use crate::args::CalibrateArgs;
 use crate::mcap_out::{write_paths_under, PathSeries};
 use crate::output::Output;
-use crate::recordings::{load, load_encoders, recording_files};
+use crate::recordings::{load, load_all, load_encoders, recording_files, refuse_mixed_robots};
 use crate::ros2;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::Robot;
@@ -13,97 +13,7 @@ use diagnose::calibrate::{calibrate, CalOptions, Calibration, CvBy, Factors};
 use diagnose::calibrate_plots;
 use formats::recording::Recording;
 use formats::robot_file;
-use std::path::{Path, PathBuf};
-
-/// Travel by motion capture over travel by the nominal odometry of `robot`: about 1 (the
-/// robot's scale, within a few percent) for a recording of this robot, far from it for a
-/// recording of another robot given without its robot.toml. `None` where it cannot tell:
-/// legs (the kinematics follow them), mecanum rollers (the real mecanum sessions' ratio
-/// ranges from 1.37 to 2.01 with the motion: roller slip), no encoder scale, or under 1 m
-/// of travel.
-fn travel_ratio(robot: &Robot, rec: &Recording) -> Option<f64> {
-    let rollers = robot
-        .wheels
-        .iter()
-        .any(|w| w.gamma_rad.abs() > 1f64.to_radians());
-    if robot.legs.is_some() || rollers {
-        return None;
-    }
-    let rpc = robot.drive.rad_per_count()?;
-    let kin = calib_core::kinematics::Kinematics::<f64>::new(robot, &calib_core::Corrections::None)
-        .ok()?;
-    let counts_at = |k: usize| -> Option<Vec<i64>> {
-        rec.wheels
-            .iter()
-            .map(|w| w.enc.as_ref().and_then(|e| e.get(k).copied().flatten()))
-            .collect()
-    };
-    let (mut odo, mut mocap) = (0.0, 0.0);
-    let mut prev: Option<Vec<i64>> = None;
-    let mut prev_pose: Option<(f64, f64)> = None;
-    let mut dphi = vec![0.0; rec.wheels.len()];
-    for k in 0..rec.t.len() {
-        if let Some(c) = counts_at(k) {
-            if let Some(p) = &prev {
-                for (i, d) in dphi.iter_mut().enumerate() {
-                    *d = (c[i] - p[i]) as f64 * rpc;
-                }
-                let d = kin.forward(&dphi);
-                odo += d.vx.hypot(d.vy);
-            }
-            prev = Some(c);
-        }
-        if let (Some(x), Some(y)) = (rec.x[k], rec.y[k]) {
-            if let Some((px, py)) = prev_pose {
-                mocap += (x - px).hypot(y - py);
-            }
-            prev_pose = Some((x, y));
-        }
-    }
-    (odo >= 1.0 && mocap >= 1.0).then(|| mocap / odo)
-}
-
-/// Recordings of this robot agree on [`travel_ratio`] within this fraction of their
-/// median: twice the plausible scale range (+-5 %), above what slip or path kind change
-/// (all 164 real runs of the differential robot and all 67 of the three-wheel omni, squares,
-/// circles and Ivanjko paths together, pass).
-const MIXED_ROBOT_TOLERANCE: f64 = 0.10;
-
-/// Refuses a set of recordings one of which moves a different distance per encoder count
-/// than the others: another robot's bare CSV (no robot.toml beside it to compare) would
-/// otherwise be fitted as this robot's, with a confident, wrong geometry.
-fn refuse_mixed_robots(robot: &Robot, recs: &[(&Path, &Recording)]) -> Result<()> {
-    let ratios: Vec<(&Path, f64)> = recs
-        .iter()
-        .filter_map(|(p, r)| travel_ratio(robot, r).map(|q| (*p, q)))
-        .collect();
-    if ratios.len() < 2 {
-        return Ok(());
-    }
-    let mut sorted: Vec<f64> = ratios.iter().map(|(_, q)| *q).collect();
-    sorted.sort_by(f64::total_cmp);
-    let m = sorted.len();
-    let median = if m % 2 == 1 {
-        sorted[m / 2]
-    } else {
-        0.5 * (sorted[m / 2 - 1] + sorted[m / 2])
-    };
-    let odd: Vec<String> = ratios
-        .iter()
-        .filter(|(_, q)| (q / median - 1.0).abs() > MIXED_ROBOT_TOLERANCE)
-        .map(|(p, q)| format!("{} ({q:.3})", p.display()))
-        .collect();
-    if !odd.is_empty() {
-        bail!(
-            "{}: motion capture over odometry travel differs by more than {:.0} % from the \
-             recordings' median {median:.3}: a recording of another robot (give it with its \
-             robot.toml beside it), or encoder counts of another resolution; not fitted",
-            odd.join(", "),
-            MIXED_ROBOT_TOLERANCE * 100.0
-        );
-    }
-    Ok(())
-}
+use std::path::Path;
 
 /// Runs `wheelcal calibrate`: fits the robot's geometry to the recordings and prints or writes the result.
 pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
@@ -113,30 +23,7 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         Some(p) => Some(laws_from(p, &robot)?),
         None => None,
     };
-    let mut recs = Vec::new();
-    let mut paths: Vec<PathBuf> = Vec::new();
-    for p in &a.recording {
-        for f in recording_files(p)? {
-            let canon = std::fs::canonicalize(&f).unwrap_or_else(|_| f.clone());
-            if let Some(prev) = paths
-                .iter()
-                .find(|q| std::fs::canonicalize(q).unwrap_or_else(|_| (*q).clone()) == canon)
-            {
-                out.note(&format!(
-                    "warning: {} is given twice (also as {}): fitted once",
-                    f.display(),
-                    prev.display()
-                ));
-                continue;
-            }
-            let r = load(&f, &robot, &a.robot, &a.bag)?;
-            for n in &r.1.notes {
-                out.note(&format!("{}: {n}", f.display()));
-            }
-            recs.push(r);
-            paths.push(f);
-        }
-    }
+    let got = load_all(&a.recording, &robot, &a.robot, &a.bag, out)?;
     let held = match &a.holdout {
         Some(h) => {
             let f = recording_files(h)?;
@@ -148,7 +35,8 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
                 );
             }
             let canon = std::fs::canonicalize(&f[0]).unwrap_or_else(|_| f[0].clone());
-            if paths
+            if got
+                .paths
                 .iter()
                 .any(|q| std::fs::canonicalize(q).unwrap_or_else(|_| q.clone()) == canon)
             {
@@ -161,10 +49,9 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         }
         None => None,
     };
-    let all: Vec<(&Path, &Recording)> = paths
-        .iter()
-        .map(PathBuf::as_path)
-        .zip(recs.iter().map(|(_, r)| r))
+    let all: Vec<(&Path, &Recording)> = got
+        .by_file()
+        .into_iter()
         .chain(
             held.as_ref()
                 .zip(a.holdout.as_deref())
@@ -193,21 +80,19 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         e_b_for: driving,
         hold: a.hold.clone(),
     };
-    let mut cal = calibrate(&robot, &recs, held.as_ref(), &opts).map_err(|mut e| {
+    let recs = &got.recs;
+    let mut cal = calibrate(&robot, recs, held.as_ref(), &opts).map_err(|mut e| {
         // Name the file, not only the short name; the error stays the calibration's.
         let file = e
             .recording
             .as_ref()
             .and_then(|n| {
-                recs.iter()
-                    .position(|(r, _)| r == n)
-                    .map(|i| paths[i].display().to_string())
-                    .or_else(|| {
-                        opts.e_b_for
-                            .iter()
-                            .position(|(r, _)| r == n)
-                            .map(|i| driving_paths[i].display().to_string())
-                    })
+                got.file_of(n).map(|f| f.display().to_string()).or_else(|| {
+                    opts.e_b_for
+                        .iter()
+                        .position(|(r, _)| r == n)
+                        .map(|i| driving_paths[i].display().to_string())
+                })
             })
             .or_else(|| {
                 e.recording
@@ -233,7 +118,7 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         out.note(&format!("fitted robot: {}", p.display()));
     }
     if let Some(dir) = &a.report {
-        write_report(&cal, &robot, &recs, held.as_ref(), dir)
+        write_report(&cal, &robot, recs, held.as_ref(), dir)
             .with_context(|| format!("cannot write the report into {}", dir.display()))?;
         out.note(&format!("report: {}", dir.display()));
     }
@@ -409,6 +294,7 @@ fn write_report(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use std::path::PathBuf;
 
     const DIFF: &str = "name = \"d\"\nkind = \"diff_drive\"\n[drive]\ntype = \"dc\"\ngear_ratio = 1.0\nencoder_counts_per_rev = 1000\n[[wheels]]\nname = \"left\"\nradius_m = 0.04\nalpha_deg = 90.0\nl_m = 0.1\nbeta_deg = 0.0\n[[wheels]]\nname = \"right\"\nradius_m = 0.04\nalpha_deg = -90.0\nl_m = 0.1\nbeta_deg = 180.0\n";
 

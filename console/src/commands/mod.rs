@@ -5,6 +5,7 @@
 pub mod board;
 pub mod calibrate;
 pub mod diagnose;
+pub mod evaluate;
 pub mod factors;
 pub mod import;
 pub mod log;

@@ -123,3 +123,23 @@ pub fn pose_of(status: &serde_json::Value) -> (f64, f64) {
         status["pose"]["y"].as_f64().expect("pose.y"),
     )
 }
+
+/// A simulated 1 m UMBmark square of `truth` in direction `dir`, 50 rows a second.
+pub fn sim_square(
+    truth: &calib_core::robot::Robot,
+    dir: calib_core::motion::Direction,
+    seed: u64,
+) -> formats::recording::Recording {
+    let mut cfg = sim::RecordConfig {
+        row_rate_hz: 50.0,
+        ..sim::RecordConfig::default()
+    };
+    cfg.sim.seed = seed;
+    let motion = sim::Motion::Program {
+        program: Box::new(calib_core::motion::Program::umbmark_square(1.0, dir)),
+        limits: Default::default(),
+    };
+    sim::record(truth, &[], sim::Surface::flat(), &motion, &cfg)
+        .unwrap()
+        .recording
+}

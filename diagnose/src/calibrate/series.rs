@@ -653,13 +653,13 @@ impl Nuisance {
 /// Dead reckoning from the first measured pose with the given robot and no fitted
 /// nuisance: the prediction a user gets (OptiOdom's held-out measure). Position RMSE, m.
 pub fn dead_reckoning_rmse(robot: &Robot, s: &Series) -> Option<f64> {
-    dead_reckoning_rmse_with(robot, &TurnLaw::default(), s)
+    dead_reckoning_errors(robot, &TurnLaw::default(), s).map(|(rms, _)| rms)
 }
 
 /// [`dead_reckoning_rmse`] of a robot whose separation follows `law` (its `robot` the
 /// separation of a turn in place: [`Calibration::law_base_robot`](crate::calibrate::Calibration::law_base_robot)).
 pub fn dead_reckoning_rmse_law(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<f64> {
-    dead_reckoning_rmse_with(robot, law, s)
+    dead_reckoning_errors(robot, law, s).map(|(rms, _)| rms)
 }
 
 /// [`dead_reckoning_rmse`] of the geometry `values` (in `specs` order) of `base`, a
@@ -672,10 +672,13 @@ pub fn fitted_dead_reckoning_rmse(
     s: &Series,
 ) -> f64 {
     let r = robot_with(base, specs, values);
-    dead_reckoning_rmse_with(&r, &TurnLaw::of(specs, values, known), s).unwrap_or(f64::NAN)
+    dead_reckoning_errors(&r, &TurnLaw::of(specs, values, known), s)
+        .map_or(f64::NAN, |(rms, _)| rms)
 }
 
-fn dead_reckoning_rmse_with(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<f64> {
+/// The position RMS of [`dead_reckoning_rmse_law`] and the position error at the last
+/// pose sample, m.
+pub fn dead_reckoning_errors(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<(f64, f64)> {
     let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
     let mut path = Path::default();
     if !s.path_with(robot, &kin, law, &mut path) {
@@ -684,15 +687,16 @@ fn dead_reckoning_rmse_with(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<
     let k0 = s.pose_row[0];
     let dth = s.pth[0] - path.th[k0];
     let (c, sn) = (dth.cos(), dth.sin());
-    let mut acc = 0.0;
+    let (mut acc, mut last) = (0.0, 0.0);
     for j in 0..s.pose_row.len() {
         let k = s.pose_row[j];
         let (dx, dy) = (path.x[k] - path.x[k0], path.y[k] - path.y[k0]);
         let ex = s.px[0] + c * dx - sn * dy - s.px[j];
         let ey = s.py[0] + sn * dx + c * dy - s.py[j];
-        acc += ex * ex + ey * ey;
+        last = ex * ex + ey * ey;
+        acc += last;
     }
-    Some((acc / s.pose_row.len() as f64).sqrt())
+    Some(((acc / s.pose_row.len() as f64).sqrt(), last.sqrt()))
 }
 
 /// A fitted time offset beyond this (s) is reported implausible: loggers of one rig are

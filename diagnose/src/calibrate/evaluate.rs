@@ -1,0 +1,345 @@
+//! The judge of a calibration: how well given robot files dead-reckon recordings they were
+//! not fitted to. Held-out error on other runs and other kinds of motion is what a user
+//! gets from a geometry; its in-sample fit is not. Each recording is dead-reckoned from its
+//! first measured pose with each robot file, and its position error is taken at every pose
+//! sample: the per-recording "dead reckoning" of [`calibrate`](crate::calibrate::calibrate)
+//! and the measure OptiOdom's authors and issue 21's checks compare.
+
+use super::error::CalibrateError;
+use super::series::{dead_reckoning_errors, Event, Series};
+use super::turn_law::TurnLaw;
+use calib_core::robot::Robot;
+use formats::recording::Recording;
+use serde::Serialize;
+
+/// One recording's errors, one entry per robot file (in the order given).
+#[derive(Debug, Clone, Serialize)]
+pub struct RecordingErrors {
+    /// The recording's name as given.
+    pub recording: String,
+    /// Position RMS over every pose sample, dead-reckoned from the first measured pose, m.
+    pub rmse_m: Vec<f64>,
+    /// Position error at the last pose sample, m.
+    pub end_m: Vec<f64>,
+}
+
+/// One robot file's errors over all recordings.
+#[derive(Debug, Clone, Serialize)]
+pub struct RobotSummary {
+    /// The robot file as the caller named it.
+    pub robot: String,
+    /// Mean of the recordings' RMS, m.
+    pub mean_m: f64,
+    /// Median of the recordings' RMS, m.
+    pub median_m: f64,
+    /// The largest recording RMS, m.
+    pub worst_m: f64,
+    /// The first robot file's mean over this one's (below 1: the first dead-reckons
+    /// better); 1 for the first itself.
+    pub first_over_this: f64,
+    /// Recordings on which the first robot file's RMS is lower than this one's.
+    pub first_better_on: usize,
+}
+
+/// What [`evaluate`] returns.
+#[derive(Debug, Clone, Serialize)]
+pub struct Evaluation {
+    /// Per recording, in the order given.
+    pub recordings: Vec<RecordingErrors>,
+    /// Per robot file, in the order given.
+    pub robots: Vec<RobotSummary>,
+    /// Single-sample glitches found while reading (an encoder increment no motor makes is
+    /// replaced by its neighbours' mean; a pose far from both neighbours is dropped), and
+    /// pose-stream jumps, as calibrate reports them.
+    pub events: Vec<Event>,
+}
+
+/// Refuses robot files that cannot replay the same recordings: another kind of drive, or
+/// other wheels (count or names, in order). Geometry, gears and encoder resolution may
+/// differ: that is what is compared.
+pub fn same_wheels(a: &Robot, b: &Robot) -> Result<(), String> {
+    if a.kind != b.kind {
+        return Err(format!(
+            "a robot of kind {} against one of kind {}",
+            b.kind.as_str(),
+            a.kind.as_str()
+        ));
+    }
+    let names = |r: &Robot| r.wheels.iter().map(|w| w.name.clone()).collect::<Vec<_>>();
+    if names(a) != names(b) {
+        return Err(format!(
+            "wheels [{}] against [{}]: the recordings' encoder columns are another robot's",
+            names(b).join(", "),
+            names(a).join(", ")
+        ));
+    }
+    Ok(())
+}
+
+/// Dead-reckons every recording with every robot in `robots` (label, robot; the first is
+/// the one judged, the others what it is compared with). Refuses, naming it, a recording
+/// calibrate could not replay (no encoders or poses, under
+/// [`MIN_POSES`](crate::calibrate::MIN_POSES) rows) and robots with other wheels than the
+/// first's ([`same_wheels`]).
+pub fn evaluate(
+    robots: &[(String, Robot)],
+    recs: &[(String, Recording)],
+) -> Result<Evaluation, CalibrateError> {
+    let (first, _) = robots.first().ok_or_else(|| CalibrateError {
+        recording: None,
+        message: "no robot file to evaluate".into(),
+    })?;
+    for (label, r) in &robots[1..] {
+        same_wheels(&robots[0].1, r).map_err(|m| CalibrateError {
+            recording: None,
+            message: format!("{label} cannot be compared with {first}: {m}"),
+        })?;
+    }
+    if recs.is_empty() {
+        return Err(CalibrateError {
+            recording: None,
+            message: "no recording to evaluate on".into(),
+        });
+    }
+    let mut recordings = Vec::with_capacity(recs.len());
+    let mut events = Vec::new();
+    for (name, rec) in recs {
+        // Read against each robot: the encoder resolution may differ between them.
+        let mut rmse_m = Vec::with_capacity(robots.len());
+        let mut end_m = Vec::with_capacity(robots.len());
+        for (i, (label, robot)) in robots.iter().enumerate() {
+            let s = Series::new(name, robot, rec)?;
+            let (rms, end) =
+                dead_reckoning_errors(robot, &TurnLaw::default(), &s).ok_or_else(|| {
+                    CalibrateError {
+                        recording: Some(name.clone()),
+                        message: format!(
+                            "{label} cannot dead-reckon it (its kinematics do not solve)"
+                        ),
+                    }
+                })?;
+            if i == 0 {
+                events.extend(s.glitches.iter().cloned());
+            }
+            rmse_m.push(rms);
+            end_m.push(end);
+        }
+        recordings.push(RecordingErrors {
+            recording: name.clone(),
+            rmse_m,
+            end_m,
+        });
+    }
+    let column = |i: usize| recordings.iter().map(|r| r.rmse_m[i]).collect::<Vec<f64>>();
+    let first_mean = mean(&column(0));
+    let summaries = robots
+        .iter()
+        .enumerate()
+        .map(|(i, (label, _))| {
+            let v = column(i);
+            RobotSummary {
+                robot: label.clone(),
+                mean_m: mean(&v),
+                median_m: median(&v),
+                worst_m: v.iter().copied().fold(0.0, f64::max),
+                first_over_this: first_mean / mean(&v),
+                first_better_on: recordings
+                    .iter()
+                    .filter(|r| r.rmse_m[0] < r.rmse_m[i])
+                    .count(),
+            }
+        })
+        .collect();
+    Ok(Evaluation {
+        recordings,
+        robots: summaries,
+        events,
+    })
+}
+
+fn mean(v: &[f64]) -> f64 {
+    v.iter().sum::<f64>() / v.len() as f64
+}
+
+fn median(v: &[f64]) -> f64 {
+    let mut s = v.to_vec();
+    s.sort_by(f64::total_cmp);
+    let n = s.len();
+    if n % 2 == 1 {
+        s[n / 2]
+    } else {
+        0.5 * (s[n / 2 - 1] + s[n / 2])
+    }
+}
+
+impl std::fmt::Display for Evaluation {
+    fn fmt(&self, f: &mut std::fmt::Formatter<'_>) -> std::fmt::Result {
+        let mm = |v: f64| format!("{:.1} mm", v * 1e3);
+        writeln!(
+            f,
+            "dead reckoning from each recording's first measured pose, position RMS over every pose sample (end error in brackets):"
+        )?;
+        for (i, r) in self.robots.iter().enumerate() {
+            writeln!(f, "  [{}] {}", i + 1, r.robot)?;
+        }
+        for r in &self.recordings {
+            let cells: Vec<String> = r
+                .rmse_m
+                .iter()
+                .zip(&r.end_m)
+                .map(|(a, e)| format!("{:>9} ({:>8})", mm(*a), mm(*e)))
+                .collect();
+            writeln!(f, "  {:<40} {}", r.recording, cells.join("  "))?;
+        }
+        for (i, r) in self.robots.iter().enumerate() {
+            write!(
+                f,
+                "[{}] mean {}, median {}, worst {}",
+                i + 1,
+                mm(r.mean_m),
+                mm(r.median_m),
+                mm(r.worst_m)
+            )?;
+            if i > 0 {
+                write!(
+                    f,
+                    "; [1] over [{}]: {:.3} of its mean, lower on {} of {} recordings",
+                    i + 1,
+                    r.first_over_this,
+                    r.first_better_on,
+                    self.recordings.len()
+                )?;
+            }
+            writeln!(f)?;
+        }
+        for e in &self.events {
+            writeln!(
+                f,
+                "event {} {}: at {:.2} s, {}",
+                e.recording, e.kind, e.t_s, e.handled
+            )?;
+        }
+        Ok(())
+    }
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+    use crate::calibrate::synth;
+    use calib_core::odometry::Pose;
+
+    /// The robot with every wheel `k` times its radius.
+    fn wheels_times(robot: &Robot, k: f64) -> Robot {
+        let mut r = robot.clone();
+        for w in &mut r.wheels {
+            w.radius_m *= k;
+        }
+        r
+    }
+
+    /// A straight run at 0.2 m/s for 10 s by a robot whose wheels are 1 % larger than its
+    /// file says. Odometry over the same counts then reports `x / 1.01` at true distance
+    /// `x`, so the error grows in proportion to distance, `x (1 - 1/1.01)`, and its RMS is
+    /// that factor times the RMS of the measured distances; with the wheels 0.5 % larger
+    /// it is `x (1 - 1.005/1.01)`, exactly half. The true file errs by rounding only.
+    #[test]
+    fn a_straight_run_errs_in_proportion_to_distance_and_the_ratio_is_the_scale_errors() {
+        let nominal = synth::robot("mobolab");
+        let truth = wheels_times(&nominal, 1.01);
+        let closer = wheels_times(&nominal, 1.005);
+        let rate = 0.2 / truth.wheels[0].radius_m;
+        let rates = vec![rate; truth.wheels.len()];
+        let rec = synth::recording(&truth, 501, 50.0, Pose::new(0.0, 0.0, 0.0), |_| {
+            rates.clone()
+        });
+        let dist: Vec<f64> = rec
+            .pose_rows()
+            .map(|(_, x, y, _)| x.hypot(y))
+            .collect::<Vec<_>>();
+        let end = *dist.last().unwrap();
+        assert!((end - 2.0).abs() < 0.01, "a 2 m straight, got {end} m");
+        let rms_dist = (dist.iter().map(|d| d * d).sum::<f64>() / dist.len() as f64).sqrt();
+        let ev = evaluate(
+            &[
+                ("closer".into(), closer),
+                ("nominal".into(), nominal),
+                ("truth".into(), truth),
+            ],
+            &[("straight".into(), rec)],
+        )
+        .unwrap();
+        let r = &ev.recordings[0];
+        let want_nominal = rms_dist * (1.0 - 1.0 / 1.01);
+        let want_closer = rms_dist * (1.0 - 1.005 / 1.01);
+        assert!((r.rmse_m[1] / want_nominal - 1.0).abs() < 1e-9, "{r:?}");
+        assert!((r.rmse_m[0] / want_closer - 1.0).abs() < 1e-9, "{r:?}");
+        assert!((r.end_m[1] / (end * (1.0 - 1.0 / 1.01)) - 1.0).abs() < 1e-9);
+        assert!(r.rmse_m[2] < 1e-9 && r.end_m[2] < 1e-9, "{r:?}");
+        assert!((ev.robots[1].first_over_this - 0.5).abs() < 1e-9);
+        assert_eq!(ev.robots[1].first_better_on, 1);
+        assert_eq!(ev.robots[2].first_better_on, 0);
+        assert!((ev.robots[0].first_over_this - 1.0).abs() < 1e-12);
+    }
+
+    /// Three straight runs with wheels 1, 2 and 4 % larger than the file says: each
+    /// recording's RMS is its distances' RMS times `1 - 1/k` (as above), and the summary's
+    /// mean, median and worst are those of the three.
+    #[test]
+    fn the_summary_is_the_mean_median_and_worst_of_the_recordings() {
+        let nominal = synth::robot("mobolab");
+        let ks = [1.01, 1.02, 1.04];
+        let mut want = Vec::new();
+        let recs: Vec<(String, Recording)> = ks
+            .iter()
+            .map(|&k| {
+                let truth = wheels_times(&nominal, k);
+                let rates = vec![0.2 / truth.wheels[0].radius_m; truth.wheels.len()];
+                let rec = synth::recording(&truth, 101, 50.0, Pose::new(0.0, 0.0, 0.0), |_| {
+                    rates.clone()
+                });
+                let d2: Vec<f64> = rec.pose_rows().map(|(_, x, y, _)| x * x + y * y).collect();
+                want.push((d2.iter().sum::<f64>() / d2.len() as f64).sqrt() * (1.0 - 1.0 / k));
+                (format!("x{k}"), rec)
+            })
+            .collect();
+        let ev = evaluate(&[("nominal".into(), nominal)], &recs).unwrap();
+        let v: Vec<f64> = ev.recordings.iter().map(|r| r.rmse_m[0]).collect();
+        for (got, want) in v.iter().zip(&want) {
+            assert!((got / want - 1.0).abs() < 1e-9, "{v:?} against {want:?}");
+        }
+        let s = &ev.robots[0];
+        assert!((s.mean_m - (want[0] + want[1] + want[2]) / 3.0).abs() < 1e-9 * s.mean_m);
+        assert_eq!(s.median_m, v[1]);
+        assert_eq!(s.worst_m, v[2]);
+    }
+
+    /// Robot files with other wheels, an empty set of recordings and a recording without
+    /// poses are refused with what is wrong and where.
+    #[test]
+    fn other_wheels_and_recordings_without_poses_are_refused_by_name() {
+        let diff = synth::robot("mobolab");
+        let omni = synth::robot("omni3");
+        let e = evaluate(
+            &[("a.toml".into(), diff.clone()), ("b.toml".into(), omni)],
+            &[],
+        )
+        .unwrap_err();
+        assert!(
+            e.message.contains("b.toml cannot be compared with a.toml"),
+            "{e}"
+        );
+        assert!(e.message.contains("kind"), "{e}");
+        let mut renamed = diff.clone();
+        renamed.wheels[0].name = calib_core::robot::WheelName::try_from("port").unwrap();
+        let e = same_wheels(&diff, &renamed).unwrap_err();
+        assert!(e.contains("[port, "), "{e}");
+        let e = evaluate(&[("a.toml".into(), diff.clone())], &[]).unwrap_err();
+        assert!(e.message.contains("no recording"), "{e}");
+        let rates = |_: f64| vec![4.0, -4.0];
+        let mut rec = synth::recording(&diff, 50, 50.0, Pose::new(0.0, 0.0, 0.0), rates);
+        rec.x.iter_mut().for_each(|x| *x = None);
+        let e = evaluate(&[("a.toml".into(), diff)], &[("blind".into(), rec)]).unwrap_err();
+        assert_eq!(e.recording.as_deref(), Some("blind"), "{e}");
+    }
+}
