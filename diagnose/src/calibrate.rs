@@ -50,7 +50,7 @@ mod turn_law;
 
 pub use choice::{LADDER_FOLDS, LADDER_TOLERANCE, MIN_ARC_SHARE, TURN_LAW_HOLDOUT_RATIO};
 pub use error::CalibrateError;
-pub use evaluate::{evaluate, same_wheels, Evaluation, RecordingErrors, RobotSummary};
+pub use evaluate::{evaluate, same_wheels, Evaluation, RecordingErrors, RobotSummary, Spread};
 pub use events::{
     EVENT_GUARD_S, EVENT_MIN_RAD, EVENT_PER_TURN, EVENT_SIGMAS, EVENT_TRANSIENT_RAD, EVENT_WINDOW_S,
 };

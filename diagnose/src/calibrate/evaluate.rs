@@ -23,17 +23,44 @@ pub struct RecordingErrors {
     pub end_m: Vec<f64>,
 }
 
+/// Mean, median and worst of a set of dead-reckoning RMS values.
+#[derive(Debug, Clone, Copy, PartialEq, Serialize)]
+pub struct Spread {
+    /// Mean, m.
+    pub mean_m: f64,
+    /// Median, m.
+    pub median_m: f64,
+    /// The largest, m.
+    pub worst_m: f64,
+}
+
+impl Spread {
+    /// The spread of `v` (NaN for none).
+    pub fn of(v: impl IntoIterator<Item = f64>) -> Spread {
+        let mut s: Vec<f64> = v.into_iter().collect();
+        s.sort_by(f64::total_cmp);
+        let n = s.len();
+        let median_m = match n {
+            0 => f64::NAN,
+            _ if n % 2 == 1 => s[n / 2],
+            _ => 0.5 * (s[n / 2 - 1] + s[n / 2]),
+        };
+        Spread {
+            mean_m: s.iter().sum::<f64>() / n as f64,
+            median_m,
+            worst_m: s.last().copied().unwrap_or(f64::NAN),
+        }
+    }
+}
+
 /// One robot file's errors over all recordings.
 #[derive(Debug, Clone, Serialize)]
 pub struct RobotSummary {
     /// The robot file as the caller named it.
     pub robot: String,
-    /// Mean of the recordings' RMS, m.
-    pub mean_m: f64,
-    /// Median of the recordings' RMS, m.
-    pub median_m: f64,
-    /// The largest recording RMS, m.
-    pub worst_m: f64,
+    /// Its recordings' RMS: mean, median, worst.
+    #[serde(flatten)]
+    pub spread: Spread,
     /// The first robot file's mean over this one's (below 1: the first dead-reckons
     /// better); 1 for the first itself.
     pub first_over_this: f64,
@@ -130,24 +157,19 @@ pub fn evaluate(
             end_m,
         });
     }
-    let column = |i: usize| recordings.iter().map(|r| r.rmse_m[i]).collect::<Vec<f64>>();
-    let first_mean = mean(&column(0));
+    let spread = |i: usize| Spread::of(recordings.iter().map(|r| r.rmse_m[i]));
+    let first_mean = spread(0).mean_m;
     let summaries = robots
         .iter()
         .enumerate()
-        .map(|(i, (label, _))| {
-            let v = column(i);
-            RobotSummary {
-                robot: label.clone(),
-                mean_m: mean(&v),
-                median_m: median(&v),
-                worst_m: v.iter().copied().fold(0.0, f64::max),
-                first_over_this: first_mean / mean(&v),
-                first_better_on: recordings
-                    .iter()
-                    .filter(|r| r.rmse_m[0] < r.rmse_m[i])
-                    .count(),
-            }
+        .map(|(i, (label, _))| RobotSummary {
+            robot: label.clone(),
+            spread: spread(i),
+            first_over_this: first_mean / spread(i).mean_m,
+            first_better_on: recordings
+                .iter()
+                .filter(|r| r.rmse_m[0] < r.rmse_m[i])
+                .count(),
         })
         .collect();
     Ok(Evaluation {
@@ -155,21 +177,6 @@ pub fn evaluate(
         robots: summaries,
         events,
     })
-}
-
-fn mean(v: &[f64]) -> f64 {
-    v.iter().sum::<f64>() / v.len() as f64
-}
-
-fn median(v: &[f64]) -> f64 {
-    let mut s = v.to_vec();
-    s.sort_by(f64::total_cmp);
-    let n = s.len();
-    if n % 2 == 1 {
-        s[n / 2]
-    } else {
-        0.5 * (s[n / 2 - 1] + s[n / 2])
-    }
 }
 
 impl std::fmt::Display for Evaluation {
@@ -196,9 +203,9 @@ impl std::fmt::Display for Evaluation {
                 f,
                 "[{}] mean {}, median {}, worst {}",
                 i + 1,
-                mm(r.mean_m),
-                mm(r.median_m),
-                mm(r.worst_m)
+                mm(r.spread.mean_m),
+                mm(r.spread.median_m),
+                mm(r.spread.worst_m)
             )?;
             if i > 0 {
                 write!(
@@ -308,7 +315,7 @@ mod tests {
         for (got, want) in v.iter().zip(&want) {
             assert!((got / want - 1.0).abs() < 1e-9, "{v:?} against {want:?}");
         }
-        let s = &ev.robots[0];
+        let s = &ev.robots[0].spread;
         assert!((s.mean_m - (want[0] + want[1] + want[2]) / 3.0).abs() < 1e-9 * s.mean_m);
         assert_eq!(s.median_m, v[1]);
         assert_eq!(s.worst_m, v[2]);

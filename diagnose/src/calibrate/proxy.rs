@@ -11,6 +11,7 @@
 //! frame, the first pose is exactly (0, 0, 0)), RMS position error over every pose sample
 //! of a run ([`dead_reckoning_rmse`]).
 
+use crate::calibrate::evaluate::Spread;
 use crate::calibrate::series::{dead_reckoning_rmse, dead_reckoning_rmse_law, Series};
 use crate::calibrate::turn_law::TurnLaw;
 use calib_core::robot::Robot;
@@ -158,52 +159,18 @@ pub struct SessionResult {
     pub tests: Vec<(String, f64, f64)>,
 }
 
-fn median(v: &mut [f64]) -> f64 {
-    v.sort_by(|a, b| a.total_cmp(b));
-    let n = v.len();
-    if n == 0 {
-        f64::NAN
-    } else if n % 2 == 1 {
-        v[n / 2]
-    } else {
-        0.5 * (v[n / 2 - 1] + v[n / 2])
-    }
-}
-
-/// Mean, median and worst of a set of RMS values.
-#[derive(Debug, Clone, Copy, Serialize)]
-pub struct Stats {
-    /// Mean, m.
-    pub mean: f64,
-    /// Median, m.
-    pub median: f64,
-    /// Worst, m.
-    pub worst: f64,
-}
-
-fn stats(v: impl Iterator<Item = f64>) -> Stats {
-    let mut v: Vec<f64> = v.collect();
-    let mean = v.iter().sum::<f64>() / v.len().max(1) as f64;
-    let worst = v.iter().copied().fold(f64::NAN, f64::max);
-    Stats {
-        mean,
-        median: median(&mut v),
-        worst,
-    }
-}
-
 impl SessionResult {
     /// Ours: mean, median, worst over the test runs.
-    pub fn ours(&self) -> Stats {
-        stats(self.tests.iter().map(|t| t.1))
+    pub fn ours(&self) -> Spread {
+        Spread::of(self.tests.iter().map(|t| t.1))
     }
     /// The authors': mean, median, worst over the test runs.
-    pub fn authors(&self) -> Stats {
-        stats(self.tests.iter().map(|t| t.2))
+    pub fn authors(&self) -> Spread {
+        Spread::of(self.tests.iter().map(|t| t.2))
     }
     /// Mean ours over mean the authors'.
     pub fn ratio(&self) -> f64 {
-        self.ours().mean / self.authors().mean
+        self.ours().mean_m / self.authors().mean_m
     }
 }
 
@@ -224,12 +191,12 @@ pub fn table(r: &[SessionResult]) -> String {
             x.session,
             x.train_runs,
             x.tests.len(),
-            o.mean * 1e3,
-            o.median * 1e3,
-            o.worst * 1e3,
-            a.mean * 1e3,
-            a.median * 1e3,
-            a.worst * 1e3,
+            o.mean_m * 1e3,
+            o.median_m * 1e3,
+            o.worst_m * 1e3,
+            a.mean_m * 1e3,
+            a.median_m * 1e3,
+            a.worst_m * 1e3,
             x.ratio()
         ));
     }
