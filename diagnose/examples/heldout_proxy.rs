@@ -23,6 +23,10 @@
 //! `--e-b-for-other-month`: give calibrate the other month's circles and Ivanjko paths as
 //! `--e-b-for`, the driving the robot file's E_b (or, with a speed law, its wheel size) is
 //! placed for;
+//! `--other-days`: test each square session on the circles and Ivanjko paths of the
+//! other month instead of its own day's (the robot as it was on other days, as the
+//! free-form runs kept apart were driven on days of their own; not for omni3, whose runs
+//! are of one day);
 //! `--first-run`: train on each session's first square alone (the one-recording ladder,
 //! as the `one_square_keeps_a_model_that_transfers` test does);
 //! `--eb-scale F`: multiply the trained geometry's wheel distances (E_b) by F before the
@@ -94,11 +98,17 @@ fn main() {
         })
     });
     let robot_name = val("--robot").unwrap_or_else(|| "diff".into());
-    let res = proxy::run_robot(
+    let days = if flag("--other-days") {
+        proxy::TestDays::OtherMonths
+    } else {
+        proxy::TestDays::Nearest
+    };
+    let res = proxy::run_robot_on(
         &dir,
         &robot_name,
         only_refs.as_deref(),
         max_tests,
+        days,
         &|robot, recs, session| {
             let other = laws.map(|l| {
                 if session.get(2..4) == Some("06") {

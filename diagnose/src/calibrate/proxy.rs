@@ -5,7 +5,8 @@
 //!
 //! Pairing (nearest day with circles or Ivanjko paths, same robot): the 23 December 2020
 //! squares are tested on the 23 December circles and Ivanjko paths; the 23 June 2020
-//! squares on those of 25 June 2020 (there are none on 23 June).
+//! squares on those of 25 June 2020 (there are none on 23 June). [`TestDays::OtherMonths`]
+//! tests each month's squares on the other month's runs instead.
 //!
 //! Metric: dead reckoning from the first row (motion capture is in the robot's start
 //! frame, the first pose is exactly (0, 0, 0)), RMS position error over every pose sample
@@ -69,10 +70,21 @@ fn day_number(d: (u32, u32, u32)) -> i64 {
     (d.0 as i64) * 372 + (d.1 as i64) * 31 + d.2 as i64
 }
 
+/// Which days' runs test a training session.
+#[derive(Debug, Clone, Copy, PartialEq, Eq, Default)]
+pub enum TestDays {
+    /// The circles and Ivanjko paths of the nearest day that has any (the proxy).
+    #[default]
+    Nearest,
+    /// Those of the other months: the robot as it was on other days, as the free-form
+    /// runs kept apart were driven on days no square session was.
+    OtherMonths,
+}
+
 /// The test runs of a training session: the circular and Ivanjko runs of the same robot
-/// on the nearest day that has any; for a robot with none (the mecanum robot: its circles
-/// are kept apart), the squares of its other sessions.
-pub fn test_runs<'a>(all: &'a [RunDir], train: &RunDir) -> Vec<&'a RunDir> {
+/// on the days `days` says; for a robot with none (the mecanum robot: its circles are kept
+/// apart), the squares of its other sessions.
+pub fn test_runs<'a>(all: &'a [RunDir], train: &RunDir, days: TestDays) -> Vec<&'a RunDir> {
     let tests: Vec<&RunDir> = all
         .iter()
         .filter(|r| r.robot == train.robot && (r.path == "circular" || r.path == "ivanjko"))
@@ -84,9 +96,13 @@ pub fn test_runs<'a>(all: &'a [RunDir], train: &RunDir) -> Vec<&'a RunDir> {
             .filter(|r| r.robot == train.robot && r.path == "square" && r.session != train.session)
             .collect();
     };
+    let (year, month, _) = train.day();
     tests
         .into_iter()
-        .filter(|r| (day_number(r.day()) - d0).abs() == best)
+        .filter(|r| match days {
+            TestDays::Nearest => (day_number(r.day()) - d0).abs() == best,
+            TestDays::OtherMonths => (r.day().0, r.day().1) != (year, month),
+        })
         .collect()
 }
 
@@ -289,6 +305,18 @@ pub fn run_robot(
     max_tests: Option<usize>,
     train: &TrainLaw<'_>,
 ) -> Result<Vec<SessionResult>, String> {
+    run_robot_on(dir, robot_name, only, max_tests, TestDays::Nearest, train)
+}
+
+/// [`run_robot`] tested on the runs of `days` ([`test_runs`]).
+pub fn run_robot_on(
+    dir: &Path,
+    robot_name: &str,
+    only: Option<&[&str]>,
+    max_tests: Option<usize>,
+    days: TestDays,
+    train: &TrainLaw<'_>,
+) -> Result<Vec<SessionResult>, String> {
     let params: serde_json::Value = serde_json::from_str(
         &std::fs::read_to_string(dir.join("authors_params.json")).map_err(|e| e.to_string())?,
     )
@@ -306,6 +334,20 @@ pub fn run_robot(
     let mut test_cache: BTreeMap<String, Series> = BTreeMap::new();
     let mut out = Vec::new();
     for (session, runs) in sessions {
+        let mut tests = test_runs(&all, runs[0], days);
+        if tests.is_empty() {
+            return Err(format!(
+                "no test runs for square {session}: no circles or Ivanjko paths of {robot_name} {}",
+                match days {
+                    TestDays::Nearest => "on any day",
+                    TestDays::OtherMonths => "in another month",
+                }
+            ));
+        }
+        if let Some(m) = max_tests.filter(|m| *m < tests.len()) {
+            let step = tests.len() as f64 / m as f64;
+            tests = (0..m).map(|i| tests[(i as f64 * step) as usize]).collect();
+        }
         let mut robot = None;
         let mut recs = Vec::new();
         for r in &runs {
@@ -322,11 +364,6 @@ pub fn run_robot(
             authors_omni_robot(&params, &key, &nominal, &session, "square")
         }
         .ok_or_else(|| format!("no authors' parameters for square {session}"))?;
-        let mut tests = test_runs(&all, runs[0]);
-        if let Some(m) = max_tests.filter(|m| *m < tests.len()) {
-            let step = tests.len() as f64 / m as f64;
-            tests = (0..m).map(|i| tests[(i as f64 * step) as usize]).collect();
-        }
         let mut res = Vec::new();
         for t in tests {
             if !test_cache.contains_key(&t.folder) {
@@ -455,4 +492,62 @@ pub fn geometric_mean_over_none(folds: &[LawFold], model: impl Fn(&LawFold) -> f
         .sum::<f64>()
         / n)
         .exp()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn run(folder: &str) -> RunDir {
+        let p: Vec<&str> = folder.split('-').collect();
+        RunDir {
+            robot: p[0].into(),
+            path: p[1].into(),
+            session: p[2].into(),
+            folder: folder.into(),
+        }
+    }
+
+    /// The sessions' own pairing: 23 June squares test on 25 June (the nearest day with
+    /// circles or Ivanjko paths, not 22 December); with `OtherMonths`, on December's runs
+    /// only; another robot's runs never; a robot without circles (omni4) on its other
+    /// sessions' squares either way.
+    #[test]
+    fn test_days_pair_the_nearest_day_or_the_other_months() {
+        let all: Vec<RunDir> = [
+            "diff-square-230620202042-run-01",
+            "diff-circular-250620202104-run-01",
+            "diff-ivanjko-250620201618-run-01",
+            "diff-circular-231220200121-run-01",
+            "diff-ivanjko-221220200057-run-01",
+            "omni3-circular-221220201643-run-01",
+            "omni4-square-080920201715-run-01",
+            "omni4-square-231220200521-run-01",
+        ]
+        .iter()
+        .map(|f| run(f))
+        .collect();
+        let names = |v: Vec<&RunDir>| v.iter().map(|r| r.session.clone()).collect::<Vec<_>>();
+        let june = &all[0];
+        assert_eq!(
+            names(test_runs(&all, june, TestDays::Nearest)),
+            ["250620202104", "250620201618"]
+        );
+        assert_eq!(
+            names(test_runs(&all, june, TestDays::OtherMonths)),
+            ["231220200121", "221220200057"]
+        );
+        let dec = run("diff-square-231220200029-run-01");
+        assert_eq!(
+            names(test_runs(&all, &dec, TestDays::Nearest)),
+            ["231220200121"]
+        );
+        assert_eq!(
+            names(test_runs(&all, &dec, TestDays::OtherMonths)),
+            ["250620202104", "250620201618"]
+        );
+        for days in [TestDays::Nearest, TestDays::OtherMonths] {
+            assert_eq!(names(test_runs(&all, &all[6], days)), ["231220200521"]);
+        }
+    }
 }
