@@ -219,13 +219,7 @@ impl std::fmt::Display for Evaluation {
             }
             writeln!(f)?;
         }
-        for e in &self.events {
-            writeln!(
-                f,
-                "event {} {}: at {:.2} s, {}",
-                e.recording, e.kind, e.t_s, e.handled
-            )?;
-        }
+        f.write_str(&super::result::events_text(&self.events))?;
         Ok(())
     }
 }

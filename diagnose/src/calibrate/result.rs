@@ -36,6 +36,106 @@ impl FittedParam {
     }
 }
 
+/// Events listed one a line up to this many; more are summarised by kind.
+pub const EVENT_LINES: usize = 10;
+
+fn event_line(e: &Event) -> String {
+    format!(
+        "event {} {}: at {:.2} s for {:.2} s, heading {:+.3} rad (odometry minus motion capture){}; {}",
+        e.recording,
+        e.kind,
+        e.t_s,
+        e.duration_s,
+        e.heading_rad,
+        if e.position_m != 0.0 {
+            format!(", size {:.4} m", e.position_m)
+        } else {
+            String::new()
+        },
+        e.handled
+    )
+}
+
+/// The events of the text report: each on a line when there are at most [`EVENT_LINES`],
+/// else one line a kind (how many, in how many recordings, the range of their sizes and
+/// times, the largest, what was done): a session of many turns can hold a hundred clock
+/// leads, which would bury the geometry. The JSON keeps every one.
+pub(crate) fn events_text(events: &[Event]) -> String {
+    let mut out = String::new();
+    if events.len() <= EVENT_LINES {
+        for e in events {
+            out.push_str(&event_line(e));
+            out.push('\n');
+        }
+        return out;
+    }
+    let recordings = |v: &[&Event]| {
+        let mut n: Vec<&str> = v.iter().map(|e| e.recording.as_str()).collect();
+        n.sort_unstable();
+        n.dedup();
+        n.len()
+    };
+    let all: Vec<&Event> = events.iter().collect();
+    let n = recordings(&all);
+    out.push_str(&format!(
+        "events: {} in {n} recording{}, by kind (each one in the JSON's events):\n",
+        events.len(),
+        if n == 1 { "" } else { "s" }
+    ));
+    let mut kinds: Vec<&str> = Vec::new();
+    for e in events {
+        if !kinds.contains(&e.kind) {
+            kinds.push(e.kind);
+        }
+    }
+    for kind in kinds {
+        let group: Vec<&Event> = events.iter().filter(|e| e.kind == kind).collect();
+        let by_heading = group.iter().any(|e| e.heading_rad != 0.0);
+        let size = |e: &Event| {
+            if by_heading {
+                e.heading_rad.abs()
+            } else {
+                e.position_m.abs()
+            }
+        };
+        let range = |f: &dyn Fn(&Event) -> f64| {
+            group
+                .iter()
+                .fold((f64::INFINITY, f64::NEG_INFINITY), |(lo, hi), e| {
+                    (lo.min(f(e)), hi.max(f(e)))
+                })
+        };
+        let (s0, s1) = range(&size);
+        let (t0, t1) = range(&|e: &Event| e.t_s);
+        let largest = group
+            .iter()
+            .copied()
+            .reduce(|a, b| if size(b) > size(a) { b } else { a })
+            .expect("a kind has an event");
+        let n = recordings(&group);
+        let (what, signed) = if by_heading {
+            (
+                format!("|heading| {s0:.3}-{s1:.3} rad"),
+                format!("{:+.3} rad", largest.heading_rad),
+            )
+        } else {
+            (
+                format!("size {s0:.4}-{s1:.4} m"),
+                format!("{:+.4} m", largest.position_m),
+            )
+        };
+        out.push_str(&format!(
+            "  {kind}: {} in {n} recording{}, {what}, at {t0:.2}-{t1:.2} s; largest {} at {:.2} s, {signed}; {}\n",
+            group.len(),
+            if n == 1 { "" } else { "s" },
+            largest.recording,
+            largest.t_s,
+            largest.handled
+        ));
+    }
+    out
+}
+
 /// One geometry line of the text report.
 fn param_line(p: &FittedParam, implausible: bool) -> String {
     let flag = if implausible {
@@ -580,23 +680,7 @@ impl fmt::Display for Calibration {
                 )?;
             }
         }
-        for e in &self.events {
-            writeln!(
-                f,
-                "event {} {}: at {:.2} s for {:.2} s, heading {:+.3} rad (odometry minus motion capture){}; {}",
-                e.recording,
-                e.kind,
-                e.t_s,
-                e.duration_s,
-                e.heading_rad,
-                if e.position_m != 0.0 {
-                    format!(", size {:.4} m", e.position_m)
-                } else {
-                    String::new()
-                },
-                e.handled
-            )?;
-        }
+        f.write_str(&events_text(&self.events))?;
         if let Some(h) = &self.heldout {
             writeln!(
                 f,
@@ -690,6 +774,62 @@ impl fmt::Display for Calibration {
 mod tests {
     use super::*;
     use crate::calibrate::params::GeomKind;
+
+    fn event(rec: &str, kind: &'static str, t_s: f64, heading_rad: f64) -> Event {
+        Event {
+            recording: rec.into(),
+            kind,
+            t_s,
+            duration_s: 3.0,
+            heading_rad,
+            position_m: 0.0,
+            handled: format!("handled as a {kind}"),
+        }
+    }
+
+    /// Up to [`EVENT_LINES`] events are listed one a line; more are summarised by kind
+    /// (how many, in how many recordings, the range of their sizes and times, what was
+    /// done) with the largest of each kind named, so 170 clock leads of a mecanum session
+    /// do not bury the geometry; the JSON keeps every one.
+    #[test]
+    fn many_events_are_summarised_by_kind_and_few_are_listed() {
+        let few: Vec<Event> = (0..EVENT_LINES)
+            .map(|i| event("run-01", "slip", i as f64, 0.05))
+            .collect();
+        let text = events_text(&few);
+        assert_eq!(text.lines().count(), EVENT_LINES);
+        assert!(text
+            .lines()
+            .all(|l| l.starts_with("event run-01 slip: at ")));
+        let mut many = few.clone();
+        many.extend((0..30).map(|i| {
+            event(
+                &format!("run-{:02}", 2 + i % 3),
+                "time_lead",
+                10.0 + i as f64,
+                if i == 17 {
+                    -0.452
+                } else {
+                    0.1 + 0.001 * i as f64
+                },
+            )
+        }));
+        let text = events_text(&many);
+        let lines: Vec<&str> = text.lines().collect();
+        assert_eq!(lines.len(), 3, "{text}");
+        assert_eq!(
+            lines[0],
+            "events: 40 in 4 recordings, by kind (each one in the JSON's events):"
+        );
+        assert_eq!(
+            lines[1],
+            "  slip: 10 in 1 recording, |heading| 0.050-0.050 rad, at 0.00-9.00 s; largest run-01 at 0.00 s, +0.050 rad; handled as a slip"
+        );
+        assert_eq!(
+            lines[2],
+            "  time_lead: 30 in 3 recordings, |heading| 0.100-0.452 rad, at 10.00-39.00 s; largest run-04 at 27.00 s, -0.452 rad; handled as a time_lead"
+        );
+    }
 
     fn row(name: &str, v: [f64; 4]) -> Heldout {
         Heldout {
