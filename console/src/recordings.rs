@@ -242,7 +242,7 @@ pub fn refuse_mixed_robots(robot: &Robot, recs: &[(&Path, &Recording)]) -> Resul
         bail!(
             "{}: motion capture over odometry travel differs by more than {:.0} % from the \
              recordings' median {median:.3}: a recording of another robot (give it with its \
-             robot.toml beside it), or encoder counts of another resolution; not fitted",
+             robot.toml beside it), or encoder counts of another resolution; refused",
             odd.join(", "),
             MIXED_ROBOT_TOLERANCE * 100.0
         );

@@ -510,7 +510,7 @@ fn shared_real() -> PathBuf {
 /// with this robot's recordings was fitted as this robot's. Its travel per encoder count
 /// differs: another robot's CSV (here square 04 with counts of a 1.3x finer encoder) is
 /// refused, naming the file; the robot's own squares 01 and 04 still calibrate, and a
-/// recording given twice is fitted once with a warning.
+/// recording given twice is read once, with a warning. `evaluate` refuses the same set.
 #[test]
 fn another_robots_bare_csv_is_refused_by_name() {
     let real = shared_real();
@@ -559,6 +559,22 @@ fn another_robots_bare_csv_is_refused_by_name() {
     let (code, err) = calibrate(&[&run01, &run04, &run04]);
     assert_eq!(code, Some(0), "{err}");
     assert!(err.contains("is given twice"), "{err}");
+    // `evaluate` gathers recordings the same way and refuses the same set.
+    let o = wheelcal()
+        .args(["evaluate", "--robot"])
+        .arg(&robot_file)
+        .args(["--recording".as_ref(), run01.as_os_str()])
+        .args(["--recording".as_ref(), run04.as_os_str()])
+        .args(["--recording".as_ref(), bare.as_os_str()])
+        .output()
+        .expect("runs");
+    let err = String::from_utf8_lossy(&o.stderr);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(o.stdout.is_empty());
+    assert!(
+        err.contains(&bare.display().to_string()) && err.contains("another robot"),
+        "{err}"
+    );
 }
 
 /// Issue 23 §5: `calibrate` never printed the "ignored unknown column" note the file
