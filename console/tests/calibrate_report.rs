@@ -381,24 +381,6 @@ fn two_squares(dir: &Path, nominal: &Robot) -> Vec<std::ffi::OsString> {
     args
 }
 
-/// `wheelcal --json calibrate --no-cross-validation` of the mobolab robot on `args`
-/// (`--recording ...`) with `extra` options, writing the robot file to `out`.
-fn calibrate_mobolab(
-    args: &[std::ffi::OsString],
-    extra: &[&std::ffi::OsStr],
-    out: &Path,
-) -> std::process::Output {
-    common::wheelcal()
-        .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
-        .arg(common::robot("mobolab"))
-        .args(args)
-        .args(extra)
-        .arg("--write-robot")
-        .arg(out)
-        .output()
-        .unwrap()
-}
-
 /// `--speed-law` through the binary: a negative law reads as a number, is held (the
 /// JSON's `turn_law.speed_rel`, no law tested, the board's factors carry it exactly with
 /// c_L and c_R at standstill), and one outside the board's ±0.2 per m/s is refused with a
@@ -409,7 +391,7 @@ fn a_known_speed_law_reaches_the_json_and_a_bad_one_is_refused() {
     let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
     let args = two_squares(&dir, &nominal);
     let run = |law: &str, json: &Path| {
-        calibrate_mobolab(
+        common::calibrate_mobolab(
             &args,
             &["--speed-law".as_ref(), law.as_ref()],
             &json.with_extension("toml"),
@@ -480,7 +462,7 @@ fn a_log_of_driving_places_the_robot_files_e_b() {
             "--e-b-for".as_ref(),
             log.as_os_str(),
         ];
-        calibrate_mobolab(&args, &extra, out)
+        common::calibrate_mobolab(&args, &extra, out)
     };
     let out = run(&log_file, &dir.join("good.toml"));
     assert!(
@@ -493,7 +475,7 @@ fn a_log_of_driving_places_the_robot_files_e_b() {
         let f = &cal["factors"];
         f["e_b"].as_f64().unwrap() / f["board"]["e_b"].as_f64().unwrap() - 1.0
     };
-    let default = calibrate_mobolab(
+    let default = common::calibrate_mobolab(
         &args,
         &["--turn-law".as_ref(), "0.04".as_ref()],
         &dir.join("default.toml"),
@@ -538,8 +520,9 @@ fn a_held_parameter_is_not_fitted() {
     let dir = common::scratch("calibrate-hold");
     let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
     let args = two_squares(&dir, &nominal);
-    let run =
-        |hold: &str, out: &Path| calibrate_mobolab(&args, &["--hold".as_ref(), hold.as_ref()], out);
+    let run = |hold: &str, out: &Path| {
+        common::calibrate_mobolab(&args, &["--hold".as_ref(), hold.as_ref()], out)
+    };
     let out = run("ed", &dir.join("good.toml"));
     assert!(
         out.status.success(),
@@ -594,7 +577,7 @@ fn laws_from_an_earlier_calibration_are_held() {
     let dir = common::scratch("calibrate-laws-from");
     let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
     let args = two_squares(&dir, &nominal);
-    let earlier = calibrate_mobolab(
+    let earlier = common::calibrate_mobolab(
         &args,
         &[
             "--turn-law".as_ref(),
@@ -614,7 +597,7 @@ fn laws_from_an_earlier_calibration_are_held() {
     std::fs::write(dir.join("earlier.json"), &earlier.stdout).unwrap();
     let a: serde_json::Value = serde_json::from_slice(&earlier.stdout).unwrap();
     let from = |what: &Path, out: &Path| {
-        calibrate_mobolab(&args, &["--laws-from".as_ref(), what.as_os_str()], out)
+        common::calibrate_mobolab(&args, &["--laws-from".as_ref(), what.as_os_str()], out)
     };
     for source in [dir.join("earlier.json"), dir.join("earlier")] {
         let out = from(&source, &dir.join("later.toml"));
@@ -664,7 +647,7 @@ fn laws_from_an_earlier_calibration_are_held() {
         "{\"kind\": \"omni\", \"robot\": \"x\", \"turn_law\": {\"arc_rel\": 0.0, \"speed_rel\": 0.0}}",
         &["omni.json", "omni", "diff_drive"],
     );
-    let out = calibrate_mobolab(
+    let out = common::calibrate_mobolab(
         &args,
         &[
             "--laws-from".as_ref(),

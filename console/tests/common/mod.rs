@@ -143,3 +143,21 @@ pub fn sim_square(
         .unwrap()
         .recording
 }
+
+/// `wheelcal --json calibrate --no-cross-validation` of the mobolab robot on `args`
+/// (`--recording ...`) with `extra` options, writing the robot file to `out`.
+pub fn calibrate_mobolab(
+    args: &[std::ffi::OsString],
+    extra: &[&std::ffi::OsStr],
+    out: &Path,
+) -> Output {
+    wheelcal()
+        .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
+        .arg(robot("mobolab"))
+        .args(args)
+        .args(extra)
+        .arg("--write-robot")
+        .arg(out)
+        .output()
+        .unwrap()
+}
