@@ -740,9 +740,16 @@ pub struct CalibrateArgs {
 #[derive(Debug, Args)]
 pub struct EvaluateArgs {
     /// The robot file judged (docs/formats.md §1): for example one `calibrate
-    /// --write-robot` wrote.
+    /// --write-robot` wrote. With `--board`, the board's robot, the one the calibration
+    /// was fitted from (its factors correct it); it is then listed after the boards.
     #[arg(long)]
     pub robot: PathBuf,
+    /// A calibration (calibrate's `--json` output or a `--report` folder) judged as a
+    /// board applies its factors to `--robot`: every law it kept included, through the
+    /// firmware's own odometry, not the one constant E_b its robot file carries. Listed
+    /// first, so it is the one judged; repeatable.
+    #[arg(long, value_name = "CALIBRATION")]
+    pub board: Vec<PathBuf>,
     /// A robot file to compare it with: the nominal, an earlier calibration, another
     /// tool's parameters (the same wheels, by name and order); repeatable.
     #[arg(long, value_name = "ROBOT")]

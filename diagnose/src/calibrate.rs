@@ -50,7 +50,9 @@ mod turn_law;
 
 pub use choice::{LADDER_FOLDS, LADDER_TOLERANCE, MIN_ARC_SHARE, TURN_LAW_HOLDOUT_RATIO};
 pub use error::CalibrateError;
-pub use evaluate::{evaluate, same_wheels, Evaluation, RecordingErrors, RobotSummary, Spread};
+pub use evaluate::{
+    evaluate, same_wheels, Candidate, Evaluation, RecordingErrors, RobotSummary, Spread,
+};
 pub use events::{
     EVENT_GUARD_S, EVENT_MIN_RAD, EVENT_PER_TURN, EVENT_SIGMAS, EVENT_TRANSIENT_RAD, EVENT_WINDOW_S,
 };
@@ -70,10 +72,10 @@ pub use result::{
 };
 pub(crate) use series::Path;
 pub use series::{
-    dead_reckoning_errors, dead_reckoning_rmse, dead_reckoning_rmse_law,
-    fitted_dead_reckoning_rmse, Event, Nuisance, Series, JUMP_MIN_M, JUMP_ONE_STEP, JUMP_SIGMAS,
-    JUMP_WINDOW, MIN_POSES, NOISY_POSES_M, PART_SEP, PLAUSIBLE_CLOCK_DRIFT,
-    PLAUSIBLE_TIME_OFFSET_S, SAMPLE_STEP_M,
+    board_dead_reckoning_errors, dead_reckoning_errors, dead_reckoning_rmse,
+    dead_reckoning_rmse_law, fitted_dead_reckoning_rmse, Event, Nuisance, Series, JUMP_MIN_M,
+    JUMP_ONE_STEP, JUMP_SIGMAS, JUMP_WINDOW, MIN_POSES, NOISY_POSES_M, PART_SEP,
+    PLAUSIBLE_CLOCK_DRIFT, PLAUSIBLE_TIME_OFFSET_S, SAMPLE_STEP_M,
 };
 use turn_law::Turning;
 pub use turn_law::{TurnLaw, ARC_RHO};
@@ -679,7 +681,10 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
                 0.0
             },
             speed_rel: turn_law.speed_rel,
-            accel_slip_s: turn_law.accel_slip_s,
+            // A negative "slip" puts the ground ahead of its wheels: poses stamped early,
+            // the logger's offset, not the robot's (the note says so). The board reads its
+            // own encoders and gets no such term.
+            accel_slip_s: turn_law.accel_slip_s.max(0.0),
         };
         let board = (laws != calib_core::correction::DiffLaws::default()).then_some(BoardFactors {
             c_l: sc * c_l,

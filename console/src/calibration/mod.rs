@@ -4,4 +4,5 @@
 pub mod omni;
 pub mod plausible;
 pub mod procedure;
+pub mod saved;
 pub mod umbmark;

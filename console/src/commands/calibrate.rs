@@ -3,6 +3,7 @@
 //! refuses another robot's among them, prints or writes the result.
 
 use crate::args::CalibrateArgs;
+use crate::calibration::saved::laws_from;
 use crate::mcap_out::{write_paths_under, PathSeries};
 use crate::output::Output;
 use crate::recordings::{load, load_all, load_encoders, recording_files, refuse_mixed_robots};
@@ -123,76 +124,6 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         out.note(&format!("report: {}", dir.display()));
     }
     out.emit(&cal, || human(&cal))
-}
-
-/// The laws `--laws-from` holds: an earlier calibration's kept turn and speed laws (a
-/// zero is a law it did not keep: `None`, tested here as usual), and a note saying where
-/// they came from.
-struct KnownLaws {
-    turn: Option<f64>,
-    speed: Option<f64>,
-    note: String,
-}
-
-/// Reads `--laws-from`: a calibration's JSON, or a `--report` folder holding one.
-/// Refused: a robot other than a differential drive; naming the file, unreadable, not
-/// JSON (with its line and column), without `turn_law`'s numbers, or a calibration of
-/// another kind of robot than `robot`.
-fn laws_from(path: &Path, robot: &Robot) -> Result<KnownLaws> {
-    if robot.kind != calib_core::robot::RobotKind::DiffDrive {
-        bail!(
-            "--laws-from: known turn and speed laws are for differential drives; --robot '{}' is of kind {} (a skid-steer robot's turn law is fitted from its recordings)",
-            robot.name,
-            robot.kind.as_str()
-        );
-    }
-    let file = if path.is_dir() {
-        path.join("calibration.json")
-    } else {
-        path.to_path_buf()
-    };
-    let shown = file.display();
-    let text = std::fs::read_to_string(&file)
-        .with_context(|| format!("--laws-from: cannot read {shown}"))?;
-    let v: serde_json::Value = serde_json::from_str(&text).map_err(|e| {
-        anyhow::anyhow!(
-            "{shown}:{}:{}: not a calibration's JSON (--laws-from takes calibrate's --json output or a --report folder): {e}",
-            e.line(),
-            e.column()
-        )
-    })?;
-    let kind = v["kind"].as_str().unwrap_or("unknown");
-    if kind != robot.kind.as_str() {
-        bail!(
-            "{shown}: a calibration of a {kind} robot ('{}'); --robot '{}' is a {}: --laws-from takes the laws of the same kind of robot",
-            v["robot"].as_str().unwrap_or("?"),
-            robot.name,
-            robot.kind.as_str()
-        );
-    }
-    let law = |k: &str| v["turn_law"][k].as_f64();
-    let (Some(arc), Some(speed)) = (law("arc_rel"), law("speed_rel")) else {
-        bail!(
-            "{shown}: no turn_law.arc_rel and turn_law.speed_rel numbers: --laws-from takes calibrate's --json output or a --report folder"
-        );
-    };
-    let said = |v: f64, unit: &str| {
-        if v == 0.0 {
-            "not kept there, tested here".to_string()
-        } else {
-            format!("{v:+}{unit}, held")
-        }
-    };
-    Ok(KnownLaws {
-        turn: (arc != 0.0).then_some(arc),
-        speed: (speed != 0.0).then_some(speed),
-        note: format!(
-            "laws from {shown} (robot '{}'): turn law eb_arc / eb {}; speed law {}",
-            v["robot"].as_str().unwrap_or("?"),
-            said(arc, ""),
-            said(speed, " per m/s")
-        ),
-    })
 }
 
 fn ros2_yaml(cal: &Calibration) -> Option<String> {

@@ -1,20 +1,42 @@
 //! `wheelcal evaluate`: how well robot files dead-reckon recordings they were not fitted
 //! to. A thin shell over `diagnose::calibrate::evaluate`: gathers the recordings as
-//! `calibrate` does ([`crate::recordings`]), refuses robot files with other wheels, prints
-//! or writes the table.
+//! `calibrate` does ([`crate::recordings`]), reads the calibrations judged on the board
+//! ([`crate::calibration::saved`]), refuses robot files with other wheels, prints or
+//! writes the table.
 
 use crate::args::EvaluateArgs;
+use crate::calibration::saved::SavedCalibration;
 use crate::output::Output;
 use crate::recordings::{load_all, refuse_mixed_robots};
 use anyhow::{anyhow, Result};
-use diagnose::calibrate::{evaluate, same_wheels};
+use diagnose::calibrate::{evaluate, same_wheels, Candidate};
 use formats::robot_file;
 
 /// Runs `wheelcal evaluate`.
 pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
     let robot = robot_file::load(&a.robot)?;
-    let mut robots = vec![(a.robot.display().to_string(), robot.clone())];
-    // Every robot file is checked before any recording is read.
+    // Every calibration and robot file is checked before any recording is read.
+    let mut candidates = Vec::new();
+    for p in &a.board {
+        let saved = SavedCalibration::read(p, &robot, "--board")?;
+        let factors = saved.board_corrections()?;
+        factors.validate(&robot).map_err(|e| {
+            anyhow!(
+                "{}: a board with --robot {} refuses its factors: {e}",
+                saved.file.display(),
+                a.robot.display()
+            )
+        })?;
+        candidates.push(Candidate::board(
+            format!("{} on the board", saved.file.display()),
+            robot.clone(),
+            factors,
+        ));
+    }
+    candidates.push(Candidate::file(
+        a.robot.display().to_string(),
+        robot.clone(),
+    ));
     for p in &a.against {
         let other = robot_file::load(p)?;
         same_wheels(&robot, &other).map_err(|m| {
@@ -24,11 +46,11 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
                 a.robot.display()
             )
         })?;
-        robots.push((p.display().to_string(), other));
+        candidates.push(Candidate::file(p.display().to_string(), other));
     }
     let got = load_all(&a.recording, &robot, &a.robot, &a.bag, out)?;
     refuse_mixed_robots(&robot, &got.by_file())?;
-    let ev = evaluate(&robots, &got.recs).map_err(|e| {
+    let ev = evaluate(&candidates, &got.recs).map_err(|e| {
         // Name the file, not only the short name.
         match e.recording.as_deref().and_then(|r| got.file_of(r)) {
             Some(file) => anyhow!("{}: {}", file.display(), e.message),

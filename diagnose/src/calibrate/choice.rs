@@ -730,6 +730,10 @@ fn choose_turn_law(
             (Law::Speed, false) => format!(
                 "speed law: a wheel size that does not depend on speed explains the data ({figures}; the law is {rule})"
             ),
+            (Law::Acceleration, true) if v < 0.0 => format!(
+                "acceleration law: the poses lead the wheels by {:.1} ms, which no slip does (slip puts the ground behind its wheels): the signature of a timestamp offset between the pose stream and the encoders (a logging delay), and it holds out ({figures})",
+                -v * 1e3
+            ),
             (Law::Acceleration, true) => format!(
                 "acceleration law: the wheels slip in proportion to their acceleration (the ground lags their speed) and the law holds out ({figures}): cruising at 0.3 m/s the robot is {:.1} mm behind what its wheels rolled, and catches up as it stops",
                 v * 0.3 * 1e3
@@ -766,6 +770,8 @@ fn choose_turn_law(
                 )
             };
             format!(": not fitted, one law at a time ({why})")
+        } else if laws[j].0 == Law::Acceleration && made.law_tests[j].value < 0.0 {
+            ": the offset is fitted with the geometry, so it does not bend it; it is the logger's, not the robot's, so neither the board nor the robot file nor ROS 2 gets it".to_string()
         } else if laws[j].0 == Law::Acceleration {
             ": the law is fitted (the board applies it (factors set --accel-slip-s); the robot file and ROS 2 get the geometry without it: over a run that starts and ends at rest the lag cancels)".to_string()
         } else if laws[j].0 == Law::Speed {

@@ -8,11 +8,14 @@
 use crate::calibrate::error::CalibrateError;
 use crate::calibrate::params::{robot_with, ParamSpec};
 use crate::calibrate::step::{self, Stepper};
-use crate::calibrate::turn_law::{turn_ratio, SideMotion, Sides, TurnLaw, Turning, ARC_RHO};
+use crate::calibrate::turn_law::{
+    median_step, turn_ratio, SideMotion, Sides, TurnLaw, Turning, ARC_RHO,
+};
 use crate::replay::unwrap_angles;
 use calib_core::correction::Corrections;
+use calib_core::diff_laws::DiffLawOdometry;
 use calib_core::kinematics::Kinematics;
-use calib_core::odometry::{integrate_arc, Pose};
+use calib_core::odometry::{integrate_arc, Odometry, Pose};
 use calib_core::robot::{Robot, RobotKind};
 use formats::recording::Recording;
 use serde::Serialize;
@@ -684,6 +687,39 @@ pub fn dead_reckoning_errors(robot: &Robot, law: &TurnLaw, s: &Series) -> Option
     if !s.path_with(robot, &kin, law, &mut path) {
         return None;
     }
+    Some(errors_along(s, &path))
+}
+
+/// [`dead_reckoning_errors`] of a board holding `corrections` (its factors and laws) for
+/// `robot`, its nominal robot: the recording's wheel increments go through calib-core's
+/// own odometry, the firmware's ([`Kinematics`] with the factors, [`DiffLawOdometry`] for
+/// the laws, [`Odometry`]'s integration), in f64 and ticking at the median row step.
+/// `None` when the factors' kinematics do not solve, and for wheeled-legged robots (the
+/// board's odometry has no legs).
+pub fn board_dead_reckoning_errors(
+    robot: &Robot,
+    corrections: &Corrections,
+    s: &Series,
+) -> Option<(f64, f64)> {
+    if s.legs.is_some() {
+        return None;
+    }
+    let kin = Kinematics::<f64>::new(robot, corrections).ok()?;
+    let tick = median_step(&s.t)?;
+    let mut laws = DiffLawOdometry::<f64>::new(robot, corrections, tick);
+    let mut odo = Odometry::<f64>::new(Pose::new(0.0, 0.0, 0.0));
+    let mut path = Path::default();
+    path.push(odo.pose());
+    for inc in s.incs() {
+        odo.update(&laws.apply(inc, |p| kin.forward(p)));
+        path.push(odo.pose());
+    }
+    Some(errors_along(s, &path))
+}
+
+/// The position RMS over every pose sample and the error at the last of `path`, a
+/// dead-reckoned pose per row started at row 0, placed at the first measured pose.
+fn errors_along(s: &Series, path: &Path) -> (f64, f64) {
     let k0 = s.pose_row[0];
     let dth = s.pth[0] - path.th[k0];
     let (c, sn) = (dth.cos(), dth.sin());
@@ -696,7 +732,7 @@ pub fn dead_reckoning_errors(robot: &Robot, law: &TurnLaw, s: &Series) -> Option
         last = ex * ex + ey * ey;
         acc += last;
     }
-    Some(((acc / s.pose_row.len() as f64).sqrt(), last.sqrt()))
+    ((acc / s.pose_row.len() as f64).sqrt(), last.sqrt())
 }
 
 /// A fitted time offset beyond this (s) is reported implausible: loggers of one rig are

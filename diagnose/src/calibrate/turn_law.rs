@@ -45,7 +45,7 @@ impl TurnLaw {
 const RHO_HALF_WINDOW_S: f64 = 0.1;
 
 /// The median step between consecutive times, when positive.
-fn median_step(t: &[f64]) -> Option<f64> {
+pub(crate) fn median_step(t: &[f64]) -> Option<f64> {
     let mut d: Vec<f64> = t.windows(2).map(|w| w[1] - w[0]).collect();
     if d.is_empty() {
         return None;

@@ -1,0 +1,148 @@
+//! A calibration as `wheelcal calibrate` saves it (its `--json` output, or the
+//! `calibration.json` of a `--report` folder), read back by the commands that reuse it:
+//! `calibrate --laws-from` takes its laws, `evaluate --board` the factors a board gets.
+//! Refused, naming the file: unreadable, not JSON (with its line and column), a
+//! calibration of another kind of robot, or without the numbers asked for.
+
+use anyhow::{anyhow, bail, Context, Result};
+use calib_core::correction::{Corrections, DiffLaws};
+use calib_core::robot::{Robot, RobotKind, MAX_WHEELS};
+use diagnose::calibrate::BoardFactors;
+use serde_json::Value;
+use std::path::{Path, PathBuf};
+
+/// Options that take a saved calibration say so in their errors.
+const TAKES: &str = "takes calibrate's --json output or a --report folder";
+
+/// A saved calibration, checked to be of `robot`'s kind.
+pub struct SavedCalibration {
+    /// The JSON file read.
+    pub file: PathBuf,
+    /// The option that named it, for the errors.
+    flag: &'static str,
+    json: Value,
+}
+
+/// The laws a saved calibration kept (a zero is a law it did not keep: `None`).
+pub struct KnownLaws {
+    /// The turn law, eb_arc / eb.
+    pub turn: Option<f64>,
+    /// The speed law, per m/s.
+    pub speed: Option<f64>,
+    /// Where they came from and what each is, for the report's notes.
+    pub note: String,
+}
+
+impl SavedCalibration {
+    /// Reads `path` (a JSON file, or a folder holding `calibration.json`) for option
+    /// `flag`, and checks it calibrated a robot of `robot`'s kind.
+    pub fn read(path: &Path, robot: &Robot, flag: &'static str) -> Result<SavedCalibration> {
+        let file = if path.is_dir() {
+            path.join("calibration.json")
+        } else {
+            path.to_path_buf()
+        };
+        let shown = file.display();
+        let text = std::fs::read_to_string(&file)
+            .with_context(|| format!("{flag}: cannot read {shown}"))?;
+        let json: Value = serde_json::from_str(&text).map_err(|e| {
+            anyhow!(
+                "{shown}:{}:{}: not a calibration's JSON ({flag} {TAKES}): {e}",
+                e.line(),
+                e.column()
+            )
+        })?;
+        let kind = json["kind"].as_str().unwrap_or("unknown");
+        if kind != robot.kind.as_str() {
+            bail!(
+                "{shown}: a calibration of a {kind} robot ('{}'); --robot '{}' is a {}: {flag} takes a calibration of the same kind of robot",
+                json["robot"].as_str().unwrap_or("?"),
+                robot.name,
+                robot.kind.as_str()
+            );
+        }
+        Ok(SavedCalibration { file, flag, json })
+    }
+
+    /// The calibrated robot's name as the calibration gives it.
+    pub fn robot_name(&self) -> &str {
+        self.json["robot"].as_str().unwrap_or("?")
+    }
+
+    /// The turn and speed laws it kept, with a note saying so.
+    pub fn laws(&self) -> Result<KnownLaws> {
+        let law = |k: &str| self.json["turn_law"][k].as_f64();
+        let (Some(arc), Some(speed)) = (law("arc_rel"), law("speed_rel")) else {
+            bail!(
+                "{}: no turn_law.arc_rel and turn_law.speed_rel numbers: {} {TAKES}",
+                self.file.display(),
+                self.flag
+            );
+        };
+        let said = |v: f64, unit: &str| {
+            if v == 0.0 {
+                "not kept there, tested here".to_string()
+            } else {
+                format!("{v:+}{unit}, held")
+            }
+        };
+        Ok(KnownLaws {
+            turn: (arc != 0.0).then_some(arc),
+            speed: (speed != 0.0).then_some(speed),
+            note: format!(
+                "laws from {} (robot '{}'): turn law eb_arc / eb {}; speed law {}",
+                self.file.display(),
+                self.robot_name(),
+                said(arc, ""),
+                said(speed, " per m/s")
+            ),
+        })
+    }
+
+    /// The factors a board gets from it (`factors set` in full): a differential drive's
+    /// with every law kept (the board's E_b is that of a turn in place, its c_L and c_R
+    /// at standstill), an omni robot's f_lat and f_lon.
+    pub fn board_corrections(&self) -> Result<Corrections> {
+        let f = &self.json["factors"];
+        let shown = self.file.display();
+        let missing =
+            |what: &str| anyhow!("{shown}: no factors.{what} numbers: {} {TAKES}", self.flag);
+        if f.get("f_lat").is_some() {
+            let f_lat: Vec<f64> = f["f_lat"]
+                .as_array()
+                .and_then(|a| a.iter().map(Value::as_f64).collect())
+                .ok_or_else(|| missing("f_lat"))?;
+            if f_lat.len() > MAX_WHEELS {
+                bail!(
+                    "{shown}: {} f_lat factors; a board holds at most {MAX_WHEELS}",
+                    f_lat.len()
+                );
+            }
+            let f_lon = f["f_lon"].as_f64().ok_or_else(|| missing("f_lon"))?;
+            return Ok(Corrections::Omni {
+                f_lat: f_lat.into_iter().collect(),
+                f_lon,
+            });
+        }
+        if let Some(b) = f.get("board") {
+            let b: BoardFactors = serde_json::from_value(b.clone())
+                .map_err(|e| anyhow!("{shown}: factors.board: {e}"))?;
+            return Ok(b.corrections());
+        }
+        let num = |k: &str| f[k].as_f64().ok_or_else(|| missing("c_l, c_r and e_b"));
+        let (c_l, c_r, e_b) = (num("c_l")?, num("c_r")?, num("e_b")?);
+        Ok(Corrections::diff_drive(c_l, c_r, e_b, DiffLaws::default()))
+    }
+}
+
+/// `--laws-from`: known turn and speed laws are a differential drive's.
+pub fn laws_from(path: &Path, robot: &Robot) -> Result<KnownLaws> {
+    if robot.kind != RobotKind::DiffDrive {
+        bail!(
+            "--laws-from: known turn and speed laws are for differential drives; --robot '{}' is of kind {} (a skid-steer robot's turn law is fitted from its recordings)",
+            robot.name,
+            robot.kind.as_str()
+        );
+    }
+    SavedCalibration::read(path, robot, "--laws-from")?.laws()
+}
