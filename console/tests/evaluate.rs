@@ -317,8 +317,9 @@ fn a_calibration_with_a_turn_law_is_judged_as_the_board_applies_it() {
 }
 
 /// `--board` refuses, naming the file, before any recording is read: not JSON (with its
-/// line and column), a calibration of another kind of robot, one without factors, and
-/// factors the board would refuse.
+/// line and column), a calibration of another kind of robot, one without factors,
+/// factors the board would refuse, and a `--robot` that is the robot file the calibration
+/// wrote (its factors would count twice).
 #[test]
 fn board_calibrations_that_cannot_be_applied_are_refused_by_file() {
     let dir = common::scratch("evaluate-board-refused");
@@ -356,6 +357,21 @@ fn board_calibrations_that_cannot_be_applied_are_refused_by_file() {
     refused(
         r#"{"kind": "diff_drive", "robot": "m", "factors": {"c_l": 1, "c_r": 1, "e_b": 1, "board": {"c_l": 1, "c_r": 1, "e_b": 1, "e_b_arc": 0.9, "speed_rel": 0, "accel_slip_s": 0}}}"#,
         &["refuses its factors", "e_b_arc"],
+    );
+    // Its fitted geometry is --robot's: the robot file it wrote, on which the factors
+    // would count twice.
+    let wheel = |name: &str, alpha: f64| {
+        format!(
+            r#"{{"name": "{name}", "radius_m": 0.05, "l_m": 0.2, "alpha_deg": {alpha}, "gamma_deg": 0.0}}"#
+        )
+    };
+    refused(
+        &format!(
+            r#"{{"kind": "diff_drive", "robot": "mobolab", "factors": {{"c_l": 1.01, "c_r": 1, "e_b": 1}}, "geometry": [{}, {}]}}"#,
+            wheel("left", 90.0),
+            wheel("right", -90.0)
+        ),
+        &["fitted geometry", "count twice", "--against"],
     );
     let _ = std::fs::remove_dir_all(&dir);
 }

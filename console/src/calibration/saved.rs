@@ -99,6 +99,26 @@ impl SavedCalibration {
         })
     }
 
+    /// Whether `robot` has the calibration's fitted geometry (every wheel's radius,
+    /// distance, mounting and roller angle, as its JSON's `geometry` gives them, to 1e-9
+    /// relative): the robot file it wrote, not the one it was fitted from.
+    pub fn is_fitted_robot(&self, robot: &Robot) -> bool {
+        let Some(g) = self.json["geometry"].as_array() else {
+            return false;
+        };
+        let close = |a: f64, b: Option<f64>| {
+            b.is_some_and(|b| (a - b).abs() <= 1e-9 * a.abs().max(b.abs()).max(1e-3))
+        };
+        g.len() == robot.wheels.len()
+            && robot.wheels.iter().zip(g).all(|(w, j)| {
+                j["name"].as_str() == Some(w.name.as_str())
+                    && close(w.radius_m, j["radius_m"].as_f64())
+                    && close(w.l_m, j["l_m"].as_f64())
+                    && close(w.alpha_rad.to_degrees(), j["alpha_deg"].as_f64())
+                    && close(w.gamma_rad.to_degrees(), j["gamma_deg"].as_f64())
+            })
+    }
+
     /// The factors a board gets from it (`factors set` in full): a differential drive's
     /// with every law kept (the board's E_b is that of a turn in place, its c_L and c_R
     /// at standstill), an omni robot's f_lat and f_lon.

@@ -8,7 +8,8 @@ use crate::args::EvaluateArgs;
 use crate::calibration::saved::SavedCalibration;
 use crate::output::Output;
 use crate::recordings::{load_all, refuse_mixed_robots};
-use anyhow::{anyhow, Result};
+use anyhow::{anyhow, bail, Result};
+use calib_core::correction::Corrections;
 use diagnose::calibrate::{evaluate, same_wheels, Candidate};
 use formats::robot_file;
 
@@ -20,6 +21,18 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
     for p in &a.board {
         let saved = SavedCalibration::read(p, &robot, "--board")?;
         let factors = saved.board_corrections()?;
+        // The factors correct the robot they were fitted from; on the robot file the
+        // calibration wrote they would apply twice.
+        if factors != Corrections::None
+            && !factors_are_one(&factors)
+            && saved.is_fitted_robot(&robot)
+        {
+            bail!(
+                "{}: --robot {} has this calibration's fitted geometry (the robot file it wrote): --board applies the calibration's factors to the robot it was fitted from, so they would count twice; give that robot (the nominal) as --robot, and the fitted file as --against",
+                saved.file.display(),
+                a.robot.display()
+            );
+        }
         factors.validate(&robot).map_err(|e| {
             anyhow!(
                 "{}: a board with --robot {} refuses its factors: {e}",
@@ -58,4 +71,15 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
         }
     })?;
     out.emit(&ev, || ev.to_string())
+}
+
+/// Factors that change nothing (all 1, no law): on them the nominal and the fitted robot
+/// are the same.
+fn factors_are_one(c: &Corrections) -> bool {
+    match c {
+        Corrections::None => true,
+        Corrections::DiffDrive { c_l, c_r, e_b } => [c_l, c_r, e_b].iter().all(|v| **v == 1.0),
+        Corrections::Omni { f_lat, f_lon } => *f_lon == 1.0 && f_lat.iter().all(|v| *v == 1.0),
+        _ => false,
+    }
 }
