@@ -42,10 +42,20 @@ impl SavedCalibration {
         } else {
             path.to_path_buf()
         };
-        let shown = file.display();
         let text = std::fs::read_to_string(&file)
-            .with_context(|| format!("{flag}: cannot read {shown}"))?;
-        let json: Value = serde_json::from_str(&text).map_err(|e| {
+            .with_context(|| format!("{flag}: cannot read {}", file.display()))?;
+        Self::parse(&text, file, robot, flag)
+    }
+
+    /// [`SavedCalibration::read`] of `text`, read from `file`.
+    fn parse(
+        text: &str,
+        file: PathBuf,
+        robot: &Robot,
+        flag: &'static str,
+    ) -> Result<SavedCalibration> {
+        let shown = file.display();
+        let json: Value = serde_json::from_str(text).map_err(|e| {
             anyhow!(
                 "{shown}:{}:{}: not a calibration's JSON ({flag} {TAKES}): {e}",
                 e.line(),
@@ -165,4 +175,78 @@ pub fn laws_from(path: &Path, robot: &Robot) -> Result<KnownLaws> {
         );
     }
     SavedCalibration::read(path, robot, "--laws-from")?.laws()
+}
+
+#[cfg(test)]
+mod tests {
+    use super::*;
+
+    fn mobolab() -> Robot {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml");
+        formats::robot_file::load(&p).unwrap()
+    }
+
+    /// A differential drive's calibration with a turn law, as calibrate writes its JSON
+    /// (the fields these readers take).
+    const GOOD: &str = r#"{"robot": "mobolab", "kind": "diff_drive",
+ "factors": {"c_l": 1.01, "c_r": 0.99, "e_b": 1.0225,
+  "board": {"c_l": 1.01, "c_r": 0.99, "e_b": 1.02, "e_b_arc": 0.005, "speed_rel": 0.0, "accel_slip_s": 0.0}},
+ "turn_law": {"arc_rel": 0.005, "icr_x_m": 0.0, "speed_rel": 0.0, "accel_slip_s": 0.0},
+ "geometry": [{"name": "left", "radius_m": 0.0505, "l_m": 0.204, "alpha_deg": 90.0, "gamma_deg": 0.0},
+  {"name": "right", "radius_m": 0.0495, "l_m": 0.204, "alpha_deg": -90.0, "gamma_deg": 0.0}]}"#;
+
+    fn parse(text: &str) -> Result<SavedCalibration> {
+        SavedCalibration::parse(text, PathBuf::from("cal.json"), &mobolab(), "--board")
+    }
+
+    /// The board gets E_b of a turn in place and the law, exactly as written; the laws
+    /// read back as kept (turn) and not kept (speed); nominal mobolab is not the robot
+    /// file it wrote.
+    #[test]
+    fn a_calibration_gives_the_board_its_factors_and_laws() {
+        let s = parse(GOOD).unwrap();
+        assert_eq!(
+            s.board_corrections().unwrap(),
+            Corrections::DiffDriveTurnLaw {
+                c_l: 1.01,
+                c_r: 0.99,
+                e_b: 1.02,
+                e_b_arc: 0.005
+            }
+        );
+        let l = s.laws().unwrap();
+        assert_eq!((l.turn, l.speed), (Some(0.005), None));
+        assert!(!s.is_fitted_robot(&mobolab()));
+    }
+
+    /// Every prefix of a good file and every byte of it replaced by each of a few bytes
+    /// JSON cares about: nothing panics, and every error names the file (3,928 cases).
+    #[test]
+    fn truncated_or_mangled_calibrations_are_refused_by_name_never_a_panic() {
+        let check = |text: &str| {
+            let errors: Vec<anyhow::Error> = match parse(text) {
+                Err(e) => vec![e],
+                Ok(s) => [s.board_corrections().err(), s.laws().err()]
+                    .into_iter()
+                    .flatten()
+                    .collect(),
+            };
+            for e in errors {
+                assert!(format!("{e:#}").contains("cal.json"), "{e:#} for {text}");
+            }
+        };
+        let bytes = GOOD.as_bytes();
+        let mut cases = 0;
+        for n in 0..bytes.len() {
+            check(&String::from_utf8_lossy(&bytes[..n]));
+            for b in [b'"', b'}', b']', b'9', b'-', b'x', b' '] {
+                let mut m = bytes.to_vec();
+                m[n] = b;
+                check(&String::from_utf8_lossy(&m));
+                cases += 1;
+            }
+            cases += 1;
+        }
+        assert_eq!(cases, 8 * bytes.len());
+    }
 }
