@@ -129,6 +129,24 @@ impl SavedCalibration {
             })
     }
 
+    /// The fitted parameters no board factor carries (an omni robot's factors are its
+    /// wheels' sizes: f_lat and f_lon; wheel distances, angles, the centre and the roller
+    /// angle need the robot file). None on a differential drive, whose every parameter
+    /// has a factor or a law.
+    pub fn without_factor(&self) -> Vec<String> {
+        if self.json["factors"].get("f_lat").is_none() {
+            return Vec::new();
+        }
+        self.json["params"]
+            .as_array()
+            .into_iter()
+            .flatten()
+            .filter_map(|p| p["name"].as_str())
+            .filter(|n| *n != "scale" && !n.starts_with("radius_scale"))
+            .map(str::to_string)
+            .collect()
+    }
+
     /// The factors a board gets from it (`factors set` in full): a differential drive's
     /// with every law kept (the board's E_b is that of a turn in place, its c_L and c_R
     /// at standstill), an omni robot's f_lat and f_lon.
@@ -217,6 +235,26 @@ mod tests {
         let l = s.laws().unwrap();
         assert_eq!((l.turn, l.speed), (Some(0.005), None));
         assert!(!s.is_fitted_robot(&mobolab()));
+        assert!(s.without_factor().is_empty());
+    }
+
+    /// An omni calibration's wheel distance and centre have no board factor; its radii do.
+    #[test]
+    fn an_omni_calibrations_distances_and_centre_are_named_as_without_a_factor() {
+        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/omni3.toml");
+        let omni = formats::robot_file::load(&p).unwrap();
+        let text = r#"{"robot": "omni3", "kind": "omni",
+            "factors": {"f_lat": [1.02, 1.04, 1.03], "f_lon": 1.0},
+            "params": [{"name": "radius_scale_w1"}, {"name": "radius_scale_w2"},
+              {"name": "radius_scale_w3"}, {"name": "l_scale"}, {"name": "centre_x_m"}]}"#;
+        let s = SavedCalibration::parse(text, PathBuf::from("o.json"), &omni, "--board").unwrap();
+        assert_eq!(s.without_factor(), ["l_scale", "centre_x_m"]);
+        match s.board_corrections().unwrap() {
+            Corrections::Omni { f_lat, f_lon } => {
+                assert_eq!((f_lat.as_slice(), f_lon), (&[1.02, 1.04, 1.03][..], 1.0))
+            }
+            c => panic!("{c:?}"),
+        }
     }
 
     /// Every prefix of a good file and every byte of it replaced by each of a few bytes

@@ -40,8 +40,17 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
                 a.robot.display()
             )
         })?;
+        let lost = saved.without_factor();
+        let lost = if lost.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " (no firmware factor for {}: the board's odometry goes without)",
+                lost.join(", ")
+            )
+        };
         candidates.push(Candidate::board(
-            format!("{} on the board", saved.file.display()),
+            format!("{} on the board{lost}", saved.file.display()),
             robot.clone(),
             factors,
         ));
