@@ -12,6 +12,16 @@ use diagnose::calibrate::{evaluate, BoardFactors, Candidate};
 use formats::recording::Recording;
 use std::path::Path;
 
+/// The first recording's RMS per robot in `evaluate --json`'s output.
+fn first_rmse(j: &serde_json::Value) -> Vec<f64> {
+    j["recordings"][0]["rmse_m"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect()
+}
+
 /// mobolab with its wheels 3 % further apart than the file says: at each 90 degree
 /// corner of a square the nominal file's heading slips by d = (pi/2)(1 - 1/1.03), so its
 /// k-th side (from 0) is off by k d, and the end of a square of side L by
@@ -92,12 +102,7 @@ fn a_fit_is_judged_on_a_square_it_did_not_see() {
         &[("held-out".into(), rec)],
     )
     .unwrap();
-    let rmse: Vec<f64> = j["recordings"][0]["rmse_m"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
+    let rmse = first_rmse(&j);
     assert_eq!(j["recordings"][0]["recording"], "held-out");
     for (got, want) in rmse.iter().zip(&lib.recordings[0].rmse_m) {
         assert!((got - want).abs() < 1e-12, "{rmse:?} against {lib:?}");
@@ -277,12 +282,7 @@ fn a_calibration_with_a_turn_law_is_judged_as_the_board_applies_it() {
         .collect();
     assert!(labels[0].ends_with("cal.json on the board"), "{labels:?}");
     assert!(labels[1].ends_with("mobolab.toml") && labels[2].ends_with("fit.toml"));
-    let rmse: Vec<f64> = j["recordings"][0]["rmse_m"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .map(|v| v.as_f64().unwrap())
-        .collect();
+    let rmse = first_rmse(&j);
     let rec = Recording::load(&runs[3].join("recording.csv"), &nominal).unwrap();
     let truth_law = calib_core::correction::DiffLaws {
         e_b_arc: 0.04,

@@ -1203,11 +1203,7 @@ fn acceleration_slip_is_found_and_not_invented() {
     let recs = law_runs(&nominal, &[creep], 0.0, 0.0);
     let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
     println!("{c}");
-    let law = c
-        .params
-        .iter()
-        .find(|p| p.spec.name == "accel_slip_s")
-        .unwrap_or_else(|| panic!("no acceleration law\n{c}"));
+    let law = param(&c, "accel_slip_s");
     assert!((law.value - 0.05).abs() <= 4.0 * law.sigma + 0.01, "{c}");
     assert!(
         c.params
@@ -1249,11 +1245,7 @@ fn poses_leading_the_encoders_are_named_a_timestamp_offset_and_kept_off_the_boar
         .collect();
     let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
     println!("{c}");
-    let lead = c
-        .params
-        .iter()
-        .find(|p| p.spec.name == "accel_slip_s")
-        .unwrap_or_else(|| panic!("no pose lead found\n{c}"));
+    let lead = param(&c, "accel_slip_s");
     assert!((lead.value + 0.04).abs() <= 4.0 * lead.sigma + 0.01, "{c}");
     let ms = number_after(&c, "the poses lead the wheels by ");
     assert!((ms - 40.0).abs() < 10.0, "{ms} ms");
