@@ -23,10 +23,7 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
         let factors = saved.board_corrections()?;
         // The factors correct the robot they were fitted from; on the robot file the
         // calibration wrote they would apply twice.
-        if factors != Corrections::None
-            && !factors_are_one(&factors)
-            && saved.is_fitted_robot(&robot)
-        {
+        if !factors_are_one(&factors) && saved.is_fitted_robot(&robot) {
             bail!(
                 "{}: --robot {} has this calibration's fitted geometry (the robot file it wrote): --board applies the calibration's factors to the robot it was fitted from, so they would count twice; give that robot (the nominal) as --robot, and the fitted file as --against",
                 saved.file.display(),
