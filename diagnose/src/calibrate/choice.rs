@@ -771,7 +771,7 @@ fn choose_turn_law(
             };
             format!(": not fitted, one law at a time ({why})")
         } else if laws[j].0 == Law::Acceleration && made.law_tests[j].value < 0.0 {
-            ": the offset is fitted with the geometry, so it does not bend it; it is the logger's, not the robot's, so neither the board nor the robot file nor ROS 2 gets it".to_string()
+            ": the offset is fitted with the geometry, so it does not bend it; it is the logger's, not the robot's, so neither the board nor the robot file nor ROS 2 gets it (--free-start fits one offset per recording instead)".to_string()
         } else if laws[j].0 == Law::Acceleration {
             ": the law is fitted (the board applies it (factors set --accel-slip-s); the robot file and ROS 2 get the geometry without it: over a run that starts and ends at rest the lag cancels)".to_string()
         } else if laws[j].0 == Law::Speed {
