@@ -562,8 +562,10 @@ pub const TURN_LAW_HOLDOUT_RATIO: f64 = 0.95;
 /// acceleration) the data tell it from the geometry (|correlation| at most
 /// [`CORR_LIMIT`](crate::calibrate::CORR_LIMIT)). Of those that qualify, the best held
 /// out, or the turn law when within [`LADDER_TOLERANCE`] of it (preferred on a tie: it
-/// carried better across months on the real robot). Says which and why, with the
-/// figures.
+/// carried better across months on the real robot). A negative acceleration term is a
+/// pose lead (poses stamped early), the logger's: a law that qualifies is chosen before
+/// it, and it is tested again on top of that law ([`lead_on_top`]). Says which and why,
+/// with the figures.
 fn choose_turn_law(
     robot: &Robot,
     series: &[Series],
@@ -747,7 +749,21 @@ fn choose_turn_law(
         }
         notes.push(note);
     }
-    let Some(&(best, e_best, _)) = qualified.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
+    // Physics first: a pose lead (a negative acceleration term: poses stamped early) is
+    // the logger's, no rival of the robot's laws. When a law qualifies it is chosen among
+    // those, and the lead is tested again on top of it (the second round below).
+    let is_lead = |j: usize| laws[j].0 == Law::Acceleration && made.law_tests[j].value < 0.0;
+    let physical: Vec<(usize, f64, usize)> = qualified
+        .iter()
+        .copied()
+        .filter(|q| !is_lead(q.0))
+        .collect();
+    let pool = if physical.is_empty() {
+        &qualified
+    } else {
+        &physical
+    };
+    let Some(&(best, e_best, _)) = pool.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
         return base;
     };
     // Within the ladder's tolerance of the best, the turn law: on the real robot the two
@@ -755,12 +771,17 @@ fn choose_turn_law(
     // `proxy::laws_across_sessions`), the turn law carried better from one month to the
     // other's squares (0.671 against 0.858 of the authors'), and boards of protocol v5
     // apply it too.
-    let turn = qualified
+    let turn = pool
         .iter()
         .find(|(i, e, _)| laws[*i].0 == Law::Turn && *e <= (1.0 + LADDER_TOLERANCE) * e_best);
     let i = turn.map_or(best, |t| t.0);
     for &(j, _, at) in &qualified {
-        let tail = if j != i {
+        let tail = if j != i && is_lead(j) {
+            format!(
+                ": set aside for the {} law, the robot's own, and tested again on top of it",
+                laws[i].0.name()
+            )
+        } else if j != i {
             let why = if i == best {
                 format!("the {} law holds out better", laws[i].0.name())
             } else {
@@ -785,13 +806,92 @@ fn choose_turn_law(
     }
     // One test per law, pushed in `laws` order.
     made.law_tests[i].kept = true;
+    let e_chosen = e[i + 1];
     let fit = fits.swap_remove(i);
     made.prefit = Some(Prefit {
         specs: laws[i].1.clone(),
         prior_scale: fit.prior_scale,
         f: fit.f,
     });
-    laws.swap_remove(i).1
+    let lead = (laws[i].0 != Law::Acceleration)
+        .then(|| laws.iter().find(|l| l.0 == Law::Acceleration))
+        .flatten()
+        .and_then(|l| l.1.last().cloned());
+    let chosen = laws.swap_remove(i);
+    match lead {
+        Some(lead) => lead_on_top(
+            robot, series, cfg, notes, runs, made, chosen, lead, e_chosen, k,
+        ),
+        None => chosen.1,
+    }
+}
+
+/// The second round of [`choose_turn_law`]: a pose lead (the acceleration term, negative)
+/// tested on top of the law chosen, `chosen`, whose held-out error is `e_chosen`. Kept,
+/// and fitted with the law, when it is negative, significant, within its range, told from
+/// the geometry and holds out (at most [`TURN_LAW_HOLDOUT_RATIO`] of the law alone's
+/// error); recorded in `law_tests` as `pose lead` either way, and said in the notes
+/// when kept. Returns the specs to fit.
+#[allow(clippy::too_many_arguments)]
+fn lead_on_top(
+    robot: &Robot,
+    series: &[Series],
+    cfg: Cfg,
+    notes: &mut Vec<String>,
+    runs: &mut usize,
+    made: &mut Made,
+    chosen: (Law, Vec<ParamSpec>),
+    lead: ParamSpec,
+    e_chosen: f64,
+    folds: usize,
+) -> Vec<ParamSpec> {
+    let mut both = chosen.1.clone();
+    both.push(lead);
+    let fit = fit_specs(robot, &both, &refs(series), cfg, true);
+    *runs += fit.runs;
+    let (e, _) = heldout_errors(robot, &[&both], series, cfg, runs);
+    let ia = both.len() - 1;
+    let sd = |i: usize| fit.cov[(i, i)].max(0.0).sqrt();
+    let (v, s_v) = (fit.f.geom[ia], sd(ia));
+    let corr = (0..ia)
+        .map(|j| fit.cov[(ia, j)] / (s_v * sd(j)).max(1e-300))
+        .fold(0.0f64, |m, c| m.max(c.abs()));
+    let plausible = both[ia].plausible;
+    let kept = v < 0.0
+        && v.abs() >= 3.0 * s_v
+        && e[0].is_finite()
+        && e[0] <= TURN_LAW_HOLDOUT_RATIO * e_chosen
+        && (plausible.0..=plausible.1).contains(&v)
+        && corr <= crate::calibrate::CORR_LIMIT;
+    made.law_tests.push(LawTest {
+        law: "pose lead",
+        parameter: both[ia].name.clone(),
+        value: v,
+        sigma: s_v,
+        heldout_m: e[0],
+        constant_heldout_m: e_chosen,
+        folds,
+        qualifies: kept,
+        kept,
+    });
+    if !kept {
+        return chosen.1;
+    }
+    notes.push(format!(
+        "pose lead: on top of the {} law the poses lead the wheels by {:.1} ms, which no slip does: a timestamp offset between the pose stream and the encoders, and it holds out (accel_slip_s {:+.1} ± {:.1} ms; held-out dead reckoning by recording ({folds} folds) {:.1} mm with both, {:.1} mm with the law alone): fitted with the law and the geometry, given to neither the board nor the robot file nor ROS 2 (--free-start fits one offset per recording instead)",
+        chosen.0.name(),
+        -v * 1e3,
+        v * 1e3,
+        s_v * 1e3,
+        e[0] * 1e3,
+        e_chosen * 1e3
+    ));
+    made.prefit = Some(Prefit {
+        specs: both.clone(),
+        prior_scale: fit.prior_scale,
+        f: fit.f,
+    });
+    both
 }
 
 /// E_b in `geom` (`specs` order), 1 when not fitted: the turn law's eb_arc over it is

@@ -328,10 +328,12 @@ pub struct Implausible {
 }
 
 /// One law a two-sided robot was tested for, on its own against the constant model
-/// (the held-out comparison the notes give in words).
+/// (the held-out comparison the notes give in words); or, as `pose lead`, the
+/// acceleration term tested again on top of the law kept.
 #[derive(Debug, Clone, Serialize)]
 pub struct LawTest {
-    /// `turn`, `speed` or `acceleration`.
+    /// `turn`, `speed`, `acceleration`, or `pose lead` (the poses stamped early, a
+    /// negative acceleration term, on top of the law kept: the logger's, not a rival).
     pub law: &'static str,
     /// Its parameter (`eb_arc`, `speed_rel`, `accel_slip_s`).
     pub parameter: String,
@@ -342,13 +344,13 @@ pub struct LawTest {
     pub sigma: f64,
     /// Mean held-out dead-reckoning RMSE with the law, m.
     pub heldout_m: f64,
-    /// The same with the constant model (no law), m.
+    /// The same with the constant model (no law; for `pose lead`, the law kept alone), m.
     pub constant_heldout_m: f64,
     /// Folds (by recording) of the held-out comparison.
     pub folds: usize,
     /// Significant, within its range, told from the geometry, and held out enough.
     pub qualifies: bool,
-    /// Kept (at most one law is).
+    /// Kept (at most one law is, and a pose lead beside it).
     pub kept: bool,
 }
 
