@@ -261,6 +261,39 @@ fn skid_steer_board_drives_each_side_together_and_turns_with_its_e_b() {
     assert!(miss0 > 0.5, "nominal E_b should miss badly: {miss0} m");
 }
 
+/// robots/mobolab.toml.
+fn mobolab() -> calib_core::robot::Robot {
+    robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml")).unwrap()
+}
+
+/// The virtual board of mobolab whose separation is 4 % wider on arcs than in a turn in
+/// place (the simulator's `turn_scrub`), holding `c`, driven 8 s at 0.15 m/s and
+/// 0.5 rad/s (an arc of 0.3 m, a Drive request renewed every 0.1 s); `tick` steps it.
+fn scrub_arc(c: Corrections, mut tick: impl FnMut(&mut VirtualBoard)) -> VirtualBoard {
+    let robot = mobolab();
+    let cfg = SimConfig {
+        turn_scrub: 0.04,
+        ..SimConfig::default()
+    };
+    let sim = SimRobot::new(&robot, sim::Faults::none(2), Surface::flat(), cfg).unwrap();
+    let mut b = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
+    request(&mut b, Request::SetCorrections(c));
+    let start = b.now_us();
+    while b.now_us() - start < 8_000_000 {
+        if (b.now_us() - start).is_multiple_of(100_000) {
+            request(
+                &mut b,
+                Request::Drive {
+                    twist: Twist::new(0.15, 0.0, 0.5),
+                    timeout_ms: 0,
+                },
+            );
+        }
+        tick(&mut b);
+    }
+    b
+}
+
 /// A differential drive whose effective separation is wider on arcs than in a turn in
 /// place (the simulator's `turn_scrub`, 4 %, the share 1 - rho^2 of
 /// `calib_core::kinematics::turn_law_share`), driven 8 s on an arc of radius 0.3 m
@@ -272,15 +305,6 @@ fn skid_steer_board_drives_each_side_together_and_turns_with_its_e_b() {
 #[test]
 fn a_stored_turn_law_keeps_the_boards_odometry_on_an_arc() {
     let run = |law: f64| {
-        let robot =
-            robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml"))
-                .unwrap();
-        let cfg = SimConfig {
-            turn_scrub: 0.04,
-            ..SimConfig::default()
-        };
-        let sim = SimRobot::new(&robot, sim::Faults::none(2), Surface::flat(), cfg).unwrap();
-        let mut b = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
         let c = if law == 0.0 {
             Corrections::DiffDrive {
                 c_l: 1.0,
@@ -295,20 +319,7 @@ fn a_stored_turn_law_keeps_the_boards_odometry_on_an_arc() {
                 e_b_arc: law,
             }
         };
-        request(&mut b, Request::SetCorrections(c));
-        let start = b.now_us();
-        while b.now_us() - start < 8_000_000 {
-            if (b.now_us() - start).is_multiple_of(100_000) {
-                request(
-                    &mut b,
-                    Request::Drive {
-                        twist: Twist::new(0.15, 0.0, 0.5),
-                        timeout_ms: 0,
-                    },
-                );
-            }
-            b.step(&mut Quiet);
-        }
+        let b = scrub_arc(c, |b| b.step(&mut Quiet));
         let (odo, truth) = (b.app.pose(), b.hw.sim.true_pose());
         (
             odo.theta as f64 - truth.theta,
@@ -344,46 +355,27 @@ fn a_stored_turn_law_keeps_the_boards_odometry_on_an_arc() {
 #[test]
 fn evaluate_replays_a_boards_factors_and_laws_as_the_board_does() {
     use diagnose::calibrate::{evaluate, Candidate};
-    let robot =
-        robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml"))
-            .unwrap();
-    let cfg = SimConfig {
-        turn_scrub: 0.04,
-        ..SimConfig::default()
-    };
-    let sim = SimRobot::new(&robot, sim::Faults::none(2), Surface::flat(), cfg).unwrap();
-    let mut b = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
+    let robot = mobolab();
     let law = Corrections::DiffDriveTurnLaw {
         c_l: 1.0,
         c_r: 1.0,
         e_b: 1.0,
         e_b_arc: 0.04,
     };
-    request(&mut b, Request::SetCorrections(law.clone()));
     let mut rec = formats::recording::Recording::new(&robot, false, true);
-    let start = b.now_us();
-    while b.now_us() - start < 8_000_000 {
-        if (b.now_us() - start).is_multiple_of(100_000) {
-            request(
-                &mut b,
-                Request::Drive {
-                    twist: Twist::new(0.15, 0.0, 0.5),
-                    timeout_ms: 0,
-                },
-            );
-        }
+    scrub_arc(law.clone(), |b| {
         // The counts the board reads this tick (the simulator steps after it reads).
         let counts: Vec<i64> = (0..2).map(|i| b.hw.sim.encoder_count(i)).collect();
         b.step(&mut Quiet);
         let p = b.app.pose();
         rec.push_row(formats::recording::Row {
-            t: (b.now_us() - start) as f64 * 1e-6,
+            t: b.now_us() as f64 * 1e-6,
             cmd: None,
             enc: Some(&counts),
             pose: Some((p.x as f64, p.y as f64, p.theta as f64)),
             legs: None,
         });
-    }
+    });
     let plain = Corrections::DiffDrive {
         c_l: 1.0,
         c_r: 1.0,
@@ -410,9 +402,7 @@ fn evaluate_replays_a_boards_factors_and_laws_as_the_board_does() {
 /// renewed every 0.1 s) on `sim`, with `c` stored: the board's odometry x and the true x
 /// after `secs`, and again once it has stood still for 1 s more.
 fn straight_run(sim: SimRobot, c: Corrections, speed: f32, secs: f64) -> [(f64, f64); 2] {
-    let robot =
-        robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml"))
-            .unwrap();
+    let robot = mobolab();
     let mut b = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
     request(&mut b, Request::SetCorrections(c));
     let start = b.now_us();
@@ -440,9 +430,7 @@ fn straight_run(sim: SimRobot, c: Corrections, speed: f32, secs: f64) -> [(f64, 
 }
 
 fn mobolab_sim(effects: &[&str], cfg: SimConfig) -> SimRobot {
-    let robot =
-        robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml"))
-            .unwrap();
+    let robot = mobolab();
     let effects: Vec<sim::Effect> = effects
         .iter()
         .map(|e| sim::Effect::parse(e).unwrap())

@@ -813,26 +813,33 @@ fn choose_turn_law(
         prior_scale: fit.prior_scale,
         f: fit.f,
     });
-    let lead = (laws[i].0 != Law::Acceleration)
-        .then(|| laws.iter().find(|l| l.0 == Law::Acceleration))
-        .flatten()
-        .and_then(|l| l.1.last().cloned());
-    let chosen = laws.swap_remove(i);
-    match lead {
-        Some(lead) => lead_on_top(
-            robot, series, cfg, notes, runs, made, chosen, lead, e_chosen, k,
-        ),
-        None => chosen.1,
+    let tests_lead =
+        laws[i].0 != Law::Acceleration && laws.iter().any(|l| l.0 == Law::Acceleration);
+    let (law, specs) = laws.swap_remove(i);
+    let chosen = Chosen {
+        law,
+        specs,
+        heldout_m: e_chosen,
+    };
+    if tests_lead {
+        lead_on_top(robot, series, cfg, notes, runs, made, chosen)
+    } else {
+        chosen.specs
     }
 }
 
+/// The law [`choose_turn_law`] kept: its specs and its held-out error.
+struct Chosen {
+    law: Law,
+    specs: Vec<ParamSpec>,
+    heldout_m: f64,
+}
+
 /// The second round of [`choose_turn_law`]: a pose lead (the acceleration term, negative)
-/// tested on top of the law chosen, `chosen`, whose held-out error is `e_chosen`. Kept,
-/// and fitted with the law, when it is negative, significant, within its range, told from
-/// the geometry and holds out (at most [`TURN_LAW_HOLDOUT_RATIO`] of the law alone's
-/// error); recorded in `law_tests` as `pose lead` either way, and said in the notes
-/// when kept. Returns the specs to fit.
-#[allow(clippy::too_many_arguments)]
+/// tested on top of the law `chosen`. Kept, and fitted with the law, when it is negative,
+/// significant, within its range, told from the geometry and holds out (at most
+/// [`TURN_LAW_HOLDOUT_RATIO`] of the law alone's held-out error); recorded in `law_tests`
+/// as `pose lead` either way, and said in the notes when kept. Returns the specs to fit.
 fn lead_on_top(
     robot: &Robot,
     series: &[Series],
@@ -840,13 +847,16 @@ fn lead_on_top(
     notes: &mut Vec<String>,
     runs: &mut usize,
     made: &mut Made,
-    chosen: (Law, Vec<ParamSpec>),
-    lead: ParamSpec,
-    e_chosen: f64,
-    folds: usize,
+    chosen: Chosen,
 ) -> Vec<ParamSpec> {
-    let mut both = chosen.1.clone();
-    both.push(lead);
+    let folds = series.len().min(LADDER_FOLDS);
+    let e_chosen = chosen.heldout_m;
+    let mut both = chosen.specs.clone();
+    both.extend(
+        cfg.unheld(accel_law_specs(robot))
+            .into_iter()
+            .filter(|s| s.kind == GeomKind::AccelSlip),
+    );
     let fit = fit_specs(robot, &both, &refs(series), cfg, true);
     *runs += fit.runs;
     let (e, _) = heldout_errors(robot, &[&both], series, cfg, runs);
@@ -875,11 +885,11 @@ fn lead_on_top(
         kept,
     });
     if !kept {
-        return chosen.1;
+        return chosen.specs;
     }
     notes.push(format!(
         "pose lead: on top of the {} law the poses lead the wheels by {:.1} ms, which no slip does: a timestamp offset between the pose stream and the encoders, and it holds out (accel_slip_s {:+.1} ± {:.1} ms; held-out dead reckoning by recording ({folds} folds) {:.1} mm with both, {:.1} mm with the law alone): fitted with the law and the geometry, given to neither the board nor the robot file nor ROS 2 (--free-start fits one offset per recording instead)",
-        chosen.0.name(),
+        chosen.law.name(),
         -v * 1e3,
         v * 1e3,
         s_v * 1e3,
