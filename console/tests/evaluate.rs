@@ -356,7 +356,7 @@ fn board_calibrations_that_cannot_be_applied_are_refused_by_file() {
     );
     refused(
         r#"{"kind": "diff_drive", "robot": "m", "factors": {"c_l": 1, "c_r": 1, "e_b": 1, "board": {"c_l": 1, "c_r": 1, "e_b": 1, "e_b_arc": 0.9, "speed_rel": 0, "accel_slip_s": 0}}}"#,
-        &["refuses its factors", "e_b_arc"],
+        &["refuses these factors", "e_b_arc"],
     );
     // Its fitted geometry is --robot's: the robot file it wrote, on which the factors
     // would count twice.

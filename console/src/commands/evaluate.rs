@@ -9,7 +9,6 @@ use crate::calibration::saved::SavedCalibration;
 use crate::output::Output;
 use crate::recordings::{load_all, refuse_mixed_robots};
 use anyhow::{anyhow, bail, Result};
-use calib_core::correction::Corrections;
 use diagnose::calibrate::{evaluate, same_wheels, Candidate};
 use formats::robot_file;
 
@@ -21,22 +20,15 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
     for p in &a.board {
         let saved = SavedCalibration::read(p, &robot, "--board")?;
         let factors = saved.board_corrections()?;
-        // The factors correct the robot they were fitted from; on the robot file the
-        // calibration wrote they would apply twice.
-        if !factors_are_one(&factors) && saved.is_fitted_robot(&robot) {
+        // The factors correct the robot they were fitted from: on the robot file the
+        // calibration wrote, any that change the geometry would count twice.
+        if saved.is_fitted_robot(&robot) && !saved.is_fitted_robot(&factors.apply_to(&robot)) {
             bail!(
                 "{}: --robot {} has this calibration's fitted geometry (the robot file it wrote): --board applies the calibration's factors to the robot it was fitted from, so they would count twice; give that robot (the nominal) as --robot, and the fitted file as --against",
                 saved.file.display(),
                 a.robot.display()
             );
         }
-        factors.validate(&robot).map_err(|e| {
-            anyhow!(
-                "{}: a board with --robot {} refuses its factors: {e}",
-                saved.file.display(),
-                a.robot.display()
-            )
-        })?;
         let lost = saved.without_factor();
         let lost = if lost.is_empty() {
             String::new()
@@ -46,11 +38,15 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
                 lost.join(", ")
             )
         };
-        candidates.push(Candidate::board(
+        let board = Candidate::board(
             format!("{} on the board{lost}", saved.file.display()),
             robot.clone(),
             factors,
-        ));
+        );
+        board
+            .check()
+            .map_err(|e| anyhow!("{e} (--robot {})", a.robot.display()))?;
+        candidates.push(board);
     }
     candidates.push(Candidate::file(
         a.robot.display().to_string(),
@@ -77,15 +73,4 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
         }
     })?;
     out.emit(&ev, || ev.to_string())
-}
-
-/// Factors that change nothing (all 1, no law): on them the nominal and the fitted robot
-/// are the same.
-fn factors_are_one(c: &Corrections) -> bool {
-    match c {
-        Corrections::None => true,
-        Corrections::DiffDrive { c_l, c_r, e_b } => [c_l, c_r, e_b].iter().all(|v| **v == 1.0),
-        Corrections::Omni { f_lat, f_lon } => *f_lon == 1.0 && f_lat.iter().all(|v| *v == 1.0),
-        _ => false,
-    }
 }

@@ -115,6 +115,20 @@ impl Candidate {
         }
     }
 
+    /// Refuses board factors the board itself would refuse for its robot, naming the
+    /// candidate and the factor; a robot file passes.
+    pub fn check(&self) -> Result<(), String> {
+        match &self.board {
+            Some(f) => f.validate(&self.robot).map_err(|e| {
+                format!(
+                    "{}: a board with robot '{}' refuses these factors: {e}",
+                    self.label, self.robot.name
+                )
+            }),
+            None => Ok(()),
+        }
+    }
+
     /// Position RMS and end error of `s` (read with this candidate's robot).
     fn errors(&self, s: &Series) -> Option<(f64, f64)> {
         match &self.board {
@@ -166,15 +180,10 @@ pub fn evaluate(
         })?;
     }
     for c in candidates {
-        if let Some(f) = &c.board {
-            f.validate(&c.robot).map_err(|e| CalibrateError {
-                recording: None,
-                message: format!(
-                    "{}: a board with robot '{}' refuses these factors: {e}",
-                    c.label, c.robot.name
-                ),
-            })?;
-        }
+        c.check().map_err(|message| CalibrateError {
+            recording: None,
+            message,
+        })?;
     }
     if recs.is_empty() {
         return Err(CalibrateError {
