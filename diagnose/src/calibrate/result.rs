@@ -333,7 +333,9 @@ pub struct Implausible {
 #[derive(Debug, Clone, Serialize)]
 pub struct LawTest {
     /// `turn`, `speed`, `acceleration`, or `pose lead` (the poses stamped early, a
-    /// negative acceleration term, on top of the law kept: the logger's, not a rival).
+    /// negative acceleration term, on top of the law kept: the logger's, not a rival);
+    /// when the lead is chosen because no law qualified alone, `turn on the pose lead`
+    /// and `speed on the pose lead` (each law again on top of it).
     pub law: &'static str,
     /// Its parameter (`eb_arc`, `speed_rel`, `accel_slip_s`).
     pub parameter: String,
@@ -344,7 +346,8 @@ pub struct LawTest {
     pub sigma: f64,
     /// Mean held-out dead-reckoning RMSE with the law, m.
     pub heldout_m: f64,
-    /// The same with the constant model (no law; for `pose lead`, the law kept alone), m.
+    /// The same with the constant model (no law; for `pose lead`, the law kept alone;
+    /// for a law on the pose lead, the lead alone), m.
     pub constant_heldout_m: f64,
     /// Folds (by recording) of the held-out comparison.
     pub folds: usize,
