@@ -92,6 +92,14 @@ pub enum Segment {
         /// How long to stand still (s).
         duration_s: f64,
     },
+    /// Drive forward along body x on an arc of constant radius: the arcs a turn-radius
+    /// law (tyre scrub, skid-steer ICRs) needs to be seen, which squares lack.
+    Arc {
+        /// Radius of the arc (m, positive).
+        radius_m: f64,
+        /// Signed heading change (rad, positive = counter-clockwise, to the left).
+        angle_rad: f64,
+    },
 }
 
 /// Speed and acceleration limits for the profiles.
@@ -236,6 +244,22 @@ impl Program {
         Program { segments }
     }
 
+    /// A circle of `radius_m`, `laps` times round, driven forward from rest to rest:
+    /// arcs of one radius for calibrating the separation on arcs against the squares'
+    /// turns in place.
+    pub fn circle(radius_m: f64, dir: Direction, laps: u8) -> Self {
+        let sign = match dir {
+            Direction::Ccw => 1.0,
+            Direction::Cw => -1.0,
+        };
+        let mut segments = Vec::new();
+        let _ = segments.push(Segment::Arc {
+            radius_m,
+            angle_rad: sign * core::f64::consts::TAU * f64::from(laps),
+        });
+        Program { segments }
+    }
+
     /// [Redundant omni]'s straight omni test path of length `length_m`.
     pub fn omni_path(path: OmniPath, length_m: f64) -> Self {
         let (ux, uy) = path.direction();
@@ -278,6 +302,23 @@ fn profile_of(s: &Segment, l: &ProfileLimits) -> (Trapezoid, Twist<f64>) {
             Trapezoid::new(angle_rad, l.omega_max, l.alpha_max),
             Twist::new(0.0, 0.0, 1.0),
         ),
+        Segment::Arc {
+            radius_m,
+            angle_rad,
+        } => {
+            // Along the arc's length, within both the speed and the turn-rate limits.
+            let r = radius_m.max(0.0);
+            let sign = if angle_rad < 0.0 { -1.0 } else { 1.0 };
+            let omega = if r > 0.0 { sign / r } else { 0.0 };
+            (
+                Trapezoid::new(
+                    r * libm::fabs(angle_rad),
+                    l.v_max.min(l.omega_max * r),
+                    l.a_max.min(l.alpha_max * r),
+                ),
+                Twist::new(1.0, 0.0, omega),
+            )
+        }
         Segment::Translate { dx_m, dy_m } => {
             let d = libm::sqrt(dx_m * dx_m + dy_m * dy_m);
             let u = if d > 0.0 {
@@ -391,5 +432,67 @@ mod tests {
         assert!((dist - 16.0).abs() < 1e-9, "{dist}");
         assert!((turn + core::f64::consts::TAU).abs() < 1e-9, "{turn}");
         assert!(r.is_finished());
+    }
+
+    /// Integrates a program's twists tick by tick along exact arcs: the pose, the path
+    /// length and the largest speed and turn rate commanded.
+    fn drive(prog: &Program, limits: ProfileLimits) -> (crate::odometry::Pose<f64>, f64, f64, f64) {
+        let mut r = prog.runner(limits);
+        let mut pose = crate::odometry::Pose::<f64>::default();
+        let (mut dist, mut v_peak, mut w_peak) = (0.0f64, 0.0f64, 0.0f64);
+        let dt = 1e-3;
+        while let Some(t) = r.twist_at_tick(dt) {
+            pose = crate::odometry::integrate_arc(pose, &t.scale(dt));
+            dist += t.vx * dt;
+            v_peak = v_peak.max(t.vx.abs());
+            w_peak = w_peak.max(t.omega.abs());
+        }
+        (pose, dist, v_peak, w_peak)
+    }
+
+    /// A circle of radius r drives 2 pi r per lap on a constant curvature, so exact arc
+    /// integration ends where it started, turned by 2 pi per lap (counter-clockwise
+    /// positive), to rounding (1e-9); its speed and turn rate keep both limits (on a
+    /// 0.1 m circle the turn rate limit of 1 rad/s caps the speed at 0.1 m/s).
+    #[test]
+    fn a_circle_program_drives_its_circle_within_the_limits() {
+        use core::f64::consts::TAU;
+        let l = ProfileLimits::default();
+        for (radius, dir, laps) in [
+            (0.5, Direction::Ccw, 1),
+            (0.5, Direction::Cw, 2),
+            (0.1, Direction::Ccw, 1),
+        ] {
+            let prog = Program::circle(radius, dir, laps);
+            let (pose, dist, v_peak, w_peak) = drive(&prog, l);
+            let sign = if dir == Direction::Ccw { 1.0 } else { -1.0 };
+            let turned = sign * TAU * laps as f64;
+            assert!(
+                libm::fabs(pose.x) < 1e-9 && libm::fabs(pose.y) < 1e-9,
+                "{radius}: {pose:?}"
+            );
+            assert!(libm::fabs(pose.theta - turned) < 1e-9, "{radius}: {pose:?}");
+            assert!(
+                libm::fabs(dist - TAU * radius * laps as f64) < 1e-9,
+                "{dist}"
+            );
+            let v_cap = l.v_max.min(l.omega_max * radius);
+            assert!(
+                v_peak <= v_cap + 1e-9 && v_peak > 0.99 * v_cap,
+                "{radius}: {v_peak}"
+            );
+            assert!(w_peak <= l.omega_max + 1e-9, "{radius}: {w_peak}");
+        }
+        // Half a lap of a 0.5 m counter-clockwise arc ends across the circle, at (0, 1).
+        let mut half = Program::default();
+        let _ = half.segments.push(Segment::Arc {
+            radius_m: 0.5,
+            angle_rad: core::f64::consts::PI,
+        });
+        let (pose, ..) = drive(&half, l);
+        assert!(
+            libm::fabs(pose.x) < 1e-9 && libm::fabs(pose.y - 1.0) < 1e-9,
+            "{pose:?}"
+        );
     }
 }

@@ -169,6 +169,10 @@ pub struct SimRecordArgs {
     /// instead of a random trajectory.
     #[arg(long, value_parser = arena_side)]
     pub umbmark_side: Option<f64>,
+    /// Drive one counter-clockwise circle of this radius (metres, its diameter at most a
+    /// board's default arena) instead: the arcs `calibrate` needs to test a turn law.
+    #[arg(long, value_parser = arena_radius, conflicts_with = "umbmark_side")]
+    pub circle_radius: Option<f64>,
     /// Rows per second.
     #[arg(long, default_value_t = 200.0, value_parser = positive_f64)]
     pub rate: f64,
@@ -339,6 +343,24 @@ pub enum RunCmd {
         /// Idle-wheel mode.
         #[command(flatten)]
         idle: IdleArgs,
+    },
+    /// A circle driven forward: the arcs a calibration needs to see how the robot turns on
+    /// arcs, beside the squares' turns in place (`calibrate` tests a turn-radius law only
+    /// when the recordings turn on arcs).
+    Circle {
+        /// Direction of the circle.
+        #[arg(long, value_enum)]
+        dir: DirArg,
+        /// Radius, metres (its diameter at most the board's arena: checked with the
+        /// board's own rule before anything is sent). Record several radii to see a law.
+        #[arg(long, default_value_t = 0.5, allow_negative_numbers = true)]
+        radius: f64,
+        /// Times round (1 to 10).
+        #[arg(long, default_value_t = 1)]
+        laps: u8,
+        /// Log rate and waiting.
+        #[command(flatten)]
+        run: ProgramRunArgs,
     },
 }
 
@@ -618,6 +640,12 @@ fn record_seconds(s: &str) -> std::result::Result<f64, String> {
 fn arena_side(s: &str) -> std::result::Result<f64, String> {
     let arena = calib_core::protocol::Safety::default().arena_m as f64;
     in_range(s, arena, "m (a board's default arena)")
+}
+
+/// A circle's radius: positive, its diameter within a board's default arena.
+fn arena_radius(s: &str) -> std::result::Result<f64, String> {
+    let arena = calib_core::protocol::Safety::default().arena_m as f64;
+    in_range(s, arena / 2.0, "m (half a board's default arena)")
 }
 
 /// Runs per direction or path: a procedure needs at least one, and a person measures

@@ -230,6 +230,52 @@ fn sim_record_bounds_the_square_like_a_board() {
     }
 }
 
+/// `sim record --circle-radius R`: one counter-clockwise circle, bounded like a board's
+/// (its diameter within the default arena: 0 < R <= 5 m, refused while parsing). A 0.5 m
+/// circle's poses reach 1 m across (the diameter, within 2 cm of pose noise and the
+/// simulated wheels' own scatter) and end within 2 cm of the start.
+#[test]
+fn sim_record_drives_a_circle_bounded_like_a_board() {
+    let dir = scratch("simcircle");
+    let record = |radius: &str| {
+        wheelcal()
+            .args(["sim", "record", "--seed", "1", "--robot"])
+            .arg(robot("mobolab"))
+            .arg("--out")
+            .arg(dir.join("rec"))
+            .arg(format!("--circle-radius={radius}"))
+            .output()
+            .expect("runs")
+    };
+    for radius in ["5.5", "0", "-1", "NaN"] {
+        let o = record(radius);
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert_eq!(o.status.code(), Some(2), "{radius}: {err}");
+        assert!(err.contains("(0, 5] m"), "{radius}: {err}");
+    }
+    let o = record("0.5");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let nominal = formats::robot_file::load(&robot("mobolab")).unwrap();
+    let rec =
+        formats::recording::Recording::load(&dir.join("rec/recording.csv"), &nominal).unwrap();
+    let poses: Vec<(f64, f64)> = rec
+        .x
+        .iter()
+        .zip(&rec.y)
+        .filter_map(|(x, y)| Some(((*x)?, (*y)?)))
+        .collect();
+    let (x0, y0) = poses[0];
+    let across = poses
+        .iter()
+        .map(|(x, y)| (x - x0).hypot(y - y0))
+        .fold(0.0, f64::max);
+    let (xe, ye) = poses[poses.len() - 1];
+    let end = (xe - x0).hypot(ye - y0);
+    eprintln!("circle of 0.5 m: {across:.4} m across, ends {end:.4} m from the start");
+    assert!((across - 1.0).abs() < 0.02, "{across}");
+    assert!(end < 0.02, "{end}");
+}
+
 /// 13.3: in `wheelcal console`, Ctrl-C during a 10 s drive was ignored (the robot drove
 /// 0.94 m to its end). Now it stops the robot at once and returns to the prompt.
 #[test]

@@ -122,3 +122,48 @@ fn speed_and_acceleration_laws_are_set_in_words() {
     assert_eq!(v["accel_slip_s"], 0.047, "{v}");
     assert_eq!(v["c_l"], 0.995, "{v}");
 }
+
+/// `wheelcal run circle` on the virtual board: the board drives the circle (mobolab's
+/// steppers follow the profile step by step, so its own odometry ends where it started,
+/// having turned +2 pi: within 1 mm and 5 mrad, a few steps at the ends; measured
+/// 0.005 mm and under 1e-6 rad),
+/// the trial reads as words, and a circle wider than the arena or of no laps is refused
+/// before anything is sent, naming the number.
+#[test]
+fn a_circle_runs_on_the_board_and_a_bad_one_is_not_sent() {
+    let dir = scratch("circle");
+    let board = Board::start("mobolab", &dir);
+    let (o, out, err) =
+        board.run_text(&["--json", "run", "circle", "--dir", "ccw", "--radius", "0.3"]);
+    assert!(o.status.success(), "{err}");
+    let s: serde_json::Value = serde_json::from_str(&out).expect("status JSON");
+    let pose = &s["pose"];
+    let (x, y, th) = (
+        pose["x"].as_f64().unwrap(),
+        pose["y"].as_f64().unwrap(),
+        pose["theta"].as_f64().unwrap(),
+    );
+    // Not wrapped: one lap counter-clockwise is +2 pi.
+    let off = th - std::f64::consts::TAU;
+    eprintln!(
+        "after the circle: {:.3} mm from the start, {off:+.5} rad off one lap",
+        x.hypot(y) * 1e3
+    );
+    assert!(x.hypot(y) < 1e-3 && off.abs() < 5e-3, "{s}");
+    let (o, out, err) = board.run_text(&["log", "list"]);
+    assert!(o.status.success(), "{err}");
+    assert!(out.contains("circle ccw, radius 0.3 m, 1 lap"), "{out}");
+    for (args, word) in [
+        (["--radius", "6", "--laps", "1"], "radius_m = 6"),
+        (["--radius", "0.5", "--laps", "0"], "laps"),
+    ] {
+        let mut all = vec!["run", "circle", "--dir", "cw"];
+        all.extend(args);
+        let (o, _, err) = board.run_text(&all);
+        assert_eq!(o.status.code(), Some(1), "{args:?}: {err}");
+        assert!(
+            err.contains("not sent") && err.contains(word),
+            "{args:?}: {err}"
+        );
+    }
+}

@@ -10,7 +10,7 @@ use crate::wheel::WheelState;
 use crate::{defaults, EncoderSource, WheelDriver, FIRMWARE_VERSION};
 use calib_core::diff_laws::DiffLawOdometry;
 use calib_core::kinematics::Kinematics;
-use calib_core::motion::{Program, ProgramRunner, Setpoint};
+use calib_core::motion::{ProgramRunner, Setpoint};
 use calib_core::odometry::{Odometry, Pose};
 use calib_core::protocol::{
     record_size, BootReport, ControlValue, CorrectionFault, Fault, IdleWheels, Info, LogChunk,
@@ -862,13 +862,7 @@ impl<'a> App<'a> {
             self.params.safety.arena_m as f64,
         )
         .map_err(Rejection::InvalidProgram)?;
-        let program = match &spec {
-            ProgramSpec::Umbmark { side_m, dir } => Program::umbmark_square(*side_m, *dir),
-            ProgramSpec::Omni { path, length_m, .. } => Program::omni_path(*path, *length_m),
-            ProgramSpec::Custom(segs) => Program {
-                segments: segs.clone(),
-            },
-        };
+        let program = spec.program();
         self.hold_idle = matches!(
             spec,
             ProgramSpec::Omni {

@@ -63,6 +63,15 @@ pub enum ProgramKind {
         /// Number of segments.
         segments: u8,
     },
+    /// A circle driven forward.
+    Circle {
+        /// Radius (m).
+        radius_m: f32,
+        /// Turning sense.
+        dir: Direction,
+        /// Times round.
+        laps: u8,
+    },
 }
 
 #[derive(Debug, Clone, Copy, PartialEq, Eq, Serialize, Deserialize, postcard_schema::Schema)]

@@ -2,6 +2,7 @@
 
 #[allow(unused_imports)]
 use super::*;
+use crate::motion::Program;
 
 /// Robot geometry and the settings that go with it, persisted together.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
@@ -166,7 +167,20 @@ pub enum ProgramSpec {
     },
     /// Up to [`MAX_SEGMENTS`] segments.
     Custom(Vec<Segment, MAX_SEGMENTS>),
+    /// A circle driven forward ([`Program::circle`](crate::motion::Program::circle)):
+    /// the arcs a turn-radius law needs, which squares lack.
+    Circle {
+        /// Radius (m).
+        radius_m: f64,
+        /// Turning sense.
+        dir: Direction,
+        /// Times round, 1 to [`MAX_LAPS`].
+        laps: u8,
+    },
 }
+
+/// Most laps a circle program drives.
+pub const MAX_LAPS: u8 = 10;
 
 impl ProgramSpec {
     /// Checks every number is finite and within reach before anything moves: sides and
@@ -211,6 +225,18 @@ impl ProgramSpec {
                 fin(*length_m, arena_m, F::LengthM)?;
                 positive(*length_m, F::LengthM)?;
             }
+            ProgramSpec::Circle { radius_m, laps, .. } => {
+                // Its diameter within the arena.
+                fin(*radius_m, arena_m / 2.0, F::RadiusM)?;
+                positive(*radius_m, F::RadiusM)?;
+                if *laps == 0 {
+                    return Err(ProgramError::NotPositive {
+                        field: F::Laps,
+                        value: 0.0,
+                    });
+                }
+                fin(f64::from(*laps), f64::from(MAX_LAPS), F::Laps)?;
+            }
             ProgramSpec::Custom(segs) => {
                 if segs.is_empty() {
                     return Err(ProgramError::NoSegments);
@@ -219,6 +245,14 @@ impl ProgramSpec {
                     match *s {
                         Segment::Straight { distance_m } => fin(distance_m, arena_m, F::DistanceM)?,
                         Segment::Turn { angle_rad } => fin(angle_rad, 100.0, F::AngleRad)?,
+                        Segment::Arc {
+                            radius_m,
+                            angle_rad,
+                        } => {
+                            fin(radius_m, arena_m, F::RadiusM)?;
+                            positive(radius_m, F::RadiusM)?;
+                            fin(angle_rad, 100.0, F::AngleRad)?;
+                        }
                         Segment::Translate { dx_m, dy_m } => {
                             if kind != RobotKind::Omni {
                                 return Err(ProgramError::NeedsOmni { robot: kind });
@@ -251,6 +285,22 @@ impl ProgramSpec {
         Ok(())
     }
 
+    /// The segments the board runs for it (the host forecasts its duration from the same).
+    pub fn program(&self) -> Program {
+        match self {
+            ProgramSpec::Umbmark { side_m, dir } => Program::umbmark_square(*side_m, *dir),
+            ProgramSpec::Omni { path, length_m, .. } => Program::omni_path(*path, *length_m),
+            ProgramSpec::Custom(segs) => Program {
+                segments: segs.clone(),
+            },
+            ProgramSpec::Circle {
+                radius_m,
+                dir,
+                laps,
+            } => Program::circle(*radius_m, *dir, *laps),
+        }
+    }
+
     /// The short description kept in a trial's header.
     pub fn kind(&self) -> ProgramKind {
         match self {
@@ -264,6 +314,15 @@ impl ProgramSpec {
             },
             ProgramSpec::Custom(s) => ProgramKind::Custom {
                 segments: s.len() as u8,
+            },
+            ProgramSpec::Circle {
+                radius_m,
+                dir,
+                laps,
+            } => ProgramKind::Circle {
+                radius_m: *radius_m as f32,
+                dir: *dir,
+                laps: *laps,
             },
         }
     }
@@ -286,6 +345,10 @@ pub enum ProgramField {
     DyM,
     /// A pause (s).
     DurationS,
+    /// An arc's or a circle's radius (m).
+    RadiusM,
+    /// A circle's laps.
+    Laps,
 }
 
 impl ProgramField {
@@ -299,6 +362,8 @@ impl ProgramField {
             ProgramField::DxM => "dx_m",
             ProgramField::DyM => "dy_m",
             ProgramField::DurationS => "duration_s",
+            ProgramField::RadiusM => "radius_m",
+            ProgramField::Laps => "laps",
         }
     }
 }

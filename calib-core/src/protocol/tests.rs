@@ -758,7 +758,7 @@ fn schema_golden() {
     std::println!("golden {golden:#010x}, fingerprint {SCHEMA_FINGERPRINT:#010x}");
     assert_eq!(
         (golden, SCHEMA_FINGERPRINT),
-        (0x2fbfdd72, 0x3e254e0d),
+        (0x2594aab9, 0x41430758),
         "message types changed: record the new values (and bump PROTOCOL_VERSION if needed)"
     );
 }
@@ -892,6 +892,55 @@ fn programs_outside_the_arena_or_negative_are_refused() {
     assert!(straight(-11.0)
         .validate(2, RobotKind::DiffDrive, arena)
         .is_err());
+    // A circle: its radius positive and its diameter within the arena, 1 to 10 laps; any
+    // kind of robot; an arc segment's radius positive and within the arena.
+    let circle = |radius_m: f64, laps: u8| ProgramSpec::Circle {
+        radius_m,
+        dir: Direction::Cw,
+        laps,
+    };
+    assert_eq!(
+        circle(0.5, 1).validate(2, RobotKind::DiffDrive, arena),
+        Ok(())
+    );
+    assert_eq!(circle(5.0, 10).validate(4, RobotKind::Omni, arena), Ok(()));
+    for bad in [0.0, -0.5, 5.001, f64::NAN, f64::INFINITY] {
+        let e = circle(bad, 1).validate(2, RobotKind::DiffDrive, arena);
+        assert!(e.is_err(), "radius {bad} accepted");
+        assert!(
+            e.unwrap_err().to_string().contains("radius_m"),
+            "radius {bad}"
+        );
+    }
+    for bad in [0, 11] {
+        let e = circle(0.5, bad).validate(2, RobotKind::DiffDrive, arena);
+        assert!(e.unwrap_err().to_string().contains("laps"), "laps {bad}");
+    }
+    let arc = |radius_m: f64, angle_rad: f64| {
+        ProgramSpec::Custom(
+            Vec::from_slice(&[Segment::Arc {
+                radius_m,
+                angle_rad,
+            }])
+            .unwrap(),
+        )
+    };
+    assert_eq!(
+        arc(1.0, -3.0).validate(2, RobotKind::DiffDrive, arena),
+        Ok(())
+    );
+    for (r, a) in [
+        (0.0, 1.0),
+        (-1.0, 1.0),
+        (10.5, 1.0),
+        (1.0, 101.0),
+        (1.0, f64::NAN),
+    ] {
+        assert!(
+            arc(r, a).validate(2, RobotKind::DiffDrive, arena).is_err(),
+            "arc {r} m, {a} rad accepted"
+        );
+    }
     // The arena itself is a validated setting.
     let mut p = Params {
         robot: presets::mobolab(),

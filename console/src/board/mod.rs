@@ -11,8 +11,8 @@ pub mod trial_log;
 pub use factors::{factors_text, merge_corrections, FactorsView, GivenFactors};
 pub use info::{info, status_line, stored_word, InfoReport};
 pub use programs::{
-    drive_for, eviction_forecast, program_time_limit, run_omni, run_umbmark, start_program,
-    stop_after_interrupt, wait_program,
+    drive_for, eviction_forecast, program_time_limit, run_circle, run_omni, run_umbmark,
+    start_program, stop_after_interrupt, wait_program,
 };
 pub use trial_log::{
     program_text, pull_trial, records_to_csv, trial_end_text, trial_list, PulledTrial, TrialList,

@@ -88,6 +88,27 @@ pub fn run_umbmark<L: Read + Write>(
     )
 }
 
+/// Starts a circle.
+pub fn run_circle<L: Read + Write>(
+    c: &mut Client<L>,
+    dir: Direction,
+    radius_m: f64,
+    laps: u8,
+    log_rate_hz: u16,
+    link_timeout_ms: u16,
+) -> Result<Duration> {
+    start_program(
+        c,
+        ProgramSpec::Circle {
+            radius_m,
+            dir,
+            laps,
+        },
+        log_rate_hz,
+        link_timeout_ms,
+    )
+}
+
 /// Starts an omni path.
 pub fn run_omni<L: Read + Write>(
     c: &mut Client<L>,
@@ -131,6 +152,9 @@ pub fn start_program<L: Read + Write>(
         ProgramSpec::Umbmark { side_m, .. } => *side_m,
         ProgramSpec::Omni { length_m, .. } => *length_m,
         ProgramSpec::Custom(_) => arena,
+        ProgramSpec::Circle { radius_m, laps, .. } => {
+            core::f64::consts::TAU * radius_m * f64::from(*laps)
+        }
     };
     // Say before the run which trials it will push out of the log (the board cannot tell
     // whether they were pulled).
@@ -166,17 +190,10 @@ pub fn eviction_forecast(
     limits: &calib_core::motion::ProfileLimits,
     rate_hz: u16,
 ) -> Vec<u16> {
-    use calib_core::motion::Program;
     if rate_hz == 0 {
         return Vec::new();
     }
-    let prog = match program {
-        ProgramSpec::Umbmark { side_m, dir } => Program::umbmark_square(*side_m, *dir),
-        ProgramSpec::Omni { path, length_m, .. } => Program::omni_path(*path, *length_m),
-        ProgramSpec::Custom(segs) => Program {
-            segments: segs.clone(),
-        },
-    };
+    let prog = program.program();
     let records = (prog.duration(limits) * 1.1 * f64::from(rate_hz)).ceil();
     // The log stores records compressed (about 4.3 bytes for a 32-byte two-wheel record):
     // the size that counts is the one the board's own trials show, the largest of them

@@ -38,6 +38,16 @@ pub fn program_text(p: &ProgramKind) -> String {
         }
         ProgramKind::Custom { segments: 1 } => "custom, 1 segment".into(),
         ProgramKind::Custom { segments } => format!("custom, {segments} segments"),
+        ProgramKind::Circle {
+            radius_m,
+            dir,
+            laps,
+        } => format!(
+            "circle {}, radius {} m, {laps} lap{}",
+            dir.as_str(),
+            Num(*radius_m as f64),
+            if *laps == 1 { "" } else { "s" }
+        ),
     }
 }
 

@@ -1,4 +1,4 @@
-//! `wheelcal run umbmark|omni`: one test path on the board.
+//! `wheelcal run umbmark|omni|circle`: one test path on the board.
 
 use crate::args::RunCmd;
 use crate::board;
@@ -9,7 +9,9 @@ use anyhow::Result;
 /// Starts the program (validated first) and, unless --no-wait, follows it to its end.
 pub fn run(cmd: RunCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
     let link_ms = match &cmd {
-        RunCmd::Umbmark { run, .. } | RunCmd::Omni { run, .. } => run.link_timeout_ms()?,
+        RunCmd::Umbmark { run, .. } | RunCmd::Omni { run, .. } | RunCmd::Circle { run, .. } => {
+            run.link_timeout_ms()?
+        }
     };
     let client = ctx.client()?;
     let (no_wait, limit) = match cmd {
@@ -25,6 +27,15 @@ pub fn run(cmd: RunCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
         } => {
             let idle = idle.idle_wheels.map(Into::into).unwrap_or_default();
             let limit = board::run_omni(client, path.into(), length, idle, run.log_rate, link_ms)?;
+            (run.no_wait, limit)
+        }
+        RunCmd::Circle {
+            dir,
+            radius,
+            laps,
+            run,
+        } => {
+            let limit = board::run_circle(client, dir.into(), radius, laps, run.log_rate, link_ms)?;
             (run.no_wait, limit)
         }
     };

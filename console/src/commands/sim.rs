@@ -66,12 +66,21 @@ fn record(a: SimRecordArgs, out: Output) -> Result<()> {
         .iter()
         .map(|e| sim::Effect::parse(e).with_context(|| format!("--effect {e}")))
         .collect::<Result<Vec<_>>>()?;
-    let motion = match a.umbmark_side {
-        Some(side) => sim::record::Motion::Program {
-            program: Box::new(calib_core::motion::Program::umbmark_square(
-                side,
-                Direction::Ccw,
-            )),
+    let program = match (a.umbmark_side, a.circle_radius) {
+        (Some(side), _) => Some(calib_core::motion::Program::umbmark_square(
+            side,
+            Direction::Ccw,
+        )),
+        (None, Some(radius)) => Some(calib_core::motion::Program::circle(
+            radius,
+            Direction::Ccw,
+            1,
+        )),
+        (None, None) => None,
+    };
+    let motion = match program {
+        Some(program) => sim::record::Motion::Program {
+            program: Box::new(program),
             limits: Default::default(),
         },
         None => sim::record::Motion::Random(sim::record::RandomMotion {
