@@ -1287,18 +1287,7 @@ fn poses_leading_the_encoders_are_named_a_timestamp_offset_and_kept_off_the_boar
 #[test]
 fn a_pose_lead_is_fitted_beside_a_turn_law_not_instead_of_it() {
     let nominal = robot("mobolab");
-    let recs: Vec<(String, Recording)> = (0..3)
-        .map(|i| {
-            let mut c = cfg(50 + i);
-            c.sim.turn_scrub = 0.04;
-            let motion = Motion::Random(RandomMotion {
-                duration_s: 40.0,
-                ..RandomMotion::default()
-            });
-            let r = record(&nominal, &[], Surface::flat(), &motion, &c).unwrap();
-            (format!("run{i}"), with_clock(&r, -0.04, 1.0))
-        })
-        .collect();
+    let recs = scrubbed_runs_leading(&nominal, 50, 0.04, 0.04);
     let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
     println!("{c}");
     let (arc, lead) = (param(&c, "eb_arc"), param(&c, "accel_slip_s"));
@@ -1317,6 +1306,29 @@ fn a_pose_lead_is_fitted_beside_a_turn_law_not_instead_of_it() {
     let (_, b) = board_factors(&c);
     assert!((b.laws.e_b_arc - c.turn_law.arc_rel).abs() < 1e-12, "{b:?}");
     assert_eq!((b.laws.speed_rel, b.laws.accel_slip_s), (0.0, 0.0), "{b:?}");
+}
+
+/// Three 40 s random runs (seeds `seed`..`seed + 2`) of a robot whose separation is
+/// wider on arcs by `scrub` (the simulator's `turn_scrub`), their poses stamped `lead_s`
+/// early.
+fn scrubbed_runs_leading(
+    nominal: &Robot,
+    seed: u64,
+    scrub: f64,
+    lead_s: f64,
+) -> Vec<(String, Recording)> {
+    (0..3)
+        .map(|i| {
+            let mut c = cfg(seed + i);
+            c.sim.turn_scrub = scrub;
+            let motion = Motion::Random(RandomMotion {
+                duration_s: 40.0,
+                ..RandomMotion::default()
+            });
+            let r = record(nominal, &[], Surface::flat(), &motion, &c).unwrap();
+            (format!("run{i}"), with_clock(&r, -lead_s, 1.0))
+        })
+        .collect()
 }
 
 /// The number that follows `words` in one of the calibration's notes.
@@ -1754,18 +1766,7 @@ fn omni_wheels_centre_off_the_tracked_point_is_found() {
 #[test]
 fn a_law_hidden_by_a_pose_lead_is_tested_on_top_of_it() {
     let nominal = robot("mobolab");
-    let recs: Vec<(String, Recording)> = (0..3)
-        .map(|i| {
-            let mut c = cfg(70 + i);
-            c.sim.turn_scrub = 0.02;
-            let motion = Motion::Random(RandomMotion {
-                duration_s: 40.0,
-                ..RandomMotion::default()
-            });
-            let r = record(&nominal, &[], Surface::flat(), &motion, &c).unwrap();
-            (format!("run{i}"), with_clock(&r, -0.10, 1.0))
-        })
-        .collect();
+    let recs = scrubbed_runs_leading(&nominal, 70, 0.02, 0.10);
     let c = calibrate(&nominal, &recs, None, &CalOptions::default()).unwrap();
     println!("{c}");
     let (arc, lead) = (param(&c, "eb_arc"), param(&c, "accel_slip_s"));
