@@ -611,7 +611,7 @@ fn choose_turn_law(
         laws.push((Law::Turn, cfg.unheld(turn_law_specs(robot))));
     } else {
         notes.push(format!(
-            "{who}: the recordings turn on arcs for {:.0} % of their turning (the rest in place), under the {:.0} % a turn-radius law needs: a constant effective separation (E_b) is fitted; record arcs of several radii to test one",
+            "{who}: the recordings turn on arcs for {:.0} % of their turning (the rest in place), under the {:.0} % a turn-radius law needs: a constant effective separation (E_b) is fitted; record arcs of several radii to test one (a board drives them: wheelcal run circle --radius R)",
             share * 100.0,
             MIN_ARC_SHARE * 100.0
         ));
