@@ -27,6 +27,11 @@
 //! other month instead of its own day's (the robot as it was on other days, as the
 //! free-form runs kept apart were driven on days of their own; not for omni3, whose runs
 //! are of one day);
+//! `--ivanjko`: test each square session on the Ivanjko paths of the nearest day alone
+//! (a third kind of motion, mostly spins in place);
+//! `--with-circles`: the same tests, with the circles of the nearest day trained on
+//! beside the squares (the workflow the README recommends: squares and circles); the
+//! authors' row is still their square session's, and `runs` counts the squares;
 //! `--first-run`: train on each session's first square alone (the one-recording ladder,
 //! as the `one_square_keeps_a_model_that_transfers` test does);
 //! `--eb-scale F`: multiply the trained geometry's wheel distances (E_b) by F before the
@@ -100,6 +105,10 @@ fn main() {
     let robot_name = val("--robot").unwrap_or_else(|| "diff".into());
     let days = if flag("--other-days") {
         proxy::TestDays::OtherMonths
+    } else if flag("--with-circles") || flag("--ivanjko") {
+        proxy::TestDays::Ivanjko {
+            with_circles: flag("--with-circles"),
+        }
     } else {
         proxy::TestDays::Nearest
     };

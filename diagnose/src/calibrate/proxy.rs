@@ -79,6 +79,13 @@ pub enum TestDays {
     /// Those of the other months: the robot as it was on other days, as the free-form
     /// runs kept apart were driven on days no square session was.
     OtherMonths,
+    /// The nearest day's Ivanjko paths alone (a third kind of motion, mostly spins in
+    /// place); `with_circles`: that day's circles join the training session's squares,
+    /// the workflow the README recommends (squares and circles).
+    Ivanjko {
+        /// Train on the nearest day's circles too.
+        with_circles: bool,
+    },
 }
 
 /// The test runs of a training session: the circular and Ivanjko runs of the same robot
@@ -102,7 +109,29 @@ pub fn test_runs<'a>(all: &'a [RunDir], train: &RunDir, days: TestDays) -> Vec<&
         .filter(|r| match days {
             TestDays::Nearest => (day_number(r.day()) - d0).abs() == best,
             TestDays::OtherMonths => (r.day().0, r.day().1) != (year, month),
+            TestDays::Ivanjko { .. } => {
+                (day_number(r.day()) - d0).abs() == best && r.path == "ivanjko"
+            }
         })
+        .collect()
+}
+
+/// The circles of the nearest day with circles ([`TestDays::Ivanjko`] with circles
+/// trains on them beside the squares).
+pub fn nearest_circles<'a>(all: &'a [RunDir], train: &RunDir) -> Vec<&'a RunDir> {
+    let d0 = day_number(train.day());
+    let of_robot = |r: &&RunDir| r.robot == train.robot && r.path == "circular";
+    let Some(best) = all
+        .iter()
+        .filter(of_robot)
+        .map(|r| (day_number(r.day()) - d0).abs())
+        .min()
+    else {
+        return Vec::new();
+    };
+    all.iter()
+        .filter(of_robot)
+        .filter(|r| (day_number(r.day()) - d0).abs() == best)
         .collect()
 }
 
@@ -341,6 +370,7 @@ pub fn run_robot_on(
                 match days {
                     TestDays::Nearest => "on any day",
                     TestDays::OtherMonths => "in another month",
+                    TestDays::Ivanjko { .. } => "(Ivanjko paths) on the nearest day",
                 }
             ));
         }
@@ -350,7 +380,12 @@ pub fn run_robot_on(
         }
         let mut robot = None;
         let mut recs = Vec::new();
-        for r in &runs {
+        let circles = if days == (TestDays::Ivanjko { with_circles: true }) {
+            nearest_circles(&all, runs[0])
+        } else {
+            Vec::new()
+        };
+        for r in runs.iter().chain(&circles) {
             let (rb, rec) = load_run(dir, &r.folder)?;
             robot.get_or_insert(rb);
             recs.push((r.folder.clone(), rec));
