@@ -182,11 +182,17 @@ pub enum ProgramSpec {
 /// Most laps a circle program drives.
 pub const MAX_LAPS: u8 = 10;
 
+/// Tightest arc a program drives (m): below it the speed an arc may take within the
+/// turn-rate limit (omega_max x r) is a crawl, and a robot turns in place instead.
+pub const MIN_ARC_RADIUS_M: f64 = 0.01;
+
 impl ProgramSpec {
     /// Checks every number is finite and within reach before anything moves: sides and
     /// path lengths positive and at most `arena_m` (the board's [`Safety::arena_m`]),
     /// custom straights and translations within the arena, turns of at most 100 rad,
-    /// pauses of at most 10 min, and that wheel indices exist. The board refuses a program
+    /// pauses of at most 10 min, circles and arcs from [`MIN_ARC_RADIUS_M`] to the arena
+    /// (a circle's diameter within it, 1 to [`MAX_LAPS`] laps), and that wheel indices
+    /// exist. The board refuses a program
     /// that fails, and the console runs the same check before sending.
     pub fn validate(
         &self,
@@ -213,6 +219,17 @@ impl ProgramSpec {
                 Err(ProgramError::NotPositive { field, value: v })
             }
         };
+        let at_least = |v: f64, min: f64, field: ProgramField| -> Result<(), ProgramError> {
+            if v >= min {
+                Ok(())
+            } else {
+                Err(ProgramError::TooSmall {
+                    field,
+                    value: v,
+                    min,
+                })
+            }
+        };
         match self {
             ProgramSpec::Umbmark { side_m, .. } => {
                 fin(*side_m, arena_m, F::SideM)?;
@@ -228,7 +245,7 @@ impl ProgramSpec {
             ProgramSpec::Circle { radius_m, laps, .. } => {
                 // Its diameter within the arena.
                 fin(*radius_m, arena_m / 2.0, F::RadiusM)?;
-                positive(*radius_m, F::RadiusM)?;
+                at_least(*radius_m, MIN_ARC_RADIUS_M, F::RadiusM)?;
                 if *laps == 0 {
                     return Err(ProgramError::NotPositive {
                         field: F::Laps,
@@ -250,7 +267,7 @@ impl ProgramSpec {
                             angle_rad,
                         } => {
                             fin(radius_m, arena_m, F::RadiusM)?;
-                            positive(radius_m, F::RadiusM)?;
+                            at_least(radius_m, MIN_ARC_RADIUS_M, F::RadiusM)?;
                             fin(angle_rad, 100.0, F::AngleRad)?;
                         }
                         Segment::Translate { dx_m, dy_m } => {
@@ -415,6 +432,16 @@ pub enum ProgramError {
         /// The timeout asked for (ms).
         ms: u16,
     },
+    /// Below the least value that makes sense (an arc tighter than
+    /// [`MIN_ARC_RADIUS_M`]).
+    TooSmall {
+        /// Which number.
+        field: ProgramField,
+        /// The value refused.
+        value: f64,
+        /// The least allowed.
+        min: f64,
+    },
 }
 
 impl fmt::Display for ProgramError {
@@ -442,6 +469,13 @@ impl fmt::Display for ProgramError {
                 robot.as_str()
             ),
             ProgramError::NoSegments => f.write_str("a custom program needs at least one segment"),
+            ProgramError::TooSmall { field, value, min } => write!(
+                f,
+                "{} = {} must be at least {}",
+                field.as_str(),
+                Num(value),
+                Num(min)
+            ),
             ProgramError::NoSuchWheel { wheel, wheels } => {
                 write!(f, "wheel {wheel} does not exist ({wheels} wheels)")
             }

@@ -758,7 +758,7 @@ fn schema_golden() {
     std::println!("golden {golden:#010x}, fingerprint {SCHEMA_FINGERPRINT:#010x}");
     assert_eq!(
         (golden, SCHEMA_FINGERPRINT),
-        (0x2594aab9, 0x41430758),
+        (0x2594aab9, 0x1d5838f8),
         "message types changed: record the new values (and bump PROTOCOL_VERSION if needed)"
     );
 }
@@ -904,7 +904,14 @@ fn programs_outside_the_arena_or_negative_are_refused() {
         Ok(())
     );
     assert_eq!(circle(5.0, 10).validate(4, RobotKind::Omni, arena), Ok(()));
-    for bad in [0.0, -0.5, 5.001, f64::NAN, f64::INFINITY] {
+    assert_eq!(
+        circle(0.001, 1)
+            .validate(2, RobotKind::DiffDrive, arena)
+            .unwrap_err()
+            .to_string(),
+        "radius_m = 0.001 must be at least 0.01"
+    );
+    for bad in [0.0, -0.5, 0.009, 5.001, f64::NAN, f64::INFINITY] {
         let e = circle(bad, 1).validate(2, RobotKind::DiffDrive, arena);
         assert!(e.is_err(), "radius {bad} accepted");
         assert!(
@@ -930,6 +937,7 @@ fn programs_outside_the_arena_or_negative_are_refused() {
         Ok(())
     );
     for (r, a) in [
+        (1e-300, 1.0),
         (0.0, 1.0),
         (-1.0, 1.0),
         (10.5, 1.0),
