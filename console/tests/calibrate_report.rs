@@ -398,12 +398,7 @@ fn a_known_speed_law_reaches_the_json_and_a_bad_one_is_refused() {
         )
     };
     let out = run("-0.05", &dir.join("good"));
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let cal: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let cal = common::json_of(&out);
     assert_eq!(cal["turn_law"]["speed_rel"].as_f64(), Some(-0.05));
     assert_eq!(cal["law_tests"].as_array().map(|a| a.len()), Some(0));
     assert_eq!(
@@ -465,12 +460,7 @@ fn a_log_of_driving_places_the_robot_files_e_b() {
         common::calibrate_mobolab(&args, &extra, out)
     };
     let out = run(&log_file, &dir.join("good.toml"));
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let cal: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let cal = common::json_of(&out);
     let wider = |cal: &serde_json::Value| {
         let f = &cal["factors"];
         f["e_b"].as_f64().unwrap() / f["board"]["e_b"].as_f64().unwrap() - 1.0
@@ -524,12 +514,7 @@ fn a_held_parameter_is_not_fitted() {
         common::calibrate_mobolab(&args, &["--hold".as_ref(), hold.as_ref()], out)
     };
     let out = run("ed", &dir.join("good.toml"));
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let cal: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let cal = common::json_of(&out);
     let names: Vec<&str> = cal["params"]
         .as_array()
         .unwrap()

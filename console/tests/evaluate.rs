@@ -83,12 +83,7 @@ fn a_fit_is_judged_on_a_square_it_did_not_see() {
             .unwrap()
     };
     let out = evaluate_cmd(true);
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let j = common::json_of(&out);
 
     // The binary's numbers are the library's on the same files.
     let load = |p: &Path| formats::robot_file::load(p).unwrap();
@@ -268,12 +263,7 @@ fn a_calibration_with_a_turn_law_is_judged_as_the_board_applies_it() {
         .arg(&runs[3])
         .output()
         .unwrap();
-    assert!(
-        out.status.success(),
-        "{}",
-        String::from_utf8_lossy(&out.stderr)
-    );
-    let j: serde_json::Value = serde_json::from_slice(&out.stdout).unwrap();
+    let j = common::json_of(&out);
     let labels: Vec<&str> = j["robots"]
         .as_array()
         .unwrap()

@@ -7,7 +7,7 @@
 use anyhow::{anyhow, bail, Context, Result};
 use calib_core::correction::{Corrections, DiffLaws};
 use calib_core::robot::{Robot, RobotKind, MAX_WHEELS};
-use diagnose::calibrate::BoardFactors;
+use diagnose::calibrate::{BoardFactors, Candidate};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -112,7 +112,7 @@ impl SavedCalibration {
     /// Whether `robot` has the calibration's fitted geometry (every wheel's radius,
     /// distance, mounting and roller angle, as its JSON's `geometry` gives them, to 1e-9
     /// relative): the robot file it wrote, not the one it was fitted from.
-    pub fn is_fitted_robot(&self, robot: &Robot) -> bool {
+    fn is_fitted_robot(&self, robot: &Robot) -> bool {
         let Some(g) = self.json["geometry"].as_array() else {
             return false;
         };
@@ -133,7 +133,7 @@ impl SavedCalibration {
     /// wheels' sizes: f_lat and f_lon; wheel distances, angles, the centre and the roller
     /// angle need the robot file). None on a differential drive, whose every parameter
     /// has a factor or a law.
-    pub fn without_factor(&self) -> Vec<String> {
+    fn without_factor(&self) -> Vec<String> {
         if self.json["factors"].get("f_lat").is_none() {
             return Vec::new();
         }
@@ -180,6 +180,40 @@ impl SavedCalibration {
         let num = |k: &str| f[k].as_f64().ok_or_else(|| missing("c_l, c_r and e_b"));
         let (c_l, c_r, e_b) = (num("c_l")?, num("c_r")?, num("e_b")?);
         Ok(Corrections::diff_drive(c_l, c_r, e_b, DiffLaws::default()))
+    }
+
+    /// `evaluate --board`: the board holding its factors for `robot` (the file at
+    /// `robot_path`), labelled with what no factor carries. Refused, naming the files:
+    /// factors the board itself refuses for `robot`, and a `robot` that is the fitted
+    /// robot file this calibration wrote when the factors change the geometry (they
+    /// correct the robot they were fitted from, so they would count twice).
+    pub fn board_candidate(&self, robot: &Robot, robot_path: &Path) -> Result<Candidate> {
+        let factors = self.board_corrections()?;
+        if self.is_fitted_robot(robot) && !self.is_fitted_robot(&factors.apply_to(robot)) {
+            bail!(
+                "{}: --robot {} has this calibration's fitted geometry (the robot file it wrote): --board applies the calibration's factors to the robot it was fitted from, so they would count twice; give that robot (the nominal) as --robot, and the fitted file as --against",
+                self.file.display(),
+                robot_path.display()
+            );
+        }
+        let lost = self.without_factor();
+        let lost = if lost.is_empty() {
+            String::new()
+        } else {
+            format!(
+                " (no firmware factor for {}: the board's odometry goes without)",
+                lost.join(", ")
+            )
+        };
+        let board = Candidate::board(
+            format!("{} on the board{lost}", self.file.display()),
+            robot.clone(),
+            factors,
+        );
+        board
+            .check()
+            .map_err(|e| anyhow!("{e} (--robot {})", robot_path.display()))?;
+        Ok(board)
     }
 }
 

@@ -8,7 +8,7 @@ use crate::args::EvaluateArgs;
 use crate::calibration::saved::SavedCalibration;
 use crate::output::Output;
 use crate::recordings::{load_all, refuse_mixed_robots};
-use anyhow::{anyhow, bail, Result};
+use anyhow::{anyhow, Result};
 use diagnose::calibrate::{evaluate, same_wheels, Candidate};
 use formats::robot_file;
 
@@ -19,34 +19,7 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
     let mut candidates = Vec::new();
     for p in &a.board {
         let saved = SavedCalibration::read(p, &robot, "--board")?;
-        let factors = saved.board_corrections()?;
-        // The factors correct the robot they were fitted from: on the robot file the
-        // calibration wrote, any that change the geometry would count twice.
-        if saved.is_fitted_robot(&robot) && !saved.is_fitted_robot(&factors.apply_to(&robot)) {
-            bail!(
-                "{}: --robot {} has this calibration's fitted geometry (the robot file it wrote): --board applies the calibration's factors to the robot it was fitted from, so they would count twice; give that robot (the nominal) as --robot, and the fitted file as --against",
-                saved.file.display(),
-                a.robot.display()
-            );
-        }
-        let lost = saved.without_factor();
-        let lost = if lost.is_empty() {
-            String::new()
-        } else {
-            format!(
-                " (no firmware factor for {}: the board's odometry goes without)",
-                lost.join(", ")
-            )
-        };
-        let board = Candidate::board(
-            format!("{} on the board{lost}", saved.file.display()),
-            robot.clone(),
-            factors,
-        );
-        board
-            .check()
-            .map_err(|e| anyhow!("{e} (--robot {})", a.robot.display()))?;
-        candidates.push(board);
+        candidates.push(saved.board_candidate(&robot, &a.robot)?);
     }
     candidates.push(Candidate::file(
         a.robot.display().to_string(),

@@ -18,6 +18,17 @@ pub fn robot(name: &str) -> PathBuf {
         .join(format!("{name}.toml"))
 }
 
+/// The JSON a `wheelcal --json` run printed, after asserting it succeeded (its stderr
+/// shown if not).
+pub fn json_of(out: &Output) -> serde_json::Value {
+    assert!(
+        out.status.success(),
+        "{}",
+        String::from_utf8_lossy(&out.stderr)
+    );
+    serde_json::from_slice(&out.stdout).expect("JSON on stdout")
+}
+
 /// An empty scratch folder for one test.
 pub fn scratch(name: &str) -> PathBuf {
     let d = std::env::temp_dir().join(format!("wheelcal-test-{}-{name}", std::process::id()));

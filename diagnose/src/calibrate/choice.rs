@@ -638,10 +638,11 @@ fn choose_turn_law(
         let e_law = e[i + 1];
         let at = |k: GeomKind| specs.iter().position(|s| s.kind == k);
         let sd = |i: usize| fit.cov[(i, i)].max(0.0).sqrt();
-        let (main, what, constant) = match law {
-            Law::Turn => (GeomKind::EbArc, "the law", "a constant E_b"),
-            Law::Speed => (GeomKind::SpeedRel, "the speed law", "a constant wheel size"),
-            Law::Acceleration => (GeomKind::AccelSlip, "the acceleration law", "no slip"),
+        let main = law.parameter();
+        let (what, constant) = match law {
+            Law::Turn => ("the law", "a constant E_b"),
+            Law::Speed => ("the speed law", "a constant wheel size"),
+            Law::Acceleration => ("the acceleration law", "no slip"),
         };
         let ia = at(main).unwrap_or(0);
         let (v, s_v) = (fit.f.geom[ia], sd(ia));
@@ -849,15 +850,27 @@ struct OnTop {
     /// Mean held-out dead-reckoning error with the law on top, m.
     heldout_m: f64,
     /// Significant (3 sigma), within its range, held out at most
-    /// [`TURN_LAW_HOLDOUT_RATIO`] of the chosen model's error, and (`separable`) told
-    /// from the other parameters (|correlation| at most
+    /// [`TURN_LAW_HOLDOUT_RATIO`] of the chosen model's error, and (but for a turn law)
+    /// told from the other parameters (|correlation| at most
     /// [`CORR_LIMIT`](crate::calibrate::CORR_LIMIT)).
     qualifies: bool,
 }
 
+impl OnTop {
+    /// Kept: its fit is the final fit's start ([`Prefit`]); returns the specs to fit.
+    fn keep(self, made: &mut Made) -> Vec<ParamSpec> {
+        made.prefit = Some(Prefit {
+            specs: self.specs.clone(),
+            prior_scale: self.fit.prior_scale,
+            f: self.fit.f,
+        });
+        self.specs
+    }
+}
+
 /// Fits `chosen` with `extra` on top and holds both out ([`LADDER_FOLDS`] folds by
-/// recording) against `chosen`'s held-out error `e_chosen`.
-#[allow(clippy::too_many_arguments)]
+/// recording) against `chosen`'s held-out error `e_chosen`. As in the first round, a turn
+/// law's `eb_arc` need not be told from the other parameters (its arcs do that).
 fn fit_on_top(
     robot: &Robot,
     series: &[Series],
@@ -866,8 +879,8 @@ fn fit_on_top(
     chosen: &[ParamSpec],
     extra: ParamSpec,
     e_chosen: f64,
-    separable: bool,
 ) -> OnTop {
+    let separable = extra.kind != Law::Turn.parameter();
     let mut specs = chosen.to_vec();
     specs.push(extra);
     let fit = fit_specs(robot, &specs, &refs(series), cfg, true);
@@ -914,20 +927,11 @@ fn lead_on_top(
     let Some(extra) = cfg
         .unheld(accel_law_specs(robot))
         .into_iter()
-        .find(|s| s.kind == GeomKind::AccelSlip)
+        .find(|s| s.kind == Law::Acceleration.parameter())
     else {
         return chosen.specs;
     };
-    let top = fit_on_top(
-        robot,
-        series,
-        cfg,
-        runs,
-        &chosen.specs,
-        extra,
-        e_chosen,
-        true,
-    );
+    let top = fit_on_top(robot, series, cfg, runs, &chosen.specs, extra, e_chosen);
     let (v, s_v) = (top.value, top.sigma);
     let kept = v < 0.0 && top.qualifies;
     made.law_tests.push(LawTest {
@@ -953,12 +957,7 @@ fn lead_on_top(
         top.heldout_m * 1e3,
         e_chosen * 1e3
     ));
-    made.prefit = Some(Prefit {
-        specs: top.specs.clone(),
-        prior_scale: top.fit.prior_scale,
-        f: top.fit.f,
-    });
-    top.specs
+    top.keep(made)
 }
 
 /// The reverse second round of [`choose_turn_law`]: the pose lead `chosen` qualified and
@@ -987,25 +986,10 @@ fn laws_on_lead(
         let Some((_, specs)) = others.iter().find(|(l, _)| *l == law) else {
             continue;
         };
-        let kind = if law == Law::Turn {
-            GeomKind::EbArc
-        } else {
-            GeomKind::SpeedRel
-        };
-        let Some(extra) = specs.iter().find(|s| s.kind == kind).cloned() else {
+        let Some(extra) = specs.iter().find(|s| s.kind == law.parameter()).cloned() else {
             continue;
         };
-        let separable = law != Law::Turn;
-        let top = fit_on_top(
-            robot,
-            series,
-            cfg,
-            runs,
-            &chosen.specs,
-            extra,
-            e_lead,
-            separable,
-        );
+        let top = fit_on_top(robot, series, cfg, runs, &chosen.specs, extra, e_lead);
         let per = if law == Law::Turn {
             eb_of(&top.fit.f.geom, &top.specs)
         } else {
@@ -1076,12 +1060,7 @@ fn laws_on_lead(
         top.heldout_m * 1e3,
         e_lead * 1e3
     ));
-    made.prefit = Some(Prefit {
-        specs: top.specs.clone(),
-        prior_scale: top.fit.prior_scale,
-        f: top.fit.f,
-    });
-    top.specs
+    top.keep(made)
 }
 
 /// E_b in `geom` (`specs` order), 1 when not fitted: the turn law's eb_arc over it is
@@ -1107,6 +1086,15 @@ enum Law {
 }
 
 impl Law {
+    /// The parameter that carries it (a skid-steer robot's turn law has `IcrX` too).
+    fn parameter(self) -> GeomKind {
+        match self {
+            Law::Turn => GeomKind::EbArc,
+            Law::Speed => GeomKind::SpeedRel,
+            Law::Acceleration => GeomKind::AccelSlip,
+        }
+    }
+
     /// Its name in the notes ("the turn law").
     fn name(self) -> &'static str {
         match self {
