@@ -16,6 +16,7 @@ pub mod omni_cal;
 pub mod protocol;
 pub mod robot;
 pub mod stats;
+pub mod circle_test;
 pub mod umbmark;
 
 pub use correction::Corrections;

@@ -5,7 +5,9 @@
 //! what to fix, and the semantic checks (both directions present, at least two runs each,
 //! one side length) point at the offending rows.
 
+use calib_core::circle_test::CircleRun;
 use calib_core::motion::{Direction, OmniPath};
+use calib_core::protocol::MAX_LAPS;
 use std::fmt;
 use std::io::Write;
 use std::path::{Path, PathBuf};
@@ -17,6 +19,10 @@ pub enum TestKind {
     Umbmark,
     /// Omni straight-path runs ([Redundant omni]).
     Omni,
+    /// Circles driven both ways (wheelcal's extension of the format: the circle test of
+    /// `umbmark compute`, [`calib_core::circle_test`]); `length_m` is the radius and the
+    /// optional `laps` column the laps (1 when missing).
+    Circle,
 }
 
 /// Before or after the factors were applied.
@@ -58,6 +64,8 @@ pub struct RunRow {
     pub theta_err_rad: Option<f64>,
     /// Before or after the factors were applied.
     pub phase: Phase,
+    /// Circle runs: the laps driven (1 for every other test).
+    pub laps: u8,
 }
 
 impl RunRow {
@@ -200,6 +208,7 @@ impl RunsFile {
                 ));
             }
         }
+        let laps_col = find("laps");
         let mut record = csv::StringRecord::new();
         let mut lines = crate::text_file::LineCounter::new(text);
         loop {
@@ -237,22 +246,48 @@ impl RunsFile {
             let test = match cell(0) {
                 "umbmark" => TestKind::Umbmark,
                 "omni" => TestKind::Omni,
+                "circle" => TestKind::Circle,
                 other => {
                     return Err(file.error(
                         Some(line),
                         Some("test"),
-                        format!("unknown test '{other}' (expected umbmark or omni)"),
+                        format!("unknown test '{other}' (expected umbmark, omni or circle)"),
                     ))
                 }
             };
             let path_name = cell(1).to_string();
-            if test == TestKind::Umbmark && path_name != "cw" && path_name != "ccw" {
+            if test != TestKind::Omni && path_name != "cw" && path_name != "ccw" {
+                let what = if test == TestKind::Umbmark {
+                    "UMBmark"
+                } else {
+                    "circle"
+                };
                 return Err(file.error(
                     Some(line),
                     Some("path"),
-                    format!("unknown UMBmark path '{path_name}' (expected cw or ccw)"),
+                    format!("unknown {what} path '{path_name}' (expected cw or ccw)"),
                 ));
             }
+            let laps = match (laps_col.and_then(|i| record.get(i)).unwrap_or(""), test) {
+                ("", _) => 1,
+                (c, TestKind::Circle) => match c.parse::<u8>() {
+                    Ok(n) if (1..=MAX_LAPS).contains(&n) => n,
+                    _ => {
+                        return Err(file.error(
+                            Some(line),
+                            Some("laps"),
+                            format!("'{c}' is not a whole number of laps from 1 to {MAX_LAPS}"),
+                        ))
+                    }
+                },
+                (c, _) => {
+                    return Err(file.error(
+                        Some(line),
+                        Some("laps"),
+                        format!("'{c}': only circle rows have laps"),
+                    ))
+                }
+            };
             if test == TestKind::Omni && path_name.is_empty() {
                 return Err(file.error(
                     Some(line),
@@ -288,6 +323,7 @@ impl RunsFile {
                 y_err_m: num(4, true)?.unwrap_or(0.0),
                 theta_err_rad: num(5, false)?,
                 phase,
+                laps,
             });
         }
         Ok(file)
@@ -400,9 +436,39 @@ impl RunsFile {
         Ok(out.into_iter().map(|(p, _)| p).collect())
     }
 
+    /// The circle runs of a phase, as [`calib_core::circle_test`] reads them (its
+    /// computation checks the directions and counts per radius, naming the radius).
+    pub fn circles(&self, phase: Phase) -> Vec<CircleRun> {
+        self.rows
+            .iter()
+            .filter(|r| r.test == TestKind::Circle && r.phase == phase)
+            .filter_map(|r| {
+                Some(CircleRun {
+                    dir: r.direction()?,
+                    radius_m: r.length_m,
+                    laps: r.laps,
+                    x_err_m: r.x_err_m,
+                    y_err_m: r.y_err_m,
+                    theta_err_rad: r.theta_err_rad,
+                })
+            })
+            .collect()
+    }
+
     /// Appends one run to a runs file on disk, writing the header first if the file is new:
     /// what the guided procedures call after each measurement, so nothing is lost on a stop.
     pub fn append(path: &Path, row: &RunRow) -> std::io::Result<()> {
+        let test = match row.test {
+            TestKind::Umbmark => "umbmark",
+            TestKind::Omni => "omni",
+            // The standard seven columns have no laps: a circle row is typed by hand.
+            TestKind::Circle => {
+                return Err(std::io::Error::new(
+                    std::io::ErrorKind::InvalidInput,
+                    "circle rows are not appended by the procedures",
+                ))
+            }
+        };
         let new = !path.exists() || std::fs::metadata(path)?.len() == 0;
         let mut f = std::fs::OpenOptions::new()
             .create(true)
@@ -413,10 +479,6 @@ impl RunsFile {
             s.push_str(&HEADER.join(","));
             s.push('\n');
         }
-        let test = match row.test {
-            TestKind::Umbmark => "umbmark",
-            TestKind::Omni => "omni",
-        };
         s.push_str(&format!(
             "{test},{},{},{},{},{},{}\n",
             row.path,
@@ -497,6 +559,48 @@ mod tests {
     }
 
     #[test]
+    fn circle_rows_sit_beside_the_squares() {
+        // Two radii, one with laps given; the squares read as before.
+        let text = "test,path,length_m,x_err_m,y_err_m,theta_err_rad,phase,laps\n\
+            umbmark,cw,4,0.01,0.02,,,\n\
+            umbmark,cw,4,0.012,0.018,,,\n\
+            umbmark,ccw,4,-0.03,0.01,,,\n\
+            umbmark,ccw,4,-0.028,0.012,,,\n\
+            circle,cw,0.5,-0.031,0.001,,before,\n\
+            circle,ccw,0.5,-0.029,-0.001,,,\n\
+            circle,cw,0.3,-0.05,0,-0.1,,3\n";
+        let f = RunsFile::parse(text, Path::new("runs.csv")).unwrap();
+        assert_eq!(f.umbmark(Phase::Before).unwrap().unwrap().cw.len(), 2);
+        let c = f.circles(Phase::Before);
+        assert_eq!(c.len(), 3);
+        assert_eq!((c[0].dir, c[0].radius_m, c[0].laps), (Direction::Cw, 0.5, 1));
+        assert_eq!((c[1].dir, c[1].x_err_m), (Direction::Ccw, -0.029));
+        assert_eq!((c[2].laps, c[2].theta_err_rad), (3, Some(-0.1)));
+        assert!(f.circles(Phase::After).is_empty());
+        // Laps outside 1..=10, laps on a square, and a circle path that is no direction.
+        let p = Path::new("runs.csv");
+        let bad = |t: &str| RunsFile::parse(t, p).unwrap_err();
+        let head = "test,path,length_m,x_err_m,y_err_m,laps\n";
+        let e = bad(&format!("{head}circle,cw,0.5,0,0,11\n"));
+        assert_eq!((e.line, e.column.as_deref()), (Some(2), Some("laps")));
+        assert!(e.message.contains("from 1 to 10"), "{e}");
+        assert!(bad(&format!("{head}circle,cw,0.5,0,0,1.5\n"))
+            .message
+            .contains("whole number"));
+        assert!(bad(&format!("{head}umbmark,cw,4,0,0,2\n"))
+            .message
+            .contains("only circle rows have laps"));
+        assert!(bad(&format!("{head}circle,left,0.5,0,0,1\n"))
+            .message
+            .contains("unknown circle path 'left'"));
+        // The procedures never append a circle row (the standard columns have no laps).
+        let dir = std::env::temp_dir().join(format!("wheelcal-circle-{}", std::process::id()));
+        let row = &f.rows[4];
+        assert!(RunsFile::append(&dir, row).is_err());
+        let _ = std::fs::remove_file(&dir);
+    }
+
+    #[test]
     fn append_then_read_back() {
         let dir = std::env::temp_dir().join(format!("wheelcal-runs-{}", std::process::id()));
         std::fs::create_dir_all(&dir).unwrap();
@@ -512,6 +616,7 @@ mod tests {
                 y_err_m: 0.01,
                 theta_err_rad: None,
                 phase: Phase::Before,
+                laps: 1,
             };
             RunsFile::append(&p, &row).unwrap();
         }

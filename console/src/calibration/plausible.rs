@@ -12,7 +12,8 @@ pub const DEFAULT_MAX_LENGTH_M: f64 = 50.0;
 /// The largest end error a calibratable run can have: the straight path for omni (the
 /// robot cannot end farther off than it drove), one side for UMBmark ([Measuring errors]'s robots end
 /// 1-3 % of the side off; a whole side off needs factors far outside what a board
-/// accepts, and is what millimetres typed into the metre columns look like).
+/// accepts, and is what millimetres typed into the metre columns look like), the radius
+/// for a circle (an end a radius off has turned about a radian off its laps).
 fn path_length_m(r: &RunRow) -> f64 {
     r.length_m
 }
@@ -21,6 +22,7 @@ fn path_word(r: &RunRow) -> &'static str {
     match r.test {
         TestKind::Umbmark => "side of the square",
         TestKind::Omni => "path driven",
+        TestKind::Circle => "radius of the circle",
     }
 }
 

@@ -612,6 +612,7 @@ fn run_phase<L: Read + Write>(
                     y_err_m: y,
                     theta_err_rad: th,
                     phase,
+                    laps: 1,
                 },
             )
             .with_context(|| format!("cannot append to {}", runs_file.display()))?;
