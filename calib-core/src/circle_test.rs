@@ -133,9 +133,7 @@ pub fn end_x(radius_m: f64, laps: u8, gain: f64) -> f64 {
 /// error when measured, else from the end's x (bisection on the turn error, where
 /// [`end_x`] is monotonic).
 pub fn heading_gain(run: &CircleRun) -> Result<f64, CircleError> {
-    let CircleRun {
-        radius_m, laps, ..
-    } = *run;
+    let CircleRun { radius_m, laps, .. } = *run;
     if !(radius_m.is_finite() && radius_m > 0.0) {
         return Err(CircleError::BadInput("a circle's radius must be positive"));
     }
@@ -276,15 +274,11 @@ pub fn turn_law(
         for (k, dir) in [Direction::Cw, Direction::Ccw].into_iter().enumerate() {
             let got = gains[k].len();
             if got < 2 {
-                return Err(CircleError::TooFewRuns {
-                    radius_m,
-                    dir,
-                    got,
-                });
+                return Err(CircleError::TooFewRuns { radius_m, dir, got });
             }
             let m = stats::mean(&gains[k]).map_err(|_| CircleError::BadInput("no runs"))?;
-            let sd = stats::sample_std_dev(&gains[k])
-                .map_err(|_| CircleError::BadInput("no runs"))?;
+            let sd =
+                stats::sample_std_dev(&gains[k]).map_err(|_| CircleError::BadInput("no runs"))?;
             stat[k] = (m, sd / libm::sqrt(got as f64));
         }
         let [(g_cw, se_cw), (g_ccw, se_ccw)] = stat;
@@ -428,7 +422,11 @@ mod tests {
         let g = 1.0 / (1.0 + k * s);
         let want = d / (4.0 * PI) / 2f64.sqrt() / (g * g * s);
         assert!((law.e_b_arc - k).abs() < 1e-12);
-        assert!((law.sigma - want).abs() < 1e-9 * want, "{} {want}", law.sigma);
+        assert!(
+            (law.sigma - want).abs() < 1e-9 * want,
+            "{} {want}",
+            law.sigma
+        );
         // The squares' E_b uncertainty adds: 0.001 on E_b is about 0.001 / s on the law.
         let with_e_b = turn_law(&runs, 1.0, 0.001, B).unwrap();
         let from_e_b = 0.001 / (g * s);
@@ -478,7 +476,13 @@ mod tests {
         ));
         assert!(turn_law(&runs, f64::NAN, 0.0, B).is_err());
         assert!(turn_law(&runs, 1.0, 0.0, 0.0).is_err());
-        let msg = format!("{}", CircleError::TooTight { radius_m: 0.1, half_track_m: 0.1 });
+        let msg = format!(
+            "{}",
+            CircleError::TooTight {
+                radius_m: 0.1,
+                half_track_m: 0.1
+            }
+        );
         assert!(msg.contains("0.1 m"), "{msg}");
     }
 

@@ -8,6 +8,7 @@
 #[macro_use]
 extern crate std;
 
+pub mod circle_test;
 pub mod correction;
 pub mod kinematics;
 pub mod linalg;
@@ -16,7 +17,6 @@ pub mod omni_cal;
 pub mod protocol;
 pub mod robot;
 pub mod stats;
-pub mod circle_test;
 pub mod umbmark;
 
 pub use correction::Corrections;

@@ -34,6 +34,8 @@
 //! authors' row is still their square session's, and `runs` counts the squares;
 //! `--first-run`: train on each session's first square alone (the one-recording ladder,
 //! as the `one_square_keeps_a_model_that_transfers` test does);
+//! `--turn-law K`: train each square session with the turn law K held (eb_arc / eb, as
+//! the circle test of `umbmark compute` gives it) and dead-reckon its test runs with it;
 //! `--eb-scale F`: multiply the trained geometry's wheel distances (E_b) by F before the
 //! test runs, and print what that costs on the training squares themselves (each run
 //! dead-reckoned from its first pose, every pose sample: the mean change over the runs
@@ -127,8 +129,14 @@ fn main() {
                 }
             });
             let june = session.get(2..4) == Some("06");
+            let given = val("--turn-law").map(|v| {
+                v.parse::<f64>().ok().filter(|k| k.is_finite()).unwrap_or_else(|| {
+                    eprintln!("--turn-law {v}: give eb_arc / eb, e.g. 0.006");
+                    std::process::exit(2)
+                })
+            });
             let opts = CalOptions {
-                turn_law: other.filter(|_| !speed),
+                turn_law: other.filter(|_| !speed).or(given),
                 speed_law: other.filter(|_| speed),
                 e_b_for: driving
                     .as_ref()

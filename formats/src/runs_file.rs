@@ -573,7 +573,10 @@ mod tests {
         assert_eq!(f.umbmark(Phase::Before).unwrap().unwrap().cw.len(), 2);
         let c = f.circles(Phase::Before);
         assert_eq!(c.len(), 3);
-        assert_eq!((c[0].dir, c[0].radius_m, c[0].laps), (Direction::Cw, 0.5, 1));
+        assert_eq!(
+            (c[0].dir, c[0].radius_m, c[0].laps),
+            (Direction::Cw, 0.5, 1)
+        );
         assert_eq!((c[1].dir, c[1].x_err_m), (Direction::Ccw, -0.029));
         assert_eq!((c[2].laps, c[2].theta_err_rad), (3, Some(-0.1)));
         assert!(f.circles(Phase::After).is_empty());

@@ -710,7 +710,11 @@ fn circles_the_board_drives_let_calibrate_find_a_turn_law_squares_cannot() {
 /// hidden, a 4 % turn scrub (the simulator's, as above) and a rough floor (0.2 mm per
 /// square-root metre), holding `c`: its end error, true minus odometry in the start
 /// frame, as a person with a tape measure reads it.
-fn hand_measured(program: ProgramSpec, c: Corrections, seed: u64) -> wheelcal::virtual_board::TrialTruth {
+fn hand_measured(
+    program: ProgramSpec,
+    c: Corrections,
+    seed: u64,
+) -> wheelcal::virtual_board::TrialTruth {
     let robot = mobolab();
     let mut f = sim::Faults::none(2);
     let (l, r) = calib_core::umbmark::wheel_factors(1.004);
@@ -765,7 +769,12 @@ fn hand_measured_circles_give_the_turn_law_without_motion_capture() {
                 x_err_m: t.x_err_m,
                 y_err_m: t.y_err_m,
             };
-            if dir == Direction::Cw { &mut cw } else { &mut ccw }.push(run);
+            if dir == Direction::Cw {
+                &mut cw
+            } else {
+                &mut ccw
+            }
+            .push(run);
             let circle = ProgramSpec::Circle {
                 radius_m: 0.5,
                 dir,
@@ -816,5 +825,8 @@ fn hand_measured_circles_give_the_turn_law_without_motion_capture() {
     let lawful = hand_measured(held_out, with_law, 7).theta_err_rad;
     eprintln!("held-out 0.3 m circle, heading error: UMBmark {plain:+.4} rad, with the law {lawful:+.4} rad");
     assert!(plain < -0.1, "{plain}");
-    assert!(lawful.abs() < 0.015 && lawful.abs() < plain.abs() / 5.0, "{lawful} against {plain}");
+    assert!(
+        lawful.abs() < 0.015 && lawful.abs() < plain.abs() / 5.0,
+        "{lawful} against {plain}"
+    );
 }

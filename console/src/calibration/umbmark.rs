@@ -1,11 +1,14 @@
 //! `wheelcal umbmark compute`: Borenstein's closed form and the exact-model fit, with the
-//! statistics of [Measuring errors] (centroids, spreads, probability of ending within 3 cm).
+//! statistics of [Measuring errors] (centroids, spreads, probability of ending within 3 cm),
+//! and the circle test's turn law when the runs file has circle rows.
 
+use super::circles::CircleReport;
 use crate::output::PointM;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::{Robot, RobotKind};
 use calib_core::stats;
 use calib_core::umbmark::{self, Run, UmbmarkResult};
+use diagnose::calibrate::BoardFactors;
 use formats::runs_file::{Phase, RunsFile, UmbmarkRuns};
 use serde::Serialize;
 use std::fmt::Write;
@@ -128,6 +131,18 @@ pub struct UmbmarkReport {
     pub improvement: Option<f64>,
     /// [Measuring errors] eq. 19: (before - after) / before.
     pub p_e: Option<f64>,
+    /// The circle test, when the runs file has circle rows: the turn law.
+    pub circles: Option<CircleReport>,
+    /// With a kept turn law, the board's factors and law as calibrate's JSON gives them
+    /// (`factors.board`), so `factors export --ros2 --from` names the law.
+    pub factors: Option<BoardSection>,
+}
+
+/// The board's factors with a law.
+#[derive(Debug, Clone, Serialize)]
+pub struct BoardSection {
+    /// c_L, c_R, E_b in a turn in place, and the law.
+    pub board: BoardFactors,
 }
 
 fn runs_of(v: &[(f64, f64)]) -> Vec<Run> {
@@ -238,6 +253,18 @@ fn compute_unchecked(robot: &Robot, runs: &RunsFile) -> Result<UmbmarkReport> {
         }
     }
     let after_stats = after.as_ref().map(phase_stats).transpose()?;
+    let xs = |v: &[(f64, f64)]| v.iter().map(|p| p.0).collect::<Vec<_>>();
+    let circles = super::circles::compute(
+        runs,
+        (&xs(&before.cw), &xs(&before.ccw)),
+        before.side_m,
+        r.eb,
+        b,
+    )?;
+    let factors = circles
+        .as_ref()
+        .and_then(|c| c.board(r.c_l, r.c_r, r.eb))
+        .map(|board| BoardSection { board });
     let e_before = before_stats.e_max_sys_m;
     let e_after = after_stats.as_ref().map(|a| a.e_max_sys_m);
     Ok(UmbmarkReport {
@@ -266,6 +293,8 @@ fn compute_unchecked(robot: &Robot, runs: &RunsFile) -> Result<UmbmarkReport> {
         e_max_sys_after_m: e_after,
         improvement: e_after.map(|a| e_before / a),
         p_e: e_after.and_then(|a| stats::error_decrease_pe(e_before, a).ok()),
+        circles,
+        factors,
     })
 }
 
@@ -318,6 +347,9 @@ impl UmbmarkReport {
                 imp,
                 self.p_e.unwrap_or(f64::NAN) * 100.0
             );
+        }
+        if let Some(c) = &self.circles {
+            s.push_str(&c.human(self.ed, self.factors.as_ref().map(|f| &f.board)));
         }
         s
     }
