@@ -558,6 +558,14 @@ pub struct ProcedureArgs {
     /// Idle-wheel mode.
     #[command(flatten)]
     pub idle: IdleArgs,
+    /// UMBmark: also drive circles of this radius (metres) each way, --runs times, and
+    /// compute the turn law from their ends (the circle test): what squares, which turn
+    /// only in place, cannot show. At least twice half the wheelbase.
+    #[arg(long)]
+    pub circle_radius: Option<f64>,
+    /// Laps of each circle (1 to 10): more laps, a larger end error to measure.
+    #[arg(long, default_value_t = 2)]
+    pub circle_laps: u8,
 }
 
 /// Arguments of `wheelcal sim-board`.
@@ -581,6 +589,11 @@ pub struct SimBoardArgs {
     /// Floor roughness: metres of travel noise per square-root metre.
     #[arg(long, default_value_t = 0.0)]
     pub roughness: f64,
+    /// Tyre scrub (differential drive): the effective wheelbase this much wider on arcs
+    /// than in a turn in place, e.g. 0.04 (within +-0.5); what `umbmark run
+    /// --circle-radius` measures.
+    #[arg(long, default_value_t = 0.0)]
+    pub turn_scrub: f64,
     /// Keep the board's flash in this file (saved factors survive a restart).
     #[arg(long)]
     pub flash: Option<PathBuf>,

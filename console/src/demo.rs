@@ -242,6 +242,7 @@ pub fn procedure_on_virtual_board(
         after: after_runs > 0,
         second_pass: false,
         idle_wheels: Default::default(),
+        circles: None,
     };
     let client = &mut board.client;
     let result = client

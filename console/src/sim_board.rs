@@ -25,6 +25,9 @@ pub struct SimBoardOptions {
     pub effects: Vec<String>,
     /// Floor roughness (non-systematic error), metres of travel noise per sqrt(metre).
     pub roughness: f64,
+    /// Tyre scrub of a differential drive: its effective wheelbase this much wider on
+    /// arcs than in a turn in place (`SimConfig::turn_scrub`; 0: none).
+    pub turn_scrub: f64,
     /// File mirroring the virtual board's flash, so saved factors survive a restart.
     pub flash: Option<PathBuf>,
     /// Where to write the truth file; default: next to the link or the PTY.
@@ -96,8 +99,16 @@ pub fn build_sim(opts: &SimBoardOptions) -> Result<(calib_core::Robot, SimRobot)
         .collect::<Result<Vec<_>>>()?;
     let (mut faults, surface) = sim::Faults::from_effects(&robot, &effects, Surface::flat())?;
     faults.travel_noise_m_per_sqrt_m = opts.roughness;
+    if opts.turn_scrub != 0.0 && robot.kind != calib_core::RobotKind::DiffDrive {
+        anyhow::bail!(
+            "--turn-scrub widens a differential drive's wheelbase on arcs; robot '{}' is {}",
+            robot.name,
+            robot.kind.as_str()
+        );
+    }
     let cfg = SimConfig {
         seed: opts.seed,
+        turn_scrub: opts.turn_scrub,
         ..SimConfig::default()
     };
     let sim = SimRobot::new(&robot, faults, surface, cfg)?;

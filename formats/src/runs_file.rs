@@ -458,36 +458,70 @@ impl RunsFile {
     /// Appends one run to a runs file on disk, writing the header first if the file is new:
     /// what the guided procedures call after each measurement, so nothing is lost on a stop.
     pub fn append(path: &Path, row: &RunRow) -> std::io::Result<()> {
+        Self::append_with(path, row, false)
+    }
+
+    /// [`RunsFile::append`], the cells written in the order of the file's own header (so
+    /// a file whose columns a person reordered, or that has a `laps` column, stays
+    /// consistent). A new file gets the standard columns, and `laps` too when `laps` is
+    /// set (a procedure that will append circle rows). A circle row of more than one lap
+    /// needs that column: refused, writing nothing, on a file without it.
+    pub fn append_with(path: &Path, row: &RunRow, laps: bool) -> std::io::Result<()> {
+        let invalid = |m: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, m);
         let test = match row.test {
             TestKind::Umbmark => "umbmark",
             TestKind::Omni => "omni",
-            // The standard seven columns have no laps: a circle row is typed by hand.
-            TestKind::Circle => {
-                return Err(std::io::Error::new(
-                    std::io::ErrorKind::InvalidInput,
-                    "circle rows are not appended by the procedures",
-                ))
+            TestKind::Circle => "circle",
+        };
+        let existing = match std::fs::read_to_string(path) {
+            Ok(text) => text
+                .lines()
+                .next()
+                .map(str::to_string)
+                .filter(|l| !l.trim().is_empty()),
+            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
+            Err(e) => return Err(e),
+        };
+        let header: Vec<String> = match &existing {
+            Some(line) => line.split(',').map(|c| c.trim().to_string()).collect(),
+            None => HEADER
+                .iter()
+                .copied()
+                .chain(laps.then_some("laps"))
+                .map(str::to_string)
+                .collect(),
+        };
+        if row.test == TestKind::Circle && row.laps != 1 && !header.iter().any(|h| h == "laps") {
+            return Err(invalid(format!(
+                "{} has no laps column for a circle of {} laps: start a new runs file",
+                path.display(),
+                row.laps
+            )));
+        }
+        let cell = |name: &str| -> String {
+            match name {
+                "test" => test.into(),
+                "path" => row.path.clone(),
+                "length_m" => row.length_m.to_string(),
+                "x_err_m" => row.x_err_m.to_string(),
+                "y_err_m" => row.y_err_m.to_string(),
+                "theta_err_rad" => row.theta_err_rad.map_or(String::new(), |v| v.to_string()),
+                "phase" => row.phase.as_str().into(),
+                "laps" if row.test == TestKind::Circle => row.laps.to_string(),
+                _ => String::new(),
             }
         };
-        let new = !path.exists() || std::fs::metadata(path)?.len() == 0;
+        let mut s = String::new();
+        if existing.is_none() {
+            s.push_str(&header.join(","));
+            s.push('\n');
+        }
+        s.push_str(&header.iter().map(|h| cell(h)).collect::<Vec<_>>().join(","));
+        s.push('\n');
         let mut f = std::fs::OpenOptions::new()
             .create(true)
             .append(true)
             .open(path)?;
-        let mut s = String::new();
-        if new {
-            s.push_str(&HEADER.join(","));
-            s.push('\n');
-        }
-        s.push_str(&format!(
-            "{test},{},{},{},{},{},{}\n",
-            row.path,
-            row.length_m,
-            row.x_err_m,
-            row.y_err_m,
-            row.theta_err_rad.map_or(String::new(), |v| v.to_string()),
-            row.phase.as_str()
-        ));
         f.write_all(s.as_bytes())?;
         f.sync_data()
     }
@@ -596,11 +630,30 @@ mod tests {
         assert!(bad(&format!("{head}circle,left,0.5,0,0,1\n"))
             .message
             .contains("unknown circle path 'left'"));
-        // The procedures never append a circle row (the standard columns have no laps).
+        // Appended: a file started without a laps column refuses a circle of 3 laps and
+        // writes nothing; one started with it reads back every row as written.
         let dir = std::env::temp_dir().join(format!("wheelcal-circle-{}", std::process::id()));
-        let row = &f.rows[4];
-        assert!(RunsFile::append(&dir, row).is_err());
         let _ = std::fs::remove_file(&dir);
+        RunsFile::append(&dir, &f.rows[0]).unwrap();
+        let before = std::fs::read_to_string(&dir).unwrap();
+        let e = RunsFile::append(&dir, &f.rows[6]).unwrap_err();
+        assert!(e.to_string().contains("no laps column"), "{e}");
+        assert_eq!(std::fs::read_to_string(&dir).unwrap(), before);
+        std::fs::remove_file(&dir).unwrap();
+        for r in &f.rows {
+            RunsFile::append_with(&dir, r, true).unwrap();
+        }
+        let back = RunsFile::load(&dir).unwrap();
+        let strip = |rows: &[RunRow]| {
+            rows.iter()
+                .map(|r| RunRow {
+                    line: 0,
+                    ..r.clone()
+                })
+                .collect::<Vec<_>>()
+        };
+        assert_eq!(strip(&back.rows), strip(&f.rows));
+        std::fs::remove_file(&dir).unwrap();
     }
 
     #[test]

@@ -79,17 +79,17 @@ pub fn compute(
     let (k, s) = (law.e_b_arc, law.sigma);
     let verdict = if kept {
         format!(
-            "turn law kept: e_b_arc {k:+.4} ± {s:.4}: the effective wheelbase is {:.2} % {} on arcs than in a turn in place (tyre scrub)",
+            "turn law kept: e_b_arc {k:+.5} ± {s:.5}: the effective wheelbase is {:.2} % {} on arcs than in a turn in place (tyre scrub)",
             k.abs() * 100.0,
             if k > 0.0 { "wider" } else { "narrower" }
         )
     } else if k.abs() > E_B_ARC_MAX {
         format!(
-            "no turn law: e_b_arc {k:+.4} ± {s:.4} is beyond the ±{E_B_ARC_MAX} a tyre can explain (and a board accepts): check the circle rows (metres, measured minus odometry, the direction driven)"
+            "no turn law: e_b_arc {k:+.5} ± {s:.5} is beyond the ±{E_B_ARC_MAX} a tyre can explain (and a board accepts): check the circle rows (metres, measured minus odometry, the direction driven)"
         )
     } else {
         format!(
-            "no turn law: e_b_arc {k:+.4} ± {s:.4} is within 3 sigma of 0: the circles turn as the squares' E_b says"
+            "no turn law: e_b_arc {k:+.5} ± {s:.5} is within 3 sigma of 0: the circles turn as the squares' E_b says"
         )
     };
     Ok(Some(CircleReport {
@@ -123,7 +123,7 @@ impl CircleReport {
         for r in &self.radii {
             let _ = writeln!(
                 s,
-                "  radius {:.3} m: {} cw, {} ccw runs; heading gain cw {:.5}, ccw {:.5}; law's share {:.2}; e_b_arc {:+.4} ± {:.4}; E_d {:.5} (squares {:.5})",
+                "  radius {:.3} m: {} cw, {} ccw runs; heading gain cw {:.5}, ccw {:.5}; law's share {:.2}; e_b_arc {:+.5} ± {:.5}; E_d {:.5} (squares {:.5})",
                 r.radius_m, r.runs_cw, r.runs_ccw, r.gain_cw, r.gain_ccw, r.share, r.e_b_arc, r.sigma, r.e_d, e_d
             );
         }
@@ -135,12 +135,12 @@ impl CircleReport {
         if let Some(a) = &self.after {
             let _ = writeln!(
                 s,
-                "  after: the circles measured with the factors in force leave e_b_arc {:+.4} ± {:.4}",
+                "  after: the circles measured with the factors in force leave e_b_arc {:+.5} ± {:.5}",
                 a.e_b_arc, a.e_b_arc_sigma
             );
         }
         if let Some(b) = board {
-            let _ = writeln!(s, "  board: wheelcal {}", b.command());
+            let _ = writeln!(s, "  the board takes: wheelcal {}", b.command());
         }
         s
     }

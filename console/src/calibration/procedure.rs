@@ -59,6 +59,9 @@ pub struct Options {
     /// Omni: idle wheels held or released on the paths; written beside the runs file so
     /// `omni compute` on it uses the same mode.
     pub idle_wheels: calib_core::protocol::IdleWheels,
+    /// UMBmark: also drive circles of this radius (m) and laps each way, `runs` times,
+    /// for the circle test's turn law ([`calib_core::circle_test`]).
+    pub circles: Option<(f64, u8)>,
 }
 
 /// Where a second pass remembers the factors it started from.
@@ -294,14 +297,32 @@ enum Trial {
     Square(Direction),
     /// An omni path, with its idle wheels held or released.
     Path(OmniPath, calib_core::protocol::IdleWheels),
+    /// A circle of a radius (m) and laps, for the circle test.
+    Circle(Direction, f64, u8),
 }
 
 impl Trial {
     fn path_name(self) -> &'static str {
         match self {
-            Trial::Square(d) => d.as_str(),
+            Trial::Square(d) | Trial::Circle(d, ..) => d.as_str(),
             Trial::Path(p, _) => p.as_str(),
         }
+    }
+
+    /// The runs file's test, and its length column: the phase's `length` for squares
+    /// and paths, the radius for a circle.
+    fn test_and_length(self, length: f64) -> (TestKind, f64) {
+        match self {
+            Trial::Square(_) => (TestKind::Umbmark, length),
+            Trial::Path(..) => (TestKind::Omni, length),
+            Trial::Circle(_, radius_m, _) => (TestKind::Circle, radius_m),
+        }
+    }
+
+    /// Whether `r` is a run of this trial.
+    fn counts(self, r: &RunRow, length: f64) -> bool {
+        let (test, _) = self.test_and_length(length);
+        r.test == test && r.path == self.path_name()
     }
 }
 
@@ -323,13 +344,20 @@ pub fn run<L: Read + Write>(
             if robot.kind != RobotKind::DiffDrive {
                 bail!("the board's robot is {}: UMBmark is for differential drives (use `wheelcal omni run`)", robot.kind.as_str());
             }
-            (
-                TestKind::Umbmark,
-                vec![Trial::Square(Direction::Cw), Trial::Square(Direction::Ccw)],
-                opts.side_m,
-            )
+            let mut trials = vec![Trial::Square(Direction::Cw), Trial::Square(Direction::Ccw)];
+            if let Some((radius_m, laps)) = opts.circles {
+                if opts.second_pass {
+                    bail!("--circle-radius measures the turn law against the squares' factors in one pass: drop --second-pass (a second pass composes factors, not laws)");
+                }
+                trials.push(Trial::Circle(Direction::Cw, radius_m, laps));
+                trials.push(Trial::Circle(Direction::Ccw, radius_m, laps));
+            }
+            (TestKind::Umbmark, trials, opts.side_m)
         }
         Kind::Omni => {
+            if opts.circles.is_some() {
+                bail!("circles are the circle test of a differential drive (umbmark run)");
+            }
             if robot.kind != RobotKind::Omni {
                 bail!("the board's robot is {}: the omni procedure is for omni robots (use `wheelcal umbmark run`)", robot.kind.as_str());
             }
@@ -373,11 +401,26 @@ pub fn run<L: Read + Write>(
             length
         );
     }
+    if let Some((radius_m, _)) = opts.circles {
+        if let Some(r) = existing
+            .rows
+            .iter()
+            .find(|r| r.test == TestKind::Circle && (r.length_m - radius_m).abs() > 1e-9)
+        {
+            bail!(
+                "{} already holds circles of radius {} m (line {}); use a new --runs-file for {} m",
+                opts.runs_file.display(),
+                r.length_m,
+                r.line,
+                radius_m
+            );
+        }
+    }
     let have = |phase: Phase, t: Trial| {
         existing
             .rows
             .iter()
-            .filter(|r| r.test == test && r.phase == phase && r.path == t.path_name())
+            .filter(|r| r.phase == phase && t.counts(r, length))
             .count()
     };
 
@@ -423,9 +466,9 @@ pub fn run<L: Read + Write>(
             runs: opts.runs,
             runs_file: &opts.runs_file,
             trials: &trials,
-            test,
             length,
             phase: Phase::Before,
+            laps_column: opts.circles.is_some(),
         };
         run_phase(c, m, plan, &|t| have(Phase::Before, t))?;
     }
@@ -433,10 +476,17 @@ pub fn run<L: Read + Write>(
     let corrections = match opts.kind {
         Kind::Umbmark => {
             let r = umbmark::compute(&robot, &runs)?;
-            Corrections::DiffDrive {
-                c_l: r.c_l,
-                c_r: r.c_r,
-                e_b: r.eb,
+            if let Some(c) = &r.circles {
+                m.say(&format!("circle test: {}", c.verdict));
+            }
+            match &r.factors {
+                // The circle test kept a turn law: the board's odometry applies it.
+                Some(f) => f.board.corrections(),
+                None => Corrections::DiffDrive {
+                    c_l: r.c_l,
+                    c_r: r.c_r,
+                    e_b: r.eb,
+                },
             }
         }
         Kind::Omni => {
@@ -473,9 +523,9 @@ pub fn run<L: Read + Write>(
             runs: opts.after_runs,
             runs_file: &opts.runs_file,
             trials: &trials,
-            test,
             length,
             phase: Phase::After,
+            laps_column: opts.circles.is_some(),
         };
         run_phase(c, m, plan, &|t| have(Phase::After, t))?;
     }
@@ -512,12 +562,13 @@ struct PhasePlan<'a> {
     runs_file: &'a Path,
     /// The squares or paths, in the order they run.
     trials: &'a [Trial],
-    /// Which calibration the runs belong to.
-    test: TestKind,
-    /// The square's side (UMBmark) or the path length (omni), metres.
+    /// The square's side (UMBmark) or the path length (omni), metres (a circle's radius
+    /// comes with its trial).
     length: f64,
     /// Before or after the factors were applied.
     phase: Phase,
+    /// Circles of several laps are run: a new runs file gets the `laps` column.
+    laps_column: bool,
 }
 
 /// Runs one phase: for each trial, the runs `have` says are still missing, each measured
@@ -532,9 +583,9 @@ fn run_phase<L: Read + Write>(
         runs,
         runs_file,
         trials,
-        test,
         length,
         phase,
+        laps_column,
     } = plan;
     for &t in trials {
         for k in have(t)..runs {
@@ -555,6 +606,9 @@ fn run_phase<L: Read + Write>(
                     }
                     Trial::Path(p, idle) => {
                         board::run_omni(c, p, length, idle, 10, DEFAULT_LINK_TIMEOUT_MS)?
+                    }
+                    Trial::Circle(d, radius_m, laps) => {
+                        board::run_circle(c, d, radius_m, laps, 10, DEFAULT_LINK_TIMEOUT_MS)?
                     }
                 };
                 let end = board::wait_program(c, limit + Duration::from_secs(60), |_| {})?;
@@ -582,7 +636,7 @@ fn run_phase<L: Read + Write>(
                 .context("the board logged no trial")?;
             // The board's odometry in the path frame (x along the first leg or the path).
             let d = match t {
-                Trial::Square(_) => 0.0,
+                Trial::Square(_) | Trial::Circle(..) => 0.0,
                 Trial::Path(p, _) => {
                     let (ux, uy) = p.direction();
                     uy.atan2(ux)
@@ -593,7 +647,7 @@ fn run_phase<L: Read + Write>(
             // on a redundant robot the odometry partly follows a deviation (the unused,
             // free-rolling wheels' encoders see it), which would hide half of it.
             let reference = match t {
-                Trial::Square(_) => {
+                Trial::Square(_) | Trial::Circle(..) => {
                     let (sd, cd) = (d as f32).sin_cos();
                     let o = end.pose;
                     Pose::new(cd * o.x + sd * o.y, -sd * o.x + cd * o.y, o.theta)
@@ -601,19 +655,24 @@ fn run_phase<L: Read + Write>(
                 Trial::Path(..) => Pose::new(length as f32, 0.0, 0.0),
             };
             let (x, y, th) = m.end_error(trial, reference, d, &what)?;
-            RunsFile::append(
+            let (test, length_m) = t.test_and_length(length);
+            RunsFile::append_with(
                 runs_file,
                 &RunRow {
                     line: 0,
                     test,
                     path: t.path_name().into(),
-                    length_m: length,
+                    length_m,
                     x_err_m: x,
                     y_err_m: y,
                     theta_err_rad: th,
                     phase,
-                    laps: 1,
+                    laps: match t {
+                        Trial::Circle(_, _, laps) => laps,
+                        _ => 1,
+                    },
                 },
+                laps_column,
             )
             .with_context(|| format!("cannot append to {}", runs_file.display()))?;
         }

@@ -58,5 +58,6 @@ fn procedure_options(
         report: a.report.clone(),
         after: !a.no_after,
         second_pass: a.second_pass,
+        circles: a.circle_radius.map(|r| (r, a.circle_laps)),
     })
 }

@@ -20,6 +20,7 @@ pub fn sim_board(a: SimBoardArgs, out: Output) -> Result<()> {
         speed: a.speed,
         effects: a.effect,
         roughness: a.roughness,
+        turn_scrub: a.turn_scrub,
         flash: a.flash,
         truth: a.truth,
     };

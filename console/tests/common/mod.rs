@@ -54,10 +54,16 @@ impl Board {
     /// `speed` "1" runs the board in real time, as a robot on the floor: a drive's command
     /// refreshes and Ctrl-C land at the moments they would on a real robot.
     pub fn start_at(robot_name: &str, dir: &Path, speed: &str) -> Board {
+        Board::start_with(robot_name, dir, speed, &[])
+    }
+
+    /// [`Board::start_at`] with more `sim-board` options (hidden effects, roughness).
+    pub fn start_with(robot_name: &str, dir: &Path, speed: &str, extra: &[&str]) -> Board {
         let link = dir.join("board");
         let child = wheelcal()
             .args(["sim-board", "--speed", speed, "--robot"])
             .arg(robot(robot_name))
+            .args(extra)
             .arg("--link")
             .arg(&link)
             .stdout(Stdio::null())
