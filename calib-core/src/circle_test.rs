@@ -261,25 +261,28 @@ pub fn turn_law(
                 half_track_m,
             });
         }
-        let mut gains: [Vec<f64, 64>; 2] = [Vec::new(), Vec::new()];
+        // Per direction (cw, ccw): runs, mean gain and sum of squared deviations
+        // (Welford's running form: no cap on the runs, no storage).
+        let mut acc = [(0usize, 0.0f64, 0.0f64); 2];
         for r in runs
             .iter()
             .filter(|r| libm::fabs(r.radius_m - radius_m) <= 1e-9 * radius_m)
         {
-            let k = usize::from(r.dir == Direction::Ccw);
-            // Past 64 runs a direction, the rest add nothing a spread needs.
-            let _ = gains[k].push(heading_gain(r)?);
+            let (n, mean, m2) = &mut acc[usize::from(r.dir == Direction::Ccw)];
+            let g = heading_gain(r)?;
+            *n += 1;
+            let d = g - *mean;
+            *mean += d / *n as f64;
+            *m2 += d * (g - *mean);
         }
         let mut stat = [(0.0, 0.0); 2];
         for (k, dir) in [Direction::Cw, Direction::Ccw].into_iter().enumerate() {
-            let got = gains[k].len();
+            let (got, mean, m2) = acc[k];
             if got < 2 {
                 return Err(CircleError::TooFewRuns { radius_m, dir, got });
             }
-            let m = stats::mean(&gains[k]).map_err(|_| CircleError::BadInput("no runs"))?;
-            let sd =
-                stats::sample_std_dev(&gains[k]).map_err(|_| CircleError::BadInput("no runs"))?;
-            stat[k] = (m, sd / libm::sqrt(got as f64));
+            let sd = libm::sqrt(m2 / (got - 1) as f64);
+            stat[k] = (mean, sd / libm::sqrt(got as f64));
         }
         let [(g_cw, se_cw), (g_ccw, se_ccw)] = stat;
         let g = 0.5 * (g_cw + g_ccw);
@@ -296,8 +299,8 @@ pub fn turn_law(
         swd += w * (-1.0 / (g * e_b * e_b * share));
         let _ = out.push(RadiusLaw {
             radius_m,
-            runs_cw: gains[0].len(),
-            runs_ccw: gains[1].len(),
+            runs_cw: acc[0].0,
+            runs_ccw: acc[1].0,
             gain_cw: g_cw,
             gain_ccw: g_ccw,
             share,

@@ -404,6 +404,24 @@ fn runs_examples_give_the_stated_runs() {
     assert_eq!(thetas[2..4], [Some(0.012), Some(0.010)]);
     assert_eq!(thetas.iter().filter(|t| t.is_some()).count(), 2);
 
+    // The circle test's example: squares and circles of 2 laps; the law it states.
+    let c = runs("circles");
+    let circles = c.circles(Phase::Before);
+    assert_eq!(circles.len(), 4);
+    assert!(circles.iter().all(|r| r.laps == 2 && r.radius_m == 0.5));
+    let sq = c.umbmark(Phase::Before).unwrap().unwrap();
+    let run = |v: &[(f64, f64)]| {
+        v.iter()
+            .map(|&(x, y)| calib_core::umbmark::Run {
+                x_err_m: x,
+                y_err_m: y,
+            })
+            .collect::<Vec<_>>()
+    };
+    let fit = calib_core::umbmark::exact_fit(&run(&sq.cw), &run(&sq.ccw), 4.0, 0.4).unwrap();
+    let law = calib_core::circle_test::turn_law(&circles, fit.result.eb, 0.0, 0.4).unwrap();
+    assert!((law.e_b_arc - 0.039).abs() < 5e-4, "{law:?}");
+
     let o = runs("omni");
     assert!(o.rows.iter().all(|r| r.phase == Phase::Before));
     let paths = o.omni(Phase::Before).unwrap();

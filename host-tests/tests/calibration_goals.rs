@@ -154,6 +154,7 @@ fn a_failed_computation_uploads_nothing() {
         after: true,
         second_pass: false,
         idle_wheels: Default::default(),
+        circles: None,
     };
     let mut m = TruthFile {
         file: runs.with_extension("truth"),
@@ -235,6 +236,7 @@ fn a_stopped_procedure_resumes_without_losing_runs() {
         after: true,
         second_pass: false,
         idle_wheels: Default::default(),
+        circles: None,
     };
     let mut truth = TruthChannel {
         rx: &board.truths,
@@ -368,6 +370,7 @@ fn omni_second_pass_composes_with_the_first_factors() {
         after: false,
         second_pass: true,
         idle_wheels: Default::default(),
+        circles: None,
     };
     let mut truth = TruthChannel {
         rx: &board.truths,
@@ -432,6 +435,7 @@ fn a_run_cut_by_the_link_failsafe_is_run_again_not_recorded() {
         after: false,
         second_pass: false,
         idle_wheels: Default::default(),
+        circles: None,
     };
     let mut m = Person {
         truth: &mut TruthChannel {

@@ -70,6 +70,7 @@ fn options(runs_file: PathBuf, idle: IdleWheels, after: bool) -> Options {
         after,
         second_pass: false,
         idle_wheels: idle,
+        circles: None,
     }
 }
 

@@ -108,6 +108,35 @@ pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
                 .map_or("-".into(), |v| format!("{:.1} %", v * 100.0)),
         ]],
     );
+    if let Some(c) = &rep.circles {
+        page.heading("Circle test: the turn law squares cannot show");
+        let rows: Vec<Vec<String>> = c
+            .radii
+            .iter()
+            .map(|r| {
+                vec![
+                    format!("{:.3}", r.radius_m),
+                    format!("{} / {}", r.runs_cw, r.runs_ccw),
+                    format!("{:.5} / {:.5}", r.gain_cw, r.gain_ccw),
+                    format!("{:.2}", r.share),
+                    format!("{:+.5} ± {:.5}", r.e_b_arc, r.sigma),
+                    format!("{:.5}", r.e_d),
+                ]
+            })
+            .collect();
+        page.table(
+            &[
+                "radius m",
+                "runs cw / ccw",
+                "heading gain cw / ccw",
+                "law's share 1 - rho^2",
+                "e_b_arc",
+                "E_d",
+            ],
+            &rows,
+        );
+        page.paragraph(&c.verdict);
+    }
 
     let phases = phases(rep);
     page.heading("End positions (UMBmark, [Measuring errors] Figs. 13-21)");
