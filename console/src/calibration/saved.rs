@@ -24,6 +24,7 @@ pub struct SavedCalibration {
 }
 
 /// The laws a saved calibration kept (a zero is a law it did not keep: `None`).
+#[derive(Debug)]
 pub struct KnownLaws {
     /// The turn law, eb_arc / eb.
     pub turn: Option<f64>,
@@ -62,7 +63,12 @@ impl SavedCalibration {
                 e.column()
             )
         })?;
-        let kind = json["kind"].as_str().unwrap_or("unknown");
+        // `umbmark compute`'s result (a differential drive's, without a kind) carries the
+        // circle test's law.
+        let kind = match json["kind"].as_str() {
+            None if is_umbmark(&json) => "diff_drive",
+            k => k.unwrap_or("unknown"),
+        };
         if kind != robot.kind.as_str() {
             bail!(
                 "{shown}: a calibration of a {kind} robot ('{}'); --robot '{}' is a {}: {flag} takes a calibration of the same kind of robot",
@@ -81,6 +87,9 @@ impl SavedCalibration {
 
     /// The turn and speed laws it kept, with a note saying so.
     pub fn laws(&self) -> Result<KnownLaws> {
+        if is_umbmark(&self.json) {
+            return self.circle_test_law();
+        }
         let law = |k: &str| self.json["turn_law"][k].as_f64();
         let (Some(arc), Some(speed)) = (law("arc_rel"), law("speed_rel")) else {
             bail!(
@@ -105,6 +114,37 @@ impl SavedCalibration {
                 self.robot_name(),
                 said(arc, ""),
                 said(speed, " per m/s")
+            ),
+        })
+    }
+
+    /// The law of `umbmark compute`'s circle test (no speed law: circles at one speed
+    /// cannot show one).
+    fn circle_test_law(&self) -> Result<KnownLaws> {
+        let c = &self.json["circles"];
+        let (Some(k), Some(sigma), Some(kept)) = (
+            c["e_b_arc"].as_f64(),
+            c["e_b_arc_sigma"].as_f64(),
+            c["kept"].as_bool(),
+        ) else {
+            bail!(
+                "{}: a UMBmark result without circles, so without a law: {} takes calibrate's --json output, or umbmark compute's with circle rows (umbmark run --circle-radius)",
+                self.file.display(),
+                self.flag
+            );
+        };
+        let what = if kept {
+            format!("e_b_arc {k:+.5} ± {sigma:.5}, held")
+        } else {
+            format!("not kept there ({k:+.5} ± {sigma:.5}), tested here")
+        };
+        Ok(KnownLaws {
+            turn: kept.then_some(k),
+            speed: None,
+            note: format!(
+                "turn law from the circle test of {} (umbmark compute, robot '{}'): {what}; speed law tested here",
+                self.file.display(),
+                self.robot_name()
             ),
         })
     }
@@ -217,6 +257,11 @@ impl SavedCalibration {
     }
 }
 
+/// Whether `json` is `umbmark compute`'s result.
+fn is_umbmark(json: &Value) -> bool {
+    json["recommended"].as_str() == Some("exact") && json["exact"].is_object()
+}
+
 /// `--laws-from`: known turn and speed laws are a differential drive's.
 pub fn laws_from(path: &Path, robot: &Robot) -> Result<KnownLaws> {
     if robot.kind != RobotKind::DiffDrive {
@@ -270,6 +315,48 @@ mod tests {
         assert_eq!((l.turn, l.speed), (Some(0.005), None));
         assert!(!s.is_fitted_robot(&mobolab()));
         assert!(s.without_factor().is_empty());
+    }
+
+    /// `umbmark compute`'s result: its circle test's law is held when kept, tested when
+    /// not; without circles it has no law to give.
+    #[test]
+    fn an_umbmark_results_circle_test_gives_its_law() {
+        let umb = |circles: &str| {
+            format!(
+                r#"{{"robot": "mobolab", "recommended": "exact", "exact": {{"eb": 1.02}},
+                "c_l": 1.0, "c_r": 1.0, "eb": 1.02, "circles": {circles}}}"#
+            )
+        };
+        let s = SavedCalibration::parse(
+            &umb(r#"{"e_b_arc": 0.0064, "e_b_arc_sigma": 0.0003, "kept": true}"#),
+            PathBuf::from("umb.json"),
+            &mobolab(),
+            "--laws-from",
+        )
+        .unwrap();
+        let l = s.laws().unwrap();
+        assert_eq!((l.turn, l.speed), (Some(0.0064), None));
+        assert!(l.note.contains("circle test of umb.json"), "{}", l.note);
+        let s = SavedCalibration::parse(
+            &umb(r#"{"e_b_arc": 0.0002, "e_b_arc_sigma": 0.0003, "kept": false}"#),
+            PathBuf::from("umb.json"),
+            &mobolab(),
+            "--laws-from",
+        )
+        .unwrap();
+        assert_eq!(s.laws().unwrap().turn, None);
+        let s = SavedCalibration::parse(
+            &umb("null"),
+            PathBuf::from("umb.json"),
+            &mobolab(),
+            "--laws-from",
+        )
+        .unwrap();
+        let e = s.laws().unwrap_err().to_string();
+        assert!(
+            e.starts_with("umb.json: a UMBmark result without circles"),
+            "{e}"
+        );
     }
 
     /// An omni calibration's wheel distance and centre have no board factor; its radii do.
