@@ -309,6 +309,15 @@ impl Trial {
         }
     }
 
+    /// What a person is told the run is: the direction of a square, "circle cw (0.5 m,
+    /// 2 laps)", the name of an omni path.
+    fn label(self) -> String {
+        match self {
+            Trial::Circle(d, r, laps) => format!("circle {} ({r} m, {laps} laps)", d.as_str()),
+            t => t.path_name().to_string(),
+        }
+    }
+
     /// The runs file's test, and its length column: the phase's `length` for squares
     /// and paths, the radius for a circle.
     fn test_and_length(self, length: f64) -> (TestKind, f64) {
@@ -589,13 +598,7 @@ fn run_phase<L: Read + Write>(
     } = plan;
     for &t in trials {
         for k in have(t)..runs {
-            let what = format!(
-                "{} {} run {}/{}",
-                phase.as_str(),
-                t.path_name(),
-                k + 1,
-                runs
-            );
+            let what = format!("{} {} run {}/{}", phase.as_str(), t.label(), k + 1, runs);
             let mut attempt = 0;
             let end = loop {
                 m.ready(&what)?;
