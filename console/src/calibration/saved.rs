@@ -321,38 +321,21 @@ mod tests {
     /// not; without circles it has no law to give.
     #[test]
     fn an_umbmark_results_circle_test_gives_its_law() {
-        let umb = |circles: &str| {
-            format!(
+        let laws = |circles: &str| {
+            let text = format!(
                 r#"{{"robot": "mobolab", "recommended": "exact", "exact": {{"eb": 1.02}},
                 "c_l": 1.0, "c_r": 1.0, "eb": 1.02, "circles": {circles}}}"#
-            )
+            );
+            SavedCalibration::parse(&text, PathBuf::from("umb.json"), &mobolab(), "--laws-from")
+                .unwrap()
+                .laws()
         };
-        let s = SavedCalibration::parse(
-            &umb(r#"{"e_b_arc": 0.0064, "e_b_arc_sigma": 0.0003, "kept": true}"#),
-            PathBuf::from("umb.json"),
-            &mobolab(),
-            "--laws-from",
-        )
-        .unwrap();
-        let l = s.laws().unwrap();
+        let l = laws(r#"{"e_b_arc": 0.0064, "e_b_arc_sigma": 0.0003, "kept": true}"#).unwrap();
         assert_eq!((l.turn, l.speed), (Some(0.0064), None));
         assert!(l.note.contains("circle test of umb.json"), "{}", l.note);
-        let s = SavedCalibration::parse(
-            &umb(r#"{"e_b_arc": 0.0002, "e_b_arc_sigma": 0.0003, "kept": false}"#),
-            PathBuf::from("umb.json"),
-            &mobolab(),
-            "--laws-from",
-        )
-        .unwrap();
-        assert_eq!(s.laws().unwrap().turn, None);
-        let s = SavedCalibration::parse(
-            &umb("null"),
-            PathBuf::from("umb.json"),
-            &mobolab(),
-            "--laws-from",
-        )
-        .unwrap();
-        let e = s.laws().unwrap_err().to_string();
+        let l = laws(r#"{"e_b_arc": 0.0002, "e_b_arc_sigma": 0.0003, "kept": false}"#).unwrap();
+        assert_eq!(l.turn, None);
+        let e = laws("null").unwrap_err().to_string();
         assert!(
             e.starts_with("umb.json: a UMBmark result without circles"),
             "{e}"
