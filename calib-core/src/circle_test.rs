@@ -215,6 +215,18 @@ impl CircleLaw {
         libm::fabs(self.e_b_arc) >= 3.0 * self.sigma
             && libm::fabs(self.e_b_arc) <= crate::correction::E_B_ARC_MAX
     }
+
+    /// With two radii or more, the largest distance of one radius's law from the
+    /// combined law, in that radius's sigmas: the law's shape (1 - rho^2, which sets how
+    /// much of it each circle shows) holds when it is at most 3. None with one radius.
+    pub fn shape_misfit(&self) -> Option<f64> {
+        (self.radii.len() >= 2).then(|| {
+            self.radii
+                .iter()
+                .map(|r| libm::fabs(r.e_b_arc - self.e_b_arc) / f64::max(r.sigma, 1e-9))
+                .fold(0.0, f64::max)
+        })
+    }
 }
 
 /// The turn law from circle runs measured with the factors UMBmark's squares were
@@ -449,6 +461,28 @@ mod tests {
         assert!((law.radii[0].share - (1.0 - 1.0 / 9.0)).abs() < 1e-12);
         assert!((law.radii[1].share - (1.0 - 1.0 / 64.0)).abs() < 1e-12);
         assert!(law.significant());
+        // Noiseless, one law: the radii agree exactly. A robot whose arcs widen by 2 % on
+        // the tight circle and 4 % on the wide one does not follow 1 - rho^2: with a
+        // spread of 0.002 rad on each run's heading (sigma about 1.6e-4 a radius) the two
+        // are over 3 sigmas from their mean.
+        assert!(
+            law.shape_misfit().unwrap() < 1e-3,
+            "{:?}",
+            law.shape_misfit()
+        );
+        let mut runs = std::vec::Vec::new();
+        runs.extend(both_ways(0.3, 2, 0.02, 0.0, 1.0));
+        runs.extend(both_ways(0.8, 2, 0.04, 0.0, 1.0));
+        for (i, r) in runs.iter_mut().enumerate() {
+            let th = r.theta_err_rad.unwrap();
+            r.theta_err_rad = Some(th + if i % 2 == 0 { 0.002 } else { -0.002 });
+        }
+        let law = turn_law(&runs, 1.0, 0.0, B).unwrap();
+        assert!(law.shape_misfit().unwrap() > 3.0, "{law:?}");
+        assert_eq!(
+            turn_law(&runs[..4], 1.0, 0.0, B).unwrap().shape_misfit(),
+            None
+        );
     }
 
     #[test]

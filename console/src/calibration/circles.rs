@@ -25,6 +25,9 @@ pub struct CircleReport {
     /// Per radius: runs, heading gains, the law's share and its value there, and the
     /// diameter ratio the circles show (a check on the squares' E_d).
     pub radii: Vec<RadiusLaw>,
+    /// With two radii or more: the largest distance of one radius's law from the
+    /// combined one, in its sigmas (over 3: the law's shape 1 - rho^2 does not hold).
+    pub shape_misfit_sigma: Option<f64>,
     /// Circle rows measured `after`, with the factors (and law) in force: the law left
     /// over, which should be within its sigma of 0.
     pub after: Option<ResidualLaw>,
@@ -97,6 +100,7 @@ pub fn compute(
         e_b_arc_sigma: s,
         e_b_sigma,
         kept,
+        shape_misfit_sigma: law.shape_misfit(),
         radii: law.radii.to_vec(),
         after,
         verdict,
@@ -132,6 +136,21 @@ impl CircleReport {
             "  {} (sigma counts the squares' E_b, ± {:.5})",
             self.verdict, self.e_b_sigma
         );
+        match self.shape_misfit_sigma {
+            Some(m) if m <= 3.0 => {
+                let _ = writeln!(
+                    s,
+                    "  the radii agree with the law's shape 1 - rho^2 (largest departure {m:.1} sigma)"
+                );
+            }
+            Some(m) => {
+                let _ = writeln!(
+                    s,
+                    "  the radii disagree ({m:.1} sigma): this robot's scrub does not follow 1 - rho^2; the law above is their weighted mean"
+                );
+            }
+            None => {}
+        }
         if let Some(a) = &self.after {
             let _ = writeln!(
                 s,
