@@ -34,6 +34,9 @@ pub const MAX_RADII: usize = 8;
 /// end is no longer a single-valued function of the turn.
 pub const MAX_TURN_ERROR_RAD: f64 = 1.2;
 
+/// The largest radius taken (m): a circle is driven in a room.
+pub const MAX_RADIUS_M: f64 = 1000.0;
+
 /// One circle measured by hand: its end error, measured minus odometry, in the start
 /// frame (x along the start heading, y to its left).
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,12 +74,15 @@ pub enum CircleError {
         /// Half the effective wheelbase (m).
         half_track_m: f64,
     },
-    /// A run's end is too far from the start to be read as a turn error.
+    /// A run's end (or heading) says it turned more than [`MAX_TURN_ERROR_RAD`] off its
+    /// laps: too far to be read as a turn error.
     TooFar {
         /// The radius (m).
         radius_m: f64,
         /// The run's x error (m).
         x_err_m: f64,
+        /// The run's y error (m).
+        y_err_m: f64,
     },
     /// A number that is not finite, a radius or separation not positive, or no laps.
     BadInput(&'static str),
@@ -99,9 +105,13 @@ impl fmt::Display for CircleError {
                 f,
                 "a circle of radius {radius_m} m is not wider than half the wheelbase ({half_track_m:.4} m): one wheel would stand or run backwards; drive circles of at least twice that"
             ),
-            CircleError::TooFar { radius_m, x_err_m } => write!(
+            CircleError::TooFar {
+                radius_m,
+                x_err_m,
+                y_err_m,
+            } => write!(
                 f,
-                "a circle of radius {radius_m} m that ends {x_err_m} m along the start heading turned more than {MAX_TURN_ERROR_RAD} rad off its laps: check the run (measured minus odometry, metres), or drive a smaller radius or fewer laps"
+                "a circle of radius {radius_m} m that ends ({x_err_m}, {y_err_m}) m from where odometry says turned more than {MAX_TURN_ERROR_RAD} rad off its laps: check the run (measured minus odometry, metres, the direction driven), or drive fewer laps"
             ),
             CircleError::BadInput(what) => write!(f, "{what}"),
             CircleError::TooManyRadii => write!(
@@ -133,31 +143,43 @@ pub fn end_x(radius_m: f64, laps: u8, gain: f64) -> f64 {
 /// error when measured, else from the end's x (bisection on the turn error, where
 /// [`end_x`] is monotonic).
 pub fn heading_gain(run: &CircleRun) -> Result<f64, CircleError> {
-    let CircleRun { radius_m, laps, .. } = *run;
-    if !(radius_m.is_finite() && radius_m > 0.0) {
-        return Err(CircleError::BadInput("a circle's radius must be positive"));
+    let CircleRun {
+        radius_m,
+        laps,
+        x_err_m: x,
+        y_err_m: y,
+        ..
+    } = *run;
+    if !(radius_m.is_finite() && radius_m > 0.0 && radius_m <= MAX_RADIUS_M) {
+        return Err(CircleError::BadInput(
+            "a circle's radius must be positive and at most 1 km",
+        ));
     }
-    if laps == 0 {
-        return Err(CircleError::BadInput("a circle needs at least one lap"));
+    if laps == 0 || laps > crate::protocol::MAX_LAPS {
+        return Err(CircleError::BadInput("a circle has 1 to 10 laps"));
     }
+    if !(x.is_finite() && y.is_finite()) {
+        return Err(CircleError::BadInput("an end error is not finite"));
+    }
+    let too_far = CircleError::TooFar {
+        radius_m,
+        x_err_m: x,
+        y_err_m: y,
+    };
     let turns = 2.0 * PI * f64::from(laps);
     if let Some(th) = run.theta_err_rad {
         if !th.is_finite() {
             return Err(CircleError::BadInput("a heading error is not finite"));
         }
+        if libm::fabs(th) > MAX_TURN_ERROR_RAD {
+            return Err(too_far);
+        }
         return Ok(1.0 + sign(run.dir) * th / turns);
-    }
-    let x = run.x_err_m;
-    if !x.is_finite() {
-        return Err(CircleError::BadInput("an end error is not finite"));
     }
     let at = |u: f64| end_x(radius_m, laps, 1.0 + u / turns);
     let (mut lo, mut hi) = (-MAX_TURN_ERROR_RAD, MAX_TURN_ERROR_RAD);
     if !(at(lo) <= x && x <= at(hi)) {
-        return Err(CircleError::TooFar {
-            radius_m,
-            x_err_m: x,
-        });
+        return Err(too_far);
     }
     for _ in 0..200 {
         let mid = 0.5 * (lo + hi);
@@ -170,7 +192,26 @@ pub fn heading_gain(run: &CircleRun) -> Result<f64, CircleError> {
             break;
         }
     }
-    Ok(1.0 + 0.5 * (lo + hi) / turns)
+    let u = 0.5 * (lo + hi);
+    let gain = 1.0 + u / turns;
+    // The end's x alone cannot tell a turn error u from pi - u; the end's place can: a
+    // circle rolled u off its laps ends on a chord at angle u / 2 to its start heading,
+    // so 2 atan2(y, x) (y towards the turn) is u to within whole laps, whatever the
+    // radius. Once the end is far enough for that angle to mean something (a chord of
+    // over half the radius: |u| >= 1.2 rad puts it beyond 0.87 R), it must agree.
+    let y_turn = sign(run.dir) * y;
+    if libm::hypot(x, y) > 0.5 * radius_m {
+        let mut u_end = 2.0 * libm::atan2(y_turn, x);
+        if u_end > PI {
+            u_end -= 2.0 * PI;
+        } else if u_end < -PI {
+            u_end += 2.0 * PI;
+        }
+        if libm::fabs(u_end) > MAX_TURN_ERROR_RAD {
+            return Err(too_far);
+        }
+    }
+    Ok(gain)
 }
 
 /// What the circles of one radius show.
@@ -239,9 +280,11 @@ pub fn turn_law(
     e_b_sigma: f64,
     separation_m: f64,
 ) -> Result<CircleLaw, CircleError> {
-    if !(e_b.is_finite() && e_b > 0.0 && separation_m.is_finite() && separation_m > 0.0) {
+    use crate::correction::{FACTOR_MAX, FACTOR_MIN};
+    if !((FACTOR_MIN..=FACTOR_MAX).contains(&e_b) && separation_m.is_finite() && separation_m > 0.0)
+    {
         return Err(CircleError::BadInput(
-            "E_b and the wheelbase must be positive",
+            "E_b must be within [0.5, 2] and the wheelbase positive",
         ));
     }
     if !(e_b_sigma.is_finite() && e_b_sigma >= 0.0) {
@@ -328,9 +371,15 @@ pub fn turn_law(
         1.0 / sw
     };
     let from_e_b = swd / sw * e_b_sigma;
+    let sigma = libm::sqrt(from_runs + from_e_b * from_e_b);
+    if !(e_b_arc.is_finite() && sigma.is_finite()) {
+        return Err(CircleError::BadInput(
+            "the circles' numbers give no finite law",
+        ));
+    }
     Ok(CircleLaw {
         e_b_arc,
-        sigma: libm::sqrt(from_runs + from_e_b * from_e_b),
+        sigma,
         radii: out,
     })
 }
@@ -533,5 +582,55 @@ mod tests {
         let s = umbmark_e_b_sigma(&cw, &ccw, 4.0, 1.0).unwrap();
         assert!((s - 2f64.sqrt() * 0.003 / (8.0 * PI)).abs() < 1e-12, "{s}");
         assert!(umbmark_e_b_sigma(&[0.0], &ccw, 4.0, 1.0).is_none());
+    }
+
+    proptest::proptest! {
+        /// The law comes back from exact ends for any law, diameter ratio, in-place E_b,
+        /// radius and laps (1e-8: the bisection's and the model's rounding), as long as
+        /// each run turned at most MAX_TURN_ERROR_RAD off its laps; a run further off (but
+        /// not a whole lap off, which no end can show) is refused, never misread.
+        #[test]
+        fn any_law_comes_back_from_its_ends_or_is_refused(
+            k in -0.09f64..0.09,
+            e in -0.01f64..0.01,
+            e_b in 0.95f64..1.05,
+            radius in 0.3f64..3.0,
+            laps in 1u8..=4,
+        ) {
+            let runs = both_ways(radius, laps, k, e, e_b).map(|r| CircleRun {
+                theta_err_rad: None,
+                ..r
+            });
+            let turn_off = |d: Direction| {
+                let s = crate::kinematics::turn_law_share(e_b * B / 2.0 / radius);
+                let g = (1.0 + sign(d) * e * radius / B) / (e_b * (1.0 + k * s));
+                libm::fabs(2.0 * PI * f64::from(laps) * (g - 1.0))
+            };
+            let worst = f64::max(turn_off(Direction::Cw), turn_off(Direction::Ccw));
+            let result = turn_law(&runs, e_b, 0.0, B);
+            if worst <= MAX_TURN_ERROR_RAD {
+                let law = result.unwrap();
+                proptest::prop_assert!((law.e_b_arc - k).abs() < 1e-8, "{} against {k}", law.e_b_arc);
+            } else if worst < 2.0 * PI - MAX_TURN_ERROR_RAD {
+                proptest::prop_assert!(matches!(result, Err(CircleError::TooFar { .. })), "{worst} rad off: {result:?}");
+            }
+        }
+
+        /// Any numbers at all: an answer with finite numbers, or an error; never a panic.
+        #[test]
+        fn any_numbers_give_an_answer_or_an_error(
+            x in proptest::num::f64::ANY,
+            y in proptest::num::f64::ANY,
+            th in proptest::option::of(proptest::num::f64::ANY),
+            radius in proptest::num::f64::ANY,
+            laps in 0u8..=255,
+            e_b in proptest::num::f64::ANY,
+        ) {
+            let run = |dir, dx: f64| CircleRun { dir, radius_m: radius, laps, x_err_m: x + dx, y_err_m: y, theta_err_rad: th };
+            let runs = [run(Direction::Cw, 0.0), run(Direction::Cw, 1e-3), run(Direction::Ccw, 0.0), run(Direction::Ccw, -1e-3)];
+            if let Ok(law) = turn_law(&runs, e_b, 0.0, B) {
+                proptest::prop_assert!(law.e_b_arc.is_finite() && law.sigma.is_finite(), "{law:?}");
+            }
+        }
     }
 }
