@@ -620,6 +620,13 @@ pub struct DemoArgs {
     /// Write an HTML report with SVG and PNG plots into this directory.
     #[arg(long)]
     pub report: Option<PathBuf>,
+    /// Also hide a tyre scrub (0.5-3 %) and run the circle test with circles of this
+    /// radius (metres) beside the squares.
+    #[arg(long)]
+    pub circle_radius: Option<f64>,
+    /// Laps of each circle (1 to 10).
+    #[arg(long, default_value_t = 2)]
+    pub circle_laps: u8,
 }
 
 /// A finite number within `(0, max]`, for the value parsers below.

@@ -47,6 +47,10 @@ pub struct DemoReport {
     pub e_max_sys_after_m: f64,
     /// E_max,sys before divided by after (how many times smaller the error got).
     pub improvement: f64,
+    /// With `--circle-radius`: the hidden tyre scrub (the turn law, e_b_arc).
+    pub true_e_b_arc: Option<f64>,
+    /// The circle test's estimate of it, and its sigma.
+    pub estimated_e_b_arc: Option<(f64, f64)>,
     /// Wall-clock time the demo took, s.
     pub seconds: f64,
     /// The full UMBmark report of the demo's runs.
@@ -86,6 +90,12 @@ impl DemoReport {
             "  closed form    E_d = {:.5}  E_b = {:.5}",
             self.umbmark.closed_form.ed, self.umbmark.closed_form.eb
         );
+        if let (Some(t), Some((k, sigma))) = (self.true_e_b_arc, self.estimated_e_b_arc) {
+            let _ = writeln!(
+                s,
+                "  turn law       hidden e_b_arc = {t:.5}, circle test {k:.5} ± {sigma:.5}"
+            );
+        }
         let _ = writeln!(s, "\n  finished in {:.1} s", self.seconds);
         s
     }
@@ -100,6 +110,7 @@ pub fn run(
     side: f64,
     report: Option<&Path>,
     progress: bool,
+    circles: Option<(f64, u8)>,
 ) -> Result<DemoReport> {
     let t0 = Instant::now();
     let robot = if robot_path.exists() {
@@ -127,14 +138,26 @@ pub fn run(
     faults.radius_scale = vec![c_l, c_r];
     faults.wheelbase_scale = true_eb;
     faults.travel_noise_m_per_sqrt_m = DEMO_ROUGHNESS;
+    // With circles, tyres that scrub: 0.5-3 % wider on arcs (the OptiOdom robot's 0.5 %).
+    let true_e_b_arc = circles.map(|_| rng.random_range(0.005..0.03));
     let run = VirtualRun {
         runs,
         length: side,
         report,
         after_runs: runs,
         progress,
+        circles,
     };
-    let rep = umbmark_on_virtual_board(&robot, faults, seed, run)?;
+    let cfg = SimConfig {
+        seed,
+        turn_scrub: true_e_b_arc.unwrap_or(0.0),
+        ..SimConfig::default()
+    };
+    let sim = SimRobot::new(&robot, faults, Surface::flat(), cfg)?;
+    let rep = match procedure_on_virtual_board(&robot, sim, Kind::Umbmark, run)? {
+        ProcedureReport::Umbmark(rep) => *rep,
+        ProcedureReport::Omni(_) => bail!("the procedure returned an omni result"),
+    };
     let after = rep
         .e_max_sys_after_m
         .context("the after runs are missing")?;
@@ -150,6 +173,8 @@ pub fn run(
         e_max_sys_before_m: rep.e_max_sys_before_m,
         e_max_sys_after_m: after,
         improvement: rep.e_max_sys_before_m / after,
+        true_e_b_arc,
+        estimated_e_b_arc: rep.circles.as_ref().map(|c| (c.e_b_arc, c.e_b_arc_sigma)),
         seconds: t0.elapsed().as_secs_f64(),
         umbmark: rep,
     })
@@ -170,6 +195,8 @@ pub struct VirtualRun<'a> {
     pub after_runs: usize,
     /// Show a progress bar on stderr.
     pub progress: bool,
+    /// UMBmark: circles of this radius and laps beside the squares (the circle test).
+    pub circles: Option<(f64, u8)>,
 }
 
 /// Runs the UMBmark procedure (auto-measured) on a virtual board simulating `robot` with
@@ -209,6 +236,7 @@ pub fn procedure_on_virtual_board(
         report,
         after_runs,
         progress,
+        circles,
     } = run;
     let seed = RUN_ID.fetch_add(1, Ordering::Relaxed);
     let mut board = InProcessBoard::start(robot, sim, Faults::none(), Faults::none(), seed)?;
@@ -216,7 +244,8 @@ pub fn procedure_on_virtual_board(
         std::env::temp_dir().join(format!("wheelcal-procedure-{}-{seed}", std::process::id()));
     std::fs::create_dir_all(&dir)?;
     let bar = progress.then(|| {
-        let b = indicatif::ProgressBar::new((2 * runs + 2 * after_runs) as u64);
+        let trials = if circles.is_some() { 4 } else { 2 };
+        let b = indicatif::ProgressBar::new((trials * (runs + after_runs)) as u64);
         b.set_style(
             indicatif::ProgressStyle::with_template(
                 "{msg:40} [{bar:30}] {pos}/{len} runs {elapsed}",
@@ -242,7 +271,7 @@ pub fn procedure_on_virtual_board(
         after: after_runs > 0,
         second_pass: false,
         idle_wheels: Default::default(),
-        circles: None,
+        circles,
     };
     let client = &mut board.client;
     let result = client

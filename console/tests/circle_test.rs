@@ -88,3 +88,35 @@ fn the_guided_circle_test_finds_and_uploads_the_turn_law() {
         "{text}"
     );
 }
+
+/// `wheelcal demo --circle-radius 0.5`: a tyre scrub drawn at random (0.5-3 %) is hidden
+/// beside the wheels' errors, and the circle test finds it within 3 sigma plus 0.002 (the
+/// tolerance above), for three seeds.
+#[test]
+fn the_demo_hides_a_tyre_scrub_and_the_circle_test_finds_it() {
+    for seed in [1, 2, 3] {
+        let out = common::wheelcal()
+            .args([
+                "--json",
+                "demo",
+                "--runs",
+                "3",
+                "--side",
+                "1",
+                "--circle-radius",
+                "0.5",
+            ])
+            .args(["--seed", &seed.to_string()])
+            .output()
+            .unwrap();
+        let rep = json_of(&out);
+        let hidden = rep["true_e_b_arc"].as_f64().unwrap();
+        let (k, s) = (
+            rep["estimated_e_b_arc"][0].as_f64().unwrap(),
+            rep["estimated_e_b_arc"][1].as_f64().unwrap(),
+        );
+        eprintln!("seed {seed}: hidden {hidden:.5}, found {k:.5} ± {s:.5}");
+        assert!((0.005..0.03).contains(&hidden), "{rep}");
+        assert!((k - hidden).abs() <= 3.0 * s + 0.002, "{rep}");
+    }
+}

@@ -69,6 +69,7 @@ fn umbmark_reaches_ten_x_and_the_noise_floor_on_000s_robots() {
             report: None,
             after_runs,
             progress: false,
+            circles: None,
         };
         let rep = umbmark_on_virtual_board(&r, faults(ed, eb), seed, run(5, 15)).unwrap();
         let perfect =
@@ -298,6 +299,7 @@ fn omni_procedure_over_cables_improves_at_least_80_percent() {
         report: None,
         after_runs: 10,
         progress: false,
+        circles: None,
     };
     let rep = wheelcal::demo::procedure_on_virtual_board(&r, s, Kind::Omni, run).unwrap();
     let ProcedureReport::Omni(o) = rep else {

@@ -136,6 +136,7 @@ pub fn demo(a: DemoArgs, out: Output) -> Result<()> {
         a.side,
         a.report.as_deref(),
         out == Output::Human,
+        a.circle_radius.map(|r| (r, a.circle_laps)),
     )?;
     out.emit(&rep, || rep.human())
 }
