@@ -823,13 +823,23 @@ fn choose_turn_law(
         specs,
         heldout_m: e_chosen,
     };
+    let on = Data { robot, series, cfg };
     if tests_lead {
-        lead_on_top(robot, series, cfg, notes, runs, made, chosen)
+        lead_on_top(on, notes, runs, made, chosen)
     } else if lead_chosen {
-        laws_on_lead(robot, series, cfg, notes, runs, made, chosen, &laws)
+        laws_on_lead(on, notes, runs, made, chosen, &laws)
     } else {
         chosen.specs
     }
+}
+
+/// What the second rounds of [`choose_turn_law`] fit on: the robot, its recordings and
+/// the fit's settings.
+#[derive(Clone, Copy)]
+struct Data<'a> {
+    robot: &'a Robot,
+    series: &'a [Series],
+    cfg: Cfg,
 }
 
 /// The law [`choose_turn_law`] kept: its specs and its held-out error.
@@ -872,9 +882,7 @@ impl OnTop {
 /// recording) against `chosen`'s held-out error `e_chosen`. As in the first round, a turn
 /// law's `eb_arc` need not be told from the other parameters (its arcs do that).
 fn fit_on_top(
-    robot: &Robot,
-    series: &[Series],
-    cfg: Cfg,
+    Data { robot, series, cfg }: Data<'_>,
     runs: &mut usize,
     chosen: &[ParamSpec],
     extra: ParamSpec,
@@ -914,24 +922,23 @@ fn fit_on_top(
 /// [`TURN_LAW_HOLDOUT_RATIO`] of the law alone's held-out error); recorded in `law_tests`
 /// as `pose lead` either way, and said in the notes when kept. Returns the specs to fit.
 fn lead_on_top(
-    robot: &Robot,
-    series: &[Series],
-    cfg: Cfg,
+    on: Data<'_>,
     notes: &mut Vec<String>,
     runs: &mut usize,
     made: &mut Made,
     chosen: Chosen,
 ) -> Vec<ParamSpec> {
-    let folds = series.len().min(LADDER_FOLDS);
+    let folds = on.series.len().min(LADDER_FOLDS);
     let e_chosen = chosen.heldout_m;
-    let Some(extra) = cfg
-        .unheld(accel_law_specs(robot))
+    let Some(extra) = on
+        .cfg
+        .unheld(accel_law_specs(on.robot))
         .into_iter()
         .find(|s| s.kind == Law::Acceleration.parameter())
     else {
         return chosen.specs;
     };
-    let top = fit_on_top(robot, series, cfg, runs, &chosen.specs, extra, e_chosen);
+    let top = fit_on_top(on, runs, &chosen.specs, extra, e_chosen);
     let (v, s_v) = (top.value, top.sigma);
     let kept = v < 0.0 && top.qualifies;
     made.law_tests.push(LawTest {
@@ -968,18 +975,15 @@ fn lead_on_top(
 /// alone) is kept beside the lead, the turn law on a tie within [`LADDER_TOLERANCE`];
 /// recorded in `law_tests` as `turn on the pose lead`, `speed on the pose lead`. Returns
 /// the specs to fit.
-#[allow(clippy::too_many_arguments)]
 fn laws_on_lead(
-    robot: &Robot,
-    series: &[Series],
-    cfg: Cfg,
+    on: Data<'_>,
     notes: &mut Vec<String>,
     runs: &mut usize,
     made: &mut Made,
     chosen: Chosen,
     others: &[(Law, Vec<ParamSpec>)],
 ) -> Vec<ParamSpec> {
-    let folds = series.len().min(LADDER_FOLDS);
+    let folds = on.series.len().min(LADDER_FOLDS);
     let e_lead = chosen.heldout_m;
     let mut tops: Vec<(Law, OnTop)> = Vec::new();
     for law in [Law::Turn, Law::Speed] {
@@ -989,7 +993,7 @@ fn laws_on_lead(
         let Some(extra) = specs.iter().find(|s| s.kind == law.parameter()).cloned() else {
             continue;
         };
-        let top = fit_on_top(robot, series, cfg, runs, &chosen.specs, extra, e_lead);
+        let top = fit_on_top(on, runs, &chosen.specs, extra, e_lead);
         let per = if law == Law::Turn {
             eb_of(&top.fit.f.geom, &top.specs)
         } else {
