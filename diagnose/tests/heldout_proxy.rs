@@ -514,7 +514,9 @@ fn hand_measure(
 /// must find the turn law calibrate finds on the whole month's recordings: positive, in
 /// the same band as `the_turn_law_is_the_same_in_june_and_december` asserts (0.002 to
 /// 0.01), significant, and the two months within two combined sigmas of each other
-/// (measured: June +0.0064 ± 0.0003, December +0.0058 ± 0.0006; calibrate on the whole
+/// (measured: June +0.0064 ± 0.0003, December +0.0058 ± 0.0006; each of the five sessions
+/// with three whole-lap circles or more each way, alone: +0.0067, +0.0064, +0.0057,
+/// +0.0049, +0.0055, each significant and in the band; calibrate on the whole
 /// paths 0.0057 ± 0.0006 and 0.0044 ± 0.0013; from the ends' positions instead +0.0041
 /// and +0.0025). Then the proxy, each square session trained with the other month's law
 /// held (as `--turn-law` holds it) and its test runs dead-reckoned with it, as a board
@@ -529,8 +531,10 @@ fn the_circle_test_finds_the_turn_law_by_hand() {
     use std::f64::consts::TAU;
     let Some(d) = dir() else { return };
     let mut laws = Vec::new();
+    let mut sessions_alone = 0;
     for month in ["06", "12"] {
         let (mut cw, mut ccw, mut circles, mut sides) = (vec![], vec![], vec![], vec![]);
+        let mut circle_sessions: Vec<String> = vec![];
         let mut robot = None;
         for r in proxy::list_runs(&d).unwrap() {
             if r.robot != "diff" || r.session.get(2..4) != Some(month) {
@@ -566,6 +570,7 @@ fn the_circle_test_finds_the_turn_law_by_hand() {
                     // The heading error had odometry turned exactly its laps.
                     let gain = m.turn_true_rad / m.turn_odo_rad;
                     let sign = m.turn_odo_rad.signum();
+                    circle_sessions.push(r.session.clone());
                     circles.push(CircleRun {
                         dir,
                         radius_m: m.travel_m / m.turn_odo_rad.abs(),
@@ -620,6 +625,35 @@ fn the_circle_test_finds_the_turn_law_by_hand() {
             "  from the ends' positions: e_b_arc {:+.4} ± {:.4}",
             law_x.e_b_arc, law_x.sigma
         );
+        // Each session's circles alone (three or more each way), with the month's
+        // squares: every one finds the law, in the same band.
+        let mut sessions: Vec<&str> = circle_sessions.iter().map(String::as_str).collect();
+        sessions.sort_unstable();
+        sessions.dedup();
+        for sess in sessions {
+            let own: Vec<CircleRun> = circles
+                .iter()
+                .zip(&circle_sessions)
+                .filter(|(_, s)| s.as_str() == sess)
+                .map(|(c, _)| *c)
+                .collect();
+            let each_way = |d| own.iter().filter(|c| c.dir == d).count();
+            if each_way(Direction::Cw).min(each_way(Direction::Ccw)) < 3 {
+                continue;
+            }
+            let l = circle_test::turn_law(&own, fit.eb, e_b_sigma, b).unwrap();
+            eprintln!(
+                "  session {sess} ({} circles): e_b_arc {:+.4} ± {:.4}",
+                own.len(),
+                l.e_b_arc,
+                l.sigma
+            );
+            assert!(
+                l.significant() && (0.002..=0.01).contains(&l.e_b_arc),
+                "{sess}: {l:?}"
+            );
+            sessions_alone += 1;
+        }
         assert!(
             (0.002..=0.01).contains(&law.e_b_arc),
             "month {month}: {law:?}"
@@ -627,6 +661,10 @@ fn the_circle_test_finds_the_turn_law_by_hand() {
         assert!(law.significant(), "month {month}: {law:?}");
         laws.push((law.e_b_arc, law.sigma));
     }
+    assert_eq!(
+        sessions_alone, 5,
+        "sessions with three circles or more each way"
+    );
     let ((a, sa), (b, sb)) = (laws[0], laws[1]);
     assert!(
         (a - b).abs() <= 2.0 * (sa * sa + sb * sb).sqrt(),
