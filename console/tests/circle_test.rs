@@ -120,3 +120,37 @@ fn the_demo_hides_a_tyre_scrub_and_the_circle_test_finds_it() {
         assert!((k - hidden).abs() <= 3.0 * s + 0.002, "{rep}");
     }
 }
+
+/// A runs file begun without circles has no laps column: circles of two laps could be
+/// driven but not recorded, so the procedure refuses before anything moves, and the file
+/// is left as it was.
+#[test]
+fn circles_are_refused_before_moving_when_the_runs_file_cannot_hold_their_laps() {
+    let dir = scratch("circle-no-laps");
+    let board = Board::start("mobolab", &dir);
+    let runs = dir.join("runs.csv");
+    let text =
+        "test,path,length_m,x_err_m,y_err_m,theta_err_rad,phase\numbmark,cw,1,0.01,0.02,,before\n";
+    std::fs::write(&runs, text).unwrap();
+    let (o, _, err) = board.run_text(&[
+        "umbmark",
+        "run",
+        "--side",
+        "1",
+        "--runs",
+        "2",
+        "--circle-radius",
+        "0.5",
+        "--auto-measure",
+        "--runs-file",
+        runs.to_str().unwrap(),
+    ]);
+    assert!(!o.status.success());
+    assert!(
+        err.contains("has no laps column for circles of 2 laps"),
+        "{err}"
+    );
+    assert_eq!(std::fs::read_to_string(&runs).unwrap(), text);
+    let (x, y) = common::pose_of(&board.status());
+    assert!(x.hypot(y) < 1e-9, "the robot moved to ({x}, {y})");
+}

@@ -461,6 +461,18 @@ impl RunsFile {
         Self::append_with(path, row, false)
     }
 
+    /// Whether circle rows of several laps can be appended to `path`: it does not exist
+    /// yet or is empty (it will get the column), or its header has a `laps` column.
+    pub fn takes_laps(path: &Path) -> bool {
+        match std::fs::read_to_string(path) {
+            Ok(text) => match text.lines().next() {
+                Some(h) if !h.trim().is_empty() => h.split(',').any(|c| c.trim() == "laps"),
+                _ => true,
+            },
+            Err(_) => true,
+        }
+    }
+
     /// [`RunsFile::append`], the cells written in the order of the file's own header (so
     /// a file whose columns a person reordered, or that has a `laps` column, stays
     /// consistent). A new file gets the standard columns, and `laps` too when `laps` is
@@ -636,13 +648,16 @@ mod tests {
         let _ = std::fs::remove_file(&dir);
         RunsFile::append(&dir, &f.rows[0]).unwrap();
         let before = std::fs::read_to_string(&dir).unwrap();
+        assert!(!RunsFile::takes_laps(&dir));
         let e = RunsFile::append(&dir, &f.rows[6]).unwrap_err();
         assert!(e.to_string().contains("no laps column"), "{e}");
         assert_eq!(std::fs::read_to_string(&dir).unwrap(), before);
         std::fs::remove_file(&dir).unwrap();
+        assert!(RunsFile::takes_laps(&dir));
         for r in &f.rows {
             RunsFile::append_with(&dir, r, true).unwrap();
         }
+        assert!(RunsFile::takes_laps(&dir));
         let back = RunsFile::load(&dir).unwrap();
         let strip = |rows: &[RunRow]| {
             rows.iter()

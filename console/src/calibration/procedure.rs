@@ -410,7 +410,14 @@ pub fn run<L: Read + Write>(
             length
         );
     }
-    if let Some((radius_m, _)) = opts.circles {
+    if let Some((radius_m, laps)) = opts.circles {
+        // Checked before anything moves: a circle driven but not recordable is lost.
+        if laps != 1 && !RunsFile::takes_laps(&opts.runs_file) {
+            bail!(
+                "{} has no laps column for circles of {laps} laps: use a new --runs-file (or --circle-laps 1)",
+                opts.runs_file.display()
+            );
+        }
         if let Some(r) = existing
             .rows
             .iter()
