@@ -228,8 +228,13 @@ fn compute_unchecked(robot: &Robot, runs: &RunsFile) -> Result<UmbmarkReport> {
         );
     }
     let before = runs.umbmark(Phase::Before)?.with_context(|| {
+        let circles = if runs.circles(Phase::Before).is_empty() {
+            ""
+        } else {
+            "; the circle rows need them beside them: the circle test measures the arcs against the squares' E_b"
+        };
         format!(
-            "{}: no UMBmark 'before' runs (rows with test = umbmark)",
+            "{}: no UMBmark 'before' runs (rows with test = umbmark){circles}",
             runs.path.display()
         )
     })?;
