@@ -278,5 +278,16 @@ mod tests {
             .unwrap_err()
             .to_string();
         assert!(e.contains("not wider than half the wheelbase"), "{e}");
+        // Circles without squares: nothing to measure them against.
+        let text = "test,path,length_m,x_err_m,y_err_m\n\
+            circle,cw,0.5,0,0\ncircle,cw,0.5,0,0\ncircle,ccw,0.5,0,0\ncircle,ccw,0.5,0,0\n";
+        let runs = RunsFile::parse(text, Path::new("r.csv")).unwrap();
+        let e = umbmark::compute(&presets::mobolab(), &runs)
+            .unwrap_err()
+            .to_string();
+        assert!(
+            e.starts_with("r.csv: no UMBmark 'before' runs") && e.contains("squares' E_b"),
+            "{e}"
+        );
     }
 }
