@@ -217,8 +217,14 @@ impl SavedCalibration {
                 .map_err(|e| anyhow!("{shown}: factors.board: {e}"))?;
             return Ok(b.corrections());
         }
-        let num = |k: &str| f[k].as_f64().ok_or_else(|| missing("c_l, c_r and e_b"));
-        let (c_l, c_r, e_b) = (num("c_l")?, num("c_r")?, num("e_b")?);
+        // `umbmark compute` gives its factors at the top, E_b as `eb`.
+        let (top, e_b_key) = if is_umbmark(&self.json) {
+            (&self.json, "eb")
+        } else {
+            (f, "e_b")
+        };
+        let num = |k: &str| top[k].as_f64().ok_or_else(|| missing("c_l, c_r and e_b"));
+        let (c_l, c_r, e_b) = (num("c_l")?, num("c_r")?, num(e_b_key)?);
         Ok(Corrections::diff_drive(c_l, c_r, e_b, DiffLaws::default()))
     }
 
@@ -318,7 +324,8 @@ mod tests {
     }
 
     /// `umbmark compute`'s result: its circle test's law is held when kept, tested when
-    /// not; without circles it has no law to give.
+    /// not; without circles it has no law to give. A board judged with it (`evaluate
+    /// --board`) gets UMBmark's factors, and the law when the circle test kept one.
     #[test]
     fn an_umbmark_results_circle_test_gives_its_law() {
         let laws = |circles: &str| {
@@ -335,6 +342,27 @@ mod tests {
         assert!(l.note.contains("circle test of umb.json"), "{}", l.note);
         let l = laws(r#"{"e_b_arc": 0.0002, "e_b_arc_sigma": 0.0003, "kept": false}"#).unwrap();
         assert_eq!(l.turn, None);
+        let board = |extra: &str| {
+            let text = format!(
+                r#"{{"robot": "mobolab", "recommended": "exact", "exact": {{"eb": 1.02}},
+                "c_l": 1.001, "c_r": 0.999, "eb": 1.02, "circles": null{extra}}}"#
+            );
+            SavedCalibration::parse(&text, PathBuf::from("umb.json"), &mobolab(), "--board")
+                .unwrap()
+                .board_corrections()
+                .unwrap()
+        };
+        assert_eq!(
+            board(""),
+            Corrections::DiffDrive {
+                c_l: 1.001,
+                c_r: 0.999,
+                e_b: 1.02
+            }
+        );
+        let with_law = r#", "factors": {"board": {"c_l": 1.001, "c_r": 0.999, "e_b": 1.02,
+            "e_b_arc": 0.0064, "speed_rel": 0.0, "accel_slip_s": 0.0}}"#;
+        assert_eq!(board(with_law).laws().e_b_arc, 0.0064);
         let e = laws("null").unwrap_err().to_string();
         assert!(
             e.starts_with("umb.json: a UMBmark result without circles"),
