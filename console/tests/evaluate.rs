@@ -365,3 +365,91 @@ fn board_calibrations_that_cannot_be_applied_are_refused_by_file() {
     );
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// The circle test judged on the board: `umbmark compute --json` on squares and 0.5 m
+/// circles of two laps as a person measures them on a robot whose separation is 4 % wider
+/// on arcs (the ends written from the circle test's own model, 1 mm of scatter), then
+/// `evaluate --board` of that JSON on a random run of the simulator's 4 % scrub robot.
+/// The board holds UMBmark's factors and the law, so it dead-reckons the run as the board
+/// holding the truth does (within 2 mm, as the test above asks of calibrate's fit), and
+/// better than UMBmark's factors alone (the same JSON without its circles).
+#[test]
+fn the_circle_tests_factors_are_judged_as_the_board_applies_them() {
+    use std::f64::consts::PI;
+    let dir = common::scratch("evaluate-circle-test");
+    let runs = scrub_runs(&dir);
+    let nominal_file = common::robot("mobolab");
+    let mut text = String::from("test,path,length_m,x_err_m,y_err_m,theta_err_rad,phase,laps\n");
+    let (k, r, b) = (0.04, 0.5, 0.4);
+    let g = 1.0 / (1.0 + k * (1.0 - (b / 2.0 / r) * (b / 2.0 / r)));
+    let end = r / g * (4.0 * PI * (g - 1.0)).sin();
+    let y = r / g * (1.0 - (4.0 * PI * (g - 1.0)).cos());
+    for (dir, sign) in [("cw", -1.0), ("ccw", 1.0)] {
+        for n in [0.001, -0.001, 0.0] {
+            text.push_str(&format!("umbmark,{dir},4,{n},{},,,\n", -n));
+            text.push_str(&format!("circle,{dir},{r},{},{},,,2\n", end + n, sign * y));
+        }
+    }
+    let squares_only: String = text
+        .lines()
+        .filter(|l| !l.starts_with("circle"))
+        .map(|l| format!("{l}\n"))
+        .collect();
+    let judge = |runs_text: &str, name: &str| {
+        let runs_file = dir.join(format!("{name}.csv"));
+        std::fs::write(&runs_file, runs_text).unwrap();
+        let out = common::wheelcal()
+            .args(["--json", "umbmark", "compute", "--robot"])
+            .arg(&nominal_file)
+            .arg("--runs")
+            .arg(&runs_file)
+            .output()
+            .unwrap();
+        let json = dir.join(format!("{name}.json"));
+        std::fs::write(&json, &common::json_of(&out).to_string()).unwrap();
+        let out = common::wheelcal()
+            .args(["--json", "evaluate", "--robot"])
+            .arg(&nominal_file)
+            .arg("--board")
+            .arg(&json)
+            .arg("--recording")
+            .arg(&runs[3])
+            .output()
+            .unwrap();
+        let j = common::json_of(&out);
+        let label = j["robots"][0]["robot"].as_str().unwrap().to_string();
+        assert!(
+            label.ends_with(&format!("{name}.json on the board")),
+            "{label}"
+        );
+        first_rmse(&j)[0]
+    };
+    let with_law = judge(&text, "circles");
+    let without = judge(&squares_only, "squares");
+    let nominal = formats::robot_file::load(&nominal_file).unwrap();
+    let rec = Recording::load(&runs[3].join("recording.csv"), &nominal).unwrap();
+    let truth_law = calib_core::correction::DiffLaws {
+        e_b_arc: 0.04,
+        ..Default::default()
+    };
+    let truth = evaluate(
+        &[Candidate::board(
+            "truth",
+            nominal.clone(),
+            Corrections::diff_drive(1.0, 1.0, 1.0, truth_law),
+        )],
+        &[("held-out".into(), rec)],
+    )
+    .unwrap()
+    .recordings[0]
+        .rmse_m[0];
+    eprintln!(
+        "held out: circle test {with_law:.4} m, squares alone {without:.4} m, truth {truth:.4} m"
+    );
+    assert!(
+        (with_law - truth).abs() < 0.002,
+        "{with_law} against {truth}"
+    );
+    assert!(with_law < without, "{with_law} against {without}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
