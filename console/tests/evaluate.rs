@@ -406,7 +406,7 @@ fn the_circle_tests_factors_are_judged_as_the_board_applies_them() {
             .output()
             .unwrap();
         let json = dir.join(format!("{name}.json"));
-        std::fs::write(&json, &common::json_of(&out).to_string()).unwrap();
+        std::fs::write(&json, common::json_of(&out).to_string()).unwrap();
         let out = common::wheelcal()
             .args(["--json", "evaluate", "--robot"])
             .arg(&nominal_file)
