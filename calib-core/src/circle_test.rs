@@ -219,7 +219,7 @@ pub fn heading_gain(run: &CircleRun) -> Result<f64, CircleError> {
 pub struct RadiusLaw {
     /// The radius (m).
     pub radius_m: f64,
-    /// Runs clockwise and counter-clockwise.
+    /// Runs clockwise.
     pub runs_cw: usize,
     /// Runs counter-clockwise.
     pub runs_ccw: usize,
