@@ -139,6 +139,46 @@ pub fn end_x(radius_m: f64, laps: u8, gain: f64) -> f64 {
     radius_m / gain * libm::sin(turns * (gain - 1.0))
 }
 
+/// The module's model of a robot driving circles with the factors its squares were
+/// measured with: its nominal wheelbase, its in-place E_b relative to those factors,
+/// the turn law and the right wheel's size over the left's. [`turn_law`] inverts it;
+/// tests and examples make exact runs with it.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct CircleModel {
+    /// Nominal wheelbase b (m).
+    pub separation_m: f64,
+    /// Wheelbase of a turn in place over the factors' (UMBmark's E_b).
+    pub e_b: f64,
+    /// The turn law.
+    pub e_b_arc: f64,
+    /// Right wheel's size over the left's (UMBmark's E_d).
+    pub e_d: f64,
+}
+
+impl CircleModel {
+    /// The heading gain of a circle of `radius_m` driven `dir`: (1 ± e R / b) / (E_b (1 +
+    /// e_b_arc s)), e = E_d - 1, s the law's share at rho = E_b b / 2R.
+    pub fn gain(&self, dir: Direction, radius_m: f64) -> f64 {
+        let b = self.separation_m;
+        let s = crate::kinematics::turn_law_share(self.e_b * b / 2.0 / radius_m);
+        (1.0 + sign(dir) * (self.e_d - 1.0) * radius_m / b) / (self.e_b * (1.0 + self.e_b_arc * s))
+    }
+
+    /// The exact run: where a circle rolled at that gain ends, and its heading error.
+    pub fn run(&self, dir: Direction, radius_m: f64, laps: u8) -> CircleRun {
+        let g = self.gain(dir, radius_m);
+        let u = 2.0 * PI * f64::from(laps) * (g - 1.0);
+        CircleRun {
+            dir,
+            radius_m,
+            laps,
+            x_err_m: end_x(radius_m, laps, g),
+            y_err_m: sign(dir) * radius_m / g * (1.0 - libm::cos(u)),
+            theta_err_rad: Some(sign(dir) * u),
+        }
+    }
+}
+
 /// The heading gain of one run: the robot's turn over the odometry's. From the heading
 /// error when measured, else from the end's x (bisection on the turn error, where
 /// [`end_x`] is monotonic).
@@ -402,21 +442,16 @@ mod tests {
 
     const B: f64 = 0.2;
 
-    /// The exact end of a circle run for a robot with turn law `k`, diameter ratio `1 +
-    /// e`, and in-place wheelbase `e_b` (the model in the module's doc).
+    /// The exact run of a robot with turn law `k`, diameter ratio `1 + e` and in-place
+    /// wheelbase `e_b` ([`CircleModel`]).
     fn run(dir: Direction, radius_m: f64, laps: u8, k: f64, e: f64, e_b: f64) -> CircleRun {
-        let s = crate::kinematics::turn_law_share(e_b * B / 2.0 / radius_m);
-        let g = (1.0 + sign(dir) * e * radius_m / B) / (e_b * (1.0 + k * s));
-        let turn = 2.0 * PI * f64::from(laps) * g;
-        let r_true = radius_m / g;
-        CircleRun {
-            dir,
-            radius_m,
-            laps,
-            x_err_m: r_true * libm::sin(turn),
-            y_err_m: sign(dir) * r_true * (1.0 - libm::cos(turn)),
-            theta_err_rad: Some(sign(dir) * 2.0 * PI * f64::from(laps) * (g - 1.0)),
-        }
+        let model = CircleModel {
+            separation_m: B,
+            e_b,
+            e_b_arc: k,
+            e_d: 1.0 + e,
+        };
+        model.run(dir, radius_m, laps)
     }
 
     fn both_ways(radius_m: f64, laps: u8, k: f64, e: f64, e_b: f64) -> [CircleRun; 4] {
@@ -601,11 +636,7 @@ mod tests {
                 theta_err_rad: None,
                 ..r
             });
-            let turn_off = |d: Direction| {
-                let s = crate::kinematics::turn_law_share(e_b * B / 2.0 / radius);
-                let g = (1.0 + sign(d) * e * radius / B) / (e_b * (1.0 + k * s));
-                libm::fabs(2.0 * PI * f64::from(laps) * (g - 1.0))
-            };
+            let turn_off = |d: Direction| libm::fabs(run(d, radius, laps, k, e, e_b).theta_err_rad.unwrap());
             let worst = f64::max(turn_off(Direction::Cw), turn_off(Direction::Ccw));
             let result = turn_law(&runs, e_b, 0.0, B);
             if worst <= MAX_TURN_ERROR_RAD {

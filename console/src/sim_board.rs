@@ -99,13 +99,6 @@ pub fn build_sim(opts: &SimBoardOptions) -> Result<(calib_core::Robot, SimRobot)
         .collect::<Result<Vec<_>>>()?;
     let (mut faults, surface) = sim::Faults::from_effects(&robot, &effects, Surface::flat())?;
     faults.travel_noise_m_per_sqrt_m = opts.roughness;
-    if opts.turn_scrub != 0.0 && robot.kind != calib_core::RobotKind::DiffDrive {
-        anyhow::bail!(
-            "--turn-scrub widens a differential drive's wheelbase on arcs; robot '{}' is {}",
-            robot.name,
-            robot.kind.as_str()
-        );
-    }
     let cfg = SimConfig {
         seed: opts.seed,
         turn_scrub: opts.turn_scrub,

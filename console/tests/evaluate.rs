@@ -368,26 +368,30 @@ fn board_calibrations_that_cannot_be_applied_are_refused_by_file() {
 
 /// The circle test judged on the board: `umbmark compute --json` on squares and 0.5 m
 /// circles of two laps as a person measures them on a robot whose separation is 4 % wider
-/// on arcs (the ends written from the circle test's own model, 1 mm of scatter), then
+/// on arcs (the ends written from calib-core's `CircleModel`, 1 mm of scatter), then
 /// `evaluate --board` of that JSON on a random run of the simulator's 4 % scrub robot.
 /// The board holds UMBmark's factors and the law, so it dead-reckons the run as the board
 /// holding the truth does (within 2 mm, as the test above asks of calibrate's fit), and
 /// better than UMBmark's factors alone (the same JSON without its circles).
 #[test]
 fn the_circle_tests_factors_are_judged_as_the_board_applies_them() {
-    use std::f64::consts::PI;
     let dir = common::scratch("evaluate-circle-test");
     let runs = scrub_runs(&dir);
     let nominal_file = common::robot("mobolab");
     let mut text = String::from("test,path,length_m,x_err_m,y_err_m,theta_err_rad,phase,laps\n");
-    let (k, r, b) = (0.04, 0.5, 0.4);
-    let g = 1.0 / (1.0 + k * (1.0 - (b / 2.0 / r) * (b / 2.0 / r)));
-    let end = r / g * (4.0 * PI * (g - 1.0)).sin();
-    let y = r / g * (1.0 - (4.0 * PI * (g - 1.0)).cos());
-    for (dir, sign) in [("cw", -1.0), ("ccw", 1.0)] {
+    let model = calib_core::circle_test::CircleModel {
+        separation_m: 0.4,
+        e_b: 1.0,
+        e_b_arc: 0.04,
+        e_d: 1.0,
+    };
+    for dir in [Direction::Cw, Direction::Ccw] {
+        let end = model.run(dir, 0.5, 2);
+        let name = dir.as_str();
         for n in [0.001, -0.001, 0.0] {
-            text.push_str(&format!("umbmark,{dir},4,{n},{},,,\n", -n));
-            text.push_str(&format!("circle,{dir},{r},{},{},,,2\n", end + n, sign * y));
+            text.push_str(&format!("umbmark,{name},4,{n},{},,,\n", -n));
+            let (x, y) = (end.x_err_m + n, end.y_err_m);
+            text.push_str(&format!("circle,{name},0.5,{x},{y},,,2\n"));
         }
     }
     let squares_only: String = text

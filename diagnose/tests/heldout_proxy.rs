@@ -489,13 +489,9 @@ fn hand_measure(
         travel += d.vx.abs();
         pose = integrate_arc(pose, &d);
     }
-    let (mut th, mut turn) = (rec.theta[0].unwrap(), 0.0);
-    for t in rec.theta.iter().flatten().skip(1) {
-        let mut d = t - th;
-        d -= std::f64::consts::TAU * (d / std::f64::consts::TAU).round();
-        turn += d;
-        th = *t;
-    }
+    let mut theta: Vec<f64> = rec.theta.iter().flatten().copied().collect();
+    diagnose::replay::unwrap_angles(&mut theta);
+    let turn = theta[theta.len() - 1] - theta[0];
     let n = rec.len() - 1;
     HandMeasured {
         x_err_m: rec.x[n].unwrap() - pose.x,

@@ -25,6 +25,31 @@ pub enum TestKind {
     Circle,
 }
 
+impl TestKind {
+    /// The name in the file's `test` column.
+    pub fn as_str(self) -> &'static str {
+        match self {
+            TestKind::Umbmark => "umbmark",
+            TestKind::Omni => "omni",
+            TestKind::Circle => "circle",
+        }
+    }
+}
+
+/// A runs file's header, its column names trimmed; None when the file is absent or
+/// empty.
+fn header_of(path: &Path) -> std::io::Result<Option<Vec<String>>> {
+    match std::fs::read_to_string(path) {
+        Ok(text) => Ok(text
+            .lines()
+            .next()
+            .filter(|l| !l.trim().is_empty())
+            .map(|l| l.split(',').map(|c| c.trim().to_string()).collect())),
+        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
+        Err(e) => Err(e),
+    }
+}
+
 /// Before or after the factors were applied.
 #[derive(Debug, Clone, Copy, PartialEq, Eq, serde::Serialize)]
 #[serde(rename_all = "snake_case")]
@@ -464,12 +489,10 @@ impl RunsFile {
     /// Whether circle rows of several laps can be appended to `path`: it does not exist
     /// yet or is empty (it will get the column), or its header has a `laps` column.
     pub fn takes_laps(path: &Path) -> bool {
-        match std::fs::read_to_string(path) {
-            Ok(text) => match text.lines().next() {
-                Some(h) if !h.trim().is_empty() => h.split(',').any(|c| c.trim() == "laps"),
-                _ => true,
-            },
-            Err(_) => true,
+        match header_of(path) {
+            Ok(Some(h)) => h.iter().any(|c| c == "laps"),
+            // Absent or empty (it will get the column), or unreadable (appending says why).
+            _ => true,
         }
     }
 
@@ -480,22 +503,9 @@ impl RunsFile {
     /// needs that column: refused, writing nothing, on a file without it.
     pub fn append_with(path: &Path, row: &RunRow, laps: bool) -> std::io::Result<()> {
         let invalid = |m: String| std::io::Error::new(std::io::ErrorKind::InvalidInput, m);
-        let test = match row.test {
-            TestKind::Umbmark => "umbmark",
-            TestKind::Omni => "omni",
-            TestKind::Circle => "circle",
-        };
-        let existing = match std::fs::read_to_string(path) {
-            Ok(text) => text
-                .lines()
-                .next()
-                .map(str::to_string)
-                .filter(|l| !l.trim().is_empty()),
-            Err(e) if e.kind() == std::io::ErrorKind::NotFound => None,
-            Err(e) => return Err(e),
-        };
+        let existing = header_of(path)?;
         let header: Vec<String> = match &existing {
-            Some(line) => line.split(',').map(|c| c.trim().to_string()).collect(),
+            Some(h) => h.clone(),
             None => HEADER
                 .iter()
                 .copied()
@@ -512,7 +522,7 @@ impl RunsFile {
         }
         let cell = |name: &str| -> String {
             match name {
-                "test" => test.into(),
+                "test" => row.test.as_str().into(),
                 "path" => row.path.clone(),
                 "length_m" => row.length_m.to_string(),
                 "x_err_m" => row.x_err_m.to_string(),

@@ -154,6 +154,17 @@ impl SimRobot {
         cfg.imu.validate()?;
         cfg.tyre.validate()?;
         crate::error::check_range("turn_scrub", cfg.turn_scrub, -0.5, 0.5)?;
+        // The scrub acts through a left and a right side: a differential drive's.
+        if cfg.turn_scrub != 0.0 && nominal.kind != calib_core::RobotKind::DiffDrive {
+            return Err(SimError::Config {
+                field: "turn_scrub",
+                message: format!(
+                    "widens a differential drive's wheelbase on arcs; robot '{}' is {}",
+                    nominal.name,
+                    nominal.kind.as_str()
+                ),
+            });
+        }
         crate::error::check_range("speed_scale", cfg.speed_scale, -0.5, 0.5)?;
         for (field, v) in [
             ("start.x", cfg.start.x),

@@ -585,3 +585,34 @@ fn skid_steer_turns_in_place_at_the_effective_separation_of_its_friction() {
         assert!(p.x.hypot(p.y) < 1e-6, "{p:?}");
     }
 }
+
+/// The tyre scrub acts through a left and a right side: refused on an omni or a
+/// skid-steer robot (naming the field and the robot's kind), taken on a differential
+/// drive, and out of its ±0.5 range refused.
+#[test]
+fn turn_scrub_is_a_differential_drives_and_refused_elsewhere() {
+    let cfg = |k| SimConfig {
+        turn_scrub: k,
+        ..quiet()
+    };
+    for name in ["omni3", "rover4"] {
+        let r = robot(name);
+        let e = SimRobot::new(
+            &r,
+            Faults::none(r.wheel_count()),
+            Surface::flat(),
+            cfg(0.04),
+        )
+        .err()
+        .unwrap_or_else(|| panic!("{name}: turn_scrub taken"))
+        .to_string();
+        assert!(
+            e.starts_with("turn_scrub: widens a differential drive's"),
+            "{e}"
+        );
+        assert!(e.contains(r.kind.as_str()), "{e}");
+    }
+    let r = robot("mobolab");
+    assert!(SimRobot::new(&r, Faults::none(2), Surface::flat(), cfg(0.04)).is_ok());
+    assert!(SimRobot::new(&r, Faults::none(2), Surface::flat(), cfg(0.6)).is_err());
+}

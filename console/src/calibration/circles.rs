@@ -168,33 +168,38 @@ impl CircleReport {
 #[cfg(test)]
 mod tests {
     use crate::calibration::umbmark;
+    use calib_core::circle_test::CircleModel;
     use calib_core::motion::Direction;
     use calib_core::robot::presets;
     use formats::runs_file::RunsFile;
-    use std::f64::consts::PI;
     use std::path::Path;
 
     /// A runs file of MoboLab (b = 0.4 m) with E_d 1.004 and E_b 1.02: three 4 m squares
     /// each way, and three 0.5 m circles of 2 laps each way for a turn law `k`, the x
-    /// errors scattered by +-`noise` (m), circles as the module's model drives them.
+    /// errors scattered by +-`noise` (m), circles as calib-core's `CircleModel` drives them.
     fn runs_file(k: f64, noise: f64, after: &str) -> RunsFile {
         let (ed, eb, b, r) = (1.004, 1.02, 0.4, 0.5);
         let mut text =
             String::from("test,path,length_m,x_err_m,y_err_m,theta_err_rad,phase,laps\n");
         let scatter = |i: usize| [noise, -noise, 0.0][i % 3];
-        for (dir, name, sign) in [(Direction::Cw, "cw", -1.0), (Direction::Ccw, "ccw", 1.0)] {
+        let model = CircleModel {
+            separation_m: b,
+            e_b: eb,
+            e_b_arc: k,
+            e_d: ed,
+        };
+        for dir in [Direction::Cw, Direction::Ccw] {
+            let name = dir.as_str();
             let (x, y, _) = calib_core::umbmark::square_end_error(ed, eb, 4.0, b, dir).unwrap();
             for i in 0..3 {
                 text.push_str(&format!("umbmark,{name},4,{},{y},,,\n", x + scatter(i)));
             }
-            let e = ed - 1.0;
-            let rho = eb * b / 2.0 / r;
-            let g = (1.0 + sign * e * r / b) / (eb * (1.0 + k * (1.0 - rho * rho)));
-            let end = r / g * (4.0 * PI * g).sin();
+            let end = model.run(dir, r, 2);
             for i in 0..3 {
                 text.push_str(&format!(
-                    "circle,{name},{r},{},0,,,2\n",
-                    end + scatter(i + 1)
+                    "circle,{name},{r},{},{},,,2\n",
+                    end.x_err_m + scatter(i + 1),
+                    end.y_err_m
                 ));
             }
         }

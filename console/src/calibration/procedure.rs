@@ -484,7 +484,6 @@ pub fn run<L: Read + Write>(
             trials: &trials,
             length,
             phase: Phase::Before,
-            laps_column: opts.circles.is_some(),
         };
         run_phase(c, m, plan, &|t| have(Phase::Before, t))?;
     }
@@ -541,7 +540,6 @@ pub fn run<L: Read + Write>(
             trials: &trials,
             length,
             phase: Phase::After,
-            laps_column: opts.circles.is_some(),
         };
         run_phase(c, m, plan, &|t| have(Phase::After, t))?;
     }
@@ -583,8 +581,6 @@ struct PhasePlan<'a> {
     length: f64,
     /// Before or after the factors were applied.
     phase: Phase,
-    /// Circles of several laps are run: a new runs file gets the `laps` column.
-    laps_column: bool,
 }
 
 /// Runs one phase: for each trial, the runs `have` says are still missing, each measured
@@ -601,8 +597,9 @@ fn run_phase<L: Read + Write>(
         trials,
         length,
         phase,
-        laps_column,
     } = plan;
+    // A phase with circles gives a new runs file the `laps` column.
+    let laps_column = trials.iter().any(|t| matches!(t, Trial::Circle(..)));
     for &t in trials {
         for k in have(t)..runs {
             let what = format!("{} {} run {}/{}", phase.as_str(), t.label(), k + 1, runs);
