@@ -318,20 +318,27 @@ impl Trial {
         }
     }
 
-    /// The runs file's test, and its length column: the phase's `length` for squares
-    /// and paths, the radius for a circle.
-    fn test_and_length(self, length: f64) -> (TestKind, f64) {
+    /// The runs file's test.
+    fn test(self) -> TestKind {
         match self {
-            Trial::Square(_) => (TestKind::Umbmark, length),
-            Trial::Path(..) => (TestKind::Omni, length),
-            Trial::Circle(_, radius_m, _) => (TestKind::Circle, radius_m),
+            Trial::Square(_) => TestKind::Umbmark,
+            Trial::Path(..) => TestKind::Omni,
+            Trial::Circle(..) => TestKind::Circle,
+        }
+    }
+
+    /// The runs file's length column: the phase's `length` for squares and paths, the
+    /// radius for a circle.
+    fn length(self, length: f64) -> f64 {
+        match self {
+            Trial::Circle(_, radius_m, _) => radius_m,
+            _ => length,
         }
     }
 
     /// Whether `r` is a run of this trial.
-    fn counts(self, r: &RunRow, length: f64) -> bool {
-        let (test, _) = self.test_and_length(length);
-        r.test == test && r.path == self.path_name()
+    fn counts(self, r: &RunRow) -> bool {
+        r.test == self.test() && r.path == self.path_name()
     }
 }
 
@@ -436,7 +443,7 @@ pub fn run<L: Read + Write>(
         existing
             .rows
             .iter()
-            .filter(|r| r.phase == phase && t.counts(r, length))
+            .filter(|r| r.phase == phase && t.counts(r))
             .count()
     };
 
@@ -662,14 +669,14 @@ fn run_phase<L: Read + Write>(
                 Trial::Path(..) => Pose::new(length as f32, 0.0, 0.0),
             };
             let (x, y, th) = m.end_error(trial, reference, d, &what)?;
-            let (test, length_m) = t.test_and_length(length);
+
             RunsFile::append_with(
                 runs_file,
                 &RunRow {
                     line: 0,
-                    test,
+                    test: t.test(),
                     path: t.path_name().into(),
-                    length_m,
+                    length_m: t.length(length),
                     x_err_m: x,
                     y_err_m: y,
                     theta_err_rad: th,
