@@ -23,6 +23,22 @@ pub fn turn_law_share<T: Float>(rho: T) -> T {
     T::one() - rho * rho
 }
 
+/// Turn ratio of a body motion: `turn` / max(`speed`, `turn`), where `speed` is the
+/// body's |(vx, vy)| and `turn` its |omega| times a lever (the wheels' mean distance from
+/// the centre): 1 in a turn in place, 0 on a straight line, 1 when standing still (no
+/// turn to correct). For a differential drive (speed |v_r + v_l| / 2, turn
+/// |v_r - v_l| / 2) it is |v_r - v_l| / (|v_r| + |v_l|) exactly, so one law's share
+/// ([`turn_law_share`]) serves every robot.
+pub fn turn_ratio<T: Float>(speed: T, turn: T) -> T {
+    let (v, w) = (speed.abs(), turn.abs());
+    let den = if v > w { v } else { w };
+    if den > T::zero() {
+        w / den
+    } else {
+        T::one()
+    }
+}
+
 /// A planar body velocity (or displacement over a tick) in the body frame.
 #[derive(
     Debug,
@@ -156,6 +172,28 @@ mod tests {
 
     fn close(a: f64, b: f64, tol: f64) -> bool {
         (a - b).abs() <= tol
+    }
+
+    #[test]
+    fn turn_ratio_is_a_differential_drives_side_ratio() {
+        // Sides (l, r): |r - l| / (|l| + |r|) against speed |r + l| / 2 and turn |r - l| / 2.
+        for (l, r) in [
+            (1.0, 1.0),
+            (0.5, 1.5),
+            (-1.0, 1.0),
+            (-0.2, 1.0),
+            (0.0, 0.3),
+            (2.0, -0.5),
+        ] {
+            let side: f64 = (r - l as f64).abs() / (l.abs() + r.abs());
+            let t = turn_ratio((r + l) / 2.0, (r - l) / 2.0);
+            assert!(close(t, side, 1e-15), "({l}, {r}): {t} against {side}");
+        }
+        // An omni robot on an arc of radius R with wheels at L from the centre: L / R.
+        assert!(close(turn_ratio(0.7, 0.195), 0.195 / 0.7, 1e-15));
+        assert_eq!(turn_ratio(0.0, 0.0), 1.0);
+        assert_eq!(turn_ratio(0.0, -0.3), 1.0);
+        assert_eq!(turn_ratio(0.4f32, 0.0), 0.0);
     }
 
     #[test]

@@ -56,6 +56,11 @@ pub struct Geometry {
     /// A skid-steer robot: the body moves where the contacts' friction balances
     /// ([`crate::skid`]), not with the least-squares twist.
     pub skid_steer: bool,
+    /// An omni robot: its wheels' mean distance from the centre (m), the lever at which
+    /// its turn counts against its speed in the turn ratio
+    /// ([`calib_core::kinematics::turn_ratio`]). `None` for robots with a left and a
+    /// right side, whose ratio comes from the sides.
+    pub turn_lever: Option<f64>,
 }
 
 impl Geometry {
@@ -121,6 +126,9 @@ impl Geometry {
             hold,
             off_mask,
             skid_steer: robot.kind == RobotKind::SkidSteer,
+            turn_lever: (robot.kind == RobotKind::Omni).then(|| {
+                robot.wheels.iter().map(|w| w.l_m).sum::<f64>() / robot.wheels.len().max(1) as f64
+            }),
         })
     }
 

@@ -76,6 +76,9 @@ pub struct Ground {
     /// turn scrub. A stepper's wheels move in pulses, one wheel per tick at times, so a
     /// single tick's ratio says nothing about the turn.
     sides: (f64, f64),
+    /// An omni robot's twist (vx, vy, omega times its wheels' lever) smoothed likewise
+    /// (m/s), for its turn scrub.
+    twist_smooth: [f64; 3],
     /// Each wheel's rolling speed smoothed likewise (m/s), for the speed scale: a
     /// stepper's single tick moves a whole step or none, which is not its speed.
     rolling: Vec<f64>,
@@ -92,6 +95,7 @@ impl Ground {
             crossings: vec![0; n_wheels],
             contacts: vec![0.0; n_wheels],
             sides: (0.0, 0.0),
+            twist_smooth: [0.0; 3],
             rolling: vec![0.0; n_wheels],
         }
     }
@@ -176,7 +180,20 @@ impl Ground {
             }
         }
         let mut w = self.wheel_twist;
-        if params.turn_scrub != 0.0 && !geom.skid_steer {
+        if let (true, Some(lever)) = (params.turn_scrub != 0.0, geom.turn_lever) {
+            // An omni robot whose wheels' effective distance from the centre grows from a
+            // turn in place to an arc (the contact moving across the rollers), by
+            // `turn_scrub` in the share `calib_core::kinematics::turn_law_share` gives at
+            // the smoothed twist's turn ratio.
+            let k = dt / (calib_core::diff_laws::TURN_RATIO_TIME_S + dt);
+            let now = [w.vx, w.vy, w.omega * lever];
+            for (s, v) in self.twist_smooth.iter_mut().zip(now) {
+                *s += k * (v - *s);
+            }
+            let [vx, vy, turn] = self.twist_smooth;
+            let rho = calib_core::kinematics::turn_ratio(vx.hypot(vy), turn);
+            w.omega /= 1.0 + params.turn_scrub * calib_core::kinematics::turn_law_share(rho);
+        } else if params.turn_scrub != 0.0 && !geom.skid_steer {
             // Wide tyres: the contact patches sit at the inner edges in a turn in place and
             // roll on their centres on arcs and straight lines, so the effective
             // separation grows by `turn_scrub` from the first to the second, in the share

@@ -57,8 +57,10 @@ pub struct SimConfig {
     pub tyre: crate::skid::Tyre,
     /// Growth of the effective separation from a turn in place to a wide arc (wide
     /// tyres): E_b(rho) = E_b (1 + turn_scrub (1 - rho^2)), rho = |v_r - v_l| /
-    /// (|v_r| + |v_l|) (`calib_core::kinematics::turn_law_share`). 0: the separation
-    /// does not depend on the turn.
+    /// (|v_r| + |v_l|) (`calib_core::kinematics::turn_law_share`). On an omni robot the
+    /// wheels' distance from the centre grows likewise, rho = |omega| L / |v| of the twist
+    /// (`calib_core::kinematics::turn_ratio`). 0: the distance does not depend on the
+    /// turn.
     pub turn_scrub: f64,
     /// Growth of each driven wheel's effective rolling radius with its rolling speed, per
     /// m/s: a wheel turning at v rolls (1 + speed_scale |v|) times its radius (tyres that
@@ -154,12 +156,18 @@ impl SimRobot {
         cfg.imu.validate()?;
         cfg.tyre.validate()?;
         crate::error::check_range("turn_scrub", cfg.turn_scrub, -0.5, 0.5)?;
-        // The scrub acts through a left and a right side: a differential drive's.
-        if cfg.turn_scrub != 0.0 && nominal.kind != calib_core::RobotKind::DiffDrive {
+        // The scrub acts on robots that turn by rolling: through the sides of a
+        // differential drive, through the twist of an omni robot.
+        if cfg.turn_scrub != 0.0
+            && !matches!(
+                nominal.kind,
+                calib_core::RobotKind::DiffDrive | calib_core::RobotKind::Omni
+            )
+        {
             return Err(SimError::Config {
                 field: "turn_scrub",
                 message: format!(
-                    "widens a differential drive's wheelbase on arcs; robot '{}' is {}",
+                    "widens the wheels' effective separation (a differential drive's) or distance from the centre (an omni robot's) on arcs; robot '{}' is {}",
                     nominal.name,
                     nominal.kind.as_str()
                 ),

@@ -586,33 +586,75 @@ fn skid_steer_turns_in_place_at_the_effective_separation_of_its_friction() {
     }
 }
 
-/// The tyre scrub acts through a left and a right side: refused on an omni or a
-/// skid-steer robot (naming the field and the robot's kind), taken on a differential
-/// drive, and out of its ±0.5 range refused.
+/// `SimConfig::turn_scrub` acts on robots that turn by rolling: a differential drive
+/// (through its sides) and an omni robot (through its twist). A skid-steer robot turns by
+/// skidding (its tyres' friction sets that) and is refused, naming the field and the
+/// robot's kind; out of its ±0.5 range is refused too.
 #[test]
-fn turn_scrub_is_a_differential_drives_and_refused_elsewhere() {
+fn turn_scrub_is_a_rolling_robots_and_refused_on_skid_steer() {
     let cfg = |k| SimConfig {
         turn_scrub: k,
         ..quiet()
     };
-    for name in ["omni3", "rover4"] {
+    let r = robot("rover4");
+    let e = SimRobot::new(
+        &r,
+        Faults::none(r.wheel_count()),
+        Surface::flat(),
+        cfg(0.04),
+    )
+    .err()
+    .unwrap_or_else(|| panic!("rover4: turn_scrub taken"))
+    .to_string();
+    assert!(
+        e.starts_with("turn_scrub: widens the wheels' effective"),
+        "{e}"
+    );
+    assert!(e.contains(r.kind.as_str()), "{e}");
+    for name in ["mobolab", "omni3"] {
         let r = robot(name);
-        let e = SimRobot::new(
-            &r,
-            Faults::none(r.wheel_count()),
-            Surface::flat(),
-            cfg(0.04),
-        )
-        .err()
-        .unwrap_or_else(|| panic!("{name}: turn_scrub taken"))
-        .to_string();
-        assert!(
-            e.starts_with("turn_scrub: widens a differential drive's"),
-            "{e}"
-        );
-        assert!(e.contains(r.kind.as_str()), "{e}");
+        let n = r.wheel_count();
+        assert!(SimRobot::new(&r, Faults::none(n), Surface::flat(), cfg(0.04)).is_ok());
+        assert!(SimRobot::new(&r, Faults::none(n), Surface::flat(), cfg(0.6)).is_err());
     }
-    let r = robot("mobolab");
-    assert!(SimRobot::new(&r, Faults::none(2), Surface::flat(), cfg(0.04)).is_ok());
-    assert!(SimRobot::new(&r, Faults::none(2), Surface::flat(), cfg(0.6)).is_err());
+}
+
+/// An omni robot with a 2 % turn scrub: its wheels' effective distance from the centre
+/// grows by 2 % times 1 - rho^2 from a turn in place (rho = 1) to an arc, rho = |omega|
+/// L / |v|. omni3 (L = 0.15 m) driven on an arc of 0.7 m radius at 0.2 m/s turns at
+/// 1 / (1 + 0.02 (1 - (0.15 / 0.7)^2)) = 0.981276 of the commanded rate; spinning in
+/// place or driving straight it moves as commanded (after 2 s of a twist held, e^-20 of
+/// the smoothing's start remains).
+#[test]
+fn an_omni_robots_turn_scrub_turns_it_less_on_arcs_only() {
+    let r = robot("omni3");
+    let cfg = SimConfig {
+        turn_scrub: 0.02,
+        ..quiet()
+    };
+    let k = Kinematics::<f64>::new(&r, &Corrections::None).unwrap();
+    let l = r.wheels.iter().map(|w| w.l_m).sum::<f64>() / 3.0;
+    let rho = l / 0.7;
+    let arc = 1.0 / (1.0 + 0.02 * (1.0 - rho * rho));
+    for (cmd, gain) in [
+        (Twist::new(0.2, 0.0, 0.2 / 0.7), arc),
+        (Twist::new(0.0, 0.2, -0.2 / 0.7), arc),
+        (Twist::new(0.0, 0.0, 1.0), 1.0),
+        (Twist::new(0.1, 0.2, 0.0), 1.0),
+    ] {
+        let mut sim = SimRobot::new(&r, Faults::none(3), Surface::flat(), cfg.clone()).unwrap();
+        let inp = rates(&sim, &k, &cmd);
+        for _ in 0..2000 {
+            sim.step(1e-3, &inp).unwrap();
+        }
+        let t = sim.true_twist();
+        assert!(
+            (t.omega - gain * cmd.omega).abs() < 1e-9
+                && (t.vx - cmd.vx).abs() < 1e-9
+                && (t.vy - cmd.vy).abs() < 1e-9,
+            "{cmd:?}: {t:?}, omega gain {} against {gain}",
+            t.omega / cmd.omega
+        );
+    }
+    assert!((arc - 0.981276).abs() < 5e-7, "{arc}");
 }
