@@ -343,6 +343,112 @@ fn omni3_squares_transfer_to_circles_with_plausible_geometry() {
     assert!((ax - bx).hypot(ay - by) <= 0.01, "{centres:?}");
 }
 
+/// The three-wheel omni robot turns less per wheel turn on arcs than in a turn in place
+/// (issue 21's "physics that depends on the motion"): calibrated on one square session
+/// and the circles of all but one circle session of the same day, the turn law (l_arc:
+/// the wheels' distance from the centre longer on arcs) is kept, significant, and the
+/// one geometry with its law dead-reckons both kinds of motion it was not fitted on: the
+/// circle session held out, and the other square session. One constant distance (the
+/// robot file's, at the training runs' mean turn) does the circles about as well but the
+/// squares far worse, and the authors' square fits worse on both. Held out: the two
+/// circle sessions of 12 runs, 221220201701 and 221220201750, in turn, for each square
+/// session (4 fits). Measured when written: l_arc +0.0132 to +0.0168 (± 0.0021-0.0024);
+/// held-out circles 34.6-36.5 mm with the law, 36.4-38.5 mm with the constant, 90.5-106.2
+/// mm with the authors'; the other session's squares 31.7-33.2 mm with the law, 46.4-56.9
+/// mm with the constant, 58.5-59.1 mm with the authors'. Asserted: the law kept at 3
+/// sigma within 0.010..0.025 (the circles of 0.7 m want a heading gain 1.3-1.6 % under
+/// the squares', README); held-out circles with the law at most half the authors' and
+/// within 5 % of the constant's; the other squares with the law at most 0.8 of the
+/// constant's and 0.7 of the authors'.
+#[test]
+fn omni3_turn_law_holds_out_on_circles_and_squares_alike() {
+    use diagnose::calibrate::{dead_reckoning_rmse_law, Series};
+    type Runs = Vec<(String, formats::recording::Recording)>;
+    let Some(d) = dir() else { return };
+    let params: serde_json::Value =
+        serde_json::from_str(&std::fs::read_to_string(d.join("authors_params.json")).unwrap())
+            .unwrap();
+    let mut squares: std::collections::BTreeMap<String, Runs> = Default::default();
+    let mut circles: std::collections::BTreeMap<String, Runs> = Default::default();
+    let mut nominal = None;
+    for r in proxy::list_runs(&d)
+        .unwrap()
+        .iter()
+        .filter(|r| r.robot == "omni3")
+    {
+        let (rb, rec) = proxy::load_run(&d, &r.folder).unwrap();
+        let to = if r.path == "square" {
+            &mut squares
+        } else {
+            &mut circles
+        };
+        to.entry(r.session.clone())
+            .or_default()
+            .push((r.folder.clone(), rec));
+        nominal.get_or_insert(rb);
+    }
+    let nominal = nominal.unwrap();
+    assert_eq!((squares.len(), circles.len()), (2, 7));
+    let mean = |robot: &calib_core::robot::Robot, law: &TurnLaw, runs: &[&(String, _)]| {
+        let e: Vec<f64> = runs
+            .iter()
+            .map(|(name, rec)| {
+                let s = Series::new(name, &nominal, rec).unwrap();
+                dead_reckoning_rmse_law(robot, law, &s).unwrap()
+            })
+            .collect();
+        e.iter().sum::<f64>() / e.len() as f64
+    };
+    let none = TurnLaw::default();
+    for (session, sq) in &squares {
+        let authors =
+            proxy::authors_omni_robot(&params, "omni3-sousa", &nominal, session, "square").unwrap();
+        let other: Vec<_> = squares
+            .iter()
+            .filter(|(k, _)| *k != session)
+            .flat_map(|(_, v)| v.iter())
+            .collect();
+        for held in ["221220201701", "221220201750"] {
+            let mut train = sq.clone();
+            for (k, runs) in circles.iter().filter(|(k, _)| k.as_str() != held) {
+                assert_ne!(k, held);
+                train.extend(runs.iter().cloned());
+            }
+            let c = calibrate(&nominal, &train, None, &CalOptions::default()).unwrap();
+            let law = c
+                .law_tests
+                .iter()
+                .find(|t| t.parameter == "l_arc")
+                .unwrap_or_else(|| panic!("no omni turn law tested\n{c}"));
+            let (k, s_k) = (c.turn_law.arc_rel, law.sigma);
+            let test: Vec<_> = circles[held].iter().collect();
+            let rows = [
+                (
+                    mean(&c.law_base_robot, &c.turn_law, &test),
+                    mean(&c.fitted_robot, &none, &test),
+                    mean(&authors, &none, &test),
+                ),
+                (
+                    mean(&c.law_base_robot, &c.turn_law, &other),
+                    mean(&c.fitted_robot, &none, &other),
+                    mean(&authors, &none, &other),
+                ),
+            ];
+            println!(
+                "squares {session} + circles but {held}: l_arc {k:+.4} ± {s_k:.4}; held-out circles {:.1} / {:.1} / {:.1} mm, other squares {:.1} / {:.1} / {:.1} mm (law / constant / authors)",
+                rows[0].0 * 1e3, rows[0].1 * 1e3, rows[0].2 * 1e3,
+                rows[1].0 * 1e3, rows[1].1 * 1e3, rows[1].2 * 1e3
+            );
+            assert!(
+                law.kept && (0.010..=0.025).contains(&k) && k >= 3.0 * s_k,
+                "{c}"
+            );
+            assert!(rows[0].0 <= 0.5 * rows[0].2 && rows[0].0 <= 1.05 * rows[0].1);
+            assert!(rows[1].0 <= 0.8 * rows[1].1 && rows[1].0 <= 0.7 * rows[1].2);
+        }
+    }
+}
+
 /// The plausible range of an omni robot's wheel radius (the ladder's common scale and
 /// per-wheel radii) holds what the real omni3 wheels measure: every one of the OptiOdom
 /// authors' own fits, on squares (0.959-0.982 of the published 102 mm) and on circles

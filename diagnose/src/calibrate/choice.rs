@@ -6,8 +6,9 @@
 
 use crate::calibrate::options::Cfg;
 use crate::calibrate::params::{
-    accel_law_specs, alike_priors, is_mecanum, ladder, param_specs, roller_specs, speed_law_specs,
-    turn_law_specs, with_one_recording_radius_range, GeomKind, ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
+    accel_law_specs, alike_priors, is_mecanum, ladder, omni_turn_law_spec, param_specs,
+    roller_specs, speed_law_specs, turn_law_specs, with_one_recording_radius_range, GeomKind,
+    ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
 };
 use crate::calibrate::pool::pool_map;
 use crate::calibrate::problem::Problem;
@@ -126,7 +127,9 @@ pub(super) fn choose_specs(
         held_note(cfg, None, notes);
     }
     if robot.kind == RobotKind::Omni && series.len() >= 2 {
-        return climb_ladder(robot, series, marker, cfg, notes, runs, prefit);
+        let on = Data { robot, series, cfg };
+        let (specs, e) = climb_ladder(on, marker, notes, runs, prefit, None);
+        return omni_turn_law(on, notes, runs, made, specs, e);
     }
     if robot.kind == RobotKind::Omni && !cfg.free_start {
         return bic_ladder(robot, series, marker, cfg, notes, runs, prefit);
@@ -319,15 +322,25 @@ fn refitted_heldout_errors(
 /// leaves a parameter outside its plausible range (the model or the range is then
 /// wrong: said, and the next adequate model tried). Says which and why, with figures.
 fn climb_ladder(
-    robot: &Robot,
-    series: &[Series],
+    Data { robot, series, cfg }: Data<'_>,
     marker: bool,
-    cfg: Cfg,
     notes: &mut Vec<String>,
     runs: &mut usize,
     prefit: &mut Option<Prefit>,
-) -> Vec<ParamSpec> {
-    let rungs = cfg.unheld_ladder(ladder(robot, marker));
+    law: Option<ParamSpec>,
+) -> (Vec<ParamSpec>, f64) {
+    let mut rungs = cfg.unheld_ladder(ladder(robot, marker));
+    let title = if let Some(law) = law {
+        for (_, specs) in rungs.iter_mut() {
+            specs.push(law.clone());
+        }
+        format!(
+            "model ladder with the turn law ({} on every rung)",
+            law.name
+        )
+    } else {
+        "model ladder".to_string()
+    };
     let k = series.len().min(LADDER_FOLDS);
     let models: Vec<&[ParamSpec]> = rungs.iter().map(|(_, specs)| specs.as_slice()).collect();
     let (errors, mut all_fits) = heldout_errors(robot, &models, series, cfg, runs);
@@ -375,7 +388,7 @@ fn climb_ladder(
             format!(" ({}: the next model is tried)", skipped.join("; "))
         };
         notes.push(format!(
-            "model ladder, held-out dead reckoning by recording ({k} folds): {table}; kept: {name}, the simplest within {:.0} % of the best{why}{}",
+            "{title}, held-out dead reckoning by recording ({k} folds): {table}; kept: {name}, the simplest within {:.0} % of the best{why}{}",
             LADDER_TOLERANCE * 100.0,
             alike_note(specs)
         ));
@@ -384,7 +397,7 @@ fn climb_ladder(
             prior_scale: fit.prior_scale,
             f: fit.f,
         });
-        return specs.clone();
+        return (specs.clone(), *e);
     }
     // Every adequate model wants an implausible value: the best one is fitted, its
     // implausible values reported (the model or the range is wrong).
@@ -395,6 +408,7 @@ fn climb_ladder(
         .filter(|(_, (_, e))| e.is_finite())
         .min_by(|a, b| a.1 .1.total_cmp(b.1 .1))
         .map(|(i, (r, _))| (i, r.clone()));
+    let e_chosen = chosen.as_ref().map_or(f64::NAN, |(i, _)| errors[*i]);
     let (name, specs) = match chosen {
         Some((i, r)) => {
             if let Some((_, fit)) = fitted.into_iter().find(|(j, _)| *j == i) {
@@ -409,11 +423,11 @@ fn climb_ladder(
         None => ("full".to_string(), cfg.unheld(param_specs(robot, marker))),
     };
     notes.push(format!(
-        "model ladder, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values on or past the plausible ranges' edges ({}): the best, {name}, is fitted and its implausible values are listed{}",
+        "{title}, held-out dead reckoning by recording ({k} folds): {table}; every adequate model wants values on or past the plausible ranges' edges ({}): the best, {name}, is fitted and its implausible values are listed{}",
         skipped.join("; "),
         alike_note(&specs)
     ));
-    specs
+    (specs, e_chosen)
 }
 
 /// Parsimony for an omni robot on one recording, dead-reckoned (nothing to hold out):
@@ -833,8 +847,97 @@ fn choose_turn_law(
     }
 }
 
-/// What the second rounds of [`choose_turn_law`] fit on: the robot, its recordings and
-/// the fit's settings.
+/// An omni robot's turn law ([`omni_turn_law_spec`], `l_arc`: its wheels' distance
+/// from the centre longer on arcs than in a turn in place), tested on top of the model
+/// ladder's rung `chosen` (held out at `e_chosen`) as a differential drive's is against
+/// a constant E_b: when the recordings turn on arcs for at least [`MIN_ARC_SHARE`] of
+/// their turning, kept when significant (3 sigma), within its range and held out at
+/// most [`TURN_LAW_HOLDOUT_RATIO`] of the rung's error ([`fit_on_top`]). On the real
+/// omni3 the circles of 0.7 m turn 1.4-2 % less per wheel turn than its squares' spins.
+/// A law given (`--turn-law`) is held instead. Recorded in `law_tests` as `turn`; says
+/// which and why. Returns the specs to fit.
+fn omni_turn_law(
+    on: Data<'_>,
+    notes: &mut Vec<String>,
+    runs: &mut usize,
+    made: &mut Made,
+    chosen: Vec<ParamSpec>,
+    e_chosen: f64,
+) -> Vec<ParamSpec> {
+    if let Some(known) = on.cfg.known_law.filter(|k| k.arc_rel != 0.0) {
+        notes.push(format!(
+            "turn law: given (--turn-law or --laws-from), held at l_arc {:+.4}: the wheels' distance from the centre is {:.2} % longer on arcs than in a turn in place; the geometry is fitted with it",
+            known.arc_rel,
+            known.arc_rel * 100.0
+        ));
+        return chosen;
+    }
+    if !e_chosen.is_finite() {
+        return chosen;
+    }
+    let t = Turning::of_all(on.series, on.robot);
+    let share = if t.all > 0.0 { t.arcs / t.all } else { 0.0 };
+    if share < MIN_ARC_SHARE {
+        notes.push(format!(
+            "turn law: the recordings turn on arcs for {:.0} % of their turning (the rest in place), under the {:.0} % a turn law needs: one wheel distance serves every turn; record arcs (circles) beside the squares to test one",
+            share * 100.0,
+            MIN_ARC_SHARE * 100.0
+        ));
+        return chosen;
+    }
+    let folds = on.series.len().min(LADDER_FOLDS);
+    let top = fit_on_top(on, runs, &chosen, omni_turn_law_spec(), e_chosen);
+    // Relative to the common wheel distance, as TurnLaw::arc_rel.
+    let per = eb_of(&top.fit.f.geom, &top.specs);
+    let (v, s_v) = (top.value / per, top.sigma / per);
+    made.law_tests.push(LawTest {
+        law: "turn",
+        parameter: "l_arc".into(),
+        value: v,
+        sigma: s_v,
+        heldout_m: top.heldout_m,
+        constant_heldout_m: e_chosen,
+        folds,
+        qualifies: top.qualifies,
+        kept: top.qualifies,
+    });
+    let figures = format!(
+        "l_arc {v:+.4} ± {s_v:.4}; held-out dead reckoning by recording ({folds} folds) {:.1} mm with the law, {:.1} mm without",
+        top.heldout_m * 1e3,
+        e_chosen * 1e3
+    );
+    if !top.qualifies {
+        notes.push(format!(
+            "turn law: a wheel distance that does not depend on the turn explains the data ({figures}; the law is kept only when significant and at most {:.0} % of the held-out error without it)",
+            TURN_LAW_HOLDOUT_RATIO * 100.0
+        ));
+        return chosen;
+    }
+    notes.push(format!(
+        "turn law: the wheels' effective distance from the centre is {:.2} % longer on arcs than in a turn in place, and the law holds out ({figures}): the law is fitted (the board applies it (factors set --l-arc); the robot file gets the distance at the recordings' mean turn); the ladder is climbed again with it, since a law left out makes a richer rung look needed",
+        v * 100.0
+    ));
+    let marker = chosen
+        .iter()
+        .any(|s| matches!(s.kind, GeomKind::MarkerX | GeomKind::MarkerY));
+    let mut prefit = None;
+    let (specs, e) = climb_ladder(
+        on,
+        marker,
+        notes,
+        runs,
+        &mut prefit,
+        Some(omni_turn_law_spec()),
+    );
+    if !e.is_finite() || !specs.iter().any(|s| s.kind == GeomKind::EbArc) {
+        return top.keep(made);
+    }
+    made.prefit = prefit;
+    specs
+}
+
+/// What the model ladder and the laws' second rounds fit on: the robot, its recordings
+/// and the fit's settings.
 #[derive(Clone, Copy)]
 struct Data<'a> {
     robot: &'a Robot,

@@ -34,7 +34,10 @@ pub enum GeomKind {
     MarkerY,
     /// Skid-steer: how much E_b grows from a turn in place to a wide arc, the tracks'
     /// ICRs moving with the turn radius: E_b(rho) = eb + eb_arc (1 - rho)^2, rho =
-    /// |d_r - d_l| / (|d_r| + |d_l|) (1 in place, 0 straight).
+    /// |d_r - d_l| / (|d_r| + |d_l|) (1 in place, 0 straight). A differential drive's
+    /// tyre scrub likewise, in the share 1 - rho^2. An omni robot's (`l_arc`): its
+    /// wheels' distance from the centre grows by l_arc (1 - rho^2) from a turn in place
+    /// to an arc, rho = |omega| L / |v| of its twist.
     EbArc,
     /// Skid-steer: longitudinal position of the ICRs ([Mandow et al.]'s x_ICR), m; the
     /// body's sideways speed is -x_ICR omega.
@@ -308,6 +311,24 @@ pub fn turn_law_specs(robot: &Robot) -> Vec<ParamSpec> {
     ));
     v
 }
+
+/// An omni robot's turn law ([`GeomKind::EbArc`], `l_arc`): its wheels' effective
+/// distance from the centre longer on arcs than in a turn in place, by l_arc (1 - rho^2)
+/// at turn ratio rho ([`calib_core::kinematics::turn_ratio`]), within ±[`DIFF_EB_ARC_RANGE`]
+/// (the board's bound on any turn law). Fitted on top of a rung of the model ladder.
+pub fn omni_turn_law_spec() -> ParamSpec {
+    spec(
+        GeomKind::EbArc,
+        "l_arc".into(),
+        "wheelbase_error",
+        0.0,
+        DIFF_EB_ARC_RANGE,
+        OMNI_L_ARC_STANDS,
+    )
+}
+
+const OMNI_L_ARC_STANDS: &str =
+    "wheels whose contact moves across their rollers with the turn, or slip the arcs do not share with a turn in place";
 
 /// The speed model of a differential drive: [`param_specs`] plus the wheels' growth
 /// with speed ([`GeomKind::SpeedRel`]).

@@ -14,7 +14,7 @@ use crate::calibrate::step::{self, Stepper};
 use crate::calibrate::turn_law::{SideMotion, Sides, TurnLaw};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
-use calib_core::robot::Robot;
+use calib_core::robot::{Robot, RobotKind};
 use std::ops::Range;
 
 /// d/dd of [`arc_coefficients`]: (d(sin d / d), d((1 - cos d) / d)).
@@ -43,6 +43,9 @@ pub(crate) enum TwistSlopes {
     Linear(Vec<Vec<[f64; 3]>>),
     /// Central differences of a robot stepped by its sides, per parameter.
     Sides(Vec<SideSlope>),
+    /// Central differences of an omni robot with a turn law (its twist divided at each
+    /// row's turn ratio), per parameter: the steppers at q + h and q - h, and 1 / 2h.
+    Omni(Vec<(Stepper, Stepper, f64)>),
 }
 
 /// A robot's sides and turn law at one geometry.
@@ -79,6 +82,14 @@ impl TwistSlopes {
             Some(Stepper::new(&r, &kin, &TurnLaw::of(specs, &q, known_law)))
         };
         let step = |j: usize| STEP * geom[j].abs().max(1e-2);
+        if sides && robot.kind == RobotKind::Omni {
+            let mut v = Vec::new();
+            for &j in path_params {
+                let h = step(j);
+                v.push((at(j, h)?, at(j, -h)?, 0.5 / h));
+            }
+            return Some(TwistSlopes::Omni(v));
+        }
         if sides {
             let mut v = Vec::new();
             for &j in path_params {
@@ -125,6 +136,7 @@ impl TwistSlopes {
         match self {
             TwistSlopes::Linear(v) => v.len(),
             TwistSlopes::Sides(v) => v.len(),
+            TwistSlopes::Omni(v) => v.len(),
         }
     }
 
@@ -148,6 +160,16 @@ impl TwistSlopes {
                         t[2] += c[2] * w;
                     }
                     *o = t;
+                }
+            }
+            TwistSlopes::Omni(v) => {
+                for (o, (plus, minus, k)) in out.iter_mut().zip(&v[params]) {
+                    let (a, b) = (plus.forward_at(inc, rho), minus.forward_at(inc, rho));
+                    *o = [
+                        (a.vx - b.vx) * k,
+                        (a.vy - b.vy) * k,
+                        (a.omega - b.omega) * k,
+                    ];
                 }
             }
             TwistSlopes::Sides(v) => {
@@ -213,7 +235,8 @@ impl Series {
             return None;
         }
         if let TwistSlopes::Linear(v) = slopes {
-            let sides = self.rho.is_some() && stepper.sides().is_some();
+            let sides =
+                self.rho.is_some() && (stepper.sides().is_some() || stepper.omni_arc() != 0.0);
             if !sides && v.len() >= SUMMED_MIN_PARAMS {
                 return Some(self.sensitivity_summed(stepper, v, need));
             }
@@ -274,7 +297,7 @@ impl Series {
         for (k, ((inc, &r), &v)) in self.incs().zip(rho).zip(motion).enumerate() {
             let tw: Twist<f64> = match sides {
                 Some((_, (s, law))) => s.step(law, r, v, inc),
-                None => stepper.forward(inc),
+                None => stepper.forward_at(inc, r),
             };
             slopes.row(params.clone(), inc, r, v, &mut dt);
             // The arc step (as the path's), with the quantities its derivative needs.

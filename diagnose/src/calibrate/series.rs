@@ -9,7 +9,8 @@ use crate::calibrate::error::CalibrateError;
 use crate::calibrate::params::{robot_with, ParamSpec};
 use crate::calibrate::step::{self, Stepper};
 use crate::calibrate::turn_law::{
-    median_step, turn_ratio, SideMotion, Sides, TurnLaw, Turning, ARC_RHO,
+    median_step, omni_lever, omni_turn_ratio, turn_ratio, SideMotion, Sides, TurnLaw, Turning,
+    ARC_RHO,
 };
 use crate::replay::unwrap_angles;
 use calib_core::correction::Corrections;
@@ -254,11 +255,14 @@ impl Series {
             None
         };
         let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
-        let (rho, motion) = match matches!(robot.kind, RobotKind::SkidSteer | RobotKind::DiffDrive)
-            .then(|| turn_ratio(robot, &inc, &rec.t))
-        {
-            Some((r, v)) => (Some(r), Some(v)),
-            None => (None, None),
+        let (rho, motion) = match robot.kind {
+            RobotKind::SkidSteer | RobotKind::DiffDrive => {
+                let (r, v) = turn_ratio(robot, &inc, &rec.t);
+                (Some(r), Some(v))
+            }
+            // An omni robot's turn law acts on its twist: its turn ratio, no sides.
+            RobotKind::Omni => (omni_turn_ratio(robot, &inc, &rec.t), None),
+            RobotKind::WheeledLegged => (None, None),
         };
         let wheels = robot.wheels.len();
         let first = Anchor::first(&px, &py, &pth);
@@ -480,13 +484,30 @@ impl Series {
         }
     }
 
-    /// How the recording turns, from the wheels (nominal geometry): [`Turning`]. All
-    /// zero for robots without sides.
+    /// How the recording turns, from the wheels (nominal geometry): [`Turning`]. An omni
+    /// robot's turn counts as 2 |omega| L (a differential drive's |d_r - d_l|, L the
+    /// wheels' mean distance from the centre; no speed terms). All zero for a
+    /// wheeled-legged robot.
     pub(crate) fn turning(&self, robot: &Robot) -> Turning {
         let mut t = Turning::default();
         let Some(rho) = &self.rho else {
             return t;
         };
+        if self.motion.is_none() {
+            let Ok(kin) = Kinematics::<f64>::new(robot, &Corrections::None) else {
+                return t;
+            };
+            let lever = omni_lever(robot);
+            for (inc, &rho) in self.incs().zip(rho) {
+                let d = 2.0 * (kin.forward(inc).omega * lever).abs();
+                t.all += d;
+                t.arc_term += d * calib_core::kinematics::turn_law_share(rho);
+                if (ARC_RHO.0..=ARC_RHO.1).contains(&rho) {
+                    t.arcs += d;
+                }
+            }
+            return t;
+        }
         let sides = Sides::new(robot);
         for (k, (inc, &rho)) in self.incs().zip(rho).enumerate() {
             let (l, r) = sides.travel(inc);
@@ -548,6 +569,13 @@ impl Series {
         {
             for ((inc, &rho), &v) in self.incs().zip(rho).zip(motion) {
                 step::arc_step(&mut x, &mut y, &mut h, &sides.step(law, rho, v, inc));
+                out.push(Pose::new(x, y, h.th));
+            }
+            return true;
+        }
+        if let (Some(rho), true) = (&self.rho, stepper.omni_arc() != 0.0) {
+            for (inc, &rho) in self.incs().zip(rho) {
+                step::arc_step(&mut x, &mut y, &mut h, &stepper.forward_at(inc, rho));
                 out.push(Pose::new(x, y, h.th));
             }
             return true;

@@ -16,6 +16,9 @@ pub(crate) struct Stepper {
     /// A robot stepped by its sides (skid-steer, or a differential drive with a turn
     /// law), on recordings that carry the turn ratio.
     sides: Option<(Sides, TurnLaw)>,
+    /// An omni robot's turn law ([`TurnLaw::arc_rel`]: its wheels' distance from the
+    /// centre longer on arcs), applied to the twist at each row's turn ratio; 0 for none.
+    omni_arc: f64,
 }
 
 impl Stepper {
@@ -35,9 +38,33 @@ impl Stepper {
             .collect();
         // A skid-steer robot always steps by its sides; a differential drive only with a
         // law (otherwise its exact kinematics, the same to rounding).
-        let sides = (robot.kind == RobotKind::SkidSteer || *law != TurnLaw::default())
+        let omni = robot.kind == RobotKind::Omni;
+        let sides = (robot.kind == RobotKind::SkidSteer || (!omni && *law != TurnLaw::default()))
             .then(|| (Sides::new(robot), *law));
-        Stepper { columns, sides }
+        let omni_arc = if omni { law.arc_rel } else { 0.0 };
+        Stepper {
+            columns,
+            sides,
+            omni_arc,
+        }
+    }
+
+    /// An omni robot's turn law at this geometry (0: none).
+    pub(crate) fn omni_arc(&self) -> f64 {
+        self.omni_arc
+    }
+
+    /// [`Stepper::forward`] with an omni robot's turn law at turn ratio `rho`: the turn
+    /// divided by 1 + arc (1 - rho^2), as calib-core's omni law odometry divides it. The
+    /// same bits as `forward` without a law.
+    #[inline]
+    pub(crate) fn forward_at(&self, inc: &[f64], rho: f64) -> Twist<f64> {
+        let t = self.forward(inc);
+        if self.omni_arc == 0.0 {
+            return t;
+        }
+        let share = calib_core::kinematics::turn_law_share(rho);
+        Twist::new(t.vx, t.vy, t.omega / (1.0 + self.omni_arc * share))
     }
 
     /// The matrix's columns, one per wheel.

@@ -6,6 +6,8 @@
 //! same law at every geometry.
 
 use crate::calibrate::params::{GeomKind, ParamSpec};
+use calib_core::correction::Corrections;
+use calib_core::kinematics::Kinematics;
 use calib_core::robot::{Robot, RobotKind};
 use serde::Serialize;
 
@@ -111,6 +113,39 @@ pub(super) fn turn_ratio(
         })
         .collect();
     (rho, motion)
+}
+
+/// An omni robot's turn ratio per increment: rho = |omega| L / max(|v|, |omega| L) of
+/// the nominal twist ([`calib_core::kinematics::turn_ratio`], L the wheels' mean
+/// distance from the centre), each component summed over [`RHO_HALF_WINDOW_S`] either
+/// side as [`turn_ratio`] sums the sides' travel. `None` when the nominal kinematics do
+/// not solve.
+pub(super) fn omni_turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> Option<Vec<f64>> {
+    let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
+    let lever = omni_lever(robot);
+    let m = inc.len();
+    let half = median_step(t).map_or(1, |dt| ((RHO_HALF_WINDOW_S / dt).round() as usize).max(1));
+    let mut sum = vec![[0.0f64; 3]; m + 1];
+    for k in 0..m {
+        let tw = kin.forward(&inc[k]);
+        sum[k + 1] = [sum[k][0] + tw.vx, sum[k][1] + tw.vy, sum[k][2] + tw.omega];
+    }
+    Some(
+        (0..m)
+            .map(|k| {
+                let (a, b) = (sum[k.saturating_sub(half)], sum[(k + half + 1).min(m)]);
+                calib_core::kinematics::turn_ratio(
+                    (b[0] - a[0]).hypot(b[1] - a[1]),
+                    (b[2] - a[2]) * lever,
+                )
+            })
+            .collect(),
+    )
+}
+
+/// An omni robot's lever for its turn ratio: the wheels' mean distance from the centre.
+pub(crate) fn omni_lever(robot: &Robot) -> f64 {
+    robot.wheels.iter().map(|w| w.l_m).sum::<f64>() / robot.wheels.len().max(1) as f64
 }
 
 /// A robot's sides as the stepping needs them, computed once per geometry (the wheels'
