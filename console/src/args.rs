@@ -589,9 +589,10 @@ pub struct SimBoardArgs {
     /// Floor roughness: metres of travel noise per square-root metre.
     #[arg(long, default_value_t = 0.0)]
     pub roughness: f64,
-    /// Tyre scrub (differential drive): the effective wheelbase this much wider on arcs
-    /// than in a turn in place, e.g. 0.04 (within +-0.5); what `umbmark run
-    /// --circle-radius` measures.
+    /// Tyre scrub: a differential drive's effective wheelbase (an omni robot's wheel
+    /// distance from the centre) this much longer on arcs than in a turn in place, e.g.
+    /// 0.04 (within +-0.5); what `umbmark run --circle-radius` and `calibrate` on squares
+    /// and circles measure.
     #[arg(long, default_value_t = 0.0)]
     pub turn_scrub: f64,
     /// Keep the board's flash in this file (saved factors survive a restart).

@@ -25,8 +25,9 @@ pub struct SimBoardOptions {
     pub effects: Vec<String>,
     /// Floor roughness (non-systematic error), metres of travel noise per sqrt(metre).
     pub roughness: f64,
-    /// Tyre scrub of a differential drive: its effective wheelbase this much wider on
-    /// arcs than in a turn in place (`SimConfig::turn_scrub`; 0: none).
+    /// Tyre scrub: a differential drive's effective wheelbase (an omni robot's wheel
+    /// distance from the centre) this much longer on arcs than in a turn in place
+    /// (`SimConfig::turn_scrub`; 0: none).
     pub turn_scrub: f64,
     /// File mirroring the virtual board's flash, so saved factors survive a restart.
     pub flash: Option<PathBuf>,

@@ -742,6 +742,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
                 .map(|(f, n)| n.radius_m / f.radius_m)
                 .collect(),
             f_lon: 1.0,
+            l_arc: turn_law.arc_rel,
         }
     };
 

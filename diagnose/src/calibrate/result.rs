@@ -204,7 +204,16 @@ pub enum Factors {
         f_lat: Vec<f64>,
         /// Common multiplier (always 1 here).
         f_lon: f64,
+        /// The turn law a board applies to its odometry (`factors set --l-arc`): the
+        /// wheels' distance from the centre this much longer on arcs than in a turn in
+        /// place; absent when none was kept.
+        #[serde(skip_serializing_if = "is_zero")]
+        l_arc: f64,
     },
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// A differential drive's factors with its laws, as a board that applies them takes them
@@ -641,15 +650,21 @@ impl fmt::Display for Calibration {
                 f,
                 "firmware factors: factors set --c-l {c_l:.6} --c-r {c_r:.6} --e-b {e_b:.6}"
             )?,
-            Factors::Wheels { f_lat, f_lon } => writeln!(
-                f,
-                "firmware factors: f_lat {} f_lon {f_lon:.6}",
-                f_lat
+            Factors::Wheels { f_lat, f_lon, l_arc } => {
+                let f_lat = f_lat
                     .iter()
                     .map(|v| format!("{v:.6}"))
                     .collect::<Vec<_>>()
-                    .join(" ")
-            )?,
+                    .join(",");
+                write!(f, "firmware factors: factors set --f-lat {f_lat} --f-lon {f_lon:.6}")?;
+                if *l_arc != 0.0 {
+                    write!(
+                        f,
+                        " --l-arc {l_arc:.6} (the board applies the turn law; the robot file gets the wheels' distance at the recordings' mean turn)"
+                    )?;
+                }
+                writeln!(f)?
+            }
         }
         writeln!(
             f,
