@@ -741,11 +741,11 @@ pub struct CalibrateArgs {
     /// runs and worse on the omni robots', see the README).
     #[arg(long)]
     pub heading_lever: Option<f64>,
-    /// A differential drive's known turn law, held fixed while the geometry is fitted:
-    /// how much wider the effective separation is on arcs than in a turn in place
-    /// (eb_arc / eb; 0.005 is 0.5 %). Take it from an earlier calibrate on runs with arcs
-    /// (circles, free driving): the JSON's `turn_law.arc_rel`. Squares turn in place and
-    /// cannot find it themselves.
+    /// A known turn law, held fixed while the geometry is fitted: how much wider a
+    /// differential drive's effective separation (an omni robot's wheel distance from the
+    /// centre, l_arc) is on arcs than in a turn in place (eb_arc / eb; 0.005 is 0.5 %).
+    /// Take it from an earlier calibrate on runs with arcs (circles, free driving): the
+    /// JSON's `turn_law.arc_rel`. Squares turn in place and cannot find it themselves.
     #[arg(long, value_name = "EB_ARC", allow_negative_numbers = true)]
     pub turn_law: Option<f64>,
     /// A differential drive's known speed law, held fixed while the geometry is fitted:

@@ -40,17 +40,20 @@ pub(super) fn check_inputs<R: std::borrow::Borrow<Recording>>(
         }
     }
     if let Some(law) = opts.turn_law {
-        if robot.kind != RobotKind::DiffDrive {
+        if !matches!(robot.kind, RobotKind::DiffDrive | RobotKind::Omni) {
             return Err(CalibrateError {
                 recording: None,
-                message: "a known turn law (--turn-law) is for differential drives; a skid-steer robot's law is fitted from its recordings".into(),
+                message: format!(
+                    "a known turn law (--turn-law) is for differential drives and omni robots; a {} robot's law is fitted from its recordings",
+                    robot.kind.as_str()
+                ),
             });
         }
         if !law.is_finite() || law.abs() > DIFF_EB_ARC_RANGE {
             return Err(CalibrateError {
                 recording: None,
                 message: format!(
-                    "--turn-law {law} is outside the plausible -{r}..{r} (eb_arc / eb: the separation on arcs over that of a turn in place, minus 1)",
+                    "--turn-law {law} is outside the plausible -{r}..{r} (eb_arc / eb, an omni robot's l_arc: the separation or wheel distance on arcs over that of a turn in place, minus 1)",
                     r = DIFF_EB_ARC_RANGE
                 ),
             });
