@@ -22,8 +22,9 @@ pub const FACTOR_MAX: f64 = 2.0;
 /// ([Mandow et al.]; Husky ships 1.875), so [`FACTOR_MAX`] would refuse every real one.
 pub const SKID_EB_MAX: f64 = 3.0;
 
-/// A turn law's e_b_arc is refused beyond ±this: tyre scrub widens a separation by a few
-/// per cent at most (the OptiOdom robot: 0.5 %).
+/// A turn law's e_b_arc (and an omni robot's l_arc) is refused beyond ±this: tyre scrub
+/// widens a separation by a few per cent at most (the OptiOdom robot: 0.5 %; its omni
+/// robot's rollers about 2 %).
 pub const E_B_ARC_MAX: f64 = 0.1;
 
 /// A speed law's speed_rel is refused beyond ±this (per m/s): calibration's plausible
@@ -130,6 +131,21 @@ pub enum Corrections {
         /// The laws.
         laws: DiffLaws,
     },
+    /// [`Corrections::Omni`] whose wheels' effective distance from the centre is longer on
+    /// arcs than in a turn in place (the contact moving across the rollers: the OptiOdom
+    /// omni3 turns 1.4-2 % less per wheel turn on 0.7 m arcs than in spins). Odometry
+    /// divides each tick's turn by 1 + `l_arc` (1 - rho^2) at its turn ratio rho
+    /// ([`crate::omni_laws`]); wheel commands use the plain factors. Protocol v8; last on
+    /// the wire, so stored and sent values of the other kinds read as before.
+    OmniTurnLaw {
+        /// Lateral factor per wheel, in the robot's wheel order (dimensionless).
+        f_lat: Vec<f64, MAX_WHEELS>,
+        /// Longitudinal factor common to all wheels (dimensionless).
+        f_lon: f64,
+        /// How much longer the wheels' effective distance from the centre is on arcs
+        /// (0.02 is 2 %).
+        l_arc: f64,
+    },
 }
 
 /// Why a set of factors was refused.
@@ -189,7 +205,7 @@ impl fmt::Display for CorrectionError {
                 at(f, name, index)?;
                 // A law (e_b_arc, speed_rel, accel_slip_s) is symmetric about 0; factors
                 // start at FACTOR_MIN.
-                let law = matches!(*name, "e_b_arc" | "speed_rel" | "accel_slip_s");
+                let law = matches!(*name, "e_b_arc" | "speed_rel" | "accel_slip_s" | "l_arc");
                 let min = if law { -*max } else { FACTOR_MIN };
                 write!(
                     f,
@@ -204,7 +220,7 @@ impl fmt::Display for CorrectionError {
             }
             CorrectionError::WrongKind { robot } => write!(
                 f,
-                "these factors do not fit this {} robot (diff_drive takes c_l, c_r, e_b; omni takes f_lat, f_lon)",
+                "these factors do not fit this {} robot (diff_drive takes c_l, c_r, e_b; omni takes f_lat, f_lon, l_arc)",
                 robot.as_str()
             ),
         }
@@ -275,9 +291,25 @@ impl Corrections {
         }
     }
 
+    /// An omni robot's factors with a turn law `l_arc`, as the narrowest kind that holds
+    /// them: plain [`Corrections::Omni`] without a law (what boards before protocol v8
+    /// take), else [`Corrections::OmniTurnLaw`].
+    pub fn omni(f_lat: Vec<f64, MAX_WHEELS>, f_lon: f64, l_arc: f64) -> Corrections {
+        if l_arc == 0.0 {
+            Corrections::Omni { f_lat, f_lon }
+        } else {
+            Corrections::OmniTurnLaw {
+                f_lat,
+                f_lon,
+                l_arc,
+            }
+        }
+    }
+
     /// Checks the factors are finite, within [0.5, 2.0] and fit the robot (a
     /// differential drive's laws within their ranges ([`DiffLaws::validate`]), on a
-    /// differential drive only).
+    /// differential drive only; an omni robot's l_arc within ±[`E_B_ARC_MAX`], on an omni
+    /// robot only).
     pub fn validate(&self, robot: &Robot) -> Result<(), CorrectionError> {
         match self {
             Corrections::None => Ok(()),
@@ -303,7 +335,7 @@ impl Corrections {
                     check("e_b", None, *e_b)
                 }
             }
-            Corrections::Omni { f_lat, f_lon } => {
+            Corrections::Omni { f_lat, f_lon } | Corrections::OmniTurnLaw { f_lat, f_lon, .. } => {
                 if robot.kind != RobotKind::Omni {
                     return Err(CorrectionError::WrongKind { robot: robot.kind });
                 }
@@ -316,7 +348,8 @@ impl Corrections {
                 for (i, f) in f_lat.iter().enumerate() {
                     check("f_lat", Some(i), *f)?;
                 }
-                check("f_lon", None, *f_lon)
+                check("f_lon", None, *f_lon)?;
+                check_within("l_arc", self.l_arc(), -E_B_ARC_MAX, E_B_ARC_MAX)
             }
         }
     }
@@ -335,7 +368,7 @@ impl Corrections {
                     *c_r
                 }
             }
-            Corrections::Omni { f_lat, f_lon } => {
+            Corrections::Omni { f_lat, f_lon } | Corrections::OmniTurnLaw { f_lat, f_lon, .. } => {
                 1.0 / (f_lon * f_lat.get(i).copied().unwrap_or(1.0))
             }
         }
@@ -379,6 +412,24 @@ impl Corrections {
         self.laws().e_b_arc
     }
 
+    /// An omni robot's (f_lat, f_lon), with or without a turn law.
+    pub fn omni_factors(&self) -> Option<(&[f64], f64)> {
+        match self {
+            Corrections::Omni { f_lat, f_lon } | Corrections::OmniTurnLaw { f_lat, f_lon, .. } => {
+                Some((f_lat, *f_lon))
+            }
+            _ => None,
+        }
+    }
+
+    /// An omni robot's turn law l_arc (0 without one, and for every other kind).
+    pub fn l_arc(&self) -> f64 {
+        match self {
+            Corrections::OmniTurnLaw { l_arc, .. } => *l_arc,
+            _ => 0.0,
+        }
+    }
+
     /// A second calibration pass ([Redundant omni]): runs measured with `self` in force give
     /// `secondary`, which measures only what `self` left; every multiplier of the two
     /// multiplies. `None` for factors of different kinds or wheel counts.
@@ -386,16 +437,17 @@ impl Corrections {
         match (self, secondary) {
             (Corrections::None, s) => Some(s.clone()),
             (p, Corrections::None) => Some(p.clone()),
-            (
-                Corrections::Omni { f_lat, f_lon },
-                Corrections::Omni {
-                    f_lat: l2,
-                    f_lon: o2,
-                },
-            ) if f_lat.len() == l2.len() => Some(Corrections::Omni {
-                f_lat: f_lat.iter().zip(l2).map(|(a, b)| a * b).collect(),
-                f_lon: f_lon * o2,
-            }),
+            // Omni factors multiply; the turn laws' small growths add.
+            (p, s) if p.omni_factors().is_some() && s.omni_factors().is_some() => {
+                let ((l1, o1), (l2, o2)) = (p.omni_factors()?, s.omni_factors()?);
+                (l1.len() == l2.len()).then(|| {
+                    Corrections::omni(
+                        l1.iter().zip(l2).map(|(a, b)| a * b).collect(),
+                        o1 * o2,
+                        p.l_arc() + s.l_arc(),
+                    )
+                })
+            }
             // Differential factors multiply; the laws' small growths and lags add.
             // Anything else (omni with differential, or other wheel counts) does not
             // compose.
@@ -605,6 +657,75 @@ mod tests {
                 got: 3
             })
         );
+    }
+
+    /// An omni robot's turn law: refused past ±E_B_ARC_MAX with its name, and on a
+    /// differential drive; the wheel geometry is the plain factors' (the law is odometry
+    /// only); two passes' factors multiply and their l_arc add (to 1e-12); a law that
+    /// cancels leaves plain `Omni`, what boards before v8 read.
+    #[test]
+    fn an_omni_turn_law_is_checked_and_composes() {
+        let omni = presets::omni3(0.04, 0.15);
+        let f =
+            |l_arc| Corrections::omni(Vec::from_slice(&[1.01, 0.99, 1.0]).unwrap(), 1.02, l_arc);
+        let law = f(0.019);
+        assert!(matches!(law, Corrections::OmniTurnLaw { l_arc, .. } if l_arc == 0.019));
+        assert!(matches!(f(0.0), Corrections::Omni { .. }));
+        assert_eq!(law.validate(&omni), Ok(()));
+        assert_eq!(
+            (law.l_arc(), f(0.0).l_arc(), Corrections::None.l_arc()),
+            (0.019, 0.0, 0.0)
+        );
+        assert_eq!(law.omni_factors(), Some((&[1.01, 0.99, 1.0][..], 1.02)));
+        let e = f(0.15).validate(&omni).unwrap_err();
+        assert_eq!(
+            e,
+            CorrectionError::OutOfRange {
+                name: "l_arc",
+                index: None,
+                value: 0.15,
+                max: E_B_ARC_MAX,
+            }
+        );
+        assert_eq!(std::format!("{e}"), "l_arc = 0.15 is outside [-0.1, 0.1]");
+        assert!(matches!(
+            f(f64::INFINITY).validate(&omni),
+            Err(CorrectionError::NotFinite { name: "l_arc", .. })
+        ));
+        assert!(matches!(
+            law.validate(&presets::mobolab()),
+            Err(CorrectionError::WrongKind { .. })
+        ));
+        assert!(matches!(
+            Corrections::OmniTurnLaw {
+                f_lat: Vec::from_slice(&[1.0; 4]).unwrap(),
+                f_lon: 1.0,
+                l_arc: 0.01,
+            }
+            .validate(&omni),
+            Err(CorrectionError::WrongWheelCount {
+                expected: 3,
+                got: 4
+            })
+        ));
+        assert_eq!(law.apply_to(&omni), f(0.0).apply_to(&omni));
+        let c = law.compose(&f(0.002)).unwrap();
+        let (l, o) = c.omni_factors().unwrap();
+        assert!((l[0] - 1.01 * 1.01).abs() < 1e-12 && (o - 1.02 * 1.02).abs() < 1e-12);
+        assert!((c.l_arc() - 0.021).abs() < 1e-12);
+        assert!(matches!(
+            law.compose(&f(-0.019)),
+            Some(Corrections::Omni { .. })
+        ));
+        assert_eq!(law.compose(&presets_diff()), None);
+    }
+
+    fn presets_diff() -> Corrections {
+        Corrections::DiffDrive {
+            c_l: 1.0,
+            c_r: 1.0,
+            e_b: 1.0,
+        }
     }
 
     #[test]

@@ -178,14 +178,14 @@ mod tests {
     fn turn_ratio_is_a_differential_drives_side_ratio() {
         // Sides (l, r): |r - l| / (|l| + |r|) against speed |r + l| / 2 and turn |r - l| / 2.
         for (l, r) in [
-            (1.0, 1.0),
+            (1.0f64, 1.0f64),
             (0.5, 1.5),
             (-1.0, 1.0),
             (-0.2, 1.0),
             (0.0, 0.3),
             (2.0, -0.5),
         ] {
-            let side: f64 = (r - l as f64).abs() / (l.abs() + r.abs());
+            let side = (r - l).abs() / (l.abs() + r.abs());
             let t = turn_ratio((r + l) / 2.0, (r - l) / 2.0);
             assert!(close(t, side, 1e-15), "({l}, {r}): {t} against {side}");
         }

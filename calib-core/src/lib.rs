@@ -28,4 +28,5 @@ pub use odometry::{Odometry, Pose};
 pub mod control;
 pub mod diff_laws;
 pub mod encoder;
+pub mod omni_laws;
 pub mod stepper;

@@ -230,6 +230,11 @@ pub struct SetArgs {
     /// Omni: common longitudinal factor F_lon.
     #[arg(long)]
     pub f_lon: Option<f64>,
+    /// Omni: the turn law, how much longer the wheels' effective distance from the centre
+    /// is on arcs than in a turn in place (0.019 is 1.9 %; 0 removes it). The board's
+    /// odometry applies it; wheel commands use F_lat and F_lon.
+    #[arg(long, value_name = "L_ARC", allow_negative_numbers = true)]
+    pub l_arc: Option<f64>,
 }
 
 /// Arguments of `wheelcal factors export`.

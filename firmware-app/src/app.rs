@@ -12,6 +12,7 @@ use calib_core::diff_laws::DiffLawOdometry;
 use calib_core::kinematics::Kinematics;
 use calib_core::motion::{ProgramRunner, Setpoint};
 use calib_core::odometry::{Odometry, Pose};
+use calib_core::omni_laws::OmniLawOdometry;
 use calib_core::protocol::{
     record_size, BootReport, ControlValue, CorrectionFault, Fault, IdleWheels, Info, LogChunk,
     Mode, Params, ParamsFault, ProgramError, ProgramSpec, Record, Rejection, Request, Response,
@@ -114,6 +115,8 @@ pub struct App<'a> {
     kin: Kinematics<f32>,
     /// The corrections' laws of a differential drive (none: twists pass unchanged).
     laws: DiffLawOdometry<f32>,
+    /// The corrections' turn law of an omni robot (none: twists pass unchanged).
+    omni_laws: OmniLawOdometry<f32>,
     n: usize,
     dc: bool,
     /// None without encoders (open-loop steppers: odometry from the steps emitted).
@@ -179,6 +182,7 @@ impl<'a> App<'a> {
             }
         };
         let laws = DiffLawOdometry::new(&params.robot, &corrections, DT as f64);
+        let omni_laws = OmniLawOdometry::new(&params.robot, &corrections, DT as f64);
         let mut app = App {
             wheels: core::array::from_fn(|_| WheelState::new(params.gains, 1.0)),
             params,
@@ -186,6 +190,7 @@ impl<'a> App<'a> {
             boot,
             kin,
             laws,
+            omni_laws,
             n: 0,
             dc: true,
             rad_per_count: None,
@@ -219,6 +224,7 @@ impl<'a> App<'a> {
     /// The laws of the active corrections for the active robot (their smoothing restarts).
     fn configure_laws(&mut self) {
         self.laws = DiffLawOdometry::new(&self.params.robot, &self.corrections, DT as f64);
+        self.omni_laws = OmniLawOdometry::new(&self.params.robot, &self.corrections, DT as f64);
     }
 
     /// Derives the per-wheel state from params (after boot or SetParams).
@@ -324,9 +330,12 @@ impl<'a> App<'a> {
         if !wheels {
             drv.stop_all();
         }
-        // Odometry with the corrected geometry (and its laws).
-        let kin = &self.kin;
-        let d = self.laws.apply(&dphi[..self.n], |p| kin.forward(p));
+        // Odometry with the corrected geometry (and its laws: a differential drive's or an
+        // omni robot's, the other passing every twist unchanged).
+        let (kin, laws) = (&self.kin, &mut self.laws);
+        let d = self
+            .omni_laws
+            .apply(&dphi[..self.n], |p| laws.apply(p, |q| kin.forward(q)));
         self.odo.update(&d);
         self.log_tick(now_us);
     }

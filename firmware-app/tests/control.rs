@@ -395,3 +395,52 @@ fn single_wheel_segment_turns_one_wheel() {
     assert!((b.enc.angle[1] - 10.0).abs() < 0.05, "{}", b.enc.angle[1]);
     assert_eq!(b.enc.angle[0], 0.0);
 }
+
+/// The omni turn law (`OmniTurnLaw`) in the board's odometry (f32, 1 kHz), on a robot
+/// that has no such law: one lap of a 0.7 m circle on omni3 (L = 0.15 m). The truth turns
+/// the full lap; the odometry, with l_arc 0.02, divides every tick's turn by
+/// 1 + 0.02 (1 - (0.15 / 0.7)^2), so its heading ends at 0.981276 of the truth's, within
+/// 2e-4 (the ramps' filter transients: the body's speed and turn ramp together, so rho
+/// holds from the first tick; the DC loops' differing lags bend it a little). Its
+/// position follows the truth's through the same scaled heading. With plain factors the
+/// odometry is the truth to 1 mrad.
+#[test]
+fn an_omni_turn_law_divides_the_boards_turn_on_an_arc() {
+    let params = calib_core::protocol::Params {
+        robot: presets::omni3(0.04, 0.15),
+        ..defaults::params()
+    };
+    let truth = params.robot.clone();
+    let run = |c: Corrections| {
+        let mut b = Bench::new(params.clone(), c, &truth);
+        ok(b.app.handle(
+            Request::RunProgram {
+                program: ProgramSpec::Circle {
+                    radius_m: 0.7,
+                    dir: Direction::Ccw,
+                    laps: 1,
+                },
+                log_rate_hz: 0,
+                link_timeout_ms: 0,
+            },
+            0,
+        ));
+        b.run_ms(60_000);
+        assert_eq!(b.app.status().mode, Mode::Idle);
+        (b.app.pose().theta as f64, b.pose.theta)
+    };
+    let f = heapless::Vec::from_slice(&[1.0, 1.0, 1.0]).unwrap();
+    let (plain, turned) = run(Corrections::omni(f.clone(), 1.0, 0.0));
+    let (law, turned_law) = run(Corrections::omni(f, 1.0, 0.02));
+    let want = 1.0 / (1.0 + 0.02 * (1.0 - (0.15f64 / 0.7).powi(2)));
+    println!(
+        "turned {turned:.5} / {turned_law:.5} rad; odometry plain {plain:.5}, with the law {law:.5} = {:.6} of the truth",
+        law / turned_law
+    );
+    assert!((turned - std::f64::consts::TAU).abs() < 0.01, "{turned}");
+    assert!((plain - turned).abs() < 1e-3, "{plain} against {turned}");
+    assert!(
+        (law / turned_law - want).abs() < 2e-4,
+        "{law} against {turned_law}"
+    );
+}

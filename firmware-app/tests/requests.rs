@@ -223,6 +223,23 @@ fn rejected_requests_change_nothing_and_say_why() {
         }),
         "{r:?}"
     );
+    // An omni robot's turn law (protocol v8) on this differential drive: refused.
+    let r = rejected(
+        &mut b,
+        &mut l,
+        Request::SetCorrections(Corrections::OmniTurnLaw {
+            f_lat: heapless::Vec::from_slice(&[1.0, 1.0]).unwrap(),
+            f_lon: 1.0,
+            l_arc: 0.02,
+        }),
+    );
+    assert!(
+        matches!(
+            r,
+            Rejection::InvalidCorrections(CorrectionFault::WrongKind { .. })
+        ),
+        "{r:?}"
+    );
     let mut p = defaults::params();
     p.robot.wheels[1].radius_m = -0.05;
     let r = rejected(&mut b, &mut l, Request::SetParams(p));
@@ -769,4 +786,41 @@ fn ten_megabytes_of_noise_never_cut_the_host_off() {
     }
     // About one frame ends per 256 random bytes: thousands of Nacks were sent.
     assert!(nacks > 10_000_000 / 256 / 2, "{nacks} Nacks");
+}
+
+/// An omni robot takes a turn law (protocol v8's `OmniTurnLaw`) and gives it back to the
+/// bit; one beyond ±0.1 is refused, named `l_arc`, and changes nothing.
+#[test]
+fn an_omni_board_takes_a_turn_law() {
+    let params = Params {
+        robot: presets::omni3(0.04, 0.15),
+        ..defaults::params()
+    };
+    let robot = params.robot.clone();
+    let mut b = Bench::new(params, Corrections::None, &robot);
+    let mut l = Link::new();
+    let law = |l_arc| Corrections::OmniTurnLaw {
+        f_lat: heapless::Vec::from_slice(&[1.01, 0.99, 1.0]).unwrap(),
+        f_lon: 1.02,
+        l_arc,
+    };
+    let mut w = l.call(&mut b, &Request::SetCorrections(law(0.019)));
+    assert!(matches!(decode(&mut w).1, Response::Ok));
+    assert_eq!(*b.app.corrections(), law(0.019));
+    let mut w = l.call(&mut b, &Request::GetCorrections);
+    assert!(matches!(decode(&mut w).1, Response::Corrections(c) if c == law(0.019)));
+    let r = rejected(&mut b, &mut l, Request::SetCorrections(law(-0.25)));
+    assert!(
+        r == Rejection::InvalidCorrections(CorrectionFault::OutOfRange {
+            factor: Factor::LArc,
+            index: None,
+            value: -0.25,
+            max: 0.1,
+        }),
+        "{r:?}"
+    );
+    assert_eq!(
+        r.to_string(),
+        "invalid corrections: l_arc = -0.25 is outside [-0.1, 0.1]"
+    );
 }

@@ -357,3 +357,33 @@ fn saved_laws_survive_a_reboot() {
     assert_eq!(l.corrections, laws);
     assert_eq!(l.boot.corrections, Stored::Loaded);
 }
+
+/// An omni robot's turn law (protocol v8's `OmniTurnLaw`) saved over plain omni factors
+/// survives a reboot to the bit; the plain factors saved before it read back as written
+/// (the new kind is last on the wire).
+#[test]
+fn a_saved_omni_turn_law_survives_a_reboot() {
+    let mut s = store(fresh());
+    let params = Params {
+        robot: presets::omni3(0.04, 0.15),
+        ..defaults::params()
+    };
+    block_on(s.save(&PersistItem::Params(params.clone()))).unwrap();
+    let plain = Corrections::Omni {
+        f_lat: heapless::Vec::from_slice(&[1.01, 0.99, 1.0]).unwrap(),
+        f_lon: 1.02,
+    };
+    block_on(s.save(&PersistItem::Corrections(plain.clone()))).unwrap();
+    let mut s = store(s.into_flash());
+    assert_eq!(block_on(s.load()).corrections, plain);
+    let law = Corrections::OmniTurnLaw {
+        f_lat: heapless::Vec::from_slice(&[1.01, 0.99, 1.0]).unwrap(),
+        f_lon: 1.02,
+        l_arc: 0.0187,
+    };
+    block_on(s.save(&PersistItem::Corrections(law.clone()))).unwrap();
+    let mut s = store(s.into_flash());
+    let l = block_on(s.load());
+    assert_eq!((l.params, l.corrections), (params, law));
+    assert_eq!(l.boot.corrections, Stored::Loaded);
+}

@@ -389,10 +389,12 @@ pub enum Factor {
     SpeedRel,
     /// An acceleration law's accel_slip_s (protocol v6, last on the wire).
     AccelSlip,
+    /// An omni robot's turn law l_arc (protocol v8, last on the wire).
+    LArc,
 }
 
 impl Factor {
-    /// From the name `correction::check` was given (always one of the eight; anything
+    /// From the name `correction::check` was given (always one of the nine; anything
     /// else reads as f_lat).
     pub fn from_name(name: &str) -> Factor {
         match name {
@@ -403,6 +405,7 @@ impl Factor {
             "e_b_arc" => Factor::EBArc,
             "speed_rel" => Factor::SpeedRel,
             "accel_slip_s" => Factor::AccelSlip,
+            "l_arc" => Factor::LArc,
             _ => Factor::FLat,
         }
     }
@@ -418,6 +421,7 @@ impl Factor {
             Factor::EBArc => "e_b_arc",
             Factor::SpeedRel => "speed_rel",
             Factor::AccelSlip => "accel_slip_s",
+            Factor::LArc => "l_arc",
         }
     }
 }

@@ -64,6 +64,16 @@ fn corrections() -> impl Strategy<Value = Corrections> {
                 },
             }
         ),
+        (
+            proptest::collection::vec(f64s(), 0..=MAX_WHEELS),
+            f64s(),
+            f64s()
+        )
+            .prop_map(|(v, f_lon, l_arc)| Corrections::OmniTurnLaw {
+                f_lat: Vec::from_slice(&v).unwrap(),
+                f_lon,
+                l_arc,
+            }),
     ]
 }
 
@@ -664,6 +674,11 @@ fn schema_golden() {
                 accel_slip_s: 0.05,
             },
         }),
+        Request::SetCorrections(Corrections::OmniTurnLaw {
+            f_lat: Vec::from_slice(&[1.0, 1.1, 0.95]).unwrap(),
+            f_lon: 0.9,
+            l_arc: 0.019,
+        }),
         Request::SaveCorrections,
         Request::ResetCorrections,
         Request::GetParams,
@@ -758,7 +773,7 @@ fn schema_golden() {
     std::println!("golden {golden:#010x}, fingerprint {SCHEMA_FINGERPRINT:#010x}");
     assert_eq!(
         (golden, SCHEMA_FINGERPRINT),
-        (0x2594aab9, 0x1d5838f8),
+        (0xa47cb229, 0xbe176582),
         "message types changed: record the new values (and bump PROTOCOL_VERSION if needed)"
     );
 }
@@ -1202,4 +1217,57 @@ proptest! {
         let s = decode_blocks(n, &data, |_| count += 1);
         prop_assert_eq!(count, s.records);
     }
+}
+
+/// Protocol v8's `OmniTurnLaw` is last on the wire: the other kinds encode to the bytes
+/// they had in v7 (recorded at 0b6e7f9: variant index, then each f64 little-endian), so
+/// stored and sent factors read as before; the new kind takes index 5 and round-trips to
+/// the bit, inside a request frame too.
+#[test]
+fn an_omni_turn_law_is_last_on_the_wire() {
+    let mut buf = [0u8; 128];
+    let omni = Corrections::Omni {
+        f_lat: Vec::from_slice(&[1.0, 1.1, 0.95]).unwrap(),
+        f_lon: 0.9,
+    };
+    let v7_omni: [u8; 34] = [
+        0x02, 0x03, 0x00, 0x00, 0x00, 0x00, 0x00, 0x00, 0xf0, 0x3f, 0x9a, 0x99, 0x99, 0x99, 0x99,
+        0x99, 0xf1, 0x3f, 0x66, 0x66, 0x66, 0x66, 0x66, 0x66, 0xee, 0x3f, 0xcd, 0xcc, 0xcc, 0xcc,
+        0xcc, 0xcc, 0xec, 0x3f,
+    ];
+    assert_eq!(postcard::to_slice(&omni, &mut buf).unwrap(), &v7_omni[..]);
+    let laws = Corrections::DiffDriveLaws {
+        c_l: 1.01,
+        c_r: 0.99,
+        e_b: 1.02,
+        laws: crate::correction::DiffLaws {
+            e_b_arc: 0.005,
+            speed_rel: 0.1,
+            accel_slip_s: 0.05,
+        },
+    };
+    let v7_laws: [u8; 49] = [
+        0x04, 0x29, 0x5c, 0x8f, 0xc2, 0xf5, 0x28, 0xf0, 0x3f, 0xae, 0x47, 0xe1, 0x7a, 0x14, 0xae,
+        0xef, 0x3f, 0x52, 0xb8, 0x1e, 0x85, 0xeb, 0x51, 0xf0, 0x3f, 0x7b, 0x14, 0xae, 0x47, 0xe1,
+        0x7a, 0x74, 0x3f, 0x9a, 0x99, 0x99, 0x99, 0x99, 0x99, 0xb9, 0x3f, 0x9a, 0x99, 0x99, 0x99,
+        0x99, 0x99, 0xa9, 0x3f,
+    ];
+    assert_eq!(postcard::to_slice(&laws, &mut buf).unwrap(), &v7_laws[..]);
+    assert_eq!(postcard::from_bytes::<Corrections>(&v7_omni).unwrap(), omni);
+    assert_eq!(postcard::from_bytes::<Corrections>(&v7_laws).unwrap(), laws);
+    let law = Corrections::OmniTurnLaw {
+        f_lat: Vec::from_slice(&[1.0, 1.1, 0.95]).unwrap(),
+        f_lon: 0.9,
+        l_arc: 0.019,
+    };
+    let bytes = postcard::to_slice(&law, &mut buf).unwrap();
+    assert_eq!(bytes[0], 5);
+    // The new kind is the old Omni's bytes with its index and l_arc after them.
+    assert_eq!(&bytes[1..34], &v7_omni[1..]);
+    assert_eq!(&bytes[34..], &0.019f64.to_le_bytes()[..]);
+    assert_eq!(postcard::from_bytes::<Corrections>(bytes).unwrap(), law);
+    let req = Request::SetCorrections(law);
+    assert_eq!(roundtrip_req(&req), req);
+    assert_eq!(Factor::from_name("l_arc"), Factor::LArc);
+    assert_eq!(Factor::LArc.as_str(), "l_arc");
 }

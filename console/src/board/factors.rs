@@ -37,6 +37,10 @@ pub enum FactorsView {
         f_lat: Vec<f64>,
         /// Longitudinal factor common to all wheels.
         f_lon: f64,
+        /// The turn law: how much longer the wheels' distance from the centre is on arcs
+        /// (absent: none).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        l_arc: Option<f64>,
     },
 }
 
@@ -59,10 +63,13 @@ impl From<&Corrections> for FactorsView {
                     accel_slip_s: some(laws.accel_slip_s),
                 }
             }
-            Corrections::Omni { f_lat, f_lon } => FactorsView::Omni {
-                f_lat: f_lat.to_vec(),
-                f_lon: *f_lon,
-            },
+            Corrections::Omni { f_lat, f_lon } | Corrections::OmniTurnLaw { f_lat, f_lon, .. } => {
+                FactorsView::Omni {
+                    f_lat: f_lat.to_vec(),
+                    f_lon: *f_lon,
+                    l_arc: Some(c.l_arc()).filter(|&a| a != 0.0),
+                }
+            }
         }
     }
 }
@@ -102,14 +109,29 @@ impl FactorsView {
                 s.push('\n');
                 s
             }
-            FactorsView::Omni { f_lat, f_lon } => format!(
-                "F_lat = [{}]  F_lon = {f_lon:.6}\n",
-                f_lat
-                    .iter()
-                    .map(|v| format!("{v:.6}"))
-                    .collect::<Vec<_>>()
-                    .join(", ")
-            ),
+            FactorsView::Omni {
+                f_lat,
+                f_lon,
+                l_arc,
+            } => {
+                let mut s = format!(
+                    "F_lat = [{}]  F_lon = {f_lon:.6}",
+                    f_lat
+                        .iter()
+                        .map(|v| format!("{v:.6}"))
+                        .collect::<Vec<_>>()
+                        .join(", ")
+                );
+                if let Some(a) = l_arc {
+                    s.push_str(&format!(
+                        "  L_arc = {a:+.4}: the wheels' distance from the centre {:.1} % {} on arcs than in a turn in place (turn law)",
+                        a.abs() * 100.0,
+                        if *a >= 0.0 { "longer" } else { "shorter" }
+                    ));
+                }
+                s.push('\n');
+                s
+            }
         }
     }
 }
@@ -118,7 +140,8 @@ impl FactorsView {
 /// replaced (nominal where the board holds none or the other kind, `n_wheels` F_lat of 1
 /// for an omni robot; the board refuses factors of the wrong kind in its own words).
 /// Differential and omni factors do not mix, and at least one factor must be given. A
-/// law (`e_b_arc`, `speed_rel`, `accel_slip_s`) is kept unless replaced; 0 removes it.
+/// law (`e_b_arc`, `speed_rel`, `accel_slip_s`; an omni robot's `l_arc`) is kept unless
+/// replaced; 0 removes it.
 pub fn merge_corrections(
     current: &Corrections,
     n_wheels: usize,
@@ -133,6 +156,7 @@ pub fn merge_corrections(
         accel_slip_s,
         f_lat,
         f_lon,
+        l_arc,
     } = *given;
     let diff = c_l.is_some()
         || c_r.is_some()
@@ -140,13 +164,13 @@ pub fn merge_corrections(
         || e_b_arc.is_some()
         || speed_rel.is_some()
         || accel_slip_s.is_some();
-    let omni = f_lat.is_some() || f_lon.is_some();
+    let omni = f_lat.is_some() || f_lon.is_some() || l_arc.is_some();
     match (diff, omni) {
         (false, false) => bail!(
-            "give the factors to change: --c-l, --c-r, --e-b, --e-b-arc, --speed-rel, --accel-slip-s (differential drive) or --f-lat, --f-lon (omni)"
+            "give the factors to change: --c-l, --c-r, --e-b, --e-b-arc, --speed-rel, --accel-slip-s (differential drive) or --f-lat, --f-lon, --l-arc (omni)"
         ),
         (true, true) => {
-            bail!("differential (--c-l, --c-r, --e-b, --e-b-arc, --speed-rel, --accel-slip-s) and omni (--f-lat, --f-lon) factors do not mix")
+            bail!("differential (--c-l, --c-r, --e-b, --e-b-arc, --speed-rel, --accel-slip-s) and omni (--f-lat, --f-lon, --l-arc) factors do not mix")
         }
         (true, false) => {
             // Factors of the other kind on the board: nominal here, and the board refuses
@@ -162,17 +186,18 @@ pub fn merge_corrections(
             Ok(Corrections::diff_drive(c_l, c_r, e_b, laws))
         }
         (false, true) => {
-            let (lat, lon) = match current {
-                Corrections::Omni { f_lat, f_lon } => (f_lat.to_vec(), *f_lon),
-                _ => (vec![1.0; n_wheels], 1.0),
+            let (lat, lon) = match current.omni_factors() {
+                Some((f_lat, f_lon)) => (f_lat.to_vec(), f_lon),
+                None => (vec![1.0; n_wheels], 1.0),
             };
             let lat = f_lat.map(<[f64]>::to_vec).unwrap_or(lat);
             let f_lat = heapless::Vec::from_slice(&lat)
                 .map_err(|_| anyhow::anyhow!("at most {MAX_WHEELS} F_lat factors"))?;
-            Ok(Corrections::Omni {
+            Ok(Corrections::omni(
                 f_lat,
-                f_lon: f_lon.unwrap_or(lon),
-            })
+                f_lon.unwrap_or(lon),
+                l_arc.unwrap_or(current.l_arc()),
+            ))
         }
     }
 }
@@ -196,6 +221,8 @@ pub struct GivenFactors<'a> {
     pub f_lat: Option<&'a [f64]>,
     /// F_lon.
     pub f_lon: Option<f64>,
+    /// An omni robot's turn law l_arc (0: none).
+    pub l_arc: Option<f64>,
 }
 
 /// A board's factors in words for messages (`c_L = 1.000000  c_R = ...`).
@@ -356,5 +383,64 @@ mod tests {
         )
         .unwrap();
         assert_eq!(back, turn);
+    }
+
+    /// `--l-arc` alone on an omni board holding plain factors keeps its F_lat and F_lon
+    /// and stores the turn law (protocol v8's `OmniTurnLaw`); a later `--f-lon` keeps the
+    /// law; `--l-arc 0` leaves plain `Omni`, what older boards hold; `--l-arc` with a
+    /// differential factor is refused. The text gives the law in per cent, the JSON as
+    /// `l_arc` (absent without a law).
+    #[test]
+    fn an_omni_turn_law_joins_and_leaves_the_factors() {
+        let plain = Corrections::Omni {
+            f_lat: heapless::Vec::from_slice(&[1.01, 0.99, 1.0]).unwrap(),
+            f_lon: 1.02,
+        };
+        let given = |l_arc, f_lon| GivenFactors {
+            l_arc,
+            f_lon,
+            ..Default::default()
+        };
+        let law = merge_corrections(&plain, 3, &given(Some(0.019), None)).unwrap();
+        assert_eq!(
+            law,
+            Corrections::OmniTurnLaw {
+                f_lat: heapless::Vec::from_slice(&[1.01, 0.99, 1.0]).unwrap(),
+                f_lon: 1.02,
+                l_arc: 0.019,
+            }
+        );
+        let kept = merge_corrections(&law, 3, &given(None, Some(0.97))).unwrap();
+        assert_eq!(
+            (kept.l_arc(), kept.omni_factors().unwrap().1),
+            (0.019, 0.97)
+        );
+        let gone = merge_corrections(&kept, 3, &given(Some(0.0), None)).unwrap();
+        assert!(
+            matches!(gone, Corrections::Omni { f_lon, .. } if f_lon == 0.97),
+            "{gone:?}"
+        );
+        let e = merge_corrections(
+            &plain,
+            3,
+            &GivenFactors {
+                e_b: Some(1.0),
+                l_arc: Some(0.019),
+                ..Default::default()
+            },
+        )
+        .unwrap_err();
+        assert!(e.to_string().contains("do not mix"), "{e}");
+        let text = factors_text(&law);
+        assert_eq!(
+            text,
+            "F_lat = [1.010000, 0.990000, 1.000000]  F_lon = 1.020000  L_arc = +0.0190: the wheels' distance from the centre 1.9 % longer on arcs than in a turn in place (turn law)"
+        );
+        let json = serde_json::to_value(FactorsView::from(&law)).unwrap();
+        assert_eq!(json["kind"], "omni");
+        assert_eq!(json["l_arc"], 0.019);
+        let json = serde_json::to_value(FactorsView::from(&plain)).unwrap();
+        assert!(json.get("l_arc").is_none(), "{json}");
+        assert_eq!(json["f_lon"], 1.02);
     }
 }

@@ -80,11 +80,9 @@ pub struct OmniFactors {
 /// A second pass ([Redundant omni]): runs measured with `previous` factors in force give secondary
 /// factors; the board then needs their composition ([`Corrections::compose`]).
 pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniReport> {
-    let Corrections::Omni {
-        f_lat: p_lat,
-        f_lon: p_lon,
-    } = previous
-    else {
+    // With or without a turn law: the paths are straight, so the law neither shows in
+    // them nor changes; the composition keeps it.
+    let Some((p_lat, p_lon)) = previous.omni_factors() else {
         bail!(
             "the previous factors are not omni factors: {}",
             crate::board::factors_text(previous)
@@ -95,7 +93,8 @@ pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniR
             .map_err(|_| anyhow::anyhow!("too many wheels"))?,
         f_lon: rep.f_lon,
     };
-    let Some(Corrections::Omni { f_lat, f_lon }) = previous.compose(&secondary) else {
+    let composed = previous.compose(&secondary);
+    let Some((f_lat, f_lon)) = composed.as_ref().and_then(Corrections::omni_factors) else {
         bail!(
             "previous F_lat has {} factors, the robot {} wheels",
             p_lat.len(),
@@ -104,7 +103,7 @@ pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniR
     };
     rep.previous = Some(OmniFactors {
         f_lat: p_lat.to_vec(),
-        f_lon: *p_lon,
+        f_lon: p_lon,
     });
     rep.secondary = Some(OmniFactors {
         f_lat: rep.f_lat.clone(),
@@ -123,10 +122,10 @@ pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniR
     Ok(rep)
 }
 
-/// Reads the previous pass's factors (`f_lat`, `f_lon`) from a `--json` result of
-/// `omni compute` or `factors get`.
+/// Reads the previous pass's factors (`f_lat`, `f_lon`, and a turn law `l_arc` when
+/// `factors get` shows one) from a `--json` result of `omni compute` or `factors get`.
 pub fn factors_from_json(path: &std::path::Path) -> Result<Corrections> {
-    let f = omni_factors_from_json(path)?;
+    let (f, l_arc) = omni_factors_from_json(path)?;
     // A first pass the board would refuse must not be composed with (e.g. f_lon: -1).
     for (i, v) in f.f_lat.iter().enumerate() {
         calib_core::correction::check("f_lat", Some(i), *v)
@@ -136,13 +135,18 @@ pub fn factors_from_json(path: &std::path::Path) -> Result<Corrections> {
         .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
     let f_lat = heapless::Vec::from_slice(&f.f_lat)
         .map_err(|_| anyhow::anyhow!("{}: too many f_lat factors", path.display()))?;
-    Ok(Corrections::Omni {
-        f_lat,
-        f_lon: f.f_lon,
-    })
+    calib_core::correction::check_within(
+        "l_arc",
+        l_arc,
+        -calib_core::correction::E_B_ARC_MAX,
+        calib_core::correction::E_B_ARC_MAX,
+    )
+    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    Ok(Corrections::omni(f_lat, f.f_lon, l_arc))
 }
 
-fn omni_factors_from_json(path: &std::path::Path) -> Result<OmniFactors> {
+/// The factors and the turn law (0 when the file has none).
+fn omni_factors_from_json(path: &std::path::Path) -> Result<(OmniFactors, f64)> {
     use anyhow::Context;
     let text = crate::ros2::read_json_text(path)?;
     let v: serde_json::Value =
@@ -156,7 +160,13 @@ fn omni_factors_from_json(path: &std::path::Path) -> Result<OmniFactors> {
         .get("f_lon")
         .and_then(|x| x.as_f64())
         .with_context(|| format!("{}: no number f_lon", path.display()))?;
-    Ok(OmniFactors { f_lat, f_lon })
+    let l_arc = match v.get("l_arc") {
+        None | Some(serde_json::Value::Null) => 0.0,
+        Some(x) => x
+            .as_f64()
+            .with_context(|| format!("{}: l_arc is not a number", path.display()))?,
+    };
+    Ok((OmniFactors { f_lat, f_lon }, l_arc))
 }
 
 /// Direction of a named path in the body frame (radians from body x).
@@ -490,7 +500,38 @@ mod tests {
             c_r: 1.0,
             e_b: 1.0,
         };
-        assert!(compose_with(rep, &diff).is_err());
+        assert!(compose_with(rep.clone(), &diff).is_err());
+        // A previous pass with a turn law composes alike (the straight paths neither show
+        // nor change it).
+        let lawful = Corrections::omni(
+            heapless::Vec::from_slice(&[1.02, 1.0, 0.98, 1.0]).unwrap(),
+            1.01,
+            0.019,
+        );
+        let rep = compose_with(rep, &lawful).unwrap();
+        assert!((rep.previous.as_ref().unwrap().f_lon - 1.01).abs() < 1e-12);
+    }
+
+    /// `--previous` from `factors get --json` on a board with a turn law keeps the law
+    /// (to the bit), and one the board would refuse is refused by name.
+    #[test]
+    fn a_previous_pass_keeps_its_turn_law() {
+        let dir = std::env::temp_dir().join(format!("omni-prev-law-{}", std::process::id()));
+        std::fs::create_dir_all(&dir).unwrap();
+        let prev = dir.join("prev.json");
+        std::fs::write(
+            &prev,
+            r#"{"kind": "omni", "f_lat": [1.01, 0.99, 1.0], "f_lon": 1.02, "l_arc": 0.019}"#,
+        )
+        .unwrap();
+        let c = factors_from_json(&prev).unwrap();
+        assert_eq!((c.l_arc(), c.omni_factors().unwrap().1), (0.019, 1.02));
+        std::fs::write(&prev, r#"{"f_lat": [1, 1, 1], "f_lon": 1, "l_arc": 0.3}"#).unwrap();
+        let e = factors_from_json(&prev).unwrap_err().to_string();
+        assert!(e.contains("l_arc = 0.3 is outside [-0.1, 0.1]"), "{e}");
+        std::fs::write(&prev, r#"{"f_lat": [1, 1, 1], "f_lon": 1, "l_arc": "x"}"#).unwrap();
+        assert!(factors_from_json(&prev).is_err());
+        std::fs::remove_dir_all(&dir).unwrap();
     }
 
     #[test]

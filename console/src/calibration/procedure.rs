@@ -561,7 +561,7 @@ pub fn run<L: Read + Write>(
         }
         Kind::Omni => {
             let mut r = omni::compute(&robot, &runs, opts.idle_wheels)?;
-            if let Some(p @ Corrections::Omni { .. }) = &previous {
+            if let Some(p) = previous.as_ref().filter(|p| p.omni_factors().is_some()) {
                 r = omni::compose_with(r, p)?;
             }
             if let Some(dir) = &opts.report {

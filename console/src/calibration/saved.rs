@@ -189,7 +189,7 @@ impl SavedCalibration {
 
     /// The factors a board gets from it (`factors set` in full): a differential drive's
     /// with every law kept (the board's E_b is that of a turn in place, its c_L and c_R
-    /// at standstill), an omni robot's f_lat and f_lon.
+    /// at standstill), an omni robot's f_lat and f_lon (and its turn law l_arc).
     pub fn board_corrections(&self) -> Result<Corrections> {
         let f = &self.json["factors"];
         let shown = self.file.display();
@@ -207,10 +207,12 @@ impl SavedCalibration {
                 );
             }
             let f_lon = f["f_lon"].as_f64().ok_or_else(|| missing("f_lon"))?;
-            return Ok(Corrections::Omni {
-                f_lat: f_lat.into_iter().collect(),
-                f_lon,
-            });
+            // An omni robot's turn law, when the calibration kept one (absent: none).
+            let l_arc = match f.get("l_arc") {
+                None | Some(Value::Null) => 0.0,
+                Some(v) => v.as_f64().ok_or_else(|| missing("l_arc"))?,
+            };
+            return Ok(Corrections::omni(f_lat.into_iter().collect(), f_lon, l_arc));
         }
         if let Some(b) = f.get("board") {
             let b: BoardFactors = serde_json::from_value(b.clone())
@@ -387,6 +389,15 @@ mod tests {
             }
             c => panic!("{c:?}"),
         }
+        // With a turn law: the board gets it too.
+        let text = r#"{"robot": "omni3", "kind": "omni",
+            "factors": {"f_lat": [1.02, 1.04, 1.03], "f_lon": 1.0, "l_arc": 0.019}}"#;
+        let s = SavedCalibration::parse(text, PathBuf::from("o.json"), &omni, "--board").unwrap();
+        let c = s.board_corrections().unwrap();
+        assert!(
+            matches!(c, Corrections::OmniTurnLaw { l_arc, .. } if l_arc == 0.019),
+            "{c:?}"
+        );
     }
 
     /// Every prefix of a good file and every byte of it replaced by each of a few bytes

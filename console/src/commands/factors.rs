@@ -41,6 +41,7 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
             accel_slip_s: a.accel_slip_s,
             f_lat: a.f_lat.as_deref(),
             f_lon: a.f_lon,
+            l_arc: a.l_arc,
         },
     )?;
     client.set_corrections(c)?;
