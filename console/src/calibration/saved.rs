@@ -170,8 +170,8 @@ impl SavedCalibration {
     }
 
     /// The fitted parameters no board factor carries (an omni robot's factors are its
-    /// wheels' sizes: f_lat and f_lon; wheel distances, angles, the centre and the roller
-    /// angle need the robot file). None on a differential drive, whose every parameter
+    /// wheels' sizes, f_lat and f_lon, and its turn law, l_arc; wheel distances, angles,
+    /// the centre and the roller angle need the robot file). None on a differential drive, whose every parameter
     /// has a factor or a law.
     fn without_factor(&self) -> Vec<String> {
         if self.json["factors"].get("f_lat").is_none() {
@@ -182,7 +182,7 @@ impl SavedCalibration {
             .into_iter()
             .flatten()
             .filter_map(|p| p["name"].as_str())
-            .filter(|n| *n != "scale" && !n.starts_with("radius_scale"))
+            .filter(|n| *n != "scale" && *n != "l_arc" && !n.starts_with("radius_scale"))
             .map(str::to_string)
             .collect()
     }
@@ -389,10 +389,12 @@ mod tests {
             }
             c => panic!("{c:?}"),
         }
-        // With a turn law: the board gets it too.
+        // With a turn law: the board gets it too, so it is not named as without a factor.
         let text = r#"{"robot": "omni3", "kind": "omni",
-            "factors": {"f_lat": [1.02, 1.04, 1.03], "f_lon": 1.0, "l_arc": 0.019}}"#;
+            "factors": {"f_lat": [1.02, 1.04, 1.03], "f_lon": 1.0, "l_arc": 0.019},
+            "params": [{"name": "scale"}, {"name": "l_scale"}, {"name": "l_arc"}]}"#;
         let s = SavedCalibration::parse(text, PathBuf::from("o.json"), &omni, "--board").unwrap();
+        assert_eq!(s.without_factor(), ["l_scale"]);
         let c = s.board_corrections().unwrap();
         assert!(
             matches!(c, Corrections::OmniTurnLaw { l_arc, .. } if l_arc == 0.019),

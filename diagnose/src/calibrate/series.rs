@@ -17,6 +17,7 @@ use calib_core::correction::Corrections;
 use calib_core::diff_laws::DiffLawOdometry;
 use calib_core::kinematics::Kinematics;
 use calib_core::odometry::{integrate_arc, Odometry, Pose};
+use calib_core::omni_laws::OmniLawOdometry;
 use calib_core::robot::{Robot, RobotKind};
 use formats::recording::Recording;
 use serde::Serialize;
@@ -720,8 +721,8 @@ pub fn dead_reckoning_errors(robot: &Robot, law: &TurnLaw, s: &Series) -> Option
 
 /// [`dead_reckoning_errors`] of a board holding `corrections` (its factors and laws) for
 /// `robot`, its nominal robot: the recording's wheel increments go through calib-core's
-/// own odometry, the firmware's ([`Kinematics`] with the factors, [`DiffLawOdometry`] for
-/// the laws, [`Odometry`]'s integration), in f64 and ticking at the median row step.
+/// own odometry, the firmware's ([`Kinematics`] with the factors, [`DiffLawOdometry`] and
+/// [`OmniLawOdometry`] for the laws, [`Odometry`]'s integration), in f64 and ticking at the median row step.
 /// `None` when the factors' kinematics do not solve, and for wheeled-legged robots (the
 /// board's odometry has no legs).
 pub fn board_dead_reckoning_errors(
@@ -735,11 +736,12 @@ pub fn board_dead_reckoning_errors(
     let kin = Kinematics::<f64>::new(robot, corrections).ok()?;
     let tick = median_step(&s.t)?;
     let mut laws = DiffLawOdometry::<f64>::new(robot, corrections, tick);
+    let mut omni = OmniLawOdometry::<f64>::new(robot, corrections, tick);
     let mut odo = Odometry::<f64>::new(Pose::new(0.0, 0.0, 0.0));
     let mut path = Path::default();
     path.push(odo.pose());
     for inc in s.incs() {
-        odo.update(&laws.apply(inc, |p| kin.forward(p)));
+        odo.update(&omni.apply(inc, |p| laws.apply(p, |q| kin.forward(q))));
         path.push(odo.pose());
     }
     Some(errors_along(s, &path))
