@@ -34,6 +34,7 @@ awk -v mark="$mark" -v n="$n" '
     if (seen >= 15) span("save item through a Channel: try_send + try_receive (two critical sections, each copying the item)", at[15] - at[14] - empty)
     if (seen >= 17) printf "turn-law step of a differential drive'"'"'s odometry (a law stored), per tick, with its loop: %.0f instructions\n", (at[17] - at[16]) / n
     if (seen >= 19) printf "law step with the turn, speed and acceleration laws stored, per tick, with its loop: %.0f instructions\n", (at[19] - at[18]) / n
+    if (seen >= 21) printf "turn-law step of an omni robot'"'"'s odometry (a law stored), per tick, with its loop: %.0f instructions\n", (at[21] - at[20]) / n
   }
   function span(what, n) {
     printf "lock span, %s: %d instructions = %.2f us to %.2f us at 168 MHz\n", what, n, n / 168, n * 1.5 / 168

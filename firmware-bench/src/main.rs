@@ -21,12 +21,15 @@
 //! a settings save handed to the storage task and taken there (`Channel` of a
 //! `PersistItem`, copied inside its critical sections), `bench_mark(14)`/`bench_mark(15)`.
 //! Then N turn-law steps of a differential drive's odometry (a law stored),
-//! `bench_mark(16)`/`bench_mark(17)`, per step.
+//! `bench_mark(16)`/`bench_mark(17)`, per step; N law steps with all three laws stored,
+//! `bench_mark(18)`/`bench_mark(19)`; N turn-law steps of an omni robot's odometry (a law
+//! stored), `bench_mark(20)`/`bench_mark(21)`.
 #![no_std]
 #![no_main]
 
 use calib_core::correction::DiffLaws;
 use calib_core::diff_laws::DiffLawOdometry;
+use calib_core::omni_laws::OmniLawOdometry;
 use calib_core::encoder::CounterWidth;
 use calib_core::motion::Segment;
 use calib_core::protocol::{encode, MAX_WIRE};
@@ -236,6 +239,20 @@ fn main() -> ! {
         }
         bench_mark(mark + 1);
     }
+    // An omni robot's turn law stored (protocol v8, `calib_core::omni_laws`): N steps on
+    // an arc of the bench's four-wheel omni robot, whose own tick above stores none.
+    let omni = presets::omni4();
+    let f_lat = [1.0; 4].into_iter().collect();
+    let c = calib_core::Corrections::omni(f_lat, 1.0, 0.019);
+    let mut law = OmniLawOdometry::<f32>::new(&omni, &c, 1e-3);
+    bench_mark(20);
+    for i in 0..N {
+        let k = core::hint::black_box(i as f32 * 1e-6);
+        d = law.apply(&[2e-3 + k, 3e-3 - k, 2e-3, 3e-3], |p| {
+            calib_core::Twist::new((p[0] + p[1]) * 0.03, (p[1] - p[2]) * 0.03, (p[3] - p[0]) * 0.1)
+        });
+    }
+    bench_mark(21);
     core::hint::black_box(d);
     hprintln!(
         "read-log answer {} bytes, telemetry {} bytes, signal {:?}",

@@ -266,18 +266,26 @@ fn mobolab() -> calib_core::robot::Robot {
     robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml")).unwrap()
 }
 
+/// A virtual board of `robot` on the simulator with a turn scrub `scrub` (a differential
+/// drive's separation, an omni robot's wheel distance, that much longer on arcs than in a
+/// turn in place), holding the corrections `c`.
+fn scrubbed_board(robot: &calib_core::robot::Robot, scrub: f64, c: Corrections) -> VirtualBoard {
+    let cfg = SimConfig {
+        turn_scrub: scrub,
+        ..SimConfig::default()
+    };
+    let faults = sim::Faults::none(robot.wheel_count());
+    let sim = SimRobot::new(robot, faults, Surface::flat(), cfg).unwrap();
+    let mut b = VirtualBoard::boot(robot, sim, board_flash(None).unwrap()).unwrap();
+    request(&mut b, Request::SetCorrections(c));
+    b
+}
+
 /// The virtual board of mobolab whose separation is 4 % wider on arcs than in a turn in
 /// place (the simulator's `turn_scrub`), holding `c`, driven 8 s at 0.15 m/s and
 /// 0.5 rad/s (an arc of 0.3 m, a Drive request renewed every 0.1 s); `tick` steps it.
 fn scrub_arc(c: Corrections, mut tick: impl FnMut(&mut VirtualBoard)) -> VirtualBoard {
-    let robot = mobolab();
-    let cfg = SimConfig {
-        turn_scrub: 0.04,
-        ..SimConfig::default()
-    };
-    let sim = SimRobot::new(&robot, sim::Faults::none(2), Surface::flat(), cfg).unwrap();
-    let mut b = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
-    request(&mut b, Request::SetCorrections(c));
+    let mut b = scrubbed_board(&mobolab(), 0.04, c);
     let start = b.now_us();
     while b.now_us() - start < 8_000_000 {
         if (b.now_us() - start).is_multiple_of(100_000) {
@@ -841,14 +849,7 @@ fn omni3() -> calib_core::robot::Robot {
 /// running `program` to its end: the board's odometry heading and position minus the
 /// truth's, and the true heading.
 fn omni_scrub(program: ProgramSpec, c: Corrections) -> (f64, f64, f64) {
-    let robot = omni3();
-    let cfg = SimConfig {
-        turn_scrub: 0.02,
-        ..SimConfig::default()
-    };
-    let sim = SimRobot::new(&robot, sim::Faults::none(3), Surface::flat(), cfg).unwrap();
-    let mut b = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
-    request(&mut b, Request::SetCorrections(c));
+    let mut b = scrubbed_board(&omni3(), 0.02, c);
     request(
         &mut b,
         Request::RunProgram {
