@@ -40,8 +40,7 @@ impl<T: Float> OmniLawOdometry<T> {
     /// omni turn law leave every twist unchanged.
     pub fn new(robot: &Robot, corrections: &Corrections, tick_s: f64) -> Self {
         let l_arc = corrections.l_arc();
-        let n = robot.wheels.len().max(1) as f64;
-        let lever = robot.wheels.iter().map(|w| w.l_m).sum::<f64>() / n;
+        let lever = robot.mean_wheel_distance_m();
         let k = tick_s / (TURN_RATIO_TIME_S + tick_s);
         OmniLawOdometry {
             l_arc: cast(l_arc),

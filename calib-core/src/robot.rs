@@ -576,7 +576,14 @@ impl Robot {
 
     /// Half the wheel separation of a differential drive (the `l` of either wheel).
     pub fn half_wheelbase_m(&self) -> f64 {
-        self.wheels.iter().map(|w| w.l_m).sum::<f64>() / self.wheels.len() as f64
+        self.mean_wheel_distance_m()
+    }
+
+    /// The wheels' mean distance from the body origin (m; 0 without wheels): the lever at
+    /// which a turn counts against travel (an omni robot's turn ratio, calibration's
+    /// samples of turns in place).
+    pub fn mean_wheel_distance_m(&self) -> f64 {
+        self.wheels.iter().map(|w| w.l_m).sum::<f64>() / self.wheels.len().max(1) as f64
     }
 }
 

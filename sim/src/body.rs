@@ -126,9 +126,7 @@ impl Geometry {
             hold,
             off_mask,
             skid_steer: robot.kind == RobotKind::SkidSteer,
-            turn_lever: (robot.kind == RobotKind::Omni).then(|| {
-                robot.wheels.iter().map(|w| w.l_m).sum::<f64>() / robot.wheels.len().max(1) as f64
-            }),
+            turn_lever: (robot.kind == RobotKind::Omni).then(|| robot.mean_wheel_distance_m()),
         })
     }
 

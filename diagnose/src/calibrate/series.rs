@@ -9,8 +9,7 @@ use crate::calibrate::error::CalibrateError;
 use crate::calibrate::params::{robot_with, ParamSpec};
 use crate::calibrate::step::{self, Stepper};
 use crate::calibrate::turn_law::{
-    median_step, omni_lever, omni_turn_ratio, turn_ratio, SideMotion, Sides, TurnLaw, Turning,
-    ARC_RHO,
+    median_step, omni_turn_ratio, turn_ratio, SideMotion, Sides, TurnLaw, Turning, ARC_RHO,
 };
 use crate::replay::unwrap_angles;
 use calib_core::correction::Corrections;
@@ -108,13 +107,6 @@ fn distance_samples(px: &[f64], py: &[f64], pth: &[f64], lever: f64, step: f64) 
         v.push(n - 1);
     }
     v
-}
-
-/// The lever arm at which a turn in place counts as travel: the mean wheel distance from
-/// the centre (half the separation of a differential drive).
-fn turn_lever(robot: &Robot) -> f64 {
-    let n = robot.wheels.len().max(1) as f64;
-    robot.wheels.iter().map(|w| w.l_m).sum::<f64>() / n
 }
 
 impl Series {
@@ -255,7 +247,8 @@ impl Series {
         } else {
             None
         };
-        let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
+        let samples =
+            distance_samples(&px, &py, &pth, robot.mean_wheel_distance_m(), SAMPLE_STEP_M);
         let (rho, motion) = match robot.kind {
             RobotKind::SkidSteer | RobotKind::DiffDrive => {
                 let (r, v) = turn_ratio(robot, &inc, &rec.t);
@@ -437,7 +430,8 @@ impl Series {
                 self.py[p0..p1].to_vec(),
                 self.pth[p0..p1].to_vec(),
             );
-            let samples = distance_samples(&px, &py, &pth, turn_lever(robot), SAMPLE_STEP_M);
+            let samples =
+                distance_samples(&px, &py, &pth, robot.mean_wheel_distance_m(), SAMPLE_STEP_M);
             let first = Anchor::first(&px, &py, &pth);
             out.push(Series {
                 name: if k == 0 {
@@ -498,7 +492,7 @@ impl Series {
             let Ok(kin) = Kinematics::<f64>::new(robot, &Corrections::None) else {
                 return t;
             };
-            let lever = omni_lever(robot);
+            let lever = robot.mean_wheel_distance_m();
             for (inc, &rho) in self.incs().zip(rho) {
                 let d = 2.0 * (kin.forward(inc).omega * lever).abs();
                 t.all += d;

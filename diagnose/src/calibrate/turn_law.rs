@@ -122,7 +122,7 @@ pub(super) fn turn_ratio(
 /// not solve.
 pub(super) fn omni_turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> Option<Vec<f64>> {
     let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
-    let lever = omni_lever(robot);
+    let lever = robot.mean_wheel_distance_m();
     let m = inc.len();
     let half = median_step(t).map_or(1, |dt| ((RHO_HALF_WINDOW_S / dt).round() as usize).max(1));
     let mut sum = vec![[0.0f64; 3]; m + 1];
@@ -141,11 +141,6 @@ pub(super) fn omni_turn_ratio(robot: &Robot, inc: &[Vec<f64>], t: &[f64]) -> Opt
             })
             .collect(),
     )
-}
-
-/// An omni robot's lever for its turn ratio: the wheels' mean distance from the centre.
-pub(crate) fn omni_lever(robot: &Robot) -> f64 {
-    robot.wheels.iter().map(|w| w.l_m).sum::<f64>() / robot.wheels.len().max(1) as f64
 }
 
 /// A robot's sides as the stepping needs them, computed once per geometry (the wheels'
