@@ -105,16 +105,26 @@ impl SavedCalibration {
                 format!("{v:+}{unit}, held")
             }
         };
+        let omni = self.json["kind"].as_str() == Some("omni");
         Ok(KnownLaws {
             turn: (arc != 0.0).then_some(arc),
             speed: (speed != 0.0).then_some(speed),
-            note: format!(
-                "laws from {} (robot '{}'): turn law eb_arc / eb {}; speed law {}",
-                self.file.display(),
-                self.robot_name(),
-                said(arc, ""),
-                said(speed, " per m/s")
-            ),
+            note: if omni {
+                format!(
+                    "laws from {} (robot '{}'): turn law l_arc {}",
+                    self.file.display(),
+                    self.robot_name(),
+                    said(arc, "")
+                )
+            } else {
+                format!(
+                    "laws from {} (robot '{}'): turn law eb_arc / eb {}; speed law {}",
+                    self.file.display(),
+                    self.robot_name(),
+                    said(arc, ""),
+                    said(speed, " per m/s")
+                )
+            },
         })
     }
 
@@ -270,11 +280,12 @@ fn is_umbmark(json: &Value) -> bool {
     json["recommended"].as_str() == Some("exact") && json["exact"].is_object()
 }
 
-/// `--laws-from`: known turn and speed laws are a differential drive's.
+/// `--laws-from`: known turn and speed laws are a differential drive's; an omni robot has
+/// a turn law (l_arc) too.
 pub fn laws_from(path: &Path, robot: &Robot) -> Result<KnownLaws> {
-    if robot.kind != RobotKind::DiffDrive {
+    if !matches!(robot.kind, RobotKind::DiffDrive | RobotKind::Omni) {
         bail!(
-            "--laws-from: known turn and speed laws are for differential drives; --robot '{}' is of kind {} (a skid-steer robot's turn law is fitted from its recordings)",
+            "--laws-from: known laws are for differential drives and omni robots; --robot '{}' is of kind {} (a skid-steer robot's turn law is fitted from its recordings)",
             robot.name,
             robot.kind.as_str()
         );
@@ -389,12 +400,17 @@ mod tests {
             }
             c => panic!("{c:?}"),
         }
-        // With a turn law: the board gets it too, so it is not named as without a factor.
+        // With a turn law: the board gets it too, so it is not named as without a factor,
+        // and `--laws-from` holds it (an omni robot has no speed law).
         let text = r#"{"robot": "omni3", "kind": "omni",
             "factors": {"f_lat": [1.02, 1.04, 1.03], "f_lon": 1.0, "l_arc": 0.019},
+            "turn_law": {"arc_rel": 0.019, "icr_x_m": 0.0, "speed_rel": 0.0, "accel_slip_s": 0.0},
             "params": [{"name": "scale"}, {"name": "l_scale"}, {"name": "l_arc"}]}"#;
         let s = SavedCalibration::parse(text, PathBuf::from("o.json"), &omni, "--board").unwrap();
         assert_eq!(s.without_factor(), ["l_scale"]);
+        let l = s.laws().unwrap();
+        assert_eq!((l.turn, l.speed), (Some(0.019), None));
+        assert!(l.note.contains("turn law l_arc +0.019, held"), "{}", l.note);
         let c = s.board_corrections().unwrap();
         assert!(
             matches!(c, Corrections::OmniTurnLaw { l_arc, .. } if l_arc == 0.019),
