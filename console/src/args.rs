@@ -40,6 +40,9 @@ pub enum Command {
     /// Correction factors on the board, or exported to other tools.
     #[command(subcommand)]
     Factors(FactorsCmd),
+    /// The robot geometry on the board (wheel radii, positions, angles).
+    #[command(subcommand)]
+    Robot(RobotCmd),
     /// Drive at a body twist for a while, then stop.
     Drive(DriveArgs),
     /// Run a calibration test path (UMBmark square, omni straight path) on the board.
@@ -194,6 +197,29 @@ pub enum FactorsCmd {
     Reset,
     /// Export factors, e.g. as ROS 2 diff_drive_controller parameters.
     Export(ExportArgs),
+}
+
+/// Subcommands of `wheelcal robot`.
+#[derive(Debug, Subcommand)]
+pub enum RobotCmd {
+    /// Show the board's robot geometry.
+    Get {
+        /// Also write it as a robot file (docs/formats.md §1).
+        #[arg(long, value_name = "FILE.toml")]
+        out: Option<PathBuf>,
+    },
+    /// Give the board the geometry of a robot file (the same kind and wheels, in the same
+    /// order: e.g. `calibrate --write-board-robot`'s); validated by the board, idle only,
+    /// not persisted until `save`. Its gains, limits and safety settings are kept.
+    Set {
+        /// The robot file.
+        #[arg(value_name = "FILE.toml")]
+        file: PathBuf,
+    },
+    /// Persist the board's parameters (its robot among them) in flash.
+    Save,
+    /// Back to the firmware's default parameters (persist with `save`).
+    Reset,
 }
 
 /// Arguments of `wheelcal factors set`: only the factors given change, the others keep
@@ -716,6 +742,13 @@ pub struct CalibrateArgs {
     /// Write the robot description with all fitted geometry.
     #[arg(long)]
     pub write_robot: Option<PathBuf>,
+    /// Write the geometry a board takes with its laws (`wheelcal robot set`): every fitted
+    /// dimension, with a kept turn law's separation or wheel distance of a turn in place
+    /// and a speed law's wheel size at standstill (the board's laws widen and grow them).
+    /// Without a law it is `--write-robot`'s. The board's factors are then ones and the
+    /// laws only (the note gives the `factors set` line).
+    #[arg(long, value_name = "FILE.toml")]
+    pub write_board_robot: Option<PathBuf>,
     /// Write calibration.json, summary.txt, robot.toml (and ros2.yaml), per-recording
     /// path and error plots, a correlation plot, index.html and paths.mcap into this folder.
     #[arg(long)]

@@ -419,6 +419,22 @@ impl<L: Read + Write> Client<L> {
         self.expect_ok(Request::ResetCorrections)
     }
 
+    /// Makes `p` the active parameters (the board validates them; idle only; not
+    /// persisted until saved).
+    pub fn set_params(&mut self, p: Params) -> Result<(), ClientError> {
+        self.expect_ok(Request::SetParams(p))
+    }
+
+    /// Saves the active parameters to flash.
+    pub fn save_params(&mut self) -> Result<(), ClientError> {
+        self.expect_ok(Request::SaveParams)
+    }
+
+    /// Active parameters back to the firmware's defaults (save to make it last).
+    pub fn reset_params(&mut self) -> Result<(), ClientError> {
+        self.expect_ok(Request::ResetParams)
+    }
+
     /// Asks for the active parameters.
     pub fn params(&mut self) -> Result<Params, ClientError> {
         match self.request(&Request::GetParams)? {

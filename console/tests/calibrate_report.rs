@@ -649,23 +649,29 @@ fn laws_from_an_earlier_calibration_are_held() {
         "{err}"
     );
     assert!(!dir.join("both.toml").exists());
-    // A robot that is not a differential drive, before any recording is read (these are
+    // A robot with no known laws (skid-steer: its law is fitted from its recordings), or
+    // a calibration of another kind of robot, before any recording is read (these are
     // the mobolab's).
-    let out = common::wheelcal()
-        .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
-        .arg(common::robot("omni3"))
-        .args(&args)
-        .arg("--laws-from")
-        .arg(dir.join("earlier.json"))
-        .arg("--write-robot")
-        .arg(dir.join("omni3.toml"))
-        .output()
-        .unwrap();
-    assert!(!out.status.success());
-    let err = String::from_utf8_lossy(&out.stderr);
-    assert!(
-        err.contains("--laws-from") && err.contains("kind omni"),
-        "{err}"
-    );
-    assert!(!dir.join("omni3.toml").exists());
+    for (robot, words) in [
+        ("rover4", "kind skid_steer"),
+        (
+            "omni3",
+            "is of kind omni: --laws-from takes a calibration of the same kind",
+        ),
+    ] {
+        let out = common::wheelcal()
+            .args(["--json", "calibrate", "--no-cross-validation", "--robot"])
+            .arg(common::robot(robot))
+            .args(&args)
+            .arg("--laws-from")
+            .arg(dir.join("earlier.json"))
+            .arg("--write-robot")
+            .arg(dir.join("other.toml"))
+            .output()
+            .unwrap();
+        assert!(!out.status.success());
+        let err = String::from_utf8_lossy(&out.stderr);
+        assert!(err.contains("--laws-from") && err.contains(words), "{err}");
+        assert!(!dir.join("other.toml").exists());
+    }
 }

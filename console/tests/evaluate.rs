@@ -338,7 +338,7 @@ fn board_calibrations_that_cannot_be_applied_are_refused_by_file() {
     );
     refused(
         r#"{"kind": "omni", "robot": "omni3", "factors": {"f_lat": [1, 1, 1], "f_lon": 1}}"#,
-        &["a calibration of a omni robot", "same kind"],
+        &["a calibration of a robot of kind omni", "same kind"],
     );
     refused(
         r#"{"kind": "diff_drive", "robot": "m"}"#,

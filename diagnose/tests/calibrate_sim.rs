@@ -1180,10 +1180,41 @@ fn an_omni_robots_turn_dependent_wheel_distance_is_found_and_not_invented() {
         "{:?}",
         c.notes
     );
+    // What a board takes (`--write-board-robot`): the wheels' distance of a turn in place,
+    // which its law widens, and factors of one with the law; the robot file's distance
+    // sits at the recordings' mean turn, longer.
+    let board_robot = |c: &Calibration| {
+        let text = c.board_robot_toml();
+        let body = text.split_once('\n').unwrap().1;
+        formats::robot_file::parse(body, Path::new("board.toml")).unwrap()
+    };
+    // The same wheels to the bit but for the angles' trip through degrees (an ulp).
+    let same = |a: &Robot, b: &Robot| {
+        a.wheels.iter().zip(&b.wheels).all(|(a, b)| {
+            (a.radius_m, a.l_m) == (b.radius_m, b.l_m)
+                && (a.alpha_rad - b.alpha_rad).abs() < 1e-12
+                && (a.beta_rad - b.beta_rad).abs() < 1e-12
+        })
+    };
+    let b = board_robot(&c);
+    assert!(same(&b, &c.law_base_robot), "{b:?}");
+    assert!(b.wheels[0].l_m < c.fitted_robot.wheels[0].l_m, "{b:?}");
+    assert_eq!(
+        c.board_robot_factors(),
+        format!(
+            "factors set --f-lat 1,1,1 --f-lon 1 --l-arc {:.6}",
+            c.turn_law.arc_rel
+        )
+    );
     let c = calibrate(&nominal, &runs(0.0), None, &CalOptions::default()).unwrap();
     println!("{c}");
     assert!(c.params.iter().all(|p| p.spec.name != "l_arc"), "{c}");
     assert_eq!(c.turn_law.arc_rel, 0.0);
+    assert!(same(&board_robot(&c), &c.fitted_robot));
+    assert_eq!(
+        c.board_robot_factors(),
+        "factors set --f-lat 1,1,1 --f-lon 1"
+    );
     let t: Vec<_> = c
         .law_tests
         .iter()

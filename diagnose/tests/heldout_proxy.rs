@@ -362,7 +362,7 @@ fn omni3_squares_transfer_to_circles_with_plausible_geometry() {
 /// constant's and 0.7 of the authors'.
 #[test]
 fn omni3_turn_law_holds_out_on_circles_and_squares_alike() {
-    use diagnose::calibrate::{dead_reckoning_rmse_law, Series};
+    use diagnose::calibrate::{board_dead_reckoning_errors, dead_reckoning_rmse_law, Series};
     type Runs = Vec<(String, formats::recording::Recording)>;
     let Some(d) = dir() else { return };
     let params: serde_json::Value =
@@ -400,6 +400,22 @@ fn omni3_turn_law_holds_out_on_circles_and_squares_alike() {
         e.iter().sum::<f64>() / e.len() as f64
     };
     let none = TurnLaw::default();
+    // The board holding `calibrate --write-board-robot`'s geometry (the law's base) with
+    // factors of one and the law: calib-core's own odometry, as the firmware runs it.
+    let board = |c: &diagnose::calibrate::Calibration, runs: &[&(String, _)]| {
+        let k = c.turn_law.arc_rel;
+        let corr = calib_core::Corrections::omni([1.0; 3].into_iter().collect(), 1.0, k);
+        let e: Vec<f64> = runs
+            .iter()
+            .map(|(name, rec)| {
+                let s = Series::new(name, &nominal, rec).unwrap();
+                board_dead_reckoning_errors(&c.law_base_robot, &corr, &s)
+                    .unwrap()
+                    .0
+            })
+            .collect();
+        e.iter().sum::<f64>() / e.len() as f64
+    };
     for (session, sq) in &squares {
         let authors =
             proxy::authors_omni_robot(&params, "omni3-sousa", &nominal, session, "square").unwrap();
@@ -439,6 +455,14 @@ fn omni3_turn_law_holds_out_on_circles_and_squares_alike() {
                 rows[0].0 * 1e3, rows[0].1 * 1e3, rows[0].2 * 1e3,
                 rows[1].0 * 1e3, rows[1].1 * 1e3, rows[1].2 * 1e3
             );
+            let on_board = [board(&c, &test), board(&c, &other)];
+            println!(
+                "  the board with the board robot and the law: circles {:.1} mm, squares {:.1} mm",
+                on_board[0] * 1e3,
+                on_board[1] * 1e3
+            );
+            assert!((on_board[0] / rows[0].0 - 1.0).abs() < 0.05, "{on_board:?}");
+            assert!((on_board[1] / rows[1].0 - 1.0).abs() < 0.05, "{on_board:?}");
             assert!(
                 law.kept && (0.010..=0.025).contains(&k) && k >= 3.0 * s_k,
                 "{c}"

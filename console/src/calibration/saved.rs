@@ -71,7 +71,7 @@ impl SavedCalibration {
         };
         if kind != robot.kind.as_str() {
             bail!(
-                "{shown}: a calibration of a {kind} robot ('{}'); --robot '{}' is a {}: {flag} takes a calibration of the same kind of robot",
+                "{shown}: a calibration of a robot of kind {kind} ('{}'); --robot '{}' is of kind {}: {flag} takes a calibration of the same kind of robot",
                 json["robot"].as_str().unwrap_or("?"),
                 robot.name,
                 robot.kind.as_str()

@@ -118,6 +118,21 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         .with_context(|| format!("cannot write {}", p.display()))?;
         out.note(&format!("fitted robot: {}", p.display()));
     }
+    if let Some(p) = &a.write_board_robot {
+        formats::safe_write::write_file(
+            p,
+            cal.board_robot_toml().as_bytes(),
+            "robot description",
+            formats::robot_file::is_robot_file,
+        )
+        .with_context(|| format!("cannot write {}", p.display()))?;
+        out.note(&format!(
+            "board robot: {} (give it to the board with `wheelcal robot set {}` and `robot save`, then `{}` and `factors save`)",
+            p.display(),
+            p.display(),
+            cal.board_robot_factors()
+        ));
+    }
     if let Some(dir) = &a.report {
         write_report(&cal, &robot, recs, held.as_ref(), dir)
             .with_context(|| format!("cannot write the report into {}", dir.display()))?;
@@ -241,6 +256,7 @@ mod tests {
             recording: vec![rec.to_path_buf()],
             holdout: None,
             write_robot: None,
+            write_board_robot: None,
             report: None,
             no_cross_validation: true,
             marker_offset: false,

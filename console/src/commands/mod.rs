@@ -12,5 +12,6 @@ pub mod log;
 pub mod omni;
 pub mod procedure;
 pub mod program;
+pub mod robot;
 pub mod sim;
 pub mod umbmark;

@@ -590,6 +590,58 @@ impl Calibration {
             formats::robot_file::to_toml(&self.fitted_robot)
         )
     }
+
+    /// The geometry a board takes with the laws it applies ([`Calibration::law_base_robot`]:
+    /// a turn law's separation or wheel distance of a turn in place, a speed law's wheel
+    /// size at standstill; the robot file's geometry when the board applies no law, as on
+    /// a skid-steer robot), as TOML for `wheelcal robot set`.
+    pub fn board_robot_toml(&self) -> String {
+        format!(
+            "# {} with geometry fitted by wheelcal calibrate from {}, for a board that applies its laws\n{}",
+            self.robot,
+            self.recordings.join(", "),
+            formats::robot_file::to_toml(self.board_robot())
+        )
+    }
+
+    /// [`Calibration::board_robot_toml`]'s robot.
+    fn board_robot(&self) -> &Robot {
+        let laws = match &self.factors {
+            Factors::Diff { board, .. } => board.is_some(),
+            Factors::Wheels { l_arc, .. } => *l_arc != 0.0,
+        };
+        if laws {
+            &self.law_base_robot
+        } else {
+            &self.fitted_robot
+        }
+    }
+
+    /// The `factors set` line of a board holding [`Calibration::board_robot_toml`]'s
+    /// geometry: ones, and the laws the board applies.
+    pub fn board_robot_factors(&self) -> String {
+        match &self.factors {
+            Factors::Wheels { f_lat, l_arc, .. } => {
+                let ones = vec!["1"; f_lat.len()].join(",");
+                let law = if *l_arc != 0.0 {
+                    format!(" --l-arc {l_arc:.6}")
+                } else {
+                    String::new()
+                };
+                format!("factors set --f-lat {ones} --f-lon 1{law}")
+            }
+            Factors::Diff { board, .. } => {
+                let laws = board.map(|b| b.laws).unwrap_or_default();
+                BoardFactors {
+                    c_l: 1.0,
+                    c_r: 1.0,
+                    e_b: 1.0,
+                    laws,
+                }
+                .command()
+            }
+        }
+    }
 }
 
 fn mm(v: f64) -> String {
