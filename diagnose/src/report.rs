@@ -176,12 +176,7 @@ pub fn write_robot(robot: &Robot, report: &Report, out: &Path) -> std::io::Resul
         robot.name, report.verdict
     );
     text.push_str(&formats::robot_file::to_toml(&fitted));
-    formats::safe_write::write_file(
-        out,
-        text.as_bytes(),
-        "robot description",
-        formats::robot_file::is_robot_file,
-    )
+    formats::robot_file::write(out, &text)
 }
 
 fn fmt_param(v: f64, s: Option<f64>) -> String {

@@ -383,6 +383,13 @@ pub fn to_toml(robot: &Robot) -> String {
     s
 }
 
+/// Writes the robot description `text` (a robot file's TOML, comments allowed) to
+/// `path` under `safe_write`'s rule: never an input, and an existing file only when it
+/// is a robot description (or with `--force`).
+pub fn write(path: &Path, text: &str) -> std::io::Result<()> {
+    crate::safe_write::write_file(path, text.as_bytes(), "robot description", is_robot_file)
+}
+
 /// Accepts an existing robot description: what `safe_write` may replace with a fitted
 /// robot.
 pub fn is_robot_file(head: &[u8]) -> bool {

@@ -109,23 +109,13 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         cal.notes.insert(0, k.note);
     }
     if let Some(p) = &a.write_robot {
-        formats::safe_write::write_file(
-            p,
-            cal.robot_toml().as_bytes(),
-            "robot description",
-            formats::robot_file::is_robot_file,
-        )
-        .with_context(|| format!("cannot write {}", p.display()))?;
+        formats::robot_file::write(p, &cal.robot_toml())
+            .with_context(|| format!("cannot write {}", p.display()))?;
         out.note(&format!("fitted robot: {}", p.display()));
     }
     if let Some(p) = &a.write_board_robot {
-        formats::safe_write::write_file(
-            p,
-            cal.board_robot_toml().as_bytes(),
-            "robot description",
-            formats::robot_file::is_robot_file,
-        )
-        .with_context(|| format!("cannot write {}", p.display()))?;
+        formats::robot_file::write(p, &cal.board_robot_toml())
+            .with_context(|| format!("cannot write {}", p.display()))?;
         out.note(&format!(
             "board robot: {} (give it to the board with `wheelcal robot set {}` and `robot save`, then `{}` and `factors save`)",
             p.display(),

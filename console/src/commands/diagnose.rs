@@ -77,13 +77,8 @@ fn diagnose_many(a: &DiagnoseArgs, files: &[PathBuf], out: Output) -> Result<()>
         );
     }
     if let Some(p) = &a.write_robot {
-        formats::safe_write::write_file(
-            p,
-            rep.geometry.robot_toml().as_bytes(),
-            "robot description",
-            formats::robot_file::is_robot_file,
-        )
-        .with_context(|| format!("cannot write {}", p.display()))?;
+        formats::robot_file::write(p, &rep.geometry.robot_toml())
+            .with_context(|| format!("cannot write {}", p.display()))?;
         out.note(&format!("fitted robot: {}", p.display()));
     }
     out.emit(&rep, || rep.to_string())

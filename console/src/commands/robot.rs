@@ -13,13 +13,8 @@ pub fn run(cmd: RobotCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
         RobotCmd::Get { out: file } => {
             let robot = client.params()?.robot;
             if let Some(f) = &file {
-                formats::safe_write::write_file(
-                    f,
-                    formats::robot_file::to_toml(&robot).as_bytes(),
-                    "robot description",
-                    formats::robot_file::is_robot_file,
-                )
-                .with_context(|| format!("cannot write {}", f.display()))?;
+                formats::robot_file::write(f, &formats::robot_file::to_toml(&robot))
+                    .with_context(|| format!("cannot write {}", f.display()))?;
             }
             file.map(|f| format!("written to {}", f.display()))
         }
