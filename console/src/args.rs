@@ -837,6 +837,12 @@ pub struct EvaluateArgs {
     /// first, so it is the one judged; repeatable.
     #[arg(long, value_name = "CALIBRATION")]
     pub board: Vec<PathBuf>,
+    /// With `--board`: the robot geometry the board holds (`wheelcal robot set`, e.g.
+    /// `calibrate --write-board-robot`'s), so each calibration is judged as that board
+    /// applies it: this geometry with factors of one and the calibration's laws (the same
+    /// wheels as `--robot`, by name and order).
+    #[arg(long, value_name = "FILE.toml", requires = "board")]
+    pub board_robot: Option<PathBuf>,
     /// A robot file to compare it with: the nominal, an earlier calibration, another
     /// tool's parameters (the same wheels, by name and order); repeatable.
     #[arg(long, value_name = "ROBOT")]

@@ -240,6 +240,32 @@ impl SavedCalibration {
         Ok(Corrections::diff_drive(c_l, c_r, e_b, DiffLaws::default()))
     }
 
+    /// `evaluate --board --board-robot`: the board holding the robot geometry `geometry`
+    /// (the file `file`, given with `wheelcal robot set`) with factors of one and this
+    /// calibration's laws. Refused, naming the files, when the board would refuse them.
+    pub fn laws_candidate(&self, geometry: &Robot, file: &Path) -> Result<Candidate> {
+        let n = geometry.wheels.len();
+        let laws = match self.board_corrections()? {
+            c @ (Corrections::Omni { .. } | Corrections::OmniTurnLaw { .. }) => {
+                Corrections::omni(core::iter::repeat_n(1.0, n).collect(), 1.0, c.l_arc())
+            }
+            c => Corrections::diff_drive(1.0, 1.0, 1.0, c.laws()),
+        };
+        let board = Candidate::board(
+            format!(
+                "{} on the board holding {}",
+                self.file.display(),
+                file.display()
+            ),
+            geometry.clone(),
+            laws,
+        );
+        board
+            .check()
+            .map_err(|e| anyhow!("{e} (--board-robot {})", file.display()))?;
+        Ok(board)
+    }
+
     /// `evaluate --board`: the board holding its factors for `robot` (the file at
     /// `robot_path`), labelled with what no factor carries. Refused, naming the files:
     /// factors the board itself refuses for `robot`, and a `robot` that is the fitted

@@ -17,9 +17,26 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
     let robot = robot_file::load(&a.robot)?;
     // Every calibration and robot file is checked before any recording is read.
     let mut candidates = Vec::new();
+    let board_robot = match &a.board_robot {
+        Some(p) => {
+            let geometry = robot_file::load(p)?;
+            same_wheels(&robot, &geometry).map_err(|m| {
+                anyhow!(
+                    "{}: cannot be the board's robot for --robot {}: {m}",
+                    p.display(),
+                    a.robot.display()
+                )
+            })?;
+            Some((geometry, p))
+        }
+        None => None,
+    };
     for p in &a.board {
         let saved = SavedCalibration::read(p, &robot, "--board")?;
-        candidates.push(saved.board_candidate(&robot, &a.robot)?);
+        candidates.push(match &board_robot {
+            Some((geometry, file)) => saved.laws_candidate(geometry, file)?,
+            None => saved.board_candidate(&robot, &a.robot)?,
+        });
     }
     candidates.push(Candidate::file(
         a.robot.display().to_string(),
