@@ -218,8 +218,6 @@ pub enum RobotCmd {
     },
     /// Persist the board's parameters (its robot among them) in flash.
     Save,
-    /// Back to the firmware's default parameters (persist with `save`).
-    Reset,
 }
 
 /// Arguments of `wheelcal factors set`: only the factors given change, the others keep

@@ -430,11 +430,6 @@ impl<L: Read + Write> Client<L> {
         self.expect_ok(Request::SaveParams)
     }
 
-    /// Active parameters back to the firmware's defaults (save to make it last).
-    pub fn reset_params(&mut self) -> Result<(), ClientError> {
-        self.expect_ok(Request::ResetParams)
-    }
-
     /// Asks for the active parameters.
     pub fn params(&mut self) -> Result<Params, ClientError> {
         match self.request(&Request::GetParams)? {

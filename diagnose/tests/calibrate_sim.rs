@@ -1120,6 +1120,22 @@ fn turn_dependent_separation_is_found_and_not_invented() {
     );
     assert!((t[0].2 - c.turn_law.arc_rel).abs() < 1e-12);
     assert!(t[0].3 <= 0.95 * t[0].4, "{t:?}");
+    // What a board takes (`--write-board-robot`): the separation of a turn in place,
+    // narrower than the robot file's (at the recordings' mean turn), and factors of one
+    // with the law.
+    let text = c.board_robot_toml();
+    let board =
+        formats::robot_file::parse(text.split_once('\n').unwrap().1, Path::new("b.toml")).unwrap();
+    let l = |r: &Robot| r.wheels.iter().map(|w| w.l_m).collect::<Vec<_>>();
+    assert_eq!(l(&board), l(&c.law_base_robot));
+    assert!(l(&board)[0] < l(&c.fitted_robot)[0], "{board:?}");
+    assert_eq!(
+        c.board_robot_factors(),
+        format!(
+            "factors set --c-l 1.000000 --c-r 1.000000 --e-b 1.000000 --e-b-arc {:.6}",
+            c.turn_law.arc_rel
+        )
+    );
     assert!(t[..3].iter().all(|x| x.4 == t[0].4), "{t:?}");
     assert_eq!(t[3].4, t[0].3, "{t:?}");
     let c = calibrate(&nominal, &runs(0.0), None, &CalOptions::default()).unwrap();

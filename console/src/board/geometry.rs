@@ -1,4 +1,4 @@
-//! The robot geometry a board holds (`wheelcal robot get|set|save|reset`): the wheels'
+//! The robot geometry a board holds (`wheelcal robot get|set|save`): the wheels'
 //! radii, positions and angles its kinematics and odometry use. A calibration's full
 //! geometry (an omni robot's wheel distances, angles and centre, which no correction
 //! factor carries) reaches the board this way, from `calibrate --write-board-robot`.

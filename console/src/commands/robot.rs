@@ -1,4 +1,6 @@
-//! `wheelcal robot get|set|save|reset`: the robot geometry on the board.
+//! `wheelcal robot get|set|save`: the robot geometry on the board. There is no `reset`:
+//! the firmware's default parameters describe no particular robot, so a board reset to
+//! them would no longer match its own motors and encoders; `set` the robot file instead.
 
 use crate::args::RobotCmd;
 use crate::board::{self, RobotView};
@@ -30,13 +32,6 @@ pub fn run(cmd: RobotCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
         RobotCmd::Save => {
             client.save_params()?;
             Some("saved to flash".into())
-        }
-        RobotCmd::Reset => {
-            client.reset_params()?;
-            Some(
-                "back to the firmware's default parameters (not yet saved: `wheelcal robot save`)"
-                    .into(),
-            )
         }
     };
     let v = RobotView::from(&client.params()?.robot);
