@@ -274,7 +274,16 @@ fn scrubbed_board(robot: &calib_core::robot::Robot, scrub: f64, c: Corrections) 
         turn_scrub: scrub,
         ..SimConfig::default()
     };
-    let faults = sim::Faults::none(robot.wheel_count());
+    board_on(robot, sim::Faults::none(robot.wheel_count()), cfg, c)
+}
+
+/// A virtual board of `robot` on the simulator with `faults` and `cfg`, holding `c`.
+fn board_on(
+    robot: &calib_core::robot::Robot,
+    faults: sim::Faults,
+    cfg: SimConfig,
+    c: Corrections,
+) -> VirtualBoard {
     let sim = SimRobot::new(robot, faults, Surface::flat(), cfg).unwrap();
     let mut b = VirtualBoard::boot(robot, sim, board_flash(None).unwrap()).unwrap();
     request(&mut b, Request::SetCorrections(c));
@@ -610,8 +619,7 @@ fn scrubbed_run(program: ProgramSpec, seed: u64) -> formats::recording::Recordin
         seed,
         ..SimConfig::default()
     };
-    let sim = SimRobot::new(&robot, sim::Faults::none(2), Surface::flat(), cfg).unwrap();
-    let mut b = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
+    let mut b = board_on(&robot, sim::Faults::none(2), cfg, Corrections::None);
     request(
         &mut b,
         Request::RunProgram {
@@ -734,9 +742,7 @@ fn hand_measured(
         seed,
         ..SimConfig::default()
     };
-    let sim = SimRobot::new(&robot, f, Surface::flat(), cfg).unwrap();
-    let mut b = VirtualBoard::boot(&robot, sim, board_flash(None).unwrap()).unwrap();
-    request(&mut b, Request::SetCorrections(c));
+    let mut b = board_on(&robot, f, cfg, c);
     request(
         &mut b,
         Request::RunProgram {

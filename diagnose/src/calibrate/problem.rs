@@ -212,7 +212,7 @@ impl<'a> Problem<'a> {
         let kin = Kinematics::<f64>::new(&robot, &Corrections::None).ok()?;
         let stepper = Stepper::new(&robot, &kin, &law);
         let cols = sens::split_params(self.specs);
-        let sides = self.robot.kind == RobotKind::SkidSteer
+        let per_row = self.robot.kind == RobotKind::SkidSteer
             || self.known_law != TurnLaw::default()
             || self.specs.iter().any(|s| {
                 matches!(
@@ -226,7 +226,7 @@ impl<'a> Problem<'a> {
             geom,
             self.known_law,
             &cols.path,
-            sides,
+            per_row,
         )?;
         Some((stepper, slopes, cols))
     }

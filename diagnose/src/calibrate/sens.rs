@@ -63,16 +63,16 @@ pub(crate) struct SideSlope {
 const STEP: f64 = 1e-5;
 
 impl TwistSlopes {
-    /// The slopes of the parameters `path_params` (indices into `specs`) at `geom`, for a
-    /// robot stepped by its sides when `sides`. None when the geometry is singular
-    /// nearby.
+    /// The slopes of the parameters `path_params` (indices into `specs`) at `geom`; when
+    /// `per_row` (a law, or a skid-steer robot), stepped row by row: by its sides, or an
+    /// omni robot's twist with its turn law. None when the geometry is singular nearby.
     pub(crate) fn new(
         robot: &Robot,
         specs: &[ParamSpec],
         geom: &[f64],
         known_law: TurnLaw,
         path_params: &[usize],
-        sides: bool,
+        per_row: bool,
     ) -> Option<TwistSlopes> {
         let at = |j: usize, h: f64| -> Option<Stepper> {
             let mut q = geom.to_vec();
@@ -82,7 +82,7 @@ impl TwistSlopes {
             Some(Stepper::new(&r, &kin, &TurnLaw::of(specs, &q, known_law)))
         };
         let step = |j: usize| STEP * geom[j].abs().max(1e-2);
-        if sides && robot.kind == RobotKind::Omni {
+        if per_row && robot.kind == RobotKind::Omni {
             let mut v = Vec::new();
             for &j in path_params {
                 let h = step(j);
@@ -90,7 +90,7 @@ impl TwistSlopes {
             }
             return Some(TwistSlopes::Omni(v));
         }
-        if sides {
+        if per_row {
             let mut v = Vec::new();
             for &j in path_params {
                 let h = step(j);

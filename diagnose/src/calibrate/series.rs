@@ -488,7 +488,7 @@ impl Series {
         let Some(rho) = &self.rho else {
             return t;
         };
-        if self.motion.is_none() {
+        if robot.kind == RobotKind::Omni {
             let Ok(kin) = Kinematics::<f64>::new(robot, &Corrections::None) else {
                 return t;
             };
