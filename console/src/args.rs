@@ -43,6 +43,9 @@ pub enum Command {
     /// The robot geometry on the board (wheel radii, positions, angles).
     #[command(subcommand)]
     Robot(RobotCmd),
+    /// Put a calibration on the board in one step: its geometry (with --board-robot) and
+    /// its factors and laws, set together or not at all, then read back.
+    Apply(ApplyArgs),
     /// Drive at a body twist for a while, then stop.
     Drive(DriveArgs),
     /// Run a calibration test path (UMBmark square, omni straight path) on the board.
@@ -218,6 +221,24 @@ pub enum RobotCmd {
     },
     /// Persist the board's parameters (its robot among them) in flash.
     Save,
+}
+
+/// Arguments of `wheelcal apply`.
+#[derive(Debug, Args)]
+pub struct ApplyArgs {
+    /// The calibration: `calibrate --json`'s output (or a `--report` folder), or
+    /// `umbmark compute`'s `--json` result.
+    #[arg(value_name = "CALIBRATION.json")]
+    pub calibration: PathBuf,
+    /// The geometry the board is to hold with the calibration's laws (`calibrate
+    /// --write-board-robot`'s robot file); its factors are then ones and the laws.
+    /// Without it the board keeps its robot and gets the calibration's factors.
+    #[arg(long, value_name = "FILE.toml")]
+    pub board_robot: Option<PathBuf>,
+    /// Persist what was set in flash (the parameters, when a geometry was set, and the
+    /// factors).
+    #[arg(long)]
+    pub save: bool,
 }
 
 /// Arguments of `wheelcal factors set`: only the factors given change, the others keep

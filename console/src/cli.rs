@@ -37,7 +37,8 @@ pub fn main() -> ExitCode {
 /// [`crate::commands`].
 pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
     use crate::commands::{
-        board, calibrate, diagnose, evaluate, factors, log, omni, program, robot, sim, umbmark,
+        apply, board, calibrate, diagnose, evaluate, factors, log, omni, program, robot, sim,
+        umbmark,
     };
     let out = Output::from_flag(cli.json);
     formats::safe_write::set_force(cli.force);
@@ -45,6 +46,7 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Info => board::info(ctx, out),
         Command::Factors(cmd) => factors::run(cmd, ctx, out),
         Command::Robot(cmd) => robot::run(cmd, ctx, out),
+        Command::Apply(a) => apply::run(&a, ctx, out),
         Command::Drive(a) => board::drive(a, ctx, out),
         Command::Run(cmd) => program::run(cmd, ctx, out),
         Command::Status { follow, period_ms } => board::status(follow, period_ms, ctx, out),

@@ -198,31 +198,7 @@ fn other_wheels_and_unusable_recordings_are_refused_by_file() {
 /// separation is 4 % wider on arcs than in a turn in place (the simulator's `turn_scrub`).
 fn scrub_runs(dir: &Path) -> Vec<std::path::PathBuf> {
     let nominal = formats::robot_file::load(&common::robot("mobolab")).unwrap();
-    random_runs(dir, &nominal, 0.04, 60)
-}
-
-/// Four 40 s random runs of `truth` (seeds from `seed`) with the simulator's turn scrub
-/// `scrub`, each a run folder in `dir`.
-fn random_runs(dir: &Path, truth: &Robot, scrub: f64, seed: u64) -> Vec<std::path::PathBuf> {
-    (0..4)
-        .map(|i| {
-            let mut cfg = sim::RecordConfig {
-                row_rate_hz: 50.0,
-                ..sim::RecordConfig::default()
-            };
-            cfg.sim.seed = seed + i;
-            cfg.sim.turn_scrub = scrub;
-            let motion = sim::Motion::Random(sim::RandomMotion {
-                duration_s: 40.0,
-                ..sim::RandomMotion::default()
-            });
-            let r = sim::record(truth, &[], sim::Surface::flat(), &motion, &cfg).unwrap();
-            let run = dir.join(format!("run{i}"));
-            std::fs::create_dir_all(&run).unwrap();
-            r.recording.save(&run.join("recording.csv")).unwrap();
-            run
-        })
-        .collect()
+    common::random_runs(dir, &nominal, 0.04, 60)
 }
 
 /// `calibrate` keeps the turn law on three runs of a robot whose separation widens on
@@ -482,7 +458,7 @@ fn an_omni_boards_whole_geometry_is_judged_with_board_robot() {
     let mut truth = nominal.clone();
     truth.wheels.iter_mut().for_each(|w| w.l_m *= 1.03);
     truth.wheels[1].alpha_rad += 1f64.to_radians();
-    let runs = random_runs(&dir, &truth, 0.02, 70);
+    let runs = common::random_runs(&dir, &truth, 0.02, 70);
     let (cal_json, board_file) = (dir.join("cal.json"), dir.join("board.toml"));
     let mut cal = common::wheelcal();
     cal.args(["--json", "calibrate", "--robot"])

@@ -3,12 +3,14 @@
 //! an in-memory link. One file per concern; everything is re-exported here, so callers
 //! write `board::pull_trial` whichever file holds it.
 
+pub mod apply;
 pub mod factors;
 pub mod geometry;
 pub mod info;
 pub mod programs;
 pub mod trial_log;
 
+pub use apply::{apply_settings, Settings, Target};
 pub use factors::{factors_text, merge_corrections, FactorsView, GivenFactors};
 pub use geometry::{with_robot, RobotView};
 pub use info::{info, status_line, stored_word, InfoReport};

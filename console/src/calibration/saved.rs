@@ -183,7 +183,7 @@ impl SavedCalibration {
     /// wheels' sizes, f_lat and f_lon, and its turn law, l_arc; wheel distances, angles,
     /// the centre and the roller angle need the robot file). None on a differential drive, whose every parameter
     /// has a factor or a law.
-    fn without_factor(&self) -> Vec<String> {
+    pub fn without_factor(&self) -> Vec<String> {
         if self.json["factors"].get("f_lat").is_none() {
             return Vec::new();
         }
@@ -240,17 +240,37 @@ impl SavedCalibration {
         Ok(Corrections::diff_drive(c_l, c_r, e_b, DiffLaws::default()))
     }
 
-    /// `evaluate --board --board-robot`: the board holding the robot geometry `geometry`
-    /// (the file `file`, given with `wheelcal robot set`) with factors of one and this
-    /// calibration's laws. Refused, naming the files, when the board would refuse them.
-    pub fn laws_candidate(&self, geometry: &Robot, file: &Path) -> Result<Candidate> {
-        let n = geometry.wheels.len();
-        let laws = match self.board_corrections()? {
+    /// The factors of a board holding this calibration's board robot
+    /// (`calibrate --write-board-robot`, with `n` wheels): ones, and the laws it kept.
+    pub fn law_corrections(&self, n: usize) -> Result<Corrections> {
+        Ok(match self.board_corrections()? {
             c @ (Corrections::Omni { .. } | Corrections::OmniTurnLaw { .. }) => {
                 Corrections::omni(core::iter::repeat_n(1.0, n).collect(), 1.0, c.l_arc())
             }
             c => Corrections::diff_drive(1.0, 1.0, 1.0, c.laws()),
-        };
+        })
+    }
+
+    /// The factors a board holding `robot` gets ([`SavedCalibration::board_corrections`]);
+    /// refused when `robot` is this calibration's fitted geometry (the robot file it
+    /// wrote) and the factors change the geometry: they correct the robot they were
+    /// fitted from, so they would count twice.
+    pub fn factors_for(&self, robot: &Robot) -> Result<Corrections> {
+        let factors = self.board_corrections()?;
+        if self.is_fitted_robot(robot) && !self.is_fitted_robot(&factors.apply_to(robot)) {
+            bail!(
+                "{}: the robot has this calibration's fitted geometry (the robot file it wrote), and its factors would count twice",
+                self.file.display()
+            );
+        }
+        Ok(factors)
+    }
+
+    /// `evaluate --board --board-robot`: the board holding the robot geometry `geometry`
+    /// (the file `file`, given with `wheelcal robot set`) with factors of one and this
+    /// calibration's laws. Refused, naming the files, when the board would refuse them.
+    pub fn laws_candidate(&self, geometry: &Robot, file: &Path) -> Result<Candidate> {
+        let laws = self.law_corrections(geometry.wheels.len())?;
         let board = Candidate::board(
             format!(
                 "{} on the board holding {}",
@@ -272,14 +292,12 @@ impl SavedCalibration {
     /// robot file this calibration wrote when the factors change the geometry (they
     /// correct the robot they were fitted from, so they would count twice).
     pub fn board_candidate(&self, robot: &Robot, robot_path: &Path) -> Result<Candidate> {
-        let factors = self.board_corrections()?;
-        if self.is_fitted_robot(robot) && !self.is_fitted_robot(&factors.apply_to(robot)) {
-            bail!(
-                "{}: --robot {} has this calibration's fitted geometry (the robot file it wrote): --board applies the calibration's factors to the robot it was fitted from, so they would count twice; give that robot (the nominal) as --robot, and the fitted file as --against",
-                self.file.display(),
+        let factors = self.factors_for(robot).map_err(|e| {
+            anyhow!(
+                "{e}: --board applies the calibration's factors to the robot it was fitted from; give that robot (the nominal) as --robot {}, and the fitted file as --against",
                 robot_path.display()
-            );
-        }
+            )
+        })?;
         let lost = self.without_factor();
         let lost = if lost.is_empty() {
             String::new()

@@ -117,7 +117,8 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         formats::robot_file::write(p, &cal.board_robot_toml())
             .with_context(|| format!("cannot write {}", p.display()))?;
         out.note(&format!(
-            "board robot: {} (give it to the board with `wheelcal robot set {}` and `robot save`, then `{}` and `factors save`)",
+            "board robot: {} (put it on the board with this calibration's JSON (--json, or a --report folder): `wheelcal apply CALIBRATION.json --board-robot {} --save` sets the geometry and the factors together or not at all; step by step: `wheelcal robot set {}`, `robot save`, `{}`, `factors save`)",
+            p.display(),
             p.display(),
             p.display(),
             cal.board_robot_factors()

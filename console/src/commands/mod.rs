@@ -2,6 +2,7 @@
 //! module and one match arm. The modules take their arguments from [`crate::args`] and
 //! the connection from [`crate::session`], never from the dispatcher.
 
+pub mod apply;
 pub mod board;
 pub mod calibrate;
 pub mod diagnose;

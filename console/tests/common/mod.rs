@@ -59,10 +59,16 @@ impl Board {
 
     /// [`Board::start_at`] with more `sim-board` options (hidden effects, roughness).
     pub fn start_with(robot_name: &str, dir: &Path, speed: &str, extra: &[&str]) -> Board {
+        Board::start_file(&robot(robot_name), dir, speed, extra)
+    }
+
+    /// [`Board::start_with`] of the robot file `robot_file`: the simulated robot is that
+    /// file's, and so is the board's robot until `robot set` gives it another.
+    pub fn start_file(robot_file: &Path, dir: &Path, speed: &str, extra: &[&str]) -> Board {
         let link = dir.join("board");
         let child = wheelcal()
             .args(["sim-board", "--speed", speed, "--robot"])
-            .arg(robot(robot_name))
+            .arg(robot_file)
             .args(extra)
             .arg("--link")
             .arg(&link)
@@ -177,4 +183,33 @@ pub fn calibrate_mobolab(
         .arg(out)
         .output()
         .unwrap()
+}
+
+/// Four 40 s random drives of `truth` (tyres scrubbing `scrub` on arcs), 50 rows a
+/// second, seeds `seed`.., saved as `DIR/runN/recording.csv`; their folders.
+pub fn random_runs(
+    dir: &Path,
+    truth: &calib_core::robot::Robot,
+    scrub: f64,
+    seed: u64,
+) -> Vec<PathBuf> {
+    (0..4)
+        .map(|i| {
+            let mut cfg = sim::RecordConfig {
+                row_rate_hz: 50.0,
+                ..sim::RecordConfig::default()
+            };
+            cfg.sim.seed = seed + i;
+            cfg.sim.turn_scrub = scrub;
+            let motion = sim::Motion::Random(sim::RandomMotion {
+                duration_s: 40.0,
+                ..sim::RandomMotion::default()
+            });
+            let r = sim::record(truth, &[], sim::Surface::flat(), &motion, &cfg).unwrap();
+            let run = dir.join(format!("run{i}"));
+            std::fs::create_dir_all(&run).unwrap();
+            r.recording.save(&run.join("recording.csv")).unwrap();
+            run
+        })
+        .collect()
 }
