@@ -96,11 +96,6 @@ fn a_calibration_reaches_the_board_whole_and_its_odometry_follows_the_robot() {
     let l_arc = c["factors"]["l_arc"].as_f64().unwrap_or(0.0);
     assert!((l_arc - 0.02).abs() < 0.004, "{}", c["notes"]);
     let board = nominal_board(&dir, &nominal_file, &truth, 0.02);
-    let ok = |args: &[&str]| {
-        let (o, out, err) = board.run_text(args);
-        assert!(o.status.success(), "{args:?}: {err}");
-        out
-    };
     let circle = || circle(&board);
     let (heading_before, pos_before) = circle();
 
