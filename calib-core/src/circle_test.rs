@@ -330,21 +330,7 @@ pub fn turn_law(
     if !(e_b_sigma.is_finite() && e_b_sigma >= 0.0) {
         return Err(CircleError::BadInput("E_b's uncertainty must be finite"));
     }
-    let mut radii: Vec<f64, MAX_RADII> = Vec::new();
-    for r in runs {
-        heading_gain(r)?;
-        if !radii
-            .iter()
-            .any(|&q| libm::fabs(q - r.radius_m) <= 1e-9 * q)
-        {
-            radii
-                .push(r.radius_m)
-                .map_err(|_| CircleError::TooManyRadii)?;
-        }
-    }
-    if radii.is_empty() {
-        return Err(CircleError::BadInput("no circle runs"));
-    }
+    let radii = radii_of(runs)?;
     let mut out: Vec<RadiusLaw, MAX_RADII> = Vec::new();
     // Weighted sums for the combined law and its slope in E_b.
     let (mut sw, mut swk, mut swd) = (0.0, 0.0, 0.0);
@@ -356,32 +342,9 @@ pub fn turn_law(
                 half_track_m,
             });
         }
-        // Per direction (cw, ccw): runs, mean gain and sum of squared deviations
-        // (Welford's running form: no cap on the runs, no storage).
-        let mut acc = [(0usize, 0.0f64, 0.0f64); 2];
-        for r in runs
-            .iter()
-            .filter(|r| libm::fabs(r.radius_m - radius_m) <= 1e-9 * radius_m)
-        {
-            let (n, mean, m2) = &mut acc[usize::from(r.dir == Direction::Ccw)];
-            let g = heading_gain(r)?;
-            *n += 1;
-            let d = g - *mean;
-            *mean += d / *n as f64;
-            *m2 += d * (g - *mean);
-        }
-        let mut stat = [(0.0, 0.0); 2];
-        for (k, dir) in [Direction::Cw, Direction::Ccw].into_iter().enumerate() {
-            let (got, mean, m2) = acc[k];
-            if got < 2 {
-                return Err(CircleError::TooFewRuns { radius_m, dir, got });
-            }
-            let sd = libm::sqrt(m2 / (got - 1) as f64);
-            stat[k] = (mean, sd / libm::sqrt(got as f64));
-        }
-        let [(g_cw, se_cw), (g_ccw, se_ccw)] = stat;
-        let g = 0.5 * (g_cw + g_ccw);
-        let sigma_g = 0.5 * libm::sqrt(se_cw * se_cw + se_ccw * se_ccw);
+        let each = gains_each_way(runs, radius_m)?;
+        let [(_, g_cw, _), (_, g_ccw, _)] = each.0;
+        let (g, sigma_g) = each.mean();
         let rho = half_track_m / radius_m;
         let share = crate::kinematics::turn_law_share(rho);
         let e_b_arc = (1.0 / (g * e_b) - 1.0) / share;
@@ -394,8 +357,8 @@ pub fn turn_law(
         swd += w * (-1.0 / (g * e_b * e_b * share));
         let _ = out.push(RadiusLaw {
             radius_m,
-            runs_cw: acc[0].0,
-            runs_ccw: acc[1].0,
+            runs_cw: each.0[0].0,
+            runs_ccw: each.0[1].0,
             gain_cw: g_cw,
             gain_ccw: g_ccw,
             share,
@@ -422,6 +385,69 @@ pub fn turn_law(
         sigma,
         radii: out,
     })
+}
+
+/// The radii of `runs`, in the order first given, each run's heading gain checked.
+pub(crate) fn radii_of(runs: &[CircleRun]) -> Result<Vec<f64, MAX_RADII>, CircleError> {
+    let mut radii: Vec<f64, MAX_RADII> = Vec::new();
+    for r in runs {
+        heading_gain(r)?;
+        if !radii
+            .iter()
+            .any(|&q| libm::fabs(q - r.radius_m) <= 1e-9 * q)
+        {
+            radii
+                .push(r.radius_m)
+                .map_err(|_| CircleError::TooManyRadii)?;
+        }
+    }
+    if radii.is_empty() {
+        return Err(CircleError::BadInput("no circle runs"));
+    }
+    Ok(radii)
+}
+
+/// The heading gains of one radius's runs, clockwise and counter-clockwise: (runs, mean,
+/// standard error of the mean) each.
+pub(crate) struct EachWay(pub [(usize, f64, f64); 2]);
+
+impl EachWay {
+    /// The mean of the two directions' gains and its standard error.
+    pub(crate) fn mean(&self) -> (f64, f64) {
+        let [(_, g_cw, se_cw), (_, g_ccw, se_ccw)] = self.0;
+        (
+            0.5 * (g_cw + g_ccw),
+            0.5 * libm::sqrt(se_cw * se_cw + se_ccw * se_ccw),
+        )
+    }
+}
+
+/// [`EachWay`] of the runs of `radius_m`; two runs or more each way.
+pub(crate) fn gains_each_way(runs: &[CircleRun], radius_m: f64) -> Result<EachWay, CircleError> {
+    // Per direction (cw, ccw): runs, mean gain and sum of squared deviations (Welford's
+    // running form: no cap on the runs, no storage).
+    let mut acc = [(0usize, 0.0f64, 0.0f64); 2];
+    for r in runs
+        .iter()
+        .filter(|r| libm::fabs(r.radius_m - radius_m) <= 1e-9 * radius_m)
+    {
+        let (n, mean, m2) = &mut acc[usize::from(r.dir == Direction::Ccw)];
+        let g = heading_gain(r)?;
+        *n += 1;
+        let d = g - *mean;
+        *mean += d / *n as f64;
+        *m2 += d * (g - *mean);
+    }
+    let mut stat = [(0, 0.0, 0.0); 2];
+    for (k, dir) in [Direction::Cw, Direction::Ccw].into_iter().enumerate() {
+        let (got, mean, m2) = acc[k];
+        if got < 2 {
+            return Err(CircleError::TooFewRuns { radius_m, dir, got });
+        }
+        let sd = libm::sqrt(m2 / (got - 1) as f64);
+        stat[k] = (got, mean, sd / libm::sqrt(got as f64));
+    }
+    Ok(EachWay(stat))
 }
 
 /// E_b's standard error from UMBmark's squares: the two directions' x centroids give

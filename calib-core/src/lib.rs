@@ -14,6 +14,7 @@ pub mod kinematics;
 pub mod linalg;
 pub mod num;
 pub mod omni_cal;
+pub mod omni_circle_test;
 pub mod protocol;
 pub mod robot;
 pub mod stats;

@@ -536,6 +536,11 @@ pub struct OmniComputeArgs {
     /// Idle-wheel mode.
     #[command(flatten)]
     pub idle: IdleArgs,
+    /// With circle rows (the omni circle test): write the geometry a board takes with
+    /// factors of one and the turn law (the factors' wheel sizes, the circles' wheel
+    /// distances), for `wheelcal apply RESULT.json --board-robot FILE`.
+    #[arg(long, value_name = "FILE.toml")]
+    pub write_board_robot: Option<PathBuf>,
 }
 
 /// How the wheels an omni path does not drive behaved while the runs were measured.

@@ -3,6 +3,7 @@
 
 pub mod circles;
 pub mod omni;
+pub mod omni_circles;
 pub mod plausible;
 pub mod procedure;
 pub mod saved;

@@ -8,6 +8,7 @@ use calib_core::robot::{Robot, RobotKind};
 use calib_core::stats;
 use calib_core::Corrections;
 use formats::runs_file::{OmniPathRuns, Phase, RunsFile};
+use super::omni_circles::OmniCircleReport;
 use serde::Serialize;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};
@@ -66,6 +67,18 @@ pub struct OmniReport {
     pub previous: Option<OmniFactors>,
     /// The secondary factors computed from these runs alone, on a second pass.
     pub secondary: Option<OmniFactors>,
+    /// The omni circle test, when the runs file has circle rows: the turn in place (the
+    /// wheels' distance from the centre) and the turn law.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub circles: Option<OmniCircleReport>,
+    /// The turn law the board applies (`factors set --l-arc`): the circles' when kept,
+    /// added to a previous pass's; absent when there is none.
+    #[serde(skip_serializing_if = "is_zero")]
+    pub l_arc: f64,
+}
+
+fn is_zero(v: &f64) -> bool {
+    *v == 0.0
 }
 
 /// A pair of omni factors.
@@ -119,6 +132,23 @@ pub fn compose_with(mut rep: OmniReport, previous: &Corrections) -> Result<OmniR
         .map_err(|e| anyhow::anyhow!("composed with the previous pass, {e}: not recommended"))?;
     rep.f_lat = f_lat.to_vec();
     rep.f_lon = f_lon;
+    Ok(rep)
+}
+
+/// The omni circle test of `runs`' circle rows ([`super::omni_circles`]), measured with
+/// `previous` in force (a first pass's factors and law; none on a first pass), added to
+/// `rep` (whose factors are then the board's): the wheels' distance for the board robot
+/// and the law, a previous pass's law added to the circles' (laws compose by adding).
+pub fn with_circles(
+    mut rep: OmniReport,
+    robot: &Robot,
+    runs: &RunsFile,
+    previous: Option<&Corrections>,
+) -> Result<OmniReport> {
+    let measured_with = previous.cloned().unwrap_or(Corrections::None);
+    let new = rep.corrections()?;
+    rep.circles = super::omni_circles::compute(robot, runs, &measured_with, &new)?;
+    rep.l_arc = measured_with.l_arc() + rep.circles.as_ref().map_or(0.0, |c| c.l_arc_kept());
     Ok(rep)
 }
 
@@ -378,10 +408,36 @@ fn compute_unchecked(robot: &Robot, runs: &RunsFile, idle: IdleWheels) -> Result
             .and_then(|a| stats::improvement_index_percent(before_mean, a).ok()),
         previous: None,
         secondary: None,
+        circles: None,
+        l_arc: 0.0,
     })
 }
 
 impl OmniReport {
+    /// The factors (and law) the board takes.
+    pub fn corrections(&self) -> Result<Corrections> {
+        let f_lat = heapless::Vec::from_slice(&self.f_lat)
+            .map_err(|_| anyhow!("{} wheels: a board holds at most 8", self.f_lat.len()))?;
+        Ok(Corrections::omni(f_lat, self.f_lon, self.l_arc))
+    }
+
+    /// The geometry a board takes with the circles (`omni compute --write-board-robot`):
+    /// `robot` with the factors' wheel sizes and the circles' wheel distances, to go with
+    /// factors of one and the law (`wheelcal apply --board-robot`). None without circles.
+    pub fn board_robot(&self, robot: &Robot) -> Result<Option<Robot>> {
+        let Some(c) = &self.circles else {
+            return Ok(None);
+        };
+        let sized = Corrections::omni(
+            heapless::Vec::from_slice(&self.f_lat)
+                .map_err(|_| anyhow!("{} wheels: a board holds at most 8", self.f_lat.len()))?,
+            self.f_lon,
+            0.0,
+        )
+        .apply_to(robot);
+        Ok(Some(c.board_robot(&sized)))
+    }
+
     /// The human-readable summary printed without `--json`.
     pub fn human(&self) -> String {
         let mut s = String::new();
@@ -440,6 +496,9 @@ impl OmniReport {
                 a * 1e3,
                 i
             );
+        }
+        if let Some(c) = &self.circles {
+            s.push_str(&c.human());
         }
         s
     }

@@ -67,6 +67,7 @@ impl SavedCalibration {
         // circle test's law.
         let kind = match json["kind"].as_str() {
             None if is_umbmark(&json) => "diff_drive",
+            None if is_omni_compute(&json) => "omni",
             k => k.unwrap_or("unknown"),
         };
         if kind != robot.kind.as_str() {
@@ -89,6 +90,23 @@ impl SavedCalibration {
     pub fn laws(&self) -> Result<KnownLaws> {
         if is_umbmark(&self.json) {
             return self.circle_test_law();
+        }
+        if is_omni_compute(&self.json) {
+            let l_arc = self.json["l_arc"].as_f64().unwrap_or(0.0);
+            return Ok(KnownLaws {
+                turn: (l_arc != 0.0).then_some(l_arc),
+                speed: None,
+                note: format!(
+                    "turn law from the omni circle test of {} (omni compute, robot '{}'): {}",
+                    self.file.display(),
+                    self.robot_name(),
+                    if l_arc == 0.0 {
+                        "none kept there, tested here".to_string()
+                    } else {
+                        format!("l_arc {l_arc:+.5}, held")
+                    }
+                ),
+            });
         }
         let law = |k: &str| self.json["turn_law"][k].as_f64();
         let (Some(arc), Some(speed)) = (law("arc_rel"), law("speed_rel")) else {
@@ -184,6 +202,13 @@ impl SavedCalibration {
     /// the centre and the roller angle need the robot file). None on a differential drive, whose every parameter
     /// has a factor or a law.
     pub fn without_factor(&self) -> Vec<String> {
+        if is_omni_compute(&self.json) {
+            // The circle test's wheel distance goes in the board robot only.
+            return match self.json["circles"]["wheel_distance_scale"].as_f64() {
+                Some(_) => vec!["wheel_distance_scale".into()],
+                None => Vec::new(),
+            };
+        }
         if self.json["factors"].get("f_lat").is_none() {
             return Vec::new();
         }
@@ -201,7 +226,12 @@ impl SavedCalibration {
     /// with every law kept (the board's E_b is that of a turn in place, its c_L and c_R
     /// at standstill), an omni robot's f_lat and f_lon (and its turn law l_arc).
     pub fn board_corrections(&self) -> Result<Corrections> {
-        let f = &self.json["factors"];
+        // `omni compute` gives its factors (and a circle test's law) at the top.
+        let f = if is_omni_compute(&self.json) {
+            &self.json
+        } else {
+            &self.json["factors"]
+        };
         let shown = self.file.display();
         let missing =
             |what: &str| anyhow!("{shown}: no factors.{what} numbers: {} {TAKES}", self.flag);
@@ -320,6 +350,11 @@ impl SavedCalibration {
 }
 
 /// Whether `json` is `umbmark compute`'s result.
+/// `omni compute`'s result: its factors at the top, beside the idle-wheel mode.
+fn is_omni_compute(json: &Value) -> bool {
+    json["kind"].is_null() && json["f_lat"].is_array() && json["idle_wheels"].is_string()
+}
+
 fn is_umbmark(json: &Value) -> bool {
     json["recommended"].as_str() == Some("exact") && json["exact"].is_object()
 }

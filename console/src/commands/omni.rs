@@ -5,7 +5,7 @@ use crate::calibration::{omni, procedure};
 use crate::output::Output;
 use crate::report;
 use crate::session::Ctx;
-use anyhow::Result;
+use anyhow::{bail, Context, Result};
 use formats::robot_file;
 use formats::runs_file::RunsFile;
 
@@ -27,8 +27,31 @@ fn compute(a: OmniComputeArgs, out: Output) -> Result<()> {
         &a.common.robot,
     )?;
     let mut rep = omni::compute_limited(&robot, &runs, idle, a.common.max_length)?;
-    if let Some(p) = &a.previous {
-        rep = omni::compose_with(rep, &omni::factors_from_json(p)?)?;
+    let previous = a.previous.as_deref().map(omni::factors_from_json).transpose()?;
+    if let Some(p) = &previous {
+        rep = omni::compose_with(rep, p)?;
+    }
+    rep = omni::with_circles(rep, &robot, &runs, previous.as_ref())?;
+    if let Some(file) = &a.write_board_robot {
+        let Some(board) = rep.board_robot(&robot)? else {
+            bail!(
+                "--write-board-robot {}: {} has no circle rows: the board robot carries the wheels' distance the circles show (drive a turn in place and circles: `omni run --circle-radius R`)",
+                file.display(),
+                a.common.runs.display()
+            );
+        };
+        let text = format!(
+            "# {} with the wheel sizes of omni compute's factors and the wheel distance of its circle test ({}), for a board holding factors of one and the turn law\n{}",
+            robot.name,
+            a.common.runs.display(),
+            robot_file::to_toml(&board)
+        );
+        robot_file::write(file, &text).with_context(|| format!("cannot write {}", file.display()))?;
+        out.note(&format!(
+            "board robot: {} (put it on the board with this result's JSON: `wheelcal apply RESULT.json --board-robot {} --save`)",
+            file.display(),
+            file.display()
+        ));
     }
     if let Some(dir) = &a.common.report {
         let index = report::omni::write(&rep, dir)?;
