@@ -615,7 +615,11 @@ pub struct ProcedureArgs {
     pub idle: IdleArgs,
     /// UMBmark: also drive circles of this radius (metres) each way, --runs times, and
     /// compute the turn law from their ends (the circle test): what squares, which turn
-    /// only in place, cannot show. At least twice half the wheelbase.
+    /// only in place, cannot show. At least twice half the wheelbase. Omni: also turn in
+    /// place (1 cm circles, their heading measured) and drive circles of this radius, at
+    /// least twice the wheels' distance from the centre, each way, --runs times (the omni
+    /// circle test): the wheels' distance and the turn law, which straight paths cannot
+    /// show, go on the board as its robot with factors of one and the law.
     #[arg(long)]
     pub circle_radius: Option<f64>,
     /// Laps of each circle (1 to 10): more laps, a larger end error to measure.

@@ -197,12 +197,14 @@ impl wheelcal::calibration::procedure::Measure for Person<'_, '_> {
         odo: calib_core::odometry::Pose<f32>,
         direction_rad: f64,
         what: &str,
+        heading: bool,
     ) -> anyhow::Result<(f64, f64, Option<f64>)> {
         if self.left == 0 {
             anyhow::bail!("no more input");
         }
         self.left -= 1;
-        self.truth.end_error(trial, odo, direction_rad, what)
+        self.truth
+            .end_error(trial, odo, direction_rad, what, heading)
     }
 }
 

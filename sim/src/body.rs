@@ -18,8 +18,14 @@ use crate::SimError;
 use calib_core::kinematics::Twist;
 use calib_core::robot::{Robot, RobotKind, Wheel, SLIDING_WEIGHT};
 
-/// Squared weight of the pull towards the previous twist (inertia in free directions).
-const INERTIA_WEIGHT2: f64 = 1e-14;
+/// Squared weights of the pull towards the previous twist (inertia in free directions),
+/// the first that leaves the normal equations invertible. The first suits a free
+/// direction along an axis ([Redundant omni]'s 4W-1: the sideways velocity); a free
+/// direction that mixes two ([Redundant omni]'s paths on a three-wheel omni robot: with
+/// one wheel off, a sideways drift and a turn together) needs a heavier pull to stay
+/// clear of [`calib_core::linalg::SINGULAR_RATIO`], still 1e-8 relative or less on the
+/// constrained directions.
+const INERTIA_WEIGHTS2: [f64; 4] = [1e-14, 1e-11, 1e-9, 1e-7];
 
 /// One wheel's actual geometry.
 #[derive(Debug, Clone, Copy, PartialEq)]
@@ -71,10 +77,19 @@ impl Geometry {
 
     /// Geometry with the wheels in `off_mask` (bit i = wheel i) rolling freely.
     pub fn with_motors_off(robot: &Robot, off_mask: u32) -> Result<Self, SimError> {
+        INERTIA_WEIGHTS2
+            .iter()
+            .find_map(|&w| Self::with_inertia(robot, off_mask, w).transpose())
+            .unwrap_or(Err(SimError::SingularGeometry))
+    }
+
+    /// [`Geometry::with_motors_off`] with the inertia's squared weight `inertia2`; `None`
+    /// when the normal equations are singular at that weight.
+    fn with_inertia(robot: &Robot, off_mask: u32, inertia2: f64) -> Result<Option<Self>, SimError> {
         let mut wheels = Vec::with_capacity(robot.wheels.len());
         let mut m = [[0.0; 3]; 3];
         for (a, row) in m.iter_mut().enumerate() {
-            row[a] = INERTIA_WEIGHT2;
+            row[a] = inertia2;
         }
         let sliding = robot.kind.wheels_have_sliding_constraint();
         for (i, w) in robot.wheels.iter().enumerate() {
@@ -99,7 +114,9 @@ impl Geometry {
             }
             wheels.push(g);
         }
-        let inv = calib_core::linalg::inverse3(&m).ok_or(SimError::SingularGeometry)?;
+        let Some(inv) = calib_core::linalg::inverse3(&m) else {
+            return Ok(None);
+        };
         let gain = wheels
             .iter()
             .map(|g| {
@@ -117,17 +134,17 @@ impl Geometry {
         let mut hold = inv;
         for row in hold.iter_mut() {
             for v in row.iter_mut() {
-                *v *= INERTIA_WEIGHT2;
+                *v *= inertia2;
             }
         }
-        Ok(Geometry {
+        Ok(Some(Geometry {
             wheels,
             gain,
             hold,
             off_mask,
             skid_steer: robot.kind == RobotKind::SkidSteer,
             turn_lever: (robot.kind == RobotKind::Omni).then(|| robot.mean_wheel_distance_m()),
-        })
+        }))
     }
 
     /// Least-squares body twist from the driven wheels' contact speeds (free wheels'

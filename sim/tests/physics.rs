@@ -381,6 +381,33 @@ fn motors_off_roll_with_the_ground() {
     );
 }
 
+/// A three-wheel omni robot on [Redundant omni]'s 4W-1 path: wheel 2 (alpha 180 deg, it
+/// rolls sideways) off, wheels 1 and 3 driven to move the body along x. With wheel 2 free
+/// the sideways drift and the turn are free together (the driven rows leave free the
+/// direction vy = -0.3 omega on the 0.15 m omni3), not along an axis; the body still
+/// moves at exactly the speed the two wheels set, sqrt(3) / 2 of its rim speed each way,
+/// with no drift and no turn, and wheel 2 does not turn. (Its normal equations were once
+/// refused as singular, which left the robot standing and the board reporting a stall.)
+#[test]
+fn a_three_wheel_omni_robot_drives_straight_with_one_wheel_off() {
+    let r = robot("omni3");
+    let mut sim = SimRobot::new(&r, Faults::none(3), Surface::flat(), quiet()).unwrap();
+    let rim = 0.1;
+    let w = rim / 0.04;
+    for _ in 0..1000 {
+        sim.step(
+            1e-3,
+            &[WheelInput::Rate(w), WheelInput::Free, WheelInput::Rate(-w)],
+        )
+        .unwrap();
+    }
+    let t = sim.true_twist();
+    let vx = rim / (3f64.sqrt() / 2.0);
+    assert!((t.vx - vx).abs() < 1e-9 * vx, "{t:?}");
+    assert!(t.vy.abs() < 1e-9 && t.omega.abs() < 1e-9, "{t:?}");
+    assert!(sim.wheel_angle(1).abs() < 1e-9, "{}", sim.wheel_angle(1));
+}
+
 #[test]
 fn all_motors_off_coasts_to_a_stop() {
     // E-stop at 0.2 m/s: every wheel free, the body rolls out at 1 m/s^2 (rolling

@@ -1,6 +1,7 @@
 //! `wheelcal omni compute`: [Redundant omni]'s lateral (F_lat) and longitudinal (F_lon) factors from
 //! straight-path runs, with the radial error statistics of [Redundant omni]'s Table II.
 
+use super::omni_circles::OmniCircleReport;
 use anyhow::{anyhow, bail, Result};
 use calib_core::motion::OmniPath;
 use calib_core::omni_cal::{self, DrivenWheel, IdleWheels, OmniRun, PathRuns};
@@ -8,7 +9,6 @@ use calib_core::robot::{Robot, RobotKind};
 use calib_core::stats;
 use calib_core::Corrections;
 use formats::runs_file::{OmniPathRuns, Phase, RunsFile};
-use super::omni_circles::OmniCircleReport;
 use serde::Serialize;
 use std::fmt::Write;
 use std::path::{Path, PathBuf};

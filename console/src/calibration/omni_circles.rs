@@ -38,8 +38,24 @@ pub struct OmniCircleReport {
     pub kept: bool,
     /// Per radius: runs, heading gains, the law's share.
     pub radii: Vec<OmniRadius>,
+    /// Circle rows measured `after`, with the board robot and the law in force: what is
+    /// left, which should be a turn in place of 1 and a law of 0 within their sigmas.
+    pub after: Option<OmniResidual>,
     /// The sentence the summary prints about the law.
     pub verdict: String,
+}
+
+/// What the `after` circles still show, relative to the board robot and law in force.
+#[derive(Debug, Clone, Copy, Serialize)]
+pub struct OmniResidual {
+    /// The robot's turn in place over its odometry's.
+    pub spin_gain: f64,
+    /// Its standard error.
+    pub spin_gain_sigma: f64,
+    /// The law left over.
+    pub l_arc: f64,
+    /// Its standard error.
+    pub l_arc_sigma: f64,
 }
 
 /// The mean of `c`'s wheel radius scales on `robot`: how much further the odometry counts
@@ -74,6 +90,19 @@ pub fn compute(
     let ratio = mean_radius_scale(new, robot) / mean_radius_scale(measured_with, robot);
     let scale = ratio / law.spin_gain;
     let scale_sigma = scale * law.spin_gain_sigma / law.spin_gain;
+    let after = runs.circles(Phase::After);
+    let after = if after.is_empty() {
+        None
+    } else {
+        // Measured on the board robot: its wheels at L times the scale.
+        let a = omni_circle_test::omni_turn_law(&after, l * scale).map_err(named)?;
+        Some(OmniResidual {
+            spin_gain: a.spin_gain,
+            spin_gain_sigma: a.spin_gain_sigma,
+            l_arc: a.l_arc,
+            l_arc_sigma: a.sigma,
+        })
+    };
     let kept = law.significant();
     let (k, s) = (law.l_arc, law.sigma);
     let verdict = if kept {
@@ -100,6 +129,7 @@ pub fn compute(
         l_arc_sigma: s,
         kept,
         radii: law.radii.to_vec(),
+        after,
         verdict,
     }))
 }
@@ -150,6 +180,13 @@ impl OmniCircleReport {
             self.spin_gain, self.spin_gain_sigma, self.wheel_distance_scale, self.wheel_distance_scale_sigma
         );
         let _ = writeln!(s, "  {}", self.verdict);
+        if let Some(a) = &self.after {
+            let _ = writeln!(
+                s,
+                "  after: with the board robot and the law in force, the robot turns {:.5} ± {:.5} times its odometry in place and leaves l_arc {:+.5} ± {:.5}",
+                a.spin_gain, a.spin_gain_sigma, a.l_arc, a.l_arc_sigma
+            );
+        }
         s
     }
 }
@@ -157,8 +194,8 @@ impl OmniCircleReport {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use calib_core::omni_circle_test::OmniCircleModel;
     use calib_core::motion::Direction;
+    use calib_core::omni_circle_test::OmniCircleModel;
     use std::path::Path;
 
     fn omni3() -> Robot {
@@ -207,7 +244,9 @@ mod tests {
     fn circles_give_the_wheel_distance_and_the_law_with_the_new_factors() {
         let robot = omni3();
         let none = Corrections::None;
-        let rep = compute(&robot, &runs_file(1.0), &none, &none).unwrap().unwrap();
+        let rep = compute(&robot, &runs_file(1.0), &none, &none)
+            .unwrap()
+            .unwrap();
         assert!((rep.wheel_distance_scale - 1.03).abs() < 1e-9, "{rep:?}");
         assert!((rep.l_arc - 0.02).abs() < 1e-9, "{rep:?}");
         assert!(rep.kept, "{rep:?}");
@@ -215,7 +254,9 @@ mod tests {
         assert!((b.mean_wheel_distance_m() - 0.15 * 1.03).abs() < 1e-12);
         let f = 1.0 / 0.98;
         let new = Corrections::omni([f; 3].into_iter().collect(), 1.0, 0.0);
-        let rep = compute(&robot, &runs_file(0.98), &none, &new).unwrap().unwrap();
+        let rep = compute(&robot, &runs_file(0.98), &none, &new)
+            .unwrap()
+            .unwrap();
         assert!((rep.spin_gain - 0.98 / 1.03).abs() < 1e-9, "{rep:?}");
         assert!((rep.wheel_distance_scale - 1.03).abs() < 1e-9, "{rep:?}");
         assert!((rep.l_arc - 0.02).abs() < 1e-9, "{rep:?}");

@@ -13,8 +13,9 @@ use crate::virtual_board::TrialTruth;
 use anyhow::{bail, Context, Result};
 use calib_core::motion::{Direction, OmniPath};
 use calib_core::odometry::Pose;
+use calib_core::omni_circle_test::{self, MIN_RADIUS_BY_END_M};
 use calib_core::protocol::{StopReason, DEFAULT_LINK_TIMEOUT_MS};
-use calib_core::robot::RobotKind;
+use calib_core::robot::{Robot, RobotKind};
 use calib_core::Corrections;
 use formats::runs_file::{Phase, RunRow, RunsFile, TestKind};
 use serde::Serialize;
@@ -64,6 +65,10 @@ pub struct Options {
     pub circles: Option<(f64, u8)>,
 }
 
+/// The radius of an omni robot's turns in place in the omni circle test: the board's
+/// smallest circle, a turn in place as far as the turn law goes (rho = 1).
+pub const TURN_IN_PLACE_RADIUS_M: f64 = 0.01;
+
 /// Where a second pass remembers the factors it started from.
 fn previous_file(runs_file: &Path) -> PathBuf {
     let mut s = runs_file.as_os_str().to_owned();
@@ -82,13 +87,15 @@ pub trait Measure {
     /// The measured end error of `trial`, measured minus odometry, in the path frame (x
     /// along the first leg or the path, y to its left): `(x, y, theta)`. `odometry` is
     /// the board's end pose in that frame; `direction_rad` is the path's direction in the
-    /// robot's start frame (0 for a UMBmark square, pi/2 for 4W-2).
+    /// robot's start frame (0 for a UMBmark square, pi/2 for 4W-2). `heading`: the run
+    /// needs its heading measured too (a turn in place: its end says nothing of its turn).
     fn end_error(
         &mut self,
         trial: u16,
         odometry: Pose<f32>,
         direction_rad: f64,
         what: &str,
+        heading: bool,
     ) -> Result<(f64, f64, Option<f64>)>;
 }
 
@@ -124,8 +131,9 @@ impl Measure for Terminal {
         odo: Pose<f32>,
         _direction_rad: f64,
         what: &str,
+        heading: bool,
     ) -> Result<(f64, f64, Option<f64>)> {
-        loop {
+        let (x, y) = loop {
             eprint!(
                 "{what}: measured end position x y in mm from the start mark (x along the first leg, y to its left; odometry says {:+.1} {:+.1}): ",
                 odo.x * 1e3,
@@ -133,10 +141,26 @@ impl Measure for Terminal {
             );
             let _ = std::io::stderr().flush();
             match parse_end_position(&read_line()?) {
-                Ok((x_mm, y_mm)) => {
-                    return Ok((x_mm / 1e3 - odo.x as f64, y_mm / 1e3 - odo.y as f64, None))
-                }
+                Ok((x_mm, y_mm)) => break (x_mm / 1e3 - odo.x as f64, y_mm / 1e3 - odo.y as f64),
                 Err(why) => eprintln!("  {why}; type two numbers in millimetres, e.g. `12.5 -30`"),
+            }
+        };
+        if !heading {
+            return Ok((x, y, None));
+        }
+        loop {
+            eprint!(
+                "{what}: measured heading in degrees from the start heading (counter-clockwise positive, within +-180; odometry says {:+.2}): ",
+                f64::from(odo.theta).to_degrees()
+            );
+            let _ = std::io::stderr().flush();
+            match parse_heading_deg(&read_line()?) {
+                Ok(deg) => {
+                    use std::f64::consts::{PI, TAU};
+                    let e = deg.to_radians() - f64::from(odo.theta);
+                    return Ok((x, y, Some((e + PI).rem_euclid(TAU) - PI)));
+                }
+                Err(why) => eprintln!("  {why}; type one number in degrees, e.g. `-3.5`"),
             }
         }
     }
@@ -183,6 +207,21 @@ pub fn parse_end_position(line: &str) -> std::result::Result<(f64, f64), String>
     Ok((v[0], v[1]))
 }
 
+/// A typed heading: one number of degrees within +-180; anything else is refused with
+/// the reason.
+pub fn parse_heading_deg(line: &str) -> std::result::Result<f64, String> {
+    let t = line.trim();
+    let v = t
+        .parse::<f64>()
+        .ok()
+        .filter(|v| v.is_finite())
+        .ok_or_else(|| format!("`{t}` is not a number"))?;
+    if v.abs() > 180.0 {
+        return Err(format!("{v} degrees is beyond +-180"));
+    }
+    Ok(v)
+}
+
 /// A virtual board's truth (true end pose in the start frame, x along the start heading)
 /// turned into the path frame, minus the reference end pose (same frame).
 fn truth_error(
@@ -220,6 +259,7 @@ impl Measure for TruthFile {
         odo: Pose<f32>,
         direction_rad: f64,
         _what: &str,
+        _heading: bool,
     ) -> Result<(f64, f64, Option<f64>)> {
         for _ in 0..100 {
             let truths = crate::sim_board::read_truths(&self.file)?;
@@ -254,6 +294,7 @@ impl Measure for TruthChannel<'_> {
         odo: Pose<f32>,
         direction_rad: f64,
         _what: &str,
+        _heading: bool,
     ) -> Result<(f64, f64, Option<f64>)> {
         loop {
             if let Some(t) = self.seen.iter().find(|t| t.trial == trial) {
@@ -371,9 +412,6 @@ pub fn run<L: Read + Write>(
             (TestKind::Umbmark, trials, opts.side_m)
         }
         Kind::Omni => {
-            if opts.circles.is_some() {
-                bail!("circles are the circle test of a differential drive (umbmark run)");
-            }
             if robot.kind != RobotKind::Omni {
                 bail!("the board's robot is {}: the omni procedure is for omni robots (use `wheelcal umbmark run`)", robot.kind.as_str());
             }
@@ -388,14 +426,27 @@ pub fn run<L: Read + Write>(
                 ),
                 _ => omni::write_idle_sidecar(&opts.runs_file, opts.idle_wheels)?,
             }
-            (
-                TestKind::Omni,
-                vec![
-                    Trial::Path(OmniPath::W1, opts.idle_wheels),
-                    Trial::Path(OmniPath::W2, opts.idle_wheels),
-                ],
-                opts.length_m,
-            )
+            let mut trials = vec![
+                Trial::Path(OmniPath::W1, opts.idle_wheels),
+                Trial::Path(OmniPath::W2, opts.idle_wheels),
+            ];
+            if let Some((radius_m, laps)) = opts.circles {
+                if opts.second_pass {
+                    bail!("--circle-radius measures the turn in place and the turn law against the straight paths' factors in one pass: drop --second-pass");
+                }
+                let l = robot.mean_wheel_distance_m();
+                if omni_circle_test::share(radius_m, l) < 0.75 {
+                    bail!(
+                        "--circle-radius {radius_m} m: the omni circle test compares turns in place with circles at least twice the wheels' distance from the centre ({l:.3} m here): use --circle-radius {:.2} or more",
+                        2.0 * l
+                    );
+                }
+                for r in [TURN_IN_PLACE_RADIUS_M, radius_m] {
+                    trials.push(Trial::Circle(Direction::Cw, r, laps));
+                    trials.push(Trial::Circle(Direction::Ccw, r, laps));
+                }
+            }
+            (TestKind::Omni, trials, opts.length_m)
         }
     };
     if !(length.is_finite() && length > 0.0 && length <= 20.0) {
@@ -425,10 +476,15 @@ pub fn run<L: Read + Write>(
                 opts.runs_file.display()
             );
         }
+        // An omni robot's turns in place are circles of their own radius.
+        let other_radius = |r: f64| {
+            (r - radius_m).abs() > 1e-9
+                && !(opts.kind == Kind::Omni && (r - TURN_IN_PLACE_RADIUS_M).abs() <= 1e-9)
+        };
         if let Some(r) = existing
             .rows
             .iter()
-            .find(|r| r.test == TestKind::Circle && (r.length_m - radius_m).abs() > 1e-9)
+            .find(|r| r.test == TestKind::Circle && other_radius(r.length_m))
         {
             bail!(
                 "{} already holds circles of radius {} m (line {}); use a new --runs-file for {} m",
@@ -513,11 +569,40 @@ pub fn run<L: Read + Write>(
         }
         Kind::Omni => {
             let r = omni::compute(&robot, &runs, opts.idle_wheels)?;
-            Corrections::Omni {
-                f_lat: heapless::Vec::from_slice(&r.f_lat)
-                    .map_err(|_| anyhow::anyhow!("too many wheels"))?,
-                f_lon: r.f_lon,
+            let r = omni::with_circles(r, &robot, &runs, None)?;
+            if let Some(board_robot) = r.board_robot(&robot)? {
+                // The circle test: the wheels' sizes and distance go on the board as its
+                // robot, with factors of one and the law, together or not at all.
+                let circles = r.circles.as_ref().map(|c| c.verdict.clone());
+                m.say(&format!(
+                    "omni circle test: {}",
+                    circles.unwrap_or_default()
+                ));
+                let n = board_robot.wheels.len();
+                let target = board::Target {
+                    params: Some(board::with_robot(
+                        &c.params()?,
+                        board_robot,
+                        &opts.runs_file,
+                    )?),
+                    corrections: Corrections::omni(
+                        core::iter::repeat_n(1.0, n).collect(),
+                        1.0,
+                        r.l_arc,
+                    ),
+                };
+                board::apply_settings(c, &target)
+                    .context("the omni circle test's geometry and factors were not uploaded")?;
+                c.save_params()?;
+                c.save_corrections()?;
+                m.say(&format!(
+                    "robot geometry and factors uploaded and saved: wheel distances x{:.5}, {}",
+                    r.circles.as_ref().map_or(1.0, |c| c.wheel_distance_scale),
+                    board::FactorsView::from(&target.corrections).human().trim()
+                ));
+                return finish(c, opts, m, &robot, &trials, length, None, &have);
             }
+            r.corrections()?
         }
     };
     let corrections = match &previous {
@@ -540,11 +625,37 @@ pub fn run<L: Read + Write>(
         "factors uploaded and saved: {}",
         board::FactorsView::from(&corrections).human().trim()
     ));
+    finish(
+        c,
+        opts,
+        m,
+        &robot,
+        &trials,
+        length,
+        previous.as_ref(),
+        &have,
+    )
+}
+
+/// The end of a procedure once the board holds its calibration: the after trials (when
+/// asked), then the report of the whole runs file. `have(phase, trial)` counts the runs
+/// the runs file held when the procedure started.
+#[allow(clippy::too_many_arguments)]
+fn finish<L: Read + Write>(
+    c: &mut Client<L>,
+    opts: &Options,
+    m: &mut dyn Measure,
+    robot: &Robot,
+    trials: &[Trial],
+    length: f64,
+    previous: Option<&Corrections>,
+    have: &dyn Fn(Phase, Trial) -> usize,
+) -> Result<ProcedureReport> {
     if opts.after {
         let plan = PhasePlan {
             runs: opts.after_runs,
             runs_file: &opts.runs_file,
-            trials: &trials,
+            trials,
             length,
             phase: Phase::After,
         };
@@ -553,17 +664,19 @@ pub fn run<L: Read + Write>(
     let runs = RunsFile::load(&opts.runs_file)?;
     let rep = match opts.kind {
         Kind::Umbmark => {
-            let r = umbmark::compute(&robot, &runs)?;
+            let r = umbmark::compute(robot, &runs)?;
             if let Some(dir) = &opts.report {
                 crate::report::umbmark::write(&r, dir)?;
             }
             ProcedureReport::Umbmark(Box::new(r))
         }
         Kind::Omni => {
-            let mut r = omni::compute(&robot, &runs, opts.idle_wheels)?;
-            if let Some(p) = previous.as_ref().filter(|p| p.omni_factors().is_some()) {
+            let mut r = omni::compute(robot, &runs, opts.idle_wheels)?;
+            let previous = previous.filter(|p| p.omni_factors().is_some());
+            if let Some(p) = previous {
                 r = omni::compose_with(r, p)?;
             }
+            let r = omni::with_circles(r, robot, &runs, previous)?;
             if let Some(dir) = &opts.report {
                 crate::report::omni::write(&r, dir)?;
             }
@@ -668,7 +781,8 @@ fn run_phase<L: Read + Write>(
                 }
                 Trial::Path(..) => Pose::new(length as f32, 0.0, 0.0),
             };
-            let (x, y, th) = m.end_error(trial, reference, d, &what)?;
+            let heading = matches!(t, Trial::Circle(_, r, _) if r < MIN_RADIUS_BY_END_M);
+            let (x, y, th) = m.end_error(trial, reference, d, &what, heading)?;
 
             RunsFile::append_with(
                 runs_file,
@@ -715,7 +829,26 @@ fn stop_words(s: StopReason) -> &'static str {
 
 #[cfg(test)]
 mod tests {
-    use super::parse_end_position;
+    use super::{parse_end_position, parse_heading_deg};
+
+    /// A typed heading: one number of degrees within +-180, with white space around it;
+    /// anything else is refused with the reason.
+    #[test]
+    fn typed_headings() {
+        assert_eq!(parse_heading_deg(" -3.5\n"), Ok(-3.5));
+        assert_eq!(parse_heading_deg("180"), Ok(180.0));
+        for (bad, says) in [
+            ("", "not a number"),
+            ("3 4", "not a number"),
+            ("nan", "not a number"),
+            ("181", "beyond +-180"),
+            ("-200.5", "beyond +-180"),
+            ("5deg", "not a number"),
+        ] {
+            let e = parse_heading_deg(bad).unwrap_err();
+            assert!(e.contains(says), "{bad:?}: {e}");
+        }
+    }
 
     /// Issue 13.2: the prompt's own example was refused because of the newline, and
     /// `1 2 3` was taken as (1, 2).

@@ -96,7 +96,7 @@ fn human(a: &Applied) -> String {
     s += &format!("factors: {}", a.factors.human());
     if !a.without_factor.is_empty() {
         s += &format!(
-            "note: no factor carries {}, so the board goes without them: write the board robot with `calibrate --write-board-robot FILE` and apply with `--board-robot FILE`\n",
+            "note: no factor carries {}, so the board goes without them: write the board robot (`calibrate --write-board-robot FILE`, or `omni compute --write-board-robot FILE` after an omni circle test) and apply with `--board-robot FILE`\n",
             a.without_factor.join(", ")
         );
     }

@@ -27,7 +27,11 @@ fn compute(a: OmniComputeArgs, out: Output) -> Result<()> {
         &a.common.robot,
     )?;
     let mut rep = omni::compute_limited(&robot, &runs, idle, a.common.max_length)?;
-    let previous = a.previous.as_deref().map(omni::factors_from_json).transpose()?;
+    let previous = a
+        .previous
+        .as_deref()
+        .map(omni::factors_from_json)
+        .transpose()?;
     if let Some(p) = &previous {
         rep = omni::compose_with(rep, p)?;
     }
@@ -46,7 +50,8 @@ fn compute(a: OmniComputeArgs, out: Output) -> Result<()> {
             a.common.runs.display(),
             robot_file::to_toml(&board)
         );
-        robot_file::write(file, &text).with_context(|| format!("cannot write {}", file.display()))?;
+        robot_file::write(file, &text)
+            .with_context(|| format!("cannot write {}", file.display()))?;
         out.note(&format!(
             "board robot: {} (put it on the board with this result's JSON: `wheelcal apply RESULT.json --board-robot {} --save`)",
             file.display(),
