@@ -6,7 +6,7 @@ mod common;
 
 use calib_core::robot::Robot;
 use common::{json_of, scratch, Board};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// The board's truth of its last trial: (heading error, position error), true minus
 /// odometry, from `LINK.truth.jsonl`.
@@ -17,34 +17,6 @@ fn last_truth(link: &Path) -> (f64, f64) {
     let t: serde_json::Value = serde_json::from_str(text.lines().last().unwrap()).unwrap();
     let num = |k: &str| t[k].as_f64().unwrap();
     (num("theta_err_rad"), num("x_err_m").hypot(num("y_err_m")))
-}
-
-/// `calibrate --json --write-board-robot` of `nominal_file` on three 40 s random drives of
-/// `truth` with tyres scrubbing `scrub` (seeds `seed`..): its JSON, the JSON's file and
-/// the board robot file.
-fn calibrated(
-    dir: &Path,
-    nominal_file: &Path,
-    truth: &Robot,
-    scrub: f64,
-    seed: u64,
-) -> (serde_json::Value, PathBuf, PathBuf) {
-    let runs = common::random_runs(dir, truth, scrub, seed);
-    let (cal_json, board_file) = (dir.join("cal.json"), dir.join("board.toml"));
-    let mut cal = common::wheelcal();
-    cal.args(["--json", "calibrate", "--no-cross-validation", "--robot"])
-        .arg(nominal_file);
-    for r in &runs[..3] {
-        cal.arg("--recording").arg(r);
-    }
-    let out = cal
-        .arg("--write-board-robot")
-        .arg(&board_file)
-        .output()
-        .unwrap();
-    let c = json_of(&out);
-    std::fs::write(&cal_json, &out.stdout).unwrap();
-    (c, cal_json, board_file)
 }
 
 /// A virtual board simulating `truth` (tyres scrubbing `scrub`) and holding the nominal
@@ -92,7 +64,7 @@ fn a_calibration_reaches_the_board_whole_and_its_odometry_follows_the_robot() {
     let mut truth = nominal.clone();
     truth.wheels.iter_mut().for_each(|w| w.l_m *= 1.03);
     truth.wheels[1].alpha_rad += 1f64.to_radians();
-    let (c, cal_json, board_file) = calibrated(&dir, &nominal_file, &truth, 0.02, 70);
+    let (c, cal_json, board_file) = common::calibrated(&dir, &nominal_file, &truth, 0.02, 70);
     let l_arc = c["factors"]["l_arc"].as_f64().unwrap_or(0.0);
     assert!((l_arc - 0.02).abs() < 0.004, "{}", c["notes"]);
     let board = nominal_board(&dir, &nominal_file, &truth, 0.02);
@@ -218,7 +190,7 @@ fn a_differential_drives_calibration_and_turn_law_reach_the_board_together() {
     let mut truth = nominal.clone();
     truth.wheels.iter_mut().for_each(|w| w.l_m *= 1.02);
     truth.wheels[1].radius_m *= 1.005;
-    let (c, cal_json, board_file) = calibrated(&dir, &nominal_file, &truth, 0.04, 60);
+    let (c, cal_json, board_file) = common::calibrated(&dir, &nominal_file, &truth, 0.04, 60);
     // Found within a quarter of itself, as in `evaluate`'s tests of the same simulator.
     let law = c["factors"]["board"]["e_b_arc"].as_f64().unwrap_or(0.0);
     assert!((law - 0.04).abs() < 0.01, "{}", c["factors"]);

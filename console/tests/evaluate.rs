@@ -458,21 +458,8 @@ fn an_omni_boards_whole_geometry_is_judged_with_board_robot() {
     let mut truth = nominal.clone();
     truth.wheels.iter_mut().for_each(|w| w.l_m *= 1.03);
     truth.wheels[1].alpha_rad += 1f64.to_radians();
-    let runs = common::random_runs(&dir, &truth, 0.02, 70);
-    let (cal_json, board_file) = (dir.join("cal.json"), dir.join("board.toml"));
-    let mut cal = common::wheelcal();
-    cal.args(["--json", "calibrate", "--robot"])
-        .arg(&nominal_file);
-    for r in &runs[..3] {
-        cal.arg("--recording").arg(r);
-    }
-    let out = cal
-        .arg("--write-board-robot")
-        .arg(&board_file)
-        .output()
-        .unwrap();
-    let c = common::json_of(&out);
-    std::fs::write(&cal_json, &out.stdout).unwrap();
+    let (c, cal_json, board_file) = common::calibrated(&dir, &nominal_file, &truth, 0.02, 70);
+    let runs: Vec<_> = (0..4).map(|i| dir.join(format!("run{i}"))).collect();
     let l_arc = c["factors"]["l_arc"].as_f64().unwrap_or(0.0);
     assert!((l_arc - 0.02).abs() < 0.004, "{}", c["notes"]);
     let judge = |board_robot: Option<&Path>| {

@@ -112,16 +112,8 @@ fn same(b: bool) -> &'static str {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::board::geometry::tests::robot;
     use calib_core::protocol::Rejection;
-    use calib_core::robot::Robot;
-    use std::path::Path;
-
-    fn robot(name: &str) -> Robot {
-        let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-            .join("../robots")
-            .join(format!("{name}.toml"));
-        formats::robot_file::load(&p).unwrap()
-    }
 
     /// A board that holds settings and refuses the requests it is told to.
     struct Scripted {

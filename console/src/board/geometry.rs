@@ -109,10 +109,11 @@ pub fn with_robot(current: &Params, robot: Robot, file: &Path) -> Result<Params>
 }
 
 #[cfg(test)]
-mod tests {
+pub(crate) mod tests {
     use super::*;
 
-    fn robot(name: &str) -> Robot {
+    /// A robot file of `robots/` (the board commands' tests share it).
+    pub(crate) fn robot(name: &str) -> Robot {
         let p = Path::new(env!("CARGO_MANIFEST_DIR"))
             .join("../robots")
             .join(format!("{name}.toml"));

@@ -194,14 +194,10 @@ impl OmniCircleReport {
 #[cfg(test)]
 mod tests {
     use super::*;
+    use crate::board::geometry::tests::robot;
     use calib_core::motion::Direction;
     use calib_core::omni_circle_test::OmniCircleModel;
     use std::path::Path;
-
-    fn omni3() -> Robot {
-        let p = Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/omni3.toml");
-        formats::robot_file::load(&p).unwrap()
-    }
 
     /// Circle rows of an omni3 whose wheels sit 3 % further out than its file says and
     /// whose arcs follow a 2 % law, measured with no factors in force: two turns in place
@@ -242,7 +238,7 @@ mod tests {
     /// their share.
     #[test]
     fn circles_give_the_wheel_distance_and_the_law_with_the_new_factors() {
-        let robot = omni3();
+        let robot = robot("omni3");
         let none = Corrections::None;
         let rep = compute(&robot, &runs_file(1.0), &none, &none)
             .unwrap()

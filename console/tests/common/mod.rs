@@ -213,3 +213,31 @@ pub fn random_runs(
         })
         .collect()
 }
+
+/// `calibrate --json --write-board-robot` of `nominal_file` on three 40 s random drives of
+/// `truth` with tyres scrubbing `scrub` (seeds `seed`..): its JSON, the JSON's file and
+/// the board robot file.
+pub fn calibrated(
+    dir: &Path,
+    nominal_file: &Path,
+    truth: &calib_core::robot::Robot,
+    scrub: f64,
+    seed: u64,
+) -> (serde_json::Value, PathBuf, PathBuf) {
+    let runs = random_runs(dir, truth, scrub, seed);
+    let (cal_json, board_file) = (dir.join("cal.json"), dir.join("board.toml"));
+    let mut cal = wheelcal();
+    cal.args(["--json", "calibrate", "--no-cross-validation", "--robot"])
+        .arg(nominal_file);
+    for r in &runs[..3] {
+        cal.arg("--recording").arg(r);
+    }
+    let out = cal
+        .arg("--write-board-robot")
+        .arg(&board_file)
+        .output()
+        .unwrap();
+    let c = json_of(&out);
+    std::fs::write(&cal_json, &out.stdout).unwrap();
+    (c, cal_json, board_file)
+}
