@@ -28,7 +28,9 @@ fn last_heading_error(link: &Path) -> f64 {
 /// the board reads back the robot and the law the JSON gives; the after circles, measured
 /// with them in force, turn in place within 0.005 of their odometry and leave a law within
 /// 0.004 of 0; and on one more 0.5 m circle lap, the board's odometry ends within 0.02 rad
-/// of the truth, at most a tenth of what it was holding the nominal file. Measured: the
+/// of the truth, at most a tenth of what it was holding the nominal file. The same
+/// command run again (every run already measured) leaves the board robot as it was.
+/// Measured: the
 /// wheel distance x1.03022, l_arc 0.02001 ± 0.00001; after, a turn in place of 0.999999
 /// and l_arc 0.00004; the circle lap -0.2166 rad nominal, -0.0008 rad after.
 #[test]
@@ -95,16 +97,45 @@ fn the_guided_omni_circle_test_puts_the_wheel_distance_and_the_law_on_the_board(
     let f = json_of(&ok(&["--json", "factors", "get"]));
     assert_eq!(f["l_arc"].as_f64(), Some(l_arc), "{f}");
     assert_eq!(f["f_lat"], serde_json::json!([1.0, 1.0, 1.0]), "{f}");
-    let robot = json_of(&ok(&["--json", "robot", "get"]));
-    for (w, n) in robot["wheels"]
-        .as_array()
-        .unwrap()
-        .iter()
-        .zip(&nominal.wheels)
-    {
-        let l = w["l_m"].as_f64().unwrap();
-        assert!((l / n.l_m - scale).abs() < 1e-12, "{robot}");
-    }
+    let board_robot = || {
+        let robot = json_of(&ok(&["--json", "robot", "get"]));
+        for (w, n) in robot["wheels"]
+            .as_array()
+            .unwrap()
+            .iter()
+            .zip(&nominal.wheels)
+        {
+            let l = w["l_m"].as_f64().unwrap();
+            assert!((l / n.l_m - scale).abs() < 1e-12, "{robot}");
+        }
+        robot
+    };
+    let first = board_robot();
+    // The same command again (a person resuming a finished procedure): every run is in
+    // the runs file, so it computes and uploads again, from the robot the runs were
+    // measured with (kept beside the runs file), not the board's new one: the board robot
+    // is the same, not scaled twice.
+    let again = json_of(&ok(&[
+        "--json",
+        "omni",
+        "run",
+        "--length",
+        "1",
+        "--runs",
+        "2",
+        "--circle-radius",
+        "0.5",
+        "--circle-laps",
+        "2",
+        "--auto-measure",
+        "--runs-file",
+        runs.to_str().unwrap(),
+    ]));
+    assert_eq!(
+        again["circles"]["wheel_distance_scale"].as_f64(),
+        Some(scale)
+    );
+    assert_eq!(board_robot(), first);
 
     let applied_error = circle();
     eprintln!(

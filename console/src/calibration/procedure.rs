@@ -76,6 +76,39 @@ fn previous_file(runs_file: &Path) -> PathBuf {
     PathBuf::from(s)
 }
 
+/// Where the omni circle test keeps the robot its runs were measured with.
+fn measured_robot_file(runs_file: &Path) -> PathBuf {
+    let mut s = runs_file.as_os_str().to_owned();
+    s.push(".robot.toml");
+    PathBuf::from(s)
+}
+
+/// The robot the runs of `runs_file` were measured with: the one kept beside it when the
+/// runs file exists (a resumed procedure, the board perhaps holding the robot the
+/// procedure gave it since), else the board's `board`, kept there now.
+fn measured_robot(runs_file: &Path, board: Robot) -> Result<Robot> {
+    let file = measured_robot_file(runs_file);
+    if runs_file.exists() && file.exists() {
+        let robot = formats::robot_file::load(&file)?;
+        diagnose::calibrate::same_wheels(&board, &robot).map_err(|e| {
+            anyhow::anyhow!(
+                "{}: {e}: the board is another robot than {} was measured on",
+                file.display(),
+                runs_file.display()
+            )
+        })?;
+        return Ok(robot);
+    }
+    let text = format!(
+        "# The robot {} was measured with (wheelcal omni run --circle-radius)\n{}",
+        runs_file.display(),
+        formats::robot_file::to_toml(&board)
+    );
+    formats::robot_file::write(&file, &text)
+        .with_context(|| format!("cannot write {}", file.display()))?;
+    Ok(board)
+}
+
 /// Where the measured end positions come from.
 pub trait Measure {
     /// Tells the person what happens next (progress).
@@ -393,6 +426,13 @@ pub fn run<L: Read + Write>(
         bail!("--runs must be at least 2 (statistics need two runs per direction or path)");
     }
     let robot = c.params()?.robot;
+    // The omni circle test gives the board a new robot: a resumed procedure computes from
+    // the robot its runs were measured with, kept beside them.
+    let robot = if opts.kind == Kind::Omni && opts.circles.is_some() {
+        measured_robot(&opts.runs_file, robot)?
+    } else {
+        robot
+    };
     let (test, trials, length) = match opts.kind {
         Kind::Umbmark => {
             if robot.kind == RobotKind::SkidSteer {
