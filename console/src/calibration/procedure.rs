@@ -181,18 +181,16 @@ impl Measure for Terminal {
         if !heading {
             return Ok((x, y, None));
         }
+        use std::f64::consts::{PI, TAU};
+        let wrap = |a: f64| (a + PI).rem_euclid(TAU) - PI;
         loop {
             eprint!(
                 "{what}: measured heading in degrees from the start heading (counter-clockwise positive, within +-180; odometry says {:+.2}): ",
-                f64::from(odo.theta).to_degrees()
+                wrap(f64::from(odo.theta)).to_degrees()
             );
             let _ = std::io::stderr().flush();
             match parse_heading_deg(&read_line()?) {
-                Ok(deg) => {
-                    use std::f64::consts::{PI, TAU};
-                    let e = deg.to_radians() - f64::from(odo.theta);
-                    return Ok((x, y, Some((e + PI).rem_euclid(TAU) - PI)));
-                }
+                Ok(deg) => return Ok((x, y, Some(wrap(deg.to_radians() - f64::from(odo.theta))))),
                 Err(why) => eprintln!("  {why}; type one number in degrees, e.g. `-3.5`"),
             }
         }
