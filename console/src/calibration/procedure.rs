@@ -181,16 +181,14 @@ impl Measure for Terminal {
         if !heading {
             return Ok((x, y, None));
         }
-        use std::f64::consts::{PI, TAU};
-        let wrap = |a: f64| (a + PI).rem_euclid(TAU) - PI;
         loop {
             eprint!(
                 "{what}: measured heading in degrees from the start heading (counter-clockwise positive, within +-180; odometry says {:+.2}): ",
-                wrap(f64::from(odo.theta)).to_degrees()
+                wrap_angle(f64::from(odo.theta)).to_degrees()
             );
             let _ = std::io::stderr().flush();
             match parse_heading_deg(&read_line()?) {
-                Ok(deg) => return Ok((x, y, Some(wrap(deg.to_radians() - f64::from(odo.theta))))),
+                Ok(deg) => return Ok((x, y, Some(heading_error(deg, odo.theta)))),
                 Err(why) => eprintln!("  {why}; type one number in degrees, e.g. `-3.5`"),
             }
         }
@@ -236,6 +234,24 @@ pub fn parse_end_position(line: &str) -> std::result::Result<(f64, f64), String>
         }
     }
     Ok((v[0], v[1]))
+}
+
+/// An angle within (-pi, pi].
+fn wrap_angle(a: f64) -> f64 {
+    use std::f64::consts::{PI, TAU};
+    let w = (a + PI).rem_euclid(TAU) - PI;
+    if w == -PI {
+        PI
+    } else {
+        w
+    }
+}
+
+/// A heading measured by hand (degrees from the start heading, within +-180) minus the
+/// odometry's (radians, whole laps included), as a turn error within +-pi: a lap driven
+/// counts as none, since a person sees only where the robot points.
+pub fn heading_error(measured_deg: f64, odometry_rad: f32) -> f64 {
+    wrap_angle(measured_deg.to_radians() - f64::from(odometry_rad))
 }
 
 /// A typed heading: one number of degrees within +-180; anything else is refused with
@@ -867,7 +883,19 @@ fn stop_words(s: StopReason) -> &'static str {
 
 #[cfg(test)]
 mod tests {
-    use super::{parse_end_position, parse_heading_deg};
+    use super::{heading_error, parse_end_position, parse_heading_deg};
+
+    /// After a lap clockwise the odometry says -360.05 degrees; the robot, seen by a
+    /// person, points 0.5 degrees left of its start: it turned 0.55 degrees less than the
+    /// odometry says (+0.0096 rad, measured minus odometry). Whole laps do not count.
+    #[test]
+    fn a_heading_by_hand_is_measured_against_the_odometry_modulo_laps() {
+        let odo = (-360.05f64).to_radians() as f32;
+        let e = heading_error(0.5, odo);
+        assert!((e - 0.55f64.to_radians()).abs() < 1e-6, "{e}");
+        let e = heading_error(-179.0, (179.0f64 + 720.0).to_radians() as f32);
+        assert!((e - 2f64.to_radians()).abs() < 1e-6, "{e}");
+    }
 
     /// A typed heading: one number of degrees within +-180, with white space around it;
     /// anything else is refused with the reason.
