@@ -216,3 +216,70 @@ fn a_differential_drives_calibration_and_turn_law_reach_the_board_together() {
     assert!(heading_after.abs() <= heading_before.abs() / 10.0);
     let _ = std::fs::remove_dir_all(&dir);
 }
+
+/// A board that is driving refuses a new geometry (idle only): `apply` says so, nothing
+/// changed (the robot and the factors read back as before), and once the robot is
+/// stopped the same `apply` goes through.
+#[test]
+fn a_moving_board_refuses_apply_and_keeps_what_it_held() {
+    let dir = scratch("apply-busy");
+    let nominal_file = common::robot("omni3");
+    let nominal = formats::robot_file::load(&nominal_file).unwrap();
+    let mut fitted = nominal.clone();
+    fitted.wheels.iter_mut().for_each(|w| w.l_m *= 1.03);
+    let board_file = dir.join("board.toml");
+    std::fs::write(&board_file, formats::robot_file::to_toml(&fitted)).unwrap();
+    let cal = dir.join("cal.json");
+    std::fs::write(
+        &cal,
+        r#"{"kind": "omni", "robot": "omni3", "factors": {"f_lat": [1.0, 1.0, 1.0], "f_lon": 1.0, "l_arc": 0.02}}"#,
+    )
+    .unwrap();
+    let board = Board::start_at("omni3", &dir, "1");
+    let held = || {
+        (
+            json_of(&board.run(&["--json", "robot", "get"])),
+            json_of(&board.run(&["--json", "factors", "get"])),
+        )
+    };
+    let before = held();
+    let apply = [
+        "apply",
+        cal.to_str().unwrap(),
+        "--board-robot",
+        board_file.to_str().unwrap(),
+    ];
+    let o = board.run(&[
+        "run",
+        "circle",
+        "--dir",
+        "ccw",
+        "--radius",
+        "0.5",
+        "--no-wait",
+        "--no-link-failsafe",
+    ]);
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (o, _, err) = board.run_text(&apply);
+    assert_eq!(o.status.code(), Some(1), "{err}");
+    assert!(
+        err.contains("cal.json: the geometry was not set, nothing changed")
+            && err.contains("busy: stop the robot first"),
+        "{err}"
+    );
+    assert_eq!(held(), before);
+    assert!(board.run(&["stop"]).status.success());
+    // The stop ramps the robot down at its limits: busy until it stands.
+    let t0 = std::time::Instant::now();
+    let a = loop {
+        let o = board.run(&[&["--json"][..], &apply[..]].concat());
+        if o.status.success() {
+            break json_of(&o);
+        }
+        let err = String::from_utf8_lossy(&o.stderr);
+        assert!(err.contains("busy") && t0.elapsed().as_secs() < 20, "{err}");
+        std::thread::sleep(std::time::Duration::from_millis(50));
+    };
+    assert_eq!(a["factors"]["l_arc"].as_f64(), Some(0.02), "{a}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
