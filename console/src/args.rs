@@ -227,7 +227,7 @@ pub enum RobotCmd {
 #[derive(Debug, Args)]
 pub struct ApplyArgs {
     /// The calibration: `calibrate --json`'s output (or a `--report` folder), or
-    /// `umbmark compute`'s `--json` result.
+    /// `umbmark compute`'s or `omni compute`'s `--json` result.
     #[arg(value_name = "CALIBRATION.json")]
     pub calibration: PathBuf,
     /// The geometry the board is to hold with the calibration's laws (`calibrate
