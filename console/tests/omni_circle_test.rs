@@ -126,7 +126,7 @@ fn guided_circle_test(dir: &Path, nominal_file: &Path, truth: &calib_core::robot
     let nominal_error = circle();
 
     let runs = dir.join("runs.csv");
-    let r = json_of(&ok(&[
+    let omni_run = [
         "--json",
         "omni",
         "run",
@@ -141,7 +141,8 @@ fn guided_circle_test(dir: &Path, nominal_file: &Path, truth: &calib_core::robot
         "--auto-measure",
         "--runs-file",
         runs.to_str().unwrap(),
-    ]));
+    ];
+    let r = json_of(&ok(&omni_run));
     let c = &r["circles"];
     let scale = c["wheel_distance_scale"].as_f64().unwrap();
     let l_arc = c["l_arc"].as_f64().unwrap();
@@ -179,22 +180,7 @@ fn guided_circle_test(dir: &Path, nominal_file: &Path, truth: &calib_core::robot
     // the runs file, so it computes and uploads again, from the robot the runs were
     // measured with (kept beside the runs file), not the board's new one: the board robot
     // is the same, not scaled twice.
-    let again = json_of(&ok(&[
-        "--json",
-        "omni",
-        "run",
-        "--length",
-        "1",
-        "--runs",
-        "2",
-        "--circle-radius",
-        "0.5",
-        "--circle-laps",
-        "2",
-        "--auto-measure",
-        "--runs-file",
-        runs.to_str().unwrap(),
-    ]));
+    let again = json_of(&ok(&omni_run));
     assert_eq!(
         again["circles"]["wheel_distance_scale"].as_f64(),
         Some(scale)
