@@ -166,16 +166,22 @@ impl CircleModel {
 
     /// The exact run: where a circle rolled at that gain ends, and its heading error.
     pub fn run(&self, dir: Direction, radius_m: f64, laps: u8) -> CircleRun {
-        let g = self.gain(dir, radius_m);
-        let u = 2.0 * PI * f64::from(laps) * (g - 1.0);
-        CircleRun {
-            dir,
-            radius_m,
-            laps,
-            x_err_m: end_x(radius_m, laps, g),
-            y_err_m: sign(dir) * radius_m / g * (1.0 - libm::cos(u)),
-            theta_err_rad: Some(sign(dir) * u),
-        }
+        exact_run(dir, radius_m, laps, self.gain(dir, radius_m))
+    }
+}
+
+/// A circle of `radius_m` driven `laps` times `dir` by odometry, the robot turning `gain`
+/// times that: it rolls a clean circle of radius R / gain, and ends (x, y, heading) off
+/// the odometry's end, measured minus odometry.
+pub fn exact_run(dir: Direction, radius_m: f64, laps: u8, gain: f64) -> CircleRun {
+    let u = 2.0 * PI * f64::from(laps) * (gain - 1.0);
+    CircleRun {
+        dir,
+        radius_m,
+        laps,
+        x_err_m: end_x(radius_m, laps, gain),
+        y_err_m: sign(dir) * radius_m / gain * (1.0 - libm::cos(u)),
+        theta_err_rad: Some(sign(dir) * u),
     }
 }
 

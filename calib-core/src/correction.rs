@@ -464,6 +464,22 @@ impl Corrections {
         }
     }
 
+    /// Factors of one with these corrections' laws, for `wheels` wheels: what a board
+    /// holds beside a robot file that carries the factors' geometry itself
+    /// (`calibrate --write-board-robot`, the omni circle test's robot), so that the
+    /// geometry is not counted twice and the laws, which no robot file carries, stay.
+    pub fn laws_only(&self, wheels: usize) -> Corrections {
+        match self {
+            Corrections::None => Corrections::None,
+            Corrections::Omni { .. } | Corrections::OmniTurnLaw { .. } => Corrections::omni(
+                core::iter::repeat_n(1.0, wheels.min(MAX_WHEELS)).collect(),
+                1.0,
+                self.l_arc(),
+            ),
+            _ => Corrections::diff_drive(1.0, 1.0, 1.0, self.laws()),
+        }
+    }
+
     /// The robot with the corrected geometry: what calibration says it really is.
     pub fn apply_to(&self, robot: &Robot) -> Robot {
         let mut out = robot.clone();
@@ -480,6 +496,41 @@ impl Corrections {
 mod tests {
     use super::*;
     use crate::robot::presets;
+
+    /// Factors of one keep the laws to the bit and change no geometry: an omni robot's
+    /// l_arc, a differential drive's three laws, plain factors giving plain ones.
+    #[test]
+    fn laws_only_keeps_the_laws_and_no_geometry() {
+        let omni = Corrections::omni(Vec::from_slice(&[1.02, 0.98, 1.01]).unwrap(), 1.03, 0.019);
+        assert_eq!(
+            omni.laws_only(3),
+            Corrections::omni(Vec::from_slice(&[1.0; 3]).unwrap(), 1.0, 0.019)
+        );
+        let laws = DiffLaws {
+            e_b_arc: 0.006,
+            speed_rel: -0.02,
+            accel_slip_s: 0.01,
+        };
+        let diff = Corrections::diff_drive(1.01, 0.99, 1.02, laws);
+        let ones = diff.laws_only(2);
+        assert_eq!(ones, Corrections::diff_drive(1.0, 1.0, 1.0, laws));
+        let r = presets::mobolab();
+        assert_eq!(ones.apply_to(&r), r);
+        assert_eq!(
+            Corrections::DiffDrive {
+                c_l: 1.1,
+                c_r: 0.9,
+                e_b: 1.2
+            }
+            .laws_only(2),
+            Corrections::DiffDrive {
+                c_l: 1.0,
+                c_r: 1.0,
+                e_b: 1.0
+            }
+        );
+        assert_eq!(Corrections::None.laws_only(3), Corrections::None);
+    }
 
     /// A second pass over a turn law: the factors multiply, the laws add (to 1e-12),
     /// laws that cancel leave plain factors, and omni with differential factors does not

@@ -22,10 +22,9 @@
 //! from [`crate::circle_test::heading_gain`]: its measured heading error, or the end's x
 //! for a clean circle; a circle under [`MIN_RADIUS_BY_END_M`] needs its heading measured.
 
-use crate::circle_test::{end_x, gains_each_way, radii_of, CircleError, CircleRun};
+use crate::circle_test::{exact_run, gains_each_way, radii_of, CircleError, CircleRun};
 use crate::kinematics::{turn_law_share, turn_ratio};
 use crate::motion::Direction;
-use core::f64::consts::PI;
 use heapless::Vec;
 
 pub use crate::circle_test::MAX_RADII;
@@ -60,17 +59,7 @@ impl OmniCircleModel {
 
     /// The exact run: where a circle rolled at that gain ends, and its heading error.
     pub fn run(&self, dir: Direction, radius_m: f64, laps: u8) -> CircleRun {
-        let g = self.gain(radius_m);
-        let u = 2.0 * PI * f64::from(laps) * (g - 1.0);
-        let sign = if dir == Direction::Ccw { 1.0 } else { -1.0 };
-        CircleRun {
-            dir,
-            radius_m,
-            laps,
-            x_err_m: end_x(radius_m, laps, g),
-            y_err_m: sign * radius_m / g * (1.0 - libm::cos(u)),
-            theta_err_rad: Some(sign * u),
-        }
+        exact_run(dir, radius_m, laps, self.gain(radius_m))
     }
 }
 
@@ -219,6 +208,7 @@ pub fn omni_turn_law(
 #[cfg(test)]
 mod tests {
     use super::*;
+    use core::f64::consts::PI;
 
     /// The omni3 of `robots/omni3.toml`: wheels 0.15 m from the centre.
     const L: f64 = 0.15;

@@ -42,23 +42,33 @@ fn request(b: &mut VirtualBoard, r: Request) {
     }
 }
 
+/// Starts `program` on `b`, logging at `log_rate_hz`, with no link failsafe (the tests
+/// drive the board directly).
+fn run_program(b: &mut VirtualBoard, program: ProgramSpec, log_rate_hz: u16) {
+    request(
+        b,
+        Request::RunProgram {
+            program,
+            log_rate_hz,
+            link_timeout_ms: 0,
+        },
+    );
+}
+
 #[test]
 fn dc_wheels_track_the_profile_within_two_percent() {
     // [Redundant omni]'s omni robot with the simulator's DC motors (inertia, friction, back-EMF),
     // closed by the firmware's PI loops: a 1 m path along x, wheels 1 and 3 cruising at
     // 0.3 m/s / 0.03 m = 10 rad/s.
     let mut b = board("omni4.toml", sim::Faults::none(4));
-    request(
+    run_program(
         &mut b,
-        Request::RunProgram {
-            program: ProgramSpec::Omni {
-                idle: calib_core::protocol::IdleWheels::Released,
-                path: OmniPath::W1,
-                length_m: 1.0,
-            },
-            log_rate_hz: 0,
-            link_timeout_ms: 0,
+        ProgramSpec::Omni {
+            idle: calib_core::protocol::IdleWheels::Released,
+            path: OmniPath::W1,
+            length_m: 1.0,
         },
+        0,
     );
     let mut worst: f64 = 0.0;
     let mut cruise_ticks = 0;
@@ -155,16 +165,13 @@ fn corrected_umbmark_square_lands_where_calib_core_predicts() {
     };
     request(&mut b, Request::SetCorrections(corr));
     let side = 2.0;
-    request(
+    run_program(
         &mut b,
-        Request::RunProgram {
-            program: ProgramSpec::Umbmark {
-                side_m: side,
-                dir: Direction::Ccw,
-            },
-            log_rate_hz: 10,
-            link_timeout_ms: 0,
+        ProgramSpec::Umbmark {
+            side_m: side,
+            dir: Direction::Ccw,
         },
+        10,
     );
     let mut n = 0;
     while b.truths().is_empty() && n < 200_000 {
@@ -216,16 +223,13 @@ fn skid_steer_board_drives_each_side_together_and_turns_with_its_e_b() {
                 e_b,
             }),
         );
-        request(
+        run_program(
             &mut b,
-            Request::RunProgram {
-                program: ProgramSpec::Umbmark {
-                    side_m: 1.0,
-                    dir: Direction::Ccw,
-                },
-                log_rate_hz: 10,
-                link_timeout_ms: 0,
+            ProgramSpec::Umbmark {
+                side_m: 1.0,
+                dir: Direction::Ccw,
             },
+            10,
         );
         let mut n = 0;
         let mut side_gap: f64 = 0.0;
@@ -620,14 +624,7 @@ fn scrubbed_run(program: ProgramSpec, seed: u64) -> formats::recording::Recordin
         ..SimConfig::default()
     };
     let mut b = board_on(&robot, sim::Faults::none(2), cfg, Corrections::None);
-    request(
-        &mut b,
-        Request::RunProgram {
-            program,
-            log_rate_hz: 0,
-            link_timeout_ms: 0,
-        },
-    );
+    run_program(&mut b, program, 0);
     let mut rec = formats::recording::Recording::new(&robot, false, true);
     let start = b.now_us();
     while b.busy() && b.now_us() - start < 120_000_000 {
@@ -743,14 +740,7 @@ fn hand_measured(
         ..SimConfig::default()
     };
     let mut b = board_on(&robot, f, cfg, c);
-    request(
-        &mut b,
-        Request::RunProgram {
-            program,
-            log_rate_hz: 10,
-            link_timeout_ms: 0,
-        },
-    );
+    run_program(&mut b, program, 10);
     let start = b.now_us();
     while b.truths().is_empty() && b.now_us() - start < 200_000_000 {
         b.step(&mut Quiet);
@@ -856,14 +846,7 @@ fn omni3() -> calib_core::robot::Robot {
 /// truth's, and the true heading.
 fn omni_scrub(program: ProgramSpec, c: Corrections) -> (f64, f64, f64) {
     let mut b = scrubbed_board(&omni3(), 0.02, c);
-    request(
-        &mut b,
-        Request::RunProgram {
-            program,
-            log_rate_hz: 0,
-            link_timeout_ms: 0,
-        },
-    );
+    run_program(&mut b, program, 0);
     let start = b.now_us();
     b.step(&mut Quiet);
     while !matches!(b.app.status().mode, Mode::Idle) && b.now_us() - start < 120_000_000 {

@@ -428,14 +428,7 @@ impl OmniReport {
         let Some(c) = &self.circles else {
             return Ok(None);
         };
-        let sized = Corrections::omni(
-            heapless::Vec::from_slice(&self.f_lat)
-                .map_err(|_| anyhow!("{} wheels: a board holds at most 8", self.f_lat.len()))?,
-            self.f_lon,
-            0.0,
-        )
-        .apply_to(robot);
-        Ok(Some(c.board_robot(&sized)))
+        Ok(Some(c.board_robot(&self.corrections()?.apply_to(robot))))
     }
 
     /// The human-readable summary printed without `--json`.

@@ -637,13 +637,9 @@ pub fn run<L: Read + Write>(
                     params: Some(board::with_robot(
                         &c.params()?,
                         board_robot,
-                        &opts.runs_file,
+                        &measured_robot_file(&opts.runs_file),
                     )?),
-                    corrections: Corrections::omni(
-                        core::iter::repeat_n(1.0, n).collect(),
-                        1.0,
-                        r.l_arc,
-                    ),
+                    corrections: r.corrections()?.laws_only(n),
                 };
                 board::apply_settings(c, &target)
                     .context("the omni circle test's geometry and factors were not uploaded")?;
@@ -654,7 +650,13 @@ pub fn run<L: Read + Write>(
                     r.circles.as_ref().map_or(1.0, |c| c.wheel_distance_scale),
                     board::FactorsView::from(&target.corrections).human().trim()
                 ));
-                return finish(c, opts, m, &robot, &trials, length, None, &have);
+                let measured = Measured {
+                    robot: &robot,
+                    trials: &trials,
+                    length,
+                    previous: None,
+                };
+                return finish(c, opts, m, measured, &have);
             }
             r.corrections()?
         }
@@ -679,32 +681,41 @@ pub fn run<L: Read + Write>(
         "factors uploaded and saved: {}",
         board::FactorsView::from(&corrections).human().trim()
     ));
-    finish(
-        c,
-        opts,
-        m,
-        &robot,
-        &trials,
+    let measured = Measured {
+        robot: &robot,
+        trials: &trials,
         length,
-        previous.as_ref(),
-        &have,
-    )
+        previous: previous.as_ref(),
+    };
+    finish(c, opts, m, measured, &have)
+}
+
+/// What a procedure measured with: the robot the board held, the trials, the path
+/// length, and on a second pass the factors in force.
+#[derive(Clone, Copy)]
+struct Measured<'a> {
+    robot: &'a Robot,
+    trials: &'a [Trial],
+    length: f64,
+    previous: Option<&'a Corrections>,
 }
 
 /// The end of a procedure once the board holds its calibration: the after trials (when
 /// asked), then the report of the whole runs file. `have(phase, trial)` counts the runs
 /// the runs file held when the procedure started.
-#[allow(clippy::too_many_arguments)]
 fn finish<L: Read + Write>(
     c: &mut Client<L>,
     opts: &Options,
     m: &mut dyn Measure,
-    robot: &Robot,
-    trials: &[Trial],
-    length: f64,
-    previous: Option<&Corrections>,
+    measured: Measured<'_>,
     have: &dyn Fn(Phase, Trial) -> usize,
 ) -> Result<ProcedureReport> {
+    let Measured {
+        robot,
+        trials,
+        length,
+        previous,
+    } = measured;
     if opts.after {
         let plan = PhasePlan {
             runs: opts.after_runs,

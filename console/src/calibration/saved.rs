@@ -273,12 +273,7 @@ impl SavedCalibration {
     /// The factors of a board holding this calibration's board robot
     /// (`calibrate --write-board-robot`, with `n` wheels): ones, and the laws it kept.
     pub fn law_corrections(&self, n: usize) -> Result<Corrections> {
-        Ok(match self.board_corrections()? {
-            c @ (Corrections::Omni { .. } | Corrections::OmniTurnLaw { .. }) => {
-                Corrections::omni(core::iter::repeat_n(1.0, n).collect(), 1.0, c.l_arc())
-            }
-            c => Corrections::diff_drive(1.0, 1.0, 1.0, c.laws()),
-        })
+        Ok(self.board_corrections()?.laws_only(n))
     }
 
     /// The factors a board holding `robot` gets ([`SavedCalibration::board_corrections`]);
