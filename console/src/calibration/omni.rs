@@ -155,48 +155,56 @@ pub fn with_circles(
 /// Reads the previous pass's factors (`f_lat`, `f_lon`, and a turn law `l_arc` when
 /// `factors get` shows one) from a `--json` result of `omni compute` or `factors get`.
 pub fn factors_from_json(path: &std::path::Path) -> Result<Corrections> {
-    let (f, l_arc) = omni_factors_from_json(path)?;
-    // A first pass the board would refuse must not be composed with (e.g. f_lon: -1).
-    for (i, v) in f.f_lat.iter().enumerate() {
-        calib_core::correction::check("f_lat", Some(i), *v)
-            .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
+    use anyhow::Context;
+    let text = crate::ros2::read_json_text(path)?;
+    let v: serde_json::Value =
+        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
+    corrections_from_value(&v, &path.display(), "")
+}
+
+/// An omni robot's factors as the JSON results give them (`f_lat`, `f_lon`, and `l_arc`
+/// when a turn law was kept; absent or null is none), checked against the board's
+/// ranges so that a pass the board would refuse is neither composed with nor applied.
+/// Errors name `shown` (the file) and end with `hint` (what the option takes).
+pub fn corrections_from_value(
+    v: &serde_json::Value,
+    shown: &dyn std::fmt::Display,
+    hint: &str,
+) -> Result<Corrections> {
+    let missing = |what: &str| anyhow::anyhow!("{shown}: no {what}{hint}");
+    let f_lat: Vec<f64> = v
+        .get("f_lat")
+        .and_then(|a| a.as_array())
+        .and_then(|a| a.iter().map(|x| x.as_f64()).collect())
+        .ok_or_else(|| missing("numeric array f_lat"))?;
+    let f_lon = v
+        .get("f_lon")
+        .and_then(|x| x.as_f64())
+        .ok_or_else(|| missing("number f_lon"))?;
+    let l_arc = match v.get("l_arc") {
+        None | Some(serde_json::Value::Null) => 0.0,
+        Some(x) => x.as_f64().ok_or_else(|| missing("number l_arc"))?,
+    };
+    let at = |e: calib_core::correction::CorrectionError| anyhow::anyhow!("{shown}: {e}");
+    for (i, v) in f_lat.iter().enumerate() {
+        calib_core::correction::check("f_lat", Some(i), *v).map_err(at)?;
     }
-    calib_core::correction::check("f_lon", None, f.f_lon)
-        .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    let f_lat = heapless::Vec::from_slice(&f.f_lat)
-        .map_err(|_| anyhow::anyhow!("{}: too many f_lat factors", path.display()))?;
+    calib_core::correction::check("f_lon", None, f_lon).map_err(at)?;
     calib_core::correction::check_within(
         "l_arc",
         l_arc,
         -calib_core::correction::E_B_ARC_MAX,
         calib_core::correction::E_B_ARC_MAX,
     )
-    .map_err(|e| anyhow::anyhow!("{}: {e}", path.display()))?;
-    Ok(Corrections::omni(f_lat, f.f_lon, l_arc))
-}
-
-/// The factors and the turn law (0 when the file has none).
-fn omni_factors_from_json(path: &std::path::Path) -> Result<(OmniFactors, f64)> {
-    use anyhow::Context;
-    let text = crate::ros2::read_json_text(path)?;
-    let v: serde_json::Value =
-        serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;
-    let f_lat = v
-        .get("f_lat")
-        .and_then(|a| a.as_array())
-        .and_then(|a| a.iter().map(|x| x.as_f64()).collect::<Option<Vec<f64>>>())
-        .with_context(|| format!("{}: no numeric array f_lat", path.display()))?;
-    let f_lon = v
-        .get("f_lon")
-        .and_then(|x| x.as_f64())
-        .with_context(|| format!("{}: no number f_lon", path.display()))?;
-    let l_arc = match v.get("l_arc") {
-        None | Some(serde_json::Value::Null) => 0.0,
-        Some(x) => x
-            .as_f64()
-            .with_context(|| format!("{}: l_arc is not a number", path.display()))?,
-    };
-    Ok((OmniFactors { f_lat, f_lon }, l_arc))
+    .map_err(at)?;
+    let n = f_lat.len();
+    let f_lat = heapless::Vec::from_slice(&f_lat).map_err(|_| {
+        anyhow::anyhow!(
+            "{shown}: {n} f_lat factors; a board holds at most {}",
+            calib_core::robot::MAX_WHEELS
+        )
+    })?;
+    Ok(Corrections::omni(f_lat, f_lon, l_arc))
 }
 
 /// Direction of a named path in the body frame (radians from body x).
@@ -562,6 +570,37 @@ mod tests {
         );
         let rep = compose_with(rep, &lawful).unwrap();
         assert!((rep.previous.as_ref().unwrap().f_lon - 1.01).abs() < 1e-12);
+    }
+
+    /// One reader for every omni result (`omni compute`, `factors get`, `apply`'s input):
+    /// the factors come back to the bit, and each refusal names the file, what is wrong
+    /// and what the option takes.
+    #[test]
+    fn omni_factors_are_read_and_refused_in_one_place() {
+        let read = |text: &str| {
+            let v: serde_json::Value = serde_json::from_str(text).unwrap();
+            corrections_from_value(&v, &"c.json", ": apply takes ...")
+        };
+        let c = read(r#"{"f_lat": [1.01, 0.99, 1.0], "f_lon": 1.02, "l_arc": null}"#).unwrap();
+        let (f_lat, f_lon) = c.omni_factors().unwrap();
+        assert_eq!(
+            (f_lat, f_lon, c.l_arc()),
+            (&[1.01, 0.99, 1.0][..], 1.02, 0.0)
+        );
+        let e = |text: &str| read(text).unwrap_err().to_string();
+        assert_eq!(
+            e(r#"{"f_lat": [1, 1, 1]}"#),
+            "c.json: no number f_lon: apply takes ..."
+        );
+        assert_eq!(
+            e(r#"{"f_lat": [1, "x", 1], "f_lon": 1}"#),
+            "c.json: no numeric array f_lat: apply takes ..."
+        );
+        assert_eq!(
+            e(r#"{"f_lat": [1, 1, 1, 1, 1, 1, 1, 1, 1], "f_lon": 1}"#),
+            "c.json: 9 f_lat factors; a board holds at most 8"
+        );
+        assert!(e(r#"{"f_lat": [1, 3, 1], "f_lon": 1}"#).starts_with("c.json: f_lat[1] = 3"));
     }
 
     /// `--previous` from `factors get --json` on a board with a turn law keeps the law

@@ -6,7 +6,7 @@
 
 use anyhow::{anyhow, bail, Context, Result};
 use calib_core::correction::{Corrections, DiffLaws};
-use calib_core::robot::{Robot, RobotKind, MAX_WHEELS};
+use calib_core::robot::{Robot, RobotKind};
 use diagnose::calibrate::{BoardFactors, Candidate};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
@@ -236,23 +236,8 @@ impl SavedCalibration {
         let missing =
             |what: &str| anyhow!("{shown}: no factors.{what} numbers: {} {TAKES}", self.flag);
         if f.get("f_lat").is_some() {
-            let f_lat: Vec<f64> = f["f_lat"]
-                .as_array()
-                .and_then(|a| a.iter().map(Value::as_f64).collect())
-                .ok_or_else(|| missing("f_lat"))?;
-            if f_lat.len() > MAX_WHEELS {
-                bail!(
-                    "{shown}: {} f_lat factors; a board holds at most {MAX_WHEELS}",
-                    f_lat.len()
-                );
-            }
-            let f_lon = f["f_lon"].as_f64().ok_or_else(|| missing("f_lon"))?;
-            // An omni robot's turn law, when the calibration kept one (absent: none).
-            let l_arc = match f.get("l_arc") {
-                None | Some(Value::Null) => 0.0,
-                Some(v) => v.as_f64().ok_or_else(|| missing("l_arc"))?,
-            };
-            return Ok(Corrections::omni(f_lat.into_iter().collect(), f_lon, l_arc));
+            let hint = format!(": {} {TAKES}", self.flag);
+            return super::omni::corrections_from_value(f, &shown, &hint);
         }
         if let Some(b) = f.get("board") {
             let b: BoardFactors = serde_json::from_value(b.clone())
