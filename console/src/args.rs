@@ -804,7 +804,7 @@ pub struct CalibrateArgs {
     pub cv: Option<String>,
     /// Lever arm (m) at which heading errors count in the dead-reckoning objective
     /// (default 0.1; longer levers transferred better on the differential robot's real
-    /// runs and worse on the omni robots', see the README).
+    /// runs and worse on the omni robots', see docs/calibrate.md).
     #[arg(long)]
     pub heading_lever: Option<f64>,
     /// A known turn law, held fixed while the geometry is fitted: how much wider a

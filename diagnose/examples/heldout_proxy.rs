@@ -1,7 +1,7 @@
 //! Issue 21's held-out proxy on `shared/real/sessions/`: `calibrate` trained on each
 //! square session of the differential robot, its geometry dead-reckoned on the circles and
 //! Ivanjko paths of the nearest day, against the OptiOdom authors' parameters from the same
-//! session (see `diagnose::calibrate::proxy`). Prints a markdown table (the README's).
+//! session (see `diagnose::calibrate::proxy`). Prints a markdown table (docs/calibrate.md's).
 //!
 //!     cargo run --release -p diagnose --example heldout_proxy [-- OPTIONS]
 //!

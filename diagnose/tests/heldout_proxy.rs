@@ -357,7 +357,7 @@ fn omni3_squares_transfer_to_circles_with_plausible_geometry() {
 /// mm with the authors'; the other session's squares 31.7-33.2 mm with the law, 46.4-56.9
 /// mm with the constant, 58.5-59.1 mm with the authors'. Asserted: the law kept at 3
 /// sigma within 0.010..0.025 (the circles of 0.7 m want a heading gain 1.3-1.6 % under
-/// the squares', README); held-out circles with the law at most half the authors' and
+/// the squares', docs/calibrate.md); held-out circles with the law at most half the authors' and
 /// within 5 % of the constant's; the other squares with the law at most 0.8 of the
 /// constant's and 0.7 of the authors'.
 #[test]

@@ -13,13 +13,13 @@
 //! it matters and its parameters with tolerances from the physics (a wheel mounting angle
 //! to 0.5 degrees, a distance to 1.5 %, a diameter ratio to 0.15 %, a slip or friction
 //! coefficient to 20-30 %, floor bounds to 10 cm). The first and current scores are in the
-//! README (diagnose section) and here.
+//! docs/diagnose.md and here.
 //!
 //! Hard assertions: the noise-only controls give `none`. The wheeled-legged posture slip
 //! (found two rounds ago, `unexplained` for two rounds, found again) has its own check,
 //! `posture_slip_regression`. The other cases are scored.
 //!
-//! First run (commit 'independent suite...', diagnose of main 5f02c13): see the README.
+//! First run (commit 'independent suite...', diagnose of main 5f02c13): see docs/diagnose.md.
 //! `DIAG_CASE=name` runs only the cases whose name contains it.
 
 mod check;

@@ -5,7 +5,7 @@
 //! must give `none`.
 //!
 //! Seeds and tolerances were written before the first run and are not tuned afterwards;
-//! the first and the current scores are in the README (diagnose section) and below.
+//! the first and the current scores are in docs/diagnose.md and below.
 //!
 //! A case passes fully when the verdict is right, the finding names an accepted
 //! mechanism, its parameters are within tolerance with their physical sign, and findings

@@ -21,7 +21,7 @@ pub(crate) const HEADING_LEVER_M: f64 = 0.1;
 /// turn law wants; held out within the squares it is no better, and on the mecanum
 /// robot's proxy it is worse (0.934, 0.963, 1.021, 1.205), as on omni3's. At 3 m the
 /// heading gain dominates and scale/eb are reported not separable even on two-direction
-/// squares (sim and real): [`CalOptions::heading_lever_m`] sets it (README,
+/// squares (sim and real): [`CalOptions::heading_lever_m`] sets it (docs/calibrate.md,
 /// `--heading-lever`).
 ///
 /// [`CalOptions::heading_lever_m`]: crate::calibrate::CalOptions::heading_lever_m
