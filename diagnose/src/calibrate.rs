@@ -43,6 +43,7 @@ mod result;
 mod sens;
 mod series;
 mod solve;
+mod spread;
 mod step;
 #[cfg(test)]
 mod synth;
@@ -77,6 +78,7 @@ pub use series::{
     JUMP_ONE_STEP, JUMP_SIGMAS, JUMP_WINDOW, MIN_POSES, NOISY_POSES_M, PART_SEP,
     PLAUSIBLE_CLOCK_DRIFT, PLAUSIBLE_TIME_OFFSET_S, SAMPLE_STEP_M,
 };
+pub use spread::MIN_SPREAD_GROUPS;
 use turn_law::Turning;
 pub use turn_law::{TurnLaw, ARC_RHO};
 
@@ -528,6 +530,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     // geometry refitted on the rest from the full solution (the same objective, loss,
     // events and bounds), the held-out recordings dead-reckoned and aligned.
     let cv_by = opts.cv.or(opts.leave_one_out.then_some(CvBy::Run));
+    let gn = (!cfg.free_start && cfg.huber.is_none()).then(|| OneStep::new(&p, &fitted));
     let mut leave_one_out = Vec::new();
     if let Some(by) = cv_by {
         let groups: Vec<String> = series.iter().map(|s| by.group(&s.name)).collect();
@@ -544,7 +547,6 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         // Dead reckoning (squared loss): each fold is one Gauss-Newton step from the full
         // solution with the held-out recordings' rows taken out of the normal equations
         // (no refit: CV costs next to nothing). Otherwise a refit from the full solution.
-        let gn = (!cfg.free_start && cfg.huber.is_none()).then(|| OneStep::new(&p, &fitted));
         let t0 = std::time::Instant::now();
         // One-step folds: (recording, group, geometry without the group), replayed after.
         let mut stepped: Vec<(usize, &String, Vec<f64>)> = Vec::new();
@@ -611,14 +613,30 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         }));
     }
 
+    // The spread between recordings (or the cross-validation's groups): what calibrating
+    // again on other runs would move each parameter by.
+    let names: Vec<&str> = series.iter().map(|s| s.name.as_str()).collect();
+    let (spread_by, spread_by_name) = spread::spread_groups(&names, cv_by);
+    let spread = gn
+        .as_ref()
+        .and_then(|one| spread::between_groups(one, &spread_by));
+    if let Some(sp) = &spread {
+        notes.push(spread::spread_note(&specs, &cov, sp, spread_by_name));
+    }
     let mut params: Vec<FittedParam> = specs
         .iter()
         .enumerate()
-        .map(|(i, s)| FittedParam {
-            spec: s.clone(),
-            value: fitted.geom[i],
-            sigma: cov[(i, i)].max(0.0).sqrt(),
-            sigma_with_priors: None,
+        .map(|(i, s)| {
+            let fit = cov[(i, i)].max(0.0).sqrt();
+            let between = spread.as_ref().map(|sp| sp.sigma[i]);
+            FittedParam {
+                spec: s.clone(),
+                value: fitted.geom[i],
+                sigma: fit.max(between.unwrap_or(0.0)),
+                sigma_fit: fit,
+                sigma_between: between,
+                sigma_with_priors: None,
+            }
         })
         .collect();
     // What the data alone leave free rests on the priors: its spread with them.

@@ -18,8 +18,16 @@ pub struct FittedParam {
     pub spec: ParamSpec,
     /// Fitted value.
     pub value: f64,
-    /// One standard deviation, residual autocorrelation counted.
+    /// One standard deviation: the larger of `sigma_fit` and `sigma_between`.
     pub sigma: f64,
+    /// The fit's own standard deviation, from its residuals (their autocorrelation
+    /// counted): what the data at hand fix.
+    pub sigma_fit: f64,
+    /// The spread between the recordings (or cross-validation's groups), each left out in
+    /// turn (delete-one jackknife): what calibrating again on other runs would move the
+    /// parameter by. Absent with fewer than three, with `--free-start` or a robust loss.
+    #[serde(skip_serializing_if = "Option::is_none")]
+    pub sigma_between: Option<f64>,
     /// When the data alone do not fix it ([`FittedParam::sigma_exceeds_range`]): its
     /// standard deviation with the priors the fit used (the plausible range, and alike
     /// wheels held alike), on which the directions the data leave free rest.
@@ -32,7 +40,7 @@ impl FittedParam {
     /// data then fix the parameter no better than the range itself (the covariance takes
     /// the prior at a millionth of its weight, so such a sigma is the data's alone).
     pub fn sigma_exceeds_range(&self) -> bool {
-        self.sigma > self.spec.plausible.1 - self.spec.plausible.0
+        self.sigma_fit > self.spec.plausible.1 - self.spec.plausible.0
     }
 }
 
@@ -152,6 +160,11 @@ fn param_line(p: &FittedParam, implausible: bool) -> String {
         format!(
             "{:.5} (not fixed by the data: its sigma is wider than the plausible range{priors})",
             p.value
+        )
+    } else if p.sigma_between.is_some_and(|b| b > p.sigma_fit) {
+        format!(
+            "{:.5} ± {:.5} (the spread between runs; the fit's own ± {:.5})",
+            p.value, p.sigma, p.sigma_fit
         )
     } else {
         format!("{:.5} ± {:.5}", p.value, p.sigma)
@@ -927,6 +940,8 @@ mod tests {
             },
             value: 1.10198,
             sigma,
+            sigma_fit: sigma,
+            sigma_between: None,
             sigma_with_priors: None,
         }
     }
@@ -960,6 +975,18 @@ mod tests {
             "{line}"
         );
         assert!(!line.contains("7.95"), "{line}");
+        // The spread between runs, when larger than the fit's own, is the figure, and the
+        // line names both.
+        let spread = FittedParam {
+            sigma: 0.00155,
+            sigma_between: Some(0.00155),
+            ..param(0.00012)
+        };
+        let line = param_line(&spread, false);
+        assert!(
+            line.contains("1.10198 ± 0.00155 (the spread between runs; the fit's own ± 0.00012)"),
+            "{line}"
+        );
     }
 
     /// The column means of a hand-made table, each the sum of three values over 3 (a
