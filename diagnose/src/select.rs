@@ -1033,8 +1033,22 @@ pub fn verdict(
         if c0 > MISMATCH_CHI2 {
             mismatch = true;
             excess0 += c0 - 1.0;
-            excess1 += (c1 - 1.0).max(0.0);
-            worst_final = worst_final.max(c1);
+            // What the findings leave on a stage, when it does not drift, is noise however
+            // coloured: the short-interval noise estimate misses correlated motion-capture
+            // noise (3 mm correlated over a second read as 0.5 mm), and the remainder is
+            // then no evidence of physics left out, provided the findings took the stage
+            // out of that noise's own level (the nominal chi-square over the final one
+            // above MISMATCH_CHI2: a finding that barely moved it explains nothing) and
+            // identification ties nothing left to the motion (a tilted floor's remainder
+            // after a slip fit, 62 mm, does not drift either, but follows the heading).
+            let remainder_is_noise = found_here
+                && left_terms.is_empty()
+                && c0 > MISMATCH_CHI2 * c1
+                && signature::stage_is_noise(ev, &sel.final_eval, s == Stage::Ground);
+            if !remainder_is_noise {
+                excess1 += (c1 - 1.0).max(0.0);
+                worst_final = worst_final.max(c1);
+            }
             counted.push(s);
         }
     }

