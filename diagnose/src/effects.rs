@@ -73,6 +73,8 @@ pub enum Effect {
     SlipBody,
     /// longitudinal_slip: creep, slip proportional to the contact's acceleration.
     SlipCreep,
+    /// longitudinal_slip: each driven wheel its own traction limit (`mu_<wheel>`).
+    SlipPerWheel,
     /// lateral_slip: slip speed saturating at `sat_m_s`.
     LateralSaturating,
     /// floor_bumps: only within `start_m` <= world x <= `end_m`.
@@ -159,7 +161,7 @@ impl ParamSpec {
 
 impl Effect {
     /// Every effect: the catalogue's own first, then the mechanism variants.
-    pub const ALL: [Effect; 21] = [
+    pub const ALL: [Effect; 22] = [
         Effect::WheelDiameterMismatch,
         Effect::WheelbaseError,
         Effect::LongitudinalSlip,
@@ -181,12 +183,13 @@ impl Effect {
         Effect::LagDelay,
         Effect::LagSlew,
         Effect::FrictionDroop,
+        Effect::SlipPerWheel,
     ];
 
     /// The catalogue effect this is a mechanism of (itself for the catalogue's own).
     pub fn base(self) -> Effect {
         match self {
-            Effect::SlipBody | Effect::SlipCreep => Effect::LongitudinalSlip,
+            Effect::SlipBody | Effect::SlipCreep | Effect::SlipPerWheel => Effect::LongitudinalSlip,
             Effect::LateralSaturating => Effect::LateralSlip,
             Effect::BumpsRegion => Effect::FloorBumps,
             Effect::BacklashAsymmetric | Effect::BacklashPerWheel => Effect::Backlash,
@@ -218,6 +221,7 @@ impl Effect {
             Effect::CoulombFriction => c::MECH_DEAD_BAND.0,
             Effect::SlipBody => c::MECH_BODY.0,
             Effect::SlipCreep => c::MECH_CREEP.0,
+            Effect::SlipPerWheel => c::MECH_SLIP_PER_WHEEL.0,
             Effect::LateralSaturating => c::MECH_SATURATING.0,
             Effect::BumpsRegion => c::MECH_REGION.0,
             Effect::BacklashAsymmetric => c::MECH_ASYMMETRIC.0,
@@ -301,6 +305,12 @@ impl Effect {
             }
             Effect::SlipBody => vec![ParamSpec::new("mu", Log, 1e3, 0.01, 5.0)],
             Effect::SlipCreep => vec![ParamSpec::new("creep_s", Log, 1e-9, 1e-3, 2.0)],
+            Effect::SlipPerWheel => robot
+                .wheels
+                .iter()
+                .filter(|w| w.driven)
+                .map(|w| ParamSpec::new(&format!("mu_{}", w.name), Log, 1e3, 0.01, 5.0))
+                .collect(),
             Effect::LateralSaturating => vec![
                 ParamSpec::new("side_slip_s", Log, 1e-9, 1e-3, 2.0),
                 ParamSpec::new("sat_m_s", Log, 1e3, 1e-4, 1.0),
@@ -411,6 +421,7 @@ impl Effect {
                 | Effect::LongitudinalSlip
                 | Effect::SlipBody
                 | Effect::SlipCreep
+                | Effect::SlipPerWheel
         )
     }
 
@@ -438,6 +449,19 @@ impl Effect {
             Effect::CoulombFriction => singles(log_grid(0.02, 20.0, 12)),
             Effect::SlipBody => singles(log_grid(0.02, 3.0, 8)),
             Effect::SlipCreep => singles(log_grid(0.005, 0.5, 6)),
+            // One wheel slipping (the others at no limit), for each wheel, and all alike.
+            Effect::SlipPerWheel => {
+                let mut g: Vec<Vec<f64>> = Vec::new();
+                for j in 0..n {
+                    for v in log_grid(0.02, 3.0, 6) {
+                        let mut x = vec![1e3; n];
+                        x[j] = v;
+                        g.push(x);
+                    }
+                }
+                g.extend(log_grid(0.02, 3.0, 6).into_iter().map(|v| vec![v; n]));
+                g
+            }
             Effect::LateralSaturating => {
                 let mut g = Vec::new();
                 for k in log_grid(0.01, 0.5, 3) {

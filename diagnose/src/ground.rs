@@ -236,7 +236,31 @@ pub fn simulate(
         }
         scales_known = known.iter().map(|&i| scales[i]).collect();
     }
-    let mu = model.get(Effect::LongitudinalSlip).map(|v| v[0]);
+    // Traction limits of the known wheels: one mu for every wheel, or each driven wheel
+    // its own (`SlipPerWheel`, in the robot's order of driven wheels).
+    let mu: Option<Vec<f64>> = match (
+        model.get(Effect::LongitudinalSlip),
+        model.get(Effect::SlipPerWheel),
+    ) {
+        (Some(v), _) => Some(vec![v[0]; known.len()]),
+        (None, Some(v)) => {
+            let mut driven = 0;
+            let of_wheel: Vec<f64> = p
+                .robot
+                .wheels
+                .iter()
+                .map(|w| {
+                    if !w.driven {
+                        return f64::INFINITY;
+                    }
+                    driven += 1;
+                    v.get(driven - 1).copied().unwrap_or(f64::INFINITY)
+                })
+                .collect();
+            Some(known.iter().map(|&i| of_wheel[i]).collect())
+        }
+        _ => None,
+    };
     // Mechanism variants live in `variants`.
     let side = (model.get(Effect::LateralSlip).is_some()
         || model.get(Effect::LateralSaturating).is_some())
@@ -347,13 +371,13 @@ pub fn simulate(
                     owed[j] -= take;
                 }
             }
-            if let Some(mu) = mu {
-                let a = (mu * G * p.driven_share[k]).max(1e-12);
+            if let Some(mu) = &mu {
                 let c = contact.get_or_insert_with(|| disp.iter().map(|d| d / dt).collect());
                 for j in 0..m {
                     if !wheels[j].3 {
                         continue;
                     }
+                    let a = (mu[j] * G * p.driven_share[k]).max(1e-12);
                     let want = (smooth_disp[j] - (wheels[j].0 * inc[j] - disp[j])) / dt;
                     let gap = want - c[j];
                     let t_reach = gap.abs() / a;

@@ -87,6 +87,11 @@ pub const PHYSICS: &[(&str, &str, &str)] = &[
     ),
     (
         "heading",
+        "accel",
+        "longitudinal_slip per wheel (heading error that follows acceleration: the wheels' traction differs)",
+    ),
+    (
+        "heading",
         "turn",
         "wheelbase_error (heading error that follows the turn)",
     ),
@@ -113,6 +118,9 @@ pub fn named_effects(terms: &[Term]) -> Vec<crate::effects::Effect> {
         };
         let effect = if word == "floor" {
             Some(Effect::FloorBumps)
+        } else if word == "longitudinal_slip" && t.target == "heading" {
+            // A heading error that follows acceleration: the wheels' traction differs.
+            Some(Effect::SlipPerWheel)
         } else {
             Effect::ALL
                 .into_iter()
@@ -715,8 +723,12 @@ mod tests {
             .unwrap()
             .starts_with("floor"));
         assert!(physics_of("heading", "reversals_fwd").is_none());
-        // Heading against acceleration: no pair, but slip follows acceleration.
-        assert!(physics_of("heading", "accel").is_none());
+        // Heading against acceleration: traction that differs between the wheels (a
+        // payload off-centre), the only way `longitudinal_slip` by `per_wheel` is tried.
+        assert!(physics_of("heading", "accel")
+            .unwrap()
+            .starts_with("longitudinal_slip per wheel"));
+        assert!(physics_of("heading", "lateral_accel").is_none());
         assert!(regressor_has_physics("accel"));
         assert!(regressor_has_physics("floor_x3"));
         assert!(!regressor_has_physics("reversals_fwd"));

@@ -64,6 +64,9 @@ pub const MECH_WHEEL: Mech = ("wheel", LONGITUDINAL_SLIP);
 pub const MECH_BODY: Mech = ("body", LONGITUDINAL_SLIP);
 /// longitudinal_slip: slip proportional to the drive force.
 pub const MECH_CREEP: Mech = ("creep", LONGITUDINAL_SLIP);
+/// longitudinal_slip: each driven wheel its own traction limit (a payload off-centre, a
+/// slipping hub; diagnose only).
+pub const MECH_SLIP_PER_WHEEL: Mech = ("per_wheel", LONGITUDINAL_SLIP);
 /// lateral_slip: v_y = -k v_x omega.
 pub const MECH_LINEAR: Mech = ("linear", LATERAL_SLIP);
 /// lateral_slip: slip speed saturating.
@@ -98,10 +101,11 @@ pub const MECH_DEAD_BAND: Mech = ("dead_band", COULOMB_FRICTION);
 pub const MECH_DROOP: Mech = ("droop", COULOMB_FRICTION);
 
 /// Every mechanism. The first listed for an effect is its default.
-pub const MECHANISMS: [Mech; 19] = [
+pub const MECHANISMS: [Mech; 20] = [
     MECH_WHEEL,
     MECH_BODY,
     MECH_CREEP,
+    MECH_SLIP_PER_WHEEL,
     MECH_LINEAR,
     MECH_SATURATING,
     MECH_WHOLE,
