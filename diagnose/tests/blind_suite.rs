@@ -101,15 +101,7 @@ mod check;
 use blind::{generate, Gen, Mech, Stats};
 use calib_core::robot::{presets, Drive, Robot};
 use diagnose::{diagnose, Options};
-use std::path::Path;
 use std::time::Instant;
-
-fn robot_file(name: &str) -> Robot {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../robots")
-        .join(format!("{name}.toml"));
-    formats::robot_file::load(&p).unwrap()
-}
 
 fn dc_diff() -> Robot {
     presets::diff_drive("dc_diff", 0.05, 0.40, Drive::default())
@@ -153,14 +145,14 @@ fn cases() -> Vec<Case> {
     let c = case(
         "control_omni3",
         "noise only, white 1 mm / 2 mrad",
-        robot_file("omni3"),
+        check::robot_file("omni3"),
         2601,
     );
     out.push(c);
     let mut c = case(
         "control_sweeper_coloured",
         "noise only, AR(1) 0.97, 2 mm / 4 mrad",
-        robot_file("sweeper"),
+        check::robot_file("sweeper"),
         2602,
     );
     c.gen.noise_rho = 0.97;
@@ -190,7 +182,7 @@ fn cases() -> Vec<Case> {
     let mut c = case(
         "eccentric_wheel_sweeper",
         "left wheel rolling radius r0 (1 + 0.015 cos(phi + 0.7)), mean nominal; noise 0.3 mm / 0.6 mrad",
-        robot_file("sweeper"),
+        check::robot_file("sweeper"),
         2604,
     );
     c.gen.mechs = vec![Mech::Eccentric {
@@ -312,7 +304,7 @@ fn cases() -> Vec<Case> {
     let mut c = case(
         "floor_slope_mobolab",
         "v_y = 0.02 |v_x| (y_body . downhill), downhill at 1.2 rad in the world",
-        robot_file("mobolab"),
+        check::robot_file("mobolab"),
         2610,
     );
     c.gen.mechs = vec![Mech::Slope {
@@ -332,7 +324,7 @@ fn cases() -> Vec<Case> {
     let mut c = case(
         "hub_slip_omni3",
         "w2 hub slips: wheel angular acceleration <= 16 rad/s^2 (mu-equivalent 0.065), a_max 0.8",
-        robot_file("omni3"),
+        check::robot_file("omni3"),
         2611,
     );
     c.gen.a_max = 0.8;
@@ -560,16 +552,6 @@ fn explain_blind_case() {
         for t in &r.identification {
             println!("  identified: {}", t.depends_on);
         }
-        for x in &r.candidates {
-            println!(
-                "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
-                x.round,
-                format!("{:?}", x.effect),
-                x.delta_bic,
-                x.heldout_ratio,
-                x.parameters,
-                x.note
-            );
-        }
+        check::print_candidates(&r);
     }
 }

@@ -394,16 +394,6 @@ fn explain_case() {
         let g = generate(&c.cfg);
         let r = diagnose(&c.cfg.robot, &g.recording, &Options::default()).unwrap();
         println!("== {}\n{r}", c.name);
-        for x in &r.candidates {
-            println!(
-                "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
-                x.round,
-                x.effect.id(),
-                x.delta_bic,
-                x.heldout_ratio,
-                x.parameters,
-                x.note
-            );
-        }
+        check::print_candidates(&r);
     }
 }

@@ -28,14 +28,6 @@ mod independent;
 use calib_core::robot::{presets, Drive, Robot};
 use diagnose::{diagnose, Options};
 use independent::{generate, Gen, Mech};
-use std::path::Path;
-
-fn robot_file(name: &str) -> Robot {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../robots")
-        .join(format!("{name}.toml"));
-    formats::robot_file::load(&p).unwrap()
-}
 
 fn dc_diff() -> Robot {
     presets::diff_drive("dc_diff", 0.05, 0.40, Drive::default())
@@ -75,7 +67,7 @@ fn cases() -> Vec<Case> {
     // Controls: white pose noise only, on each robot kind.
     out.push(case("control_diff", dc_diff(), 1901, vec![]));
     out.push(case("control_omni4", presets::omni4(), 1902, vec![]));
-    let mut c = case("control_wlr", robot_file("wlr"), 1903, vec![]);
+    let mut c = case("control_wlr", check::robot_file("wlr"), 1903, vec![]);
     c.gen.legs = ((90.0 * deg, 90.0 * deg), (60.0 * deg, 120.0 * deg));
     out.push(c);
 
@@ -205,7 +197,7 @@ fn cases() -> Vec<Case> {
     // Traction from the leg posture (regression: found two rounds ago).
     let mut c = case(
         "posture_slip_wlr",
-        robot_file("wlr"),
+        check::robot_file("wlr"),
         1918,
         vec![Mech::PostureTraction { mu: 0.1 }],
     );
@@ -362,16 +354,6 @@ fn explain_independent_case() {
         for t in &r.identification {
             println!("  identified: {}", t.depends_on);
         }
-        for x in &r.candidates {
-            println!(
-                "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
-                x.round,
-                format!("{:?}", x.effect),
-                x.delta_bic,
-                x.heldout_ratio,
-                x.parameters,
-                x.note
-            );
-        }
+        check::print_candidates(&r);
     }
 }

@@ -25,14 +25,6 @@ use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use rand_distr::{Distribution, Normal};
 use sim::{record, Effect, Motion, RandomMotion, RecordConfig, Surface};
-use std::path::Path;
-
-fn robot_file(name: &str) -> Robot {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../robots")
-        .join(format!("{name}.toml"));
-    formats::robot_file::load(&p).unwrap()
-}
 
 fn dc_diff() -> Robot {
     presets::diff_drive("dc_diff", 0.05, 0.40, Drive::default())
@@ -252,7 +244,7 @@ fn cases() -> Vec<Case> {
     let am = u(9.0, 16.0);
     add(
         "missed_steps/pull_out",
-        robot_file("mobolab"),
+        check::robot_file("mobolab"),
         vec![format!("missed_steps=max_accel_rad_s2:{am}")],
         "missed_steps",
         vec![],
@@ -264,7 +256,7 @@ fn cases() -> Vec<Case> {
     let (am, rate) = (u(6.0, 10.0), u(10.0, 30.0));
     add(
         "missed_steps/quanta",
-        robot_file("mobolab"),
+        check::robot_file("mobolab"),
         vec![format!(
             "missed_steps=max_accel_rad_s2:{am},mechanism:quanta,rate_hz:{rate}"
         )],
@@ -278,7 +270,7 @@ fn cases() -> Vec<Case> {
     let am = u(9.0, 14.0);
     add(
         "missed_steps/stall",
-        robot_file("mobolab"),
+        check::robot_file("mobolab"),
         vec![format!(
             "missed_steps=max_accel_rad_s2:{am},mechanism:stall"
         )],
@@ -415,7 +407,7 @@ fn cases() -> Vec<Case> {
     );
     add(
         "none/jitter",
-        robot_file("mobolab"),
+        check::robot_file("mobolab"),
         vec![],
         "none",
         vec![],
@@ -455,7 +447,7 @@ fn cases() -> Vec<Case> {
     );
     add(
         "none/all",
-        robot_file("omni3"),
+        check::robot_file("omni3"),
         vec![],
         "none",
         vec![],
@@ -630,17 +622,7 @@ fn explain_mechanism_case() {
         let rec = simulate(c);
         let r = diagnose(&c.robot, &rec, &Options::default()).unwrap();
         println!("== {} {:?}\n{r}", c.name, c.effects);
-        for x in &r.candidates {
-            println!(
-                "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
-                x.round,
-                format!("{:?}", x.effect),
-                x.delta_bic,
-                x.heldout_ratio,
-                x.parameters,
-                x.note
-            );
-        }
+        check::print_candidates(&r);
     }
 }
 

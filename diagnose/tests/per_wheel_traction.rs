@@ -24,6 +24,7 @@
 //! `DIAG_CASE=name` runs only the cases whose name contains it.
 
 mod blind;
+mod check;
 
 use blind::{generate, Gen, Mech};
 use calib_core::robot::{presets, Drive, Robot};
@@ -32,13 +33,6 @@ use std::collections::BTreeMap;
 
 fn dc_diff() -> Robot {
     presets::diff_drive("dc_diff", 0.05, 0.40, Drive::default())
-}
-
-fn robot_file(name: &str) -> Robot {
-    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../robots")
-        .join(format!("{name}.toml"));
-    formats::robot_file::load(&p).unwrap()
 }
 
 /// The slip finding's mechanism and parameters (verdict checked first).
@@ -60,17 +54,7 @@ fn slip(name: &str, gen: &Gen) -> Option<(String, BTreeMap<String, f64>)> {
         r.rmse.ground.after_m * 1e3
     );
     if std::env::var("DIAG_EXPLAIN").is_ok() {
-        for x in &r.candidates {
-            println!(
-                "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
-                x.round,
-                format!("{:?}", x.effect),
-                x.delta_bic,
-                x.heldout_ratio,
-                x.parameters,
-                x.note
-            );
-        }
+        check::print_candidates(&r);
     }
     assert_eq!(r.verdict, "longitudinal_slip", "{name}: {findings:?}");
     let f = r
@@ -113,7 +97,7 @@ fn a_payload_off_centre_gives_each_wheel_its_own_traction() {
 
 #[test]
 fn a_slipping_hub_is_found_on_its_wheel() {
-    let robot = robot_file("omni4");
+    let robot = check::robot_file("omni4");
     let (w3, r3) = (robot.wheels[2].name.clone(), robot.wheels[2].radius_m);
     let mut gen = Gen::new(robot.clone(), 3102);
     gen.a_max = 0.8;
@@ -142,7 +126,7 @@ fn a_slipping_hub_is_found_on_its_wheel() {
 #[test]
 #[ignore = "not met: the other wheels' limits come out 2.7-2.8 times the slipping one's"]
 fn a_slipping_hub_is_found_on_its_wheel_and_no_other() {
-    let robot = robot_file("omni4");
+    let robot = check::robot_file("omni4");
     let (w3, r3) = (robot.wheels[2].name.clone(), robot.wheels[2].radius_m);
     let mut gen = Gen::new(robot.clone(), 3102);
     gen.a_max = 0.8;

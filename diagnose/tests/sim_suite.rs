@@ -15,14 +15,6 @@ use diagnose::{diagnose, Options};
 use rand::{Rng, SeedableRng};
 use rand_chacha::ChaCha8Rng;
 use sim::{record, Effect, LegMotion, Motion, RandomMotion, RecordConfig, Surface};
-use std::path::Path;
-
-fn robot_file(name: &str) -> Robot {
-    let p = Path::new(env!("CARGO_MANIFEST_DIR"))
-        .join("../robots")
-        .join(format!("{name}.toml"));
-    formats::robot_file::load(&p).unwrap()
-}
 
 /// A DC differential drive (mobolab's geometry without the stepper).
 fn dc_diff() -> Robot {
@@ -72,9 +64,9 @@ fn cases() -> Vec<Case> {
     // Noise-only controls.
     for r in [
         dc_diff(),
-        robot_file("mobolab"),
+        check::robot_file("mobolab"),
         presets::omni4(),
-        robot_file("omni3"),
+        check::robot_file("omni3"),
         dc_diff(),
     ] {
         add(
@@ -197,7 +189,7 @@ fn cases() -> Vec<Case> {
         let a = rng.random_range(9.0..16.0);
         add(
             format!("missed_{a:.1}"),
-            robot_file("mobolab"),
+            check::robot_file("mobolab"),
             vec![format!("missed_steps=max_accel_rad_s2:{a}")],
             "missed_steps",
             vec![],
@@ -275,7 +267,7 @@ fn cases() -> Vec<Case> {
     for mu in [0.06, 0.1] {
         add(
             format!("wlr_mu_{mu}"),
-            robot_file("wlr"),
+            check::robot_file("wlr"),
             vec![format!("longitudinal_slip=mu:{mu}")],
             "longitudinal_slip",
             vec![],
@@ -284,7 +276,7 @@ fn cases() -> Vec<Case> {
     }
     add(
         "noise_wlr".into(),
-        robot_file("wlr"),
+        check::robot_file("wlr"),
         vec![],
         "none",
         vec![],
@@ -453,16 +445,6 @@ fn explain_case() {
             let dir = std::path::PathBuf::from(dir).join(&c.name);
             diagnose::plots::write_report_dir(&r, &dir).unwrap();
         }
-        for x in &r.candidates {
-            println!(
-                "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
-                x.round,
-                x.effect.id(),
-                x.delta_bic,
-                x.heldout_ratio,
-                x.parameters,
-                x.note
-            );
-        }
+        check::print_candidates(&r);
     }
 }

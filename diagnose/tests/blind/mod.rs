@@ -35,6 +35,10 @@ use rand_distr::{Distribution, Normal};
 use std::fmt::Write as _;
 use std::path::Path;
 
+#[path = "../rigid/mod.rs"]
+mod rigid;
+use rigid::{contact, twist_from, wrap, WheelGeo};
+
 const G: f64 = 9.81;
 
 /// A mechanism of this generator.
@@ -149,14 +153,6 @@ pub struct Stats {
     pub dr_max_m: f64,
 }
 
-struct WheelGeo {
-    /// Contact position in the body frame.
-    p: (f64, f64),
-    /// Rolling direction in the body frame.
-    u: (f64, f64),
-    r: f64,
-}
-
 /// The wheels' geometry at time fraction `frac` of the run (nominal if not `truth`).
 fn geometry(robot: &Robot, truth: bool, mechs: &[Mech], frac: f64) -> Vec<WheelGeo> {
     robot
@@ -188,67 +184,6 @@ fn geometry(robot: &Robot, truth: bool, mechs: &[Mech], frac: f64) -> Vec<WheelG
         .collect()
 }
 
-/// Contact speed of a wheel for body twist (vx, vy, w): u . (v + w x p).
-fn contact(g: &WheelGeo, v: (f64, f64, f64)) -> f64 {
-    g.u.0 * (v.0 - v.2 * g.p.1) + g.u.1 * (v.1 + v.2 * g.p.0)
-}
-
-/// Least-squares body twist from the contact speeds of the wheels; standard wheels (diff
-/// drive) have no free sideways motion, so vy is solved only on omni robots.
-fn twist_from(geo: &[WheelGeo], s: &[f64], omni: bool) -> (f64, f64, f64) {
-    let cols: Vec<[f64; 3]> = geo
-        .iter()
-        .map(|g| [g.u.0, g.u.1, -g.u.0 * g.p.1 + g.u.1 * g.p.0])
-        .collect();
-    let idx: Vec<usize> = if omni { vec![0, 1, 2] } else { vec![0, 2] };
-    let k = idx.len();
-    let mut ata = [[0.0; 3]; 3];
-    let mut atb = [0.0; 3];
-    for (i, c) in cols.iter().enumerate() {
-        for a in 0..k {
-            atb[a] += c[idx[a]] * s[i];
-            for b in 0..k {
-                ata[a][b] += c[idx[a]] * c[idx[b]];
-            }
-        }
-    }
-    let x = solve(ata, atb, k);
-    if omni {
-        (x[0], x[1], x[2])
-    } else {
-        (x[0], 0.0, x[1])
-    }
-}
-
-/// Gaussian elimination on the leading k x k block.
-fn solve(mut a: [[f64; 3]; 3], mut b: [f64; 3], k: usize) -> [f64; 3] {
-    for c in 0..k {
-        let p = (c..k)
-            .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
-            .unwrap();
-        a.swap(c, p);
-        b.swap(c, p);
-        for r in 0..k {
-            if r != c {
-                let f = a[r][c] / a[c][c];
-                for j in 0..k {
-                    a[r][j] -= f * a[c][j];
-                }
-                b[r] -= f * b[c];
-            }
-        }
-    }
-    let mut x = [0.0; 3];
-    for c in 0..k {
-        x[c] = b[c] / a[c][c];
-    }
-    x
-}
-
-fn wrap(a: f64) -> f64 {
-    (a + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU) - std::f64::consts::PI
-}
-
 /// Generates the recording (as formats.md CSV, parsed back) and what happened.
 pub fn generate(g: &Gen) -> (Recording, Stats) {
     let robot = &g.robot;
@@ -262,6 +197,8 @@ pub fn generate(g: &Gen) -> (Recording, Stats) {
         "diff drive or omni"
     );
     let omni = robot.kind == RobotKind::Omni;
+    // Every wheel is driven (asserted above): all of them give the body twist.
+    let all = vec![true; n];
     let mut rng = ChaCha8Rng::seed_from_u64(g.seed);
     let dt = 1e-3;
     let steps = (g.duration_s / dt).round() as usize;
@@ -507,7 +444,7 @@ pub fn generate(g: &Gen) -> (Recording, Stats) {
             }
         }
         // Body twist from the contacts; the slope's sideways tyre drift.
-        let mut tw = twist_from(&truth, &s_contact, omni);
+        let mut tw = twist_from(&truth, &s_contact, &all, omni);
         if let Some(Mech::Slope { down_rad, k }) = &slope {
             // Body y in the world is (-sin th, cos th).
             let across = -th.sin() * down_rad.cos() + th.cos() * down_rad.sin();
@@ -523,7 +460,7 @@ pub fn generate(g: &Gen) -> (Recording, Stats) {
         y += (tw.0 * sn + tw.1 * c) * dt;
         // Dead reckoning from the encoders with the nominal geometry.
         let s_nom: Vec<f64> = (0..n).map(|i| enc_inc[i] / dt * nominal[i].r).collect();
-        let nt = twist_from(&nominal, &s_nom, omni);
+        let nt = twist_from(&nominal, &s_nom, &all, omni);
         dth += nt.2 * dt;
         let (c, sn) = (dth.cos(), dth.sin());
         dx += (nt.0 * c - nt.1 * sn) * dt;

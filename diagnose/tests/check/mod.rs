@@ -1,7 +1,34 @@
 //! The checks every diagnose suite makes of a report against its case's truth, in one
-//! place so the three suites (sim, generator, mechanisms) judge alike.
+//! place so the suites (sim, generator, mechanisms, independent, blind) judge alike.
 
+// Each suite uses part of this module.
+#![allow(dead_code)]
+
+use calib_core::robot::Robot;
 use diagnose::report::Report;
+
+/// A robot file of the repository's `robots/` folder by name (`mobolab`, `omni3`...).
+pub fn robot_file(name: &str) -> Robot {
+    let p = std::path::Path::new(env!("CARGO_MANIFEST_DIR"))
+        .join("../robots")
+        .join(format!("{name}.toml"));
+    formats::robot_file::load(&p).unwrap()
+}
+
+/// Prints every candidate diagnose tried, round by round (the suites' explain tests).
+pub fn print_candidates(r: &Report) {
+    for x in &r.candidates {
+        println!(
+            "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
+            x.round,
+            format!("{:?}", x.effect),
+            x.delta_bic,
+            x.heldout_ratio,
+            x.parameters,
+            x.note
+        );
+    }
+}
 
 /// A parameter to check: (effect, parameter, truth, tolerance, relative?). The parameter
 /// `loss_per_spacing` is the travel lost per metre of floor bumps (loss_m / spacing_m):

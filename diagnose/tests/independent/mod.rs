@@ -26,6 +26,10 @@ use rand_distr::{Distribution, Normal};
 use std::fmt::Write as _;
 use std::path::Path;
 
+#[path = "../rigid/mod.rs"]
+mod rigid;
+use rigid::{contact, twist_from, WheelGeo};
+
 /// A mechanism of this generator.
 #[derive(Debug, Clone, PartialEq)]
 pub enum Mech {
@@ -114,14 +118,6 @@ pub struct Stats {
     pub slipping_s: f64,
 }
 
-struct WheelGeo {
-    /// Contact position in the body frame.
-    p: (f64, f64),
-    /// Rolling direction in the body frame.
-    u: (f64, f64),
-    r: f64,
-}
-
 fn geometry(robot: &Robot, legs: (f64, f64), truth: bool, mechs: &[Mech]) -> Vec<WheelGeo> {
     robot
         .wheels
@@ -157,66 +153,6 @@ fn geometry(robot: &Robot, legs: (f64, f64), truth: bool, mechs: &[Mech]) -> Vec
             }
         })
         .collect()
-}
-
-/// Contact speed of a wheel for body twist (vx, vy, w): u . (v + w x p).
-fn contact(g: &WheelGeo, v: (f64, f64, f64)) -> f64 {
-    g.u.0 * (v.0 - v.2 * g.p.1) + g.u.1 * (v.1 + v.2 * g.p.0)
-}
-
-/// Least-squares body twist from the contact speeds of the driven wheels; standard wheels
-/// (diff drive, legged) have no free sideways motion, so vy is solved only on omni robots.
-fn twist_from(geo: &[WheelGeo], s: &[f64], driven: &[bool], omni: bool) -> (f64, f64, f64) {
-    let cols: Vec<[f64; 3]> = geo
-        .iter()
-        .map(|g| [g.u.0, g.u.1, -g.u.0 * g.p.1 + g.u.1 * g.p.0])
-        .collect();
-    let idx: Vec<usize> = if omni { vec![0, 1, 2] } else { vec![0, 2] };
-    let k = idx.len();
-    let mut ata = [[0.0; 3]; 3];
-    let mut atb = [0.0; 3];
-    for (i, c) in cols.iter().enumerate() {
-        if !driven[i] {
-            continue;
-        }
-        for a in 0..k {
-            atb[a] += c[idx[a]] * s[i];
-            for b in 0..k {
-                ata[a][b] += c[idx[a]] * c[idx[b]];
-            }
-        }
-    }
-    let x = solve(ata, atb, k);
-    if omni {
-        (x[0], x[1], x[2])
-    } else {
-        (x[0], 0.0, x[1])
-    }
-}
-
-/// Gaussian elimination on the leading k x k block.
-fn solve(mut a: [[f64; 3]; 3], mut b: [f64; 3], k: usize) -> [f64; 3] {
-    for c in 0..k {
-        let p = (c..k)
-            .max_by(|&i, &j| a[i][c].abs().total_cmp(&a[j][c].abs()))
-            .unwrap();
-        a.swap(c, p);
-        b.swap(c, p);
-        for r in 0..k {
-            if r != c {
-                let f = a[r][c] / a[c][c];
-                for j in 0..k {
-                    a[r][j] -= f * a[c][j];
-                }
-                b[r] -= f * b[c];
-            }
-        }
-    }
-    let mut x = [0.0; 3];
-    for c in 0..k {
-        x[c] = b[c] / a[c][c];
-    }
-    x
 }
 
 /// Generates the recording (as formats.md CSV, parsed back) and what happened.
