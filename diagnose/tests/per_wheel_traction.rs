@@ -95,25 +95,31 @@ fn a_payload_off_centre_gives_each_wheel_its_own_traction() {
     within("payload", &p, "mu_right", 0.072, 0.3);
 }
 
-#[test]
-fn a_slipping_hub_is_found_on_its_wheel() {
+/// The mecanum robot whose third wheel's hub slips above 12 rad/s^2: the generator, the
+/// wheel's name and its traction limit as a mu (12 rad/s^2 x radius / g).
+fn hub() -> (Gen, String, f64) {
     let robot = check::robot_file("omni4");
-    let (w3, r3) = (robot.wheels[2].name.clone(), robot.wheels[2].radius_m);
-    let mut gen = Gen::new(robot.clone(), 3102);
+    let (w3, r3) = (robot.wheels[2].name.to_string(), robot.wheels[2].radius_m);
+    let mut gen = Gen::new(robot, 3102);
     gen.a_max = 0.8;
     gen.mechs = vec![Mech::HubSlip {
         wheel: 2,
         alpha_max: 12.0,
     }];
+    (gen, w3, 12.0 * r3 / 9.81)
+}
+
+#[test]
+fn a_slipping_hub_is_found_on_its_wheel() {
+    let (gen, w3, mu) = hub();
     let Some((mechanism, p)) = slip("hub", &gen) else {
         return;
     };
     assert_eq!(mechanism, "per_wheel", "{p:?}");
-    let mu = 12.0 * r3 / 9.81;
     within("hub", &p, &format!("mu_{w3}"), mu, 0.4);
     // The slipping wheel has the lowest limit (the strict check, every other wheel's at
     // least 5 times it, is not met: see `and_no_other`).
-    for w in robot.wheels.iter().filter(|w| w.name != w3) {
+    for w in gen.robot.wheels.iter().filter(|w| w.name.as_str() != w3) {
         let v = p[&format!("mu_{}", w.name)];
         assert!(v > p[&format!("mu_{w3}")], "hub: mu_{} = {v:.4}", w.name);
     }
@@ -126,19 +132,11 @@ fn a_slipping_hub_is_found_on_its_wheel() {
 #[test]
 #[ignore = "not met: the other wheels' limits come out 2.7-2.8 times the slipping one's"]
 fn a_slipping_hub_is_found_on_its_wheel_and_no_other() {
-    let robot = check::robot_file("omni4");
-    let (w3, r3) = (robot.wheels[2].name.clone(), robot.wheels[2].radius_m);
-    let mut gen = Gen::new(robot.clone(), 3102);
-    gen.a_max = 0.8;
-    gen.mechs = vec![Mech::HubSlip {
-        wheel: 2,
-        alpha_max: 12.0,
-    }];
+    let (gen, w3, mu) = hub();
     let Some((_, p)) = slip("hub", &gen) else {
         return;
     };
-    let mu = 12.0 * r3 / 9.81;
-    for w in robot.wheels.iter().filter(|w| w.name != w3) {
+    for w in gen.robot.wheels.iter().filter(|w| w.name.as_str() != w3) {
         let v = p[&format!("mu_{}", w.name)];
         assert!(v >= 5.0 * mu, "hub: mu_{} = {v:.4} (no slip there)", w.name);
     }
