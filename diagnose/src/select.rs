@@ -543,7 +543,6 @@ pub fn select(ev: &Evaluator, max_effects: usize, identified: &[Effect]) -> Sele
         for (e, m, sig, ce, _) in fit_candidates(ev, &model, &base_eval, &variants) {
             fitted.push((e, m, sig, ce));
         }
-        refit_one_value_from_per_wheel(ev, &model, &base_eval, &mut fitted);
         fitted.sort_by_key(|f| f.0);
         last_fits = fitted
             .iter()
@@ -781,56 +780,6 @@ fn one_value_form(e: Effect) -> Option<Effect> {
         Effect::SlipPerWheel => Some(Effect::LongitudinalSlip),
         Effect::BacklashPerWheel => Some(Effect::Backlash),
         _ => None,
-    }
-}
-
-/// A per-wheel mechanism's fit starts the one-value form again from the wheels' mean
-/// (geometric: both are fitted on a log scale) and keeps that refit when its BIC is
-/// lower: a rugged cost (a traction limit engages at some speed changes and not others)
-/// can leave the one-value grid in another valley than the per-wheel fit, and the simpler
-/// mechanism must get the same chance before [`prefer_simpler_mechanisms`] weighs them.
-/// On a robot with equal traction on both wheels (`per_wheel_traction.rs`) the per-wheel
-/// fit (0.118, 0.121) had beaten one mu (0.1195) by 44 in BIC.
-fn refit_one_value_from_per_wheel(
-    ev: &Evaluator,
-    model: &Model,
-    base_eval: &Eval,
-    fitted: &mut [(Effect, Model, Vec<Vec<f64>>, Eval)],
-) {
-    let robot = &ev.p.robot;
-    let mut todo: Vec<(Effect, Vec<Vec<f64>>)> = Vec::new();
-    for (e, m, _, _) in fitted.iter() {
-        let (Some(one), Some(v)) = (one_value_form(*e), m.get(*e)) else {
-            continue;
-        };
-        let spec = one.params(robot);
-        let (Some(s), false) = (spec.first(), v.is_empty()) else {
-            continue;
-        };
-        // Wheels at the null value (no limit, no play) are not part of the mean.
-        let live: Vec<f64> = v
-            .iter()
-            .copied()
-            .filter(|x| x.is_finite() && *x > 0.0 && (x / s.null).ln().abs() > 1e-6)
-            .collect();
-        if live.is_empty() || !fitted.iter().any(|f| f.0 == one) {
-            continue;
-        }
-        let mean = (live.iter().map(|x| x.ln()).sum::<f64>() / live.len() as f64).exp();
-        todo.push((one, vec![vec![mean]]));
-    }
-    if todo.is_empty() {
-        return;
-    }
-    for (one, m, sig, ce, _) in fit_candidates(ev, model, base_eval, &todo) {
-        let Some(slot) = fitted.iter_mut().find(|f| f.0 == one) else {
-            continue;
-        };
-        let stage = evidence_stage(ev, one);
-        let k = one.params(robot).len();
-        if delta_bic(ev, base_eval, &ce, k, stage) < delta_bic(ev, base_eval, &slot.3, k, stage) {
-            *slot = (one, m, sig, ce);
-        }
     }
 }
 
