@@ -44,7 +44,7 @@
 //! diagnose's run time was probed on three recordings of this generator that are not
 //! cases (seeds 9001-9003, only the times read: 0.4-1.2 s each).
 //!
-//! First run (2026-11-30, commit d1547f1 = diagnose of main fe3d9b3, no generator fix
+//! First run (2026-11-30, commit 09fea67 on main = diagnose of fe3d9b3, no generator fix
 //! since): **7 / 11 fully right, 7 / 11 right verdicts, 3 / 3 controls `none`**, the whole
 //! suite in 3.4 s (generation and diagnosis, two workers; per case below, generation
 //! 0.0-0.1 s of it). No panic, no case over 1.2 s.
@@ -416,7 +416,7 @@ fn run(case: &Case) -> Outcome {
 }
 
 /// The regression floor: fully right cases, 7 of 11 in the first run (2026-11-30, commit
-/// d1547f1 = diagnose of main fe3d9b3), 8 since a stage's remainder that does not drift
+/// 09fea67 = diagnose of fe3d9b3), 8 since a stage's remainder that does not drift
 /// counts as noise (`select::verdict`).
 const FULLY_RIGHT_FLOOR: usize = 8;
 
