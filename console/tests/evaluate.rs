@@ -453,11 +453,7 @@ fn the_circle_tests_factors_are_judged_as_the_board_applies_them() {
 #[test]
 fn an_omni_boards_whole_geometry_is_judged_with_board_robot() {
     let dir = common::scratch("evaluate-board-robot");
-    let nominal_file = common::robot("omni3");
-    let nominal = formats::robot_file::load(&nominal_file).unwrap();
-    let mut truth = nominal.clone();
-    truth.wheels.iter_mut().for_each(|w| w.l_m *= 1.03);
-    truth.wheels[1].alpha_rad += 1f64.to_radians();
+    let (nominal_file, truth) = common::omni3_further_out_and_skewed();
     let (c, cal_json, board_file) = common::calibrated(&dir, &nominal_file, &truth, 0.02, 70);
     let runs: Vec<_> = (0..4).map(|i| dir.join(format!("run{i}"))).collect();
     let l_arc = c["factors"]["l_arc"].as_f64().unwrap_or(0.0);
@@ -479,7 +475,7 @@ fn an_omni_boards_whole_geometry_is_judged_with_board_robot() {
     let holding = format!("on the board holding {}", board_file.display());
     assert!(label.ends_with(&holding), "{label}");
     let whole = first_rmse(&j)[0];
-    let rec = Recording::load(&runs[3].join("recording.csv"), &nominal).unwrap();
+    let rec = Recording::load(&runs[3].join("recording.csv"), &truth).unwrap();
     let truth_board = evaluate(
         &[Candidate::board(
             "truth",

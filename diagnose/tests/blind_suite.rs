@@ -549,9 +549,6 @@ fn explain_blind_case() {
         let (rec, _) = generate(&c.gen);
         let r = diagnose(&c.gen.robot, &rec, &Options::default()).unwrap();
         println!("== {} ({})\n{r}", c.name, c.truth);
-        for t in &r.identification {
-            println!("  identified: {}", t.depends_on);
-        }
-        check::print_candidates(&r);
+        check::explain(&r);
     }
 }

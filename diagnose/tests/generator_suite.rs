@@ -394,6 +394,6 @@ fn explain_case() {
         let g = generate(&c.cfg);
         let r = diagnose(&c.cfg.robot, &g.recording, &Options::default()).unwrap();
         println!("== {}\n{r}", c.name);
-        check::print_candidates(&r);
+        check::explain(&r);
     }
 }

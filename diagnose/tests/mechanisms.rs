@@ -622,7 +622,7 @@ fn explain_mechanism_case() {
         let rec = simulate(c);
         let r = diagnose(&c.robot, &rec, &Options::default()).unwrap();
         println!("== {} {:?}\n{r}", c.name, c.effects);
-        check::print_candidates(&r);
+        check::explain(&r);
     }
 }
 

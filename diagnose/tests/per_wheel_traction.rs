@@ -54,7 +54,7 @@ fn slip(name: &str, gen: &Gen) -> Option<(String, BTreeMap<String, f64>)> {
         r.rmse.ground.after_m * 1e3
     );
     if std::env::var("DIAG_EXPLAIN").is_ok() {
-        check::print_candidates(&r);
+        check::explain(&r);
     }
     assert_eq!(r.verdict, "longitudinal_slip", "{name}: {findings:?}");
     let f = r

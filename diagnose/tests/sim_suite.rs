@@ -445,6 +445,6 @@ fn explain_case() {
             let dir = std::path::PathBuf::from(dir).join(&c.name);
             diagnose::plots::write_report_dir(&r, &dir).unwrap();
         }
-        check::print_candidates(&r);
+        check::explain(&r);
     }
 }

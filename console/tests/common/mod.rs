@@ -214,6 +214,17 @@ pub fn random_runs(
         .collect()
 }
 
+/// The omni3 file and a simulated omni3 that differs from it as the `apply` and
+/// `evaluate --board-robot` tests need: every wheel 3 % further from the centre, the
+/// second mounted 1 degree off.
+pub fn omni3_further_out_and_skewed() -> (PathBuf, calib_core::robot::Robot) {
+    let nominal_file = robot("omni3");
+    let mut truth = formats::robot_file::load(&nominal_file).unwrap();
+    truth.wheels.iter_mut().for_each(|w| w.l_m *= 1.03);
+    truth.wheels[1].alpha_rad += 1f64.to_radians();
+    (nominal_file, truth)
+}
+
 /// `calibrate --json --write-board-robot` of `nominal_file` on three 40 s random drives of
 /// `truth` with tyres scrubbing `scrub` (seeds `seed`..): its JSON, the JSON's file and
 /// the board robot file.

@@ -15,8 +15,12 @@ pub fn robot_file(name: &str) -> Robot {
     formats::robot_file::load(&p).unwrap()
 }
 
-/// Prints every candidate diagnose tried, round by round (the suites' explain tests).
-pub fn print_candidates(r: &Report) {
+/// Prints what identification found and every candidate diagnose tried, round by round
+/// (the suites' explain tests).
+pub fn explain(r: &Report) {
+    for t in &r.identification {
+        println!("  identified: {}", t.depends_on);
+    }
     for x in &r.candidates {
         println!(
             "  round {} {:24} dBIC {:10.1} held-out {:?} {:?} {}",
