@@ -1,6 +1,8 @@
 //! `wheelcal`: see `wheelcal --help`.
 fn main() -> std::process::ExitCode {
     one_malloc_arena();
+    // The E-stop relay's signal must never end the process (see `wheelcal::stop`).
+    wheelcal::stop::install_relay_signal();
     wheelcal::cli::main()
 }
 

@@ -126,6 +126,9 @@ pub fn run(
     use serialport::SerialPort;
     master.set_timeout(std::time::Duration::ZERO)?;
     let pty = slave.name().context("pseudo-terminal without a name")?;
+    // This process keeps the terminal's other end open, so `wheelcal estop` finds it
+    // among the port's holders and signals it: it answers that it holds no port.
+    crate::stop::serve_relay_signal();
     let truth_file = opts
         .truth
         .clone()

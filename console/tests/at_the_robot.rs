@@ -8,6 +8,7 @@ use common::{pose_of, robot, scratch, wait_exit, wheelcal, Board};
 use expectrl::{Eof, Expect, Regex, Session};
 use serde_json::Value;
 use std::io::Read;
+use std::os::linux::net::SocketAddrExt;
 use std::process::{Child, Command, Stdio};
 use std::time::{Duration, Instant};
 
@@ -348,15 +349,7 @@ fn estop_from_a_second_terminal_reaches_a_held_port() {
         .stderr(Stdio::piped())
         .spawn()
         .expect("drive starts");
-    let socket = wheelcal::stop::socket_path(board.link.to_str().unwrap());
-    let t0 = Instant::now();
-    while !socket.exists() {
-        assert!(
-            t0.elapsed() < Duration::from_secs(10),
-            "the holder never listened"
-        );
-        std::thread::sleep(Duration::from_millis(20));
-    }
+    common::wait_until_held(&board.link, drive.id());
     std::thread::sleep(Duration::from_millis(500));
     let o = board.run(&["--json", "estop"]);
     assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
@@ -391,5 +384,14 @@ fn estop_from_a_second_terminal_reaches_a_held_port() {
         (pa.0 - pb.0).hypot(pa.1 - pb.1) < 1e-3,
         "moving after E-stop: {pa:?} -> {pb:?}"
     );
-    assert!(!socket.exists(), "the relay socket outlived its holder");
+    // The relay's abstract name went with its holder.
+    let name = format!(
+        "wheelcal-estop{}",
+        std::fs::canonicalize(&board.link).unwrap().display()
+    );
+    let addr = std::os::unix::net::SocketAddr::from_abstract_name(name.as_bytes()).unwrap();
+    assert!(
+        std::os::unix::net::UnixStream::connect_addr(&addr).is_err(),
+        "the relay outlived its holder"
+    );
 }

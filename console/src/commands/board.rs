@@ -55,35 +55,80 @@ pub fn stop(ctx: &mut Ctx, out: Output) -> Result<()> {
 /// `wheelcal estop`: through the wheelcal holding the port if there is one (woken first
 /// if it is suspended), else on the port itself.
 pub fn estop(ctx: &mut Ctx, out: Output) -> Result<()> {
-    use crate::stop::RelayOutcome;
+    use crate::stop::{RelayOutcome, Via};
     // Another wheelcal may hold the port: it relays the E-stop at once.
-    let outcome = match (&ctx.client, &ctx.port) {
+    let route = match (&ctx.client, &ctx.port) {
         (None, Some(port)) => crate::stop::relay_estop(port)?,
-        _ => RelayOutcome::NotHeld,
+        _ => crate::stop::EstopRoute {
+            outcome: RelayOutcome::NotHeld,
+            impostor_pid: None,
+        },
     };
-    let relayed = match outcome {
-        RelayOutcome::Relayed(r) => Some(r),
+    if let Some(pid) = route.impostor_pid {
+        eprintln!(
+            "warning: process {pid} answers on the E-stop relay's name but does not hold the port: not trusted"
+        );
+    }
+    let relayed = match &route.outcome {
+        RelayOutcome::Relayed(r) => Some(*r),
         RelayOutcome::NotHeld => None,
         RelayOutcome::HolderGone(pid) => {
             eprintln!("note: the wheelcal holding the port (process {pid}) is gone; sending the E-stop on the port directly");
             None
         }
+        RelayOutcome::HeldByOther { .. } => None,
     };
     if relayed.is_none() {
-        ctx.client()?.estop()?;
+        let sent = ctx.client().and_then(|c| Ok(c.estop()?));
+        if let (Err(e), RelayOutcome::HeldByOther { pid, name }) = (&sent, &route.outcome) {
+            let port = ctx.port.as_deref().unwrap_or("the port");
+            anyhow::bail!(
+                "{port} is held by process {pid} ({name}), which is not a wheelcal and cannot relay the E-stop ({e:#}): stop the robot by hand, or end that process"
+            );
+        }
+        sent?;
     }
     let ms = relayed.map(|r| r.elapsed.as_secs_f64() * 1e3);
     let woke = relayed.and_then(|r| r.woke_pid);
-    let holder_gone = match outcome {
+    let holder_gone = match route.outcome {
         RelayOutcome::HolderGone(pid) => Some(pid),
         _ => None,
     };
+    let via = relayed.map(|r| match r.via {
+        Via::Socket => "socket",
+        Via::Signal => "signal",
+    });
+    let holder = relayed.and_then(|r| r.holder_pid);
+    let verified = relayed.map(|r| r.verified);
     out.emit(
-        &serde_json::json!({"estop": true, "relayed_ms": ms, "woke_pid": woke, "holder_gone_pid": holder_gone}),
-        || match (ms, woke) {
-            (Some(ms), Some(pid)) => format!("E-STOP sent through the wheelcal holding the port ({ms:.1} ms): it was suspended (process {pid}), so it was woken with SIGCONT to relay it; motors off (clear with `wheelcal clear-fault`)\n"),
-            (Some(ms), None) => format!("E-STOP sent through the wheelcal holding the port ({ms:.1} ms): motors off (clear with `wheelcal clear-fault`)\n"),
-            (None, _) => "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into(),
+        &serde_json::json!({"estop": true, "relayed_ms": ms, "relayed_via": via, "holder_pid": holder,
+            "holder_verified": verified, "woke_pid": woke, "holder_gone_pid": holder_gone,
+            "impostor_pid": route.impostor_pid}),
+        || {
+            let Some(r) = relayed else {
+                return "E-STOP latched: motors off (clear with `wheelcal clear-fault`)\n".into();
+            };
+            let who = match r.holder_pid {
+                Some(pid) => format!("the wheelcal holding the port (process {pid})"),
+                None => "the wheelcal holding the port".into(),
+            };
+            let how = match r.via {
+                Via::Socket => "",
+                Via::Signal => ", reached by signal",
+            };
+            let woke = match r.woke_pid {
+                Some(_) => ": it was suspended, so it was woken with SIGCONT to relay it",
+                None => "",
+            };
+            let unverified = if r.verified {
+                ""
+            } else {
+                " (that it holds the port could not be checked: another user's process)"
+            };
+            format!(
+                "E-STOP sent through {who}{how}{unverified} ({:.1} ms){woke}; motors off (clear with `wheelcal clear-fault`)\n",
+                r.elapsed.as_secs_f64() * 1e3
+            )
         },
     )
 }

@@ -252,3 +252,38 @@ pub fn calibrated(
     std::fs::write(&cal_json, &out.stdout).unwrap();
     (c, cal_json, board_file)
 }
+
+/// The processes with an open descriptor on `device` (read from /proc, independently of
+/// the code under test).
+pub fn fd_holders(device: &Path) -> Vec<u32> {
+    let mut pids = Vec::new();
+    for p in std::fs::read_dir("/proc").unwrap().flatten() {
+        let Ok(pid) = p.file_name().to_string_lossy().parse::<u32>() else {
+            continue;
+        };
+        let Ok(fds) = std::fs::read_dir(p.path().join("fd")) else {
+            continue;
+        };
+        if fds
+            .flatten()
+            .any(|fd| std::fs::read_link(fd.path()).is_ok_and(|l| l == device))
+        {
+            pids.push(pid);
+        }
+    }
+    pids
+}
+
+/// Waits until process `pid` holds the board's device (it has opened the port).
+pub fn wait_until_held(link: &Path, pid: u32) {
+    let device = std::fs::canonicalize(link).unwrap();
+    let t0 = Instant::now();
+    while !fd_holders(&device).contains(&pid) {
+        assert!(
+            t0.elapsed() < Duration::from_secs(10),
+            "process {pid} never opened {}",
+            device.display()
+        );
+        std::thread::sleep(Duration::from_millis(20));
+    }
+}
