@@ -113,7 +113,8 @@ fn a_calibration_reaches_the_board_whole_and_its_odometry_follows_the_robot() {
         omni4.to_str().unwrap(),
     ]);
     assert_eq!(o.status.code(), Some(1), "{err}");
-    assert!(err.contains("omni4.toml: wheels"), "{err}");
+    // Another robot's file: refused by its name before its wheels are looked at.
+    assert!(err.contains("omni4.toml: robot 'omni4'"), "{err}");
     let now = (
         json_of(&board.run(&["--json", "robot", "get"])),
         json_of(&board.run(&["--json", "factors", "get"])),
@@ -282,5 +283,83 @@ fn a_moving_board_refuses_apply_and_keeps_what_it_held() {
         std::thread::sleep(std::time::Duration::from_millis(50));
     };
     assert_eq!(a["factors"]["l_arc"].as_f64(), Some(0.02), "{a}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// Issue 52.2: `apply --board-robot` put another robot's geometry on the board (exit 0)
+/// when the file's wheels had the board's names: the board ended with r = 0.0418 m for
+/// 0.05 m and half the wheel separation. A board robot must be the calibration's robot:
+/// of its name, and with a geometry within the calibration's plausible ranges around
+/// the geometry it fitted. Refused naming both files and the quantity; nothing is sent.
+#[test]
+fn another_robots_geometry_is_not_put_on_the_board() {
+    let dir = scratch("apply-other-robot");
+    let nominal_file = common::robot("mobolab");
+    let mut truth = formats::robot_file::load(&nominal_file).unwrap();
+    truth.wheels.iter_mut().for_each(|w| w.l_m *= 1.02);
+    let (_, cal_json, board_file) = common::calibrated(&dir, &nominal_file, &truth, 0.04, 60);
+    let board = Board::start("mobolab", &dir);
+    let held = || {
+        (
+            json_of(&board.run(&["--json", "robot", "get"])),
+            json_of(&board.run(&["--json", "factors", "get"])),
+        )
+    };
+    let before = held();
+    let refused = |file: &Path, says: &[&str]| {
+        let (o, _, err) = board.run_text(&[
+            "apply",
+            cal_json.to_str().unwrap(),
+            "--board-robot",
+            file.to_str().unwrap(),
+        ]);
+        assert_eq!(o.status.code(), Some(1), "{err}");
+        for s in says {
+            assert!(err.contains(s), "{s:?} not in: {err}");
+        }
+        eprintln!("{err}");
+        assert_eq!(held(), before, "the board changed");
+    };
+    // The same wheels under another robot's name.
+    let mut other = formats::robot_file::load(&board_file).unwrap();
+    other.name = heapless::String::try_from("robotest").unwrap();
+    let renamed = dir.join("renamed.toml");
+    std::fs::write(&renamed, formats::robot_file::to_toml(&other)).unwrap();
+    refused(
+        &renamed,
+        &["renamed.toml", "cal.json", "'robotest'", "'mobolab'"],
+    );
+    // The calibration's name on another geometry: r = 0.0418 m, half the separation.
+    let mut small = formats::robot_file::load(&board_file).unwrap();
+    small.wheels.iter_mut().for_each(|w| {
+        w.radius_m = 0.0418;
+        w.l_m *= 0.5;
+    });
+    let smaller = dir.join("smaller.toml");
+    std::fs::write(&smaller, formats::robot_file::to_toml(&small)).unwrap();
+    refused(&smaller, &["smaller.toml", "cal.json", "radius", "0.0418"]);
+    // Only the separation halved.
+    let mut narrow = formats::robot_file::load(&board_file).unwrap();
+    narrow.wheels.iter_mut().for_each(|w| w.l_m *= 0.5);
+    let narrower = dir.join("narrower.toml");
+    std::fs::write(&narrower, formats::robot_file::to_toml(&narrow)).unwrap();
+    refused(&narrower, &["narrower.toml", "cal.json", "l_m"]);
+    // The calibration's own board robot goes through, 1 % off still does.
+    let mut near = formats::robot_file::load(&board_file).unwrap();
+    near.wheels.iter_mut().for_each(|w| w.radius_m *= 1.01);
+    let nearby = dir.join("nearby.toml");
+    std::fs::write(&nearby, formats::robot_file::to_toml(&near)).unwrap();
+    for f in [&board_file, &nearby] {
+        let a = json_of(&board.run(&[
+            "--json",
+            "apply",
+            cal_json.to_str().unwrap(),
+            "--board-robot",
+            f.to_str().unwrap(),
+        ]));
+        let r = a["robot"]["wheels"][0]["radius_m"].as_f64().unwrap();
+        let want = formats::robot_file::load(f).unwrap().wheels[0].radius_m;
+        assert!((r - want).abs() < 1e-12, "{a}");
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -86,6 +86,125 @@ impl SavedCalibration {
         self.json["robot"].as_str().unwrap_or("?")
     }
 
+    /// `apply --board-robot`: refuses a board robot (`robot`, read from `file`) that is
+    /// not this calibration's robot, naming both files and what differs: another robot's
+    /// name, other wheels, or a wheel's radius, distance or mounting angle outside the
+    /// calibration's plausible range around the geometry it fitted (its `geometry`;
+    /// for a calibration that carries none, around `board`, the robot the board holds,
+    /// whose name the calibration's must already be). The range of each quantity is
+    /// its fitted parameters' (`params[].plausible`: a diff drive's radius `scale` and
+    /// `ed` together, ±8 %; its `eb`, ±8 %), or the catalogue's when none was fitted
+    /// (radius ±5 %, distance ±8 %, angle ±3 degrees).
+    pub fn check_board_robot(&self, robot: &Robot, file: &Path, board: &Robot) -> Result<()> {
+        let (shown, cal) = (file.display(), self.file.display());
+        if robot.name.as_str() != self.robot_name() {
+            bail!(
+                "{shown}: robot '{}'; {cal} is a calibration of robot '{}': --board-robot takes the calibrated robot's board robot (`calibrate --write-board-robot`); nothing was sent",
+                robot.name,
+                self.robot_name()
+            );
+        }
+        // (name, radius_m, l_m, alpha_rad) of the reference geometry.
+        let (reference, what): (Vec<(String, f64, f64, f64)>, String) =
+            match self.json["geometry"].as_array() {
+                Some(ws) => (
+                    ws.iter()
+                        .map(|w| {
+                            (
+                                w["name"].as_str().unwrap_or("?").to_string(),
+                                w["radius_m"].as_f64().unwrap_or(f64::NAN),
+                                w["l_m"].as_f64().unwrap_or(f64::NAN),
+                                w["alpha_deg"].as_f64().unwrap_or(f64::NAN).to_radians(),
+                            )
+                        })
+                        .collect(),
+                    format!("that {cal} fitted"),
+                ),
+                None => (
+                    board
+                        .wheels
+                        .iter()
+                        .map(|w| (w.name.to_string(), w.radius_m, w.l_m, w.alpha_rad))
+                        .collect(),
+                    format!("of the board's robot ({cal} carries no geometry)"),
+                ),
+            };
+        let names: Vec<&str> = robot.wheels.iter().map(|w| w.name.as_str()).collect();
+        let want: Vec<&str> = reference.iter().map(|w| w.0.as_str()).collect();
+        if names != want {
+            bail!(
+                "{shown}: wheels {}; the robot {what} has wheels {}: not the calibrated robot; nothing was sent",
+                names.join(", "),
+                want.join(", ")
+            );
+        }
+        let (radius, distance, angle) = self.plausible_spans();
+        for (w, (name, r, l, alpha)) in robot.wheels.iter().zip(&reference) {
+            let off = |got: f64, of: f64| (got / of - 1.0).abs();
+            let rel = [
+                ("radius_m", w.radius_m, *r, radius),
+                ("l_m", w.l_m, *l, distance),
+            ];
+            for (q, got, of, span) in rel {
+                if off(got, of).is_nan() || off(got, of) > span {
+                    bail!(
+                        "{shown}: wheel '{name}' {q} = {got} m is {:.1} % from the {of:.5} m {what}, outside the calibration's plausible ±{:.1} %: not the calibrated robot's geometry; nothing was sent",
+                        off(got, of) * 100.0,
+                        span * 100.0
+                    );
+                }
+            }
+            let turned = (w.alpha_rad - alpha + std::f64::consts::PI)
+                .rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+            if turned.is_nan() || turned.abs() > angle {
+                bail!(
+                    "{shown}: wheel '{name}' alpha = {:.3} degrees is {:.3} degrees from the {:.3} degrees {what}, outside the calibration's plausible ±{:.1} degrees: not the calibrated robot's geometry; nothing was sent",
+                    w.alpha_rad.to_degrees(),
+                    turned.abs().to_degrees(),
+                    alpha.to_degrees(),
+                    angle.to_degrees()
+                );
+            }
+        }
+        Ok(())
+    }
+
+    /// The relative half-widths of a wheel's radius and distance and the half-width
+    /// (rad) of its mounting angle that this calibration's fitted parameters allow:
+    /// radius parameters of different effects add (a diff drive's `scale` and `ed`),
+    /// the widest of one effect counts (per-wheel `radius_scale_w*`); the catalogue's
+    /// range where none was fitted.
+    fn plausible_spans(&self) -> (f64, f64, f64) {
+        use diagnose::calibrate::{ALPHA_RANGE, BASE_RANGE, RADIUS_RANGE};
+        let mut by_effect: std::collections::BTreeMap<String, f64> = Default::default();
+        let (mut distance, mut angle) = (0.0f64, 0.0f64);
+        for p in self.json["params"].as_array().into_iter().flatten() {
+            let (Some(lo), Some(hi)) = (p["plausible"][0].as_f64(), p["plausible"][1].as_f64())
+            else {
+                continue;
+            };
+            let half = (hi - lo).abs() / 2.0;
+            let name = p["name"].as_str().unwrap_or("");
+            let effect = p["effect"].as_str().unwrap_or("").to_string();
+            if name == "scale" || name == "ed" || name.starts_with("radius_scale") {
+                let e = by_effect.entry(effect).or_default();
+                *e = e.max(half);
+            } else if name == "eb" || name.starts_with("l_scale") {
+                distance = distance.max(half);
+            } else if name.starts_with("alpha_offset") {
+                angle = angle.max(half);
+            }
+        }
+        let radius: f64 = by_effect.values().sum();
+        let or = |v: f64, d: f64| if v > 0.0 && v.is_finite() { v } else { d };
+        (
+            or(radius, RADIUS_RANGE),
+            or(distance, BASE_RANGE),
+            or(angle, ALPHA_RANGE),
+        )
+    }
+
     /// The turn and speed laws it kept, with a note saying so.
     pub fn laws(&self) -> Result<KnownLaws> {
         if is_umbmark(&self.json) {

@@ -44,6 +44,7 @@ pub fn run(a: &ApplyArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
     let (target, without_factor) = match &a.board_robot {
         Some(file) => {
             let robot = formats::robot_file::load(file).map_err(|e| anyhow!("{e}"))?;
+            saved.check_board_robot(&robot, file, &current.robot)?;
             let params = board::with_robot(&current, robot, file)?;
             let corrections = saved.law_corrections(params.robot.wheels.len())?;
             let t = Target {
