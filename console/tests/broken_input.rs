@@ -497,13 +497,9 @@ fn diagnose_shows_progress_within_two_seconds() {
     );
 }
 
-/// The real squares, beside this repository (CI clones ../shared there).
-fn shared_real() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .ancestors()
-        .map(|a| a.join("shared/real"))
-        .find(|d| d.exists())
-        .expect("../shared/real is needed beside the repository")
+/// The real runs kept in the repository (`data/real`).
+fn real_dir() -> PathBuf {
+    testdata::real_dir()
 }
 
 /// Issue 23 §4: a bare CSV of another robot (no robot.toml beside it to compare) mixed in
@@ -513,7 +509,7 @@ fn shared_real() -> PathBuf {
 /// recording given twice is read once, with a warning. `evaluate` refuses the same set.
 #[test]
 fn another_robots_bare_csv_is_refused_by_name() {
-    let real = shared_real();
+    let real = real_dir();
     let dir = scratch("mixed-robots");
     let (header, rows) = table(&real.join("diff-square-run-04"));
     let (l, r) = (col(&header, "enc_left"), col(&header, "enc_right"));
@@ -582,7 +578,7 @@ fn another_robots_bare_csv_is_refused_by_name() {
 /// and the note names the file and the column.
 #[test]
 fn calibrate_notes_an_ignored_column() {
-    let real = shared_real();
+    let real = real_dir();
     let dir = scratch("unknown-column");
     let (mut header, rows) = table(&real.join("diff-square-run-01"));
     header.push("battery_v".into());

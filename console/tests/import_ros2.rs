@@ -8,12 +8,9 @@ use formats::recording::Recording;
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn shared_real() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .ancestors()
-        .map(|a| a.join("shared/real"))
-        .find(|d| d.exists())
-        .expect("../shared/real is needed beside the repository (CI clones it there)")
+/// The real runs kept in the repository (`data/real`).
+fn real_dir() -> PathBuf {
+    testdata::real_dir()
 }
 
 fn make_bag(robot: &Path, csv: &Path, out: &Path) {
@@ -50,7 +47,7 @@ fn wheelcal(args: &[&str]) -> (bool, String, String) {
 
 #[test]
 fn import_ros2_writes_the_recording_folder() {
-    let run = shared_real().join("diff-square-run-04");
+    let run = real_dir().join("diff-square-run-04");
     let tmp = std::env::temp_dir().join(format!("wheelcal-import-ros2-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir_all(&tmp).unwrap();
@@ -121,7 +118,7 @@ fn import_ros2_writes_the_recording_folder() {
 /// (to 1e-9: the same rows), and diagnose gives the same verdict and RMSE.
 #[test]
 fn calibrate_and_diagnose_take_a_bag_directly() {
-    let real = shared_real();
+    let real = real_dir();
     let tmp = std::env::temp_dir().join(format!("wheelcal-bag-direct-{}", std::process::id()));
     let _ = std::fs::remove_dir_all(&tmp);
     std::fs::create_dir_all(&tmp).unwrap();

@@ -1,4 +1,4 @@
-//! Bench binary: joint diagnosis of the six real UMBmark squares of ../shared/real
+//! Bench binary: joint diagnosis of the six real UMBmark squares of data/real
 //! (OptiOdom differential robot, about 8,300 rows): shared geometry with leave-one-out,
 //! each square's own fit for the evidence table, and each square diagnosed against the
 //! shared geometry. Prints the wall time of each run; the goal is under 5 s.
@@ -6,18 +6,10 @@
 //!     cargo bench -p diagnose --bench joint_real
 
 use formats::recording::Recording;
-use std::path::PathBuf;
 use std::time::Instant;
 
 fn main() {
-    let Some(base) = PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .ancestors()
-        .map(|a| a.join("shared/real"))
-        .find(|d| d.exists())
-    else {
-        eprintln!("shared/real is absent: nothing to bench");
-        return;
-    };
+    let base = testdata::real_dir();
     let robot = formats::robot_file::load(&base.join("diff-square-run-01/robot.toml")).unwrap();
     let recs: Vec<(String, Recording)> = (1..=6)
         .map(|i| {

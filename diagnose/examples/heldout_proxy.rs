@@ -54,9 +54,9 @@ fn main() {
     let flag = |k: &str| args.iter().any(|a| a == k);
     let dir = val("--sessions")
         .map(PathBuf::from)
-        .or_else(|| proxy::sessions_dir(&PathBuf::from(env!("CARGO_MANIFEST_DIR"))));
+        .or_else(|| testdata::sessions_dir_if_set().ok());
     let Some(dir) = dir else {
-        eprintln!("shared/real/sessions is absent: give --sessions DIR");
+        eprintln!("the OptiOdom sessions are not given: --sessions DIR or WHEELCAL_SESSIONS (data/real/README.md)");
         std::process::exit(2);
     };
     let only: Option<Vec<String>> = val("--only").map(|s| s.split(',').map(String::from).collect());

@@ -20,9 +20,9 @@ fn main() {
         .position(|a| a == "--sessions")
         .and_then(|i| args.get(i + 1))
         .map(PathBuf::from)
-        .or_else(|| proxy::sessions_dir(&PathBuf::from(env!("CARGO_MANIFEST_DIR"))));
+        .or_else(|| testdata::sessions_dir_if_set().ok());
     let Some(dir) = dir else {
-        eprintln!("shared/real/sessions is absent: give --sessions DIR");
+        eprintln!("the OptiOdom sessions are not given: --sessions DIR or WHEELCAL_SESSIONS (data/real/README.md)");
         std::process::exit(2);
     };
     let t0 = std::time::Instant::now();

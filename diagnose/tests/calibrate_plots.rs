@@ -233,14 +233,7 @@ fn no_legend_covers_data() {
     }
 }
 
-// ---- the real squares (skipped when ../shared/real is absent) ----
-
-fn real_dir() -> Option<PathBuf> {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .ancestors()
-        .map(|a| a.join("shared/real"))
-        .find(|d| d.exists())
-}
+// ---- the real squares (data/real) ----
 
 fn load(base: &Path, folder: &str, robot: &Robot) -> (String, Recording) {
     let r = Recording::load(&base.join(folder).join("recording.csv"), robot).unwrap();
@@ -249,10 +242,7 @@ fn load(base: &Path, folder: &str, robot: &Robot) -> (String, Recording) {
 
 #[test]
 fn real_squares_series_are_what_the_fit_compared() {
-    let Some(base) = real_dir() else {
-        eprintln!("skipping: shared/real is absent");
-        return;
-    };
+    let base = testdata::real_dir();
     let robot = formats::robot_file::load(&base.join("diff-square-run-01/robot.toml")).unwrap();
     let recs = vec![
         load(&base, "diff-square-run-01", &robot),
@@ -275,10 +265,7 @@ fn real_squares_series_are_what_the_fit_compared() {
 
 #[test]
 fn real_omni3_with_marker_offset_series_are_what_the_fit_compared() {
-    let Some(base) = real_dir() else {
-        eprintln!("skipping: shared/real is absent");
-        return;
-    };
+    let base = testdata::real_dir();
     let robot = formats::robot_file::load(&base.join("omni3-square-run-01/robot.toml")).unwrap();
     let recs = vec![load(&base, "omni3-square-run-01", &robot)];
     // The marker offset is placed by the aligned fit's own residual code.

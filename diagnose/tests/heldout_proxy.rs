@@ -2,7 +2,8 @@
 //! the geometry `calibrate` fits on a square session, dead-reckoned from the first row on
 //! the circles and Ivanjko paths of the nearest day, against the OptiOdom authors'
 //! parameters from the same session. Goal: no session above the authors
-//! (ratio <= 1.0), geometric mean of the ratios <= 0.94. Skipped when the data are absent.
+//! (ratio <= 1.0), geometric mean of the ratios <= 0.94. The sessions stay outside the
+//! repository: every test here is ignored unless asked for with `WHEELCAL_SESSIONS` set.
 //! Baseline (start pose and clocks fitted per recording, as first built): geometric mean
 //! 1.112, worst 1.259. With the dead-reckoning objective and events kept out: 1.003, worst
 //! 1.068 (the ignored whole-proxy test fails: the goal is not met).
@@ -10,12 +11,10 @@
 use diagnose::calibrate::{calibrate, proxy, CalOptions, TurnLaw};
 use std::path::PathBuf;
 
-fn dir() -> Option<PathBuf> {
-    let d = proxy::sessions_dir(&PathBuf::from(env!("CARGO_MANIFEST_DIR")));
-    if d.is_none() {
-        eprintln!("skipping: shared/real/sessions is absent");
-    }
-    d
+/// The OptiOdom sessions ([`testdata::sessions_dir`]): every test here is `#[ignore]`d
+/// and runs with `WHEELCAL_SESSIONS` set (`cargo test -- --ignored sessions_`).
+fn dir() -> PathBuf {
+    testdata::sessions_dir()
 }
 
 fn train(
@@ -76,8 +75,9 @@ fn assert_plausible_and_alike(c: &diagnose::calibrate::Calibration) {
 /// 1.22; 1.18 on this subset) against 12 of its 46 test runs. Must not lose to the
 /// authors.
 #[test]
-fn one_december_session_transfers_no_worse_than_optiodom() {
-    let Some(d) = dir() else { return };
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_one_december_session_transfers_no_worse_than_optiodom() {
+    let d = dir();
     let r = proxy::run_diff(&d, Some(&["231220200045"]), Some(12), &train).unwrap();
     print!("{}", proxy::table(&r));
     assert_eq!(r.len(), 1);
@@ -87,9 +87,9 @@ fn one_december_session_transfers_no_worse_than_optiodom() {
 
 /// Every square session against every paired test run (about 4 s in release).
 #[test]
-#[ignore = "the whole proxy: run with --release -- --ignored"]
+#[ignore = "the whole proxy (needs WHEELCAL_SESSIONS): run with --release -- --ignored; its 0.94 goal was withdrawn by issue 56 (squares alone cannot carry the turn law), and it fails"]
 fn every_square_session_beats_optiodom() {
-    let Some(d) = dir() else { return };
+    let d = dir();
     let r = proxy::run_diff(&d, None, None, &train).unwrap();
     assert_meets_the_goal(&r);
 }
@@ -101,8 +101,9 @@ fn every_square_session_beats_optiodom() {
 /// standard deviations, and the law must be found on both (the circles' heading gain is
 /// 0.4-0.5 % below the squares' on both days: a law of 0.2-1 %).
 #[test]
-fn the_turn_law_is_the_same_in_june_and_december() {
-    let Some(d) = dir() else { return };
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_the_turn_law_is_the_same_in_june_and_december() {
+    let d = dir();
     let opts = CalOptions::default();
     let mut laws = Vec::new();
     for month in ["06", "12"] {
@@ -156,8 +157,9 @@ fn the_turn_law_is_the_same_in_june_and_december() {
 /// `--e-b-for` gives 0.787 (worst 0.974), against 0.885 (worst 0.977) at the squares'
 /// mean speed; asserted better by more than 0.05.
 #[test]
-fn a_law_from_the_other_month_beats_optiodom() {
-    let Some(d) = dir() else { return };
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_a_law_from_the_other_month_beats_optiodom() {
+    let d = dir();
     let mut laws = std::collections::BTreeMap::new();
     let mut driving = std::collections::BTreeMap::new();
     for month in ["06", "12"] {
@@ -279,8 +281,9 @@ fn a_law_from_the_other_month_beats_optiodom() {
 /// gives the turn law (it carried better across months, above); the choice within 3 %
 /// of the better law.
 #[test]
-fn the_turn_and_speed_laws_tie_across_sessions() {
-    let Some(d) = dir() else { return };
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_the_turn_and_speed_laws_tie_across_sessions() {
+    let d = dir();
     let folds = proxy::laws_across_sessions(&d).unwrap();
     assert_eq!(folds.len(), 29);
     let g = |m: fn(&proxy::LawFold) -> f64| proxy::geometric_mean_over_none(&folds, m);
@@ -305,8 +308,9 @@ fn the_turn_and_speed_laws_tie_across_sessions() {
 /// symmetric robot). Before the wheels' centre was a rung of the ladder: 0.851 and 0.825,
 /// with the per-wheel distances pinned at their ±8 % edges (0.94, 1.08, 0.92).
 #[test]
-fn omni3_squares_transfer_to_circles_with_plausible_geometry() {
-    let Some(d) = dir() else { return };
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_omni3_squares_transfer_to_circles_with_plausible_geometry() {
+    let d = dir();
     let fits = std::cell::RefCell::new(Vec::new());
     let r = proxy::run_robot(&d, "omni3", None, None, &|robot, recs, _| {
         let c = calibrate(robot, recs, None, &CalOptions::default()).map_err(|e| e.to_string())?;
@@ -361,10 +365,11 @@ fn omni3_squares_transfer_to_circles_with_plausible_geometry() {
 /// within 5 % of the constant's; the other squares with the law at most 0.8 of the
 /// constant's and 0.7 of the authors'.
 #[test]
-fn omni3_turn_law_holds_out_on_circles_and_squares_alike() {
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_omni3_turn_law_holds_out_on_circles_and_squares_alike() {
     use diagnose::calibrate::{board_dead_reckoning_errors, dead_reckoning_rmse_law, Series};
     type Runs = Vec<(String, formats::recording::Recording)>;
-    let Some(d) = dir() else { return };
+    let d = dir();
     let params: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("authors_params.json")).unwrap())
             .unwrap();
@@ -480,8 +485,9 @@ fn omni3_turn_law_holds_out_on_circles_and_squares_alike() {
 /// moves across its rollers, under their outer envelope, which the published diameter
 /// is; the tyre range of 5 % put the authors' circle fits outside it.
 #[test]
-fn omni3_radius_range_holds_the_authors_fits() {
-    let Some(d) = dir() else { return };
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_omni3_radius_range_holds_the_authors_fits() {
+    let d = dir();
     let params: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("authors_params.json")).unwrap())
             .unwrap();
@@ -518,8 +524,9 @@ fn omni3_radius_range_holds_the_authors_fits() {
     }
 }
 
-/// The mecanum robot (issue 21): its circles are kept apart, so each of its four square
-/// sessions is tested on the squares of the other three (32-36 runs, two days), against
+/// The mecanum robot (issue 21): each of its four square sessions is tested on the squares
+/// of the other three (the circles of September 2020, added to the sessions since, are
+/// issue 56's: squares teach the wrong wheel for circles) (32-36 runs, two days), against
 /// the authors' parameters from the training session. The goal as for the others: no
 /// session above the authors, geometric mean at most 0.94; and no fitted parameter on
 /// its plausible range's edge, the wheels' radii and distances within 3 % of each other
@@ -529,10 +536,12 @@ fn omni3_radius_range_holds_the_authors_fits() {
 /// parameter at least 5 % of its range from either edge (with a ±15 % radius range a
 /// radius of 1.146 sat 1.3 % of it from the edge, and the worst session at 0.999).
 #[test]
-fn mecanum_squares_transfer_to_other_sessions() {
-    let Some(d) = dir() else { return };
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_mecanum_squares_transfer_to_other_sessions() {
+    let d = dir();
     let fits = std::cell::RefCell::new(Vec::new());
-    let r = proxy::run_robot(&d, "omni4", None, None, &|robot, recs, _| {
+    let days = proxy::TestDays::OtherSquareSessions;
+    let r = proxy::run_robot_on(&d, "omni4", None, None, days, &|robot, recs, _| {
         let c = calibrate(robot, recs, None, &CalOptions::default()).map_err(|e| e.to_string())?;
         let out = (c.law_base_robot.clone(), c.turn_law);
         fits.borrow_mut().push(c);
@@ -567,8 +576,9 @@ fn mecanum_squares_transfer_to_other_sessions() {
 /// 0.700. With the full per-wheel model that one recording used to get: mecanum 2.237,
 /// worst 3.704, with radii on the edges of their range.
 #[test]
-fn one_square_keeps_a_model_that_transfers() {
-    let Some(d) = dir() else { return };
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_one_square_keeps_a_model_that_transfers() {
+    let d = dir();
     for (robot, goal) in [("omni4", 1.3), ("omni3", 0.94)] {
         let fits = std::cell::RefCell::new(Vec::new());
         let r = proxy::run_robot(&d, robot, None, None, &|nominal, recs, _| {
@@ -643,12 +653,13 @@ fn hand_measure(
 /// give +0.0194 ± 0.0042 (a travel counted along x alone had put the circles at 0.38 m
 /// and the law at +0.0244: an omni robot's travel is its speed's, vx and vy).
 #[test]
-fn the_omni_circle_test_finds_the_omni3_turn_law_by_hand() {
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_the_omni_circle_test_finds_the_omni3_turn_law_by_hand() {
     use calib_core::circle_test::CircleRun;
     use calib_core::motion::Direction;
     use calib_core::omni_circle_test::omni_turn_law;
     use std::f64::consts::TAU;
-    let Some(d) = dir() else { return };
+    let d = dir();
     let (mut runs, mut radii) = (Vec::new(), Vec::new());
     let mut robot = None;
     for r in proxy::list_runs(&d).unwrap() {
@@ -725,12 +736,13 @@ fn the_omni_circle_test_finds_the_omni3_turn_law_by_hand() {
 /// mean of at most 0.94 (measured 0.672, worst 0.907; with the positions' laws 0.731,
 /// worst 0.777).
 #[test]
-fn the_circle_test_finds_the_turn_law_by_hand() {
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_the_circle_test_finds_the_turn_law_by_hand() {
     use calib_core::circle_test::{self, CircleRun};
     use calib_core::motion::Direction;
     use calib_core::umbmark::{self, Run};
     use std::f64::consts::TAU;
-    let Some(d) = dir() else { return };
+    let d = dir();
     let mut laws = Vec::new();
     let mut sessions_alone = 0;
     for month in ["06", "12"] {

@@ -1,17 +1,13 @@
-//! Real recordings of ../shared/real (OptiOdom: a differential-drive UMBmark square and a
-//! three-wheel omni square, encoders and motion capture). Skipped when the folder is
-//! absent. The fit must improve the ground RMSE substantially: the README says these
+//! Real recordings of `data/real` (OptiOdom: a differential-drive UMBmark square and a
+//! three-wheel omni square, encoders and motion capture), kept in the repository. The fit must improve the ground RMSE substantially: the README says these
 //! robots have real systematic errors (25 mm end error, 3.6 % over-rotation).
 
 use diagnose::{diagnose, Options};
 use formats::recording::Recording;
 use std::path::PathBuf;
 
-fn run(folder: &str) -> Option<diagnose::Report> {
-    let Some(dir) = real_dir().map(|d| d.join(folder)) else {
-        eprintln!("skipping: shared/real is absent");
-        return None;
-    };
+fn run(folder: &str) -> diagnose::Report {
+    let dir = testdata::real(folder);
     let robot = formats::robot_file::load(&dir.join("robot.toml")).expect("robot file");
     let rec = Recording::load(&dir.join("recording.csv"), &robot).expect("recording");
     let r = diagnose(&robot, &rec, &Options::default()).expect("diagnosable");
@@ -19,14 +15,12 @@ fn run(folder: &str) -> Option<diagnose::Report> {
     if let Ok(out) = std::env::var("DIAG_REPORT_DIR") {
         diagnose::plots::write_report_dir(&r, &PathBuf::from(out).join(folder)).unwrap();
     }
-    Some(r)
+    r
 }
 
 #[test]
 fn diff_square_fit_improves() {
-    let Some(r) = run("diff-square-run-01") else {
-        return;
-    };
+    let r = run("diff-square-run-01");
     assert!(!r.findings.is_empty(), "a systematic error is found");
     // Motion capture is sub-millimetre, so what is left after the fit is unmodelled
     // motion; the fit must still explain at least the share of the excess residual the
@@ -48,9 +42,7 @@ fn diff_square_fit_improves() {
 
 #[test]
 fn omni3_square_fit_improves() {
-    let Some(r) = run("omni3-square-run-01") else {
-        return;
-    };
+    let r = run("omni3-square-run-01");
     assert!(!r.findings.is_empty(), "a systematic error is found");
     assert!(
         r.rmse.ground.after_m < 0.5 * r.rmse.ground.before_m,
@@ -73,10 +65,7 @@ fn omni3_square_fit_improves() {
 /// Neither do the six diff squares, whose wheels are within a few per mille of nominal.
 #[test]
 fn real_runs_have_no_counts_error() {
-    let Some(base) = real_dir() else {
-        eprintln!("skipping: shared/real is absent");
-        return;
-    };
+    let base = testdata::real_dir();
     for folder in std::iter::once("omni3-square-run-01").chain(SQUARES) {
         let dir = base.join(folder);
         let robot = formats::robot_file::load(&dir.join("robot.toml")).unwrap();
@@ -108,16 +97,8 @@ fn real_runs_have_no_counts_error() {
 
 use diagnose::calibrate::{calibrate, CalOptions, Calibration};
 
-/// The real-data folder, wherever the checkout sits beside `shared/`.
-fn real_dir() -> Option<PathBuf> {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .ancestors()
-        .map(|a| a.join("shared/real"))
-        .find(|d| d.exists())
-}
-
-fn load_runs(folders: &[&str]) -> Option<(calib_core::robot::Robot, Vec<(String, Recording)>)> {
-    let base = real_dir()?;
+fn load_runs(folders: &[&str]) -> (calib_core::robot::Robot, Vec<(String, Recording)>) {
+    let base = testdata::real_dir();
     let robot = formats::robot_file::load(&base.join(folders[0]).join("robot.toml")).unwrap();
     let recs = folders
         .iter()
@@ -126,7 +107,7 @@ fn load_runs(folders: &[&str]) -> Option<(calib_core::robot::Robot, Vec<(String,
             (f.to_string(), r)
         })
         .collect();
-    Some((robot, recs))
+    (robot, recs)
 }
 
 const SQUARES: [&str; 6] = [
@@ -144,9 +125,7 @@ fn param(c: &Calibration, name: &str) -> f64 {
 
 #[test]
 fn six_squares_give_one_plausible_geometry() {
-    let Some((robot, recs)) = load_runs(&SQUARES) else {
-        return;
-    };
+    let (robot, recs) = load_runs(&SQUARES);
     let opts = CalOptions {
         leave_one_out: true,
         ..Default::default()
@@ -198,9 +177,7 @@ fn six_squares_give_one_plausible_geometry() {
 /// start is still reported (-0.066 rad, within 0.03 rad of it).
 #[test]
 fn events_are_reported_once() {
-    let Some((robot, recs)) = load_runs(&SQUARES) else {
-        return;
-    };
+    let (robot, recs) = load_runs(&SQUARES);
     let c = calibrate(&robot, &recs, None, &CalOptions::default()).unwrap();
     for e in &c.events {
         println!("{e:?}");
@@ -229,9 +206,7 @@ fn events_are_reported_once() {
 #[test]
 fn one_direction_cannot_separate_ed_from_eb() {
     for runs in [&SQUARES[0..3], &SQUARES[3..6]] {
-        let Some((robot, recs)) = load_runs(runs) else {
-            return;
-        };
+        let (robot, recs) = load_runs(runs);
         let free = CalOptions {
             free_start: true,
             ..CalOptions::default()
@@ -252,9 +227,7 @@ fn one_direction_cannot_separate_ed_from_eb() {
 
 #[test]
 fn omni3_geometry_is_plausible() {
-    let Some((robot, recs)) = load_runs(&["omni3-square-run-01"]) else {
-        return;
-    };
+    let (robot, recs) = load_runs(&["omni3-square-run-01"]);
     let c = calibrate(&robot, &recs, None, &CalOptions::default()).unwrap();
     println!("{c}");
     for p in &c.params {
@@ -276,9 +249,7 @@ fn omni3_geometry_is_plausible() {
 
 #[test]
 fn six_squares_diagnosed_jointly() {
-    let Some((robot, recs)) = load_runs(&SQUARES) else {
-        return;
-    };
+    let (robot, recs) = load_runs(&SQUARES);
     let r = diagnose::multi::diagnose_many(&robot, &recs, &Options::default()).unwrap();
     println!("{r}");
     assert_eq!(r.recordings.len(), 6);
@@ -313,9 +284,7 @@ fn six_squares_diagnosed_jointly() {
 
 #[test]
 fn one_square_says_ed_and_eb_are_not_separable() {
-    let Some(r) = run("diff-square-run-04") else {
-        return;
-    };
+    let r = run("diff-square-run-04");
     assert!(
         r.separability.0.involves("ed") && r.separability.0.involves("eb"),
         "{:?}",
@@ -331,9 +300,7 @@ fn one_square_says_ed_and_eb_are_not_separable() {
 fn lab_floor_bumps_are_not_localised() {
     let mut seen = 0;
     for folder in SQUARES {
-        let Some(r) = run(folder) else {
-            return;
-        };
+        let r = run(folder);
         assert_ne!(r.verdict, "floor_bumps", "{folder}");
         for f in r.findings.iter().filter(|f| f.effect == "floor_bumps") {
             seen += 1;

@@ -885,15 +885,11 @@ mod tests {
 
     #[test]
     fn reads_the_real_recordings() {
-        let base = Path::new(env!("CARGO_MANIFEST_DIR")).join("../../shared/real");
         for dir in ["diff-square-run-01", "omni3-square-run-01"] {
-            let d = base.join(dir);
-            if !d.exists() {
-                continue; // shared/ sits beside the checkout in CI and on developer machines
-            }
+            let d = testdata::real(dir);
             let robot = crate::robot_file::load(&d.join("robot.toml")).unwrap();
             let rec = Recording::load(&d.join("recording.csv"), &robot).unwrap();
-            // 69 s at 20 Hz and 51 s at 25 Hz (shared/real/README.md).
+            // 69 s at 20 Hz and 51 s at 25 Hz (data/real/README.md).
             let expected_rows = if dir.starts_with("diff") {
                 69.0 * 20.0
             } else {

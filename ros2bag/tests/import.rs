@@ -18,12 +18,9 @@ use ros2bag::{import, ImportOptions};
 use std::path::{Path, PathBuf};
 use std::process::Command;
 
-fn shared_real() -> PathBuf {
-    PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-        .ancestors()
-        .map(|a| a.join("shared/real"))
-        .find(|d| d.exists())
-        .expect("../shared/real is needed beside the repository (CI clones it there)")
+/// The real runs kept in the repository (`data/real`).
+fn real_dir() -> PathBuf {
+    testdata::real_dir()
 }
 
 fn tmp(name: &str) -> PathBuf {
@@ -57,7 +54,7 @@ fn make_bag(args: &[&str]) -> serde_json::Value {
 }
 
 fn real(folder: &str) -> (Robot, Recording, PathBuf) {
-    let dir = shared_real().join(folder);
+    let dir = real_dir().join(folder);
     let robot = formats::robot_file::load(&dir.join("robot.toml")).unwrap();
     let rec = Recording::load(&dir.join("recording.csv"), &robot).unwrap();
     (robot, rec, dir)
@@ -65,7 +62,7 @@ fn real(folder: &str) -> (Robot, Recording, PathBuf) {
 
 /// A bag of a real recording with poses of `pose` kind; returns the bag folder.
 fn real_bag(folder: &str, pose: &str, extra: &[&str]) -> PathBuf {
-    let dir = shared_real().join(folder);
+    let dir = real_dir().join(folder);
     let out = tmp(&format!("{folder}-{pose}")).join("bag");
     let robot = dir.join("robot.toml");
     let csv = dir.join("recording.csv");

@@ -347,11 +347,8 @@ mod tests {
         std::fs::remove_dir_all(&d).ok();
     }
 
-    fn real_square() -> Option<PathBuf> {
-        PathBuf::from(env!("CARGO_MANIFEST_DIR"))
-            .ancestors()
-            .map(|a| a.join("shared/real/diff-square-run-01"))
-            .find(|d| d.join("recording.csv").is_file())
+    fn real_square() -> PathBuf {
+        testdata::real("diff-square-run-01")
     }
 
     #[test]
@@ -374,10 +371,7 @@ mod tests {
 
     #[test]
     fn holdout_also_fitted_is_refused() {
-        let Some(sq) = real_square() else {
-            eprintln!("skipping: shared/real is absent");
-            return;
-        };
+        let sq = real_square();
         let mut a = args(&sq.join("robot.toml"), &sq);
         a.holdout = Some(sq.join("recording.csv"));
         let e = run(&a, Output::Json).unwrap_err();
@@ -390,10 +384,7 @@ mod tests {
 
     #[test]
     fn marker_offset_on_a_differential_drive_is_an_error() {
-        let Some(sq) = real_square() else {
-            eprintln!("skipping: shared/real is absent");
-            return;
-        };
+        let sq = real_square();
         let mut a = args(&sq.join("robot.toml"), &sq);
         a.marker_offset = true;
         let e = run(&a, Output::Json).unwrap_err();

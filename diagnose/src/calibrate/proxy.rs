@@ -86,22 +86,30 @@ pub enum TestDays {
         /// Train on the nearest day's circles too.
         with_circles: bool,
     },
+    /// The squares of the robot's other sessions (the same kind of motion on other
+    /// days: how a geometry carries from one session to the next).
+    OtherSquareSessions,
 }
 
 /// The test runs of a training session: the circular and Ivanjko runs of the same robot
 /// on the days `days` says; for a robot with none (the mecanum robot: its circles are kept
 /// apart), the squares of its other sessions.
 pub fn test_runs<'a>(all: &'a [RunDir], train: &RunDir, days: TestDays) -> Vec<&'a RunDir> {
+    let other_squares = || {
+        all.iter()
+            .filter(|r| r.robot == train.robot && r.path == "square" && r.session != train.session)
+            .collect()
+    };
+    if days == TestDays::OtherSquareSessions {
+        return other_squares();
+    }
     let tests: Vec<&RunDir> = all
         .iter()
         .filter(|r| r.robot == train.robot && (r.path == "circular" || r.path == "ivanjko"))
         .collect();
     let d0 = day_number(train.day());
     let Some(best) = tests.iter().map(|r| (day_number(r.day()) - d0).abs()).min() else {
-        return all
-            .iter()
-            .filter(|r| r.robot == train.robot && r.path == "square" && r.session != train.session)
-            .collect();
+        return other_squares();
     };
     let (year, month, _) = train.day();
     tests
@@ -112,6 +120,7 @@ pub fn test_runs<'a>(all: &'a [RunDir], train: &RunDir, days: TestDays) -> Vec<&
             TestDays::Ivanjko { .. } => {
                 (day_number(r.day()) - d0).abs() == best && r.path == "ivanjko"
             }
+            TestDays::OtherSquareSessions => false,
         })
         .collect()
 }
@@ -282,13 +291,6 @@ pub fn month_runs(
     Ok((nominal, recs))
 }
 
-/// The sessions folder beside a checkout (`shared/real/sessions`), if present.
-pub fn sessions_dir(from: &Path) -> Option<PathBuf> {
-    from.ancestors()
-        .map(|a| a.join("shared/real/sessions"))
-        .find(|d| d.join("authors_params.json").is_file())
-}
-
 /// A training procedure: the nominal robot and the training recordings in, the fitted
 /// robot out.
 pub type Train<'a> = dyn Fn(&Robot, &[(String, Recording)]) -> Result<Robot, String> + 'a;
@@ -371,6 +373,7 @@ pub fn run_robot_on(
                     TestDays::Nearest => "on any day",
                     TestDays::OtherMonths => "in another month",
                     TestDays::Ivanjko { .. } => "(Ivanjko paths) on the nearest day",
+                    TestDays::OtherSquareSessions => "(squares) in another session",
                 }
             ));
         }
