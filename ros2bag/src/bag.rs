@@ -2,14 +2,15 @@
 //! file with the `mcap` crate: the topics it holds and the raw messages of the topics
 //! asked for.
 //!
-//! A damaged file is read up to the damage: with the file's summary (chunk index) the
-//! chunks are read in file order and the first one that fails names its byte offset;
-//! without a summary (a recording cut short) the records are read linearly up to the
-//! first that fails. What came before is kept; [`Bag::damage`] says where it stopped.
+//! The data section is read record by record ([`crate::records`]), every stated length
+//! bounded; the summary (chunk index) is not needed, so a damaged index loses nothing. A
+//! damaged file is read up to the damage, whose byte offset is named: what came before is
+//! kept, and [`Bag::damage`] says where reading stopped and what span was lost.
 
 use crate::error::ImportError;
+use crate::records::{self, Item};
 use serde::Deserialize;
-use std::collections::{BTreeMap, HashSet};
+use std::collections::{BTreeMap, HashMap, HashSet};
 use std::path::{Path, PathBuf};
 
 /// A topic in the bag.
@@ -45,6 +46,22 @@ pub struct Damage {
     pub message: String,
     /// Messages read before it (all topics).
     pub messages_before: usize,
+    /// Log times (ns since the epoch) of the first and last message lost, where the
+    /// records after the damage still tell them.
+    pub lost_ns: Option<(u64, u64)>,
+}
+
+impl Damage {
+    /// The lost span in seconds after `t0_ns` (the bag's first message), when known and
+    /// plausible (a damaged header can state any time).
+    pub fn lost_span_s(&self, t0_ns: u64) -> Option<(f64, f64)> {
+        let (a, b) = self.lost_ns?;
+        let s = |t: u64| t.checked_sub(t0_ns).map(|d| d as f64 * 1e-9);
+        match (s(a), s(b)) {
+            (Some(a), Some(b)) if a <= b && b < 1e7 => Some((a, b)),
+            _ => None,
+        }
+    }
 }
 
 impl std::fmt::Display for Damage {
@@ -52,17 +69,17 @@ impl std::fmt::Display for Damage {
         match self.offset {
             Some(o) => write!(
                 f,
-                "{}: the chunk at byte offset {o} cannot be read ({}); {} messages before it were read",
+                "{}: the record at byte offset {o} cannot be read ({}); {} messages before it were read",
                 self.file.display(),
                 self.message,
                 self.messages_before
             ),
             None => write!(
                 f,
-                "{}: reading stopped after {} messages ({}; the file has no summary to locate the damage)",
+                "{}: {}; {} messages were read",
                 self.file.display(),
-                self.messages_before,
-                self.message
+                self.message,
+                self.messages_before
             ),
         }
     }
@@ -141,6 +158,11 @@ impl Bag {
             .iter()
             .filter(|t| types.contains(&t.msg_type.as_str()))
             .collect()
+    }
+
+    /// Messages counted so far, every topic.
+    fn message_count(&self) -> usize {
+        self.topics.iter().map(|t| t.count).sum()
     }
 
     fn count(&mut self, topic: &str, msg_type: &str, encoding: &str) {
@@ -257,96 +279,75 @@ fn bag_files(path: &Path) -> Result<Vec<PathBuf>, ImportError> {
     Ok(files)
 }
 
+/// Reads one `.mcap` file's data section ([`records::walk`]): every channel is declared,
+/// every message counted and the wanted ones kept; damage is noted in `bag.damage`.
 fn read_file(
     file: &Path,
     buf: &[u8],
     wanted: &HashSet<&str>,
     bag: &mut Bag,
 ) -> Result<(), ImportError> {
-    let before = bag.topics.iter().map(|t| t.count).sum::<usize>();
-    let summary = mcap::read::Summary::read(buf).ok().flatten();
-    match summary {
-        Some(s) if !s.chunk_indexes.is_empty() => {
-            for c in s.channels.values() {
-                let (ty, _) = channel_type(c);
-                bag.declare(&c.topic, &ty, &c.message_encoding);
-            }
-            let mut chunks = s.chunk_indexes.clone();
-            chunks.sort_by_key(|c| c.chunk_start_offset);
-            for idx in &chunks {
-                let damage = |e: &dyn std::fmt::Display, bag: &Bag| Damage {
-                    file: file.to_path_buf(),
-                    offset: Some(idx.chunk_start_offset),
-                    message: e.to_string(),
-                    messages_before: bag.topics.iter().map(|t| t.count).sum::<usize>() - before,
-                };
-                let stream = match s.stream_chunk(buf, idx) {
-                    Ok(st) => st,
-                    Err(e) => {
-                        bag.damage = Some(damage(&e, bag));
-                        return Ok(());
-                    }
-                };
-                // A chunk's messages are kept only when the whole chunk reads.
-                let mut got = Vec::new();
-                for m in stream {
-                    match m {
-                        Ok(m) => got.push(m),
-                        Err(e) => {
-                            bag.damage = Some(damage(&e, bag));
-                            return Ok(());
-                        }
-                    }
-                }
-                for m in got {
-                    keep(bag, wanted, &m);
-                }
-            }
+    let before = bag.message_count();
+    let mut schemas: HashMap<u16, String> = HashMap::new();
+    let mut channels: HashMap<u16, (String, String, String)> = HashMap::new();
+    let mut unknown: Option<u16> = None;
+    let stop = records::walk(buf, &mut |item| match item {
+        Item::Schema { id, name } => {
+            schemas.insert(id, name);
         }
-        _ => {
-            let stream = mcap::read::MessageStream::new_with_options(
-                buf,
-                mcap::read::Options::IgnoreEndMagic.into(),
-            )
-            .map_err(|e| ImportError::new(file, format!("not an MCAP file: {e}")))?;
-            for m in stream {
-                match m {
-                    Ok(m) => keep(bag, wanted, &m),
-                    Err(e) => {
-                        bag.damage = Some(Damage {
-                            file: file.to_path_buf(),
-                            offset: None,
-                            message: e.to_string(),
-                            messages_before: bag.topics.iter().map(|t| t.count).sum::<usize>()
-                                - before,
+        Item::Channel {
+            id,
+            schema_id,
+            topic,
+            encoding,
+        } => {
+            let ty = schemas
+                .get(&schema_id)
+                .cloned()
+                .unwrap_or_else(|| "(no schema)".into());
+            bag.declare(&topic, &ty, &encoding);
+            channels.insert(id, (topic, ty, encoding));
+        }
+        Item::Message {
+            channel_id,
+            log_time_ns,
+            data,
+        } => match channels.get(&channel_id) {
+            Some((topic, ty, encoding)) => {
+                bag.count(topic, ty, encoding);
+                if wanted.contains(topic.as_str()) {
+                    bag.messages
+                        .entry(topic.clone())
+                        .or_default()
+                        .push(RawMessage {
+                            log_time_ns,
+                            data: data.to_vec(),
                         });
-                        return Ok(());
-                    }
                 }
             }
-        }
+            None => {
+                unknown.get_or_insert(channel_id);
+            }
+        },
+    })
+    .map_err(|e| ImportError::new(file, e))?;
+    if let Some(s) = stop {
+        bag.damage = Some(Damage {
+            file: file.to_path_buf(),
+            offset: Some(s.offset),
+            message: s.message,
+            messages_before: bag.message_count() - before,
+            lost_ns: s.lost_ns,
+        });
+    } else if let Some(id) = unknown {
+        // A message on a channel no record declared: its channel record was damaged.
+        bag.damage = Some(Damage {
+            file: file.to_path_buf(),
+            offset: None,
+            message: format!("messages on channel {id}, which no channel record declares (a damaged channel record, or a damaged message header)"),
+            messages_before: bag.message_count() - before,
+            lost_ns: None,
+        });
     }
     Ok(())
-}
-
-/// The channel's ROS type (schema name) and whether it had a schema.
-fn channel_type(c: &mcap::Channel<'_>) -> (String, bool) {
-    match &c.schema {
-        Some(s) => (s.name.clone(), true),
-        None => ("(no schema)".into(), false),
-    }
-}
-
-fn keep(bag: &mut Bag, wanted: &HashSet<&str>, m: &mcap::Message<'_>) {
-    let (ty, _) = channel_type(&m.channel);
-    bag.count(&m.channel.topic, &ty, &m.channel.message_encoding);
-    if wanted.contains(m.channel.topic.as_str()) {
-        bag.messages
-            .entry(m.channel.topic.clone())
-            .or_default()
-            .push(RawMessage {
-                log_time_ns: m.log_time,
-                data: m.data.to_vec(),
-            });
-    }
 }

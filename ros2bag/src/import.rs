@@ -142,14 +142,21 @@ pub fn import(path: &Path, robot: &Robot, o: &ImportOptions) -> Result<Imported,
     let bag = Bag::open(path, &wanted)?;
     let mut notes = Vec::new();
     if let Some(d) = &bag.damage {
+        let t0 = bag.messages.values().flatten().map(|m| m.log_time_ns).min();
+        let lost = match t0.and_then(|t0| d.lost_span_s(t0)) {
+            Some((a, b)) => {
+                format!("; lost: the messages logged {a:.3} s to {b:.3} s after the bag's first")
+            }
+            None => "; what was lost after it cannot be told".into(),
+        };
         if !o.keep_partial {
             return Err(ImportError::new(
                 path,
-                format!("{d}; import what came before with --keep-partial"),
+                format!("{d}{lost}; import what came before with --keep-partial"),
             ));
         }
         notes.push(format!(
-            "damaged bag, the messages before the damage are kept: {d}"
+            "damaged bag, the messages before the damage are kept: {d}{lost}"
         ));
     }
 

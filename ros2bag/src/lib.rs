@@ -17,6 +17,7 @@ pub mod joints;
 pub mod jumps;
 pub mod messages;
 pub mod poses;
+pub mod records;
 pub mod sync;
 pub mod tf;
 
