@@ -233,3 +233,53 @@ fn only_enter_starts_the_next_run() {
     assert_eq!(v["trials"].as_array().map(Vec::len), Some(1), "{v}");
     let _ = Eof;
 }
+
+/// Issue 52.3: `run umbmark` exited 0 when the board had cut the program for link loss
+/// (the console suspended longer than `--link-timeout`): a script believed the square
+/// was driven. Resumed after the cut, the console now exits 1 and says why; the board's
+/// trial says `link_lost` and it stopped short of the square's 16 m.
+#[test]
+fn run_cut_by_the_link_failsafe_exits_non_zero() {
+    let dir = scratch("run-linklost");
+    let board = Board::start_at("mobolab", &dir, "1");
+    let mut run = wheelcal()
+        .arg("--port")
+        .arg(&board.link)
+        .args(["--json", "run", "umbmark", "--dir", "cw", "--side", "4"])
+        .stdout(Stdio::piped())
+        .stderr(Stdio::piped())
+        .spawn()
+        .expect("run starts");
+    wait_until_held(&board.link, run.id());
+    std::thread::sleep(Duration::from_millis(1500));
+    signal(&run, "-STOP");
+    // The board cuts 500 ms after the last request; 1 s is well past it.
+    std::thread::sleep(Duration::from_millis(1000));
+    signal(&run, "-CONT");
+    let status = wait_exit(
+        &mut run,
+        Duration::from_secs(10),
+        "the resumed console never ended",
+    );
+    let mut err = String::new();
+    std::io::Read::read_to_string(&mut run.stderr.take().unwrap(), &mut err).unwrap();
+    assert_eq!(status.code(), Some(1), "exit {status:?}: {err}");
+    assert!(
+        err.contains("link") && err.contains("500 ms"),
+        "the reason is not given: {err}"
+    );
+    assert_eq!(last_trial(&board)["end"], "link_lost");
+}
+
+/// The same square run to its end still exits 0 (a 0.5 m square, at full speed).
+#[test]
+fn run_to_the_end_exits_zero() {
+    let dir = scratch("run-done");
+    let board = Board::start("mobolab", &dir);
+    let (o, out, err) =
+        board.run_text(&["--json", "run", "umbmark", "--dir", "cw", "--side", "0.5"]);
+    assert!(o.status.success(), "{err}");
+    let v: Value = serde_json::from_str(&out).expect("status JSON");
+    assert_eq!(v["stop"], "ProgramDone", "{v}");
+    assert_eq!(last_trial(&board)["end"], "completed");
+}

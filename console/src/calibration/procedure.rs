@@ -880,7 +880,7 @@ pub const SKID_UMBMARK: &str = "the board's robot is skid_steer: UMBmark's close
 const LINK_LOST_RETRIES: usize = 2;
 
 /// Why a program stopped, in words.
-fn stop_words(s: StopReason) -> &'static str {
+pub(crate) fn stop_words(s: StopReason) -> &'static str {
     match s {
         StopReason::None => "not stopped",
         StopReason::Request => "stopped on request",

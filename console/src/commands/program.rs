@@ -4,7 +4,7 @@ use crate::args::RunCmd;
 use crate::board;
 use crate::output::Output;
 use crate::session::Ctx;
-use anyhow::Result;
+use anyhow::{bail, Result};
 
 /// Starts the program (validated first) and, unless --no-wait, follows it to its end.
 pub fn run(cmd: RunCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
@@ -52,5 +52,18 @@ pub fn run(cmd: RunCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
     if out == Output::Human {
         eprintln!();
     }
-    out.emit(&s, || format!("{}\n", board::status_line(&s)))
+    out.emit(&s, || format!("{}\n", board::status_line(&s)))?;
+    // The program must have run to its end: a script takes exit 0 for "driven".
+    use calib_core::protocol::StopReason;
+    match s.stop {
+        _ if no_wait => Ok(()),
+        StopReason::ProgramDone => Ok(()),
+        StopReason::LinkLost => bail!(
+            "the board cut the program short: it heard nothing from this console for {link_ms} ms (--link-timeout; the console was suspended or starved): the path was not driven to its end"
+        ),
+        other => bail!(
+            "the program ended before the path's end ({}): the path was not driven to its end",
+            crate::calibration::procedure::stop_words(other)
+        ),
+    }
 }
