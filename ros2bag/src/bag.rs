@@ -189,6 +189,10 @@ impl Bag {
     }
 }
 
+/// The largest `metadata.yaml` read: rosbag2 writes a few kilobytes (one entry per file
+/// and topic); 1 MiB leaves room for thousands of topics.
+pub const MAX_METADATA_BYTES: u64 = 1 << 20;
+
 /// The `.mcap` files of a bag folder (from its metadata.yaml) or the file itself.
 fn bag_files(path: &Path) -> Result<Vec<PathBuf>, ImportError> {
     if path.is_file() {
@@ -221,6 +225,16 @@ fn bag_files(path: &Path) -> Result<Vec<PathBuf>, ImportError> {
         return Err(ImportError::new(
             path,
             format!("not a rosbag2 folder: no metadata.yaml {hint}"),
+        ));
+    }
+    let size = std::fs::metadata(&meta).map(|m| m.len()).unwrap_or(0);
+    if size > MAX_METADATA_BYTES {
+        return Err(ImportError::new(
+            &meta,
+            format!(
+                "is {size} bytes; a rosbag2 metadata file is a few kilobytes (at most {} MiB is read)",
+                MAX_METADATA_BYTES >> 20
+            ),
         ));
     }
     let text = std::fs::read_to_string(&meta)
@@ -267,6 +281,15 @@ fn bag_files(path: &Path) -> Result<Vec<PathBuf>, ImportError> {
             &meta,
             "lists no files (relative_file_paths is empty)",
         ));
+    }
+    let mut seen = HashSet::new();
+    for f in &info.relative_file_paths {
+        if !seen.insert(f.as_str()) {
+            return Err(ImportError::new(
+                &meta,
+                format!("lists {f} more than once (relative_file_paths): a damaged metadata file"),
+            ));
+        }
     }
     for f in &files {
         if !f.is_file() {

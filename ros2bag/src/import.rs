@@ -10,6 +10,7 @@ use crate::joints::{joint_series, to_counts};
 use crate::jumps::{find_jumps, JumpReport};
 use crate::messages::types;
 use crate::poses::{pose_series, PoseQuery};
+use crate::screen;
 use crate::sync::{poses_at, to_start_frame};
 use calib_core::robot::{Robot, RobotKind};
 use formats::recording::{Recording, Row};
@@ -160,14 +161,14 @@ pub fn import(path: &Path, robot: &Robot, o: &ImportOptions) -> Result<Imported,
         ));
     }
 
-    let js = joint_series(&bag, &o.joint_topic, &joints, o.use_receive_time)?;
+    let mut js = joint_series(&bag, &o.joint_topic, &joints, o.use_receive_time)?;
     if js.dropped > 0 {
         notes.push(format!(
             "{}: {} joint samples with a repeated or earlier stamp dropped",
             o.joint_topic, js.dropped
         ));
     }
-    let ps = pose_series(
+    let mut ps = pose_series(
         &bag,
         &PoseQuery {
             topic: &o.pose_topic,
@@ -181,6 +182,35 @@ pub fn import(path: &Path, robot: &Robot, o: &ImportOptions) -> Result<Imported,
         notes.push(format!(
             "{}: {} pose samples with a repeated or earlier stamp dropped",
             o.pose_topic, ps.dropped
+        ));
+    }
+    // Every converted sample checked (crate::screen): refused ones are an error, or with
+    // --keep-partial dropped and said.
+    let t0 = js.stamps_ns.first().copied().unwrap_or(0);
+    let refused = [
+        (
+            o.joint_topic.as_str(),
+            screen::joints(&mut js, &joints, cpr),
+        ),
+        (o.pose_topic.as_str(), screen::poses(&mut ps)),
+    ];
+    for (topic, r) in &refused {
+        if r.is_empty() {
+            continue;
+        }
+        let said = screen::describe(topic, r, t0);
+        if !o.keep_partial {
+            return Err(ImportError::new(
+                path,
+                format!("{said}; import without them with --keep-partial"),
+            ));
+        }
+        notes.push(format!("{said}: dropped"));
+    }
+    if js.stamps_ns.is_empty() || ps.stamps_ns.is_empty() {
+        return Err(ImportError::new(
+            path,
+            "no valid wheel-joint or pose sample is left once the refused ones are dropped",
         ));
     }
     if ps.max_tilt_rad > 5f64.to_radians() {

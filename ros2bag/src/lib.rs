@@ -18,6 +18,7 @@ pub mod jumps;
 pub mod messages;
 pub mod poses;
 pub mod records;
+pub mod screen;
 pub mod sync;
 pub mod tf;
 

@@ -216,9 +216,11 @@ pub fn pose_series(bag: &Bag, q: &PoseQuery<'_>) -> Result<PoseSeries, ImportErr
             continue;
         }
         let (x, y, yaw, tilt) = planar(&iso);
-        let yaw = match out.yaw.last() {
-            Some(&prev) => prev + wrap(yaw - prev),
-            None => yaw,
+        // Unwrapped against the last finite heading: a NaN one (refused later, by
+        // crate::screen) must not poison every heading after it.
+        let yaw = match out.yaw.iter().rev().find(|v| v.is_finite()) {
+            Some(&prev) if yaw.is_finite() => prev + wrap(yaw - prev),
+            _ => yaw,
         };
         out.stamps_ns.push(t);
         out.x.push(x);

@@ -301,3 +301,106 @@ fn mutated_bags_import_or_fail_cleanly() {
     }
     assert!(panics.is_empty(), "panics: {panics:?}");
 }
+
+/// A bag folder of `seconds` with `extra` make_bag.py arguments.
+fn bag_with(name: &str, seconds: u32, extra: &[&str]) -> PathBuf {
+    let out = tmp(name).join("bag");
+    let script = Path::new(env!("CARGO_MANIFEST_DIR")).join("tests/make_bag.py");
+    let robot = robot_file();
+    let o = Command::new("python3")
+        .arg(&script)
+        .args(["--robot", robot.to_str().unwrap()])
+        .args(["--synthetic", &seconds.to_string()])
+        .args(["--out", out.to_str().unwrap()])
+        .args(extra)
+        .output()
+        .expect("python3 with rosbags is needed: bash scripts/setup.sh");
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    out
+}
+
+/// Messages that decode but cannot be data (issue 52 §7: a NaN joint became count 0, inf
+/// became 9223372036854775807, a zero quaternion theta = NaN, a stamp at 2^31 - 1 s a
+/// 538,800,308 s recording): an error naming the topic, the kind and the time; with
+/// --keep-partial the sample is dropped, said, and the rest equals the clean import.
+#[test]
+fn decodable_but_impossible_values_are_refused_by_name() {
+    let robot = formats::robot_file::load(&robot_file()).unwrap();
+    let clean = import(&bag_with("clean", 20, &[]), &robot, &opts()).unwrap();
+    let n = clean.recording.len();
+    // Joints are sampled every 10 ms, poses at 7 ms past every 30 ms.
+    for (kind, at, topic, says) in [
+        ("nan-joint", "10.000", "/joint_states", "NaN"),
+        ("inf-joint", "10.000", "/joint_states", "inf"),
+        ("zero-quat", "9.997", "/mocap/pose", "quaternion"),
+        ("far-stamp", "10.000", "/joint_states", "hour"),
+    ] {
+        let b = bag_with(kind, 20, &["--poison", &format!("{kind}@{at}")]);
+        let e = import(&b, &robot, &opts()).unwrap_err().to_string();
+        assert!(
+            e.contains(topic) && e.contains(says) && e.contains("--keep-partial"),
+            "{kind}: {e}"
+        );
+        if kind != "far-stamp" {
+            assert!(
+                e.contains(&format!("at {at} s")),
+                "{kind}: the time is named: {e}"
+            );
+        }
+        let mut o = opts();
+        o.keep_partial = true;
+        let imp = import(&b, &robot, &o).unwrap();
+        assert!(
+            imp.notes
+                .iter()
+                .any(|s| s.contains("refused") && s.contains(topic)),
+            "{kind}: {:?}",
+            imp.notes
+        );
+        let r = &imp.recording;
+        // One joint sample fewer, or the same rows with one pose sample fewer.
+        assert!(
+            r.len() == n || r.len() == n - 1,
+            "{kind}: {} rows of {n}",
+            r.len()
+        );
+        assert!(
+            r.t.last().unwrap() < &21.0,
+            "{kind}: {} s long",
+            r.t.last().unwrap()
+        );
+        for w in &r.wheels {
+            let enc = w.enc.as_ref().unwrap();
+            assert!(
+                enc.iter().flatten().all(|c| c.abs() < 1_000_000),
+                "{kind}: counts"
+            );
+        }
+        assert!(
+            r.theta.iter().flatten().all(|v| v.is_finite()),
+            "{kind}: theta"
+        );
+    }
+}
+
+/// metadata.yaml over 1 MiB, or listing one file twice, is refused naming the file.
+#[test]
+fn damaged_metadata_is_refused_by_name() {
+    let robot = formats::robot_file::load(&robot_file()).unwrap();
+    let b = bag_with("meta", 5, &[]);
+    let meta = b.join("metadata.yaml");
+    let text = std::fs::read_to_string(&meta).unwrap();
+    let twice = text.replace("  - bag.mcap", "  - bag.mcap\n  - bag.mcap");
+    assert_ne!(twice, text, "{text}");
+    std::fs::write(&meta, &twice).unwrap();
+    let e = import(&b, &robot, &opts()).unwrap_err().to_string();
+    assert!(
+        e.contains("metadata.yaml") && e.contains("more than once"),
+        "{e}"
+    );
+    let mut big = text.clone();
+    big.push_str(&format!("# {}\n", "x".repeat(2 << 20)));
+    std::fs::write(&meta, &big).unwrap();
+    let e = import(&b, &robot, &opts()).unwrap_err().to_string();
+    assert!(e.contains("metadata.yaml") && e.contains("MiB"), "{e}");
+}

@@ -171,6 +171,10 @@ def main():
                          'that moves the robot by (DX, DY) and turns it by DYAW about itself')
     ap.add_argument('--compress', action='store_true', help='zstd chunks (as ros2 bag record)')
     ap.add_argument('--corrupt-chunk', type=int, help='overwrite the zstd frame of this chunk (0-based)')
+    ap.add_argument('--poison', action='append', default=[],
+                    help='synthetic: KIND@T, one corrupted-but-decodable message at T s: nan-joint, '
+                         'inf-joint (a joint position), zero-quat (a pose quaternion of zeros), '
+                         'far-stamp (a joint stamp 2^31-1 s)')
     a = ap.parse_args()
 
     with open(a.robot, 'rb') as f:
@@ -209,6 +213,7 @@ def main():
         rng = random.Random(7)
         # [t, dx, dy, dyaw, x at t, y at t]: the centre is filled in when t is reached
         jumps = [[float(v) for v in j.split(':')] + [None, None] for j in a.jump]
+        poison = [(p.split('@')[0], float(p.split('@')[1])) for p in a.poison]
         pending = sorted(range(len(jumps)), key=lambda i: jumps[i][0])
         for k in range(n + 1):
             t_ns = EPOCH_NS + k * 1_000_000
@@ -227,7 +232,16 @@ def main():
             if k % 10 == 0:
                 enc = [round(phi_l * cpr / (2 * math.pi)), round(phi_r * cpr / (2 * math.pi))]
                 pos = [c * 2 * math.pi / cpr for c in enc] + [0.25]
-                msgs.append((t_ns + RECEIVE_DELAY_NS, '/joint_states', JointState.__msgtype__, joint_msg(t_ns, names, pos)))
+                stamp_ns = t_ns
+                for kind, tp in poison:
+                    if abs(t - tp) < 0.5e-3:
+                        if kind == 'nan-joint':
+                            pos[0] = float('nan')
+                        elif kind == 'inf-joint':
+                            pos[1] = float('inf')
+                        elif kind == 'far-stamp':
+                            stamp_ns = (2**31 - 1) * 1_000_000_000
+                msgs.append((t_ns + RECEIVE_DELAY_NS, '/joint_states', JointState.__msgtype__, joint_msg(stamp_ns, names, pos)))
                 truth.append((t, cmd[0], cmd[1], enc[0], enc[1], x, y, th))
             if k % 30 == 7:
                 px, py, pth = x, y, th
@@ -242,6 +256,8 @@ def main():
                     py += rng.gauss(0, a.pose_noise)
                     pth += rng.gauss(0, 0.5 * a.pose_noise)
                 for topic, ty, m in pose_msgs(a.pose, t_ns, compose(MAP_OFFSET, (px, py, pth))):
+                    if any(kind == 'zero-quat' and abs(t - tp) < 0.5e-3 for kind, tp in poison):
+                        m.pose.orientation = Quaternion(x=0.0, y=0.0, z=0.0, w=0.0)
                     msgs.append((t_ns + RECEIVE_DELAY_NS, topic, ty, m))
             if abs(w) > 1e-12:
                 x += v / w * (math.sin(th + w * dt) - math.sin(th))

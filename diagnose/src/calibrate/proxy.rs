@@ -19,7 +19,7 @@ use calib_core::robot::Robot;
 use formats::recording::Recording;
 use serde::Serialize;
 use std::collections::BTreeMap;
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// One run folder of the sessions directory: `<robot>-<path>-<session>-run-NN`.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
