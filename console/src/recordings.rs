@@ -49,7 +49,14 @@ pub fn recording_files(p: &Path) -> Result<Vec<PathBuf>> {
         return Ok(vec![p.to_path_buf()]);
     }
     if !p.is_dir() {
-        bail!("{}: no such recording file or folder", p.display());
+        match std::fs::metadata(p) {
+            Ok(m) => bail!(
+                "{}: {}, not a recording file or folder",
+                p.display(),
+                crate::input::kind_of(&m)
+            ),
+            Err(_) => bail!("{}: no such recording file or folder", p.display()),
+        }
     }
     let own = p.join("recording.csv");
     if own.is_file() {

@@ -240,9 +240,9 @@ pub fn idle_sidecar(runs_file: &Path) -> PathBuf {
 /// The mode written beside a runs file, if any.
 pub fn read_idle_sidecar(runs_file: &Path) -> Result<Option<IdleWheels>> {
     let f = idle_sidecar(runs_file);
-    match std::fs::read_to_string(&f) {
-        Err(e) if e.kind() == std::io::ErrorKind::NotFound => Ok(None),
-        Err(e) => Err(anyhow!("cannot read {}: {e}", f.display())),
+    match crate::input::read_text(&f, crate::input::MAX_SIDECAR_BYTES, "idle-wheel mode file") {
+        Err(e) if crate::input::is_not_found(&e) => Ok(None),
+        Err(e) => Err(e),
         Ok(t) => parse_idle(t.trim()).map(Some).ok_or_else(|| {
             anyhow!(
                 "{}:1:1: expected `held` or `released`, found `{}`",

@@ -562,9 +562,12 @@ pub fn run<L: Read + Write>(
     let before_done = trials.iter().all(|&t| have(Phase::Before, t) >= opts.runs);
     let previous = if opts.second_pass {
         let file = previous_file(&opts.runs_file);
-        let p: Corrections = match std::fs::read_to_string(&file) {
+        let read =
+            crate::input::read_text(&file, crate::input::MAX_SIDECAR_BYTES, "factors record");
+        let p: Corrections = match read {
             Ok(text) => serde_json::from_str(&text)
                 .with_context(|| format!("{}: not a factors record", file.display()))?,
+            Err(e) if !crate::input::is_not_found(&e) => return Err(e),
             Err(_) => {
                 let p = c.corrections()?;
                 std::fs::write(&file, serde_json::to_string(&p)?)

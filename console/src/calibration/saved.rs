@@ -43,8 +43,12 @@ impl SavedCalibration {
         } else {
             path.to_path_buf()
         };
-        let text = std::fs::read_to_string(&file)
-            .with_context(|| format!("{flag}: cannot read {}", file.display()))?;
+        let text = crate::input::read_text(
+            &file,
+            crate::input::MAX_CALIBRATION_BYTES,
+            "calibration JSON",
+        )
+        .with_context(|| flag.to_string())?;
         Self::parse(&text, file, robot, flag)
     }
 

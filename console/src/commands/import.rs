@@ -58,8 +58,11 @@ fn ros2(a: &Ros2Args, out: Output) -> Result<()> {
     std::fs::create_dir_all(&a.out)
         .with_context(|| format!("cannot create {}", a.out.display()))?;
     write_via_temp(&rec_path, |p| imp.recording.save(p))?;
-    let robot_text =
-        std::fs::read(&a.robot).with_context(|| format!("cannot read {}", a.robot.display()))?;
+    let robot_text = crate::input::read_text(
+        &a.robot,
+        formats::robot_file::MAX_FILE_BYTES,
+        "robot description",
+    )?;
     if !same_file(&a.robot, &robot_path) {
         write_via_temp(&robot_path, |p| std::fs::write(p, &robot_text))?;
     }
