@@ -60,7 +60,8 @@ pub enum Command {
         #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u16).range(20..))]
         period_ms: u16,
     },
-    /// Trial logs on the board.
+    /// Trial logs on the board: it keeps the last 8 trials (a ninth program evicts the
+    /// oldest; `log list` counts the evicted), so pull each one you need.
     #[command(subcommand)]
     Log(LogCmd),
     /// Controlled stop.
@@ -182,8 +183,8 @@ pub struct SimRecordArgs {
     /// Rows per second.
     #[arg(long, default_value_t = 200.0, value_parser = positive_f64)]
     pub rate: f64,
-    /// Camera pose noise, metres (standard deviation).
-    #[arg(long)]
+    /// Camera pose noise, metres (standard deviation), within [0, 1].
+    #[arg(long, value_parser = vision_noise_m)]
     pub vision_noise: Option<f64>,
 }
 
@@ -461,7 +462,8 @@ fn link_timeout_s(s: &str) -> Result<f64, String> {
     let min = calib_core::protocol::MIN_LINK_TIMEOUT_MS as f64 / 1000.0;
     if !(min..=60.0).contains(&v) {
         return Err(format!(
-            "{v} s is outside [{min}, 60] s (use --no-link-failsafe to turn it off)"
+            "{} s is outside [{min}, 60] s (use --no-link-failsafe to turn it off)",
+            s.trim()
         ));
     }
     Ok(v)
@@ -470,14 +472,16 @@ fn link_timeout_s(s: &str) -> Result<f64, String> {
 /// Subcommands of `wheelcal log`.
 #[derive(Debug, Subcommand)]
 pub enum LogCmd {
-    /// The trials on the board.
+    /// The trials on the board: at most the last 8 trials (older ones were evicted to
+    /// make room, and are counted).
     List,
-    /// Download a trial as a recording (docs/formats.md §2, plus odo_ columns).
+    /// Download a trial as a recording: a CSV file (docs/formats.md §2, plus odo_
+    /// columns) or, for a name ending in .mcap, an MCAP file.
     Pull {
         /// Trial number (see `log list`).
         #[arg(long)]
         trial: u16,
-        /// Output recording file (CSV).
+        /// Output file: a recording CSV (name ending in .csv) or MCAP (.mcap).
         #[arg(long)]
         out: PathBuf,
     },
@@ -695,7 +699,8 @@ fn in_range(s: &str, max: f64, unit: &str) -> std::result::Result<f64, String> {
     if v.is_finite() && v > 0.0 && v <= max {
         Ok(v)
     } else {
-        Err(format!("{v} is outside (0, {max}] {unit}"))
+        // The user's own text: a value such as 1e300 would print as 301 digits.
+        Err(format!("'{}' is outside (0, {max}] {unit}", s.trim()))
     }
 }
 
@@ -704,7 +709,7 @@ fn positive_f64(s: &str) -> std::result::Result<f64, String> {
     if v.is_finite() && v > 0.0 {
         Ok(v)
     } else {
-        Err(format!("{v} is not a positive number"))
+        Err(format!("'{}' is not a positive number", s.trim()))
     }
 }
 
@@ -747,6 +752,32 @@ fn sim_speed(s: &str) -> std::result::Result<f64, String> {
 
 /// A number with the spaces around it ignored, so `--f-lat '1, 1, 1, 1'` reads as a
 /// person means it.
+/// A camera's pose noise (m, standard deviation): from none to 1 m, already far more
+/// than any pose source a calibration can use (motion capture is ~1 mm, a camera on
+/// markers ~1 cm) and a few times a test path's size, beyond which the simulated
+/// recording is noise alone.
+fn vision_noise_m(s: &str) -> std::result::Result<f64, String> {
+    let v = trimmed_f64(s)?;
+    if v.is_finite() && (0.0..=1.0).contains(&v) {
+        Ok(v)
+    } else {
+        Err(format!(
+            "'{}' is outside [0, 1] m (a camera's pose noise, standard deviation)",
+            s.trim()
+        ))
+    }
+}
+
+/// A number for a message: plain when short, in exponent form when it would need many
+/// digits (1e300 would print as 301).
+fn shown(v: f64) -> String {
+    if v != 0.0 && v.is_finite() && !(1e-4..1e9).contains(&v.abs()) {
+        format!("{v:e}")
+    } else {
+        format!("{v}")
+    }
+}
+
 fn trimmed_f64(s: &str) -> std::result::Result<f64, String> {
     s.trim()
         .parse::<f64>()
@@ -970,7 +1001,7 @@ impl BagFlags {
             (self.max_pose_gap, "--max-pose-gap"),
         ] {
             if !(v.is_finite() && v > 0.0) {
-                bail!("{f} {v}: must be a positive number of seconds");
+                bail!("{f} {}: must be a positive number of seconds", shown(v));
             }
         }
         let Some(pose_topic) = self.pose_topic.clone() else {

@@ -62,9 +62,12 @@ impl Target {
             }
             None => &current.robot,
         };
-        self.corrections
-            .validate(robot)
-            .map_err(|e| anyhow!("the board would refuse these factors: {e}"))
+        self.corrections.validate(robot).map_err(|e| {
+            anyhow!(
+                "the board would refuse these factors: {}",
+                super::factors::refusal_words(&e)
+            )
+        })
     }
 }
 

@@ -136,6 +136,37 @@ impl FactorsView {
     }
 }
 
+/// Why the board would refuse factors, in words, with the value as given: the board's
+/// own message rounds to six decimals (`c_l = 2 is outside [0.5, 2]` for 2.0000001),
+/// which hides why it is outside; here the value keeps every digit it was given with.
+pub fn refusal_words(e: &calib_core::correction::CorrectionError) -> String {
+    use calib_core::correction::{CorrectionError, FACTOR_MIN};
+    match e {
+        CorrectionError::OutOfRange {
+            name,
+            index,
+            value,
+            max,
+        } => {
+            let law = matches!(*name, "e_b_arc" | "speed_rel" | "accel_slip_s" | "l_arc");
+            let min = if law { -*max } else { FACTOR_MIN };
+            let at = match index {
+                Some(i) => format!("{name}[{i}]"),
+                None => name.to_string(),
+            };
+            // Shortest digits that read back as the value (Rust's `{}` of f64); an
+            // absurd magnitude in exponent form instead of hundreds of digits.
+            let v = if value.abs() >= 1e9 || (*value != 0.0 && value.abs() < 1e-4) {
+                format!("{value:e}")
+            } else {
+                format!("{value}")
+            };
+            format!("{at} = {v} is outside [{min}, {max}]")
+        }
+        other => other.to_string(),
+    }
+}
+
 /// The factors `factors set` asks for: the board's `current` factors with the ones given
 /// replaced (nominal where the board holds none or the other kind, `n_wheels` F_lat of 1
 /// for an omni robot; the board refuses factors of the wrong kind in its own words).

@@ -108,6 +108,21 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
     if let Some(k) = known {
         cal.notes.insert(0, k.note);
     }
+    // Outputs only once everything succeeded: the robot files' targets are checked
+    // first, the report (which can still fail) is written, and only then the robot
+    // files, so a failed report leaves no fitted robot file beside its error.
+    for p in [&a.write_robot, &a.write_board_robot].into_iter().flatten() {
+        formats::safe_write::check_target(
+            p,
+            "robot description",
+            formats::robot_file::is_robot_file,
+        )
+        .with_context(|| format!("cannot write {}", p.display()))?;
+    }
+    if let Some(dir) = &a.report {
+        write_report(&cal, &robot, recs, held.as_ref(), dir)
+            .with_context(|| format!("cannot write the report into {}", dir.display()))?;
+    }
     if let Some(p) = &a.write_robot {
         formats::robot_file::write(p, &cal.robot_toml())
             .with_context(|| format!("cannot write {}", p.display()))?;
@@ -125,8 +140,6 @@ pub fn run(a: &CalibrateArgs, out: Output) -> Result<()> {
         ));
     }
     if let Some(dir) = &a.report {
-        write_report(&cal, &robot, recs, held.as_ref(), dir)
-            .with_context(|| format!("cannot write the report into {}", dir.display()))?;
         out.note(&format!("report: {}", dir.display()));
     }
     out.emit(&cal, || human(&cal))

@@ -28,7 +28,8 @@ fn get(ctx: &mut Ctx, out: Output) -> Result<()> {
 fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
     let client = ctx.client()?;
     let current = client.corrections()?;
-    let n = client.params()?.robot.wheels.len();
+    let robot = client.params()?.robot;
+    let n = robot.wheels.len();
     let c = board::merge_corrections(
         &current,
         n,
@@ -44,6 +45,13 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
             l_arc: a.l_arc,
         },
     )?;
+    // Checked as the board checks, before sending: the message keeps the given digits.
+    if let Err(e) = c.validate(&robot) {
+        bail!(
+            "not sent: the board would refuse these factors: {}",
+            board::factors::refusal_words(&e)
+        );
+    }
     client.set_corrections(c)?;
     let f = FactorsView::from(&client.corrections()?);
     out.emit(&f, || {

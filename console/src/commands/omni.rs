@@ -36,20 +36,34 @@ fn compute(a: OmniComputeArgs, out: Output) -> Result<()> {
         rep = omni::compose_with(rep, p)?;
     }
     rep = omni::with_circles(rep, &robot, &runs, previous.as_ref())?;
-    if let Some(file) = &a.write_board_robot {
-        let Some(board) = rep.board_robot(&robot)? else {
-            bail!(
-                "--write-board-robot {}: {} has no circle rows: the board robot carries the wheels' distance the circles show (drive a turn in place and circles: `omni run --circle-radius R`)",
-                file.display(),
-                a.common.runs.display()
+    // Outputs only once everything succeeded (as `calibrate`): the board robot is
+    // computed and its target checked, the report written, and only then the file.
+    let board_robot = match &a.write_board_robot {
+        Some(file) => {
+            let Some(board) = rep.board_robot(&robot)? else {
+                bail!(
+                    "--write-board-robot {}: {} has no circle rows: the board robot carries the wheels' distance the circles show (drive a turn in place and circles: `omni run --circle-radius R`)",
+                    file.display(),
+                    a.common.runs.display()
+                );
+            };
+            let text = format!(
+                "# {} with the wheel sizes of omni compute's factors and the wheel distance of its circle test ({}), for a board holding factors of one and the turn law\n{}",
+                robot.name,
+                a.common.runs.display(),
+                robot_file::to_toml(&board)
             );
-        };
-        let text = format!(
-            "# {} with the wheel sizes of omni compute's factors and the wheel distance of its circle test ({}), for a board holding factors of one and the turn law\n{}",
-            robot.name,
-            a.common.runs.display(),
-            robot_file::to_toml(&board)
-        );
+            formats::safe_write::check_target(file, "robot description", robot_file::is_robot_file)
+                .with_context(|| format!("cannot write {}", file.display()))?;
+            Some((file, text))
+        }
+        None => None,
+    };
+    let index = match &a.common.report {
+        Some(dir) => Some(report::omni::write(&rep, dir)?),
+        None => None,
+    };
+    if let Some((file, text)) = board_robot {
         robot_file::write(file, &text)
             .with_context(|| format!("cannot write {}", file.display()))?;
         out.note(&format!(
@@ -58,8 +72,7 @@ fn compute(a: OmniComputeArgs, out: Output) -> Result<()> {
             file.display()
         ));
     }
-    if let Some(dir) = &a.common.report {
-        let index = report::omni::write(&rep, dir)?;
+    if let Some(index) = index {
         out.note(&format!("report: {}", index.display()));
     }
     out.emit(&rep, || rep.human())
