@@ -178,10 +178,10 @@ extern "C" fn on_relay_signal(_: nix::libc::c_int) {
     }
 }
 
-/// Installs [`RELAY_SIGNAL`]'s handler (call first thing in `main`). Blocking the signal
-/// would not do: the serial port library waits in `ppoll` with an empty signal mask, and
-/// the signal's default action (ending the process) would then kill a console that is
-/// only being asked to relay. Until a port is held (or a virtual board serves, which keeps
+/// Installs [`RELAY_SIGNAL`]'s handler (call first thing in `main`, before any thread
+/// starts). Blocking the signal alone would not do: the serial port library waits in
+/// `ppoll` with an empty signal mask, and the signal's default action (ending the
+/// process) would then kill a console that is only being asked to relay. Until a port is held (or a virtual board serves, which keeps
 /// its terminal's other end open) nobody reads the pipe and the signal does nothing.
 pub fn install_relay_signal() {
     use nix::sys::signal::{SaFlags, SigAction, SigHandler};
@@ -202,6 +202,13 @@ pub fn install_relay_signal() {
         SigSet::empty(),
     );
     install_handler(&action);
+    // Blocked in this (the main) thread and so in every thread started after it; the
+    // relay thread unblocks it. The signal then wakes that thread, and interrupts the
+    // console's own system calls only inside the serial library's `ppoll` (which opens
+    // the mask, and whose interruption reads as a timeout).
+    let mut set = SigSet::empty();
+    set.add(RELAY_SIGNAL);
+    let _ = set.thread_block();
 }
 
 #[allow(unsafe_code)]
@@ -330,6 +337,9 @@ fn write_estop(writer: &mut dyn serialport::SerialPort, lock: &Mutex<()>) -> (bo
 /// The thread that answers [`RELAY_SIGNAL`] for the process's life (woken through the
 /// handler's pipe): writes the E-stop to the port held at that moment and confirms.
 fn signal_relay(rx: &'static UnixStream) {
+    let mut set = SigSet::empty();
+    set.add(RELAY_SIGNAL);
+    let _ = set.thread_unblock();
     let mut wake = [0u8; 64];
     loop {
         match (&*rx).read(&mut wake) {
@@ -598,13 +608,15 @@ fn signal_holders(port: &str, pids: &[i32], t0: Instant) -> Result<RelayOutcome>
     let mut late_wake = false;
     while asked.iter().any(|a| !a.done) {
         for a in asked.iter_mut().filter(|a| !a.done) {
-            if !alive(a.pid) {
-                a.done = true;
-                gone = Some(a.pid);
-                continue;
-            }
-            let Some(ack) = &a.ack else { continue };
-            let Ok((conn, _)) = ack.accept() else {
+            // Looked at before the accept: a holder that writes the E-stop and then ends
+            // (it sees the latched board) leaves its confirmation queued.
+            let was_alive = alive(a.pid);
+            let conn = a.ack.as_ref().and_then(|l| l.accept().ok());
+            let Some((conn, _)) = conn else {
+                if !was_alive {
+                    a.done = true;
+                    gone = Some(a.pid);
+                }
                 continue;
             };
             if holder_pid(&conn) != Some(a.pid) {
