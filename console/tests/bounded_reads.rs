@@ -156,3 +156,25 @@ fn a_device_given_as_a_recording_is_named_for_what_it_is() {
     assert!(!got.1.contains("no such"), "{}", got.1);
     refused(got, Path::new("/dev/zero"), "character device");
 }
+
+/// The other JSON inputs: `factors export --from` (and `omni compute --previous`, read
+/// by the same kind of reader) refuse a FIFO instead of waiting for a writer forever.
+#[test]
+fn factors_export_from_reads_only_a_regular_file() {
+    let dir = scratch("bounded-export");
+    let p = fifo(&dir);
+    let out = dir.join("out.yaml");
+    let got = bounded(
+        None,
+        &[
+            "factors",
+            "export",
+            "--from",
+            p.to_str().unwrap(),
+            "--ros2",
+            out.to_str().unwrap(),
+        ],
+    );
+    refused(got, &p, "FIFO");
+    assert!(!out.exists());
+}

@@ -156,6 +156,8 @@ pub fn with_circles(
 /// `factors get` shows one) from a `--json` result of `omni compute` or `factors get`.
 pub fn factors_from_json(path: &std::path::Path) -> Result<Corrections> {
     use anyhow::Context;
+    // A FIFO or device would be waited on or read without end.
+    crate::input::check_regular(path, "JSON result")?;
     let text = crate::ros2::read_json_text(path)?;
     let v: serde_json::Value =
         serde_json::from_str(&text).with_context(|| format!("{}: not JSON", path.display()))?;

@@ -84,7 +84,11 @@ fn reset(ctx: &mut Ctx, out: Output) -> Result<()> {
 fn export(a: ExportArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
     let (f, source) = match (&a.from, a.c_l, a.c_r, a.e_b) {
         (Some(p), ..) => (
-            ros2::factors_from_json(p)?,
+            {
+                // A FIFO or device would be waited on or read without end.
+                crate::input::check_regular(p, "JSON result")?;
+                ros2::factors_from_json(p)?
+            },
             format!("the factors in {}", p.display()),
         ),
         (None, Some(c_l), Some(c_r), Some(e_b)) => (
