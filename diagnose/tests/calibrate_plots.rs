@@ -13,7 +13,7 @@ use diagnose::plots::register_font;
 use formats::recording::Recording;
 use plotters::prelude::*;
 use sim::{record, Motion, RecordConfig, Surface};
-use std::path::{Path, PathBuf};
+use std::path::Path;
 
 /// Relative agreement of a plotted RMS with the calibration's: the series come from the
 /// same residuals, converted from the fit's millimetre unit to metres and summed in

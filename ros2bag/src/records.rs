@@ -102,10 +102,10 @@ pub fn walk(buf: &[u8], visit: &mut dyn FnMut(Item<'_>)) -> Result<Option<Stop>,
         match op {
             OP_FOOTER | OP_DATA_END => return Ok(None),
             OP_CHUNK => {
-                let checked = chunk_items(body).and_then(|(owned, span, crc_checked)| {
-                    let items = parse_all(&owned)?;
-                    agrees_with_its_span(&items, span)?;
-                    if !crc_checked {
+                let checked = chunk_items(body).and_then(|c| {
+                    let items = parse_all(&c.records)?;
+                    agrees_with_its_span(&items, c.span)?;
+                    if !c.crc_checked {
                         agrees_with_its_index(&items, buf, next)?;
                     }
                     items.into_iter().for_each(&mut *visit);
@@ -153,9 +153,18 @@ fn frame(buf: &[u8], at: usize) -> Result<(u8, &[u8]), String> {
     Ok((op, &buf[at + 9..at + 9 + len as usize]))
 }
 
-/// A chunk's records, decompressed and checked; also its (start, end) log times and
-/// whether a CRC vouched for them.
-fn chunk_items(body: &[u8]) -> Result<(Vec<u8>, (u64, u64), bool), String> {
+/// A chunk, decompressed.
+struct Chunk {
+    /// Its records.
+    records: Vec<u8>,
+    /// The (start, end) log times its header states.
+    span: (u64, u64),
+    /// Whether a CRC vouched for the records.
+    crc_checked: bool,
+}
+
+/// A chunk's records, decompressed and checked.
+fn chunk_items(body: &[u8]) -> Result<Chunk, String> {
     let (header, data) = match mcap::parse_record(OP_CHUNK, body) {
         Ok(Record::Chunk { header, data }) => (header, data),
         Ok(_) => return Err("not a chunk".into()),
@@ -207,7 +216,11 @@ fn chunk_items(body: &[u8]) -> Result<(Vec<u8>, (u64, u64), bool), String> {
             ));
         }
     }
-    Ok((out, span, header.uncompressed_crc != 0))
+    Ok(Chunk {
+        records: out,
+        span,
+        crc_checked: header.uncompressed_crc != 0,
+    })
 }
 
 /// Every message of a chunk lies within the log times its header states.

@@ -92,10 +92,10 @@ pub fn joints(js: &mut JointSeries, names: &[String], counts_per_rev: f64) -> Ve
 pub fn poses(ps: &mut PoseSeries) -> Vec<Refused> {
     let mut bad = vec![false; ps.stamps_ns.len()];
     let mut out = Vec::new();
-    for i in 0..bad.len() {
+    for (i, b) in bad.iter_mut().enumerate() {
         let (x, y, yaw) = (ps.x[i], ps.y[i], ps.yaw[i]);
         if !(x.is_finite() && y.is_finite() && yaw.is_finite()) {
-            bad[i] = true;
+            *b = true;
             out.push(Refused {
                 stamp_ns: ps.stamps_ns[i],
                 why: format!(
