@@ -12,5 +12,9 @@ if [ "${WHEELCAL_SETUP_APT:-0}" = "1" ] && command -v apt-get >/dev/null && [ "$
 fi
 # The ROS 2 bag tests write their bags with Python's rosbags (an independent writer).
 python3 -m pip install --quiet --disable-pip-version-check rosbags==0.11.9
+# The console's interop tests (console/tests/interop.rs) read wheelcal's MCAP files with
+# the independent Python readers and its TUM files with evo.
+python3 -m pip install --quiet --disable-pip-version-check \
+  mcap==1.6.0 mcap-ros2-support==0.6.0 evo==1.38.1 rosbags==0.11.9
 cargo fetch --locked
 echo "setup done: host crates test with 'cargo test', the firmware builds with 'cargo fw'"

@@ -114,6 +114,10 @@ pub struct DiagnoseArgs {
     /// Write the robot description with the fitted geometry applied.
     #[arg(long)]
     pub write_robot: Option<PathBuf>,
+    /// Write the measured, nominal and fitted paths as TUM trajectories (measured.txt,
+    /// nominal.txt, fitted.txt) into this folder, for evo (docs/formats.md "TUM files").
+    #[arg(long, value_name = "DIR")]
+    pub tum: Option<PathBuf>,
     /// Most effects to combine in one explanation (1 to 4).
     #[arg(long, default_value_t = 3, value_parser = clap::value_parser!(u8).range(1..=4))]
     pub max_effects: u8,
@@ -481,9 +485,14 @@ pub enum LogCmd {
         /// Trial number (see `log list`).
         #[arg(long)]
         trial: u16,
-        /// Output file: a recording CSV (name ending in .csv) or MCAP (.mcap).
+        /// Output file: a recording CSV (name ending in .csv) or MCAP (.mcap: ROS 2
+        /// messages, docs/formats.md "MCAP channels").
         #[arg(long)]
         out: PathBuf,
+        /// Also write the board's odometry as a TUM trajectory (odometry.txt) into this
+        /// folder, for evo and other trajectory tools (docs/formats.md "TUM files").
+        #[arg(long, value_name = "DIR")]
+        tum: Option<PathBuf>,
     },
     /// Delete all trials.
     Clear,
@@ -912,6 +921,10 @@ pub struct EvaluateArgs {
     /// repeatable.
     #[arg(long, required = true)]
     pub recording: Vec<PathBuf>,
+    /// Write each recording's measured poses and each robot file's dead reckoning of it
+    /// as TUM trajectories into this folder, for evo (docs/formats.md "TUM files").
+    #[arg(long, value_name = "DIR")]
+    pub tum: Option<PathBuf>,
     /// How to read recordings given as ROS 2 bags.
     #[command(flatten)]
     pub bag: BagFlags,

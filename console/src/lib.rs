@@ -22,4 +22,5 @@ pub mod ros2;
 pub mod session;
 pub mod sim_board;
 pub mod stop;
+pub mod tum;
 pub mod virtual_board;

@@ -1,18 +1,21 @@
 //! `wheelcal log pull --out FILE.mcap` and the replayed-path MCAP, read back with the
-//! mcap crate: channels, schemas, message counts and timestamps.
+//! mcap crate and decoded with the bag importer's CDR types (`ros2bag::messages`):
+//! channels, schemas, message counts and timestamps. tests/interop.rs decodes the same
+//! files with Python's readers.
 
 use calib_core::motion::OmniPath;
 use calib_core::protocol::ProgramSpec;
 use formats::robot_file;
+use ros2bag::messages::{decode, JointState, PoseStamped, TFMessage};
 use std::collections::BTreeMap;
 use std::path::Path;
 use std::time::Duration;
 use wheelcal::link::Faults;
-use wheelcal::mcap_out::{write_paths, PathSeries, TRIAL_TOPICS};
+use wheelcal::mcap_out::{write_pose_paths, PoseSeries, TRIAL_TOPICS};
 use wheelcal::virtual_board::InProcessBoard;
 
-/// Messages per topic: (log time ns, JSON body).
-type Topics = BTreeMap<String, Vec<(u64, serde_json::Value)>>;
+/// Messages per topic: (log time ns, schema name, CDR bytes).
+type Topics = BTreeMap<String, Vec<(u64, String, Vec<u8>)>>;
 
 fn read(path: &Path) -> (Vec<u8>, Topics) {
     let bytes = std::fs::read(path).unwrap();
@@ -24,13 +27,13 @@ fn read(path: &Path) -> (Vec<u8>, Topics) {
             .schema
             .as_ref()
             .expect("every channel has a schema");
-        assert_eq!(schema.encoding, "jsonschema");
-        assert_eq!(m.channel.message_encoding, "json");
-        let _: serde_json::Value = serde_json::from_slice(&schema.data).expect("schema is JSON");
-        by_topic
-            .entry(m.channel.topic.clone())
-            .or_default()
-            .push((m.log_time, serde_json::from_slice(&m.data).unwrap()));
+        assert_eq!(schema.encoding, "ros2msg");
+        assert_eq!(m.channel.message_encoding, "cdr");
+        by_topic.entry(m.channel.topic.clone()).or_default().push((
+            m.log_time,
+            schema.name.clone(),
+            m.data.to_vec(),
+        ));
     }
     (bytes, by_topic)
 }
@@ -74,14 +77,13 @@ fn a_pulled_trial_as_mcap_has_one_channel_per_signal_group() {
     assert_eq!(names, want);
     let k = pulled.records;
     assert_eq!(k as u32, info.records);
-    for t in &TRIAL_TOPICS[..3] {
+    for t in &TRIAL_TOPICS {
         assert_eq!(topics[*t].len(), k, "{t}");
     }
-    assert_eq!(topics[TRIAL_TOPICS[3]].len(), 2, "status at start and end");
     // Timestamps: board uptime at the trial's start plus one record period (1/rate) per
     // record, within the board's 1 ms tick; the first record comes at the first logged
     // tick, within one period of the start.
-    let odo = &topics[TRIAL_TOPICS[2]];
+    let odo = &topics[TRIAL_TOPICS[0]];
     let start = info.start_ms * 1_000_000;
     let period = 1e9 / rate as f64;
     assert!(odo[0].0 >= start && ((odo[0].0 - start) as f64) < period);
@@ -90,10 +92,17 @@ fn a_pulled_trial_as_mcap_has_one_channel_per_signal_group() {
         assert!((dt - period).abs() <= 1e6, "{dt}");
     }
     // The omni path W1 is 0.5 m along +x: the last odometry pose says so (within 5 %).
-    let last = &odo[k - 1].1;
-    assert!((last["x"].as_f64().unwrap() - 0.5).abs() < 0.025, "{last}");
-    let enc = &topics[TRIAL_TOPICS[1]][k - 1].1;
-    assert_eq!(enc["counts"].as_array().unwrap().len(), 4);
+    assert_eq!(odo[0].1, "geometry_msgs/msg/PoseStamped");
+    let last: PoseStamped = decode(&odo[k - 1].2).unwrap();
+    assert!((last.pose.position.x - 0.5).abs() < 0.025, "{last:?}");
+    let tf: TFMessage = decode(&topics[TRIAL_TOPICS[1]][k - 1].2).unwrap();
+    assert_eq!(
+        tf.transforms[0].transform.translation.x,
+        last.pose.position.x
+    );
+    let js: JointState = decode(&topics[TRIAL_TOPICS[2]][k - 1].2).unwrap();
+    assert_eq!(js.name, ["w1", "w2", "w3", "w4"]);
+    assert_eq!(js.position.len(), 4);
     let _ = std::fs::remove_dir_all(&dir);
 }
 
@@ -103,19 +112,19 @@ fn replayed_paths_as_mcap() {
     std::fs::create_dir_all(&dir).unwrap();
     let out = dir.join("paths.mcap");
     let t: Vec<f64> = (0..100).map(|i| i as f64 * 0.01).collect();
-    let nominal: Vec<_> = t.iter().map(|&t| (t, 0.0)).collect();
-    let fitted: Vec<_> = t.iter().map(|&t| (t, 0.1 * t)).collect();
-    write_paths(
+    let nominal: Vec<_> = t.iter().map(|&t| (t, 0.0, 0.0)).collect();
+    let fitted: Vec<_> = t.iter().map(|&t| (t, 0.1 * t, 2.0 * t)).collect();
+    write_pose_paths(
         &[
-            PathSeries {
+            PoseSeries {
                 name: "nominal",
                 t: &t,
-                xy: &nominal,
+                pose: &nominal,
             },
-            PathSeries {
+            PoseSeries {
                 name: "fitted",
                 t: &t[..50],
-                xy: &fitted,
+                pose: &fitted,
             },
         ],
         &out,
@@ -124,8 +133,14 @@ fn replayed_paths_as_mcap() {
     let (_, topics) = read(&out);
     assert_eq!(topics["/paths/nominal"].len(), 100);
     assert_eq!(topics["/paths/fitted"].len(), 50);
-    let (t, m) = &topics["/paths/fitted"][49];
+    assert_eq!(topics["/tf"].len(), 150);
+    let (t, _, data) = &topics["/paths/fitted"][49];
     assert_eq!(*t, 490_000_000);
-    assert!((m["y"].as_f64().unwrap() - 0.049).abs() < 1e-12);
+    let m: PoseStamped = decode(data).unwrap();
+    assert_eq!(m.header.frame_id, "world");
+    assert_eq!(m.header.stamp.nanosec, 490_000_000);
+    assert!((m.pose.position.y - 0.049).abs() < 1e-12);
+    let q = m.pose.orientation;
+    assert!((2.0 * q.z.atan2(q.w) - 0.98).abs() < 1e-12);
     let _ = std::fs::remove_dir_all(&dir);
 }

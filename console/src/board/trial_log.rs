@@ -191,6 +191,19 @@ pub fn pull_trial<L: Read + Write>(
     out: &Path,
     progress: impl FnMut(u64, u64),
 ) -> Result<PulledTrial> {
+    pull_trial_with(c, trial, out, None, progress)
+}
+
+/// [`pull_trial`], and with `tum` the board's odometry as a TUM trajectory
+/// (`odometry.txt`, stamped with the board's uptime in s) in that folder
+/// ([`crate::tum`]).
+pub fn pull_trial_with<L: Read + Write>(
+    c: &mut Client<L>,
+    trial: u16,
+    out: &Path,
+    tum: Option<&Path>,
+    progress: impl FnMut(u64, u64),
+) -> Result<PulledTrial> {
     // The format follows the name: refuse a name that says another one (`x.json` got a
     // CSV) before anything is transferred, and an existing file of another kind.
     let ext = out
@@ -231,13 +244,28 @@ pub fn pull_trial<L: Read + Write>(
     let secs = t0.elapsed().as_secs_f64();
     let recs = decode_records(&info, &data)?;
     if mcap {
-        crate::mcap_out::write_trial(&info, &recs, out)
+        crate::mcap_out::write_trial(&robot, &info, &recs, out)
             .with_context(|| format!("cannot write {}", out.display()))?;
     } else {
         let mut w = Vec::new();
         records_to_csv(&robot, &info, &recs, &mut w)?;
         formats::safe_write::replace_file(out, &w)?;
     }
+    let tum = match tum {
+        Some(dir) => {
+            let start_s = info.start_ms as f64 * 1e-3;
+            let mut clock = crate::mcap_out::TrialClock::new();
+            let poses: Vec<crate::tum::Stamped> = recs
+                .iter()
+                .map(|r| {
+                    let t = start_s + clock.us(r.t_us) as f64 * 1e-6;
+                    (t, r.pose.x as f64, r.pose.y as f64, r.pose.theta as f64)
+                })
+                .collect();
+            crate::tum::write_dir(dir, &[("odometry".to_string(), poses)])?
+        }
+        None => Vec::new(),
+    };
     Ok(PulledTrial {
         trial,
         file: out.display().to_string(),
@@ -247,6 +275,7 @@ pub fn pull_trial<L: Read + Write>(
         seconds: secs,
         retries: c.stats.retries,
         partial: info.end == calib_core::protocol::TrialEnd::Running,
+        tum,
     })
 }
 
@@ -269,6 +298,9 @@ pub struct PulledTrial {
     pub retries: u32,
     /// The trial was still running when pulled: the file holds only its start.
     pub partial: bool,
+    /// TUM trajectory files written (`--tum`).
+    #[serde(skip_serializing_if = "Vec::is_empty")]
+    pub tum: Vec<String>,
 }
 
 impl PulledTrial {

@@ -2,6 +2,7 @@
 //! geometry).
 
 use crate::args::DiagnoseArgs;
+use crate::mcap_out::{self, ReportPoses};
 use crate::output::Output;
 use crate::recordings;
 use anyhow::{Context, Result};
@@ -26,10 +27,39 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
         max_effects: a.max_effects.into(),
         max_row_rate_hz: a.max_row_rate_hz(),
     };
+    // The measured headings, for the paths' poses (the report keeps positions and
+    // heading errors only).
+    let measured: Vec<(f64, f64, f64)> = if a.report.is_some() || a.tum.is_some() {
+        rec.pose_rows().map(|(_, x, y, th)| (x, y, th)).collect()
+    } else {
+        Vec::new()
+    };
     busy.set_message(format!("diagnosing {} rows", rec.len()));
     let rep = diagnose::diagnose_owned(&robot, rec, &opts)
         .with_context(|| recording.display().to_string())?;
     busy.finish();
+    let poses = if a.report.is_some() || a.tum.is_some() {
+        let p = mcap_out::report_poses(&rep, &measured);
+        if p.is_none() {
+            out.note("the report's pose samples do not match the recording's: paths written with the measured heading unknown (yaw 0)");
+        }
+        Some(p.unwrap_or_else(|| unknown_headings(&rep)))
+    } else {
+        None
+    };
+    if let (Some(dir), Some(poses)) = (&a.tum, &poses) {
+        let files: Vec<(String, Vec<crate::tum::Stamped>)> = poses
+            .iter()
+            .map(|(name, p)| {
+                let t = &rep.plot.pose_t;
+                let v = t.iter().zip(p).map(|(&t, &(x, y, th))| (t, x, y, th));
+                (name.to_string(), v.collect())
+            })
+            .collect();
+        for f in crate::tum::write_dir(dir, &files)? {
+            out.note(&format!("TUM trajectory: {f}"));
+        }
+    }
     if let Some(dir) = &a.report {
         diagnose::plots::require_font()?;
         formats::safe_write::claim_dir(dir)?;
@@ -37,7 +67,9 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
             .with_context(|| format!("cannot write the report into {}", dir.display()))?;
         out.note(&format!("report: {}", dir.join("index.html").display()));
         // The replayed paths for Foxglove / PlotJuggler beside the HTML.
-        crate::mcap_out::write_report_paths(&rep, &dir.join("paths.mcap"))?;
+        if let Some(poses) = &poses {
+            mcap_out::write_report_paths(&rep, poses, &dir.join("paths.mcap"))?;
+        }
     }
     if let Some(p) = &a.write_robot {
         diagnose::write_robot(&robot, &rep, p)
@@ -45,6 +77,17 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
         out.note(&format!("fitted robot: {}", p.display()));
     }
     out.emit(&rep, || rep.to_string())
+}
+
+/// The report's paths with yaw 0 (when the measured headings cannot be matched).
+fn unknown_headings(rep: &diagnose::Report) -> ReportPoses {
+    let p = &rep.plot;
+    let zero = |xy: &[(f64, f64)]| xy.iter().map(|&(x, y)| (x, y, 0.0)).collect();
+    [
+        ("measured", zero(&p.measured)),
+        ("nominal", zero(&p.nominal)),
+        ("fitted", zero(&p.fitted)),
+    ]
 }
 
 /// `wheelcal diagnose` with several recordings: shared geometry, per-recording nuisance,
@@ -75,6 +118,9 @@ fn diagnose_many(a: &DiagnoseArgs, files: &[PathBuf], out: Output) -> Result<()>
         out.note(
             "--report with several recordings: see calibrate --report (plots are per recording)",
         );
+    }
+    if a.tum.is_some() {
+        out.note("--tum with several recordings: not written (the paths are per recording; diagnose each alone)");
     }
     if let Some(p) = &a.write_robot {
         formats::robot_file::write(p, &rep.geometry.robot_toml())

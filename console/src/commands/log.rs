@@ -11,7 +11,11 @@ use std::path::PathBuf;
 pub fn run(cmd: LogCmd, ctx: &mut Ctx, out: Output) -> Result<()> {
     match cmd {
         LogCmd::List => list(ctx, out),
-        LogCmd::Pull { trial, out: file } => pull(trial, file, ctx, out),
+        LogCmd::Pull {
+            trial,
+            out: file,
+            tum,
+        } => pull(trial, file, tum, ctx, out),
         LogCmd::Clear => clear(ctx, out),
     }
 }
@@ -23,7 +27,7 @@ fn list(ctx: &mut Ctx, out: Output) -> Result<()> {
 }
 
 /// Downloads a trial as a recording, with a progress bar on stderr.
-fn pull(trial: u16, file: PathBuf, ctx: &mut Ctx, out: Output) -> Result<()> {
+fn pull(trial: u16, file: PathBuf, tum: Option<PathBuf>, ctx: &mut Ctx, out: Output) -> Result<()> {
     let client = ctx.client()?;
     // Ctrl-C ends the transfer between chunks; nothing is written (the file only
     // appears when the whole trial is in).
@@ -36,10 +40,11 @@ fn pull(trial: u16, file: PathBuf, ctx: &mut Ctx, out: Output) -> Result<()> {
         .unwrap_or_else(|_| indicatif::ProgressStyle::default_bar()),
     );
     bar.set_message(format!("trial {trial}"));
-    let r = board::pull_trial(client, trial, &file, |done, total| {
-        bar.set_length(total);
-        bar.set_position(done);
-    });
+    let r =
+        board::trial_log::pull_trial_with(client, trial, &file, tum.as_deref(), |done, total| {
+            bar.set_length(total);
+            bar.set_position(done);
+        });
     bar.finish_and_clear();
     let r = r?;
     out.emit(&r, || {
@@ -52,7 +57,11 @@ fn pull(trial: u16, file: PathBuf, ctx: &mut Ctx, out: Output) -> Result<()> {
             r.seconds,
             r.retries,
             r.warnings()
-        )
+        ) + &r
+            .tum
+            .iter()
+            .map(|f| format!("TUM trajectory: {f}\n"))
+            .collect::<String>()
     })
 }
 
