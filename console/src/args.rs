@@ -59,6 +59,13 @@ pub enum Command {
         /// Telemetry period with --follow, milliseconds.
         #[arg(long, default_value_t = 200, value_parser = clap::value_parser!(u16).range(20..))]
         period_ms: u16,
+        /// With --follow, also serve the telemetry live to Foxglove (its WebSocket
+        /// protocol, ROS 2 messages; docs/formats.md "MCAP channels") on ADDR: HOST:PORT,
+        /// an IP or a port; without ADDR on 127.0.0.1:8765 (port 0: a free one). The
+        /// address is printed on stderr.
+        #[arg(long, value_name = "ADDR", requires = "follow", num_args = 0..=1,
+              default_missing_value = crate::foxglove_live::DEFAULT_ADDR)]
+        foxglove: Option<String>,
     },
     /// Trial logs on the board: it keeps the last 8 trials (a ninth program evicts the
     /// oldest; `log list` counts the evicted), so pull each one you need.

@@ -49,7 +49,11 @@ pub fn run(cli: Cli, ctx: &mut Ctx) -> Result<()> {
         Command::Apply(a) => apply::run(&a, ctx, out),
         Command::Drive(a) => board::drive(a, ctx, out),
         Command::Run(cmd) => program::run(cmd, ctx, out),
-        Command::Status { follow, period_ms } => board::status(follow, period_ms, ctx, out),
+        Command::Status {
+            follow,
+            period_ms,
+            foxglove,
+        } => board::status_live(follow, period_ms, foxglove.as_deref(), ctx, out),
         Command::Log(cmd) => log::run(cmd, ctx, out),
         Command::Stop => board::stop(ctx, out),
         Command::Estop => board::estop(ctx, out),

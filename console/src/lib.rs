@@ -10,6 +10,7 @@ pub mod client;
 pub mod commands;
 pub mod demo;
 pub mod flash;
+pub mod foxglove_live;
 pub mod input;
 pub mod link;
 pub mod mcap_out;

@@ -28,7 +28,38 @@ pub fn drive(a: DriveArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
 
 /// `wheelcal status [--follow]`.
 pub fn status(follow: bool, period_ms: u16, ctx: &mut Ctx, out: Output) -> Result<()> {
+    status_live(follow, period_ms, None, ctx, out)
+}
+
+/// `wheelcal status [--follow [--foxglove ADDR]]`: with `foxglove`, each telemetry sample
+/// is also served to Foxglove on that address ([`crate::foxglove_live`]).
+pub fn status_live(
+    follow: bool,
+    period_ms: u16,
+    foxglove: Option<&str>,
+    ctx: &mut Ctx,
+    out: Output,
+) -> Result<()> {
     let client = ctx.client()?;
+    let live = match (follow, foxglove) {
+        (true, Some(a)) => {
+            let addr = crate::foxglove_live::parse_addr(a)?;
+            let robot = client.params()?.robot;
+            let live = crate::foxglove_live::Live::start(addr, &robot)?;
+            if !live.addr().ip().is_loopback() {
+                out.note(&format!(
+                    "--foxglove {}: not a loopback address, anyone who reaches this machine can watch the telemetry",
+                    live.addr()
+                ));
+            }
+            out.note(&format!(
+                "foxglove: serving ws://{} (Foxglove: Open connection, Foxglove WebSocket)",
+                live.addr()
+            ));
+            Some(live)
+        }
+        _ => None,
+    };
     if !follow {
         let s = client.status()?;
         return out.emit(&s, || format!("{}\n", board::status_line(&s)));
@@ -37,6 +68,9 @@ pub fn status(follow: bool, period_ms: u16, ctx: &mut Ctx, out: Output) -> Resul
     client.set_telemetry(period_ms.max(20))?;
     while !crate::stop::requested() {
         if let Some(s) = client.next_telemetry(Duration::from_millis(500))? {
+            if let Some(l) = &live {
+                l.publish(&s)?;
+            }
             if !out.emit_more(&s, || format!("{}\n", board::status_line(&s)))? {
                 break; // the reader has gone: stop the stream and free the port
             }
