@@ -319,6 +319,15 @@ impl<'a> App<'a> {
     /// One control period: read the encoders, update odometry, run the program or drive
     /// command, drive the wheels, log. Call at [`TICK_HZ`].
     pub fn tick(&mut self, now_us: u64, enc: &mut impl EncoderSource, drv: &mut impl WheelDriver) {
+        self.tick_in_app(now_us, enc, drv);
+    }
+
+    /// [`App::tick`]'s body, not generic and never inlined, so that it is compiled here
+    /// with this crate's optimisation (`s`) even when the firmware binary, where a generic
+    /// tick would be instantiated, is built for size (`z`): the tick is the hot path.
+    /// The board's counters and outputs are reached through a vtable (a few calls a tick).
+    #[inline(never)]
+    fn tick_in_app(&mut self, now_us: u64, enc: &mut dyn EncoderSource, drv: &mut dyn WheelDriver) {
         self.now_us = now_us;
         self.ticks = self.ticks.wrapping_add(1);
         let mut dphi = [0f32; MAX_WHEELS];
@@ -342,7 +351,7 @@ impl<'a> App<'a> {
 
     /// Encoders: wrap extension, rates, the jump and stall monitor (a fault cuts the
     /// motion), and each wheel's rotation this tick into `dphi`.
-    fn read_encoders(&mut self, enc: &mut impl EncoderSource, dphi: &mut [f32; MAX_WHEELS]) {
+    fn read_encoders(&mut self, enc: &mut dyn EncoderSource, dphi: &mut [f32; MAX_WHEELS]) {
         let width = enc.width();
         let mut fault = None;
         for (i, w) in self.wheels[..self.n].iter_mut().enumerate() {
@@ -440,7 +449,7 @@ impl<'a> App<'a> {
     fn drive_wheels(
         &mut self,
         single: Option<(usize, f32)>,
-        drv: &mut impl WheelDriver,
+        drv: &mut dyn WheelDriver,
         dphi: &mut [f32; MAX_WHEELS],
     ) -> bool {
         let mut out = [Output::Release; MAX_WHEELS];
