@@ -4,7 +4,7 @@
 //! the left/right wheel radius multipliers and the wheel separation multiplier.
 
 use anyhow::{Context, Result};
-pub use diagnose::calibrate::BoardFactors;
+pub use calibrate::BoardFactors;
 use std::path::Path;
 
 /// Differential-drive factors.

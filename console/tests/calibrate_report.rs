@@ -7,7 +7,7 @@ mod common;
 
 use calib_core::motion::Direction;
 use calib_core::robot::Robot;
-use diagnose::calibrate::{param_specs, robot_with};
+use calibrate::{param_specs, robot_with};
 use formats::recording::Recording;
 use std::collections::BTreeMap;
 use std::path::Path;

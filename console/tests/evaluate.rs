@@ -8,7 +8,7 @@ mod common;
 use calib_core::correction::Corrections;
 use calib_core::motion::Direction;
 use calib_core::robot::Robot;
-use diagnose::calibrate::{evaluate, BoardFactors, Candidate};
+use calibrate::{evaluate, BoardFactors, Candidate};
 use formats::recording::Recording;
 use std::path::Path;
 

@@ -15,7 +15,7 @@ mod common;
 
 use calib_core::motion::Direction;
 use calib_core::protocol::{ProgramSpec, DEFAULT_LINK_TIMEOUT_MS};
-use diagnose::calibrate::{param_specs, robot_with};
+use calibrate::{param_specs, robot_with};
 use formats::recording::Recording;
 use formats::robot_file;
 use serde_json::Value;

@@ -83,7 +83,7 @@ struct Decay {
 impl Decay {
     fn new(tau: f64) -> Self {
         Decay {
-            tau: tau.max(crate::MIN_DT_S),
+            tau: tau.max(fitkit::MIN_DT_S),
             dt: [f64::NAN; 4],
             e: [0.0; 4],
             next: 0,
@@ -275,7 +275,7 @@ impl Rotor {
         let n = Self::substep_count(dt);
         let h = dt / n as f64;
         let before = self.pos;
-        let lag_keep = tau.map(|tau| (-h / tau.max(crate::MIN_DT_S)).exp());
+        let lag_keep = tau.map(|tau| (-h / tau.max(fitkit::MIN_DT_S)).exp());
         for i in 0..n {
             let mut c = c0 + (c1 - c0) * (i as f64 + 0.5) / n as f64;
             if let Some(keep) = lag_keep {

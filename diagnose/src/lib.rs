@@ -24,11 +24,8 @@
 //! The entry point is [`diagnose`]; the console's `wheelcal diagnose` is a thin wrapper.
 
 pub mod actuator;
-pub mod calibrate;
-pub mod calibrate_plots;
 pub mod effects;
 pub mod finding;
-pub mod fit;
 pub mod ground;
 pub mod identify;
 pub mod localisation;
@@ -110,9 +107,6 @@ impl std::error::Error for DiagnoseError {}
 
 /// Least pose samples for the ground stage to say anything (start pose takes 3 numbers).
 pub const MIN_POSE_SAMPLES: usize = 8;
-/// Shortest time step divided by (s): two rows a nanosecond apart are one instant
-/// written twice, and a rate over them must stay finite rather than blow up.
-pub const MIN_DT_S: f64 = 1e-9;
 
 /// Diagnoses a recording of `robot` (a copy of it is corrected and replayed; use
 /// [`diagnose_owned`] to hand the recording over and keep one copy in memory).

@@ -39,7 +39,8 @@
 
 use crate::effects::{Effect, Model};
 use crate::finding::Finding;
-use crate::residuals::{ar1_inflation, lag1_autocorrelation, robust_sigma, Evaluator};
+use crate::residuals::{robust_sigma, Evaluator};
+use fitkit::noise::{ar1_inflation, lag1_autocorrelation};
 use nalgebra::{DMatrix, DVector};
 
 /// Least significance (c / sigma_c) of the bumps' own loss pattern beyond a per-wheel

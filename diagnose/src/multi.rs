@@ -1,12 +1,12 @@
 //! Several recordings of one robot at once: the geometry is shared (fitted jointly by
-//! [`crate::calibrate`], start pose and clocks per recording), then each recording is
+//! [`calibrate`](mod@calibrate), start pose and clocks per recording), then each recording is
 //! diagnosed against that shared geometry for what is left. Every finding says which
 //! recordings carry it: a finding present in only some recordings is reported as such,
 //! not as a property of the robot.
 
-use crate::calibrate::{calibrate, CalOptions, CalibrateError, Calibration};
 use crate::{diagnose, Finding, Options};
 use calib_core::robot::Robot;
+use calibrate::{calibrate, CalOptions, CalibrateError, Calibration};
 use formats::recording::Recording;
 use serde::Serialize;
 use std::collections::BTreeMap;

@@ -2,8 +2,8 @@
 //! property of the robot: it most likely stands in for something the catalogue lacks,
 //! so it is listed `implausible` (with that guess) and never becomes the verdict.
 
-use crate::calibrate::{ALPHA_RANGE, BASE_RANGE, ED_RANGE, GAMMA_RANGE, RADIUS_RANGE};
 use crate::finding::Finding;
+use calibrate::{ALPHA_RANGE, BASE_RANGE, ED_RANGE, GAMMA_RANGE, RADIUS_RANGE};
 use serde::Serialize;
 
 /// A fitted parameter outside its physical range.

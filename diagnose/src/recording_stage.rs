@@ -18,15 +18,15 @@
 //!   size or geometry, physics.
 //! - `time_offset` (`time_offset_s`, poses later than encoders when positive) and
 //!   `clock_rate` (`clock_ratio`, the pose clock over the encoder clock): fitted with the
-//!   geometry by [`crate::calibrate`]; reported when beyond four sigmas and a material
+//!   geometry by [`calibrate`](mod@calibrate); reported when beyond four sigmas and a material
 //!   size (a quarter row interval; 0.05 %), then the poses are moved onto the encoder
 //!   clock.
 
-use crate::calibrate::{calibrate, CalOptions, Nuisance};
-use crate::replay::unwrap_angles;
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::robot::Robot;
+use calibrate::{calibrate, CalOptions, Nuisance};
+use fitkit::series::unwrap_angles;
 use formats::recording::Recording;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -133,7 +133,7 @@ pub struct RecordingStage {
     pub corrected: Recording,
     /// The whole-geometry fit the clocks came from (its identifiability tells which
     /// geometry effects this recording cannot separate).
-    pub geometry: Option<crate::calibrate::Calibration>,
+    pub geometry: Option<calibrate::Calibration>,
 }
 
 /// Runs the recording stage on `rec` of `robot`.
@@ -304,7 +304,7 @@ fn drop_rows(rec: &mut Recording, drop: &[bool]) {
 
 /// A wheel's counts ratio is examined only this far from 1 (at or above 1.3, at or below
 /// 1 / 1.3). Nearer 1 it is tyre size or geometry, for the physics stages: a tyre is within
-/// [`crate::calibrate::RADIUS_RANGE`] (5 %) of nominal, and the nominal kinematics this
+/// [`calibrate::RADIUS_RANGE`] (5 %) of nominal, and the nominal kinematics this
 /// estimate uses also fold wheel mounting errors into it (the real omni3 square shows a
 /// wheel 17 % large under nominal geometry, from its wheel angles); 1.05 x 1.17 = 1.23
 /// stays below the bound.
@@ -379,7 +379,7 @@ pub fn match_counts_ratio(raw: &RawRatio) -> CountsMatch {
     if !(r.is_finite() && r > 0.0) || r.ln().abs() < COUNTS_FAR.ln() {
         return CountsMatch::NearOne;
     }
-    let band = crate::calibrate::RADIUS_RANGE.ln_1p() + COUNTS_SIGMAS * raw.sigma / r;
+    let band = calibrate::RADIUS_RANGE.ln_1p() + COUNTS_SIGMAS * raw.sigma / r;
     let near: Vec<(u32, u32)> = counts_fractions()
         .into_iter()
         .filter(|(p, q)| (r * *q as f64 / *p as f64).ln().abs() <= band)
@@ -480,8 +480,8 @@ pub fn raw_counts_ratios(robot: &Robot, rec: &Recording) -> Vec<Option<RawRatio>
             let e: Vec<f64> = s.iter().map(|x| x.0.abs() - ratio * x.1.abs()).collect();
             let w: Vec<f64> = s.iter().zip(&e).map(|(x, e)| x.1.abs() * e).collect();
             let ss: f64 = w.iter().map(|v| v * v).sum();
-            let rho = crate::residuals::lag1_autocorrelation([w.as_slice()], 0.9);
-            let sigma = ss.sqrt() / pp * crate::residuals::ar1_inflation(rho).sqrt();
+            let rho = fitkit::noise::lag1_autocorrelation([w.as_slice()], 0.9);
+            let sigma = ss.sqrt() / pp * fitkit::noise::ar1_inflation(rho).sqrt();
             (ratio.is_finite() && sigma.is_finite()).then_some(RawRatio {
                 ratio,
                 sigma,
@@ -560,10 +560,7 @@ fn counts_per_rev(robot: &Robot, rec: &mut Recording) -> Vec<Artefact> {
 }
 
 /// Time offset and clock ratio of the poses against the encoders.
-fn clocks(
-    robot: &Robot,
-    rec: &mut Recording,
-) -> (Vec<Artefact>, Option<crate::calibrate::Calibration>) {
+fn clocks(robot: &Robot, rec: &mut Recording) -> (Vec<Artefact>, Option<calibrate::Calibration>) {
     // Borrowed: a copy of a long recording would be the stage's largest allocation.
     let recs = [("recording".to_string(), &*rec)];
     let opts = CalOptions {

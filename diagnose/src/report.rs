@@ -1,13 +1,13 @@
 //! The diagnosis as data: serialised for `--json` (formats.md §4 field names), printed
 //! as a human summary, and applied to a robot file for `--write-robot`.
 
-use crate::calibrate::Inseparables;
 use crate::effects::{Model, Stage};
 use crate::finding::{Finding, Verdict};
 use crate::residuals::Noise;
 use crate::select::Candidate;
 use crate::windows::Window;
 use calib_core::robot::Robot;
+use calibrate::Inseparables;
 use serde::ser::SerializeMap;
 use serde::{Serialize, Serializer};
 use std::fmt;

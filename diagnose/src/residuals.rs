@@ -12,6 +12,7 @@ use crate::actuator::{simulate_wheel, ActuatorParams};
 use crate::effects::{Effect, Model, Stage};
 use crate::ground::{simulate, Path, Rows};
 use crate::replay::Prepared;
+use fitkit::noise::lag1_autocorrelation;
 use std::cell::RefCell;
 use std::rc::Rc;
 
@@ -314,7 +315,7 @@ impl<'a> Evaluator<'a> {
             p.t.first().copied().unwrap_or(0.0),
             p.t.last().copied().unwrap_or(0.0),
         );
-        let block_len = ((t1 - t0) / BLOCKS).max(crate::MIN_DT_S);
+        let block_len = ((t1 - t0) / BLOCKS).max(fitkit::MIN_DT_S);
         let block = |row: usize| (((p.t[row] - t0) / block_len).floor() as i64 % 2) as u8;
         let pose_block = p.poses.row.iter().map(|&r| block(r)).collect();
         let act_block = act_rows.iter().map(|&r| block(r)).collect();
@@ -689,29 +690,6 @@ impl<'a> Evaluator<'a> {
         };
         lag1_autocorrelation(series, MAX_AUTOCORRELATION)
     }
-}
-
-/// Lag-1 autocorrelation pooled over `series` (pairs never straddle two series), in
-/// [0, `cap`]: an AR(1) residual's mean has [`ar1_inflation`] times the variance of
-/// independent samples, so it discounts their count.
-pub fn lag1_autocorrelation<'a>(series: impl IntoIterator<Item = &'a [f64]>, cap: f64) -> f64 {
-    let (mut num, mut den) = (0.0, 0.0);
-    for s in series {
-        for w in s.windows(2) {
-            num += w[0] * w[1];
-            den += w[0] * w[0];
-        }
-    }
-    if den > 0.0 {
-        (num / den).clamp(0.0, cap)
-    } else {
-        0.0
-    }
-}
-
-/// Variance inflation of a mean of AR(1) samples with lag-1 correlation `rho`.
-pub fn ar1_inflation(rho: f64) -> f64 {
-    (1.0 + rho) / (1.0 - rho)
 }
 
 /// Robust standard deviation: 1.4826 * median absolute deviation from the median.

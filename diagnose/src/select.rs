@@ -11,8 +11,8 @@
 
 use crate::effects::{Effect, Model, ParamSpec, Stage};
 use crate::finding::{Finding, Fit, Verdict};
-use crate::fit::{levenberg_marquardt, SCREENING_REL};
 use crate::residuals::{Eval, Evaluator, Fold, StageRss};
+use fitkit::fit::{levenberg_marquardt, SCREENING_REL};
 use serde::Serialize;
 
 /// Accept an effect only if the BIC drops by more than this ("very strong" evidence on

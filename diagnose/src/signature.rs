@@ -114,7 +114,7 @@ pub fn stepper_steps(ev: &Evaluator, e: &Eval) -> Option<StepSignature> {
         let acc: Vec<f64> = (0..p.rows())
             .map(|k| {
                 let k1 = (k + 1).min(p.rows() - 1);
-                let dt = (p.t[k1] - p.t[k]).max(crate::MIN_DT_S);
+                let dt = (p.t[k1] - p.t[k]).max(fitkit::MIN_DT_S);
                 ((cmd[k1] - cmd[k]) / dt).abs()
             })
             .collect();
@@ -188,7 +188,7 @@ pub fn region_loss(ev: &Evaluator, model: &Model) -> Option<RegionSignature> {
         return None;
     }
     let dur = p.t[ps.row[ps.len() - 1]] - p.t[ps.row[0]];
-    let step = ((0.3 * ps.len() as f64 / dur.max(crate::MIN_DT_S)).round() as usize).max(1);
+    let step = ((0.3 * ps.len() as f64 / dur.max(fitkit::MIN_DT_S)).round() as usize).max(1);
     // (world x of the wheel, deficit m, wheel travel m)
     let mut seg: Vec<(f64, f64, f64)> = Vec::new();
     for (i, w) in p.robot.wheels.iter().enumerate() {
@@ -233,8 +233,8 @@ pub fn region_loss(ev: &Evaluator, model: &Model) -> Option<RegionSignature> {
             // happens to accelerate, which is not a property of the floor.
             let (ra, rb) = (ps.row[a], ps.row[b]);
             let rm = (ra + rb) / 2;
-            let v1 = (enc[rm] - enc[ra]) / (p.t[rm] - p.t[ra]).max(crate::MIN_DT_S);
-            let v2 = (enc[rb] - enc[rm]) / (p.t[rb] - p.t[rm]).max(crate::MIN_DT_S);
+            let v1 = (enc[rm] - enc[ra]) / (p.t[rm] - p.t[ra]).max(fitkit::MIN_DT_S);
+            let v2 = (enc[rb] - enc[rm]) / (p.t[rb] - p.t[rm]).max(fitkit::MIN_DT_S);
             if (v2 - v1).abs() > 0.2 * v1.abs().max(v2.abs()) {
                 continue;
             }

@@ -83,7 +83,7 @@ pub fn signals(ev: &Evaluator) -> Signals {
     let mut speed = vec![0.0; n];
     let mut omega = vec![0.0; n];
     for k in 0..n.saturating_sub(1) {
-        let dt = (p.t[k + 1] - p.t[k]).max(crate::MIN_DT_S);
+        let dt = (p.t[k + 1] - p.t[k]).max(fitkit::MIN_DT_S);
         let s = &path.step[k];
         speed[k] = s.vx / dt;
         omega[k] = s.omega / dt;
@@ -99,7 +99,7 @@ pub fn signals(ev: &Evaluator) -> Signals {
         } else {
             1.0
         };
-        let h = ((0.05 / dt.max(crate::MIN_DT_S)) as usize).clamp(0, 50);
+        let h = ((0.05 / dt.max(fitkit::MIN_DT_S)) as usize).clamp(0, 50);
         let mut pre = vec![0.0; n + 1];
         for k in 0..n {
             pre[k + 1] = pre[k] + v[k];
@@ -115,7 +115,7 @@ pub fn signals(ev: &Evaluator) -> Signals {
     let omega = smooth(&omega);
     let mut accel = vec![0.0; n];
     for k in 1..n {
-        accel[k] = (speed[k] - speed[k - 1]) / (p.t[k] - p.t[k - 1]).max(crate::MIN_DT_S);
+        accel[k] = (speed[k] - speed[k - 1]) / (p.t[k] - p.t[k - 1]).max(fitkit::MIN_DT_S);
     }
     let accel = smooth(&accel);
     let centripetal: Vec<f64> = speed.iter().zip(&omega).map(|(v, w)| v * w).collect();
@@ -226,7 +226,7 @@ fn lag_samples(times: &[f64]) -> usize {
         return 1;
     }
     let dt = (times[times.len() - 1] - times[0]) / (times.len() - 1) as f64;
-    ((LAG_S / dt.max(crate::MIN_DT_S)).round() as usize).max(1)
+    ((LAG_S / dt.max(fitkit::MIN_DT_S)).round() as usize).max(1)
 }
 
 /// Finds the windows of the nominal residual and marks those the fit explains.

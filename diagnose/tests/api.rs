@@ -117,11 +117,11 @@ fn json_copies_are_derived_from_one_stored_value() {
             (format!("run{seed}"), rec)
         })
         .collect();
-    let opts = diagnose::calibrate::CalOptions {
+    let opts = calibrate::CalOptions {
         leave_one_out: true,
         ..Default::default()
     };
-    let c = diagnose::calibrate::calibrate(&robot, &recs, None, &opts).unwrap();
+    let c = calibrate::calibrate(&robot, &recs, None, &opts).unwrap();
     let v: serde_json::Value = serde_json::to_value(&c).unwrap();
     let table = v["leave_one_out"].as_array().unwrap();
     assert_eq!(table.len(), 3);

@@ -4,7 +4,7 @@
 
 use calib_core::robot::presets;
 use calib_core::umbmark::wheel_factors;
-use diagnose::calibrate::{param_specs, robot_with};
+use calibrate::{param_specs, robot_with};
 
 #[test]
 fn sim_diagnose_and_calibrate_split_e_d_alike() {

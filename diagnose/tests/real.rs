@@ -95,7 +95,7 @@ fn real_runs_have_no_counts_error() {
 
 // ---- calibrate: the six squares jointly ----
 
-use diagnose::calibrate::{calibrate, CalOptions, Calibration};
+use calibrate::{calibrate, CalOptions, Calibration};
 
 fn load_runs(folders: &[&str]) -> (calib_core::robot::Robot, Vec<(String, Recording)>) {
     let base = testdata::real_dir();

@@ -11,7 +11,7 @@
 //!   eb_arc.
 
 use calib_core::robot::Robot;
-use diagnose::calibrate::{calibrate, CalOptions, Calibration, Factors};
+use calibrate::{calibrate, CalOptions, Calibration, Factors};
 use formats::recording::Recording;
 use sim::{record, Motion, RandomMotion, RecordConfig, Surface, Tyre};
 use std::path::Path;
@@ -41,7 +41,7 @@ fn runs(tyre: Tyre) -> Vec<(String, Recording)> {
         .collect()
 }
 
-fn param<'a>(c: &'a Calibration, name: &str) -> Option<&'a diagnose::calibrate::FittedParam> {
+fn param<'a>(c: &'a Calibration, name: &str) -> Option<&'a calibrate::FittedParam> {
     c.params.iter().find(|p| p.spec.name == name)
 }
 

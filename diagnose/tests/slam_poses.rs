@@ -19,7 +19,7 @@
 //!   objective.
 
 use calib_core::robot::Robot;
-use diagnose::calibrate::{calibrate, CalOptions, Calibration};
+use calibrate::{calibrate, CalOptions, Calibration};
 use formats::recording::Recording;
 use sim::{record, Motion, RandomMotion, RecordConfig, Surface, VisionConfig};
 use std::path::Path;
@@ -80,8 +80,8 @@ fn fit(recs: Vec<(String, Recording)>) -> Calibration {
 fn a_slam_jump_is_reported_and_costs_one_sample() {
     // The true robot: wheels 0.6 % apart in diameter, wheelbase 3 % wide.
     let nominal = robot("mobolab");
-    let specs = diagnose::calibrate::param_specs(&nominal, false);
-    let truth = diagnose::calibrate::robot_with(&nominal, &specs, &[1.0, 1.006, 1.03]);
+    let specs = calibrate::param_specs(&nominal, false);
+    let truth = calibrate::robot_with(&nominal, &specs, &[1.0, 1.006, 1.03]);
     let a = run(&truth, 61, slam());
     let b = run(&truth, 62, slam());
     let clean = fit(vec![("a".into(), a.clone()), ("b".into(), b.clone())]);

@@ -375,7 +375,7 @@ fn a_stored_turn_law_keeps_the_boards_odometry_on_an_arc() {
 /// 4 % x 0.56 of the turn, over 10 mm RMS (measured 15.0 mm).
 #[test]
 fn evaluate_replays_a_boards_factors_and_laws_as_the_board_does() {
-    use diagnose::calibrate::{evaluate, Candidate};
+    use calibrate::{evaluate, Candidate};
     let robot = mobolab();
     let law = Corrections::DiffDriveTurnLaw {
         c_l: 1.0,
@@ -560,7 +560,7 @@ fn a_stored_acceleration_law_keeps_the_boards_odometry_while_cruising() {
 /// a third of the constant factors' error.
 #[test]
 fn a_speed_law_from_calibration_carries_to_the_board() {
-    use diagnose::calibrate::{calibrate, CalOptions, Factors};
+    use calibrate::{calibrate, CalOptions, Factors};
     let nominal =
         robot_file::load(&Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml"))
             .unwrap();
@@ -657,7 +657,7 @@ fn scrubbed_run(program: ProgramSpec, seed: u64) -> formats::recording::Recordin
 /// +0.080 rad with the squares' factors, -0.001 rad with the circles').
 #[test]
 fn circles_the_board_drives_let_calibrate_find_a_turn_law_squares_cannot() {
-    use diagnose::calibrate::{calibrate, CalOptions, Factors};
+    use calibrate::{calibrate, CalOptions, Factors};
     let robot = mobolab();
     let square = |dir| ProgramSpec::Umbmark { side_m: 1.0, dir };
     let circle = |dir| ProgramSpec::Circle {
@@ -696,7 +696,7 @@ fn circles_the_board_drives_let_calibrate_find_a_turn_law_squares_cannot() {
         (both.turn_law.arc_rel - 0.04).abs() <= 4.0 * arc.sigma + 0.01,
         "{both}"
     );
-    let board_of = |c: &diagnose::calibrate::Calibration| match &c.factors {
+    let board_of = |c: &calibrate::Calibration| match &c.factors {
         Factors::Diff { board: Some(b), .. } => b.corrections(),
         Factors::Diff { c_l, c_r, e_b, .. } => Corrections::DiffDrive {
             c_l: *c_l,

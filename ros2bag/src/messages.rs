@@ -217,3 +217,8 @@ pub fn decode<T: DeserializeOwned>(data: &[u8]) -> Result<T, String> {
     };
     r.map(|(v, _)| v).map_err(|e| e.to_string())
 }
+
+/// A ROS quaternion as nalgebra's, normalised (poses and transforms both need it).
+pub fn unit(q: &Quaternion) -> nalgebra::UnitQuaternion<f64> {
+    nalgebra::UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q.w, q.x, q.y, q.z))
+}

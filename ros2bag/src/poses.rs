@@ -6,9 +6,9 @@
 use crate::bag::Bag;
 use crate::error::ImportError;
 use crate::messages::{
-    decode, types, Odometry, Pose, PoseStamped, PoseWithCovarianceStamped, Quaternion,
+    decode, types, unit, Odometry, Pose, PoseStamped, PoseWithCovarianceStamped,
 };
-use nalgebra::{Isometry3, Translation3, UnitQuaternion};
+use nalgebra::{Isometry3, Translation3};
 use std::collections::BTreeSet;
 
 /// Where the pose comes from.
@@ -53,11 +53,6 @@ pub fn isometry(p: &Pose) -> Isometry3<f64> {
         Translation3::new(p.position.x, p.position.y, p.position.z),
         unit(&p.orientation),
     )
-}
-
-/// A ROS quaternion, normalised.
-pub fn unit(q: &Quaternion) -> UnitQuaternion<f64> {
-    UnitQuaternion::from_quaternion(nalgebra::Quaternion::new(q.w, q.x, q.y, q.z))
 }
 
 /// x, y, yaw and tilt (the larger of |roll|, |pitch|) of an isometry.

@@ -8,8 +8,7 @@
 
 use crate::bag::Bag;
 use crate::error::ImportError;
-use crate::messages::{decode, TFMessage};
-use crate::poses::unit;
+use crate::messages::{decode, unit, TFMessage};
 use nalgebra::{Isometry3, Translation3};
 use std::collections::{BTreeMap, VecDeque};
 

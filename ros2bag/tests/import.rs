@@ -137,7 +137,7 @@ fn real_squares_import_exactly_and_calibrate_the_same() {
     }
     let robot = robot.unwrap();
     let cal = |recs: &[(String, Recording)]| {
-        diagnose::calibrate::calibrate(&robot, recs, None, &Default::default()).unwrap()
+        calibrate::calibrate(&robot, recs, None, &Default::default()).unwrap()
     };
     let (a, b) = (cal(&from_csv), cal(&from_bag));
     assert_eq!(a.params.len(), b.params.len());

@@ -5,7 +5,7 @@
 use anyhow::Result;
 use calib_core::circle_test::{self, RadiusLaw};
 use calib_core::correction::{DiffLaws, E_B_ARC_MAX};
-use diagnose::calibrate::BoardFactors;
+use calibrate::BoardFactors;
 use formats::runs_file::{Phase, RunsFile};
 use serde::Serialize;
 use std::fmt::Write as _;

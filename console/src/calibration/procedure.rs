@@ -90,7 +90,7 @@ fn measured_robot(runs_file: &Path, board: Robot) -> Result<Robot> {
     let file = measured_robot_file(runs_file);
     if runs_file.exists() && file.exists() {
         let robot = formats::robot_file::load(&file)?;
-        diagnose::calibrate::same_wheels(&board, &robot).map_err(|e| {
+        calibrate::same_wheels(&board, &robot).map_err(|e| {
             anyhow::anyhow!(
                 "{}: {e}: the board is another robot than {} was measured on",
                 file.display(),

@@ -7,7 +7,7 @@
 use anyhow::{anyhow, bail, Context, Result};
 use calib_core::correction::{Corrections, DiffLaws};
 use calib_core::robot::{Robot, RobotKind};
-use diagnose::calibrate::{BoardFactors, Candidate};
+use calibrate::{BoardFactors, Candidate};
 use serde_json::Value;
 use std::path::{Path, PathBuf};
 
@@ -180,7 +180,7 @@ impl SavedCalibration {
     /// the widest of one effect counts (per-wheel `radius_scale_w*`); the catalogue's
     /// range where none was fitted.
     fn plausible_spans(&self) -> (f64, f64, f64) {
-        use diagnose::calibrate::{ALPHA_RANGE, BASE_RANGE, RADIUS_RANGE};
+        use calibrate::{ALPHA_RANGE, BASE_RANGE, RADIUS_RANGE};
         let mut by_effect: std::collections::BTreeMap<String, f64> = Default::default();
         let (mut distance, mut angle) = (0.0f64, 0.0f64);
         for p in self.json["params"].as_array().into_iter().flatten() {

@@ -8,7 +8,7 @@ use anyhow::{bail, Context, Result};
 use calib_core::robot::{Robot, RobotKind};
 use calib_core::stats;
 use calib_core::umbmark::{self, Run, UmbmarkResult};
-use diagnose::calibrate::BoardFactors;
+use calibrate::BoardFactors;
 use formats::runs_file::{Phase, RunsFile, UmbmarkRuns};
 use serde::Serialize;
 use std::fmt::Write;

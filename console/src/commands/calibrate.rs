@@ -1,5 +1,5 @@
 //! `wheelcal calibrate`: the robot's geometry from whole trajectories with ground truth.
-//! A thin shell over `diagnose::calibrate`: gathers recordings ([`crate::recordings`]),
+//! A thin shell over the `calibrate` crate: gathers recordings ([`crate::recordings`]),
 //! refuses another robot's among them, prints or writes the result.
 
 use crate::args::CalibrateArgs;
@@ -10,8 +10,8 @@ use crate::recordings::{load, load_all, load_encoders, recording_files, refuse_m
 use crate::ros2;
 use anyhow::{bail, Context, Result};
 use calib_core::robot::Robot;
-use diagnose::calibrate::{calibrate, CalOptions, Calibration, CvBy, Factors};
-use diagnose::calibrate_plots;
+use calibrate::plots;
+use calibrate::{calibrate, CalOptions, Calibration, CvBy, Factors};
 use formats::recording::Recording;
 use formats::robot_file;
 use std::path::Path;
@@ -198,7 +198,7 @@ pub const PATHS_MCAP: &str = "paths.mcap";
 
 /// Writes the `--report` folder: calibration.json, summary.txt, robot.toml, ros2.yaml
 /// (differential drive), the figures and index.html
-/// (`diagnose::calibrate_plots::write_calibration_figures`) and paths.mcap (per
+/// (`calibrate::plots::write_calibration_figures`) and paths.mcap (per
 /// recording, held-out one included, `/<recording>/measured`, `/nominal`, `/fitted` at
 /// its pose samples).
 fn write_report(
@@ -222,8 +222,8 @@ fn write_report(
     if let Some(y) = ros2_yaml(cal) {
         replace_file(&dir.join("ros2.yaml"), y.as_bytes())?;
     }
-    let series = calibrate_plots::calibration_series(cal, robot, recs, held)?;
-    calibrate_plots::write_calibration_figures(cal, &series, &summary, dir)?;
+    let series = plots::calibration_series(cal, robot, recs, held)?;
+    plots::write_calibration_figures(cal, &series, &summary, dir)?;
     let names: Vec<[String; 3]> = series
         .iter()
         .map(|s| ["measured", "nominal", "fitted"].map(|k| format!("{}/{k}", s.key)))
@@ -313,7 +313,7 @@ mod tests {
         assert!(text.contains("motion capture"), "{text}");
         // The calibration's own error, not its text: a caller can still tell what failed.
         assert!(
-            e.downcast_ref::<diagnose::calibrate::CalibrateError>()
+            e.downcast_ref::<calibrate::CalibrateError>()
                 .is_some_and(|c| c.recording.is_some()),
             "{e:?}"
         );

@@ -61,7 +61,7 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
         }
     }
     if let Some(dir) = &a.report {
-        diagnose::plots::require_font()?;
+        fitkit::plot::require_font()?;
         formats::safe_write::claim_dir(dir)?;
         diagnose::plots::write_report_dir(&rep, dir)
             .with_context(|| format!("cannot write the report into {}", dir.display()))?;

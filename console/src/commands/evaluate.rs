@@ -1,5 +1,5 @@
 //! `wheelcal evaluate`: how well robot files dead-reckon recordings they were not fitted
-//! to. A thin shell over `diagnose::calibrate::evaluate`: gathers the recordings as
+//! to. A thin shell over `calibrate::evaluate`: gathers the recordings as
 //! `calibrate` does ([`crate::recordings`]), reads the calibrations judged on the board
 //! ([`crate::calibration::saved`]), refuses robot files with other wheels, prints or
 //! writes the table.
@@ -14,7 +14,7 @@ use calib_core::correction::Corrections;
 use calib_core::kinematics::Kinematics;
 use calib_core::odometry::{integrate_arc, Pose};
 use calib_core::robot::RobotKind;
-use diagnose::calibrate::{evaluate, same_wheels, Candidate};
+use calibrate::{evaluate, same_wheels, Candidate};
 use formats::recording::Recording;
 use formats::robot_file;
 

@@ -1,7 +1,7 @@
 //! Figure descriptions that draw on any plotters backend.
 
-use diagnose::plots::{draw_legend, plot_box, split_for_legend, LegendMark};
-pub use diagnose::plots::{Layout, PixelBox};
+use fitkit::plot::{draw_legend, plot_box, split_for_legend, LegendMark};
+pub use fitkit::plot::{Layout, PixelBox};
 use plotters::coord::types::RangedCoordf64;
 use plotters::coord::Shift;
 use plotters::prelude::*;

@@ -17,12 +17,12 @@ use std::path::{Path, PathBuf};
 /// Registers the plots' font once (shared with diagnose's plots); false when none is
 /// installed.
 pub fn font_available() -> bool {
-    diagnose::plots::register_font()
+    fitkit::plot::register_font()
 }
 
 /// Renders a figure as `<name>.svg` and (font permitting) `<name>.png` in `dir`.
 pub fn save_figure(fig: &dyn Figure, dir: &Path, name: &str) -> Result<PathBuf> {
-    diagnose::plots::require_font()?;
+    fitkit::plot::require_font()?;
     let (w, h) = fig.size();
     let svg = dir.join(format!("{name}.svg"));
     {

@@ -114,11 +114,11 @@ pub fn simulate_stepper_losses(t: &[f64], cmd: &[f64], p: &ActuatorParams, out: 
         // Commanded acceleration where the command changes (the larger of the two sides,
         // so a ramp's first row counts).
         let back = if k > 0 {
-            (cmd[k] - cmd[k - 1]) / (t[k] - t[k - 1]).max(crate::MIN_DT_S)
+            (cmd[k] - cmd[k - 1]) / (t[k] - t[k - 1]).max(fitkit::MIN_DT_S)
         } else {
             0.0
         };
-        let fwd = (cmd[k + 1] - cmd[k]) / dt.max(crate::MIN_DT_S);
+        let fwd = (cmd[k + 1] - cmd[k]) / dt.max(fitkit::MIN_DT_S);
         let over = back.abs().max(fwd.abs()) > a_max && c != 0.0;
         let inc = if p.stall {
             if over {

@@ -151,9 +151,9 @@ pub fn slip_angles(
             let mut c = 0.0;
             let mut pos = src[0];
             for k in 0..n - 1 {
-                let dt = (p.t[k + 1] - p.t[k]).max(crate::MIN_DT_S);
+                let dt = (p.t[k + 1] - p.t[k]).max(fitkit::MIN_DT_S);
                 let want = (src[k + 1] - src[k]) / dt;
-                let e = (-dt / tc.max(crate::MIN_DT_S)).exp();
+                let e = (-dt / tc.max(fitkit::MIN_DT_S)).exp();
                 pos += want * dt + (c - want) * tc * (1.0 - e);
                 c = want + (c - want) * e;
                 a[k + 1] = pos;
@@ -178,7 +178,7 @@ pub fn slip_angles(
         // Body velocity from the wheels, over three rows (encoder quantisation).
         let vel = |k: usize, inc: &mut [f64], out: &[Option<Vec<f64>>]| -> Twist<f64> {
             let (k1, k2) = (k.saturating_sub(1), (k + 2).min(n - 1));
-            let span = (p.t[k2] - p.t[k1]).max(crate::MIN_DT_S);
+            let span = (p.t[k2] - p.t[k1]).max(fitkit::MIN_DT_S);
             for (j, &i) in known.iter().enumerate() {
                 let a = out[i].as_ref().expect("known");
                 inc[j] = (a[k2] - a[k1]) / span;
@@ -189,7 +189,7 @@ pub fn slip_angles(
         let mut shift = vec![0.0; m_w];
         let src = out.clone();
         for k in 0..n - 1 {
-            let dt = (p.t[k + 1] - p.t[k]).max(crate::MIN_DT_S);
+            let dt = (p.t[k + 1] - p.t[k]).max(fitkit::MIN_DT_S);
             let want = vel(k, &mut inc, &src);
             let ((vx0, vy0), (vx1, vy1)) = follow(&mut v, &want, mu * p.driven_share[k], dt);
             // Body displacement lost (or gained) this row against what the wheels say.
@@ -256,7 +256,7 @@ fn body_bound_with_free_wheels(
     // What the drive asks, over three rows (encoder quantisation).
     let asked = |k: usize, rates: &mut [f64]| -> Twist<f64> {
         let (k1, k2) = (k.saturating_sub(1), (k + 2).min(n - 1));
-        let span = (p.t[k2] - p.t[k1]).max(crate::MIN_DT_S);
+        let span = (p.t[k2] - p.t[k1]).max(fitkit::MIN_DT_S);
         for (r, a) in rates.iter_mut().zip(&src) {
             *r = (a[k2] - a[k1]) / span;
         }
@@ -269,7 +269,7 @@ fn body_bound_with_free_wheels(
         .collect();
     let mut v: Option<(f64, f64)> = None;
     for k in 0..n - 1 {
-        let dt = (p.t[k + 1] - p.t[k]).max(crate::MIN_DT_S);
+        let dt = (p.t[k + 1] - p.t[k]).max(fitkit::MIN_DT_S);
         let want = asked(k, &mut rates);
         let ((vx0, vy0), (vx1, vy1)) = follow(&mut v, &want, mu * p.driven_share[k], dt);
         // The driven wheels keep their own increments less what the body did not follow;

@@ -12,9 +12,9 @@
 //! frame, the first pose is exactly (0, 0, 0)), RMS position error over every pose sample
 //! of a run ([`dead_reckoning_rmse`]).
 
-use crate::calibrate::evaluate::Spread;
-use crate::calibrate::series::{dead_reckoning_rmse, dead_reckoning_rmse_law, Series};
-use crate::calibrate::turn_law::TurnLaw;
+use crate::evaluate::Spread;
+use crate::series::{dead_reckoning_rmse, dead_reckoning_rmse_law, Series};
+use crate::turn_law::TurnLaw;
 use calib_core::robot::Robot;
 use formats::recording::Recording;
 use serde::Serialize;
@@ -453,7 +453,7 @@ pub struct LawFold {
 /// first row, applying its law. The evidence across sessions for choosing between the
 /// two rival laws (`examples/laws_across_sessions.rs` prints it).
 pub fn laws_across_sessions(dir: &Path) -> Result<Vec<LawFold>, String> {
-    use crate::calibrate::{calibrate, CalOptions, Calibration};
+    use crate::{calibrate, CalOptions, Calibration};
     let mut out = Vec::new();
     for month in ["06", "12"] {
         let (robot, recs) = month_runs(dir, "diff", month)?;

@@ -7,11 +7,11 @@
 //! for a robot stepped by its sides); the arc integration and the residuals are
 //! differentiated exactly.
 
-use crate::calibrate::objective::{pose_segments, PathAt, HEADING_LEVER_M, RES_UNIT_M};
-use crate::calibrate::params::{robot_with, GeomKind, ParamSpec};
-use crate::calibrate::series::{Nuisance, Series};
-use crate::calibrate::step::{self, Stepper};
-use crate::calibrate::turn_law::{SideMotion, Sides, TurnLaw};
+use crate::objective::{pose_segments, PathAt, HEADING_LEVER_M, RES_UNIT_M};
+use crate::params::{robot_with, GeomKind, ParamSpec};
+use crate::series::{Nuisance, Series};
+use crate::step::{self, Stepper};
+use crate::turn_law::{SideMotion, Sides, TurnLaw};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::robot::{Robot, RobotKind};
@@ -316,7 +316,7 @@ impl Series {
         }
     }
 
-    /// The Jacobian rows of [`residuals_into`](crate::calibrate::objective::residuals_into)
+    /// The Jacobian rows of [`residuals_into`](crate::objective::residuals_into)
     /// (the aligned residuals: start pose and clocks `nu`) with respect to the path
     /// parameters `part` of `cols` (sensitivities stepped along with the path, one pass)
     /// and the marker's that `jac` holds, into `jac`'s rows from `row0`; columns are
@@ -497,7 +497,7 @@ impl Series {
         }
     }
 
-    /// The Jacobian rows of [`dr_residuals_into`](crate::calibrate::objective::dr_residuals_into) (same order) from the
+    /// The Jacobian rows of [`dr_residuals_into`](crate::objective::dr_residuals_into) (same order) from the
     /// sensitivities `sens` of the path parameters of `cols`, and its marker parameters,
     /// into `jac` rows from `row0`:
     /// columns are parameter indices.
@@ -619,8 +619,8 @@ pub(crate) struct Columns {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibrate::params::{param_specs, turn_law_specs};
-    use crate::calibrate::problem::Problem;
+    use crate::params::{param_specs, turn_law_specs};
+    use crate::problem::Problem;
     use nalgebra::DMatrix;
     use sim::{record, Motion, RandomMotion, RecordConfig, Surface};
 

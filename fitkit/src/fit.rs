@@ -103,10 +103,7 @@ pub trait Jacobian {
 /// nonzero on (from a column's first nonzero row to its last): the same sums as the
 /// dense products less the zero terms, for a block-sparse Jacobian in a fraction of the
 /// time (m (g + k)^2 instead of m (g + b k)^2 for g shared columns and b blocks of k).
-pub(crate) fn block_normal_equations(
-    jac: &DMatrix<f64>,
-    r: &[f64],
-) -> (DMatrix<f64>, DVector<f64>) {
+pub fn block_normal_equations(jac: &DMatrix<f64>, r: &[f64]) -> (DMatrix<f64>, DVector<f64>) {
     let (m, n) = jac.shape();
     let col = |j: usize| &jac.as_slice()[j * m..(j + 1) * m];
     let span: Vec<(usize, usize)> = (0..n)
@@ -323,7 +320,7 @@ fn sumsq(r: &[f64]) -> f64 {
 
 /// The forward-difference step of a parameter at `x` below its upper bound `hi`:
 /// backwards when a step forwards would cross it.
-pub(crate) fn difference_step(x: f64, hi: f64) -> f64 {
+pub fn difference_step(x: f64, hi: f64) -> f64 {
     let h = 1e-4 * x.abs().max(1e-2);
     if x + h > hi {
         -h
@@ -333,7 +330,7 @@ pub(crate) fn difference_step(x: f64, hi: f64) -> f64 {
 }
 
 /// Forward differences, stepping backwards at the upper bound.
-pub(crate) fn forward_differences(
+pub fn forward_differences(
     f: &mut dyn FnMut(&[f64]) -> Vec<f64>,
     x: &[f64],
     r: &[f64],

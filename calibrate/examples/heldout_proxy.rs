@@ -1,7 +1,7 @@
 //! Issue 21's held-out proxy on `shared/real/sessions/`: `calibrate` trained on each
 //! square session of the differential robot, its geometry dead-reckoned on the circles and
 //! Ivanjko paths of the nearest day, against the OptiOdom authors' parameters from the same
-//! session (see `diagnose::calibrate::proxy`). Prints a markdown table (docs/calibrate.md's).
+//! session (see `calibrate::proxy`). Prints a markdown table (docs/calibrate.md's).
 //!
 //!     cargo run --release -p diagnose --example heldout_proxy [-- OPTIONS]
 //!
@@ -41,7 +41,7 @@
 //! dead-reckoned from its first pose, every pose sample: the mean change over the runs
 //! and its standard error), to show how well the squares pin E_b.
 
-use diagnose::calibrate::{calibrate, dead_reckoning_rmse_law, proxy, CalOptions, Series};
+use calibrate::{calibrate, dead_reckoning_rmse_law, proxy, CalOptions, Series};
 use std::path::PathBuf;
 
 fn main() {

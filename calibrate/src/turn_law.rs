@@ -2,10 +2,10 @@
 //! separation widening from a turn in place to a wide arc, the ICRs' longitudinal
 //! offset), each row's turn ratio rho ([`turn_ratio`]: 1 in place, 0 straight) and the
 //! sides' stepping the law is applied through ([`Sides`]). Separate from the recording
-//! because the stepping ([`step`](crate::calibrate::step)) and the sensitivities need the
+//! because the stepping ([`step`](crate::step)) and the sensitivities need the
 //! same law at every geometry.
 
-use crate::calibrate::params::{GeomKind, ParamSpec};
+use crate::params::{GeomKind, ParamSpec};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::Kinematics;
 use calib_core::robot::{Robot, RobotKind};
@@ -28,8 +28,8 @@ pub struct TurnLaw {
 
 impl TurnLaw {
     /// The law in `values` (in `specs` order); each term the specs do not fit is
-    /// `known`'s ([`CalOptions::turn_law`](crate::calibrate::CalOptions::turn_law) and
-    /// [`CalOptions::speed_law`](crate::calibrate::CalOptions::speed_law), else 0).
+    /// `known`'s ([`CalOptions::turn_law`](crate::CalOptions::turn_law) and
+    /// [`CalOptions::speed_law`](crate::CalOptions::speed_law), else 0).
     pub fn of(specs: &[ParamSpec], values: &[f64], known: TurnLaw) -> TurnLaw {
         let get = |k: GeomKind| specs.iter().position(|s| s.kind == k).map(|i| values[i]);
         let eb = get(GeomKind::Eb).unwrap_or(1.0);
@@ -251,8 +251,8 @@ pub(crate) struct Turning {
 }
 
 impl Turning {
-    /// The sums over every recording of `series` ([`Series::turning`](crate::calibrate::Series)).
-    pub(crate) fn of_all(series: &[crate::calibrate::Series], robot: &Robot) -> Turning {
+    /// The sums over every recording of `series` ([`Series::turning`](crate::Series)).
+    pub(crate) fn of_all(series: &[crate::Series], robot: &Robot) -> Turning {
         series.iter().fold(Turning::default(), |a, s| {
             let t = s.turning(robot);
             Turning {
@@ -271,12 +271,12 @@ impl Turning {
 /// squared position gap over every row, minimised by golden-section search on [0, 1].
 /// No ground truth enters, so `motion` may be any log of the robot's driving. `base` has
 /// the separation of a turn in place
-/// ([`Calibration::law_base_robot`](crate::calibrate::Calibration::law_base_robot)); the
+/// ([`Calibration::law_base_robot`](crate::Calibration::law_base_robot)); the
 /// law's other terms (a speed law) are kept on both sides.
 pub(crate) fn closest_constant_share(
     base: &Robot,
     law: &TurnLaw,
-    motion: &[crate::calibrate::Series],
+    motion: &[crate::Series],
 ) -> Option<f64> {
     let constant = TurnLaw {
         arc_rel: 0.0,
@@ -296,7 +296,7 @@ pub(crate) fn closest_constant_share(
 pub(crate) fn closest_constant_speed(
     base: &Robot,
     law: &TurnLaw,
-    motion: &[crate::calibrate::Series],
+    motion: &[crate::Series],
 ) -> Option<f64> {
     let fastest = motion
         .iter()
@@ -321,7 +321,7 @@ pub(crate) fn closest_constant_speed(
 fn closest_constant(
     base: &Robot,
     law: &TurnLaw,
-    motion: &[crate::calibrate::Series],
+    motion: &[crate::Series],
     constant: &TurnLaw,
     range: (f64, f64),
     apply: impl Fn(&mut Robot, f64),
@@ -331,11 +331,11 @@ fn closest_constant(
     let kin = Kinematics::<f64>::new(base, &Corrections::None).ok()?;
     let mut target = Vec::new();
     for s in motion {
-        let mut p = crate::calibrate::Path::default();
+        let mut p = crate::Path::default();
         s.path_with(base, &kin, law, &mut p).then_some(())?;
         target.push(p);
     }
-    let mut p = crate::calibrate::Path::default();
+    let mut p = crate::Path::default();
     let mut gap = |x: f64| -> f64 {
         let mut r = base.clone();
         apply(&mut r, x);
@@ -382,7 +382,7 @@ pub const ARC_RHO: (f64, f64) = (0.1, 0.8);
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibrate::synth;
+    use crate::synth;
 
     /// A 200 Hz clock (5 ms) whose stamps jitter: every third stamp late by 1.5 ms (steps
     /// 5, 6.5, 3.5 ms in turn), one row dropped (an 11.5 ms step) and one stamp repeated
@@ -467,7 +467,7 @@ mod tests {
 
     /// 20 s of `robot` with its left wheels at `left` rad/s and its right ones at
     /// `right`, from the origin (synthetic, noise-free).
-    fn steady(robot: &Robot, left: f64, right: f64) -> crate::calibrate::Series {
+    fn steady(robot: &Robot, left: f64, right: f64) -> crate::Series {
         let start = calib_core::odometry::Pose::new(0.0, 0.0, 0.0);
         let rec = synth::recording(robot, 1000, 50.0, start, |_| {
             robot
@@ -476,7 +476,7 @@ mod tests {
                 .map(|w| if w.is_left() { left } else { right })
                 .collect()
         });
-        crate::calibrate::Series::new("steady", robot, &rec).unwrap()
+        crate::Series::new("steady", robot, &rec).unwrap()
     }
 
     /// On a steady arc the law's separation is constant, E_b (1 + arc_rel (1 - rho^2)),

@@ -1,4 +1,4 @@
-//! Issue 21's held-out proxy on `shared/real/sessions/` (see `diagnose::calibrate::proxy`):
+//! Issue 21's held-out proxy on `shared/real/sessions/` (see `calibrate::proxy`):
 //! the geometry `calibrate` fits on a square session, dead-reckoned from the first row on
 //! the circles and Ivanjko paths of the nearest day, against the OptiOdom authors'
 //! parameters from the same session. Goal: no session above the authors
@@ -8,7 +8,7 @@
 //! 1.112, worst 1.259. With the dead-reckoning objective and events kept out: 1.003, worst
 //! 1.068 (the ignored whole-proxy test fails: the goal is not met).
 
-use diagnose::calibrate::{calibrate, proxy, CalOptions, TurnLaw};
+use calibrate::{calibrate, proxy, CalOptions, TurnLaw};
 use std::path::PathBuf;
 
 /// The OptiOdom sessions ([`testdata::sessions_dir`]): every test here is `#[ignore]`d
@@ -46,7 +46,7 @@ fn assert_meets_the_goal_of(r: &[proxy::SessionResult], sessions: usize) {
 /// Issue 21's checks of a symmetric robot's fit: no parameter on or past its plausible
 /// range (within 1 % of the range of an edge counts as on it), and the wheels' radii and
 /// distances (when fitted per wheel) within 3 % of each other.
-fn assert_plausible_and_alike(c: &diagnose::calibrate::Calibration) {
+fn assert_plausible_and_alike(c: &calibrate::Calibration) {
     for p in &c.params {
         let (lo, hi) = p.spec.plausible;
         let margin = 0.01 * (hi - lo);
@@ -367,7 +367,7 @@ fn sessions_omni3_squares_transfer_to_circles_with_plausible_geometry() {
 #[test]
 #[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
 fn sessions_omni3_turn_law_holds_out_on_circles_and_squares_alike() {
-    use diagnose::calibrate::{board_dead_reckoning_errors, dead_reckoning_rmse_law, Series};
+    use calibrate::{board_dead_reckoning_errors, dead_reckoning_rmse_law, Series};
     type Runs = Vec<(String, formats::recording::Recording)>;
     let d = dir();
     let params: serde_json::Value =
@@ -407,7 +407,7 @@ fn sessions_omni3_turn_law_holds_out_on_circles_and_squares_alike() {
     let none = TurnLaw::default();
     // The board holding `calibrate --write-board-robot`'s geometry (the law's base) with
     // factors of one and the law: calib-core's own odometry, as the firmware runs it.
-    let board = |c: &diagnose::calibrate::Calibration, runs: &[&(String, _)]| {
+    let board = |c: &calibrate::Calibration, runs: &[&(String, _)]| {
         let k = c.turn_law.arc_rel;
         let corr = calib_core::Corrections::omni([1.0; 3].into_iter().collect(), 1.0, k);
         let e: Vec<f64> = runs
@@ -494,7 +494,7 @@ fn sessions_omni3_radius_range_holds_the_authors_fits() {
     let runs = proxy::list_runs(&d).unwrap();
     let first = runs.iter().find(|r| r.robot == "omni3").unwrap();
     let (nominal, _) = proxy::load_run(&d, &first.folder).unwrap();
-    for (_, specs) in diagnose::calibrate::ladder(&nominal, false) {
+    for (_, specs) in calibrate::ladder(&nominal, false) {
         for s in specs
             .iter()
             .filter(|s| s.name == "scale" || s.name.starts_with("radius_scale_"))
@@ -630,7 +630,7 @@ fn hand_measure(
         pose = integrate_arc(pose, &d);
     }
     let mut theta: Vec<f64> = rec.theta.iter().flatten().copied().collect();
-    diagnose::replay::unwrap_angles(&mut theta);
+    fitkit::series::unwrap_angles(&mut theta);
     let turn = theta[theta.len() - 1] - theta[0];
     let n = rec.len() - 1;
     HandMeasured {

@@ -719,7 +719,7 @@ pub const DIFF_EB_ARC_RANGE: f64 = calib_core::correction::E_B_ARC_MAX;
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibrate::synth;
+    use crate::synth;
 
     /// Relative difference.
     fn rel(a: f64, b: f64) -> f64 {

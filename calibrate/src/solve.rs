@@ -4,11 +4,11 @@
 //! counted, the correlations, the noise scale the prior is weighed by. Also a
 //! recording's aligned RMSE at a given geometry ([`aligned_rmse`]).
 
-use crate::calibrate::objective::{huber, position_rmse};
-use crate::calibrate::params::ParamSpec;
-use crate::calibrate::pool::{deal, threads_for};
-use crate::calibrate::problem::Problem;
-use crate::calibrate::series::{Series, NUIS};
+use crate::objective::{huber, position_rmse};
+use crate::params::ParamSpec;
+use crate::pool::{deal, threads_for};
+use crate::problem::Problem;
+use crate::series::{Series, NUIS};
 use calib_core::robot::Robot;
 use nalgebra::DMatrix;
 
@@ -93,7 +93,7 @@ pub(super) fn solve_iter(
     }
     /// The geometry's analytic Jacobian; whether the last one was (else differences).
     struct Analytic<'a, 'b>(&'b Problem<'a>, usize, bool);
-    impl crate::fit::Jacobian for Analytic<'_, '_> {
+    impl fitkit::fit::Jacobian for Analytic<'_, '_> {
         fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
             self.2 = self.0.jacobian(&x[..self.1], r, jac);
             self.2
@@ -108,7 +108,7 @@ pub(super) fn solve_iter(
     }
     /// The start poses and clocks alone (the geometry given): their analytic Jacobian.
     struct Nuisances<'a, 'b>(&'b Problem<'a>, &'b [f64]);
-    impl crate::fit::Jacobian for Nuisances<'_, '_> {
+    impl fitkit::fit::Jacobian for Nuisances<'_, '_> {
         fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
             self.0.nuisance_jacobian(self.1, x, r, jac)
         }
@@ -125,7 +125,7 @@ pub(super) fn solve_iter(
     }
     /// The geometry and every recording's start pose and clocks: their analytic Jacobian.
     struct Aligned<'a, 'b>(&'b Problem<'a>);
-    impl crate::fit::Jacobian for Aligned<'_, '_> {
+    impl fitkit::fit::Jacobian for Aligned<'_, '_> {
         fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
             self.0.free_jacobian(x, r, jac)
         }
@@ -151,15 +151,15 @@ pub(super) fn solve_iter(
         // Jacobian that follows an accepted step costs no pass over the rows.
         p.speculate.set(analytic);
         let (mut dr, mut al) = (Analytic(p, g, false), Aligned(p));
-        let jac_fn: &mut dyn crate::fit::Jacobian = if aligned { &mut al } else { &mut dr };
-        let mut r = crate::fit::levenberg_marquardt_with(
+        let jac_fn: &mut dyn fitkit::fit::Jacobian = if aligned { &mut al } else { &mut dr };
+        let mut r = fitkit::fit::levenberg_marquardt_with(
             &mut f,
             jac_fn,
             &x0,
             &lo,
             &hi,
             max_iter,
-            crate::fit::CONVERGED_REL,
+            fitkit::fit::CONVERGED_REL,
             false,
         );
         p.speculate.set(false);
@@ -169,8 +169,8 @@ pub(super) fn solve_iter(
             // Forward differences at the solution, as the fit gives them (its analytic
             // Jacobian there is counted as its runs; the differences as one per parameter).
             let at = f(&r.x);
-            crate::fit::forward_differences(&mut f, &r.x, &at, &hi, &mut r.jac);
-            r.evaluations = r.evaluations - crate::fit::Jacobian::runs(&dr) + r.x.len();
+            fitkit::fit::forward_differences(&mut f, &r.x, &at, &hi, &mut r.jac);
+            r.evaluations = r.evaluations - fitkit::fit::Jacobian::runs(&dr) + r.x.len();
         }
         r
     } else {
@@ -181,7 +181,7 @@ pub(super) fn solve_iter(
         } else {
             1
         };
-        let mut jac_fn: Box<dyn crate::fit::Jacobian> = if !fit_geom && p.free_start {
+        let mut jac_fn: Box<dyn fitkit::fit::Jacobian> = if !fit_geom && p.free_start {
             Box::new(Nuisances(p, geom0))
         } else if threads > 1 {
             Box::new(SplitDifferences {
@@ -192,18 +192,18 @@ pub(super) fn solve_iter(
                 cols: x0.len(),
             })
         } else {
-            Box::new(crate::fit::Differences)
+            Box::new(fitkit::fit::Differences)
         };
         // Split differences are differences: at the solution too.
         let final_differences = p.differences_at_solution && threads < 2;
-        crate::fit::levenberg_marquardt_with(
+        fitkit::fit::levenberg_marquardt_with(
             &mut f,
             jac_fn.as_mut(),
             &x0,
             &lo,
             &hi,
             max_iter,
-            crate::fit::CONVERGED_REL,
+            fitkit::fit::CONVERGED_REL,
             final_differences,
         )
     };
@@ -259,7 +259,7 @@ struct SplitDifferences<'a, 'b> {
     cols: usize,
 }
 
-impl crate::fit::Jacobian for SplitDifferences<'_, '_> {
+impl fitkit::fit::Jacobian for SplitDifferences<'_, '_> {
     fn at(&mut self, x: &[f64], r: &[f64], jac: &mut DMatrix<f64>) -> bool {
         let (m, n) = (r.len(), x.len());
         if jac.nrows() != m || jac.ncols() != n {
@@ -273,7 +273,7 @@ impl crate::fit::Jacobian for SplitDifferences<'_, '_> {
             .collect();
         let (geom0, hi) = (self.geom0, self.hi);
         deal(twins, columns, |q, (j, col)| {
-            let h = crate::fit::difference_step(x[j], hi[j]);
+            let h = fitkit::fit::difference_step(x[j], hi[j]);
             let mut xp = x.to_vec();
             xp[j] += h;
             let rp = objective_at(q, true, geom0, &xp);
@@ -446,8 +446,8 @@ fn autocorrelation_inflation(p: &Problem, s: &Solved) -> f64 {
     let comps: Vec<Vec<f64>> = (0..3)
         .map(|c| r.iter().skip(c).step_by(3).copied().collect())
         .collect();
-    let rho = crate::residuals::lag1_autocorrelation(comps.iter().map(|v| v.as_slice()), 0.999);
-    crate::residuals::ar1_inflation(rho)
+    let rho = fitkit::noise::lag1_autocorrelation(comps.iter().map(|v| v.as_slice()), 0.999);
+    fitkit::noise::ar1_inflation(rho)
         .min(m as f64 / 10.0)
         .max(1.0)
 }
@@ -512,8 +512,8 @@ pub(super) fn correlations(cov: &DMatrix<f64>, g: usize) -> Vec<Vec<f64>> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibrate::params::{param_specs, robot_with};
-    use crate::calibrate::synth;
+    use crate::params::{param_specs, robot_with};
+    use crate::synth;
     use calib_core::odometry::Pose;
 
     /// A differential drive whose true scale, E_d and E_b are 1.02, 1.01 and 1.05,
@@ -592,7 +592,7 @@ mod tests {
             let hi = vec![f64::INFINITY; x.len()];
             let r = objective_at(&p, true, &geom, &x);
             let mut serial = DMatrix::zeros(0, 0);
-            crate::fit::forward_differences(
+            fitkit::fit::forward_differences(
                 &mut |x: &[f64]| objective_at(&p, true, &geom, x),
                 &x,
                 &r,
@@ -607,7 +607,7 @@ mod tests {
                 threads: 2,
                 cols: x.len(),
             };
-            assert!(crate::fit::Jacobian::at(&mut j, &x, &r, &mut split));
+            assert!(fitkit::fit::Jacobian::at(&mut j, &x, &r, &mut split));
             assert_eq!(serial.shape(), split.shape());
             assert!(serial.iter().any(|v| *v != 0.0));
             assert!(

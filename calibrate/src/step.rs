@@ -3,7 +3,7 @@
 //! robot's sides), computed once per geometry instead of once per row. The twists are the
 //! same, to the bit, as [`Kinematics::forward`] and the per-row side stepping give.
 
-use crate::calibrate::turn_law::{Sides, TurnLaw};
+use crate::turn_law::{Sides, TurnLaw};
 use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::robot::{Robot, RobotKind};
 

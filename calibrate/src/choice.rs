@@ -4,20 +4,20 @@
 //! and said with its figures ([`choose_specs`]). The fit a choice made on all the
 //! recordings goes to the driver ([`Prefit`]), which takes it over.
 
-use crate::calibrate::options::Cfg;
-use crate::calibrate::params::{
+use crate::options::Cfg;
+use crate::params::{
     accel_law_specs, alike_priors, is_mecanum, ladder, omni_turn_law_spec, param_specs,
     roller_specs, speed_law_specs, turn_law_specs, with_one_recording_radius_range, GeomKind,
     ParamSpec, ALIKE_ANGLE, ALIKE_SCALE,
 };
-use crate::calibrate::pool::pool_map;
-use crate::calibrate::problem::Problem;
-use crate::calibrate::result::LawTest;
-use crate::calibrate::series::{fitted_dead_reckoning_rmse, Series};
-use crate::calibrate::solve::{
+use crate::pool::pool_map;
+use crate::problem::Problem;
+use crate::result::LawTest;
+use crate::series::{fitted_dead_reckoning_rmse, Series};
+use crate::solve::{
     covariance, noise_scale, nuisance_start, refs, reweighed, solve, OneStep, Solved,
 };
-use crate::calibrate::turn_law::Turning;
+use crate::turn_law::Turning;
 use calib_core::robot::{Robot, RobotKind};
 use nalgebra::DMatrix;
 
@@ -574,7 +574,7 @@ pub const TURN_LAW_HOLDOUT_RATIO: f64 = 0.95;
 /// [`TURN_LAW_HOLDOUT_RATIO`] of the constant model's, one of its parameters is
 /// significant (3 sigma) on all the data and within its plausible range, and (speed and
 /// acceleration) the data tell it from the geometry (|correlation| at most
-/// [`CORR_LIMIT`](crate::calibrate::CORR_LIMIT)). Of those that qualify, the best held
+/// [`CORR_LIMIT`](crate::CORR_LIMIT)). Of those that qualify, the best held
 /// out, or the turn law when within [`LADDER_TOLERANCE`] of it (preferred on a tie: it
 /// carried better across months on the real robot). A negative acceleration term is a
 /// pose lead (poses stamped early), the logger's: a law that qualifies is chosen before
@@ -694,7 +694,7 @@ fn choose_turn_law(
             .map(|j| (fit.cov[(ia, j)] / (s_v * sd(j)).max(1e-300), j))
             .max_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
             .unwrap_or((0.0, ia));
-        let separable = *law == Law::Turn || corr.abs() <= crate::calibrate::CORR_LIMIT;
+        let separable = *law == Law::Turn || corr.abs() <= crate::CORR_LIMIT;
         if !separable {
             let record = if *law == Law::Speed {
                 "runs at several speeds"
@@ -965,7 +965,7 @@ struct OnTop {
     /// Significant (3 sigma), within its range, held out at most
     /// [`TURN_LAW_HOLDOUT_RATIO`] of the chosen model's error, and (but for a turn law)
     /// told from the other parameters (|correlation| at most
-    /// [`CORR_LIMIT`](crate::calibrate::CORR_LIMIT)).
+    /// [`CORR_LIMIT`](crate::CORR_LIMIT)).
     qualifies: bool,
 }
 
@@ -1008,7 +1008,7 @@ fn fit_on_top(
         && e[0].is_finite()
         && e[0] <= TURN_LAW_HOLDOUT_RATIO * e_chosen
         && (plausible.0..=plausible.1).contains(&value)
-        && (!separable || corr <= crate::calibrate::CORR_LIMIT);
+        && (!separable || corr <= crate::CORR_LIMIT);
     OnTop {
         specs,
         fit,
@@ -1171,7 +1171,7 @@ fn laws_on_lead(
 }
 
 /// E_b in `geom` (`specs` order), 1 when not fitted: the turn law's eb_arc over it is
-/// the law's relative size, [`TurnLaw::arc_rel`](crate::calibrate::TurnLaw).
+/// the law's relative size, [`TurnLaw::arc_rel`](crate::TurnLaw).
 fn eb_of(geom: &[f64], specs: &[ParamSpec]) -> f64 {
     specs
         .iter()
@@ -1225,9 +1225,9 @@ mod tests {
     /// the same rung the best.
     #[test]
     fn one_step_folds_hold_out_as_refitted_folds() {
-        use crate::calibrate::objective::DR_HEADING_LEVER_M;
-        use crate::calibrate::params::{ladder, robot_with};
-        use crate::calibrate::synth;
+        use crate::objective::DR_HEADING_LEVER_M;
+        use crate::params::{ladder, robot_with};
+        use crate::synth;
         use calib_core::odometry::Pose;
         let nominal = synth::robot("omni3");
         let specs = param_specs(&nominal, false);

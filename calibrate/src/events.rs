@@ -2,11 +2,11 @@
 //! ([`detect_events`]): a slip (the heading discrepancy between odometry and motion
 //! capture steps and stays) or a clock leading for a moment (it steps and comes back).
 //! They are reported and kept out of the fit. The [`Event`] record is
-//! [`series`](crate::calibrate::series)'s, since reading a recording reports glitches and
+//! [`series`](crate::series)'s, since reading a recording reports glitches and
 //! pose jumps as events too.
 
-use crate::calibrate::objective::HUBER_K;
-use crate::calibrate::series::{Anchor, Event, Path, Series};
+use crate::objective::HUBER_K;
+use crate::series::{Anchor, Event, Path, Series};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::Kinematics;
 use calib_core::robot::Robot;
@@ -133,7 +133,7 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
             mean_of(&dist_pre, b, b1) - mean_of(&dist_pre, a0, j),
         );
         transient[j] = (j..=b)
-            .map(|k| e[k] - m0 - (m1 - m0) * (t(k) - t(j)) / (t(b) - t(j)).max(crate::MIN_DT_S))
+            .map(|k| e[k] - m0 - (m1 - m0) * (t(k) - t(j)) / (t(b) - t(j)).max(fitkit::MIN_DT_S))
             .fold(0.0, |acc: f64, v| if v.abs() > acc.abs() { v } else { acc });
         turned[j] = (s.pth[b] - s.pth[j]).abs();
     }
@@ -348,7 +348,7 @@ fn coalesce(events: Vec<Found>) -> Vec<Found> {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibrate::synth;
+    use crate::synth;
     use calib_core::odometry::Pose;
     use rand::SeedableRng;
     use rand_chacha::ChaCha8Rng;

@@ -2,7 +2,7 @@
 //! not fitted to. Held-out error on other runs and other kinds of motion is what a user
 //! gets from a geometry; its in-sample fit is not. Each recording is dead-reckoned from its
 //! first measured pose with each robot file, and its position error is taken at every pose
-//! sample: the per-recording "dead reckoning" of [`calibrate`](crate::calibrate::calibrate)
+//! sample: the per-recording "dead reckoning" of [`calibrate`](crate::calibrate)
 //! and the measure OptiOdom's authors and issue 21's checks compare. A calibration's
 //! board factors ([`Candidate::board`]) are judged as the board applies them: through
 //! calib-core's odometry, laws included, not as the robot file that stands for them.
@@ -162,7 +162,7 @@ pub fn same_wheels(a: &Robot, b: &Robot) -> Result<(), String> {
 
 /// Dead-reckons every recording with every candidate (the first is the one judged, the
 /// others what it is compared with). Refuses, naming it, a recording calibrate could not
-/// replay (no encoders or poses, under [`MIN_POSES`](crate::calibrate::MIN_POSES) rows),
+/// replay (no encoders or poses, under [`MIN_POSES`](crate::MIN_POSES) rows),
 /// robots with other wheels than the first's ([`same_wheels`]), and board factors the
 /// board itself would refuse for its robot.
 pub fn evaluate(
@@ -293,7 +293,7 @@ impl std::fmt::Display for Evaluation {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibrate::synth;
+    use crate::synth;
     use calib_core::odometry::Pose;
 
     /// The robot with every wheel `k` times its radius.

@@ -2,12 +2,12 @@
 //! recordings), and the settings the driver derives from them ([`Cfg`]: objective, loss,
 //! lever arm, known turn law) that every problem of one calibration is given alike.
 
-use crate::calibrate::params::{GeomKind, ParamSpec};
-use crate::calibrate::problem::Problem;
-use crate::calibrate::series::PART_SEP;
-use crate::calibrate::turn_law::TurnLaw;
+use crate::params::{GeomKind, ParamSpec};
+use crate::problem::Problem;
+use crate::series::PART_SEP;
+use crate::turn_law::TurnLaw;
 
-/// Options of [`calibrate`](crate::calibrate::calibrate).
+/// Options of [`calibrate`](crate::calibrate).
 #[derive(Debug, Clone, Default)]
 pub struct CalOptions {
     /// Run leave-one-out cross-validation (when there are at least 2 recordings): the
@@ -25,7 +25,7 @@ pub struct CalOptions {
     /// Cross-validation: hold out whole runs, sessions or kinds of motion.
     pub cv: Option<CvBy>,
     /// Lever arm (m) of the heading residuals in the dead-reckoning objective (default
-    /// [`DR_HEADING_LEVER_M`](crate::calibrate::DR_HEADING_LEVER_M)).
+    /// [`DR_HEADING_LEVER_M`](crate::DR_HEADING_LEVER_M)).
     pub heading_lever_m: Option<f64>,
     /// A differential drive's known turn law, eb_arc / eb (the effective separation on
     /// arcs against a turn in place, [`calib_core::kinematics::turn_law_share`]), from an
@@ -52,10 +52,10 @@ pub struct CalOptions {
 }
 
 /// The parameters `--hold` may name, in a differential drive's or skid-steer robot's
-/// [`param_specs`](crate::calibrate::param_specs) order.
+/// [`param_specs`](crate::param_specs) order.
 pub const HOLDABLE: [&str; 3] = ["scale", "ed", "eb"];
 
-/// The families of an omni robot's ladder ([`ladder`](crate::calibrate::ladder)) that
+/// The families of an omni robot's ladder ([`ladder`](crate::ladder)) that
 /// `--hold` may name: the wheels' size (common scale and per-wheel radii), their
 /// distances from the centre (common and per wheel), their mounting angles, a mecanum
 /// robot's roller angle, and the wheels' centre.
@@ -229,8 +229,8 @@ impl Cfg {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibrate::ladder;
-    use crate::calibrate::synth::robot;
+    use crate::ladder;
+    use crate::synth::robot;
 
     /// The omni3's ladder with the distance and the centre held: the common-scale rung
     /// keeps its name, the rung that had only the distance names the distance alone, the

@@ -35,6 +35,7 @@ mod events;
 mod objective;
 mod options;
 mod params;
+pub mod plots;
 mod pool;
 mod problem;
 pub mod proxy;

@@ -3,10 +3,10 @@
 //! either aligned (start pose and clocks fitted: [`residuals_into`], with the
 //! nuisance's analytic Jacobian) or dead-reckoned from the measured pose at each anchor
 //! ([`dr_residuals_into`]); Huber's loss on them; their position RMSE. Below the joint
-//! problem so that the sensitivities ([`sens`](crate::calibrate::sens)) differentiate
+//! problem so that the sensitivities ([`sens`](crate::sens)) differentiate
 //! the same residuals.
 
-use crate::calibrate::series::{Anchor, Nuisance, Path, Series};
+use crate::series::{Anchor, Nuisance, Path, Series};
 use nalgebra::DMatrix;
 
 /// Unit of the position residuals (m): only scales the cost, uncertainties use the
@@ -24,7 +24,7 @@ pub(crate) const HEADING_LEVER_M: f64 = 0.1;
 /// squares (sim and real): [`CalOptions::heading_lever_m`] sets it (docs/calibrate.md,
 /// `--heading-lever`).
 ///
-/// [`CalOptions::heading_lever_m`]: crate::calibrate::CalOptions::heading_lever_m
+/// [`CalOptions::heading_lever_m`]: crate::CalOptions::heading_lever_m
 pub const DR_HEADING_LEVER_M: f64 = 0.1;
 
 /// Huber's loss on the Jacobian's data rows: d huber / dr is 1 within `c` and

@@ -6,7 +6,7 @@
 
 use calib_core::motion::{Direction, Program};
 use calib_core::robot::Robot;
-use diagnose::calibrate::{
+use calibrate::{
     calibrate, dead_reckoning_rmse, dead_reckoning_rmse_law, param_specs, robot_with, BoardFactors,
     CalOptions, Calibration, Factors, PlacedForLog, Series,
 };
@@ -249,7 +249,7 @@ fn mecanum() -> Robot {
 #[test]
 fn mecanum_roller_angle_is_fitted_when_the_data_ask() {
     let nominal = mecanum();
-    let specs = diagnose::calibrate::roller_specs(&nominal, false);
+    let specs = calibrate::roller_specs(&nominal, false);
     assert_eq!(specs.len(), 5, "four radii and one roller angle");
     let truth = [1.01, 0.99, 1.0, 1.005, 2f64.to_radians()];
     let ordered: Vec<f64> = specs
@@ -278,7 +278,7 @@ fn mecanum_roller_angle_is_fitted_when_the_data_ask() {
     assert_kept(&c, "per-wheel radii, angles and distances");
     assert!(c.per_recording[0].dead_reckoning_after_m < 2e-3, "{c}");
     // The report's series follow the model kept: their RMS is the fit's.
-    let series = diagnose::calibrate_plots::calibration_series(&c, &nominal, &recs, None).unwrap();
+    let series = calibrate::plots::calibration_series(&c, &nominal, &recs, None).unwrap();
     // Dead-reckoning objective: the series are dead-reckoned from the first pose.
     let (got, want) = (
         series[0].rms_fitted_m(),
@@ -384,9 +384,9 @@ fn mecanum_mounting_errors_keep_the_per_wheel_model() {
     assert!(!loose.is_empty(), "{c}");
     for p in loose {
         let alike = if p.spec.name.starts_with("alpha_offset") {
-            diagnose::calibrate::ALIKE_ANGLE
+            calibrate::ALIKE_ANGLE
         } else {
-            diagnose::calibrate::ALIKE_SCALE
+            calibrate::ALIKE_SCALE
         };
         let s = p
             .sigma_with_priors
@@ -659,31 +659,6 @@ fn another_robots_recording_is_refused_naming_the_file() {
     std::fs::remove_dir_all(&dir).ok();
 }
 
-#[test]
-fn diagnose_names_a_mean_wheel_scale() {
-    // Both tyres 1 % smaller than nominal: no ed (the ratio is 1), no eb; the catalogue's
-    // wheel_scale expresses it.
-    let nominal = robot("mobolab");
-    let effect = sim::Effect::parse(
-        "wheel_diameter_mismatch=radius_scale_left:0.99,radius_scale_right:0.99",
-    )
-    .unwrap();
-    let motion = Motion::Random(RandomMotion {
-        duration_s: 60.0,
-        ..RandomMotion::default()
-    });
-    let rec = record(&nominal, &[effect], Surface::flat(), &motion, &cfg(17))
-        .unwrap()
-        .recording;
-    let rep = diagnose::diagnose(&nominal, &rec, &diagnose::Options::default()).unwrap();
-    println!("{rep}");
-    assert_eq!(rep.verdict, "wheel_scale", "{rep}");
-    let scale = rep.findings[0].parameters["scale"];
-    // A tenth of the hidden 1 %.
-    assert!((scale - 0.99).abs() < 1e-3, "{scale}");
-    assert!(rep.implausible.is_empty());
-}
-
 /// The mobolab robot with scale 0.99, E_d 1.006 and E_b 1.03 (the nominal robot, the
 /// truth) driven around a clockwise and a counter-clockwise 1 m square (seeds 3 and 4),
 /// named `Cw` and `Ccw`: the clean recordings the event tests spoil.
@@ -891,7 +866,7 @@ fn free_runs(truth: &Robot, seed: u64) -> Vec<(String, Recording)> {
 }
 
 /// The fitted parameter `name` of `c` (a panic naming it, with the report, when absent).
-fn param<'a>(c: &'a Calibration, name: &str) -> &'a diagnose::calibrate::FittedParam {
+fn param<'a>(c: &'a Calibration, name: &str) -> &'a calibrate::FittedParam {
     c.params
         .iter()
         .find(|p| p.spec.name == name)

@@ -4,12 +4,12 @@
 
 use calib_core::motion::{Direction, Program};
 use calib_core::robot::Robot;
-use diagnose::calibrate::{calibrate, param_specs, robot_with, CalOptions, Calibration};
-use diagnose::calibrate_plots::{
+use calibrate::plots::{
     calibration_series, correlation_chart, correlation_figure_size, recording_error_chart,
     recording_path_chart, RecordingSeries, ERROR_FIGURE, PATH_FIGURE,
 };
-use diagnose::plots::register_font;
+use calibrate::{calibrate, param_specs, robot_with, CalOptions, Calibration};
+use fitkit::plot::register_font;
 use formats::recording::Recording;
 use plotters::prelude::*;
 use sim::{record, Motion, RecordConfig, Surface};
@@ -155,7 +155,7 @@ fn simulated_series_are_what_the_fit_compared() {
     }
 }
 
-fn assert_clear(what: &str, layout: &diagnose::plots::Layout, points: usize) {
+fn assert_clear(what: &str, layout: &fitkit::plot::Layout, points: usize) {
     assert_eq!(layout.data.len(), points, "{what}: data boxes");
     if let Err(e) = layout.check() {
         panic!("{what}: {e}");
@@ -208,7 +208,7 @@ fn no_legend_covers_data() {
                 .collect()
         })
         .collect();
-    big.inseparable = diagnose::calibrate::Inseparables(vec![diagnose::calibrate::Inseparable {
+    big.inseparable = calibrate::Inseparables(vec![calibrate::Inseparable {
         params: [
             big.params[0].spec.name.clone(),
             big.params[1].spec.name.clone(),

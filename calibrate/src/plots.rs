@@ -12,22 +12,20 @@
 //! `rmse_before_m` / `rmse_after_m`. A held-out recording is dead-reckoned
 //! from its first measured pose, as [`Heldout`]'s `rmse_before_m` / `rmse_after_m`.
 //!
-//! [`calibrate`]: crate::calibrate::calibrate
-//! [`Heldout`]: crate::calibrate::Heldout
+//! [`calibrate`]: crate::calibrate
+//! [`Heldout`]: crate::Heldout
 
-use crate::calibrate::{
+use crate::{
     residuals_into, robot_with, CalibrateError, Calibration, GeomKind, Nuisance, Path as DrPath,
     Series, RES_UNIT_M,
 };
-use crate::plots::{
-    draw_legend, esc, path_chart_titled, plot_box, split_for_legend, time_chart, Layout,
-    LegendMark, PixelBox, BLUE, ORANGE,
-};
-use crate::report::PlotData;
-use crate::Stage;
 use calib_core::correction::Corrections;
 use calib_core::kinematics::Kinematics;
 use calib_core::robot::Robot;
+use fitkit::plot::{
+    draw_legend, esc, path_chart_titled, plot_box, split_for_legend, time_chart, Layout,
+    LegendMark, Paths, PixelBox, BLUE, ORANGE,
+};
 use formats::recording::Recording;
 use plotters::coord::Shift;
 use plotters::prelude::*;
@@ -97,7 +95,7 @@ fn placed(
 }
 
 /// The start pose that dead-reckons `path` from the first measured pose (heading
-/// included), with the clocks as recorded: [`crate::calibrate::dead_reckoning_rmse`]'s
+/// included), with the clocks as recorded: [`crate::dead_reckoning_rmse`]'s
 /// placement in the fit's terms.
 fn from_first_pose(s: &Series, path: &DrPath) -> Nuisance {
     let k0 = s.pose_row[0];
@@ -232,12 +230,10 @@ pub fn recording_path_chart<DB: DrawingBackend>(
     s: &RecordingSeries,
     root: &DrawingArea<DB, Shift>,
 ) -> Result<Layout, String> {
-    let p = PlotData {
-        pose_t: s.t.clone(),
-        measured: s.measured.clone(),
-        nominal: s.nominal.clone(),
-        fitted: s.fitted.clone(),
-        ..PlotData::default()
+    let p = Paths {
+        measured: &s.measured,
+        nominal: &s.nominal,
+        fitted: &s.fitted,
     };
     let title = if s.heldout {
         format!("{} (held out): measured, nominal, fitted", s.name)
@@ -277,7 +273,6 @@ pub fn recording_error_chart<DB: DrawingBackend>(
         "position error (mm)",
         &s.t,
         &[(&en, ORANGE, &ln), (&ef, BLUE, &lf)],
-        Stage::Ground,
     )
 }
 
@@ -497,7 +492,7 @@ pub fn write_calibration_figures(
     summary: &str,
     dir: &Path,
 ) -> std::io::Result<Vec<String>> {
-    crate::plots::require_font()?;
+    fitkit::plot::require_font()?;
     std::fs::create_dir_all(dir)?;
     let mut files = Vec::new();
     let mut html = format!(

@@ -1,11 +1,11 @@
-//! What [`calibrate`](crate::calibrate::calibrate) returns ([`Calibration`]): the fitted
+//! What [`calibrate`](crate::calibrate) returns ([`Calibration`]): the fitted
 //! parameters with their uncertainty, each wheel's geometry, the firmware factors,
 //! per-recording and held-out errors, the pairs the data do not separate and the values
 //! outside their plausible range; its JSON layout and its text report.
 
-use crate::calibrate::params::{ParamSpec, MECANUM_MIN_GAMMA};
-use crate::calibrate::series::{Event, Nuisance};
-use crate::calibrate::turn_law::TurnLaw;
+use crate::params::{ParamSpec, MECANUM_MIN_GAMMA};
+use crate::series::{Event, Nuisance};
+use crate::turn_law::TurnLaw;
 use calib_core::robot::Robot;
 use serde::{Deserialize, Serialize};
 use std::fmt;
@@ -379,7 +379,7 @@ pub struct LawTest {
     pub kept: bool,
 }
 
-/// The result of [`calibrate`](crate::calibrate::calibrate).
+/// The result of [`calibrate`](crate::calibrate).
 #[derive(Debug, Clone, Serialize)]
 pub struct Calibration {
     /// The robot's name.
@@ -399,7 +399,7 @@ pub struct Calibration {
     pub cv_by: Option<&'static str>,
     /// The recordings' names, in the order given.
     pub recordings: Vec<String>,
-    /// The fitted geometry parameters (in [`param_specs`](crate::calibrate::param_specs) order), each with its
+    /// The fitted geometry parameters (in [`param_specs`](crate::param_specs) order), each with its
     /// description (which model was kept).
     pub params: Vec<FittedParam>,
     /// The fitted geometry as firmware correction factors.
@@ -441,7 +441,7 @@ pub struct Calibration {
     /// the recordings are too few): each with its fit and held-out figures.
     pub law_tests: Vec<LawTest>,
     /// With a turn law: the fitted robot with the separation of a turn in place, which
-    /// the law widens on arcs ([`dead_reckoning_rmse_law`](crate::calibrate::dead_reckoning_rmse_law)); else `fitted_robot`.
+    /// the law widens on arcs ([`dead_reckoning_rmse_law`](crate::dead_reckoning_rmse_law)); else `fitted_robot`.
     #[serde(skip)]
     pub law_base_robot: Robot,
     /// What `--e-b-for` placed in the robot file and ROS 2 (its notes give the values).
@@ -701,12 +701,12 @@ impl fmt::Display for Calibration {
                 if b.laws.speed_rel == 0.0 {
                     String::new()
                 } else if self.placed_for_log.wheel_size {
-                    format!("c_L and c_R {}, ", crate::calibrate::E_B_FOR)
+                    format!("c_L and c_R {}, ", crate::E_B_FOR)
                 } else {
                     "c_L and c_R at the recordings' mean speed, ".into()
                 },
                 if self.placed_for_log.e_b {
-                    crate::calibrate::E_B_FOR
+                    crate::E_B_FOR
                 } else {
                     "at the recordings' mean turn"
                 }
@@ -858,7 +858,7 @@ impl fmt::Display for Calibration {
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibrate::params::GeomKind;
+    use crate::params::GeomKind;
 
     fn event(rec: &str, kind: &'static str, t_s: f64, heading_rad: f64) -> Event {
         Event {

@@ -10,7 +10,7 @@
 //!
 //!     cargo run --release -p diagnose --example laws_across_sessions [-- --sessions DIR]
 
-use diagnose::calibrate::proxy;
+use calibrate::proxy;
 use std::path::PathBuf;
 
 fn main() {

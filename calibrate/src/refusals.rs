@@ -4,10 +4,10 @@
 //! ([`refuse_bad_fit`]: a recording made several times worse than nominal, an
 //! uncertainty zero or infinite).
 
-use crate::calibrate::error::CalibrateError;
-use crate::calibrate::options::CalOptions;
-use crate::calibrate::params::{GeomKind, ParamSpec, DIFF_EB_ARC_RANGE};
-use crate::calibrate::result::PerRecording;
+use crate::error::CalibrateError;
+use crate::options::CalOptions;
+use crate::params::{GeomKind, ParamSpec, DIFF_EB_ARC_RANGE};
+use crate::result::PerRecording;
 use calib_core::robot::{Robot, RobotKind};
 use formats::recording::Recording;
 use nalgebra::DMatrix;
@@ -139,8 +139,8 @@ pub(super) fn refuse_bad_fit(
 /// skid-steer robot, [`OMNI_HOLDABLE`] for an omni robot), each a family the robot's
 /// models have, and something left to fit.
 fn hold_refusal(robot: &Robot, opts: &CalOptions) -> Result<(), CalibrateError> {
-    use crate::calibrate::options::Held;
-    use crate::calibrate::{ladder, HOLDABLE, OMNI_HOLDABLE};
+    use crate::options::Held;
+    use crate::{ladder, HOLDABLE, OMNI_HOLDABLE};
     let refuse = |message: String| {
         Err(CalibrateError {
             recording: None,
@@ -197,9 +197,9 @@ fn hold_refusal(robot: &Robot, opts: &CalOptions) -> Result<(), CalibrateError> 
 #[cfg(test)]
 mod tests {
     use super::*;
-    use crate::calibrate::params::param_specs;
-    use crate::calibrate::series::Nuisance;
-    use crate::calibrate::synth;
+    use crate::params::param_specs;
+    use crate::series::Nuisance;
+    use crate::synth;
 
     fn per(name: &str, before: f64, after: f64) -> PerRecording {
         let nu = Nuisance {

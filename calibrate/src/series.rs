@@ -5,19 +5,19 @@
 //! per-recording start pose and clocks ([`Nuisance`]) and the dead-reckoning errors a
 //! user gets from a geometry ([`dead_reckoning_rmse`]).
 
-use crate::calibrate::error::CalibrateError;
-use crate::calibrate::params::{robot_with, ParamSpec};
-use crate::calibrate::step::{self, Stepper};
-use crate::calibrate::turn_law::{
+use crate::error::CalibrateError;
+use crate::params::{robot_with, ParamSpec};
+use crate::step::{self, Stepper};
+use crate::turn_law::{
     median_step, omni_turn_ratio, turn_ratio, SideMotion, Sides, TurnLaw, Turning, ARC_RHO,
 };
-use crate::replay::unwrap_angles;
 use calib_core::correction::Corrections;
 use calib_core::diff_laws::DiffLawOdometry;
 use calib_core::kinematics::Kinematics;
 use calib_core::odometry::{integrate_arc, Odometry, Pose};
 use calib_core::omni_laws::OmniLawOdometry;
 use calib_core::robot::{Robot, RobotKind};
+use fitkit::series::unwrap_angles;
 use formats::recording::Recording;
 use serde::Serialize;
 
@@ -136,7 +136,7 @@ impl Series {
                     w.name
                 ))
             })?;
-            let counts = crate::replay::fill(cells)
+            let counts = fitkit::series::fill(cells)
                 .ok_or_else(|| err(format!("the encoder column of wheel '{}' is empty", w.name)))?;
             let c0 = counts[0];
             angles.push(
@@ -239,7 +239,7 @@ impl Series {
                 let cells = col.as_ref().ok_or_else(|| {
                     err(format!("no {which} leg angle column (a wheeled-legged robot's wheels move with its legs)"))
                 })?;
-                crate::replay::fill(cells)
+                fitkit::series::fill(cells)
                     .ok_or_else(|| err(format!("the {which} leg angle column is empty")))
             };
             let (f, r) = (fill(&rec.leg_front, "front")?, fill(&rec.leg_rear, "rear")?);
@@ -403,7 +403,7 @@ impl Series {
     /// The recording cut at its pose jumps: each part has its own start (an anchor in
     /// the dead-reckoning objective, a fitted start pose with `--free-start`). The rows
     /// between a jump's two pose samples belong to neither. Parts after the first are
-    /// named `<name>#2`, `<name>#3`... ([`CvBy::group`](crate::calibrate::CvBy::group) keeps them with the first); a part
+    /// named `<name>#2`, `<name>#3`... ([`CvBy::group`](crate::CvBy::group) keeps them with the first); a part
     /// with fewer than [`MIN_POSES`] pose samples is dropped.
     pub(crate) fn split_at_jumps(self, robot: &Robot) -> Vec<Series> {
         if self.jumps.is_empty() {
@@ -589,7 +589,7 @@ impl Series {
                 .as_ref()
                 .is_none_or(|(a, _)| (a.0 - l.0).abs() > 1e-6 || (a.1 - l.1).abs() > 1e-6)
             {
-                let r = crate::ground::geometry_at(robot, &[], 1.0, Some(l));
+                let r = fitkit::geometry::geometry_at(robot, &[], 1.0, Some(l));
                 let Ok(kl) = Kinematics::<f64>::new(&r, &Corrections::None) else {
                     return false;
                 };
@@ -610,7 +610,7 @@ pub(crate) struct Anchor {
     pub(crate) sample: usize,
     /// The body pose (x, y, theta) dead reckoning restarts from: the measured one at the
     /// first sample (motion capture in the robot's start frame), an estimate from the
-    /// samples after a slip ([`detect_events`](crate::calibrate::events)).
+    /// samples after a slip ([`detect_events`](crate::events)).
     pub(crate) pose: [f64; 3],
 }
 
@@ -683,7 +683,7 @@ pub fn dead_reckoning_rmse(robot: &Robot, s: &Series) -> Option<f64> {
 }
 
 /// [`dead_reckoning_rmse`] of a robot whose separation follows `law` (its `robot` the
-/// separation of a turn in place: [`Calibration::law_base_robot`](crate::calibrate::Calibration::law_base_robot)).
+/// separation of a turn in place: [`Calibration::law_base_robot`](crate::Calibration::law_base_robot)).
 pub fn dead_reckoning_rmse_law(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<f64> {
     dead_reckoning_errors(robot, law, s).map(|(rms, _)| rms)
 }
@@ -823,13 +823,13 @@ mod tests {
     /// A recording too short to calibrate is refused, naming it and the least it needs.
     #[test]
     fn a_recording_shorter_than_min_poses_is_refused_by_name() {
-        let robot = crate::calibrate::synth::robot("mobolab");
-        let rec = crate::calibrate::synth::recording(
+        let robot = crate::synth::robot("mobolab");
+        let rec = crate::synth::recording(
             &robot,
             MIN_POSES - 1,
             50.0,
             Pose::new(0.0, 0.0, 0.0),
-            crate::calibrate::synth::wander(&robot),
+            crate::synth::wander(&robot),
         );
         let e = Series::new("short", &robot, &rec).unwrap_err();
         assert_eq!(e.recording.as_deref(), Some("short"));
@@ -837,12 +837,12 @@ mod tests {
             e.message.contains(&format!("at least {MIN_POSES} rows")),
             "{e}"
         );
-        let rec = crate::calibrate::synth::recording(
+        let rec = crate::synth::recording(
             &robot,
             MIN_POSES,
             50.0,
             Pose::new(0.0, 0.0, 0.0),
-            crate::calibrate::synth::wander(&robot),
+            crate::synth::wander(&robot),
         );
         let s = Series::new("long enough", &robot, &rec).unwrap();
         assert_eq!(s.pose_samples(), MIN_POSES);

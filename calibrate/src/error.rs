@@ -1,5 +1,5 @@
 //! Why calibration cannot run ([`CalibrateError`]). Kept at the bottom of calibrate's
-//! modules: reading a recording ([`Series::new`](crate::calibrate::Series::new)) refuses
+//! modules: reading a recording ([`Series::new`](crate::Series::new)) refuses
 //! with it as the checks before and after the fit do.
 
 use std::fmt;

@@ -1,20 +1,20 @@
 //! The joint problem ([`Problem`]): the geometry shared by the recordings, a start pose
 //! and clocks per recording, a weak prior at nominal (and alike wheels held alike). It
-//! evaluates the [`objective`](crate::calibrate::objective)'s residuals over all the
+//! evaluates the [`objective`](crate::objective)'s residuals over all the
 //! recordings (in parallel), keeps the paths of the last geometry, and gives the analytic
 //! Jacobians: the geometry's from the paths' sensitivities ([`sens`]) when
 //! dead-reckoning; those and the nuisance's when aligning.
 
-use crate::calibrate::objective::{
+use crate::objective::{
     dr_residuals_into, huber_rows, nuisance_jacobian_into, residuals_into, PathAt,
     DR_HEADING_LEVER_M,
 };
-use crate::calibrate::params::{alike_priors, robot_with, GeomKind, ParamSpec};
-use crate::calibrate::pool::{par_jobs, threads_for};
-use crate::calibrate::sens::{self, ColumnSlab};
-use crate::calibrate::series::{Nuisance, Path, Series, NUIS};
-use crate::calibrate::step::Stepper;
-use crate::calibrate::turn_law::TurnLaw;
+use crate::params::{alike_priors, robot_with, GeomKind, ParamSpec};
+use crate::pool::{par_jobs, threads_for};
+use crate::sens::{self, ColumnSlab};
+use crate::series::{Nuisance, Path, Series, NUIS};
+use crate::step::Stepper;
+use crate::turn_law::TurnLaw;
 use calib_core::correction::Corrections;
 use calib_core::kinematics::Kinematics;
 use calib_core::robot::{Robot, RobotKind};
