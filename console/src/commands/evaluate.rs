@@ -128,19 +128,7 @@ pub fn dead_reckoning(c: &Candidate, rec: &Recording) -> Option<Vec<Stamped>> {
     // Counts per wheel, missing cells carrying the last (the first known before it).
     let mut counts: Vec<Vec<i64>> = Vec::with_capacity(n);
     for w in &rec.wheels {
-        let cells = w.enc.as_ref()?;
-        let mut last = cells.iter().find_map(|c| *c)?;
-        counts.push(
-            cells
-                .iter()
-                .map(|c| {
-                    if let Some(v) = c {
-                        last = *v;
-                    }
-                    last
-                })
-                .collect(),
-        );
+        counts.push(fitkit::series::fill(w.enc.as_ref()?)?);
     }
     let mut rows = rec.pose_rows().peekable();
     let &(k0, x0, y0, th0) = rows.peek()?;
