@@ -1,9 +1,9 @@
 //! Issue 21's held-out proxy on `shared/real/sessions/`: `calibrate` trained on each
 //! square session of the differential robot, its geometry dead-reckoned on the circles and
 //! Ivanjko paths of the nearest day, against the OptiOdom authors' parameters from the same
-//! session (see `calibrate::proxy`). Prints a markdown table (docs/calibrate.md's).
+//! session (see `tests/support/proxy.rs`). Prints a markdown table (docs/calibrate.md's).
 //!
-//!     cargo run --release -p diagnose --example heldout_proxy [-- OPTIONS]
+//!     cargo run --release -p calibrate --example heldout_proxy [-- OPTIONS]
 //!
 //! Options: `--robot diff|omni3|omni4` (default diff; omni3 trains on its two square
 //! sessions and tests on the 44 circles of the same day, against `omni3-sousa`; omni4, the
@@ -41,7 +41,10 @@
 //! dead-reckoned from its first pose, every pose sample: the mean change over the runs
 //! and its standard error), to show how well the squares pin E_b.
 
-use calibrate::{calibrate, dead_reckoning_rmse_law, proxy, CalOptions, Series};
+#[path = "../tests/support/proxy.rs"]
+mod proxy;
+
+use calibrate::{calibrate, dead_reckoning_rmse_law, CalOptions, Series};
 use std::path::PathBuf;
 
 fn main() {

@@ -8,9 +8,10 @@
 //! (applying its law, as a board that stores it would). Prints a markdown table (mean
 //! RMS per session, mm) and the geometric mean of each over no law.
 //!
-//!     cargo run --release -p diagnose --example laws_across_sessions [-- --sessions DIR]
+//!     cargo run --release -p calibrate --example laws_across_sessions [-- --sessions DIR]
 
-use calibrate::proxy;
+#[path = "../tests/support/proxy.rs"]
+mod proxy;
 use std::path::PathBuf;
 
 fn main() {

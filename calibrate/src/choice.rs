@@ -21,6 +21,9 @@ use crate::turn_law::Turning;
 use calib_core::robot::{Robot, RobotKind};
 use nalgebra::DMatrix;
 
+/// |correlation| above which two parameters are reported not separable.
+pub const CORR_LIMIT: f64 = 0.95;
+
 /// One joint fit of `specs` from nominal (nuisance first, then geometry with the prior
 /// weighed by the data): the fit, its residual variance x autocorrelation inflation, and
 /// its covariance (when `cov`, else empty: the fit's Jacobian is then the analytic one).
@@ -574,7 +577,7 @@ pub const TURN_LAW_HOLDOUT_RATIO: f64 = 0.95;
 /// [`TURN_LAW_HOLDOUT_RATIO`] of the constant model's, one of its parameters is
 /// significant (3 sigma) on all the data and within its plausible range, and (speed and
 /// acceleration) the data tell it from the geometry (|correlation| at most
-/// [`CORR_LIMIT`](crate::CORR_LIMIT)). Of those that qualify, the best held
+/// [`CORR_LIMIT`](CORR_LIMIT)). Of those that qualify, the best held
 /// out, or the turn law when within [`LADDER_TOLERANCE`] of it (preferred on a tie: it
 /// carried better across months on the real robot). A negative acceleration term is a
 /// pose lead (poses stamped early), the logger's: a law that qualifies is chosen before
@@ -694,7 +697,7 @@ fn choose_turn_law(
             .map(|j| (fit.cov[(ia, j)] / (s_v * sd(j)).max(1e-300), j))
             .max_by(|a, b| a.0.abs().total_cmp(&b.0.abs()))
             .unwrap_or((0.0, ia));
-        let separable = *law == Law::Turn || corr.abs() <= crate::CORR_LIMIT;
+        let separable = *law == Law::Turn || corr.abs() <= CORR_LIMIT;
         if !separable {
             let record = if *law == Law::Speed {
                 "runs at several speeds"
@@ -965,7 +968,7 @@ struct OnTop {
     /// Significant (3 sigma), within its range, held out at most
     /// [`TURN_LAW_HOLDOUT_RATIO`] of the chosen model's error, and (but for a turn law)
     /// told from the other parameters (|correlation| at most
-    /// [`CORR_LIMIT`](crate::CORR_LIMIT)).
+    /// [`CORR_LIMIT`](CORR_LIMIT)).
     qualifies: bool,
 }
 
@@ -1008,7 +1011,7 @@ fn fit_on_top(
         && e[0].is_finite()
         && e[0] <= TURN_LAW_HOLDOUT_RATIO * e_chosen
         && (plausible.0..=plausible.1).contains(&value)
-        && (!separable || corr <= crate::CORR_LIMIT);
+        && (!separable || corr <= CORR_LIMIT);
     OnTop {
         specs,
         fit,

@@ -24,8 +24,9 @@
 //! minimises), `sens` (the paths' sensitivities to the geometry), `pool` (threads),
 //! `problem` (the joint problem), `solve` (the fit and its covariance), `events` (slips
 //! and clock leads), `options` (what the caller chooses), `result` (what calibration
-//! returns), `refusals` (what it will not answer), `choice` (which parameters to fit),
-//! `proxy` (the held-out proxy on the real sessions). This file is the driver,
+//! returns), `refusals` (what it will not answer), `choice` (which parameters to fit).
+//! The held-out proxy on the real sessions is an evaluation harness, kept with the tests
+//! (`tests/support/proxy.rs`). This file is the driver,
 //! [`calibrate`], which runs them in order.
 
 mod choice;
@@ -38,7 +39,6 @@ mod params;
 pub mod plots;
 mod pool;
 mod problem;
-pub mod proxy;
 mod refusals;
 mod result;
 mod sens;
@@ -50,7 +50,9 @@ mod step;
 mod synth;
 mod turn_law;
 
-pub use choice::{LADDER_FOLDS, LADDER_TOLERANCE, MIN_ARC_SHARE, TURN_LAW_HOLDOUT_RATIO};
+pub use choice::{
+    CORR_LIMIT, LADDER_FOLDS, LADDER_TOLERANCE, MIN_ARC_SHARE, TURN_LAW_HOLDOUT_RATIO,
+};
 pub use error::CalibrateError;
 pub use evaluate::{
     evaluate, same_wheels, Candidate, Evaluation, RecordingErrors, RobotSummary, Spread,
@@ -58,7 +60,7 @@ pub use evaluate::{
 pub use events::{
     EVENT_GUARD_S, EVENT_MIN_RAD, EVENT_PER_TURN, EVENT_SIGMAS, EVENT_TRANSIENT_RAD, EVENT_WINDOW_S,
 };
-pub(crate) use objective::{residuals_into, RES_UNIT_M};
+use objective::RES_UNIT_M;
 pub use objective::{DR_HEADING_LEVER_M, HUBER_K};
 pub use options::{CalOptions, CvBy, HOLDABLE, OMNI_HOLDABLE};
 pub use params::{
@@ -96,14 +98,13 @@ use params::advice;
 use pool::pool_map;
 use problem::Problem;
 use refusals::{check_inputs, refuse_bad_fit};
+use result::E_B_FOR;
 use series::NUIS;
 use solve::{
     aligned_rmse, correlations, covariance, noise_scale, nuisance_start, posterior_covariance,
     refs, reweighed, solve, solve_iter, OneStep, Solved,
 };
 
-/// |correlation| above which two parameters are reported not separable.
-pub const CORR_LIMIT: f64 = 0.95;
 /// Two parameters correlated above this whose uncertainty exceeds their value (and
 /// [`MATERIAL_SHARE`] of the plausible half-range) are reported not separable too.
 pub const WEAK_CORR: f64 = 0.5;
@@ -828,8 +829,6 @@ fn sideways_note(nominal: &Robot, fitted: &Robot) -> Option<String> {
 const MEAN_TURN: &str = "at the recordings' mean turn";
 /// Where a speed law's one wheel size sits by default, in the notes' words.
 const MEAN_SPEED: &str = "at the recordings' mean speed";
-/// The same with `--e-b-for`.
-pub(crate) const E_B_FOR: &str = "for --e-b-for's driving";
 
 /// `--e-b-for`'s recordings as series of their encoders alone (their poses, if any, are
 /// not read: the closest constant E_b compares two dead reckonings).

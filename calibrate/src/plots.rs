@@ -15,10 +15,11 @@
 //! [`calibrate`]: crate::calibrate
 //! [`Heldout`]: crate::Heldout
 
-use crate::{
-    residuals_into, robot_with, CalibrateError, Calibration, GeomKind, Nuisance, Path as DrPath,
-    Series, RES_UNIT_M,
-};
+use crate::error::CalibrateError;
+use crate::objective::{residuals_into, RES_UNIT_M};
+use crate::params::{robot_with, GeomKind};
+use crate::result::Calibration;
+use crate::series::{Nuisance, Path as DrPath, Series};
 use calib_core::correction::Corrections;
 use calib_core::kinematics::Kinematics;
 use calib_core::robot::Robot;

@@ -140,7 +140,8 @@ pub(super) fn refuse_bad_fit(
 /// models have, and something left to fit.
 fn hold_refusal(robot: &Robot, opts: &CalOptions) -> Result<(), CalibrateError> {
     use crate::options::Held;
-    use crate::{ladder, HOLDABLE, OMNI_HOLDABLE};
+    use crate::options::{HOLDABLE, OMNI_HOLDABLE};
+    use crate::params::ladder;
     let refuse = |message: String| {
         Err(CalibrateError {
             recording: None,

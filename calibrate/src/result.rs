@@ -10,6 +10,9 @@ use calib_core::robot::Robot;
 use serde::{Deserialize, Serialize};
 use std::fmt;
 
+/// Where a law's one geometry sits with `--e-b-for`, in the notes' words.
+pub(crate) const E_B_FOR: &str = "for --e-b-for's driving";
+
 /// One fitted geometry parameter.
 #[derive(Debug, Clone, Serialize)]
 pub struct FittedParam {
@@ -701,12 +704,12 @@ impl fmt::Display for Calibration {
                 if b.laws.speed_rel == 0.0 {
                     String::new()
                 } else if self.placed_for_log.wheel_size {
-                    format!("c_L and c_R {}, ", crate::E_B_FOR)
+                    format!("c_L and c_R {}, ", E_B_FOR)
                 } else {
                     "c_L and c_R at the recordings' mean speed, ".into()
                 },
                 if self.placed_for_log.e_b {
-                    crate::E_B_FOR
+                    E_B_FOR
                 } else {
                     "at the recordings' mean turn"
                 }

@@ -1,4 +1,4 @@
-//! Issue 21's held-out proxy on `shared/real/sessions/` (see `calibrate::proxy`):
+//! Issue 21's held-out proxy on the OptiOdom sessions (see `tests/support/proxy.rs`):
 //! the geometry `calibrate` fits on a square session, dead-reckoned from the first row on
 //! the circles and Ivanjko paths of the nearest day, against the OptiOdom authors'
 //! parameters from the same session. Goal: no session above the authors
@@ -8,7 +8,10 @@
 //! 1.112, worst 1.259. With the dead-reckoning objective and events kept out: 1.003, worst
 //! 1.068 (the ignored whole-proxy test fails: the goal is not met).
 
-use calibrate::{calibrate, proxy, CalOptions, TurnLaw};
+#[path = "support/proxy.rs"]
+mod proxy;
+
+use calibrate::{calibrate, CalOptions, TurnLaw};
 use std::path::PathBuf;
 
 /// The OptiOdom sessions ([`testdata::sessions_dir`]): every test here is `#[ignore]`d

@@ -333,10 +333,12 @@ fn no_module_circle_and_no_new_upward_import_in_any_crate() {
     );
     println!("{} upward imports:\n{}", upward.len(), upward.join("\n"));
     // Issue 54's goal is none. Measured when this check was written (calibrate split out,
-    // MIN_DT_S and the solver moved to fitkit): 72, mostly children importing their
-    // crate root's re-exports (`crate::Series` for `crate::series::Series`) and diagnose's
-    // verdict constants defined in its lib.rs. The count may only fall.
-    const UPWARD_NOW: usize = 72;
+    // MIN_DT_S and the solver moved to fitkit): 72; 53 once calibrate's children named
+    // the modules they import from and its proxy left the library. What is left: mostly
+    // children importing their crate root's re-exports (diagnose's verdict constants are
+    // defined in its lib.rs), and calibrate's turn_law -> crate::Series, which hides a
+    // circle (turn_law -> series -> step -> turn_law). The count may only fall.
+    const UPWARD_NOW: usize = 53;
     assert!(
         upward.len() <= UPWARD_NOW,
         "{} upward imports (at most {UPWARD_NOW}):\n{}",

@@ -1,4 +1,4 @@
-//! The held-out proxy on `shared/real/sessions/` (the OptiOdom dataset): train
+//! The held-out proxy on the OptiOdom sessions (`WHEELCAL_SESSIONS`): train
 //! on one square session of a robot, dead-reckon the circular and Ivanjko runs of the same
 //! robot on the nearest day from their first row, and compare with the OptiOdom authors'
 //! parameters fitted on the same training session, on the same runs.
@@ -11,11 +11,13 @@
 //! Metric: dead reckoning from the first row (motion capture is in the robot's start
 //! frame, the first pose is exactly (0, 0, 0)), RMS position error over every pose sample
 //! of a run ([`dead_reckoning_rmse`]).
+//!
+//! An evaluation harness, not part of the library: `tests/heldout_proxy.rs` and the
+//! examples include it (`#[path]`), each using part of it.
+#![allow(dead_code)]
 
-use crate::evaluate::Spread;
-use crate::series::{dead_reckoning_rmse, dead_reckoning_rmse_law, Series};
-use crate::turn_law::TurnLaw;
 use calib_core::robot::Robot;
+use calibrate::{dead_reckoning_rmse, dead_reckoning_rmse_law, Series, Spread, TurnLaw};
 use formats::recording::Recording;
 use serde::Serialize;
 use std::collections::BTreeMap;
@@ -453,7 +455,7 @@ pub struct LawFold {
 /// first row, applying its law. The evidence across sessions for choosing between the
 /// two rival laws (`examples/laws_across_sessions.rs` prints it).
 pub fn laws_across_sessions(dir: &Path) -> Result<Vec<LawFold>, String> {
-    use crate::{calibrate, CalOptions, Calibration};
+    use calibrate::{calibrate, CalOptions, Calibration};
     let mut out = Vec::new();
     for month in ["06", "12"] {
         let (robot, recs) = month_runs(dir, "diff", month)?;
