@@ -38,6 +38,23 @@ pub struct ActuatorParams {
     pub droop_rad_s: Option<f64>,
 }
 
+impl ActuatorParams {
+    /// These parameters for wheel `i` (its index in the robot): the model's per-wheel
+    /// mechanisms (play, lag, delay, acceleration limit, dead band) set that wheel's own
+    /// value.
+    pub fn for_wheel(self, m: &Model, i: usize) -> Self {
+        let own = |e: Effect| m.get(e).and_then(|v| v.get(i)).copied();
+        ActuatorParams {
+            backlash_rad: own(Effect::BacklashPerWheel).or(self.backlash_rad),
+            tau_s: own(Effect::LagPerWheel).or(self.tau_s),
+            delay_s: own(Effect::DelayPerWheel).or(self.delay_s),
+            max_accel_rad_s2: own(Effect::SlewPerWheel).or(self.max_accel_rad_s2),
+            deadband_rad_s: own(Effect::DeadBandPerWheel).or(self.deadband_rad_s),
+            ..self
+        }
+    }
+}
+
 /// A stalled stepper re-locks when the command is back near rest (rad/s).
 pub const STALL_RELEASE_RAD_S: f64 = 0.2;
 

@@ -94,6 +94,14 @@ pub enum Effect {
     /// Coulomb friction against a velocity loop of finite gain: every command
     /// loses `droop_rad_s` in its sign, |w| = max(|cmd| - droop, 0).
     FrictionDroop,
+    /// motor_lag: each wheel's own time constant (`tau_s_<wheel>`).
+    LagPerWheel,
+    /// motor_lag: each wheel's own transport delay (`delay_s_<wheel>`).
+    DelayPerWheel,
+    /// motor_lag: each wheel's own acceleration limit (`slew_rad_s2_<wheel>`).
+    SlewPerWheel,
+    /// coulomb_friction: each wheel's own dead band (`deadband_rad_s_<wheel>`).
+    DeadBandPerWheel,
     /// One omni wheel (by index) mounted at an angle off its nominal `alpha` by
     /// `alpha_offset_rad`: the geometry's one-parameter alternative to every radius.
     WheelAngle(u8),
@@ -161,7 +169,7 @@ impl ParamSpec {
 
 impl Effect {
     /// Every effect: the catalogue's own first, then the mechanism variants.
-    pub const ALL: [Effect; 22] = [
+    pub const ALL: [Effect; 26] = [
         Effect::WheelDiameterMismatch,
         Effect::WheelbaseError,
         Effect::LongitudinalSlip,
@@ -184,6 +192,10 @@ impl Effect {
         Effect::LagSlew,
         Effect::FrictionDroop,
         Effect::SlipPerWheel,
+        Effect::LagPerWheel,
+        Effect::DelayPerWheel,
+        Effect::SlewPerWheel,
+        Effect::DeadBandPerWheel,
     ];
 
     /// The catalogue effect this is a mechanism of (itself for the catalogue's own).
@@ -194,8 +206,12 @@ impl Effect {
             Effect::BumpsRegion => Effect::FloorBumps,
             Effect::BacklashAsymmetric | Effect::BacklashPerWheel => Effect::Backlash,
             Effect::MissedQuanta | Effect::MissedStall => Effect::MissedSteps,
-            Effect::LagDelay | Effect::LagSlew => Effect::MotorLag,
-            Effect::FrictionDroop => Effect::CoulombFriction,
+            Effect::LagDelay
+            | Effect::LagSlew
+            | Effect::LagPerWheel
+            | Effect::DelayPerWheel
+            | Effect::SlewPerWheel => Effect::MotorLag,
+            Effect::FrictionDroop | Effect::DeadBandPerWheel => Effect::CoulombFriction,
             // A single omni wheel's mounting: another way the geometry is off.
             Effect::WheelAngle(_) | Effect::WheelPosition(_) => Effect::WheelDiameterMismatch,
             e => e,
@@ -231,6 +247,10 @@ impl Effect {
             Effect::LagDelay => c::MECH_DELAY.0,
             Effect::LagSlew => c::MECH_SLEW.0,
             Effect::FrictionDroop => c::MECH_DROOP.0,
+            Effect::LagPerWheel => c::MECH_FIRST_ORDER_PER_WHEEL.0,
+            Effect::DelayPerWheel => c::MECH_DELAY_PER_WHEEL.0,
+            Effect::SlewPerWheel => c::MECH_SLEW_PER_WHEEL.0,
+            Effect::DeadBandPerWheel => c::MECH_DEAD_BAND_PER_WHEEL.0,
         }
     }
 
@@ -267,6 +287,14 @@ impl Effect {
     /// The parameters fitted for this robot, catalogue names first.
     pub fn params(self, robot: &Robot) -> Vec<ParamSpec> {
         use Scale::*;
+        // One log-scaled copy of a parameter per wheel (`<name>_<wheel>`).
+        let per_wheel = |name: &str, null: f64, min: f64, max: f64| -> Vec<ParamSpec> {
+            robot
+                .wheels
+                .iter()
+                .map(|w| ParamSpec::new(&format!("{name}_{}", w.name), Log, null, min, max))
+                .collect()
+        };
         match self {
             Effect::WheelDiameterMismatch => {
                 if robot.kind == RobotKind::DiffDrive {
@@ -340,6 +368,10 @@ impl Effect {
             Effect::LagDelay => vec![ParamSpec::new("tau_s", Log, 1e-9, 1e-4, 2.0)],
             Effect::LagSlew => vec![ParamSpec::new("slew_rad_s2", Log, 1e9, 0.05, 1e4)],
             Effect::FrictionDroop => vec![ParamSpec::new("droop_rad_s", Log, 1e-9, 1e-3, 50.0)],
+            Effect::LagPerWheel => per_wheel("tau_s", 1e-9, 1e-4, 5.0),
+            Effect::DelayPerWheel => per_wheel("delay_s", 1e-9, 1e-4, 2.0),
+            Effect::SlewPerWheel => per_wheel("slew_rad_s2", 1e9, 0.05, 1e4),
+            Effect::DeadBandPerWheel => per_wheel("deadband_rad_s", 1e-9, 1e-3, 50.0),
             Effect::WheelAngle(i) => {
                 let name = robot.wheels.get(i as usize).map_or("", |w| w.name.as_str());
                 vec![ParamSpec::new(
@@ -395,7 +427,7 @@ impl Effect {
                     && match self.base() {
                         Effect::MissedSteps => stepper,
                         // On a stepper a rate limit is the pull-out's business.
-                        _ if self == Effect::LagSlew => !stepper,
+                        _ if matches!(self, Effect::LagSlew | Effect::SlewPerWheel) => !stepper,
                         _ => true,
                     }
             }
@@ -497,6 +529,19 @@ impl Effect {
             Effect::LagDelay => singles(log_grid(0.003, 1.0, 12)),
             Effect::LagSlew => singles(log_grid(0.5, 200.0, 16)),
             Effect::FrictionDroop => singles(log_grid(0.02, 20.0, 12)),
+            // Every wheel alike to start: the fit parts them.
+            Effect::LagPerWheel | Effect::DelayPerWheel => log_grid(0.003, 1.0, 6)
+                .into_iter()
+                .map(|v| vec![v; n])
+                .collect(),
+            Effect::SlewPerWheel => log_grid(0.5, 200.0, 8)
+                .into_iter()
+                .map(|v| vec![v; n])
+                .collect(),
+            Effect::DeadBandPerWheel => log_grid(0.02, 20.0, 6)
+                .into_iter()
+                .map(|v| vec![v; n])
+                .collect(),
             Effect::WheelAngle(_) => vec![vec![0.0]],
             Effect::WheelPosition(_) => vec![vec![1.0]],
             // From the data: see `select::region_grid`.

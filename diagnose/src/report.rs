@@ -103,6 +103,10 @@ pub struct Report {
     pub duration_s: f64,
     /// A catalogue id, `none` or `unexplained`.
     pub verdict: Verdict,
+    /// How far the verdict's family explains the excess: `full`, or `partial` when what
+    /// is left is still far outside the noise (`depends_on` says what it follows);
+    /// `null` for `none` and `unexplained`.
+    pub fit: Option<crate::finding::Fit>,
     /// The effects found, the one explaining the largest share of the excess first.
     pub findings: Vec<Finding>,
     /// Where the residual leaves the noise band.
@@ -193,9 +197,22 @@ impl fmt::Display for Report {
             "diagnose {}: {} rows, {} pose samples, {:.1} s",
             self.robot, self.rows, self.pose_samples, self.duration_s
         )?;
-        writeln!(f, "verdict: {}", self.verdict)?;
+        match self.fit {
+            Some(crate::finding::Fit::Partial) => writeln!(
+                f,
+                "verdict: {} (partial: it explains {:.0} % of the excess; what is left is below)",
+                self.verdict,
+                self.explained_fraction * 100.0
+            )?,
+            _ => writeln!(f, "verdict: {}", self.verdict)?,
+        }
+        let lead = if self.fit == Some(crate::finding::Fit::Partial) {
+            "what is left depends on"
+        } else {
+            "depends on"
+        };
         for d in &self.depends_on {
-            writeln!(f, "depends on: {d}")?;
+            writeln!(f, "{lead}: {d}")?;
         }
         for a in self.separability.0.advice() {
             writeln!(f, "not separable: {a}")?;

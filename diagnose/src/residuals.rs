@@ -384,8 +384,7 @@ impl<'a> Evaluator<'a> {
         let mut params = ActuatorParams::from_model(m);
         params.linear = self.linear_commands.get();
         params.step_cycle_rad = self.stepper_cycle_rad();
-        // Each wheel's own play, when the model has it per wheel.
-        let per_wheel = m.get(Effect::BacklashPerWheel);
+        // Each wheel's own values, when the model has a per-wheel mechanism.
         let v: Vec<Option<Vec<f64>>> = self
             .p
             .wheels
@@ -394,16 +393,7 @@ impl<'a> Evaluator<'a> {
             .map(|(i, w)| {
                 w.cmd.as_ref().map(|c| {
                     let mut out = Vec::new();
-                    match per_wheel.and_then(|b| b.get(i)) {
-                        Some(&b) => {
-                            let own = ActuatorParams {
-                                backlash_rad: Some(b),
-                                ..params
-                            };
-                            simulate_wheel(&self.p.t, c, &own, &mut out);
-                        }
-                        None => simulate_wheel(&self.p.t, c, &params, &mut out),
-                    }
+                    simulate_wheel(&self.p.t, c, &params.for_wheel(m, i), &mut out);
                     out
                 })
             })

@@ -99,9 +99,17 @@ pub const MECH_SLEW: Mech = ("slew", MOTOR_LAG);
 pub const MECH_DEAD_BAND: Mech = ("dead_band", COULOMB_FRICTION);
 /// coulomb_friction: a constant speed lost at every command (a velocity loop's finite gain).
 pub const MECH_DROOP: Mech = ("droop", COULOMB_FRICTION);
+/// motor_lag: each wheel's own first-order time constant.
+pub const MECH_FIRST_ORDER_PER_WHEEL: Mech = ("first_order_per_wheel", MOTOR_LAG);
+/// motor_lag: each wheel's own transport delay.
+pub const MECH_DELAY_PER_WHEEL: Mech = ("delay_per_wheel", MOTOR_LAG);
+/// motor_lag: each wheel's own acceleration limit (one weak motor).
+pub const MECH_SLEW_PER_WHEEL: Mech = ("slew_per_wheel", MOTOR_LAG);
+/// coulomb_friction: each wheel's own dead band.
+pub const MECH_DEAD_BAND_PER_WHEEL: Mech = ("dead_band_per_wheel", COULOMB_FRICTION);
 
 /// Every mechanism. The first listed for an effect is its default.
-pub const MECHANISMS: [Mech; 20] = [
+pub const MECHANISMS: [Mech; 24] = [
     MECH_WHEEL,
     MECH_BODY,
     MECH_CREEP,
@@ -122,6 +130,10 @@ pub const MECHANISMS: [Mech; 20] = [
     MECH_SLEW,
     MECH_DEAD_BAND,
     MECH_DROOP,
+    MECH_FIRST_ORDER_PER_WHEEL,
+    MECH_DELAY_PER_WHEEL,
+    MECH_SLEW_PER_WHEEL,
+    MECH_DEAD_BAND_PER_WHEEL,
 ];
 
 /// The name of mechanism `name` of effect `id` as it appears in [`MECHANISMS`] (a
