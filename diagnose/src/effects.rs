@@ -468,6 +468,18 @@ impl Effect {
         };
         let singles = |v: Vec<f64>| v.into_iter().map(|x| vec![x]).collect();
         let n = self.params(robot).len();
+        let one_or_all = |values: Vec<f64>, none: f64| -> Vec<Vec<f64>> {
+            let mut g: Vec<Vec<f64>> = Vec::new();
+            for j in 0..n {
+                for &v in &values {
+                    let mut x = vec![none; n];
+                    x[j] = v;
+                    g.push(x);
+                }
+            }
+            g.extend(values.iter().map(|&v| vec![v; n]));
+            g
+        };
         match self {
             Effect::WheelDiameterMismatch => vec![vec![1.0; n]],
             Effect::WheelbaseError => vec![vec![1.0]],
@@ -529,19 +541,13 @@ impl Effect {
             Effect::LagDelay => singles(log_grid(0.003, 1.0, 12)),
             Effect::LagSlew => singles(log_grid(0.5, 200.0, 16)),
             Effect::FrictionDroop => singles(log_grid(0.02, 20.0, 12)),
-            // Every wheel alike to start: the fit parts them.
-            Effect::LagPerWheel | Effect::DelayPerWheel => log_grid(0.003, 1.0, 6)
-                .into_iter()
-                .map(|v| vec![v; n])
-                .collect(),
-            Effect::SlewPerWheel => log_grid(0.5, 200.0, 8)
-                .into_iter()
-                .map(|v| vec![v; n])
-                .collect(),
-            Effect::DeadBandPerWheel => log_grid(0.02, 20.0, 6)
-                .into_iter()
-                .map(|v| vec![v; n])
-                .collect(),
+            // One wheel with the effect (the others at no effect), for each wheel, and
+            // every wheel alike: a limit or band that never binds leaves the cost flat,
+            // so a start with both wheels low cannot lift one of them.
+            Effect::LagPerWheel => one_or_all(log_grid(0.003, 1.0, 6), 1e-4),
+            Effect::DelayPerWheel => one_or_all(log_grid(0.003, 1.0, 6), 1e-4),
+            Effect::SlewPerWheel => one_or_all(log_grid(0.5, 200.0, 16), 1e4),
+            Effect::DeadBandPerWheel => one_or_all(log_grid(0.02, 20.0, 6), 1e-3),
             Effect::WheelAngle(_) => vec![vec![0.0]],
             Effect::WheelPosition(_) => vec![vec![1.0]],
             // From the data: see `select::region_grid`.

@@ -531,6 +531,25 @@ pub fn select(ev: &Evaluator, max_effects: usize, identified: &[Effect]) -> Sele
                 if *e == Effect::SlipPerWheel {
                     return identified.contains(e);
                 }
+                // An actuator mechanism per wheel is tried only when no mechanism fitted
+                // so far (this round's or carried over) brings the actuator stage back
+                // into the noise: each wheel its own value is for what one value leaves
+                // (and costs a run per wheel and start: +65 % actuator runs on the
+                // 120k-row bench when tried always).
+                if e.stage() == Stage::Actuator
+                    && one_value_form(*e).is_some()
+                    && *e != Effect::BacklashPerWheel
+                {
+                    let out = |c: Option<f64>| c.is_none_or(|c| c > crate::MISMATCH_CHI2);
+                    return !deferred.iter().any(|(d, _)| *d == e.base())
+                        && base_chi2(Stage::Actuator).is_some_and(|c| c > crate::MISMATCH_CHI2)
+                        && fitted
+                            .iter()
+                            .filter(|f| f.0.stage() == Stage::Actuator)
+                            .all(|f| {
+                                out(stage_chi2(ev, &ev.rss(&f.3, Fold::All), Stage::Actuator))
+                            });
+                }
                 !deferred.iter().any(|(d, _)| *d == e.base())
                     && (worth(*e)
                         || !defaults

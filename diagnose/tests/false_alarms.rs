@@ -31,7 +31,7 @@ fn robot(k: usize) -> Robot {
 
 /// The noise-only recording number `k`.
 fn control(k: usize) -> Gen {
-    let style = if k % 2 == 0 {
+    let style = if k.is_multiple_of(2) {
         Style::Joystick
     } else {
         Style::Legs

@@ -521,7 +521,7 @@ fn run(case: &Case) -> Outcome {
                 .get("time_offset_s")
                 .copied()
                 .unwrap_or(f64::NAN);
-            if !((v - t).abs() <= 0.01) {
+            if (v - t).abs().is_nan() || (v - t).abs() > 0.01 {
                 problems.push(format!("time_offset_s {v:.4} for {t}"));
             }
         }

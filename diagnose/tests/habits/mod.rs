@@ -551,9 +551,11 @@ pub fn generate(g: &Gen) -> (Result<Recording, String>, Stats) {
                 }
             }
             let mut enc: Vec<i64> = enc.iter().zip(&enc0).map(|(e, o)| e + o).collect();
-            if stale_enc > 0.0 && last_enc_written.is_some() && rng.random_bool(stale_enc) {
-                enc = last_enc_written.clone().unwrap();
-                stats.stale_rows += 1;
+            if let Some(last) = &last_enc_written {
+                if stale_enc > 0.0 && rng.random_bool(stale_enc) {
+                    enc = last.clone();
+                    stats.stale_rows += 1;
+                }
             }
             let write_row = !(dropped > 0.0 && k > 0 && k < steps && rng.random_bool(dropped));
             let mut tw = t + if jitter_s > 0.0 {
@@ -606,9 +608,11 @@ pub fn generate(g: &Gen) -> (Result<Recording, String>, Stats) {
                 if g.quant_rad > 0.0 {
                     p.2 = (p.2 / g.quant_rad).round() * g.quant_rad;
                 }
-                if stale_pose > 0.0 && last_pose_written.is_some() && rng.random_bool(stale_pose) {
-                    p = last_pose_written.unwrap();
-                    stats.stale_rows += 1;
+                if let Some(last) = last_pose_written {
+                    if stale_pose > 0.0 && rng.random_bool(stale_pose) {
+                        p = last;
+                        stats.stale_rows += 1;
+                    }
                 }
                 last_pose_written = Some(p);
                 write!(csv, ",{:.6},{:.6},{:.6}", p.0, p.1, wrap(p.2)).unwrap();
