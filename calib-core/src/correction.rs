@@ -77,6 +77,101 @@ impl DiffLaws {
     }
 }
 
+/// The motion a differential drive's laws were fitted on ([`Corrections::DiffDriveLawsInRange`]):
+/// beyond it the odometry holds each law at its value at the edge, never extrapolating it
+/// to speeds, turns or accelerations the calibration did not see. Unbounded
+/// ([`LawRange::UNBOUNDED`]): every law applied as fitted at any motion (what boards before
+/// protocol v9 do).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
+pub struct LawRange {
+    /// Smallest turn ratio rho (0 straight, 1 a turn in place) the turn law was fitted on.
+    pub rho_min: f64,
+    /// Largest turn ratio rho.
+    pub rho_max: f64,
+    /// Fastest side speed |v| (m/s) the speed law was fitted on.
+    pub speed_max_m_s: f64,
+    /// Largest |change of a side's speed| per second (m/s^2) the acceleration law was
+    /// fitted on.
+    pub accel_max_m_s2: f64,
+}
+
+impl LawRange {
+    /// Every motion: the laws applied as fitted.
+    pub const UNBOUNDED: LawRange = LawRange {
+        rho_min: 0.0,
+        rho_max: 1.0,
+        speed_max_m_s: f64::INFINITY,
+        accel_max_m_s2: f64::INFINITY,
+    };
+
+    /// Whether this is [`LawRange::UNBOUNDED`] (or wider).
+    pub fn is_unbounded(&self) -> bool {
+        self.rho_min <= 0.0
+            && self.rho_max >= 1.0
+            && self.speed_max_m_s == f64::INFINITY
+            && self.accel_max_m_s2 == f64::INFINITY
+    }
+
+    /// This range less the bounds of laws `laws` lacks (a bound of no law is no bound).
+    pub fn for_laws(self, laws: &DiffLaws) -> LawRange {
+        let u = LawRange::UNBOUNDED;
+        LawRange {
+            rho_min: if laws.e_b_arc != 0.0 {
+                self.rho_min
+            } else {
+                u.rho_min
+            },
+            rho_max: if laws.e_b_arc != 0.0 {
+                self.rho_max
+            } else {
+                u.rho_max
+            },
+            speed_max_m_s: if laws.speed_rel != 0.0 {
+                self.speed_max_m_s
+            } else {
+                u.speed_max_m_s
+            },
+            accel_max_m_s2: if laws.accel_slip_s != 0.0 {
+                self.accel_max_m_s2
+            } else {
+                u.accel_max_m_s2
+            },
+        }
+    }
+
+    /// The smallest range holding both.
+    pub fn hull(self, o: LawRange) -> LawRange {
+        LawRange {
+            rho_min: self.rho_min.min(o.rho_min),
+            rho_max: self.rho_max.max(o.rho_max),
+            speed_max_m_s: self.speed_max_m_s.max(o.speed_max_m_s),
+            accel_max_m_s2: self.accel_max_m_s2.max(o.accel_max_m_s2),
+        }
+    }
+
+    /// 0 <= rho_min <= rho_max <= 1, the speed and acceleration not negative (infinite
+    /// allowed), nothing NaN.
+    pub fn validate(&self) -> Result<(), CorrectionError> {
+        check_within("rho_min", self.rho_min, 0.0, 1.0)?;
+        check_within("rho_max", self.rho_max, self.rho_min, 1.0)?;
+        for (name, v) in [
+            ("speed_max_m_s", self.speed_max_m_s),
+            ("accel_max_m_s2", self.accel_max_m_s2),
+        ] {
+            if v != f64::INFINITY {
+                check_within(name, v, 0.0, f64::MAX)?;
+            }
+        }
+        Ok(())
+    }
+}
+
+impl Default for LawRange {
+    fn default() -> Self {
+        LawRange::UNBOUNDED
+    }
+}
+
 /// The correction factors a board stores.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Corrections {
@@ -145,6 +240,24 @@ pub enum Corrections {
         /// How much longer the wheels' effective distance from the centre is on arcs
         /// (0.02 is 2 %).
         l_arc: f64,
+    },
+    /// [`Corrections::DiffDriveLaws`] with the motion the laws were fitted on
+    /// ([`LawRange`]): beyond it the odometry holds each law at its edge. Protocol v9;
+    /// last on the wire, so stored and sent values of the other kinds read as before
+    /// (they apply their laws unbounded). [`Corrections::diff_drive_within`] gives an
+    /// unbounded range as the narrower kinds.
+    DiffDriveLawsInRange {
+        /// Left wheel's effective radius / nominal radius (at standstill, with a speed
+        /// law).
+        c_l: f64,
+        /// Right wheel's effective radius / nominal radius (likewise).
+        c_r: f64,
+        /// Actual wheelbase / nominal wheelbase (in a turn in place, with a turn law).
+        e_b: f64,
+        /// The laws.
+        laws: DiffLaws,
+        /// Where they were fitted.
+        range: LawRange,
     },
 }
 
@@ -291,6 +404,30 @@ impl Corrections {
         }
     }
 
+    /// [`Corrections::diff_drive`] with the motion the laws were fitted on:
+    /// [`Corrections::DiffDriveLawsInRange`] when there is a law and the range bounds one
+    /// of them ([`LawRange::for_laws`]).
+    pub fn diff_drive_within(
+        c_l: f64,
+        c_r: f64,
+        e_b: f64,
+        laws: DiffLaws,
+        range: LawRange,
+    ) -> Corrections {
+        let range = range.for_laws(&laws);
+        if laws == DiffLaws::default() || range.is_unbounded() {
+            Corrections::diff_drive(c_l, c_r, e_b, laws)
+        } else {
+            Corrections::DiffDriveLawsInRange {
+                c_l,
+                c_r,
+                e_b,
+                laws,
+                range,
+            }
+        }
+    }
+
     /// An omni robot's factors with a turn law `l_arc`, as the narrowest kind that holds
     /// them: plain [`Corrections::Omni`] without a law (what boards before protocol v8
     /// take), else [`Corrections::OmniTurnLaw`].
@@ -314,14 +451,16 @@ impl Corrections {
         match self {
             Corrections::None => Ok(()),
             Corrections::DiffDriveTurnLaw { c_l, c_r, e_b, .. }
-            | Corrections::DiffDriveLaws { c_l, c_r, e_b, .. } => {
+            | Corrections::DiffDriveLaws { c_l, c_r, e_b, .. }
+            | Corrections::DiffDriveLawsInRange { c_l, c_r, e_b, .. } => {
                 if robot.kind != RobotKind::DiffDrive {
                     return Err(CorrectionError::WrongKind { robot: robot.kind });
                 }
                 check("c_l", None, *c_l)?;
                 check("c_r", None, *c_r)?;
                 check("e_b", None, *e_b)?;
-                self.laws().validate()
+                self.laws().validate()?;
+                self.law_range().validate()
             }
             Corrections::DiffDrive { c_l, c_r, e_b } => {
                 if robot.kind == RobotKind::Omni {
@@ -361,7 +500,8 @@ impl Corrections {
             Corrections::None => 1.0,
             Corrections::DiffDrive { c_l, c_r, .. }
             | Corrections::DiffDriveTurnLaw { c_l, c_r, .. }
-            | Corrections::DiffDriveLaws { c_l, c_r, .. } => {
+            | Corrections::DiffDriveLaws { c_l, c_r, .. }
+            | Corrections::DiffDriveLawsInRange { c_l, c_r, .. } => {
                 if robot.wheels[i].is_left() {
                     *c_l
                 } else {
@@ -380,7 +520,8 @@ impl Corrections {
         match self {
             Corrections::DiffDrive { e_b, .. }
             | Corrections::DiffDriveTurnLaw { e_b, .. }
-            | Corrections::DiffDriveLaws { e_b, .. } => *e_b,
+            | Corrections::DiffDriveLaws { e_b, .. }
+            | Corrections::DiffDriveLawsInRange { e_b, .. } => *e_b,
             _ => 1.0,
         }
     }
@@ -390,7 +531,8 @@ impl Corrections {
         match self {
             Corrections::DiffDrive { c_l, c_r, e_b }
             | Corrections::DiffDriveTurnLaw { c_l, c_r, e_b, .. }
-            | Corrections::DiffDriveLaws { c_l, c_r, e_b, .. } => Some((*c_l, *c_r, *e_b)),
+            | Corrections::DiffDriveLaws { c_l, c_r, e_b, .. }
+            | Corrections::DiffDriveLawsInRange { c_l, c_r, e_b, .. } => Some((*c_l, *c_r, *e_b)),
             _ => None,
         }
     }
@@ -402,8 +544,18 @@ impl Corrections {
                 e_b_arc: *e_b_arc,
                 ..DiffLaws::default()
             },
-            Corrections::DiffDriveLaws { laws, .. } => *laws,
+            Corrections::DiffDriveLaws { laws, .. }
+            | Corrections::DiffDriveLawsInRange { laws, .. } => *laws,
             _ => DiffLaws::default(),
+        }
+    }
+
+    /// Where a differential drive's laws were fitted ([`LawRange::UNBOUNDED`] for kinds
+    /// that carry no range).
+    pub fn law_range(&self) -> LawRange {
+        match self {
+            Corrections::DiffDriveLawsInRange { range, .. } => *range,
+            _ => LawRange::UNBOUNDED,
         }
     }
 
@@ -454,11 +606,18 @@ impl Corrections {
             _ => {
                 let (l1, r1, b1) = self.diff_factors()?;
                 let (l2, r2, b2) = secondary.diff_factors()?;
-                Some(Corrections::diff_drive(
+                // The second pass's range when it has one (its laws were fitted on it).
+                let range = if secondary.law_range().is_unbounded() {
+                    self.law_range()
+                } else {
+                    secondary.law_range()
+                };
+                Some(Corrections::diff_drive_within(
                     l1 * l2,
                     r1 * r2,
                     b1 * b2,
                     self.laws().plus(secondary.laws()),
+                    range,
                 ))
             }
         }
@@ -476,7 +635,7 @@ impl Corrections {
                 1.0,
                 self.l_arc(),
             ),
-            _ => Corrections::diff_drive(1.0, 1.0, 1.0, self.laws()),
+            _ => Corrections::diff_drive_within(1.0, 1.0, 1.0, self.laws(), self.law_range()),
         }
     }
 

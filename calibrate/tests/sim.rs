@@ -1989,7 +1989,7 @@ fn a_law_hidden_by_a_pose_lead_is_tested_on_top_of_it() {
 }
 
 /// `n` random runs of `seconds` each of `nominal` named `mobolab-<kind>-<session>-run-NN`
-/// (the real sessions' naming: session `<kind>-<session>`, kind of motion `<kind>`),
+/// (the real sessions' naming: session `<kind>-<session>`, kind of motion `<kind>`), 40 s each,
 /// within `motion`'s limits (its duration replaced), the simulator tweaked by `tweak`;
 /// seeds from `seed`.
 fn named_runs(
@@ -2007,7 +2007,7 @@ fn named_runs(
             let mut c = cfg(seed + i);
             tweak(&mut c);
             let m = Motion::Random(RandomMotion {
-                duration_s: 30.0,
+                duration_s: 40.0,
                 ..motion
             });
             let r = record(nominal, effects, Surface::flat(), &m, &c).unwrap();
@@ -2029,19 +2029,29 @@ fn slow() -> RandomMotion {
     }
 }
 
-/// Slow, nearly straight driving: 0.12 m/s and 0.2 rad/s at most (a side reaches 0.16).
-fn slow_cruise() -> RandomMotion {
+/// Moderate free motion: 0.2 m/s and 0.5 rad/s at most (a side reaches 0.3 m/s).
+fn moderate() -> RandomMotion {
     RandomMotion {
-        v_max_m_s: 0.12,
-        omega_max_rad_s: 0.2,
+        v_max_m_s: 0.2,
+        omega_max_rad_s: 0.5,
         ..RandomMotion::default()
     }
 }
 
-/// Fast free motion: 0.4 m/s and 1 rad/s at most (a side reaches 0.6 m/s).
+/// Moderate, gently curving driving: 0.25 m/s and 0.25 rad/s at most (a side reaches
+/// 0.3 m/s).
+fn moderate_cruise() -> RandomMotion {
+    RandomMotion {
+        v_max_m_s: 0.25,
+        omega_max_rad_s: 0.25,
+        ..RandomMotion::default()
+    }
+}
+
+/// Fast free motion: 0.6 m/s and 1 rad/s at most (a side reaches 0.8 m/s).
 fn fast() -> RandomMotion {
     RandomMotion {
-        v_max_m_s: 0.4,
+        v_max_m_s: 0.6,
         omega_max_rad_s: 1.0,
         a_max_m_s2: 1.0,
         ..RandomMotion::default()
@@ -2088,18 +2098,18 @@ fn held_out_groups(test: &serde_json::Value, by: &str) -> Vec<(String, f64, f64)
 
 /// A speed law fitted on slow runs only is applied within the speeds it was fitted on,
 /// and held at its edge beyond them. The simulated wheels roll 1 + 0.1 |v| times their
-/// size up to 0.2 m/s and no further beyond (`speed_scale_top_m_s`: a tyre whose
-/// deformation saturates). Two sessions of slow driving (free motion up to a side speed
-/// of 0.2 m/s; nearly straight cruising up to 0.16 m/s), two 30 s runs each, keep the
-/// law (0.1 within 4 sigma and 0.01) with a fitted range whose top is the fastest side
-/// speed the runs reached (between 0.15 and 0.25 m/s). The board holding the
-/// calibration's factors and law (calib-core's odometry, f64, 1 kHz) scales a side's
-/// travel at twice that top speed exactly as at the top (within 1e-6), and within it
-/// by the law. On three fast runs (sides up to 0.6 m/s) the board dead-reckons no worse
-/// than the same calibration's constant geometry (the robot file) by more than the
-/// noise floor: the error the board holding the truth itself (nominal wheels, 0.1 per
-/// m/s held at 0.2 m/s) leaves on the same runs, what the encoders, the motion capture
-/// and the travel noise alone make.
+/// size up to 0.3 m/s and no further beyond (`speed_scale_top_m_s`: a tyre whose
+/// deformation saturates). Two sessions of moderate driving, each its own kind (free
+/// motion, and gently curving cruising, both up to a side speed of 0.3 m/s), two 40 s
+/// runs each, keep the law (0.1 within 4 sigma and 0.01: it holds out on each session
+/// and kind) with a fitted range whose top is the fastest side speed the runs reached
+/// (between 0.25 and 0.35 m/s). The board holding the calibration's factors and law
+/// (calib-core's odometry, f64, 1 kHz) scales a side's travel at twice that top speed
+/// exactly as at the top (within 1e-6), and within it by the law. On three fast runs
+/// (sides up to 0.8 m/s) the board dead-reckons no worse than the same calibration's
+/// constant geometry (the robot file) by more than the noise floor: the error the board
+/// holding the truth itself (nominal wheels, 0.1 per m/s held at 0.3 m/s) leaves on the
+/// same runs, what the encoders, the motion capture and the travel noise alone make.
 #[test]
 fn a_speed_law_fitted_on_slow_runs_is_held_at_its_edge_on_fast_runs() {
     use calib_core::correction::Corrections;
@@ -2108,14 +2118,14 @@ fn a_speed_law_fitted_on_slow_runs_is_held_at_its_edge_on_fast_runs() {
     let nominal = robot("mobolab");
     let tweak = |c: &mut RecordConfig| {
         c.sim.speed_scale = 0.1;
-        c.sim.speed_scale_top_m_s = 0.2;
+        c.sim.speed_scale_top_m_s = 0.3;
     };
-    let mut runs = named_runs(&nominal, "wander", "1", slow(), 300, 2, &[], tweak);
+    let mut runs = named_runs(&nominal, "wander", "1", moderate(), 300, 2, &[], tweak);
     runs.extend(named_runs(
         &nominal,
         "cruise",
         "2",
-        slow_cruise(),
+        moderate_cruise(),
         310,
         2,
         &[],
@@ -2132,7 +2142,7 @@ fn a_speed_law_fitted_on_slow_runs_is_held_at_its_edge_on_fast_runs() {
     let top = json_number(&c, &["turn_law", "range", "speed_max_m_s"])
         .unwrap_or_else(|| panic!("no fitted speed range in the JSON's turn_law\n{c}"));
     println!("speed law {:+.4} fitted up to {top:.3} m/s", law.value);
-    assert!((0.15..=0.25).contains(&top), "{top}");
+    assert!((0.25..=0.35).contains(&top), "{top}");
     let (_, b) = board_factors(&c);
     let corrections = b.corrections();
     // A steady straight run at side speed v: the board's travel over the kinematics'
@@ -2162,7 +2172,7 @@ fn a_speed_law_fitted_on_slow_runs_is_held_at_its_edge_on_fast_runs() {
     let truth: BoardFactors = serde_json::from_value(serde_json::json!({
         "c_l": 1.0, "c_r": 1.0, "e_b": 1.0,
         "e_b_arc": 0.0, "speed_rel": 0.1, "accel_slip_s": 0.0,
-        "range": {"rho_min": 0.0, "rho_max": 1.0, "speed_max_m_s": 0.2, "accel_max_m_s2": 1e9}
+        "range": {"rho_min": 0.0, "rho_max": 1.0, "speed_max_m_s": 0.3, "accel_max_m_s2": 1e9}
     }))
     .unwrap();
     let board = |k: &Corrections| {
@@ -2229,12 +2239,14 @@ fn named_squares(
 /// squares driven fast (0.4 m/s, 1 rad/s: kind `sprint`), two squares each; the wheels are
 /// the same size at every speed, but the fast sessions were driven on wheels 1 % smaller
 /// (worn tyres, another day). Over the pooled runs a speed law stands in for the
-/// sessions' sizes, and folds of recordings (each with both kinds) cannot tell. Held out
-/// by kind of motion, the law fitted on one cruise speed has nothing to tell it from the
-/// wheel size, and held at the edge of the speeds it saw it is the constant geometry: it
-/// does not win on at least one kind, so it is not kept (nothing on the board, speed_rel
-/// 0), and the speed law's test gives the constant geometry's and the law's held-out
-/// error per session (4) and per kind (2).
+/// sessions' sizes, and folds of recordings (each with both kinds) cannot tell (today's
+/// rule kept it: -0.076 per m/s, 10.0 against 14.6 mm over 5 folds). Held out by kind of
+/// motion, the law fitted on the other kind's squares alone (one cruise speed and its
+/// turns) barely differs from a constant size there: on at least one kind it does not
+/// hold out (its error above [`calibrate::TURN_LAW_HOLDOUT_RATIO`] of the constant
+/// geometry's, the rule a law's mean over folds must meet), so it is not kept (nothing
+/// on the board, speed_rel 0), and the speed law's test gives the constant geometry's
+/// and the law's held-out error per session (4) and per kind (2).
 #[test]
 fn a_speed_law_that_holds_on_one_kind_only_is_refused() {
     let nominal = robot("mobolab");
@@ -2255,7 +2267,8 @@ fn a_speed_law_that_holds_on_one_kind_only_is_refused() {
     let sessions = held_out_groups(&t, "by_session");
     assert_eq!(kinds.len(), 2, "{kinds:?}");
     assert_eq!(sessions.len(), 4, "{sessions:?}");
-    assert!(kinds.iter().any(|(_, k, l)| l >= k), "{kinds:?}");
+    let ratio = calibrate::TURN_LAW_HOLDOUT_RATIO;
+    assert!(kinds.iter().any(|(_, k, l)| *l > ratio * k), "{kinds:?}");
     assert_eq!(t["kept"], false, "{t}");
     assert_eq!(c.turn_law.speed_rel, 0.0, "{c}");
     assert!(c.params.iter().all(|p| p.spec.name != "speed_rel"), "{c}");
@@ -2263,10 +2276,11 @@ fn a_speed_law_that_holds_on_one_kind_only_is_refused() {
 
 /// A true speed law is kept: the same sessions and kinds of motion as above on one set of
 /// wheels that roll 1 + 0.1 |v| times their size at every speed. The law fitted without
-/// each session, and without each kind, wins on it (the constant geometry fitted without
+/// each session, and without each kind, wins on it (below the constant geometry's error;
+/// the constant geometry fitted without
 /// the fast runs sizes the wheels for slow ones, and the reverse); the law is kept,
 /// 0.1 within 4 sigma and 0.01, and the board gets it with its range (the fastest side,
-/// at least the 0.4 m/s the fast runs' straights reach).
+/// at least the 0.6 m/s the fast runs' straights reach).
 #[test]
 fn a_true_speed_law_wins_on_every_held_out_session_and_kind() {
     let nominal = robot("mobolab");
@@ -2304,5 +2318,5 @@ fn a_true_speed_law_wins_on_every_held_out_session_and_kind() {
     assert!((law.value - 0.1).abs() <= 4.0 * law.sigma + 0.01, "{c}");
     let top = json_number(&c, &["factors", "board", "range", "speed_max_m_s"])
         .unwrap_or_else(|| panic!("no range on the board's factors\n{c}"));
-    assert!(top >= 0.4, "{top}");
+    assert!(top >= 0.6, "{top}");
 }

@@ -30,6 +30,9 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
     let current = client.corrections()?;
     let robot = client.params()?.robot;
     let n = robot.wheels.len();
+    if a.law_range.as_ref().is_some_and(|r| r.len() != 4) {
+        bail!("--law-range takes four numbers: RHO_MIN,RHO_MAX,SPEED_MAX,ACCEL_MAX");
+    }
     let c = board::merge_corrections(
         &current,
         n,
@@ -40,6 +43,15 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
             e_b_arc: a.e_b_arc,
             speed_rel: a.speed_rel,
             accel_slip_s: a.accel_slip_s,
+            law_range: a
+                .law_range
+                .as_deref()
+                .map(|r| calib_core::correction::LawRange {
+                    rho_min: r[0],
+                    rho_max: r[1],
+                    speed_max_m_s: r[2],
+                    accel_max_m_s2: r[3],
+                }),
             f_lat: a.f_lat.as_deref(),
             f_lon: a.f_lon,
             l_arc: a.l_arc,
