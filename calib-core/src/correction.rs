@@ -85,14 +85,14 @@ impl DiffLaws {
 #[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub struct LawRange {
     /// Smallest turn ratio rho (0 straight, 1 a turn in place) the turn law was fitted on.
-    pub rho_min: f64,
+    pub rho_min: f32,
     /// Largest turn ratio rho.
-    pub rho_max: f64,
+    pub rho_max: f32,
     /// Fastest side speed |v| (m/s) the speed law was fitted on.
-    pub speed_max_m_s: f64,
+    pub speed_max_m_s: f32,
     /// Largest |change of a side's speed| per second (m/s^2) the acceleration law was
     /// fitted on.
-    pub accel_max_m_s2: f64,
+    pub accel_max_m_s2: f32,
 }
 
 impl LawRange {
@@ -100,16 +100,16 @@ impl LawRange {
     pub const UNBOUNDED: LawRange = LawRange {
         rho_min: 0.0,
         rho_max: 1.0,
-        speed_max_m_s: f64::INFINITY,
-        accel_max_m_s2: f64::INFINITY,
+        speed_max_m_s: f32::INFINITY,
+        accel_max_m_s2: f32::INFINITY,
     };
 
     /// Whether this is [`LawRange::UNBOUNDED`] (or wider).
     pub fn is_unbounded(&self) -> bool {
         self.rho_min <= 0.0
             && self.rho_max >= 1.0
-            && self.speed_max_m_s == f64::INFINITY
-            && self.accel_max_m_s2 == f64::INFINITY
+            && self.speed_max_m_s == f32::INFINITY
+            && self.accel_max_m_s2 == f32::INFINITY
     }
 
     /// This range less the bounds of laws `laws` lacks (a bound of no law is no bound).
@@ -150,19 +150,25 @@ impl LawRange {
     }
 
     /// 0 <= rho_min <= rho_max <= 1, the speed and acceleration not negative (infinite
-    /// allowed), nothing NaN.
+    /// allowed), nothing NaN (one comparison chain, in f32 as the board takes it: NaN
+    /// fails it). Refused as `law_range`, its value rho_min.
+    #[inline(never)]
     pub fn validate(&self) -> Result<(), CorrectionError> {
-        check_within("rho_min", self.rho_min, 0.0, 1.0)?;
-        check_within("rho_max", self.rho_max, self.rho_min, 1.0)?;
-        for (name, v) in [
-            ("speed_max_m_s", self.speed_max_m_s),
-            ("accel_max_m_s2", self.accel_max_m_s2),
-        ] {
-            if v != f64::INFINITY {
-                check_within(name, v, 0.0, f64::MAX)?;
-            }
+        let r = self;
+        if 0.0 <= r.rho_min
+            && r.rho_min <= r.rho_max
+            && r.rho_max <= 1.0
+            && r.speed_max_m_s >= 0.0
+            && r.accel_max_m_s2 >= 0.0
+        {
+            return Ok(());
         }
-        Ok(())
+        Err(CorrectionError::OutOfRange {
+            name: "law_range",
+            index: None,
+            value: r.rho_min as f64,
+            max: 1.0,
+        })
     }
 }
 
@@ -256,8 +262,10 @@ pub enum Corrections {
         e_b: f64,
         /// The laws.
         laws: DiffLaws,
-        /// Where they were fitted.
-        range: LawRange,
+        /// Where they were fitted ([`LawRange`]'s fields, in its order: one struct less
+        /// to encode on the board): the smallest and largest turn ratio, the fastest side
+        /// (m/s), the largest change of a side's speed (m/s^2).
+        range: [f32; 4],
     },
 }
 
@@ -423,7 +431,12 @@ impl Corrections {
                 c_r,
                 e_b,
                 laws,
-                range,
+                range: [
+                    range.rho_min,
+                    range.rho_max,
+                    range.speed_max_m_s,
+                    range.accel_max_m_s2,
+                ],
             }
         }
     }
@@ -538,6 +551,7 @@ impl Corrections {
     }
 
     /// A differential drive's laws (all 0 without any).
+    #[inline(never)]
     pub fn laws(&self) -> DiffLaws {
         match self {
             Corrections::DiffDriveTurnLaw { e_b_arc, .. } => DiffLaws {
@@ -552,9 +566,15 @@ impl Corrections {
 
     /// Where a differential drive's laws were fitted ([`LawRange::UNBOUNDED`] for kinds
     /// that carry no range).
+    #[inline(never)]
     pub fn law_range(&self) -> LawRange {
         match self {
-            Corrections::DiffDriveLawsInRange { range, .. } => *range,
+            Corrections::DiffDriveLawsInRange { range: r, .. } => LawRange {
+                rho_min: r[0],
+                rho_max: r[1],
+                speed_max_m_s: r[2],
+                accel_max_m_s2: r[3],
+            },
             _ => LawRange::UNBOUNDED,
         }
     }

@@ -84,10 +84,10 @@ impl<T: Float> DiffLawOdometry<T> {
             e_b_arc: cast(laws.e_b_arc),
             speed_rel: cast(laws.speed_rel),
             accel_slip_s: cast(laws.accel_slip_s),
-            rho_min: cast(range.rho_min),
-            rho_max: cast(range.rho_max),
-            speed_max: cast(range.speed_max_m_s),
-            dv_max: cast(range.accel_max_m_s2 * tick_s),
+            rho_min: cast(range.rho_min as f64),
+            rho_max: cast(range.rho_max as f64),
+            speed_max: cast(range.speed_max_m_s as f64),
+            dv_max: cast(range.accel_max_m_s2 as f64 * tick_s),
             active: laws != DiffLaws::default(),
             left,
             right,
@@ -149,9 +149,8 @@ impl<T: Float> DiffLawOdometry<T> {
             (sr - sl).abs() / den
         } else {
             T::one()
-        }
-        .max(self.rho_min)
-        .min(self.rho_max);
+        };
+        let rho = rho.max(self.rho_min).min(self.rho_max);
         Twist {
             omega: d.omega / (T::one() + self.e_b_arc * turn_law_share(rho)),
             ..d

@@ -538,20 +538,21 @@ impl Series {
             if !moving {
                 continue;
             }
-            g.rho_min = g.rho_min.min(r);
-            g.rho_max = g.rho_max.max(r);
+            g.rho_min = g.rho_min.min(r as f32);
+            g.rho_max = g.rho_max.max(r as f32);
             if let Some(m) = &self.motion {
                 let m = m[k];
-                g.speed_max_m_s = g.speed_max_m_s.max(m.speed[0]).max(m.speed[1]);
+                let v = m.speed[0].max(m.speed[1]) as f32;
+                g.speed_max_m_s = g.speed_max_m_s.max(v);
                 if m.dt > 0.0 {
                     let a = m.dv[0].abs().max(m.dv[1].abs()) / m.dt;
-                    g.accel_max_m_s2 = g.accel_max_m_s2.max(a);
+                    g.accel_max_m_s2 = g.accel_max_m_s2.max(a as f32);
                 }
             }
         }
         if self.motion.is_none() {
-            g.speed_max_m_s = f64::INFINITY;
-            g.accel_max_m_s2 = f64::INFINITY;
+            g.speed_max_m_s = f32::INFINITY;
+            g.accel_max_m_s2 = f32::INFINITY;
         }
         g
     }

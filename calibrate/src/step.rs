@@ -48,7 +48,7 @@ impl Stepper {
             columns,
             sides,
             omni_arc,
-            omni_rho: (law.range.rho_min, law.range.rho_max),
+            omni_rho: (law.range.rho_min as f64, law.range.rho_max as f64),
         }
     }
 

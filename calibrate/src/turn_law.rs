@@ -253,15 +253,16 @@ impl Sides {
         // Within the law's range: beyond it each term holds its edge's value.
         let g = &law.range;
         if law.speed_rel != 0.0 {
-            l *= 1.0 + law.speed_rel * side.speed[0].min(g.speed_max_m_s);
-            r *= 1.0 + law.speed_rel * side.speed[1].min(g.speed_max_m_s);
+            let top = g.speed_max_m_s as f64;
+            l *= 1.0 + law.speed_rel * side.speed[0].min(top);
+            r *= 1.0 + law.speed_rel * side.speed[1].min(top);
         }
         if law.accel_slip_s != 0.0 {
-            let most = g.accel_max_m_s2 * side.dt;
+            let most = g.accel_max_m_s2 as f64 * side.dt;
             l -= law.accel_slip_s * side.dv[0].clamp(-most, most);
             r -= law.accel_slip_s * side.dv[1].clamp(-most, most);
         }
-        let rho = rho.clamp(g.rho_min, g.rho_max);
+        let rho = rho.clamp(g.rho_min as f64, g.rho_max as f64);
         let half = self.half * (1.0 + law.arc_rel * self.law_share(rho));
         let dth = (r - l) / (2.0 * half);
         calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)

@@ -88,12 +88,7 @@ fn corrections() -> impl Strategy<Value = Corrections> {
                         speed_rel,
                         accel_slip_s: 0.0,
                     },
-                    range: crate::correction::LawRange {
-                        rho_min,
-                        rho_max,
-                        speed_max_m_s: v,
-                        accel_max_m_s2: a,
-                    },
+                    range: [rho_min as f32, rho_max as f32, v as f32, a as f32],
                 }
             }),
     ]
@@ -710,12 +705,7 @@ fn schema_golden() {
                 speed_rel: 0.1,
                 accel_slip_s: 0.05,
             },
-            range: crate::correction::LawRange {
-                rho_min: 0.01,
-                rho_max: 0.99,
-                speed_max_m_s: 0.4,
-                accel_max_m_s2: 2.5,
-            },
+            range: [0.01, 0.99, 0.4, 2.5],
         }),
         Request::SaveCorrections,
         Request::ResetCorrections,
@@ -1311,7 +1301,7 @@ fn an_omni_turn_law_is_last_on_the_wire() {
 }
 
 /// Protocol v9's `DiffDriveLawsInRange` is last on the wire: it takes index 6, its bytes
-/// are v6's `DiffDriveLaws` (index 4) with the range's four f64 after them, and it
+/// are v6's `DiffDriveLaws` (index 4) with the range's four f32 after them, and it
 /// round-trips to the bit, inside a request frame too; the older kinds keep their bytes
 /// (`an_omni_turn_law_is_last_on_the_wire` pins them).
 #[test]
@@ -1333,12 +1323,7 @@ fn a_law_range_is_last_on_the_wire() {
         &mut old,
     )
     .unwrap();
-    let range = crate::correction::LawRange {
-        rho_min: 0.01,
-        rho_max: 0.99,
-        speed_max_m_s: 0.4,
-        accel_max_m_s2: 2.5,
-    };
+    let range = [0.01f32, 0.99, 0.4, 2.5];
     let within = Corrections::DiffDriveLawsInRange {
         c_l: 1.01,
         c_r: 0.99,
@@ -1350,7 +1335,7 @@ fn a_law_range_is_last_on_the_wire() {
     assert_eq!(bytes[0], 6);
     assert_eq!(&bytes[1..v6.len()], &v6[1..]);
     let mut tail = std::vec::Vec::new();
-    for v in [0.01f64, 0.99, 0.4, 2.5] {
+    for v in [0.01f32, 0.99, 0.4, 2.5] {
         tail.extend_from_slice(&v.to_le_bytes());
     }
     assert_eq!(&bytes[v6.len()..], &tail[..]);

@@ -164,10 +164,7 @@ pub fn refusal_words(e: &calib_core::correction::CorrectionError) -> String {
             let law = matches!(*name, "e_b_arc" | "speed_rel" | "accel_slip_s" | "l_arc");
             let min = if law {
                 -*max
-            } else if matches!(
-                *name,
-                "rho_min" | "rho_max" | "speed_max_m_s" | "accel_max_m_s2"
-            ) {
+            } else if *name == "law_range" {
                 0.0
             } else {
                 FACTOR_MIN

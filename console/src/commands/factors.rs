@@ -47,10 +47,10 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
                 .law_range
                 .as_deref()
                 .map(|r| calib_core::correction::LawRange {
-                    rho_min: r[0],
-                    rho_max: r[1],
-                    speed_max_m_s: r[2],
-                    accel_max_m_s2: r[3],
+                    rho_min: r[0] as f32,
+                    rho_max: r[1] as f32,
+                    speed_max_m_s: r[2] as f32,
+                    accel_max_m_s2: r[3] as f32,
                 }),
             f_lat: a.f_lat.as_deref(),
             f_lon: a.f_lon,
