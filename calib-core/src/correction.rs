@@ -88,11 +88,10 @@ pub struct LawRange {
     pub rho_min: f32,
     /// Largest turn ratio rho.
     pub rho_max: f32,
-    /// Fastest side speed |v| (m/s) the speed law was fitted on.
+    /// Fastest side speed |v| (m/s) the speed and acceleration laws were fitted on:
+    /// beyond it the speed law holds its value there, and the acceleration law's lag
+    /// (its changes of speed summed: accel_slip_s times the speed) stops growing.
     pub speed_max_m_s: f32,
-    /// Largest |change of a side's speed| per second (m/s^2) the acceleration law was
-    /// fitted on.
-    pub accel_max_m_s2: f32,
 }
 
 impl LawRange {
@@ -101,15 +100,11 @@ impl LawRange {
         rho_min: 0.0,
         rho_max: 1.0,
         speed_max_m_s: f32::INFINITY,
-        accel_max_m_s2: f32::INFINITY,
     };
 
     /// Whether this is [`LawRange::UNBOUNDED`] (or wider).
     pub fn is_unbounded(&self) -> bool {
-        self.rho_min <= 0.0
-            && self.rho_max >= 1.0
-            && self.speed_max_m_s == f32::INFINITY
-            && self.accel_max_m_s2 == f32::INFINITY
+        self.rho_min <= 0.0 && self.rho_max >= 1.0 && self.speed_max_m_s == f32::INFINITY
     }
 
     /// This range less the bounds of laws `laws` lacks (a bound of no law is no bound).
@@ -126,15 +121,10 @@ impl LawRange {
             } else {
                 u.rho_max
             },
-            speed_max_m_s: if laws.speed_rel != 0.0 {
+            speed_max_m_s: if laws.speed_rel != 0.0 || laws.accel_slip_s != 0.0 {
                 self.speed_max_m_s
             } else {
                 u.speed_max_m_s
-            },
-            accel_max_m_s2: if laws.accel_slip_s != 0.0 {
-                self.accel_max_m_s2
-            } else {
-                u.accel_max_m_s2
             },
         }
     }
@@ -145,21 +135,15 @@ impl LawRange {
             rho_min: self.rho_min.min(o.rho_min),
             rho_max: self.rho_max.max(o.rho_max),
             speed_max_m_s: self.speed_max_m_s.max(o.speed_max_m_s),
-            accel_max_m_s2: self.accel_max_m_s2.max(o.accel_max_m_s2),
         }
     }
 
     /// 0 <= rho_min <= rho_max <= 1, the speed and acceleration not negative (infinite
     /// allowed), nothing NaN (one comparison chain, in f32 as the board takes it: NaN
     /// fails it). Refused as `law_range`, its value rho_min.
-    #[inline(never)]
     pub fn validate(&self) -> Result<(), CorrectionError> {
         let r = self;
-        if 0.0 <= r.rho_min
-            && r.rho_min <= r.rho_max
-            && r.rho_max <= 1.0
-            && r.speed_max_m_s >= 0.0
-            && r.accel_max_m_s2 >= 0.0
+        if 0.0 <= r.rho_min && r.rho_min <= r.rho_max && r.rho_max <= 1.0 && r.speed_max_m_s >= 0.0
         {
             return Ok(());
         }
@@ -264,8 +248,8 @@ pub enum Corrections {
         laws: DiffLaws,
         /// Where they were fitted ([`LawRange`]'s fields, in its order: one struct less
         /// to encode on the board): the smallest and largest turn ratio, the fastest side
-        /// (m/s), the largest change of a side's speed (m/s^2).
-        range: [f32; 4],
+        /// (m/s).
+        range: [f32; 3],
     },
 }
 
@@ -431,12 +415,7 @@ impl Corrections {
                 c_r,
                 e_b,
                 laws,
-                range: [
-                    range.rho_min,
-                    range.rho_max,
-                    range.speed_max_m_s,
-                    range.accel_max_m_s2,
-                ],
+                range: [range.rho_min, range.rho_max, range.speed_max_m_s],
             }
         }
     }
@@ -573,7 +552,6 @@ impl Corrections {
                 rho_min: r[0],
                 rho_max: r[1],
                 speed_max_m_s: r[2],
-                accel_max_m_s2: r[3],
             },
             _ => LawRange::UNBOUNDED,
         }

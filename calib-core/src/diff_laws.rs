@@ -32,12 +32,11 @@ pub struct DiffLawOdometry<T> {
     e_b_arc: T,
     speed_rel: T,
     accel_slip_s: T,
-    /// The fitted range: rho's bounds, the fastest side speed (m/s) and the largest change
-    /// of a side's speed per tick (m/s); infinite when unbounded.
+    /// The fitted range: rho's bounds and the fastest side speed (m/s, infinite when
+    /// unbounded).
     rho_min: T,
     rho_max: T,
     speed_max: T,
-    dv_max: T,
     /// Any law at all (else every twist passes unchanged, to the bit).
     active: bool,
     /// Per wheel: nominal radius / wheels on its side, on the left (else 0) and on the
@@ -52,6 +51,12 @@ pub struct DiffLawOdometry<T> {
     per_s: T,
     /// Smoothed travel per tick of the left and right sides (m).
     smooth: (T, T),
+}
+
+/// An f32 (the range's type) as T without going through f64 (no soft-float on the
+/// board).
+fn cast32<T: Float>(v: f32) -> T {
+    T::from(v).unwrap_or_else(T::zero)
 }
 
 fn cast<T: Float>(v: f64) -> T {
@@ -84,10 +89,9 @@ impl<T: Float> DiffLawOdometry<T> {
             e_b_arc: cast(laws.e_b_arc),
             speed_rel: cast(laws.speed_rel),
             accel_slip_s: cast(laws.accel_slip_s),
-            rho_min: cast(range.rho_min as f64),
-            rho_max: cast(range.rho_max as f64),
-            speed_max: cast(range.speed_max_m_s as f64),
-            dv_max: cast(range.accel_max_m_s2 as f64 * tick_s),
+            rho_min: cast32(range.rho_min),
+            rho_max: cast32(range.rho_max),
+            speed_max: cast32(range.speed_max_m_s),
             active: laws != DiffLaws::default(),
             left,
             right,
@@ -120,20 +124,19 @@ impl<T: Float> DiffLawOdometry<T> {
         self.smooth = (l0 + self.k * (l - l0), r0 + self.k * (r - r0));
         let (sl, sr) = self.smooth;
         let d = if self.speed_rel != T::zero() || self.accel_slip_s != T::zero() {
-            // Per side: speed now, and its change this tick (signed, m/s).
-            let (vl, vr) = (sl * self.per_s, sr * self.per_s);
-            let (dvl, dvr) = ((sl - l0) * self.per_s, (sr - r0) * self.per_s);
-            // Within the fitted range: beyond it each law holds its edge's value.
-            let (vl, vr) = (vl.abs().min(self.speed_max), vr.abs().min(self.speed_max));
-            let (dvl, dvr) = (
-                dvl.max(-self.dv_max).min(self.dv_max),
-                dvr.max(-self.dv_max).min(self.dv_max),
-            );
+            // Per side: speed now and before this tick (signed, m/s), held within the
+            // fitted speeds: beyond them the speed law keeps its edge's value and the
+            // acceleration law's lag (its changes of speed summed) stops growing, so it
+            // still cancels from rest to rest.
+            let m = self.speed_max;
+            let v = |x: T| (x * self.per_s).max(-m).min(m);
+            let (vl, vr) = (v(sl), v(sr));
+            let (dvl, dvr) = (vl - v(l0), vr - v(r0));
             let mut law_dphi = [T::zero(); MAX_WHEELS];
             for (i, p) in law_dphi[..n].iter_mut().enumerate() {
                 let is_left = self.left[i] != T::zero();
                 let (v, dv) = if is_left { (vl, dvl) } else { (vr, dvr) };
-                *p = dphi[i] * (T::one() + self.speed_rel * v)
+                *p = dphi[i] * (T::one() + self.speed_rel * v.abs())
                     - self.accel_slip_s * dv * self.inv_radius[i];
             }
             forward(&law_dphi[..n])

@@ -281,8 +281,8 @@ impl BoardFactors {
         let g = self.range.for_laws(l);
         if *l != calib_core::correction::DiffLaws::default() && !g.is_unbounded() {
             s.push_str(&format!(
-                " --law-range {:.6},{:.6},{:.6},{:.6}",
-                g.rho_min, g.rho_max, g.speed_max_m_s, g.accel_max_m_s2
+                " --law-range {:.6},{:.6},{:.6}",
+                g.rho_min, g.rho_max, g.speed_max_m_s
             ));
         }
         s

@@ -521,8 +521,7 @@ impl Series {
     }
 
     /// The motion a law fitted on this recording covers ([`LawRange`]): the turn ratios
-    /// of its moving rows, its fastest side (m/s) and its largest change of a side's
-    /// speed (m/s^2), as the stepping sees them (smoothed over 0.1 s either side). A
+    /// of its moving rows and its fastest side (m/s), as the stepping sees them (smoothed over 0.1 s either side). A
     /// recording that never moves covers nothing ([`empty_range`]); one without turn
     /// ratios (a wheeled-legged robot) everything.
     pub(crate) fn law_range(&self) -> LawRange {
@@ -544,15 +543,10 @@ impl Series {
                 let m = m[k];
                 let v = m.speed[0].max(m.speed[1]) as f32;
                 g.speed_max_m_s = g.speed_max_m_s.max(v);
-                if m.dt > 0.0 {
-                    let a = m.dv[0].abs().max(m.dv[1].abs()) / m.dt;
-                    g.accel_max_m_s2 = g.accel_max_m_s2.max(a as f32);
-                }
             }
         }
         if self.motion.is_none() {
             g.speed_max_m_s = f32::INFINITY;
-            g.accel_max_m_s2 = f32::INFINITY;
         }
         g
     }
@@ -817,7 +811,6 @@ pub(crate) fn empty_range() -> LawRange {
         rho_min: 1.0,
         rho_max: 0.0,
         speed_max_m_s: 0.0,
-        accel_max_m_s2: 0.0,
     }
 }
 

@@ -89,9 +89,11 @@ pub(crate) struct SideMotion {
     pub(crate) speed: [f64; 2],
     /// The change of each side's signed speed over the increment (m/s).
     pub(crate) dv: [f64; 2],
-    /// The recording's median row step (s): the change of speed over it is the
-    /// acceleration the law's range bounds.
-    pub(crate) dt: f64,
+    /// The left and right sides' signed speeds (m/s) now and at the next increment: `dv`
+    /// is their difference, and held within a law's speeds ([`Sides::step`]) it is the
+    /// difference of the held speeds.
+    pub(crate) v: [f64; 2],
+    pub(crate) next: [f64; 2],
 }
 
 /// Per increment, rho = |d_r - d_l| / (|d_r| + |d_l|) of the sides' travel (nominal
@@ -103,7 +105,6 @@ pub(super) fn turn_ratio(
     t: &[f64],
 ) -> (Vec<f64>, Vec<SideMotion>) {
     let m = inc.len();
-    let row_dt = median_step(t).unwrap_or(0.0);
     let half = median_step(t).map_or(1, |dt| ((RHO_HALF_WINDOW_S / dt).round() as usize).max(1));
     let sides = Sides::new(robot);
     let (mut pl, mut pr) = (vec![0.0; m + 1], vec![0.0; m + 1]);
@@ -137,7 +138,8 @@ pub(super) fn turn_ratio(
             SideMotion {
                 speed: [v[k][0].abs(), v[k][1].abs()],
                 dv: [next[0] - v[k][0], next[1] - v[k][1]],
-                dt: row_dt,
+                v: v[k],
+                next,
             }
         })
         .collect();
@@ -258,9 +260,18 @@ impl Sides {
             r *= 1.0 + law.speed_rel * side.speed[1].min(top);
         }
         if law.accel_slip_s != 0.0 {
-            let most = g.accel_max_m_s2 as f64 * side.dt;
-            l -= law.accel_slip_s * side.dv[0].clamp(-most, most);
-            r -= law.accel_slip_s * side.dv[1].clamp(-most, most);
+            // The lag stops growing beyond the fitted speeds (the changes of the held
+            // speeds: from rest to rest it still cancels).
+            let top = g.speed_max_m_s as f64;
+            let dv = |i: usize| {
+                if top == f64::INFINITY {
+                    side.dv[i]
+                } else {
+                    side.next[i].clamp(-top, top) - side.v[i].clamp(-top, top)
+                }
+            };
+            l -= law.accel_slip_s * dv(0);
+            r -= law.accel_slip_s * dv(1);
         }
         let rho = rho.clamp(g.rho_min as f64, g.rho_max as f64);
         let half = self.half * (1.0 + law.arc_rel * self.law_share(rho));

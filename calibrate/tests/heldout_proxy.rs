@@ -903,3 +903,42 @@ fn sessions_the_circle_test_finds_the_turn_law_by_hand() {
     .unwrap();
     assert_meets_the_goal(&r);
 }
+
+/// Issue 56's goal on laws: the board (its factors and the laws calibrate keeps) is never
+/// more than 2 % worse than the same calibration's constant geometry (the robot file) on
+/// runs kept apart from the training. The runs the issue measured it on (the free-form
+/// runs) are kept apart from this repository, so the differential robot's own kinds and
+/// months stand in: each kind of motion kept apart from the other two (all sessions of
+/// both months: 110, 98 and 120 runs trained on), and each month kept apart from the
+/// other (`proxy::kept_apart_sets`; `examples/laws_by_session_and_kind.rs` prints the
+/// table). Before laws were judged by session and by kind, the 164 runs kept a speed law
+/// (-3.9 % per m/s) that made the board 1.7 times worse on the free runs.
+#[test]
+#[ignore]
+fn sessions_the_board_is_never_2_percent_worse_than_its_constant_geometry() {
+    let sets = proxy::kept_apart_sets(&dir()).unwrap();
+    for (k, _) in &sets {
+        println!(
+            "{} ({} runs) -> {} ({} runs): law {:?}, board {:.2} mm, constant geometry {:.2} mm, ratio {:.3} ({:.1} s)",
+            k.training,
+            k.train_runs,
+            k.tested,
+            k.test_runs,
+            k.law,
+            k.board_m * 1e3,
+            k.constant_m * 1e3,
+            k.ratio(),
+            k.seconds
+        );
+    }
+    assert_eq!(sets.len(), 5);
+    for (k, _) in &sets {
+        assert!(
+            k.ratio() <= 1.02,
+            "{} -> {}: {:.3}",
+            k.training,
+            k.tested,
+            k.ratio()
+        );
+    }
+}

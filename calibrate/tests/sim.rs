@@ -2172,7 +2172,7 @@ fn a_speed_law_fitted_on_slow_runs_is_held_at_its_edge_on_fast_runs() {
     let truth: BoardFactors = serde_json::from_value(serde_json::json!({
         "c_l": 1.0, "c_r": 1.0, "e_b": 1.0,
         "e_b_arc": 0.0, "speed_rel": 0.1, "accel_slip_s": 0.0,
-        "range": {"rho_min": 0.0, "rho_max": 1.0, "speed_max_m_s": 0.3, "accel_max_m_s2": 1e9}
+        "range": {"rho_min": 0.0, "rho_max": 1.0, "speed_max_m_s": 0.3}
     }))
     .unwrap();
     let board = |k: &Corrections| {

@@ -115,8 +115,8 @@ impl FactorsView {
                 }
                 if let Some(r) = law_range {
                     s.push_str(&format!(
-                        "; the laws held at their edges beyond the motion they were fitted on (turn ratio {:.3}-{:.3}, side speed up to {:.3} m/s, change of speed up to {:.3} m/s^2)",
-                        r.rho_min, r.rho_max, r.speed_max_m_s, r.accel_max_m_s2
+                        "; the laws held at their edges beyond the motion they were fitted on (turn ratio {:.3}-{:.3}, side speed up to {:.3} m/s)",
+                        r.rho_min, r.rho_max, r.speed_max_m_s
                     ));
                 }
                 s.push('\n');

@@ -30,8 +30,8 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
     let current = client.corrections()?;
     let robot = client.params()?.robot;
     let n = robot.wheels.len();
-    if a.law_range.as_ref().is_some_and(|r| r.len() != 4) {
-        bail!("--law-range takes four numbers: RHO_MIN,RHO_MAX,SPEED_MAX,ACCEL_MAX");
+    if a.law_range.as_ref().is_some_and(|r| r.len() != 3) {
+        bail!("--law-range takes three numbers: RHO_MIN,RHO_MAX,SPEED_MAX");
     }
     let c = board::merge_corrections(
         &current,
@@ -50,7 +50,6 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
                     rho_min: r[0] as f32,
                     rho_max: r[1] as f32,
                     speed_max_m_s: r[2] as f32,
-                    accel_max_m_s2: r[3] as f32,
                 }),
             f_lat: a.f_lat.as_deref(),
             f_lon: a.f_lon,
