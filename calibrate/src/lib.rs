@@ -358,7 +358,14 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     // applies the law.
     // Applied only within the motion of the recordings fitted: beyond it the law holds
     // its edge's value (on the board too, `Corrections::DiffDriveLawsInRange`).
-    let turn_law = TurnLaw::of(&specs, &fitted.geom, cfg.law()).within(series::range_of(&series));
+    // A law given (--turn-law, --speed-law, --laws-from) was fitted elsewhere: it is
+    // applied as given, not bounded by these recordings.
+    let turn_law = TurnLaw::of(&specs, &fitted.geom, cfg.law());
+    let turn_law = if cfg.known_law.is_some() {
+        turn_law
+    } else {
+        turn_law.within(series::range_of(&series))
+    };
     let law_base_robot = fitted_robot.clone();
     let mut law_eb_shift = 0.0;
     let mut placed_for_log = PlacedForLog::default();

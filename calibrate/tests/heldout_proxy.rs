@@ -112,23 +112,21 @@ fn sessions_the_turn_law_is_the_same_in_june_and_december() {
     for month in ["06", "12"] {
         let (robot, recs) = proxy::month_runs(&d, "diff", month).unwrap();
         let c = calibrate(&robot, &recs, None, &opts).unwrap();
-        let eb = c.params.iter().find(|p| p.spec.name == "eb").unwrap().value;
-        let arc = c
-            .params
+        // The law as fitted on its own (`law_tests`, eb_arc / eb): since issue 56 it is
+        // also judged by session and by kind, and not kept (left out by kind, squares and
+        // spins cannot teach it), but the months' fits are what is compared here.
+        let t = c
+            .law_tests
             .iter()
-            .find(|p| p.spec.name == "eb_arc")
-            .unwrap_or_else(|| panic!("month {month}: no law\n{c}"));
-        eprintln!(
-            "month {month}: eb_arc/eb {:.4} ± {:.4}",
-            arc.value / eb,
-            arc.sigma / eb
-        );
+            .find(|t| t.law == "turn")
+            .unwrap_or_else(|| panic!("month {month}: no turn law tested\n{c}"));
+        eprintln!("month {month}: eb_arc/eb {:.4} ± {:.4}", t.value, t.sigma);
         assert!(
-            (0.002..=0.01).contains(&(arc.value / eb)),
-            "month {month}: eb_arc {}",
-            arc.value
+            (0.002..=0.01).contains(&t.value),
+            "month {month}: eb_arc/eb {}",
+            t.value
         );
-        laws.push((arc.value / eb, arc.sigma / eb));
+        laws.push((t.value, t.sigma));
     }
     let (a, b) = (laws[0], laws[1]);
     let combined = (a.1 * a.1 + b.1 * b.1).sqrt();
@@ -168,8 +166,10 @@ fn sessions_a_law_from_the_other_month_beats_optiodom() {
     for month in ["06", "12"] {
         let (robot, recs) = proxy::month_runs(&d, "diff", month).unwrap();
         let c = calibrate(&robot, &recs, None, &CalOptions::default()).unwrap();
-        let speed = c.law_tests.iter().find(|t| t.law == "speed").unwrap().value;
-        laws.insert(month, (c.turn_law.arc_rel, speed));
+        // Each law as fitted on its own (`law_tests`), kept or not: since issue 56 a
+        // month's laws are judged by session and by kind too, and neither is kept.
+        let value = |law: &str| c.law_tests.iter().find(|t| t.law == law).unwrap().value;
+        laws.insert(month, (value("turn"), value("speed")));
         let paths: Vec<_> = recs
             .into_iter()
             .filter(|(n, _)| !n.contains("-square-"))
@@ -438,12 +438,30 @@ fn sessions_omni3_turn_law_holds_out_on_circles_and_squares_alike() {
                 assert_ne!(k, held);
                 train.extend(runs.iter().cloned());
             }
-            let c = calibrate(&nominal, &train, None, &CalOptions::default()).unwrap();
-            let law = c
+            let chosen = calibrate(&nominal, &train, None, &CalOptions::default()).unwrap();
+            let law = chosen
                 .law_tests
                 .iter()
                 .find(|t| t.parameter == "l_arc")
-                .unwrap_or_else(|| panic!("no omni turn law tested\n{c}"));
+                .unwrap_or_else(|| panic!("no omni turn law tested\n{chosen}"))
+                .clone();
+            // Issue 56: left out by kind, the law fitted on the squares alone (turns in
+            // place) cannot be learned, so it does not hold out on the circles and is not
+            // kept by calibrate's own choice; held (`--turn-law`), it carries as before.
+            assert!(
+                law.decided && law.by_kind.len() == 2 && !law.kept,
+                "{chosen}"
+            );
+            let c = calibrate(
+                &nominal,
+                &train,
+                None,
+                &CalOptions {
+                    turn_law: Some(law.value),
+                    ..Default::default()
+                },
+            )
+            .unwrap();
             let (k, s_k) = (c.turn_law.arc_rel, law.sigma);
             let test: Vec<_> = circles[held].iter().collect();
             let rows = [
@@ -471,10 +489,7 @@ fn sessions_omni3_turn_law_holds_out_on_circles_and_squares_alike() {
             );
             assert!((on_board[0] / rows[0].0 - 1.0).abs() < 0.05, "{on_board:?}");
             assert!((on_board[1] / rows[1].0 - 1.0).abs() < 0.05, "{on_board:?}");
-            assert!(
-                law.kept && (0.010..=0.025).contains(&k) && k >= 3.0 * s_k,
-                "{c}"
-            );
+            assert!((0.010..=0.025).contains(&k) && k >= 3.0 * s_k, "{c}");
             assert!(rows[0].0 <= 0.5 * rows[0].2 && rows[0].0 <= 1.05 * rows[0].1);
             assert!(rows[1].0 <= 0.8 * rows[1].1 && rows[1].0 <= 0.7 * rows[1].2);
         }

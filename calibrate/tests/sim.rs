@@ -1994,8 +1994,7 @@ fn a_law_hidden_by_a_pose_lead_is_tested_on_top_of_it() {
 /// seeds from `seed`.
 fn named_runs(
     nominal: &Robot,
-    kind: &str,
-    session: &str,
+    (kind, session): (&str, &str),
     motion: RandomMotion,
     seed: u64,
     n: u64,
@@ -2120,11 +2119,10 @@ fn a_speed_law_fitted_on_slow_runs_is_held_at_its_edge_on_fast_runs() {
         c.sim.speed_scale = 0.1;
         c.sim.speed_scale_top_m_s = 0.3;
     };
-    let mut runs = named_runs(&nominal, "wander", "1", moderate(), 300, 2, &[], tweak);
+    let mut runs = named_runs(&nominal, ("wander", "1"), moderate(), 300, 2, &[], tweak);
     runs.extend(named_runs(
         &nominal,
-        "cruise",
-        "2",
+        ("cruise", "2"),
         moderate_cruise(),
         310,
         2,
@@ -2167,7 +2165,7 @@ fn a_speed_law_fitted_on_slow_runs_is_held_at_its_edge_on_fast_runs() {
         "{within} {at_top}"
     );
     // Fast runs: the board against the same calibration's constant geometry.
-    let fast_runs = named_runs(&nominal, "dash", "3", fast(), 320, 3, &[], tweak);
+    let fast_runs = named_runs(&nominal, ("dash", "3"), fast(), 320, 3, &[], tweak);
     let held = series(&nominal, fast_runs);
     let truth: BoardFactors = serde_json::from_value(serde_json::json!({
         "c_l": 1.0, "c_r": 1.0, "e_b": 1.0,
@@ -2285,19 +2283,34 @@ fn a_speed_law_that_holds_on_one_kind_only_is_refused() {
 fn a_true_speed_law_wins_on_every_held_out_session_and_kind() {
     let nominal = robot("mobolab");
     let grow = |c: &mut RecordConfig| c.sim.speed_scale = 0.1;
-    let mut runs = named_runs(&nominal, "wander", "1", slow(), 400, 2, &[], grow);
+    let mut runs = named_runs(&nominal, ("wander", "1"), slow(), 400, 2, &[], grow);
     runs.extend(named_runs(
         &nominal,
-        "wander",
-        "2",
+        ("wander", "2"),
         slow(),
         410,
         2,
         &[],
         grow,
     ));
-    runs.extend(named_runs(&nominal, "dash", "3", fast(), 420, 2, &[], grow));
-    runs.extend(named_runs(&nominal, "dash", "4", fast(), 430, 2, &[], grow));
+    runs.extend(named_runs(
+        &nominal,
+        ("dash", "3"),
+        fast(),
+        420,
+        2,
+        &[],
+        grow,
+    ));
+    runs.extend(named_runs(
+        &nominal,
+        ("dash", "4"),
+        fast(),
+        430,
+        2,
+        &[],
+        grow,
+    ));
     let c = calibrate(&nominal, &runs, None, &CalOptions::default()).unwrap();
     println!("{c}");
     let t = speed_law_test(&c);
