@@ -452,7 +452,23 @@ impl Corrections {
                 check("c_r", None, *c_r)?;
                 check("e_b", None, *e_b)?;
                 self.laws().validate()?;
-                self.law_range().validate()
+                // The range on the array itself (no struct built on the board): its turn
+                // ratios in order and its speed not negative, nothing NaN. Bounds past
+                // 0 or 1 bind nothing (rho is within 0..1), so they are taken as given.
+                if let Corrections::DiffDriveLawsInRange {
+                    range: [lo, hi, v], ..
+                } = self
+                {
+                    if !(lo <= hi && *v >= 0.0) {
+                        return Err(CorrectionError::OutOfRange {
+                            name: "law_range",
+                            index: None,
+                            value: *lo as f64,
+                            max: 1.0,
+                        });
+                    }
+                }
+                Ok(())
             }
             Corrections::DiffDrive { c_l, c_r, e_b } => {
                 if robot.kind == RobotKind::Omni {
@@ -545,7 +561,6 @@ impl Corrections {
 
     /// Where a differential drive's laws were fitted ([`LawRange::UNBOUNDED`] for kinds
     /// that carry no range).
-    #[inline(never)]
     pub fn law_range(&self) -> LawRange {
         match self {
             Corrections::DiffDriveLawsInRange { range: r, .. } => LawRange {

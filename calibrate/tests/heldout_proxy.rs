@@ -277,12 +277,15 @@ fn sessions_a_law_from_the_other_month_beats_optiodom() {
 /// `examples/laws_across_sessions.rs`): each of the 29 sessions of the differential
 /// robot left out of its month in turn, the rest calibrated with each law held at the
 /// value it fits there. Measured: the turn law 0.847 and the speed law 0.854 of no law's
-/// error (geometric means), the turn law better on 18 of 29 sessions; calibrate's own
-/// choice 0.855 (it keeps no law in two December folds, where neither holds out by 5 %
-/// over recordings, though each would have carried by 10 %). Asserted: each law at most
-/// 0.9 of no law; the two within the ladder's 3 % of each other, a tie, which calibrate
-/// gives the turn law (it carried better across months, above); the choice within 3 %
-/// of the better law.
+/// error (geometric means), the turn law better on 18 of 29 sessions. calibrate's own
+/// choice was 0.855 (a law kept in 27 of the 29 folds) while laws were judged over folds
+/// of recordings alone; since issue 56 a law must also hold out on every session and
+/// every kind of motion left out, and in no fold does one (left out by kind, the squares
+/// and spins cannot teach the circles' turn law, and the speed law misses sessions), so
+/// the choice is no law: 1.000. That is the price of the rule on this robot's own
+/// months: either law held would gain 15 % on the sessions left out. Asserted: each law
+/// at most 0.9 of no law; the two within the ladder's 3 % of each other, a tie; the
+/// choice never more than 2 % worse than no law (issue 56's bound for the board).
 #[test]
 #[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
 fn sessions_the_turn_and_speed_laws_tie_across_sessions() {
@@ -300,7 +303,7 @@ fn sessions_the_turn_and_speed_laws_tie_across_sessions() {
         (turn / speed).ln().abs() <= 0.03,
         "turn {turn:.3}, speed {speed:.3}"
     );
-    assert!(chosen <= 1.03 * turn.min(speed), "chosen {chosen:.3}");
+    assert!(chosen <= 1.02, "chosen {chosen:.3}");
 }
 
 /// The three-wheel omni robot (issue 21): each of its two square sessions calibrated with
