@@ -77,6 +77,91 @@ impl DiffLaws {
     }
 }
 
+/// The motion a differential drive's laws were fitted on ([`Corrections::DiffDriveLawsInRange`]):
+/// beyond it the odometry holds each law at its value at the edge, never extrapolating it
+/// to speeds, turns or accelerations the calibration did not see. Unbounded
+/// ([`LawRange::UNBOUNDED`]): every law applied as fitted at any motion (what boards before
+/// protocol v9 do).
+#[derive(Debug, Clone, Copy, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
+pub struct LawRange {
+    /// Smallest turn ratio rho (0 straight, 1 a turn in place) the turn law was fitted on.
+    pub rho_min: f32,
+    /// Largest turn ratio rho.
+    pub rho_max: f32,
+    /// Fastest side speed |v| (m/s) the speed and acceleration laws were fitted on:
+    /// beyond it the speed law holds its value there, and the acceleration law's lag
+    /// (its changes of speed summed: accel_slip_s times the speed) stops growing.
+    pub speed_max_m_s: f32,
+}
+
+impl LawRange {
+    /// Every motion: the laws applied as fitted.
+    pub const UNBOUNDED: LawRange = LawRange {
+        rho_min: 0.0,
+        rho_max: 1.0,
+        speed_max_m_s: f32::INFINITY,
+    };
+
+    /// Whether this is [`LawRange::UNBOUNDED`] (or wider).
+    pub fn is_unbounded(&self) -> bool {
+        self.rho_min <= 0.0 && self.rho_max >= 1.0 && self.speed_max_m_s == f32::INFINITY
+    }
+
+    /// This range less the bounds of laws `laws` lacks (a bound of no law is no bound).
+    pub fn for_laws(self, laws: &DiffLaws) -> LawRange {
+        let u = LawRange::UNBOUNDED;
+        LawRange {
+            rho_min: if laws.e_b_arc != 0.0 {
+                self.rho_min
+            } else {
+                u.rho_min
+            },
+            rho_max: if laws.e_b_arc != 0.0 {
+                self.rho_max
+            } else {
+                u.rho_max
+            },
+            speed_max_m_s: if laws.speed_rel != 0.0 || laws.accel_slip_s != 0.0 {
+                self.speed_max_m_s
+            } else {
+                u.speed_max_m_s
+            },
+        }
+    }
+
+    /// The smallest range holding both.
+    pub fn hull(self, o: LawRange) -> LawRange {
+        LawRange {
+            rho_min: self.rho_min.min(o.rho_min),
+            rho_max: self.rho_max.max(o.rho_max),
+            speed_max_m_s: self.speed_max_m_s.max(o.speed_max_m_s),
+        }
+    }
+
+    /// 0 <= rho_min <= rho_max <= 1, the speed and acceleration not negative (infinite
+    /// allowed), nothing NaN (one comparison chain, in f32 as the board takes it: NaN
+    /// fails it). Refused as `law_range`, its value rho_min.
+    pub fn validate(&self) -> Result<(), CorrectionError> {
+        let r = self;
+        if 0.0 <= r.rho_min && r.rho_min <= r.rho_max && r.rho_max <= 1.0 && r.speed_max_m_s >= 0.0
+        {
+            return Ok(());
+        }
+        Err(CorrectionError::OutOfRange {
+            name: "law_range",
+            index: None,
+            value: r.rho_min as f64,
+            max: 1.0,
+        })
+    }
+}
+
+impl Default for LawRange {
+    fn default() -> Self {
+        LawRange::UNBOUNDED
+    }
+}
+
 /// The correction factors a board stores.
 #[derive(Debug, Clone, PartialEq, Serialize, Deserialize, postcard_schema::Schema)]
 pub enum Corrections {
@@ -145,6 +230,26 @@ pub enum Corrections {
         /// How much longer the wheels' effective distance from the centre is on arcs
         /// (0.02 is 2 %).
         l_arc: f64,
+    },
+    /// [`Corrections::DiffDriveLaws`] with the motion the laws were fitted on
+    /// ([`LawRange`]): beyond it the odometry holds each law at its edge. Protocol v9;
+    /// last on the wire, so stored and sent values of the other kinds read as before
+    /// (they apply their laws unbounded). [`Corrections::diff_drive_within`] gives an
+    /// unbounded range as the narrower kinds.
+    DiffDriveLawsInRange {
+        /// Left wheel's effective radius / nominal radius (at standstill, with a speed
+        /// law).
+        c_l: f64,
+        /// Right wheel's effective radius / nominal radius (likewise).
+        c_r: f64,
+        /// Actual wheelbase / nominal wheelbase (in a turn in place, with a turn law).
+        e_b: f64,
+        /// The laws.
+        laws: DiffLaws,
+        /// Where they were fitted ([`LawRange`]'s fields, in its order: one struct less
+        /// to encode on the board): the smallest and largest turn ratio, the fastest side
+        /// (m/s).
+        range: [f32; 3],
     },
 }
 
@@ -291,6 +396,30 @@ impl Corrections {
         }
     }
 
+    /// [`Corrections::diff_drive`] with the motion the laws were fitted on:
+    /// [`Corrections::DiffDriveLawsInRange`] when there is a law and the range bounds one
+    /// of them ([`LawRange::for_laws`]).
+    pub fn diff_drive_within(
+        c_l: f64,
+        c_r: f64,
+        e_b: f64,
+        laws: DiffLaws,
+        range: LawRange,
+    ) -> Corrections {
+        let range = range.for_laws(&laws);
+        if laws == DiffLaws::default() || range.is_unbounded() {
+            Corrections::diff_drive(c_l, c_r, e_b, laws)
+        } else {
+            Corrections::DiffDriveLawsInRange {
+                c_l,
+                c_r,
+                e_b,
+                laws,
+                range: [range.rho_min, range.rho_max, range.speed_max_m_s],
+            }
+        }
+    }
+
     /// An omni robot's factors with a turn law `l_arc`, as the narrowest kind that holds
     /// them: plain [`Corrections::Omni`] without a law (what boards before protocol v8
     /// take), else [`Corrections::OmniTurnLaw`].
@@ -314,14 +443,32 @@ impl Corrections {
         match self {
             Corrections::None => Ok(()),
             Corrections::DiffDriveTurnLaw { c_l, c_r, e_b, .. }
-            | Corrections::DiffDriveLaws { c_l, c_r, e_b, .. } => {
+            | Corrections::DiffDriveLaws { c_l, c_r, e_b, .. }
+            | Corrections::DiffDriveLawsInRange { c_l, c_r, e_b, .. } => {
                 if robot.kind != RobotKind::DiffDrive {
                     return Err(CorrectionError::WrongKind { robot: robot.kind });
                 }
                 check("c_l", None, *c_l)?;
                 check("c_r", None, *c_r)?;
                 check("e_b", None, *e_b)?;
-                self.laws().validate()
+                self.laws().validate()?;
+                // The range on the array itself (no struct built on the board): its turn
+                // ratios in order and its speed not negative, nothing NaN. Bounds past
+                // 0 or 1 bind nothing (rho is within 0..1), so they are taken as given.
+                if let Corrections::DiffDriveLawsInRange {
+                    range: [lo, hi, v], ..
+                } = self
+                {
+                    if !(lo <= hi && *v >= 0.0) {
+                        return Err(CorrectionError::OutOfRange {
+                            name: "law_range",
+                            index: None,
+                            value: *lo as f64,
+                            max: 1.0,
+                        });
+                    }
+                }
+                Ok(())
             }
             Corrections::DiffDrive { c_l, c_r, e_b } => {
                 if robot.kind == RobotKind::Omni {
@@ -361,7 +508,8 @@ impl Corrections {
             Corrections::None => 1.0,
             Corrections::DiffDrive { c_l, c_r, .. }
             | Corrections::DiffDriveTurnLaw { c_l, c_r, .. }
-            | Corrections::DiffDriveLaws { c_l, c_r, .. } => {
+            | Corrections::DiffDriveLaws { c_l, c_r, .. }
+            | Corrections::DiffDriveLawsInRange { c_l, c_r, .. } => {
                 if robot.wheels[i].is_left() {
                     *c_l
                 } else {
@@ -380,7 +528,8 @@ impl Corrections {
         match self {
             Corrections::DiffDrive { e_b, .. }
             | Corrections::DiffDriveTurnLaw { e_b, .. }
-            | Corrections::DiffDriveLaws { e_b, .. } => *e_b,
+            | Corrections::DiffDriveLaws { e_b, .. }
+            | Corrections::DiffDriveLawsInRange { e_b, .. } => *e_b,
             _ => 1.0,
         }
     }
@@ -390,20 +539,36 @@ impl Corrections {
         match self {
             Corrections::DiffDrive { c_l, c_r, e_b }
             | Corrections::DiffDriveTurnLaw { c_l, c_r, e_b, .. }
-            | Corrections::DiffDriveLaws { c_l, c_r, e_b, .. } => Some((*c_l, *c_r, *e_b)),
+            | Corrections::DiffDriveLaws { c_l, c_r, e_b, .. }
+            | Corrections::DiffDriveLawsInRange { c_l, c_r, e_b, .. } => Some((*c_l, *c_r, *e_b)),
             _ => None,
         }
     }
 
     /// A differential drive's laws (all 0 without any).
+    #[inline(never)]
     pub fn laws(&self) -> DiffLaws {
         match self {
             Corrections::DiffDriveTurnLaw { e_b_arc, .. } => DiffLaws {
                 e_b_arc: *e_b_arc,
                 ..DiffLaws::default()
             },
-            Corrections::DiffDriveLaws { laws, .. } => *laws,
+            Corrections::DiffDriveLaws { laws, .. }
+            | Corrections::DiffDriveLawsInRange { laws, .. } => *laws,
             _ => DiffLaws::default(),
+        }
+    }
+
+    /// Where a differential drive's laws were fitted ([`LawRange::UNBOUNDED`] for kinds
+    /// that carry no range).
+    pub fn law_range(&self) -> LawRange {
+        match self {
+            Corrections::DiffDriveLawsInRange { range: r, .. } => LawRange {
+                rho_min: r[0],
+                rho_max: r[1],
+                speed_max_m_s: r[2],
+            },
+            _ => LawRange::UNBOUNDED,
         }
     }
 
@@ -454,11 +619,18 @@ impl Corrections {
             _ => {
                 let (l1, r1, b1) = self.diff_factors()?;
                 let (l2, r2, b2) = secondary.diff_factors()?;
-                Some(Corrections::diff_drive(
+                // The second pass's range when it has one (its laws were fitted on it).
+                let range = if secondary.law_range().is_unbounded() {
+                    self.law_range()
+                } else {
+                    secondary.law_range()
+                };
+                Some(Corrections::diff_drive_within(
                     l1 * l2,
                     r1 * r2,
                     b1 * b2,
                     self.laws().plus(secondary.laws()),
+                    range,
                 ))
             }
         }
@@ -476,7 +648,7 @@ impl Corrections {
                 1.0,
                 self.l_arc(),
             ),
-            _ => Corrections::diff_drive(1.0, 1.0, 1.0, self.laws()),
+            _ => Corrections::diff_drive_within(1.0, 1.0, 1.0, self.laws(), self.law_range()),
         }
     }
 

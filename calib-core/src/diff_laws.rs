@@ -7,12 +7,17 @@
 //! - the acceleration law: each side's travel less accel_slip_s times the change of its
 //!   speed (the ground lagging the wheels; over a run from rest to rest it cancels).
 //!
+//! Each law is applied only within the motion it was fitted on ([`LawRange`]): the
+//! smoothed side speed is held at the range's fastest, the change of speed per tick at
+//! its largest, and rho within its turn ratios, so beyond the range each law keeps its
+//! value at the edge.
+//!
 //! One encoder count makes a single tick's ratio and speed noisy, so the sides' travel is
 //! smoothed with a time constant of [`TURN_RATIO_TIME_S`] (calibration smooths over the
 //! same 0.1 s either side). Speeds come from the counts at nominal radii, as in
 //! calibration.
 
-use crate::correction::{Corrections, DiffLaws};
+use crate::correction::{Corrections, DiffLaws, LawRange};
 use crate::kinematics::{turn_law_share, Twist};
 use crate::robot::{Robot, MAX_WHEELS};
 use num_traits::Float;
@@ -27,6 +32,11 @@ pub struct DiffLawOdometry<T> {
     e_b_arc: T,
     speed_rel: T,
     accel_slip_s: T,
+    /// The fitted range: rho's bounds and the fastest side speed (m/s, infinite when
+    /// unbounded).
+    rho_min: T,
+    rho_max: T,
+    speed_max: T,
     /// Any law at all (else every twist passes unchanged, to the bit).
     active: bool,
     /// Per wheel: nominal radius / wheels on its side, on the left (else 0) and on the
@@ -41,6 +51,12 @@ pub struct DiffLawOdometry<T> {
     per_s: T,
     /// Smoothed travel per tick of the left and right sides (m).
     smooth: (T, T),
+}
+
+/// An f32 (the range's type) as T without going through f64 (no soft-float on the
+/// board).
+fn cast32<T: Float>(v: f32) -> T {
+    T::from(v).unwrap_or_else(T::zero)
 }
 
 fn cast<T: Float>(v: f64) -> T {
@@ -68,10 +84,14 @@ impl<T: Float> DiffLawOdometry<T> {
             inv_radius[i] = if r > 0.0 { cast(1.0 / r) } else { T::zero() };
         }
         let k = tick_s / (TURN_RATIO_TIME_S + tick_s);
+        let range: LawRange = corrections.law_range();
         DiffLawOdometry {
             e_b_arc: cast(laws.e_b_arc),
             speed_rel: cast(laws.speed_rel),
             accel_slip_s: cast(laws.accel_slip_s),
+            rho_min: cast32(range.rho_min),
+            rho_max: cast32(range.rho_max),
+            speed_max: cast32(range.speed_max_m_s),
             active: laws != DiffLaws::default(),
             left,
             right,
@@ -104,9 +124,14 @@ impl<T: Float> DiffLawOdometry<T> {
         self.smooth = (l0 + self.k * (l - l0), r0 + self.k * (r - r0));
         let (sl, sr) = self.smooth;
         let d = if self.speed_rel != T::zero() || self.accel_slip_s != T::zero() {
-            // Per side: speed now, and its change this tick (signed, m/s).
-            let (vl, vr) = (sl * self.per_s, sr * self.per_s);
-            let (dvl, dvr) = ((sl - l0) * self.per_s, (sr - r0) * self.per_s);
+            // Per side: speed now and before this tick (signed, m/s), held within the
+            // fitted speeds: beyond them the speed law keeps its edge's value and the
+            // acceleration law's lag (its changes of speed summed) stops growing, so it
+            // still cancels from rest to rest.
+            let m = self.speed_max;
+            let v = |x: T| (x * self.per_s).max(-m).min(m);
+            let (vl, vr) = (v(sl), v(sr));
+            let (dvl, dvr) = (vl - v(l0), vr - v(r0));
             let mut law_dphi = [T::zero(); MAX_WHEELS];
             for (i, p) in law_dphi[..n].iter_mut().enumerate() {
                 let is_left = self.left[i] != T::zero();
@@ -128,6 +153,7 @@ impl<T: Float> DiffLawOdometry<T> {
         } else {
             T::one()
         };
+        let rho = rho.max(self.rho_min).min(self.rho_max);
         Twist {
             omega: d.omega / (T::one() + self.e_b_arc * turn_law_share(rho)),
             ..d
@@ -216,6 +242,86 @@ mod tests {
         }
         assert!((out.vx / plain.vx - 1.03).abs() < 1e-9, "{out:?}");
         assert!(out.omega.abs() < 1e-12, "{out:?}");
+    }
+
+    /// A speed law fitted up to 0.3 m/s (`LawRange::speed_max_m_s`), straight at 0.6 m/s:
+    /// once the smoothing has settled the travel is 1 + 0.1 x 0.3 = 1.03 times the
+    /// kinematics' (the law held at its edge, to 1e-8: the range is an f32, 0.3 to 1.2e-8),
+    /// not 1.06; at 0.2 m/s, within the range, 1.02. In f32 (the board's) the same to
+    /// 1e-6.
+    #[test]
+    fn a_speed_law_is_held_at_the_edge_of_its_range() {
+        let robot = presets::mobolab();
+        let c = Corrections::diff_drive_within(
+            1.0,
+            1.0,
+            1.0,
+            DiffLaws {
+                speed_rel: 0.1,
+                ..DiffLaws::default()
+            },
+            LawRange {
+                speed_max_m_s: 0.3,
+                ..LawRange::UNBOUNDED
+            },
+        );
+        assert!(
+            matches!(c, Corrections::DiffDriveLawsInRange { .. }),
+            "{c:?}"
+        );
+        for (v, want) in [(0.6, 1.03), (0.2, 1.02)] {
+            let kin = Kinematics::<f64>::new(&robot, &c).unwrap();
+            let mut law = DiffLawOdometry::<f64>::new(&robot, &c, 1e-3);
+            let dphi = rotations(&robot, v * 1e-3, v * 1e-3);
+            let plain = kin.forward(&dphi);
+            let mut out = plain;
+            for _ in 0..3000 {
+                out = law.apply(&dphi, |p| kin.forward(p));
+            }
+            assert!((out.vx / plain.vx - want).abs() < 1e-8, "{v}: {out:?}");
+            let kin = Kinematics::<f32>::new(&robot, &c).unwrap();
+            let mut law = DiffLawOdometry::<f32>::new(&robot, &c, 1e-3);
+            let dphi = [dphi[0] as f32, dphi[1] as f32];
+            let plain = kin.forward(&dphi);
+            let mut out = plain;
+            for _ in 0..3000 {
+                out = law.apply(&dphi, |p| kin.forward(p));
+            }
+            assert!(
+                ((out.vx / plain.vx) as f64 - want).abs() < 1e-6,
+                "f32 {v}: {out:?}"
+            );
+        }
+    }
+
+    /// A turn law fitted on arcs with rho 0.2..0.6 only: a turn in place (rho 1) is
+    /// corrected as at rho 0.6, 1 / (1 + 0.01 (1 - 0.36)), not left alone.
+    #[test]
+    fn a_turn_law_is_held_at_the_edge_of_its_turn_ratios() {
+        let robot = presets::mobolab();
+        let c = Corrections::diff_drive_within(
+            1.0,
+            1.0,
+            1.0,
+            DiffLaws {
+                e_b_arc: 0.01,
+                ..DiffLaws::default()
+            },
+            LawRange {
+                rho_min: 0.2,
+                rho_max: 0.6,
+                ..LawRange::UNBOUNDED
+            },
+        );
+        let mut law = DiffLawOdometry::<f64>::new(&robot, &c, 1e-3);
+        let dphi = rotations(&robot, -1e-3, 1e-3);
+        let d = Twist::new(0.0, 0.0, 1.0);
+        let mut out = d;
+        for _ in 0..2000 {
+            out = law.apply(&dphi, |_| d);
+        }
+        let want = 1.0 / (1.0 + 0.01 * (1.0 - 0.36));
+        assert!((out.omega - want).abs() < 1e-9, "{}", out.omega);
     }
 
     /// From rest to 0.3 m/s in 0.5 s, then 2 s at 0.3 m/s, with an acceleration law of

@@ -5,6 +5,7 @@
 //! recordings goes to the driver ([`Prefit`]), which takes it over.
 
 use crate::options::Cfg;
+use crate::options::CvBy;
 use crate::params::{
     accel_law_specs, alike_priors, is_mecanum, ladder, omni_turn_law_spec, param_specs,
     roller_specs, speed_law_specs, turn_law_specs, with_one_recording_radius_range, GeomKind,
@@ -12,12 +13,13 @@ use crate::params::{
 };
 use crate::pool::pool_map;
 use crate::problem::Problem;
-use crate::result::LawTest;
-use crate::series::{fitted_dead_reckoning_rmse, Series};
+use crate::result::{GroupHeldout, LawTest};
+use crate::series::{empty_range, fitted_dead_reckoning_rmse_within, Series};
 use crate::solve::{
     covariance, noise_scale, nuisance_start, refs, reweighed, solve, OneStep, Solved,
 };
 use crate::turn_law::Turning;
+use calib_core::correction::LawRange;
 use calib_core::robot::{Robot, RobotKind};
 use nalgebra::DMatrix;
 
@@ -204,17 +206,34 @@ pub const LADDER_TOLERANCE: f64 = 0.03;
 /// Most folds the ladder's held-out comparison uses.
 pub const LADDER_FOLDS: usize = 5;
 
+/// The recordings' folds by index: recording j in fold j mod k, k = min(n,
+/// [`LADDER_FOLDS`]).
+fn k_folds(n: usize) -> Vec<Vec<usize>> {
+    let k = n.min(LADDER_FOLDS);
+    (0..k)
+        .map(|f| (0..n).filter(|j| j % k == f).collect())
+        .collect()
+}
+
+/// The recordings grouped by `by` (session or kind of motion, [`CvBy::group`]), groups in
+/// the order of their first recording: each group's name and recordings.
+pub(super) fn groups_by(series: &[Series], by: CvBy) -> Vec<(String, Vec<usize>)> {
+    let mut out: Vec<(String, Vec<usize>)> = Vec::new();
+    for (j, s) in series.iter().enumerate() {
+        let g = by.group(&s.name);
+        match out.iter_mut().find(|o| o.0 == g) {
+            Some(o) => o.1.push(j),
+            None => out.push((g, vec![j])),
+        }
+    }
+    out
+}
+
 /// Mean held-out dead-reckoning RMSE of each model of `models`, the recordings split
 /// into at most [`LADDER_FOLDS`] folds (recording j in fold j mod k; 44 recordings left
 /// out one by one for five models took six minutes), each fold dead-reckoned from each
 /// recording's first pose with the model fitted without it; and each model's fit on all
 /// the recordings when it was made (the caller takes it over instead of refitting).
-///
-/// Dead reckoning with the squared loss: each model is fitted on all the recordings (the
-/// models on two threads), and each fold's geometry is one Gauss-Newton step from that
-/// fit with the fold's rows taken out of its normal equations ([`OneStep`], as
-/// cross-validation does). Otherwise (fitted start poses, Huber's loss) every fold is
-/// refitted from nominal ([`refitted_heldout_errors`]).
 fn heldout_errors(
     robot: &Robot,
     models: &[&[ParamSpec]],
@@ -222,12 +241,40 @@ fn heldout_errors(
     cfg: Cfg,
     runs: &mut usize,
 ) -> (Vec<f64>, Vec<Option<Fit>>) {
+    let n = series.len();
+    let (sums, fits) = heldout_folds(robot, models, series, cfg, &k_folds(n), runs);
+    let mean = sums
+        .iter()
+        .map(|folds| folds.iter().sum::<f64>() / n as f64)
+        .collect();
+    (mean, fits)
+}
+
+/// Per model of `models`, per fold of `folds` (recording indices held out together): the
+/// sum of the fold's recordings' dead-reckoned RMSE with the model fitted without the
+/// fold, its laws held at the edges of the motion the other recordings cover
+/// ([`Series::law_range`]: a law is never judged where it was not fitted); and each
+/// model's fit on all the recordings when it was made.
+///
+/// Dead reckoning with the squared loss: each model is fitted on all the recordings (the
+/// models on two threads), and each fold's geometry is one Gauss-Newton step from that
+/// fit with the fold's rows taken out of its normal equations ([`OneStep`], as
+/// cross-validation does). Otherwise (fitted start poses, Huber's loss) every fold is
+/// refitted from nominal ([`refitted_heldout_folds`]).
+fn heldout_folds(
+    robot: &Robot,
+    models: &[&[ParamSpec]],
+    series: &[Series],
+    cfg: Cfg,
+    folds: &[Vec<usize>],
+    runs: &mut usize,
+) -> (Vec<Vec<f64>>, Vec<Option<Fit>>) {
     if cfg.free_start || cfg.huber.is_some() {
-        let e = refitted_heldout_errors(robot, models, series, cfg, runs);
+        let e = refitted_heldout_folds(robot, models, series, cfg, folds, runs);
         return (e, models.iter().map(|_| None).collect());
     }
     let n = series.len();
-    let k = n.min(LADDER_FOLDS);
+    let ranges = fold_ranges(series, folds);
     // Largest models first: the threads finish together.
     let mut order: Vec<usize> = (0..models.len()).collect();
     order.sort_by_key(|&m| std::cmp::Reverse(models[m].len()));
@@ -257,66 +304,248 @@ fn heldout_errors(
         .collect();
     *runs += fits.iter().map(|(_, f)| f.runs + 1).sum::<usize>();
     // Model by model, fold by fold: the sum of the fold's held-out errors.
+    let k = folds.len();
     let jobs: Vec<(usize, usize)> = (0..models.len())
         .flat_map(|m| (0..k).map(move |fold| (m, fold)))
         .collect();
     let errors = pool_map(&jobs, |&(m, fold)| {
-        let geom = steps[m].without((0..n).filter(|&j| j % k == fold));
-        (0..n)
-            .filter(|&j| j % k == fold)
-            .map(|j| fitted_dead_reckoning_rmse(robot, models[m], &geom, cfg.law(), &series[j]))
+        let out = &folds[fold];
+        if out.len() >= n {
+            return f64::NAN;
+        }
+        let geom = steps[m].without(out.iter().copied());
+        out.iter()
+            .map(|&j| {
+                fitted_dead_reckoning_rmse_within(
+                    robot,
+                    models[m],
+                    &geom,
+                    cfg.law(),
+                    ranges[fold],
+                    &series[j],
+                )
+            })
             .sum::<f64>()
     });
-    let mean = errors
-        .chunks(k)
-        .map(|folds| folds.iter().sum::<f64>() / n as f64)
-        .collect();
-    (mean, fits.into_iter().map(|(_, f)| Some(f)).collect())
+    let sums = errors.chunks(k.max(1)).map(<[f64]>::to_vec).collect();
+    (sums, fits.into_iter().map(|(_, f)| Some(f)).collect())
 }
 
-/// [`heldout_errors`] by refitting each model without each fold, from nominal: the folds
-/// of all the models are fitted in parallel (each fit on one thread), each model's errors
-/// summed in fold order.
-fn refitted_heldout_errors(
+/// Per fold, the motion the recordings outside it cover ([`range_of`]).
+fn fold_ranges(series: &[Series], folds: &[Vec<usize>]) -> Vec<LawRange> {
+    let each: Vec<LawRange> = series.iter().map(Series::law_range).collect();
+    folds
+        .iter()
+        .map(|out| {
+            let g = (0..series.len())
+                .filter(|j| !out.contains(j))
+                .fold(empty_range(), |g, j| g.hull(each[j]));
+            if g.rho_min > g.rho_max {
+                LawRange::UNBOUNDED
+            } else {
+                g
+            }
+        })
+        .collect()
+}
+
+/// [`heldout_folds`] by refitting each model without each fold, from nominal: the folds
+/// of all the models are fitted in parallel (each fit on one thread).
+fn refitted_heldout_folds(
     robot: &Robot,
     models: &[&[ParamSpec]],
     series: &[Series],
     cfg: Cfg,
+    folds: &[Vec<usize>],
     runs: &mut usize,
-) -> Vec<f64> {
+) -> Vec<Vec<f64>> {
     let n = series.len();
-    let k = n.min(LADDER_FOLDS);
+    let k = folds.len();
+    let ranges = fold_ranges(series, folds);
     let mut jobs: Vec<(usize, usize)> = (0..models.len())
         .flat_map(|m| (0..k).map(move |fold| (m, fold)))
         .collect();
     // Largest models first: the threads finish together.
     jobs.sort_by_key(|&(m, _)| std::cmp::Reverse(models[m].len()));
     let done = pool_map(&jobs, |&(m, fold)| {
+        let out = &folds[fold];
+        if out.len() >= n {
+            return (f64::NAN, 0);
+        }
         let rest: Vec<&Series> = (0..n)
-            .filter(|&j| j % k != fold)
+            .filter(|j| !out.contains(j))
             .map(|j| &series[j])
             .collect();
         let Fit { f, runs: r, .. } = fit_specs(robot, models[m], &rest, cfg, false);
-        let errors: Vec<f64> = (0..n)
-            .filter(|&j| j % k == fold)
-            .map(|j| fitted_dead_reckoning_rmse(robot, models[m], &f.geom, cfg.law(), &series[j]))
-            .collect();
-        (errors, r)
+        let e = out
+            .iter()
+            .map(|&j| {
+                fitted_dead_reckoning_rmse_within(
+                    robot,
+                    models[m],
+                    &f.geom,
+                    cfg.law(),
+                    ranges[fold],
+                    &series[j],
+                )
+            })
+            .sum::<f64>();
+        (e, r)
     });
     let mut by_job: Vec<_> = jobs.into_iter().zip(done).collect();
     by_job.sort_by_key(|j| j.0);
     *runs += by_job.iter().map(|j| j.1 .1).sum::<usize>();
     (0..models.len())
         .map(|m| {
-            let mut e = 0.0;
-            for (_, (errors, _)) in by_job.iter().filter(|j| j.0 .0 == m) {
-                for v in errors {
-                    e += v;
-                }
-            }
-            e / n as f64
+            by_job
+                .iter()
+                .filter(|j| j.0 .0 == m)
+                .map(|j| j.1 .0)
+                .collect()
         })
         .collect()
+}
+
+/// How a law fares held out by session and by kind of motion against the model without
+/// it ([`judge_by_groups`]).
+struct Verdict {
+    by_session: Vec<GroupHeldout>,
+    by_kind: Vec<GroupHeldout>,
+    /// Two sessions or more and two kinds or more: the data can decide.
+    decides: bool,
+    /// The law holds out on every session and every kind left out: its mean error there
+    /// at most [`TURN_LAW_HOLDOUT_RATIO`] of the constant model's, the rule a law's mean
+    /// over folds of recordings must meet, demanded of each (and the data decide).
+    wins: bool,
+}
+
+impl Verdict {
+    /// In words, for a law's note: per kind the two held-out errors, per session how
+    /// many the law wins and the worst; or why the data cannot decide.
+    fn words(&self, constant: &str) -> String {
+        let (s, k) = (self.by_session.len(), self.by_kind.len());
+        if !self.decides {
+            return format!(
+                "held out by session and by kind of motion: {s} session(s), {k} kind(s): the data cannot decide (a law must win on every session and every kind left out, and one session or one kind leaves nothing to judge it on), so {constant} is kept, the simplest explanation"
+            );
+        }
+        let kinds: Vec<String> = self
+            .by_kind
+            .iter()
+            .map(|g| {
+                format!(
+                    "{} ({} runs) {:.1} mm with {constant}, {:.1} mm with the law",
+                    g.group,
+                    g.recordings,
+                    g.constant_m * 1e3,
+                    g.law_m * 1e3
+                )
+            })
+            .collect();
+        let won = self
+            .by_session
+            .iter()
+            .filter(|g| g.law_m <= TURN_LAW_HOLDOUT_RATIO * g.constant_m)
+            .count();
+        let worst = self
+            .by_session
+            .iter()
+            .max_by(|a, b| (a.law_m / a.constant_m).total_cmp(&(b.law_m / b.constant_m)));
+        let worst = worst.map_or(String::new(), |g| {
+            format!(
+                " (worst {}: {:.1} mm with the law against {:.1} mm)",
+                g.group,
+                g.law_m * 1e3,
+                g.constant_m * 1e3
+            )
+        });
+        format!(
+            "held out by kind of motion: {}; by session: the law holds out (at most {:.0} % of the error without it) on {won} of {s}{worst}; {}",
+            kinds.join(", "),
+            TURN_LAW_HOLDOUT_RATIO * 100.0,
+            if self.wins {
+                "it holds out on every session and every kind"
+            } else {
+                "it does not hold out on every session and every kind, so it is not kept"
+            }
+        )
+    }
+}
+
+/// The sessions and kinds of motion of a set of recordings, held out one by one to judge
+/// a law ([`Groups::verdict`]).
+struct Groups {
+    sessions: Vec<(String, Vec<usize>)>,
+    kinds: Vec<(String, Vec<usize>)>,
+}
+
+impl Groups {
+    fn of(series: &[Series]) -> Groups {
+        Groups {
+            sessions: groups_by(series, CvBy::Session),
+            kinds: groups_by(series, CvBy::PathKind),
+        }
+    }
+
+    /// Two sessions or more and two kinds or more: something is left to judge a law on
+    /// when each is left out.
+    fn decides(&self) -> bool {
+        self.sessions.len() >= 2 && self.kinds.len() >= 2
+    }
+
+    /// The folds to hold out: each session, then each kind (none when the data cannot
+    /// decide).
+    fn folds(&self) -> Vec<Vec<usize>> {
+        if !self.decides() {
+            return Vec::new();
+        }
+        self.sessions
+            .iter()
+            .chain(&self.kinds)
+            .map(|g| g.1.clone())
+            .collect()
+    }
+
+    /// The law's verdict from the sums of held-out errors over [`Groups::folds`], the
+    /// constant model's (`constant`) and the law's (`law`): it wins when its mean error is
+    /// below the constant model's on every session and every kind.
+    fn verdict(&self, constant: &[f64], law: &[f64]) -> Verdict {
+        let decides = self.decides();
+        let rows = |from: usize, groups: &[(String, Vec<usize>)]| -> Vec<GroupHeldout> {
+            groups
+                .iter()
+                .enumerate()
+                .map(|(i, (name, members))| {
+                    let per = members.len().max(1) as f64;
+                    GroupHeldout {
+                        group: name.clone(),
+                        recordings: members.len(),
+                        constant_m: constant[from + i] / per,
+                        law_m: law[from + i] / per,
+                    }
+                })
+                .collect()
+        };
+        let (by_session, by_kind) = if decides {
+            (
+                rows(0, &self.sessions),
+                rows(self.sessions.len(), &self.kinds),
+            )
+        } else {
+            (Vec::new(), Vec::new())
+        };
+        let wins = decides
+            && by_session
+                .iter()
+                .chain(&by_kind)
+                .all(|g| g.law_m.is_finite() && g.law_m <= TURN_LAW_HOLDOUT_RATIO * g.constant_m);
+        Verdict {
+            by_session,
+            by_kind,
+            decides,
+            wins,
+        }
+    }
 }
 
 /// Parsimony for an omni robot: each model of [`ladder`] is judged by its held-out
@@ -644,10 +873,18 @@ fn choose_turn_law(
         fit_specs(robot, specs, &refs(series), cfg, true)
     });
     *runs += fits.iter().map(|f| f.runs).sum::<usize>();
-    let k = series.len().min(LADDER_FOLDS);
+    let n = series.len();
+    let recording_folds = k_folds(n);
+    let k = recording_folds.len();
+    let groups = Groups::of(series);
+    let folds = [recording_folds, groups.folds()].concat();
     let mut models: Vec<&[ParamSpec]> = vec![&base];
     models.extend(laws.iter().map(|(_, specs)| specs.as_slice()));
-    let (e, _) = heldout_errors(robot, &models, series, cfg, runs);
+    let (sums, _) = heldout_folds(robot, &models, series, cfg, &folds, runs);
+    let e: Vec<f64> = sums
+        .iter()
+        .map(|f| f[..k].iter().sum::<f64>() / n as f64)
+        .collect();
     let e_base = e[0];
     // The laws that qualify: index, held-out error, their note.
     let mut qualified: Vec<(usize, f64, usize)> = Vec::new();
@@ -709,7 +946,9 @@ fn choose_turn_law(
                 specs[with].name
             ));
         }
-        let qualifies = significant && holds && in_range && separable;
+        let verdict = groups.verdict(&sums[0][k..], &sums[i + 1][k..]);
+        figures.push_str(&format!("; {}", verdict.words(constant)));
+        let qualifies = significant && holds && in_range && separable && verdict.wins;
         // The turn law is reported relative to E_b, as TurnLaw::arc_rel.
         let per = if *law == Law::Turn {
             eb_of(&fit.f.geom, specs)
@@ -726,9 +965,12 @@ fn choose_turn_law(
             folds: k,
             qualifies,
             kept: false,
+            decided: verdict.decides,
+            by_session: verdict.by_session,
+            by_kind: verdict.by_kind,
         });
         let rule = format!(
-            "kept only when significant and at most {:.0} % of the constant model's held-out error",
+            "kept only when significant, at most {:.0} % of the constant model's held-out error over folds of recordings, and the same on every session and every kind of motion left out",
             TURN_LAW_HOLDOUT_RATIO * 100.0
         );
         let note = match (law, qualifies) {
@@ -903,15 +1145,19 @@ fn omni_turn_law(
         folds,
         qualifies: top.qualifies,
         kept: top.qualifies,
+        decided: top.verdict.decides,
+        by_session: top.verdict.by_session.clone(),
+        by_kind: top.verdict.by_kind.clone(),
     });
     let figures = format!(
-        "l_arc {v:+.4} ± {s_v:.4}; held-out dead reckoning by recording ({folds} folds) {:.1} mm with the law, {:.1} mm without",
+        "l_arc {v:+.4} ± {s_v:.4}; held-out dead reckoning by recording ({folds} folds) {:.1} mm with the law, {:.1} mm without; {}",
         top.heldout_m * 1e3,
-        e_chosen * 1e3
+        e_chosen * 1e3,
+        top.verdict.words("one wheel distance")
     );
     if !top.qualifies {
         notes.push(format!(
-            "turn law: a wheel distance that does not depend on the turn explains the data ({figures}; the law is kept only when significant and at most {:.0} % of the held-out error without it)",
+            "turn law: a wheel distance that does not depend on the turn explains the data ({figures}; the law is kept only when significant, at most {:.0} % of the held-out error without it over folds of recordings, and the same on every session and every kind of motion left out)",
             TURN_LAW_HOLDOUT_RATIO * 100.0
         ));
         return chosen;
@@ -968,8 +1214,11 @@ struct OnTop {
     /// Significant (3 sigma), within its range, held out at most
     /// [`TURN_LAW_HOLDOUT_RATIO`] of the chosen model's error, and (but for a turn law)
     /// told from the other parameters (|correlation| at most
-    /// [`CORR_LIMIT`](CORR_LIMIT)).
+    /// [`CORR_LIMIT`](CORR_LIMIT)), and better than the chosen model on every session
+    /// and every kind of motion left out ([`Verdict`]).
     qualifies: bool,
+    /// How it fared held out by session and by kind.
+    verdict: Verdict,
 }
 
 impl OnTop {
@@ -999,7 +1248,14 @@ fn fit_on_top(
     specs.push(extra);
     let fit = fit_specs(robot, &specs, &refs(series), cfg, true);
     *runs += fit.runs;
-    let (e, _) = heldout_errors(robot, &[&specs], series, cfg, runs);
+    let n = series.len();
+    let recording_folds = k_folds(n);
+    let k = recording_folds.len();
+    let groups = Groups::of(series);
+    let folds = [recording_folds, groups.folds()].concat();
+    let (sums, _) = heldout_folds(robot, &[chosen, &specs], series, cfg, &folds, runs);
+    let e = [sums[1][..k].iter().sum::<f64>() / n as f64];
+    let verdict = groups.verdict(&sums[0][k..], &sums[1][k..]);
     let ia = specs.len() - 1;
     let sd = |i: usize| fit.cov[(i, i)].max(0.0).sqrt();
     let (value, sigma) = (fit.f.geom[ia], sd(ia));
@@ -1011,7 +1267,8 @@ fn fit_on_top(
         && e[0].is_finite()
         && e[0] <= TURN_LAW_HOLDOUT_RATIO * e_chosen
         && (plausible.0..=plausible.1).contains(&value)
-        && (!separable || corr <= CORR_LIMIT);
+        && (!separable || corr <= CORR_LIMIT)
+        && verdict.wins;
     OnTop {
         specs,
         fit,
@@ -1019,6 +1276,7 @@ fn fit_on_top(
         sigma,
         heldout_m: e[0],
         qualifies,
+        verdict,
     }
 }
 
@@ -1057,6 +1315,9 @@ fn lead_on_top(
         folds,
         qualifies: kept,
         kept,
+        decided: top.verdict.decides,
+        by_session: top.verdict.by_session.clone(),
+        by_kind: top.verdict.by_kind.clone(),
     });
     if !kept {
         return chosen.specs;
@@ -1119,6 +1380,9 @@ fn laws_on_lead(
             folds,
             qualifies: top.qualifies,
             kept: false,
+            decided: top.verdict.decides,
+            by_session: top.verdict.by_session.clone(),
+            by_kind: top.verdict.by_kind.clone(),
         });
         tops.push((law, top));
     }
@@ -1279,7 +1543,12 @@ mod tests {
         };
         let mut runs = 0;
         let (stepped, fits) = heldout_errors(&nominal, &models, &series, cfg, &mut runs);
-        let refitted = refitted_heldout_errors(&nominal, &models, &series, cfg, &mut runs);
+        let n = series.len();
+        let refitted: Vec<f64> =
+            refitted_heldout_folds(&nominal, &models, &series, cfg, &k_folds(n), &mut runs)
+                .iter()
+                .map(|f| f.iter().sum::<f64>() / n as f64)
+                .collect();
         assert!(fits.iter().all(|f| f.is_some()));
         for ((name, _), (a, b)) in rungs.iter().zip(stepped.iter().zip(&refitted)) {
             println!(

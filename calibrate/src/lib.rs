@@ -71,8 +71,9 @@ pub use params::{
 };
 pub use refusals::{WORSE_FACTOR, WORSE_MARGIN_M};
 pub use result::{
-    BoardFactors, Calibration, Factors, FittedParam, Heldout, HeldoutMeans, HeldoutTable,
-    Implausible, Inseparable, Inseparables, LawTest, PerRecording, PlacedForLog, WheelGeometry,
+    BoardFactors, Calibration, Factors, FittedParam, GroupHeldout, Heldout, HeldoutMeans,
+    HeldoutTable, Implausible, Inseparable, Inseparables, LawTest, PerRecording, PlacedForLog,
+    WheelGeometry,
 };
 pub(crate) use series::Path;
 pub use series::{
@@ -355,7 +356,16 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     // express: they get E_b at the recordings' mean turn, weighted by how much each row
     // turns, or the constant closest to the law on the motion of `--e-b-for`; the board
     // applies the law.
+    // Applied only within the motion of the recordings fitted: beyond it the law holds
+    // its edge's value (on the board too, `Corrections::DiffDriveLawsInRange`).
+    // A law given (--turn-law, --speed-law, --laws-from) was fitted elsewhere: it is
+    // applied as given, not bounded by these recordings.
     let turn_law = TurnLaw::of(&specs, &fitted.geom, cfg.law());
+    let turn_law = if cfg.known_law.is_some() {
+        turn_law
+    } else {
+        turn_law.within(series::range_of(&series))
+    };
     let law_base_robot = fitted_robot.clone();
     let mut law_eb_shift = 0.0;
     let mut placed_for_log = PlacedForLog::default();
@@ -711,6 +721,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             c_r: sc * c_r,
             e_b: eb,
             laws,
+            range: turn_law.range.for_laws(&laws),
         });
         let sc = sc * law_scale;
         Factors::Diff {

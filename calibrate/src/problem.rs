@@ -213,7 +213,7 @@ impl<'a> Problem<'a> {
         let stepper = Stepper::new(&robot, &kin, &law);
         let cols = sens::split_params(self.specs);
         let per_row = self.robot.kind == RobotKind::SkidSteer
-            || self.known_law != TurnLaw::default()
+            || self.known_law.has_terms()
             || self.specs.iter().any(|s| {
                 matches!(
                     s.kind,

@@ -245,12 +245,21 @@ pub struct BoardFactors {
     /// The laws (0: none).
     #[serde(flatten)]
     pub laws: calib_core::correction::DiffLaws,
+    /// The motion the laws were fitted on: beyond it the board holds each law at its
+    /// edge (absent in the JSON: unbounded, as calibrations before protocol v9).
+    #[serde(
+        default,
+        skip_serializing_if = "calib_core::correction::LawRange::is_unbounded"
+    )]
+    pub range: calib_core::correction::LawRange,
 }
 
 impl BoardFactors {
     /// The board's corrections.
     pub fn corrections(&self) -> calib_core::Corrections {
-        calib_core::Corrections::diff_drive(self.c_l, self.c_r, self.e_b, self.laws)
+        calib_core::Corrections::diff_drive_within(
+            self.c_l, self.c_r, self.e_b, self.laws, self.range,
+        )
     }
 
     /// The `factors set` options that give the board these factors.
@@ -268,6 +277,13 @@ impl BoardFactors {
             if v != 0.0 {
                 s.push_str(&format!(" {flag} {v:.6}"));
             }
+        }
+        let g = self.range.for_laws(l);
+        if *l != calib_core::correction::DiffLaws::default() && !g.is_unbounded() {
+            s.push_str(&format!(
+                " --law-range {:.6},{:.6},{:.6}",
+                g.rho_min, g.rho_max, g.speed_max_m_s
+            ));
         }
         s
     }
@@ -380,6 +396,30 @@ pub struct LawTest {
     pub qualifies: bool,
     /// Kept (at most one law is, and a pose lead beside it).
     pub kept: bool,
+    /// Two sessions or more and two kinds of motion or more: held out by each, the data
+    /// can decide whether the law carries to motion it was not fitted on (else it is not
+    /// kept).
+    pub decided: bool,
+    /// Each session left out in turn: the constant model's and the law's held-out error
+    /// (empty when the data cannot decide).
+    pub by_session: Vec<GroupHeldout>,
+    /// Each kind of motion left out in turn (likewise).
+    pub by_kind: Vec<GroupHeldout>,
+}
+
+/// One session or kind of motion left out: the recordings' mean dead-reckoned RMSE with
+/// the model fitted without them, with and without the law (the law held at the edges of
+/// the motion the other recordings cover).
+#[derive(Debug, Clone, Serialize)]
+pub struct GroupHeldout {
+    /// The session (`<robot>-<path>-<session>`) or kind (`<path>`) left out.
+    pub group: String,
+    /// Its recordings.
+    pub recordings: usize,
+    /// Mean held-out RMSE with the constant model (no law), m.
+    pub constant_m: f64,
+    /// Mean held-out RMSE with the law, m.
+    pub law_m: f64,
 }
 
 /// The result of [`calibrate`](crate::calibrate).
@@ -653,6 +693,7 @@ impl Calibration {
                     c_r: 1.0,
                     e_b: 1.0,
                     laws,
+                    range: board.map(|b| b.range).unwrap_or_default(),
                 }
                 .command()
             }

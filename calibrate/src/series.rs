@@ -11,7 +11,7 @@ use crate::step::{self, Stepper};
 use crate::turn_law::{
     median_step, omni_turn_ratio, turn_ratio, SideMotion, Sides, TurnLaw, Turning, ARC_RHO,
 };
-use calib_core::correction::Corrections;
+use calib_core::correction::{Corrections, LawRange};
 use calib_core::diff_laws::DiffLawOdometry;
 use calib_core::kinematics::Kinematics;
 use calib_core::odometry::{integrate_arc, Odometry, Pose};
@@ -520,6 +520,37 @@ impl Series {
         t
     }
 
+    /// The motion a law fitted on this recording covers ([`LawRange`]): the turn ratios
+    /// of its moving rows and its fastest side (m/s), as the stepping sees them (smoothed over 0.1 s either side). A
+    /// recording that never moves covers nothing ([`empty_range`]); one without turn
+    /// ratios (a wheeled-legged robot) everything.
+    pub(crate) fn law_range(&self) -> LawRange {
+        let Some(rho) = &self.rho else {
+            return LawRange::UNBOUNDED;
+        };
+        let mut g = empty_range();
+        for (k, (inc, &r)) in self.incs().zip(rho).enumerate() {
+            let moving = match &self.motion {
+                Some(m) => m[k].speed[0] + m[k].speed[1] > 0.0,
+                None => inc.iter().any(|d| *d != 0.0),
+            };
+            if !moving {
+                continue;
+            }
+            g.rho_min = g.rho_min.min(r as f32);
+            g.rho_max = g.rho_max.max(r as f32);
+            if let Some(m) = &self.motion {
+                let m = m[k];
+                let v = m.speed[0].max(m.speed[1]) as f32;
+                g.speed_max_m_s = g.speed_max_m_s.max(v);
+            }
+        }
+        if self.motion.is_none() {
+            g.speed_max_m_s = f32::INFINITY;
+        }
+        g
+    }
+
     /// The wheel increments, row after row.
     pub(super) fn incs(&self) -> std::slice::ChunksExact<'_, f64> {
         self.inc.chunks_exact(self.wheels.max(1))
@@ -702,6 +733,21 @@ pub fn fitted_dead_reckoning_rmse(
         .map_or(f64::NAN, |(rms, _)| rms)
 }
 
+/// [`fitted_dead_reckoning_rmse`] with the law held at the edges of `range` (the motion
+/// of the recordings it was fitted on).
+pub(crate) fn fitted_dead_reckoning_rmse_within(
+    base: &Robot,
+    specs: &[ParamSpec],
+    values: &[f64],
+    known: TurnLaw,
+    range: LawRange,
+    s: &Series,
+) -> f64 {
+    let r = robot_with(base, specs, values);
+    dead_reckoning_errors(&r, &TurnLaw::of(specs, values, known).within(range), s)
+        .map_or(f64::NAN, |(rms, _)| rms)
+}
+
 /// The position RMS of [`dead_reckoning_rmse_law`] and the position error at the last
 /// pose sample, m.
 pub fn dead_reckoning_errors(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<(f64, f64)> {
@@ -757,6 +803,28 @@ fn errors_along(s: &Series, path: &Path) -> (f64, f64) {
         acc += last;
     }
     ((acc / s.pose_row.len() as f64).sqrt(), last.sqrt())
+}
+
+/// The range of no motion at all: the hull with any range is that range.
+pub(crate) fn empty_range() -> LawRange {
+    LawRange {
+        rho_min: 1.0,
+        rho_max: 0.0,
+        speed_max_m_s: 0.0,
+    }
+}
+
+/// The motion `series` cover together ([`Series::law_range`]); unbounded when none of
+/// them moves.
+pub(crate) fn range_of<'a>(series: impl IntoIterator<Item = &'a Series>) -> LawRange {
+    let g = series
+        .into_iter()
+        .fold(empty_range(), |g, s| g.hull(s.law_range()));
+    if g.rho_min > g.rho_max {
+        LawRange::UNBOUNDED
+    } else {
+        g
+    }
 }
 
 /// A fitted time offset beyond this (s) is reported implausible: loggers of one rig are

@@ -19,6 +19,8 @@ pub(crate) struct Stepper {
     /// An omni robot's turn law ([`TurnLaw::arc_rel`]: its wheels' distance from the
     /// centre longer on arcs), applied to the twist at each row's turn ratio; 0 for none.
     omni_arc: f64,
+    /// The turn ratios the omni turn law was fitted on: beyond them it holds its edge.
+    omni_rho: (f64, f64),
 }
 
 impl Stepper {
@@ -39,13 +41,14 @@ impl Stepper {
         // A skid-steer robot always steps by its sides; a differential drive only with a
         // law (otherwise its exact kinematics, the same to rounding).
         let omni = robot.kind == RobotKind::Omni;
-        let sides = (robot.kind == RobotKind::SkidSteer || (!omni && *law != TurnLaw::default()))
+        let sides = (robot.kind == RobotKind::SkidSteer || (!omni && law.has_terms()))
             .then(|| (Sides::new(robot), *law));
         let omni_arc = if omni { law.arc_rel } else { 0.0 };
         Stepper {
             columns,
             sides,
             omni_arc,
+            omni_rho: (law.range.rho_min as f64, law.range.rho_max as f64),
         }
     }
 
@@ -63,7 +66,8 @@ impl Stepper {
         if self.omni_arc == 0.0 {
             return t;
         }
-        let share = calib_core::kinematics::turn_law_share(rho);
+        let share =
+            calib_core::kinematics::turn_law_share(rho.clamp(self.omni_rho.0, self.omni_rho.1));
         Twist::new(t.vx, t.vy, t.omega / (1.0 + self.omni_arc * share))
     }
 

@@ -6,7 +6,7 @@
 //! same law at every geometry.
 
 use crate::params::{GeomKind, ParamSpec};
-use calib_core::correction::Corrections;
+use calib_core::correction::{Corrections, LawRange};
 use calib_core::kinematics::Kinematics;
 use calib_core::robot::{Robot, RobotKind};
 use serde::Serialize;
@@ -24,6 +24,12 @@ pub struct TurnLaw {
     /// Differential drive: the ground's lag behind each side's speed, s (slip in
     /// proportion to acceleration: the ground moves at v - accel_slip_s dv/dt).
     pub accel_slip_s: f64,
+    /// The motion the law was fitted on (the recordings' turn ratios, fastest side and
+    /// largest change of speed): beyond it each term is held at its edge's value, as the
+    /// board holds it. Unbounded while fitting (the recordings' own range changes
+    /// nothing on them) and when no law is kept (then absent from the JSON).
+    #[serde(skip_serializing_if = "LawRange::is_unbounded")]
+    pub range: LawRange,
 }
 
 impl TurnLaw {
@@ -38,6 +44,24 @@ impl TurnLaw {
             icr_x_m: get(GeomKind::IcrX).unwrap_or(known.icr_x_m),
             speed_rel: get(GeomKind::SpeedRel).unwrap_or(known.speed_rel),
             accel_slip_s: get(GeomKind::AccelSlip).unwrap_or(known.accel_slip_s),
+            range: known.range,
+        }
+    }
+
+    /// Any term at all (the range aside).
+    pub fn has_terms(&self) -> bool {
+        self.arc_rel != 0.0
+            || self.icr_x_m != 0.0
+            || self.speed_rel != 0.0
+            || self.accel_slip_s != 0.0
+    }
+
+    /// The law applied only within `range` (unchanged without a term).
+    pub fn within(self, range: LawRange) -> TurnLaw {
+        if self.has_terms() {
+            TurnLaw { range, ..self }
+        } else {
+            self
         }
     }
 }
@@ -65,6 +89,11 @@ pub(crate) struct SideMotion {
     pub(crate) speed: [f64; 2],
     /// The change of each side's signed speed over the increment (m/s).
     pub(crate) dv: [f64; 2],
+    /// The left and right sides' signed speeds (m/s) now and at the next increment: `dv`
+    /// is their difference, and held within a law's speeds ([`Sides::step`]) it is the
+    /// difference of the held speeds.
+    pub(crate) v: [f64; 2],
+    pub(crate) next: [f64; 2],
 }
 
 /// Per increment, rho = |d_r - d_l| / (|d_r| + |d_l|) of the sides' travel (nominal
@@ -109,6 +138,8 @@ pub(super) fn turn_ratio(
             SideMotion {
                 speed: [v[k][0].abs(), v[k][1].abs()],
                 dv: [next[0] - v[k][0], next[1] - v[k][1]],
+                v: v[k],
+                next,
             }
         })
         .collect();
@@ -221,14 +252,28 @@ impl Sides {
         inc: &[f64],
     ) -> calib_core::kinematics::Twist<f64> {
         let (mut l, mut r) = self.travel(inc);
+        // Within the law's range: beyond it each term holds its edge's value.
+        let g = &law.range;
         if law.speed_rel != 0.0 {
-            l *= 1.0 + law.speed_rel * side.speed[0];
-            r *= 1.0 + law.speed_rel * side.speed[1];
+            let top = g.speed_max_m_s as f64;
+            l *= 1.0 + law.speed_rel * side.speed[0].min(top);
+            r *= 1.0 + law.speed_rel * side.speed[1].min(top);
         }
         if law.accel_slip_s != 0.0 {
-            l -= law.accel_slip_s * side.dv[0];
-            r -= law.accel_slip_s * side.dv[1];
+            // The lag stops growing beyond the fitted speeds (the changes of the held
+            // speeds: from rest to rest it still cancels).
+            let top = g.speed_max_m_s as f64;
+            let dv = |i: usize| {
+                if top == f64::INFINITY {
+                    side.dv[i]
+                } else {
+                    side.next[i].clamp(-top, top) - side.v[i].clamp(-top, top)
+                }
+            };
+            l -= law.accel_slip_s * dv(0);
+            r -= law.accel_slip_s * dv(1);
         }
+        let rho = rho.clamp(g.rho_min as f64, g.rho_max as f64);
         let half = self.half * (1.0 + law.arc_rel * self.law_share(rho));
         let dth = (r - l) / (2.0 * half);
         calib_core::kinematics::Twist::new(0.5 * (l + r), -law.icr_x_m * dth, dth)
@@ -462,7 +507,9 @@ mod tests {
         let still: Vec<Vec<f64>> = vec![vec![0.0; 2]; 100];
         let (rho, motion) = turn_ratio(&robot, &still, &t);
         assert!(rho.iter().all(|&r| r == 0.0));
-        assert!(motion.iter().all(|m| *m == SideMotion::default()));
+        assert!(motion
+            .iter()
+            .all(|m| m.speed == [0.0; 2] && m.dv == [0.0; 2]));
     }
 
     /// 20 s of `robot` with its left wheels at `left` rad/s and its right ones at

@@ -112,23 +112,21 @@ fn sessions_the_turn_law_is_the_same_in_june_and_december() {
     for month in ["06", "12"] {
         let (robot, recs) = proxy::month_runs(&d, "diff", month).unwrap();
         let c = calibrate(&robot, &recs, None, &opts).unwrap();
-        let eb = c.params.iter().find(|p| p.spec.name == "eb").unwrap().value;
-        let arc = c
-            .params
+        // The law as fitted on its own (`law_tests`, eb_arc / eb): since issue 56 it is
+        // also judged by session and by kind, and not kept (left out by kind, squares and
+        // spins cannot teach it), but the months' fits are what is compared here.
+        let t = c
+            .law_tests
             .iter()
-            .find(|p| p.spec.name == "eb_arc")
-            .unwrap_or_else(|| panic!("month {month}: no law\n{c}"));
-        eprintln!(
-            "month {month}: eb_arc/eb {:.4} ± {:.4}",
-            arc.value / eb,
-            arc.sigma / eb
-        );
+            .find(|t| t.law == "turn")
+            .unwrap_or_else(|| panic!("month {month}: no turn law tested\n{c}"));
+        eprintln!("month {month}: eb_arc/eb {:.4} ± {:.4}", t.value, t.sigma);
         assert!(
-            (0.002..=0.01).contains(&(arc.value / eb)),
-            "month {month}: eb_arc {}",
-            arc.value
+            (0.002..=0.01).contains(&t.value),
+            "month {month}: eb_arc/eb {}",
+            t.value
         );
-        laws.push((arc.value / eb, arc.sigma / eb));
+        laws.push((t.value, t.sigma));
     }
     let (a, b) = (laws[0], laws[1]);
     let combined = (a.1 * a.1 + b.1 * b.1).sqrt();
@@ -168,8 +166,10 @@ fn sessions_a_law_from_the_other_month_beats_optiodom() {
     for month in ["06", "12"] {
         let (robot, recs) = proxy::month_runs(&d, "diff", month).unwrap();
         let c = calibrate(&robot, &recs, None, &CalOptions::default()).unwrap();
-        let speed = c.law_tests.iter().find(|t| t.law == "speed").unwrap().value;
-        laws.insert(month, (c.turn_law.arc_rel, speed));
+        // Each law as fitted on its own (`law_tests`), kept or not: since issue 56 a
+        // month's laws are judged by session and by kind too, and neither is kept.
+        let value = |law: &str| c.law_tests.iter().find(|t| t.law == law).unwrap().value;
+        laws.insert(month, (value("turn"), value("speed")));
         let paths: Vec<_> = recs
             .into_iter()
             .filter(|(n, _)| !n.contains("-square-"))
@@ -277,12 +277,15 @@ fn sessions_a_law_from_the_other_month_beats_optiodom() {
 /// `examples/laws_across_sessions.rs`): each of the 29 sessions of the differential
 /// robot left out of its month in turn, the rest calibrated with each law held at the
 /// value it fits there. Measured: the turn law 0.847 and the speed law 0.854 of no law's
-/// error (geometric means), the turn law better on 18 of 29 sessions; calibrate's own
-/// choice 0.855 (it keeps no law in two December folds, where neither holds out by 5 %
-/// over recordings, though each would have carried by 10 %). Asserted: each law at most
-/// 0.9 of no law; the two within the ladder's 3 % of each other, a tie, which calibrate
-/// gives the turn law (it carried better across months, above); the choice within 3 %
-/// of the better law.
+/// error (geometric means), the turn law better on 18 of 29 sessions. calibrate's own
+/// choice was 0.855 (a law kept in 27 of the 29 folds) while laws were judged over folds
+/// of recordings alone; since issue 56 a law must also hold out on every session and
+/// every kind of motion left out, and in no fold does one (left out by kind, the squares
+/// and spins cannot teach the circles' turn law, and the speed law misses sessions), so
+/// the choice is no law: 1.000. That is the price of the rule on this robot's own
+/// months: either law held would gain 15 % on the sessions left out. Asserted: each law
+/// at most 0.9 of no law; the two within the ladder's 3 % of each other, a tie; the
+/// choice never more than 2 % worse than no law (issue 56's bound for the board).
 #[test]
 #[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
 fn sessions_the_turn_and_speed_laws_tie_across_sessions() {
@@ -300,7 +303,7 @@ fn sessions_the_turn_and_speed_laws_tie_across_sessions() {
         (turn / speed).ln().abs() <= 0.03,
         "turn {turn:.3}, speed {speed:.3}"
     );
-    assert!(chosen <= 1.03 * turn.min(speed), "chosen {chosen:.3}");
+    assert!(chosen <= 1.02, "chosen {chosen:.3}");
 }
 
 /// The three-wheel omni robot (issue 21): each of its two square sessions calibrated with
@@ -438,12 +441,30 @@ fn sessions_omni3_turn_law_holds_out_on_circles_and_squares_alike() {
                 assert_ne!(k, held);
                 train.extend(runs.iter().cloned());
             }
-            let c = calibrate(&nominal, &train, None, &CalOptions::default()).unwrap();
-            let law = c
+            let chosen = calibrate(&nominal, &train, None, &CalOptions::default()).unwrap();
+            let law = chosen
                 .law_tests
                 .iter()
                 .find(|t| t.parameter == "l_arc")
-                .unwrap_or_else(|| panic!("no omni turn law tested\n{c}"));
+                .unwrap_or_else(|| panic!("no omni turn law tested\n{chosen}"))
+                .clone();
+            // Issue 56: left out by kind, the law fitted on the squares alone (turns in
+            // place) cannot be learned, so it does not hold out on the circles and is not
+            // kept by calibrate's own choice; held (`--turn-law`), it carries as before.
+            assert!(
+                law.decided && law.by_kind.len() == 2 && !law.kept,
+                "{chosen}"
+            );
+            let c = calibrate(
+                &nominal,
+                &train,
+                None,
+                &CalOptions {
+                    turn_law: Some(law.value),
+                    ..Default::default()
+                },
+            )
+            .unwrap();
             let (k, s_k) = (c.turn_law.arc_rel, law.sigma);
             let test: Vec<_> = circles[held].iter().collect();
             let rows = [
@@ -471,10 +492,7 @@ fn sessions_omni3_turn_law_holds_out_on_circles_and_squares_alike() {
             );
             assert!((on_board[0] / rows[0].0 - 1.0).abs() < 0.05, "{on_board:?}");
             assert!((on_board[1] / rows[1].0 - 1.0).abs() < 0.05, "{on_board:?}");
-            assert!(
-                law.kept && (0.010..=0.025).contains(&k) && k >= 3.0 * s_k,
-                "{c}"
-            );
+            assert!((0.010..=0.025).contains(&k) && k >= 3.0 * s_k, "{c}");
             assert!(rows[0].0 <= 0.5 * rows[0].2 && rows[0].0 <= 1.05 * rows[0].1);
             assert!(rows[1].0 <= 0.8 * rows[1].1 && rows[1].0 <= 0.7 * rows[1].2);
         }
@@ -902,4 +920,43 @@ fn sessions_the_circle_test_finds_the_turn_law_by_hand() {
     })
     .unwrap();
     assert_meets_the_goal(&r);
+}
+
+/// Issue 56's goal on laws: the board (its factors and the laws calibrate keeps) is never
+/// more than 2 % worse than the same calibration's constant geometry (the robot file) on
+/// runs kept apart from the training. The runs the issue measured it on (the free-form
+/// runs) are kept apart from this repository, so the differential robot's own kinds and
+/// months stand in: each kind of motion kept apart from the other two (all sessions of
+/// both months: 110, 98 and 120 runs trained on), and each month kept apart from the
+/// other (`proxy::kept_apart_sets`; `examples/laws_by_session_and_kind.rs` prints the
+/// table). Before laws were judged by session and by kind, the 164 runs kept a speed law
+/// (-3.9 % per m/s) that made the board 1.7 times worse on the free runs.
+#[test]
+#[ignore]
+fn sessions_the_board_is_never_2_percent_worse_than_its_constant_geometry() {
+    let sets = proxy::kept_apart_sets(&dir()).unwrap();
+    for (k, _) in &sets {
+        println!(
+            "{} ({} runs) -> {} ({} runs): law {:?}, board {:.2} mm, constant geometry {:.2} mm, ratio {:.3} ({:.1} s)",
+            k.training,
+            k.train_runs,
+            k.tested,
+            k.test_runs,
+            k.law,
+            k.board_m * 1e3,
+            k.constant_m * 1e3,
+            k.ratio(),
+            k.seconds
+        );
+    }
+    assert_eq!(sets.len(), 5);
+    for (k, _) in &sets {
+        assert!(
+            k.ratio() <= 1.02,
+            "{} -> {}: {:.3}",
+            k.training,
+            k.tested,
+            k.ratio()
+        );
+    }
 }

@@ -1987,3 +1987,349 @@ fn a_law_hidden_by_a_pose_lead_is_tested_on_top_of_it() {
     assert!((b.laws.e_b_arc - c.turn_law.arc_rel).abs() < 1e-12, "{b:?}");
     assert_eq!((b.laws.speed_rel, b.laws.accel_slip_s), (0.0, 0.0), "{b:?}");
 }
+
+/// `n` random runs of `seconds` each of `nominal` named `mobolab-<kind>-<session>-run-NN`
+/// (the real sessions' naming: session `<kind>-<session>`, kind of motion `<kind>`), 40 s each,
+/// within `motion`'s limits (its duration replaced), the simulator tweaked by `tweak`;
+/// seeds from `seed`.
+fn named_runs(
+    nominal: &Robot,
+    (kind, session): (&str, &str),
+    motion: RandomMotion,
+    seed: u64,
+    n: u64,
+    effects: &[sim::Effect],
+    tweak: impl Fn(&mut RecordConfig),
+) -> Vec<(String, Recording)> {
+    (0..n)
+        .map(|i| {
+            let mut c = cfg(seed + i);
+            tweak(&mut c);
+            let m = Motion::Random(RandomMotion {
+                duration_s: 40.0,
+                ..motion
+            });
+            let r = record(nominal, effects, Surface::flat(), &m, &c).unwrap();
+            (
+                format!("{}-{kind}-{session}-run-{:02}", nominal.name, i + 1),
+                r.recording,
+            )
+        })
+        .collect()
+}
+
+/// Slow free motion: 0.1 m/s and 0.5 rad/s at most (a side of mobolab, 0.2 m from the
+/// centre, reaches 0.2 m/s).
+fn slow() -> RandomMotion {
+    RandomMotion {
+        v_max_m_s: 0.1,
+        omega_max_rad_s: 0.5,
+        ..RandomMotion::default()
+    }
+}
+
+/// Moderate free motion: 0.2 m/s and 0.5 rad/s at most (a side reaches 0.3 m/s).
+fn moderate() -> RandomMotion {
+    RandomMotion {
+        v_max_m_s: 0.2,
+        omega_max_rad_s: 0.5,
+        ..RandomMotion::default()
+    }
+}
+
+/// Moderate, gently curving driving: 0.25 m/s and 0.25 rad/s at most (a side reaches
+/// 0.3 m/s).
+fn moderate_cruise() -> RandomMotion {
+    RandomMotion {
+        v_max_m_s: 0.25,
+        omega_max_rad_s: 0.25,
+        ..RandomMotion::default()
+    }
+}
+
+/// Fast free motion: 0.6 m/s and 1 rad/s at most (a side reaches 0.8 m/s).
+fn fast() -> RandomMotion {
+    RandomMotion {
+        v_max_m_s: 0.6,
+        omega_max_rad_s: 1.0,
+        a_max_m_s2: 1.0,
+        ..RandomMotion::default()
+    }
+}
+
+/// A number of the calibration's JSON at `path` (keys), or None.
+fn json_number(c: &Calibration, path: &[&str]) -> Option<f64> {
+    let mut v = serde_json::to_value(c).unwrap();
+    for k in path {
+        v = v.get(*k)?.clone();
+    }
+    v.as_f64()
+}
+
+/// The speed law's test in the JSON's `law_tests`, as JSON.
+fn speed_law_test(c: &Calibration) -> serde_json::Value {
+    let v = serde_json::to_value(c).unwrap();
+    v["law_tests"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .find(|t| t["law"] == "speed")
+        .unwrap_or_else(|| panic!("no speed law test\n{c}"))
+        .clone()
+}
+
+/// Per held-out group of `by` (`by_session` or `by_kind`) of a law test: (group, the
+/// constant geometry's held-out error, the law's), m.
+fn held_out_groups(test: &serde_json::Value, by: &str) -> Vec<(String, f64, f64)> {
+    test[by]
+        .as_array()
+        .unwrap_or_else(|| panic!("no {by} in {test}"))
+        .iter()
+        .map(|g| {
+            (
+                g["group"].as_str().unwrap().to_string(),
+                g["constant_m"].as_f64().unwrap(),
+                g["law_m"].as_f64().unwrap(),
+            )
+        })
+        .collect()
+}
+
+/// A speed law fitted on slow runs only is applied within the speeds it was fitted on,
+/// and held at its edge beyond them. The simulated wheels roll 1 + 0.1 |v| times their
+/// size up to 0.3 m/s and no further beyond (`speed_scale_top_m_s`: a tyre whose
+/// deformation saturates). Two sessions of moderate driving, each its own kind (free
+/// motion, and gently curving cruising, both up to a side speed of 0.3 m/s), two 40 s
+/// runs each, keep the law (0.1 within 4 sigma and 0.01: it holds out on each session
+/// and kind) with a fitted range whose top is the fastest side speed the runs reached
+/// (between 0.25 and 0.35 m/s). The board holding the calibration's factors and law
+/// (calib-core's odometry, f64, 1 kHz) scales a side's travel at twice that top speed
+/// exactly as at the top (within 1e-6), and within it by the law. On three fast runs
+/// (sides up to 0.8 m/s) the board dead-reckons no worse than the same calibration's
+/// constant geometry (the robot file) by more than the noise floor: the error the board
+/// holding the truth itself (nominal wheels, 0.1 per m/s held at 0.3 m/s) leaves on the
+/// same runs, what the encoders, the motion capture and the travel noise alone make.
+#[test]
+fn a_speed_law_fitted_on_slow_runs_is_held_at_its_edge_on_fast_runs() {
+    use calib_core::correction::Corrections;
+    use calib_core::diff_laws::DiffLawOdometry;
+    use calib_core::kinematics::{Kinematics, Twist};
+    let nominal = robot("mobolab");
+    let tweak = |c: &mut RecordConfig| {
+        c.sim.speed_scale = 0.1;
+        c.sim.speed_scale_top_m_s = 0.3;
+    };
+    let mut runs = named_runs(&nominal, ("wander", "1"), moderate(), 300, 2, &[], tweak);
+    runs.extend(named_runs(
+        &nominal,
+        ("cruise", "2"),
+        moderate_cruise(),
+        310,
+        2,
+        &[],
+        tweak,
+    ));
+    let c = calibrate(&nominal, &runs, None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    let law = c
+        .params
+        .iter()
+        .find(|p| p.spec.name == "speed_rel")
+        .unwrap_or_else(|| panic!("no speed law\n{c}"));
+    assert!((law.value - 0.1).abs() <= 4.0 * law.sigma + 0.01, "{c}");
+    let top = json_number(&c, &["turn_law", "range", "speed_max_m_s"])
+        .unwrap_or_else(|| panic!("no fitted speed range in the JSON's turn_law\n{c}"));
+    println!("speed law {:+.4} fitted up to {top:.3} m/s", law.value);
+    assert!((0.25..=0.35).contains(&top), "{top}");
+    let (_, b) = board_factors(&c);
+    let corrections = b.corrections();
+    // A steady straight run at side speed v: the board's travel over the kinematics'
+    // once the smoothing has settled (3 s at 1 kHz: e^-30 of the start remains).
+    let scale_at = |v: f64| {
+        let kin = Kinematics::<f64>::new(&nominal, &corrections).unwrap();
+        let mut odo = DiffLawOdometry::<f64>::new(&nominal, &corrections, 1e-3);
+        let dphi = [v * 1e-3 / 0.05, v * 1e-3 / 0.05];
+        let plain = kin.forward(&dphi);
+        let mut out = Twist::new(0.0, 0.0, 0.0);
+        for _ in 0..3000 {
+            out = odo.apply(&dphi, |p| kin.forward(p));
+        }
+        out.vx / plain.vx
+    };
+    let (at_top, beyond) = (scale_at(top), scale_at(2.0 * top));
+    println!("board's scale at {top:.3} m/s {at_top:.7}, at twice it {beyond:.7}");
+    assert!((beyond - at_top).abs() < 1e-6, "{at_top} {beyond}");
+    let within = scale_at(0.5 * top);
+    assert!(
+        ((within - 1.0) - 0.5 * (at_top - 1.0)).abs() < 1e-6,
+        "{within} {at_top}"
+    );
+    // Fast runs: the board against the same calibration's constant geometry.
+    let fast_runs = named_runs(&nominal, ("dash", "3"), fast(), 320, 3, &[], tweak);
+    let held = series(&nominal, fast_runs);
+    let truth: BoardFactors = serde_json::from_value(serde_json::json!({
+        "c_l": 1.0, "c_r": 1.0, "e_b": 1.0,
+        "e_b_arc": 0.0, "speed_rel": 0.1, "accel_slip_s": 0.0,
+        "range": {"rho_min": 0.0, "rho_max": 1.0, "speed_max_m_s": 0.3}
+    }))
+    .unwrap();
+    let board = |k: &Corrections| {
+        held.iter()
+            .map(|s| {
+                calibrate::board_dead_reckoning_errors(&nominal, k, s)
+                    .unwrap()
+                    .0
+            })
+            .sum::<f64>()
+            / held.len() as f64
+    };
+    let (e_board, e_truth) = (board(&corrections), board(&truth.corrections()));
+    let e_constant = mean_dead_reckoning_rmse(&c.fitted_robot, &held);
+    println!(
+        "fast runs: board {:.1} mm, constant geometry {:.1} mm, the truth on the board {:.1} mm",
+        e_board * 1e3,
+        e_constant * 1e3,
+        e_truth * 1e3
+    );
+    assert!(
+        e_board <= e_constant + e_truth,
+        "{e_board} {e_constant} {e_truth}"
+    );
+}
+
+/// `n` squares of 1 m (cw and ccw in turn) of `nominal` at `v` m/s and `omega` rad/s,
+/// named as [`named_runs`] names them, with `effects`; seeds from `seed`.
+fn named_squares(
+    nominal: &Robot,
+    kind: &str,
+    session: &str,
+    (v, omega): (f64, f64),
+    seed: u64,
+    n: u64,
+    effects: &[sim::Effect],
+) -> Vec<(String, Recording)> {
+    (0..n)
+        .map(|i| {
+            let dir = if i % 2 == 0 {
+                Direction::Cw
+            } else {
+                Direction::Ccw
+            };
+            let motion = Motion::Program {
+                program: Box::new(Program::umbmark_square(1.0, dir)),
+                limits: calib_core::motion::ProfileLimits {
+                    v_max: v,
+                    omega_max: omega,
+                    ..Default::default()
+                },
+            };
+            let r = record(nominal, effects, Surface::flat(), &motion, &cfg(seed + i)).unwrap();
+            (
+                format!("{}-{kind}-{session}-run-{:02}", nominal.name, i + 1),
+                r.recording,
+            )
+        })
+        .collect()
+}
+
+/// A speed law that holds out over folds of recordings but not on every kind of motion
+/// is refused. Two sessions of squares driven slowly (0.1 m/s, 0.5 rad/s) and two of
+/// squares driven fast (0.4 m/s, 1 rad/s: kind `sprint`), two squares each; the wheels are
+/// the same size at every speed, but the fast sessions were driven on wheels 1 % smaller
+/// (worn tyres, another day). Over the pooled runs a speed law stands in for the
+/// sessions' sizes, and folds of recordings (each with both kinds) cannot tell (today's
+/// rule kept it: -0.076 per m/s, 10.0 against 14.6 mm over 5 folds). Held out by kind of
+/// motion, the law fitted on the other kind's squares alone (one cruise speed and its
+/// turns) barely differs from a constant size there: on at least one kind it does not
+/// hold out (its error above [`calibrate::TURN_LAW_HOLDOUT_RATIO`] of the constant
+/// geometry's, the rule a law's mean over folds must meet), so it is not kept (nothing
+/// on the board, speed_rel 0), and the speed law's test gives the constant geometry's
+/// and the law's held-out error per session (4) and per kind (2).
+#[test]
+fn a_speed_law_that_holds_on_one_kind_only_is_refused() {
+    let nominal = robot("mobolab");
+    let worn = [sim::Effect::WheelDiameterMismatch {
+        ed: None,
+        radius_scale: vec![("left".into(), 0.99), ("right".into(), 0.99)],
+    }];
+    let (slow, fast) = ((0.1, 0.5), (0.4, 1.0));
+    let mut runs = named_squares(&nominal, "square", "1", slow, 400, 2, &[]);
+    runs.extend(named_squares(&nominal, "square", "2", slow, 410, 2, &[]));
+    runs.extend(named_squares(&nominal, "sprint", "3", fast, 420, 2, &worn));
+    runs.extend(named_squares(&nominal, "sprint", "4", fast, 430, 2, &worn));
+    let c = calibrate(&nominal, &runs, None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    let t = speed_law_test(&c);
+    println!("{t}");
+    let kinds = held_out_groups(&t, "by_kind");
+    let sessions = held_out_groups(&t, "by_session");
+    assert_eq!(kinds.len(), 2, "{kinds:?}");
+    assert_eq!(sessions.len(), 4, "{sessions:?}");
+    let ratio = calibrate::TURN_LAW_HOLDOUT_RATIO;
+    assert!(kinds.iter().any(|(_, k, l)| *l > ratio * k), "{kinds:?}");
+    assert_eq!(t["kept"], false, "{t}");
+    assert_eq!(c.turn_law.speed_rel, 0.0, "{c}");
+    assert!(c.params.iter().all(|p| p.spec.name != "speed_rel"), "{c}");
+}
+
+/// A true speed law is kept: the same sessions and kinds of motion as above on one set of
+/// wheels that roll 1 + 0.1 |v| times their size at every speed. The law fitted without
+/// each session, and without each kind, wins on it (below the constant geometry's error;
+/// the constant geometry fitted without
+/// the fast runs sizes the wheels for slow ones, and the reverse); the law is kept,
+/// 0.1 within 4 sigma and 0.01, and the board gets it with its range (the fastest side,
+/// at least the 0.6 m/s the fast runs' straights reach).
+#[test]
+fn a_true_speed_law_wins_on_every_held_out_session_and_kind() {
+    let nominal = robot("mobolab");
+    let grow = |c: &mut RecordConfig| c.sim.speed_scale = 0.1;
+    let mut runs = named_runs(&nominal, ("wander", "1"), slow(), 400, 2, &[], grow);
+    runs.extend(named_runs(
+        &nominal,
+        ("wander", "2"),
+        slow(),
+        410,
+        2,
+        &[],
+        grow,
+    ));
+    runs.extend(named_runs(
+        &nominal,
+        ("dash", "3"),
+        fast(),
+        420,
+        2,
+        &[],
+        grow,
+    ));
+    runs.extend(named_runs(
+        &nominal,
+        ("dash", "4"),
+        fast(),
+        430,
+        2,
+        &[],
+        grow,
+    ));
+    let c = calibrate(&nominal, &runs, None, &CalOptions::default()).unwrap();
+    println!("{c}");
+    let t = speed_law_test(&c);
+    println!("{t}");
+    let kinds = held_out_groups(&t, "by_kind");
+    let sessions = held_out_groups(&t, "by_session");
+    assert_eq!(kinds.len(), 2, "{kinds:?}");
+    assert_eq!(sessions.len(), 4, "{sessions:?}");
+    for (g, k, l) in kinds.iter().chain(&sessions) {
+        assert!(l < k, "{g}: law {l} against constant {k}");
+    }
+    assert_eq!(t["kept"], true, "{t}");
+    let law = c
+        .params
+        .iter()
+        .find(|p| p.spec.name == "speed_rel")
+        .unwrap_or_else(|| panic!("no speed law\n{c}"));
+    assert!((law.value - 0.1).abs() <= 4.0 * law.sigma + 0.01, "{c}");
+    let top = json_number(&c, &["factors", "board", "range", "speed_max_m_s"])
+        .unwrap_or_else(|| panic!("no range on the board's factors\n{c}"));
+    assert!(top >= 0.6, "{top}");
+}

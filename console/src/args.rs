@@ -281,6 +281,12 @@ pub struct SetArgs {
     /// this lag times each side's change of speed off its travel.
     #[arg(long, value_name = "S", allow_negative_numbers = true)]
     pub accel_slip_s: Option<f64>,
+    /// Differential drive: the motion the laws were fitted on (`calibrate`'s
+    /// `factors.board.range`), comma-separated: the smallest and largest turn ratio
+    /// (0 straight, 1 a turn in place) and the fastest side speed (m/s). Beyond it the
+    /// board's odometry holds each law at its value at the edge.
+    #[arg(long, value_name = "RHO_MIN,RHO_MAX,SPEED_MAX", value_delimiter = ',', value_parser = trimmed_f64)]
+    pub law_range: Option<Vec<f64>>,
     /// Omni: one factor per wheel, comma-separated, in the robot file's order.
     #[arg(long, value_delimiter = ',', value_parser = trimmed_f64)]
     pub f_lat: Option<Vec<f64>>,

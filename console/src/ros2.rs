@@ -223,6 +223,7 @@ mod tests {
                     e_b_arc: 0.0057,
                     ..DiffLaws::default()
                 },
+                range: Default::default(),
             }),
             ..DiffFactors::diff(0.997, 0.996, 1.0076)
         };
@@ -256,6 +257,7 @@ mod tests {
                     speed_rel: -0.035,
                     accel_slip_s: 0.047,
                 },
+                range: Default::default(),
             }),
             ..DiffFactors::diff(0.9878, 0.9868, 1.01)
         };

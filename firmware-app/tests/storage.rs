@@ -358,6 +358,41 @@ fn saved_laws_survive_a_reboot() {
     assert_eq!(l.boot.corrections, Stored::Loaded);
 }
 
+/// Laws with the range they were fitted on (protocol v9's `DiffDriveLawsInRange`) saved
+/// over v6's `DiffDriveLaws` survive a reboot to the bit (the range too); the laws saved
+/// before them read back as written.
+#[test]
+fn saved_laws_with_their_range_survive_a_reboot() {
+    let mut s = store(fresh());
+    let laws = calib_core::correction::DiffLaws {
+        e_b_arc: 0.0057,
+        speed_rel: -0.035,
+        accel_slip_s: 0.0,
+    };
+    let old = Corrections::DiffDriveLaws {
+        c_l: 1.01,
+        c_r: 0.99,
+        e_b: 1.02,
+        laws,
+    };
+    block_on(s.save(&PersistItem::Corrections(old.clone()))).unwrap();
+    let mut s = store(s.into_flash());
+    assert_eq!(block_on(s.load()).corrections, old);
+    let within = Corrections::DiffDriveLawsInRange {
+        c_l: 1.01,
+        c_r: 0.99,
+        e_b: 1.02,
+        laws,
+        range: [0.02, 1.0, 0.41],
+    };
+    block_on(s.save(&PersistItem::Corrections(within.clone()))).unwrap();
+    let mut s = store(s.into_flash());
+    let l = block_on(s.load());
+    assert_eq!(l.corrections, within);
+    assert_eq!(l.boot.corrections, Stored::Loaded);
+    assert_eq!(l.corrections.law_range().speed_max_m_s, 0.41);
+}
+
 /// An omni robot's turn law (protocol v8's `OmniTurnLaw`) saved over plain omni factors
 /// survives a reboot to the bit; the plain factors saved before it read back as written
 /// (the new kind is last on the wire).

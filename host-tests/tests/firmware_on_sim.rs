@@ -507,6 +507,61 @@ fn a_stored_speed_law_keeps_the_boards_odometry_at_speed() {
     }
 }
 
+/// A speed law stored with the range it was fitted on (protocol v9's
+/// `DiffDriveLawsInRange`): tyres whose rolling size grows by 0.1 per m/s up to 0.1 m/s
+/// and no further (`speed_scale_top_m_s`), as a law fitted on runs no faster than that
+/// would describe them. Driven straight at 0.25 m/s for 5 s, the board holding the law
+/// unbounded grows the travel by 0.1 x 0.25 where the tyres grow by 0.1 x 0.1, so its
+/// odometry runs ahead of the truth by 0.1 x 0.15 / 1.01 of the distance, 17 mm (asserted
+/// within 30 %: the start's ramp); holding the law with its range (fastest side 0.1 m/s)
+/// it keeps the law's value at the edge and must follow the truth to a fifth of that and
+/// within 3 mm, moving and at rest.
+#[test]
+fn a_speed_law_stored_with_its_range_is_held_at_its_edge() {
+    use calib_core::correction::LawRange;
+    let cfg = || SimConfig {
+        speed_scale: 0.1,
+        speed_scale_top_m_s: 0.1,
+        ..SimConfig::default()
+    };
+    let laws = DiffLaws {
+        speed_rel: 0.1,
+        ..DiffLaws::default()
+    };
+    let unbounded = Corrections::diff_drive(1.0, 1.0, 1.0, laws);
+    let within = Corrections::diff_drive_within(
+        1.0,
+        1.0,
+        1.0,
+        laws,
+        LawRange {
+            speed_max_m_s: 0.1,
+            ..LawRange::UNBOUNDED
+        },
+    );
+    assert!(matches!(within, Corrections::DiffDriveLawsInRange { .. }));
+    let [(far_odo, truth), _] = straight_run(mobolab_sim(&[], cfg()), unbounded, 0.25, 5.0);
+    let [moving, rest] = straight_run(mobolab_sim(&[], cfg()), within, 0.25, 5.0);
+    let ahead = far_odo - truth;
+    let expect = truth * 0.1 * 0.15 / 1.01;
+    eprintln!(
+        "truth {truth:.4} m; the law unbounded ahead by {ahead:.4} m (physics {expect:.4}); held at its edge {:+.4} m moving, {:+.4} m at rest",
+        moving.0 - moving.1,
+        rest.0 - rest.1
+    );
+    assert!(
+        (ahead - expect).abs() < 0.3 * expect,
+        "unbounded law ahead by {ahead} m, physics says {expect}"
+    );
+    for (odo, truth) in [moving, rest] {
+        let err = (odo - truth).abs();
+        assert!(
+            err < 0.2 * ahead && err < 0.003,
+            "held at its edge {err} m off"
+        );
+    }
+}
+
 /// Tyres that creep (the simulator's `creep`, 0.05 s: the ground lags each wheel's speed
 /// by a first-order 0.05 s): cruising at 0.25 m/s, the body is 0.05 x 0.25 = 12.5 mm behind
 /// what the wheels rolled (asserted within 30 %), and catches up once stopped. With the

@@ -55,6 +55,8 @@ pub struct GroundParams {
     pub turn_scrub: f64,
     /// Growth of a driven wheel's rolling radius per m/s of its rolling speed; 0 for none.
     pub speed_scale: f64,
+    /// Rolling speed (m/s) beyond which the growth by `speed_scale` stops.
+    pub speed_scale_top_m_s: f64,
 }
 
 /// The body's state on the ground.
@@ -122,7 +124,7 @@ impl Ground {
                 let k = dt / (calib_core::diff_laws::TURN_RATIO_TIME_S + dt);
                 let v = &mut self.rolling[i];
                 *v += k * (d / dt - *v);
-                d *= 1.0 + params.speed_scale * v.abs();
+                d *= 1.0 + params.speed_scale * v.abs().min(params.speed_scale_top_m_s);
             }
             moving |= d != 0.0;
             if params.travel_noise_m_per_sqrt_m > 0.0 && d != 0.0 {

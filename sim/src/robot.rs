@@ -67,6 +67,10 @@ pub struct SimConfig {
     /// deform or slip more the faster they turn), v its rolling speed smoothed over 0.1 s
     /// (a stepper moves in whole steps). 0: the size does not depend on speed.
     pub speed_scale: f64,
+    /// Rolling speed (m/s) beyond which [`SimConfig::speed_scale`]'s growth stops: a
+    /// wheel turning faster rolls as one at this speed (a tyre whose deformation
+    /// saturates). Infinite: the growth never stops.
+    pub speed_scale_top_m_s: f64,
 }
 
 impl Default for SimConfig {
@@ -84,6 +88,7 @@ impl Default for SimConfig {
             tyre: crate::skid::Tyre::default(),
             turn_scrub: 0.0,
             speed_scale: 0.0,
+            speed_scale_top_m_s: f64::INFINITY,
         }
     }
 }
@@ -174,6 +179,14 @@ impl SimRobot {
             });
         }
         crate::error::check_range("speed_scale", cfg.speed_scale, -0.5, 0.5)?;
+        if cfg.speed_scale_top_m_s.is_nan() || cfg.speed_scale_top_m_s < 0.0 {
+            crate::error::check_range(
+                "speed_scale_top_m_s",
+                cfg.speed_scale_top_m_s,
+                0.0,
+                f64::MAX,
+            )?;
+        }
         for (field, v) in [
             ("start.x", cfg.start.x),
             ("start.y", cfg.start.y),
@@ -237,6 +250,7 @@ impl SimRobot {
             tyre: cfg.tyre,
             turn_scrub: cfg.turn_scrub,
             speed_scale: cfg.speed_scale,
+            speed_scale_top_m_s: cfg.speed_scale_top_m_s,
             travel_noise_m_per_sqrt_m: faults.travel_noise_m_per_sqrt_m,
             mech: faults.mech,
         };

@@ -74,7 +74,7 @@ pub use messages::*;
 pub use params::*;
 
 /// Bumped on any incompatible change of the messages or framing.
-pub const PROTOCOL_VERSION: u16 = 8;
+pub const PROTOCOL_VERSION: u16 = 9;
 
 /// Shortest non-zero host-link timeout a program accepts: the console's requests while it
 /// waits for a program come every 50 ms, its heartbeat at the latest every 200 ms.

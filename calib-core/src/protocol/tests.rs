@@ -74,6 +74,21 @@ fn corrections() -> impl Strategy<Value = Corrections> {
                 f_lon,
                 l_arc,
             }),
+        ((f64s(), f64s(), f64s(), f64s()), (f64s(), f64s(), f64s())).prop_map(
+            |((c_l, c_r, e_b, speed_rel), (rho_min, rho_max, v))| {
+                Corrections::DiffDriveLawsInRange {
+                    c_l,
+                    c_r,
+                    e_b,
+                    laws: crate::correction::DiffLaws {
+                        e_b_arc: 0.0,
+                        speed_rel,
+                        accel_slip_s: 0.0,
+                    },
+                    range: [rho_min as f32, rho_max as f32, v as f32],
+                }
+            }
+        ),
     ]
 }
 
@@ -679,6 +694,17 @@ fn schema_golden() {
             f_lon: 0.9,
             l_arc: 0.019,
         }),
+        Request::SetCorrections(Corrections::DiffDriveLawsInRange {
+            c_l: 1.01,
+            c_r: 0.99,
+            e_b: 1.02,
+            laws: crate::correction::DiffLaws {
+                e_b_arc: 0.005,
+                speed_rel: 0.1,
+                accel_slip_s: 0.05,
+            },
+            range: [0.01, 0.99, 0.4],
+        }),
         Request::SaveCorrections,
         Request::ResetCorrections,
         Request::GetParams,
@@ -773,7 +799,7 @@ fn schema_golden() {
     std::println!("golden {golden:#010x}, fingerprint {SCHEMA_FINGERPRINT:#010x}");
     assert_eq!(
         (golden, SCHEMA_FINGERPRINT),
-        (0xa47cb229, 0xbe176582),
+        (0xf0843bc4, 0x0a61bcdc),
         "message types changed: record the new values (and bump PROTOCOL_VERSION if needed)"
     );
 }
@@ -1270,4 +1296,48 @@ fn an_omni_turn_law_is_last_on_the_wire() {
     assert_eq!(roundtrip_req(&req), req);
     assert_eq!(Factor::from_name("l_arc"), Factor::LArc);
     assert_eq!(Factor::LArc.as_str(), "l_arc");
+}
+
+/// Protocol v9's `DiffDriveLawsInRange` is last on the wire: it takes index 6, its bytes
+/// are v6's `DiffDriveLaws` (index 4) with the range's three f32 after them, and it
+/// round-trips to the bit, inside a request frame too; the older kinds keep their bytes
+/// (`an_omni_turn_law_is_last_on_the_wire` pins them).
+#[test]
+fn a_law_range_is_last_on_the_wire() {
+    let mut buf = [0u8; 128];
+    let mut old = [0u8; 128];
+    let laws = crate::correction::DiffLaws {
+        e_b_arc: 0.005,
+        speed_rel: 0.1,
+        accel_slip_s: 0.05,
+    };
+    let v6 = postcard::to_slice(
+        &Corrections::DiffDriveLaws {
+            c_l: 1.01,
+            c_r: 0.99,
+            e_b: 1.02,
+            laws,
+        },
+        &mut old,
+    )
+    .unwrap();
+    let range = [0.01f32, 0.99, 0.4];
+    let within = Corrections::DiffDriveLawsInRange {
+        c_l: 1.01,
+        c_r: 0.99,
+        e_b: 1.02,
+        laws,
+        range,
+    };
+    let bytes = postcard::to_slice(&within, &mut buf).unwrap();
+    assert_eq!(bytes[0], 6);
+    assert_eq!(&bytes[1..v6.len()], &v6[1..]);
+    let mut tail = std::vec::Vec::new();
+    for v in [0.01f32, 0.99, 0.4] {
+        tail.extend_from_slice(&v.to_le_bytes());
+    }
+    assert_eq!(&bytes[v6.len()..], &tail[..]);
+    assert_eq!(postcard::from_bytes::<Corrections>(bytes).unwrap(), within);
+    let req = Request::SetCorrections(within);
+    assert_eq!(roundtrip_req(&req), req);
 }

@@ -591,3 +591,145 @@ mod tests {
         }
     }
 }
+
+/// Every run of robot `robot` in `dir` whose kind of motion and session `keep` accepts
+/// (`RunDir`), with the robot of the first.
+pub fn robot_runs(
+    dir: &Path,
+    robot: &str,
+    keep: impl Fn(&RunDir) -> bool,
+) -> Result<(Robot, Vec<(String, Recording)>), String> {
+    let mut nominal = None;
+    let mut recs = Vec::new();
+    for r in list_runs(dir).map_err(|e| e.to_string())? {
+        if r.robot == robot && keep(&r) {
+            let (rb, rec) = load_run(dir, &r.folder)?;
+            nominal.get_or_insert(rb);
+            recs.push((r.folder.clone(), rec));
+        }
+    }
+    let nominal = nominal.ok_or(format!("no {robot} run"))?;
+    Ok((nominal, recs))
+}
+
+/// One calibration dead-reckoning runs kept apart from it: the board as it applies the
+/// calibration (its factors and laws, calib-core's odometry) and the same calibration's
+/// constant geometry (the robot file), mean RMS over the runs (m).
+#[derive(Debug, Clone, Serialize)]
+pub struct KeptApart {
+    /// What was trained on.
+    pub training: String,
+    /// What was kept apart and dead-reckoned.
+    pub tested: String,
+    /// Runs trained on and tested.
+    pub train_runs: usize,
+    pub test_runs: usize,
+    /// The law kept (`law_tests`' name and value), if any.
+    pub law: Option<(String, f64)>,
+    /// Mean RMS of the board (laws included) and of the robot file, m.
+    pub board_m: f64,
+    pub constant_m: f64,
+    /// Seconds calibrate took.
+    pub seconds: f64,
+}
+
+impl KeptApart {
+    /// The board's error over the constant geometry's.
+    pub fn ratio(&self) -> f64 {
+        self.board_m / self.constant_m
+    }
+}
+
+/// The board a calibration sets: its factors and laws for a differential drive (plain
+/// factors when no law is kept).
+pub fn board_of(c: &calibrate::Calibration) -> calib_core::Corrections {
+    match &c.factors {
+        calibrate::Factors::Diff { board: Some(b), .. } => b.corrections(),
+        calibrate::Factors::Diff { c_l, c_r, e_b, .. } => calib_core::Corrections::DiffDrive {
+            c_l: *c_l,
+            c_r: *c_r,
+            e_b: *e_b,
+        },
+        _ => calib_core::Corrections::None,
+    }
+}
+
+/// `calibrate` (defaults) on the differential robot's runs `train` accepts, its board and
+/// its robot file dead-reckoning the runs `test` accepts, from their first row.
+pub fn kept_apart(
+    dir: &Path,
+    training: &str,
+    tested: &str,
+    train: impl Fn(&RunDir) -> bool,
+    test: impl Fn(&RunDir) -> bool,
+) -> Result<(KeptApart, calibrate::Calibration), String> {
+    use calibrate::{board_dead_reckoning_errors, calibrate, CalOptions};
+    let (robot, recs) = robot_runs(dir, "diff", train)?;
+    let (_, held) = robot_runs(dir, "diff", test)?;
+    let t0 = std::time::Instant::now();
+    let c = calibrate(&robot, &recs, None, &CalOptions::default()).map_err(|e| e.to_string())?;
+    let seconds = t0.elapsed().as_secs_f64();
+    let board = board_of(&c);
+    let (mut b, mut k) = (0.0, 0.0);
+    for (name, rec) in &held {
+        let s = Series::new(name, &robot, rec).map_err(|e| e.to_string())?;
+        b += board_dead_reckoning_errors(&robot, &board, &s)
+            .ok_or(format!("{name}: the board cannot dead-reckon it"))?
+            .0;
+        k += dead_reckoning_rmse(&c.fitted_robot, &s).ok_or(format!("{name}: no path"))?;
+    }
+    let n = held.len().max(1) as f64;
+    let law = c
+        .law_tests
+        .iter()
+        .find(|t| t.kept && !t.law.contains("lead"))
+        .map(|t| (t.law.to_string(), t.value));
+    Ok((
+        KeptApart {
+            training: training.into(),
+            tested: tested.into(),
+            train_runs: recs.len(),
+            test_runs: held.len(),
+            law,
+            board_m: b / n,
+            constant_m: k / n,
+            seconds,
+        },
+        c,
+    ))
+}
+
+/// The training sets [`kept_apart`] is run on for the differential robot: each kind of
+/// motion kept apart from the other two (all sessions of both months), and each month
+/// kept apart from the other.
+pub fn kept_apart_sets(dir: &Path) -> Result<Vec<(KeptApart, calibrate::Calibration)>, String> {
+    let mut out = Vec::new();
+    for kind in ["square", "circular", "ivanjko"] {
+        out.push(kept_apart(
+            dir,
+            &format!("all but {kind}"),
+            kind,
+            |r| r.path != kind,
+            |r| r.path == kind,
+        )?);
+    }
+    for (train, test, a, b) in [
+        ("06", "12", "June", "December"),
+        ("12", "06", "December", "June"),
+    ] {
+        out.push(kept_apart(
+            dir,
+            a,
+            b,
+            |r| r.session.get(2..4) == Some(train),
+            |r| r.session.get(2..4) == Some(test),
+        )?);
+    }
+    Ok(out)
+}
+
+/// Mean, median and worst of `v`.
+pub fn mean_median_worst(v: &[f64]) -> (f64, f64, f64) {
+    let s = Spread::of(v.iter().copied());
+    (s.mean_m, s.median_m, s.worst_m)
+}

@@ -2,7 +2,7 @@
 //! `factors set`'s merge with the board's current factors, the factors in words.
 
 use anyhow::{bail, Result};
-use calib_core::correction::DiffLaws;
+use calib_core::correction::{DiffLaws, LawRange};
 use calib_core::robot::MAX_WHEELS;
 use calib_core::Corrections;
 use serde::Serialize;
@@ -30,6 +30,10 @@ pub enum FactorsView {
         /// The acceleration law: the ground's lag behind the wheels, s (absent: none).
         #[serde(skip_serializing_if = "Option::is_none")]
         accel_slip_s: Option<f64>,
+        /// The motion the laws were fitted on, beyond which the board holds each law at
+        /// its edge (absent: unbounded).
+        #[serde(skip_serializing_if = "Option::is_none")]
+        law_range: Option<LawRange>,
     },
     /// Omnidirectional robot.
     Omni {
@@ -50,7 +54,8 @@ impl From<&Corrections> for FactorsView {
             Corrections::None => FactorsView::None,
             Corrections::DiffDrive { .. }
             | Corrections::DiffDriveTurnLaw { .. }
-            | Corrections::DiffDriveLaws { .. } => {
+            | Corrections::DiffDriveLaws { .. }
+            | Corrections::DiffDriveLawsInRange { .. } => {
                 let (c_l, c_r, e_b) = c.diff_factors().unwrap_or((1.0, 1.0, 1.0));
                 let laws = c.laws();
                 let some = |v: f64| (v != 0.0).then_some(v);
@@ -61,6 +66,7 @@ impl From<&Corrections> for FactorsView {
                     e_b_arc: some(laws.e_b_arc),
                     speed_rel: some(laws.speed_rel),
                     accel_slip_s: some(laws.accel_slip_s),
+                    law_range: Some(c.law_range()).filter(|r| !r.is_unbounded()),
                 }
             }
             Corrections::Omni { f_lat, f_lon } | Corrections::OmniTurnLaw { f_lat, f_lon, .. } => {
@@ -86,6 +92,7 @@ impl FactorsView {
                 e_b_arc,
                 speed_rel,
                 accel_slip_s,
+                law_range,
             } => {
                 let mut s = format!("c_L = {c_l:.6}  c_R = {c_r:.6}  E_b = {e_b:.6}");
                 if let Some(a) = e_b_arc {
@@ -104,6 +111,12 @@ impl FactorsView {
                     s.push_str(&format!(
                         "; the ground lags the wheels by {:.1} ms of their change of speed (acceleration law accel_slip_s {a:+.6})",
                         a * 1e3
+                    ));
+                }
+                if let Some(r) = law_range {
+                    s.push_str(&format!(
+                        "; the laws held at their edges beyond the motion they were fitted on (turn ratio {:.3}-{:.3}, side speed up to {:.3} m/s)",
+                        r.rho_min, r.rho_max, r.speed_max_m_s
                     ));
                 }
                 s.push('\n');
@@ -149,7 +162,13 @@ pub fn refusal_words(e: &calib_core::correction::CorrectionError) -> String {
             max,
         } => {
             let law = matches!(*name, "e_b_arc" | "speed_rel" | "accel_slip_s" | "l_arc");
-            let min = if law { -*max } else { FACTOR_MIN };
+            let min = if law {
+                -*max
+            } else if *name == "law_range" {
+                0.0
+            } else {
+                FACTOR_MIN
+            };
             let at = match index {
                 Some(i) => format!("{name}[{i}]"),
                 None => name.to_string(),
@@ -185,11 +204,13 @@ pub fn merge_corrections(
         e_b_arc,
         speed_rel,
         accel_slip_s,
+        law_range,
         f_lat,
         f_lon,
         l_arc,
     } = *given;
-    let diff = c_l.is_some()
+    let diff = law_range.is_some()
+        || c_l.is_some()
         || c_r.is_some()
         || e_b.is_some()
         || e_b_arc.is_some()
@@ -214,7 +235,8 @@ pub fn merge_corrections(
                 speed_rel: speed_rel.unwrap_or(held.speed_rel),
                 accel_slip_s: accel_slip_s.unwrap_or(held.accel_slip_s),
             };
-            Ok(Corrections::diff_drive(c_l, c_r, e_b, laws))
+            let range = law_range.unwrap_or(current.law_range());
+            Ok(Corrections::diff_drive_within(c_l, c_r, e_b, laws, range))
         }
         (false, true) => {
             let (lat, lon) = match current.omni_factors() {
@@ -248,6 +270,8 @@ pub struct GivenFactors<'a> {
     pub speed_rel: Option<f64>,
     /// The acceleration law's accel_slip_s (0: none).
     pub accel_slip_s: Option<f64>,
+    /// The motion the laws were fitted on (None: keep the board's).
+    pub law_range: Option<LawRange>,
     /// F_lat, one per wheel.
     pub f_lat: Option<&'a [f64]>,
     /// F_lon.

@@ -118,6 +118,8 @@ impl CircleReport {
                 e_b_arc: self.e_b_arc,
                 ..DiffLaws::default()
             },
+            // The circle test measures turns in place and arcs by hand, no range.
+            range: Default::default(),
         })
     }
 

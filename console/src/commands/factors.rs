@@ -30,6 +30,9 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
     let current = client.corrections()?;
     let robot = client.params()?.robot;
     let n = robot.wheels.len();
+    if a.law_range.as_ref().is_some_and(|r| r.len() != 3) {
+        bail!("--law-range takes three numbers: RHO_MIN,RHO_MAX,SPEED_MAX");
+    }
     let c = board::merge_corrections(
         &current,
         n,
@@ -40,6 +43,14 @@ fn set(a: SetArgs, ctx: &mut Ctx, out: Output) -> Result<()> {
             e_b_arc: a.e_b_arc,
             speed_rel: a.speed_rel,
             accel_slip_s: a.accel_slip_s,
+            law_range: a
+                .law_range
+                .as_deref()
+                .map(|r| calib_core::correction::LawRange {
+                    rho_min: r[0] as f32,
+                    rho_max: r[1] as f32,
+                    speed_max_m_s: r[2] as f32,
+                }),
             f_lat: a.f_lat.as_deref(),
             f_lon: a.f_lon,
             l_arc: a.l_arc,
