@@ -108,3 +108,99 @@ pub fn bumps_not_localised(
         })
         .collect()
 }
+
+/// The parameter name under which [`play_not_at_reversals`] lists backlash.
+pub const AT_REVERSALS_PARAMETER: &str = "loss_at_restarts_over_reversals";
+/// What backlash whose loss also follows starts without a reversal stands for.
+pub const PLAY_ELSEWHERE_STANDS_FOR: &str =
+    "a dead band or friction (travel lost at every start from rest, not only after reversals)";
+/// Decision boundary of [`play_not_at_reversals`]: play loses travel after a reversal and
+/// none at a start in the direction the wheel last moved (ratio 0); a dead band loses the
+/// same at both (ratio 1). Half is the middle between the two, not a fitted number.
+pub const PLAY_RESTART_SHARE: f64 = 0.5;
+/// Fewest events of each kind [`play_not_at_reversals`] needs to judge.
+const PLAY_MIN_EVENTS: usize = 3;
+/// Window after an event over which the travel lost is read, s.
+const PLAY_WINDOW_S: f64 = 0.5;
+
+/// Backlash earns its place by its signature (issue 55 §3): in the nominal actuator
+/// residual (encoder minus commanded travel), the travel lost in the half second after a
+/// wheel starts from rest in the direction it last moved must be under
+/// [`PLAY_RESTART_SHARE`] of that lost after it reverses. Listed (never the verdict) when it
+/// is not; no judgement with fewer than three events of each kind.
+pub fn play_not_at_reversals(
+    ev: &crate::residuals::Evaluator,
+    nominal: &crate::residuals::Eval,
+    findings: &[Finding],
+) -> Vec<Implausible> {
+    if !findings
+        .iter()
+        .any(|f| f.effect == crate::effects::Effect::Backlash.id())
+    {
+        return Vec::new();
+    }
+    let p = ev.p;
+    let (mut restart, mut reversal) = (Vec::new(), Vec::new());
+    for (i, res) in &nominal.act {
+        let Some(cmd) = p.wheels.get(*i).and_then(|w| w.cmd.as_ref()) else {
+            continue;
+        };
+        let rows = &ev.act_rows;
+        let top = rows
+            .iter()
+            .filter_map(|&r| cmd.get(r))
+            .fold(0.0f64, |m, c| m.max(c.abs()));
+        if top <= 0.0 {
+            continue;
+        }
+        let moving = 0.05 * top;
+        let (mut last_dir, mut was_moving) = (0.0f64, false);
+        for (k, &r) in rows.iter().enumerate() {
+            let c = cmd.get(r).copied().unwrap_or(0.0);
+            let now = c.abs() > moving;
+            let dir = c.signum();
+            let event = now && (!was_moving || (last_dir != 0.0 && dir != last_dir));
+            if event && last_dir != 0.0 {
+                let t0 = p.t[r];
+                let end = rows[k..]
+                    .iter()
+                    .position(|&q| p.t[q] >= t0 + PLAY_WINDOW_S)
+                    .map(|j| k + j);
+                if let (Some(e), Some(&a)) = (end, res.get(k)) {
+                    if let Some(&b) = res.get(e) {
+                        let lost = -(b - a) * dir;
+                        if dir == last_dir {
+                            restart.push(lost);
+                        } else {
+                            reversal.push(lost);
+                        }
+                    }
+                }
+            }
+            if now {
+                last_dir = dir;
+            }
+            was_moving = now;
+        }
+    }
+    if restart.len() < PLAY_MIN_EVENTS || reversal.len() < PLAY_MIN_EVENTS {
+        return Vec::new();
+    }
+    let mean = |v: &[f64]| v.iter().sum::<f64>() / v.len() as f64;
+    let (at_restart, at_reversal) = (mean(&restart), mean(&reversal));
+    let ratio = if at_reversal > 0.0 {
+        at_restart / at_reversal
+    } else {
+        f64::INFINITY
+    };
+    if ratio < PLAY_RESTART_SHARE {
+        return Vec::new();
+    }
+    vec![Implausible {
+        effect: crate::effects::Effect::Backlash.id().to_string(),
+        parameter: AT_REVERSALS_PARAMETER.to_string(),
+        value: ratio,
+        plausible: (0.0, PLAY_RESTART_SHARE),
+        stands_for: PLAY_ELSEWHERE_STANDS_FOR.to_string(),
+    }]
+}

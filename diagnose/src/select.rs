@@ -1215,6 +1215,11 @@ pub fn verdict(
     implausible.extend(crate::plausibility::bumps_not_localised(
         ev, &sel.model, findings,
     ));
+    implausible.extend(crate::plausibility::play_not_at_reversals(
+        ev,
+        &sel.nominal_eval,
+        findings,
+    ));
     let plausible =
         |f: &Finding| !f.implausible_sign && !implausible.iter().any(|i| i.effect == f.effect);
     let top = findings.iter().find(|f| plausible(f));
