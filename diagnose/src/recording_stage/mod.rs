@@ -57,6 +57,9 @@ pub struct Artefact {
     pub gaps: Vec<Gap>,
     /// Times of the duplicated rows (s).
     pub duplicated_at_s: Vec<f64>,
+    /// Each place the fault shows, with its time and size (at most [`MAX_EVENTS`]; the
+    /// parameters count them all).
+    pub events: Vec<Event>,
     /// Whether the physics stages saw the recording with this artefact removed.
     pub removed: bool,
     /// What was concluded per wheel, and what the data cannot tell (a counts ratio far
@@ -72,6 +75,7 @@ impl Artefact {
             uncertainties: BTreeMap::new(),
             gaps: vec![],
             duplicated_at_s: vec![],
+            events: vec![],
             removed: false,
             notes: vec![],
         }
@@ -121,6 +125,18 @@ impl fmt::Display for Artefact {
         }
         Ok(())
     }
+}
+
+/// Most events listed per artefact (the parameters count them all).
+pub const MAX_EVENTS: usize = 1000;
+
+/// One place a recording artefact shows: its time and its size by name.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Event {
+    /// Time (s), as written in the file.
+    pub at_s: f64,
+    /// Sizes by name (`back_s`, `dx_m`, `dy_m`, `dtheta_rad`, `rows`).
+    pub size: BTreeMap<String, f64>,
 }
 
 /// What the recording stage found, and the recording with it removed.
