@@ -22,6 +22,20 @@
 //!   size (a quarter row interval; 0.05 %), then the poses are moved onto the encoder
 //!   clock.
 
+mod encoder_scale;
+mod odometry;
+mod pose_jump;
+mod segments;
+mod stale;
+mod time;
+mod wiring;
+
+pub use encoder_scale::{POSES_AGREE, SCALE_MIN, SCALE_SIGMAS};
+pub use pose_jump::{JUMP_WINDOW, JUMP_Z};
+pub use stale::{MAX_STALE_RUN, STALE_MIN_COUNTS, STALE_POSE_Z};
+pub use time::JITTER_FRACTION;
+pub use wiring::{WIRING_MIN_CORR, WIRING_RATIO};
+
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::robot::Robot;
@@ -32,13 +46,8 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt;
 
-/// Recording-stage catalogue ids.
-pub const RECORDING_IDS: [&str; 4] = [
-    "time_offset",
-    "clock_rate",
-    "sample_glitch",
-    "counts_per_rev_error",
-];
+/// Recording-stage catalogue ids (`formats::catalogue::RECORDING_IDS`).
+pub const RECORDING_IDS: [&str; 11] = formats::catalogue::RECORDING_IDS;
 
 /// One artefact found in the recording.
 #[derive(Debug, Clone, Serialize)]
@@ -156,10 +165,24 @@ pub struct RecordingStage {
 pub fn analyse(robot: &Robot, rec: Recording) -> RecordingStage {
     let mut artefacts = Vec::new();
     let mut cur = rec;
-    if let Some(a) = sample_glitches(&mut cur) {
+    // Time first (the reader re-timed rows going back; jitter widens what a gap is),
+    // then the rows, the wiring, the counts, the poses, and the clocks last.
+    artefacts.extend(time::time_backwards(&cur));
+    let jitter = time::time_jitter(&cur);
+    let step_sd = time::step_stats(&cur).map_or(0.0, |s| s.1);
+    if let Some(a) = sample_glitches(&mut cur, step_sd) {
         artefacts.push(a);
     }
+    artefacts.extend(jitter);
+    artefacts.extend(stale::stale(&mut cur));
+    if let Some(segs) = segments::segments(robot, &cur) {
+        artefacts.extend(wiring::wiring(robot, &mut cur, &segs));
+    }
     artefacts.extend(counts_per_rev(robot, &mut cur));
+    if let Some(segs) = segments::segments(robot, &cur) {
+        artefacts.extend(encoder_scale::encoder_scale(robot, &mut cur, &segs));
+    }
+    artefacts.extend(pose_jump::pose_jumps(robot, &mut cur));
     let (clock_artefacts, geometry) = clocks(robot, &mut cur);
     artefacts.extend(clock_artefacts);
     RecordingStage {
@@ -197,11 +220,16 @@ pub fn gaps(t: &[f64]) -> (Vec<Gap>, f64) {
 }
 
 fn gaps_at(t: &[f64], dt: f64) -> (Vec<Gap>, f64) {
+    gaps_beyond(t, dt, 1.5 * dt)
+}
+
+/// Gaps: steps of at least `least` (s), counted in intervals of `dt`.
+fn gaps_beyond(t: &[f64], dt: f64, least: f64) -> (Vec<Gap>, f64) {
     let mut out = Vec::new();
     let mut total = 0.0;
     for w in t.windows(2) {
         let steps = (w[1] - w[0]) / dt;
-        if steps >= 1.5 {
+        if w[1] - w[0] >= least && steps >= 1.5 {
             // A step beyond f64 (1e308 s over a millisecond) counts as the largest.
             let missing = (steps.round() - 1.0).min(f64::MAX);
             total += missing;
@@ -215,8 +243,9 @@ fn gaps_at(t: &[f64], dt: f64) -> (Vec<Gap>, f64) {
     (out, total)
 }
 
-/// Missing rows (gaps of >= 1.5 median intervals) and duplicated rows (dropped).
-fn sample_glitches(rec: &mut Recording) -> Option<Artefact> {
+/// Missing rows (gaps of >= 1.5 median intervals, plus 4 sd of the written steps when
+/// the times jitter) and duplicated rows (dropped).
+fn sample_glitches(rec: &mut Recording, step_sd: f64) -> Option<Artefact> {
     let n = rec.len();
     if n < 4 {
         return None;
@@ -228,7 +257,13 @@ fn sample_glitches(rec: &mut Recording) -> Option<Artefact> {
         return None;
     }
     let mut a = Artefact::new("sample_glitch");
-    let (gaps, missing) = gaps_at(&rec.t, dt);
+    // Jittered steps reach past 1.5 intervals without a row missing.
+    let margin = if step_sd.is_finite() && step_sd > 0.0 {
+        4.0 * step_sd
+    } else {
+        0.0
+    };
+    let (gaps, missing) = gaps_beyond(&rec.t, dt, 1.5 * dt + margin);
     a.gaps = gaps;
     let enc = |k: usize| -> Vec<Option<i64>> {
         rec.wheels
