@@ -430,6 +430,18 @@ fn stale_encoder_rows_are_timed_and_repaired() {
         }
         println!("{}: {} more listed as duplicated rows", r.name, dup.len());
         for t in &want {
+            if !got.iter().chain(&dup).any(|g| (g - t).abs() < 1e-9) {
+                let k = g.rec.t.iter().position(|x| x == t).unwrap_or(3).max(3);
+                for m in k - 3..(k + 3).min(g.rec.len()) {
+                    let e: Vec<_> = g
+                        .rec
+                        .wheels
+                        .iter()
+                        .map(|w| w.enc.as_ref().unwrap()[m])
+                        .collect();
+                    println!("  row {m} t {} stale {} enc {e:?}", g.rec.t[m], stale[m]);
+                }
+            }
             assert!(
                 got.iter().chain(&dup).any(|g| (g - t).abs() < 1e-9),
                 "{}: {t} missed",
@@ -756,4 +768,57 @@ fn dropped_rows_are_gaps() {
     let dropped = drop.iter().filter(|d| **d).count() as f64;
     assert_eq!(a.parameters["missing_samples"], dropped, "{a}");
     assert_none(&rep, "dropped rows");
+}
+
+/// Each check's statistic on noise-only recordings (16: 8 robots/rates/noises, 2 seeds
+/// each, merged to 100 rows/s as diagnose does), against its threshold: the margins
+/// docs/diagnose.md states. No control reaches a threshold.
+#[test]
+fn threshold_margins_on_controls() {
+    use diagnose::recording_stage::{
+        statistics, JITTER_FRACTION, JUMP_Z, SCALE_MIN, WIRING_MIN_CORR, WIRING_RATIO,
+    };
+    let cases: Vec<(Robot, f64, f64, Noise)> = vec![
+        (robot_file("mobolab"), 50.0, 30.0, Noise::White),
+        (robot_file("mobolab"), 100.0, 100.0, Noise::Ar1),
+        (presets::omni3(0.04, 0.15), 100.0, 50.0, Noise::Drift),
+        (robot_file("omni4"), 100.0, 100.0, Noise::Quantised),
+        (dc_diff(), 20.0, 10.0, Noise::White),
+        (dc_diff(), 200.0, 100.0, Noise::Ar1),
+        (robot_file("robotest"), 100.0, 30.0, Noise::Drift),
+        (robot_file("sweeper"), 60.0, 60.0, Noise::Quantised),
+    ];
+    let (mut own, mut ratio, mut off, mut z, mut jit) =
+        (f64::INFINITY, f64::INFINITY, 0.0f64, 0.0f64, 0.0f64);
+    for (r, rate, pose_hz, noise) in &cases {
+        for seed in [7111u64, 7112] {
+            let g = drive(r, *rate, *pose_hz, 60.0, *noise, seed ^ (*rate as u64), &[]);
+            let rec = g.rec.decimated(100.0).0;
+            let s = statistics(r, &rec);
+            println!(
+                "{:9} {rate:5} Hz poses {pose_hz:5} Hz {noise:9?} seed {seed}: own corr {:.4}, permuted {:.1}, scale off {:.2e} ({:.1} sigma), innovation z {:.2}, jitter {:.3}",
+                r.name,
+                s.own_correlation_min,
+                s.permuted_ratio_min,
+                s.scale_off_max,
+                s.scale_off_sigmas_max,
+                s.innovation_z_max,
+                s.jitter_fraction
+            );
+            own = own.min(s.own_correlation_min);
+            ratio = ratio.min(s.permuted_ratio_min);
+            if s.scale_off_max.is_finite() {
+                off = off.max(s.scale_off_max);
+            }
+            z = z.max(s.innovation_z_max);
+            if s.jitter_fraction.is_finite() {
+                jit = jit.max(s.jitter_fraction);
+            }
+        }
+    }
+    println!(
+        "controls: own correlation >= {own:.4} (sign flip at <= -{WIRING_MIN_CORR}); permuted share >= {ratio:.1} x (swap below {WIRING_RATIO}); stepper scale off <= {off:.2e} (threshold {SCALE_MIN}); innovation z <= {z:.2} (threshold {JUMP_Z}); jitter <= {jit:.3} of the interval (threshold {JITTER_FRACTION})"
+    );
+    assert!(own > WIRING_MIN_CORR && ratio > 1.0 / WIRING_RATIO);
+    assert!(off < SCALE_MIN && z < JUMP_Z && jit < JITTER_FRACTION);
 }

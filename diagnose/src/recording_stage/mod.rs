@@ -192,6 +192,62 @@ pub fn analyse(robot: &Robot, rec: Recording) -> RecordingStage {
     }
 }
 
+/// The statistics the logger-fault checks compare with their thresholds, on a
+/// recording as given (no fault removed): what `logger_faults`' controls measure to state
+/// each threshold's false-alarm margin (docs/diagnose.md).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Statistics {
+    /// Smallest correlation of an encoder column with its own wheel's demand (a sign
+    /// flip needs <= -[`WIRING_MIN_CORR`]).
+    pub own_correlation_min: f64,
+    /// Smallest unexplained share of another order of the columns over the columns as
+    /// written (a swap needs < [`WIRING_RATIO`]).
+    pub permuted_ratio_min: f64,
+    /// Largest |encoder over commanded travel - 1| on a stepper robot (NaN otherwise;
+    /// [`SCALE_MIN`]).
+    pub scale_off_max: f64,
+    /// ... and in its own sigmas ([`SCALE_SIGMAS`]).
+    pub scale_off_sigmas_max: f64,
+    /// Largest pose innovation in its robust sigmas ([`JUMP_Z`]).
+    pub innovation_z_max: f64,
+    /// The written times' jitter over the row interval ([`JITTER_FRACTION`]).
+    pub jitter_fraction: f64,
+}
+
+/// [`Statistics`] of `rec` of `robot`.
+pub fn statistics(robot: &Robot, rec: &Recording) -> Statistics {
+    let (own, ratio, mut off, mut off_s) = match segments::segments(robot, rec) {
+        Some(segs) => {
+            let (own, ratio) = wiring::wiring_stats(robot, &segs);
+            let (mut off, mut off_s) = (f64::NAN, f64::NAN);
+            for (k, sigma, _) in encoder_scale::stepper_scales(robot, &segs)
+                .into_iter()
+                .flatten()
+            {
+                off = (k - 1.0).abs().max(if off.is_nan() { 0.0 } else { off });
+                let z = (k - 1.0).abs() / sigma;
+                off_s = z.max(if off_s.is_nan() { 0.0 } else { off_s });
+            }
+            (own, ratio, off, off_s)
+        }
+        None => (f64::NAN, f64::NAN, f64::NAN, f64::NAN),
+    };
+    if !off.is_finite() {
+        off = f64::NAN;
+        off_s = f64::NAN;
+    }
+    let jitter_fraction =
+        time::step_stats(rec).map_or(f64::NAN, |(med, sd)| sd / std::f64::consts::SQRT_2 / med);
+    Statistics {
+        own_correlation_min: own,
+        permuted_ratio_min: ratio,
+        scale_off_max: off,
+        scale_off_sigmas_max: off_s,
+        innovation_z_max: pose_jump::largest_innovation_z(robot, rec),
+        jitter_fraction,
+    }
+}
+
 /// One gap in `t`: rows missing between two consecutive rows.
 #[derive(Debug, Clone, Copy, PartialEq, Serialize)]
 pub struct Gap {

@@ -26,11 +26,16 @@ struct Innov {
     odo: Vec<(f64, f64)>,
 }
 
-/// Finds single-sample and permanent pose jumps; blanks the first, re-aligns after the
-/// second.
-pub(super) fn pose_jumps(robot: &Robot, rec: &mut Recording) -> Option<Artefact> {
+type PoseRow = (usize, f64, f64, f64);
+
+/// The pose rows, the innovations of each pose step against the wheels' step, which steps
+/// are usable (no gap), and the innovations' robust sigmas (x, y, theta).
+fn innovations(
+    robot: &Robot,
+    rec: &Recording,
+) -> Option<(Vec<PoseRow>, Innov, Vec<bool>, Vec<f64>)> {
     let steps = body_steps(robot, rec)?;
-    let rows: Vec<(usize, f64, f64, f64)> = rec.pose_rows().collect();
+    let rows: Vec<PoseRow> = rec.pose_rows().collect();
     let m = rows.len();
     if m < 4 * JUMP_WINDOW {
         return None;
@@ -51,6 +56,7 @@ pub(super) fn pose_jumps(robot: &Robot, rec: &mut Recording) -> Option<Artefact>
         odo: vec![(0.0, 0.0); m],
     };
     let mut usable = vec![false; m];
+    let mut vel = vec![[f64::NAN; 3]; m];
     for j in 1..m {
         let (k0, k1) = (rows[j - 1].0, rows[j].0);
         let dt = rec.t[k1] - rec.t[k0];
@@ -68,7 +74,54 @@ pub(super) fn pose_jumps(robot: &Robot, rec: &mut Recording) -> Option<Artefact>
         inn.q[1][j] = rows[j].2 - rows[j - 1].2 - y;
         inn.q[2][j] = th[j] - th[j - 1] - (h - th[j - 1]);
         inn.odo[j] = (x, y);
+        vel[j] = [x / dt, y / dt, (h - th[j - 1]) / dt];
         usable[j] = true;
+    }
+    // Poses late by tau against the wheels make each innovation follow the change of
+    // velocity, q_j = -tau (v(t_j) - v(t_j-1)): a robot that starts turning at once
+    // (the real squares, 44 ms late) would look like a heading jump. Tau is fitted
+    // (innovations beyond JUMP_Z left out, channels weighted by their robust sigma) and
+    // taken out; the clock stage fits the offset properly afterwards.
+    let s0: Vec<f64> = (0..3)
+        .map(|c| {
+            let v: Vec<f64> = (0..m).filter(|&j| usable[j]).map(|j| inn.q[c][j]).collect();
+            robust_sd(&v).max(1e-9)
+        })
+        .collect();
+    let dv = |j: usize, c: usize| -> f64 {
+        if j == 0 || j + 1 >= m {
+            return f64::NAN;
+        }
+        0.5 * (vel[j + 1][c] - vel[j - 1][c])
+    };
+    let (mut num, mut den) = (0.0, 0.0);
+    for j in 1..m {
+        if !usable[j] || (0..3).any(|c| inn.q[c][j].abs() / s0[c] > JUMP_Z) {
+            continue;
+        }
+        for c in 0..3 {
+            let d = dv(j, c);
+            if d.is_finite() {
+                let w = 1.0 / (s0[c] * s0[c]);
+                num += w * inn.q[c][j] * d;
+                den += w * d * d;
+            }
+        }
+    }
+    let tau = if den > 0.0 {
+        (-num / den).clamp(-0.5, 0.5)
+    } else {
+        0.0
+    };
+    if tau.is_finite() && tau != 0.0 {
+        for j in 1..m {
+            for c in 0..3 {
+                let d = dv(j, c);
+                if usable[j] && d.is_finite() {
+                    inn.q[c][j] += tau * d;
+                }
+            }
+        }
     }
     let s: Vec<f64> = (0..3)
         .map(|c| {
@@ -76,6 +129,25 @@ pub(super) fn pose_jumps(robot: &Robot, rec: &mut Recording) -> Option<Artefact>
             robust_sd(&v).max(1e-9)
         })
         .collect();
+    Some((rows, inn, usable, s))
+}
+
+/// The largest pose innovation in its robust sigmas (the statistic [`JUMP_Z`] bounds).
+pub(super) fn largest_innovation_z(robot: &Robot, rec: &Recording) -> f64 {
+    let Some((rows, inn, usable, s)) = innovations(robot, rec) else {
+        return f64::NAN;
+    };
+    (0..rows.len())
+        .filter(|&j| usable[j])
+        .map(|j| (0..3).map(|c| inn.q[c][j].abs() / s[c]).fold(0.0, f64::max))
+        .fold(0.0, f64::max)
+}
+
+/// Finds single-sample and permanent pose jumps; blanks the first, re-aligns after the
+/// second.
+pub(super) fn pose_jumps(robot: &Robot, rec: &mut Recording) -> Option<Artefact> {
+    let (rows, mut inn, usable, s) = innovations(robot, rec)?;
+    let m = rows.len();
     let z = |q: &[Vec<f64>; 3], j: usize| -> f64 {
         (0..3).map(|c| q[c][j].abs() / s[c]).fold(0.0, f64::max)
     };

@@ -90,11 +90,17 @@ fn stale_encoders(rec: &mut Recording, events: &mut Vec<Event>) -> usize {
         }
         // Some wheel turns, at the rate of the row before and at the rate of the
         // catch-up, at least 2 counts per row over the still rows' time, the same way
-        // (rates, not counts: rows need not be regular).
+        // (rates, not counts: rows need not be regular); and the catch-up carries the
+        // still rows' travel: its rate over the run and itself is at least
+        // (l + 3/4) / (l + 1) of the mean rate of the rows either side (a quarter row
+        // for the rate changing between rows). A wheel that really paused (a robot
+        // stopping between the legs of a square) restarts slower than that (the real
+        // squares: 11, 0, 15, 42 counts; 11, 0, 15, 8).
         let span = rec.t[c - 1] - rec.t[k - 1];
         let (db, dc) = (rec.t[k - 1] - rec.t[k - 2], rec.t[c] - rec.t[k - 1]);
         // (less a part in a million: times written in decimals do not divide exactly)
         let need = (STALE_MIN_COUNTS * l as i64) as f64 * (1.0 - 1e-6);
+        let share = (l as f64 + 0.75) / (l as f64 + 1.0);
         let fast = db > 0.0
             && dc > 0.0
             && cols.iter().any(|&i| {
@@ -106,10 +112,34 @@ fn stale_encoders(rec: &mut Recording, events: &mut Vec<Event>) -> usize {
                 ) {
                     (Some(a), Some(b), Some(x), Some(y)) => {
                         let (before, catch) = (b - a, y - x);
+                        let rb = before.abs() as f64 / db;
+                        let rc = catch.abs() as f64 / dc;
+                        // The neighbours' rates over two rows each (a stale row just
+                        // before this run does not inflate them), the same way.
+                        let rate = |p: usize, q: usize| -> f64 {
+                            match (get(rec, i, p), get(rec, i, q)) {
+                                (Some(u), Some(v)) if rec.t[q] > rec.t[p] => {
+                                    let d = v - u;
+                                    if d.signum() == catch.signum() {
+                                        d.abs() as f64 / (rec.t[q] - rec.t[p])
+                                    } else {
+                                        0.0
+                                    }
+                                }
+                                _ => f64::NAN,
+                            }
+                        };
+                        let rb2 = if k >= 3 { rate(k - 3, k - 1) } else { f64::NAN };
+                        let rb2 = if rb2.is_finite() { rb2 } else { rb };
+                        let ra2 = if c + 2 < n { rate(c, c + 2) } else { f64::NAN };
+                        let ra2 = if ra2.is_finite() { ra2 } else { rb2 };
+                        // One count for the catch-up's own rounding.
+                        let expected = share * 0.5 * (rb2 + ra2) * dc - 1.0;
                         before.signum() == catch.signum()
                             && before.abs() >= STALE_MIN_COUNTS
-                            && before.abs() as f64 / db * span >= need
-                            && catch.abs() as f64 / dc * span >= need
+                            && rb * span >= need
+                            && rc * span >= need
+                            && catch.abs() as f64 >= expected
                     }
                     _ => false,
                 }

@@ -60,6 +60,41 @@ pub(super) fn correlations(segs: &Segments, nw: usize) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// The statistics the wiring thresholds bound: the smallest correlation of a column
+/// with its own wheel, and the smallest unexplained share of any other order of the
+/// columns over that of the columns as written.
+pub(super) fn wiring_stats(robot: &Robot, segs: &Segments) -> (f64, f64) {
+    let nw = robot.wheels.len();
+    let c = correlations(segs, nw);
+    let cols: Vec<usize> = (0..nw).filter(|&i| c[i][i].is_finite()).collect();
+    let own = cols.iter().map(|&i| c[i][i]).fold(f64::INFINITY, f64::min);
+    let cost = |p: &[usize]| -> f64 {
+        p.iter()
+            .enumerate()
+            .map(|(a, &b)| {
+                let r = c[cols[a]][cols[b]];
+                if r.is_finite() {
+                    1.0 - r * r
+                } else {
+                    1.0
+                }
+            })
+            .sum()
+    };
+    let m = cols.len();
+    let base = cost(&(0..m).collect::<Vec<_>>());
+    let ratio = if (1..=MAX_PERMUTED).contains(&m) {
+        permutations(m)
+            .iter()
+            .filter(|p| p.iter().enumerate().any(|(a, &b)| a != b))
+            .map(|p| cost(p) / base)
+            .fold(f64::INFINITY, f64::min)
+    } else {
+        f64::INFINITY
+    };
+    (own, ratio)
+}
+
 /// Finds swapped columns and reversed encoders, and puts them right in `rec`.
 pub(super) fn wiring(robot: &Robot, rec: &mut Recording, segs: &Segments) -> Vec<Artefact> {
     let nw = robot.wheels.len();
