@@ -143,7 +143,8 @@ impl Clock {
 
     /// The held row alone was early: halfway between its neighbours.
     fn single(&mut self, h: &ReadRow, next: f64) -> f64 {
-        let t = 0.5 * (self.last_t + next);
+        // (written so that times near f64::MAX do not overflow)
+        let t = self.last_t + 0.5 * (next - self.last_t);
         let written = h.written + self.offset;
         self.note(TimeBack {
             line: h.line,

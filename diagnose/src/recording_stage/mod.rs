@@ -126,6 +126,26 @@ impl fmt::Display for Artefact {
                 times(&self.duplicated_at_s)
             )?;
         }
+        if !self.events.is_empty() {
+            let mut s: Vec<String> = self
+                .events
+                .iter()
+                .take(8)
+                .map(|e| {
+                    let size: Vec<String> =
+                        e.size.iter().map(|(k, v)| format!("{k} {v:.4}")).collect();
+                    if size.is_empty() {
+                        format!("{:.3} s", e.at_s)
+                    } else {
+                        format!("{:.3} s ({})", e.at_s, size.join(", "))
+                    }
+                })
+                .collect();
+            if self.events.len() > 8 {
+                s.push(format!("... ({} listed)", self.events.len()));
+            }
+            write!(f, " at {}", s.join("; "))?;
+        }
         if self.removed {
             write!(f, " (removed before the physics)")?;
         }
