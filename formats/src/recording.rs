@@ -698,7 +698,16 @@ impl Recording {
             // early (the next row is beyond the row before it).
             if let Some(h) = held.take() {
                 let next = written + clock.offset;
-                let t_h = if next > clock.last_t {
+                // A clock step keeps the written interval from the held row to this one
+                // (one row); a single early row leaves this one two rows after the row
+                // before it. Whichever the written times fit better (a step back of
+                // under two rows leaves this row beyond the row before either way).
+                let dt = clock.dt;
+                let single = next > clock.last_t
+                    && (!dt.is_finite()
+                        || ((next - clock.last_t) - 2.0 * dt).abs()
+                            <= ((written - h.written) - dt).abs());
+                let t_h = if single {
                     clock.single(&h, next)
                 } else {
                     clock.step(&h)
@@ -716,6 +725,18 @@ impl Recording {
                             short(written),
                             short(clock.last_written),
                             clock.last_t - t
+                        ),
+                    ));
+                }
+                if !clock.dt.is_finite() {
+                    // No row interval yet (the first rows): nothing to re-time it by.
+                    return Err(err(
+                        Some(line),
+                        Some((t_col + 1, "t".into())),
+                        format!(
+                            "time must increase: {} after {} on the first rows, before the row interval is known (a later step back of at most {MAX_TIME_BACK_S} s is re-timed)",
+                            short(written),
+                            short(clock.last_written)
                         ),
                     ));
                 }
@@ -1153,6 +1174,14 @@ mod tests {
         assert_eq!((f.back[1].line, f.back[1].clock_step), (8, false));
         assert!((f.back[1].back_s - 0.030).abs() < 1e-9, "{f:?}");
         // Line 11: a repeated time at the end, placed one interval on.
+        // A clock step back of under two rows (80 ms at 50 ms rows) is a step too.
+        let text = "t,enc_left,enc_right,x,y,theta\n0,0,0,0,0,0\n0.05,1,1,,,\n0.1,2,2,,,\n\
+                    0.07,3,3,,,\n0.12,4,4,,,\n0.17,5,5,,,\n";
+        let r2 = Recording::parse(text, Path::new("r.csv"), &presets::mobolab()).unwrap();
+        let b = &r2.time_faults.back;
+        assert_eq!((b.len(), b[0].line, b[0].clock_step), (1, 5, true), "{b:?}");
+        assert!((b[0].back_s - 0.08).abs() < 1e-9, "{b:?}");
+        assert!((r2.t[5] - 0.25).abs() < 1e-9, "{:?}", r2.t);
         assert_eq!((f.back[2].line, f.back[2].clock_step), (11, true));
         assert_eq!(rec.len(), 10);
     }
