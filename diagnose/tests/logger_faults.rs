@@ -9,6 +9,8 @@
 //!
 //! Seeds and robots are this file's own (not those of any suite).
 
+#![allow(clippy::needless_range_loop)] // rows of several columns indexed alike
+
 use calib_core::robot::{presets, Drive, DriveType, Robot};
 use diagnose::recording_stage::Artefact;
 use diagnose::{diagnose, Options, Report};

@@ -33,7 +33,7 @@ pub(super) fn stepper_scales(robot: &Robot, segs: &Segments) -> Vec<Option<(f64,
         .map(|i| {
             let (ec, cc, _, n) = Segments::dot(&segs.cmd, i, &segs.enc, i);
             let (ac, cc2, _, n2) = Segments::dot(&segs.cmd, i, &segs.asked, i);
-            if n < 8 || n2 < 8 || !(cc > 0.0) || !(cc2 > 0.0) {
+            if n < 8 || n2 < 8 || cc.is_nan() || cc <= 0.0 || cc2.is_nan() || cc2 <= 0.0 {
                 return None;
             }
             let k = ec / cc;

@@ -27,13 +27,13 @@ struct Innov {
 }
 
 type PoseRow = (usize, f64, f64, f64);
+/// The pose rows, the innovations, which steps are usable, the robust sigmas.
+type Innovations = (Vec<PoseRow>, Innov, Vec<bool>, Vec<f64>);
 
 /// The pose rows, the innovations of each pose step against the wheels' step, which steps
 /// are usable (no gap), and the innovations' robust sigmas (x, y, theta).
-fn innovations(
-    robot: &Robot,
-    rec: &Recording,
-) -> Option<(Vec<PoseRow>, Innov, Vec<bool>, Vec<f64>)> {
+#[allow(clippy::needless_range_loop)] // x, y, theta and the steps indexed alike
+fn innovations(robot: &Robot, rec: &Recording) -> Option<Innovations> {
     let steps = body_steps(robot, rec)?;
     let rows: Vec<PoseRow> = rec.pose_rows().collect();
     let m = rows.len();
@@ -47,7 +47,7 @@ fn innovations(
         .map(|w| rec.t[w[1].0] - rec.t[w[0].0])
         .collect();
     let dt_med = super::odometry::median(&mut d);
-    if !(dt_med > 0.0) {
+    if dt_med.is_nan() || dt_med <= 0.0 {
         return None;
     }
     // Innovations per pose step j (from sample j - 1 to j).
@@ -145,6 +145,7 @@ pub(super) fn largest_innovation_z(robot: &Robot, rec: &Recording) -> f64 {
 
 /// Finds single-sample and permanent pose jumps; blanks the first, re-aligns after the
 /// second.
+#[allow(clippy::needless_range_loop)] // x, y, theta and the steps indexed alike
 pub(super) fn pose_jumps(robot: &Robot, rec: &mut Recording) -> Option<Artefact> {
     let (rows, mut inn, usable, s) = innovations(robot, rec)?;
     let m = rows.len();

@@ -61,7 +61,7 @@ pub(super) fn segments(robot: &Robot, rec: &Recording) -> Option<Segments> {
         .map(|w| rec.t[w[1].0] - rec.t[w[0].0])
         .collect();
     let dt_med = super::odometry::median(&mut d);
-    if !(dt_med > 0.0) {
+    if dt_med.is_nan() || dt_med <= 0.0 {
         return None;
     }
     let mut out = Segments {

@@ -50,6 +50,7 @@ fn push(events: &mut Vec<Event>, at_s: f64, key: &str, v: f64) {
     }
 }
 
+#[allow(clippy::needless_range_loop)] // rows of several columns indexed alike
 fn stale_encoders(rec: &mut Recording, events: &mut Vec<Event>) -> usize {
     let n = rec.len();
     let cols: Vec<usize> = (0..rec.wheels.len())
