@@ -104,8 +104,23 @@ pub fn short_name(f: &Path) -> String {
 }
 
 /// Loads a recording against `robot`; a robot.toml beside it naming another robot is an
-/// error naming both files.
+/// error naming both files. A file whose time goes back is refused (formats.md §2: the
+/// calibration trusts the file's times; `wheelcal diagnose` reads it, see
+/// [`load_for_diagnosis`]).
 pub fn load(
+    f: &Path,
+    robot: &Robot,
+    robot_path: &Path,
+    bag: &BagFlags,
+) -> Result<(String, Recording)> {
+    let r = load_for_diagnosis(f, robot, robot_path, bag)?;
+    refuse_time_back(f, &r.1)?;
+    Ok(r)
+}
+
+/// [`load`] for `wheelcal diagnose`: a file whose time goes back is read, its rows
+/// re-timed by the reader, and the places reported by the diagnosis (`time_backwards`).
+pub fn load_for_diagnosis(
     f: &Path,
     robot: &Robot,
     robot_path: &Path,
@@ -114,6 +129,24 @@ pub fn load(
     load_checked(f, robot, robot_path)?;
     let rec = load_recording(f, robot, bag)?;
     Ok((short_name(f), rec))
+}
+
+/// The reader re-times rows whose time goes back (formats.md §2); the commands that
+/// calibrate refuse such a file, naming the first place.
+pub fn refuse_time_back(f: &Path, rec: &Recording) -> Result<()> {
+    let tf = &rec.time_faults;
+    if let Some(b) = tf.back.first() {
+        bail!(
+            "{}:{}: column 't': time must increase strictly: {} s lies {:.4} s behind the clock ({} such place{} in the file); `wheelcal diagnose` reads such a file, lists the places (time_backwards) and re-times the rows",
+            f.display(),
+            b.line,
+            b.written_s,
+            b.back_s,
+            tf.count,
+            if tf.count == 1 { "" } else { "s" }
+        );
+    }
+    Ok(())
 }
 
 /// [`load`] for a log whose poses are not read (`calibrate --e-b-for`): a CSV file's pose
@@ -138,10 +171,9 @@ pub fn load_encoders(
         fn finish(&mut self, _: &mut Recording) {}
     }
     load_checked(f, robot, robot_path)?;
-    Ok((
-        short_name(f),
-        Recording::load_into(f, robot, &mut PosesUnread)?,
-    ))
+    let rec = Recording::load_into(f, robot, &mut PosesUnread)?;
+    refuse_time_back(f, &rec)?;
+    Ok((short_name(f), rec))
 }
 
 /// Refuses `f` when a robot.toml beside it names another robot than `robot`.

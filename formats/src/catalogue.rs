@@ -136,6 +136,51 @@ pub const MECHANISMS: [Mech; 24] = [
     MECH_DEAD_BAND_PER_WHEEL,
 ];
 
+// Recording artefacts (diagnose's recording stage, docs/diagnose.md): how a run was
+// logged, not physics. Reported under their own heading and removed before the physics.
+
+/// The pose clock offset from the encoder clock.
+pub const TIME_OFFSET: &str = "time_offset";
+/// The pose clock running at another rate than the encoder clock.
+pub const CLOCK_RATE: &str = "clock_rate";
+/// Missing rows (gaps in `t`) and rows repeating the previous one whole.
+pub const SAMPLE_GLITCH: &str = "sample_glitch";
+/// Encoder counts per wheel revolution off by a simple fraction (a resolution or gear
+/// ratio written wrong).
+pub const COUNTS_PER_REV_ERROR: &str = "counts_per_rev_error";
+/// One encoder counting a fraction off that is no simple ratio (against a stepper's
+/// commands).
+pub const ENCODER_SCALE: &str = "encoder_scale";
+/// An encoder counting backwards.
+pub const ENCODER_SIGN: &str = "encoder_sign";
+/// Encoder columns holding another wheel's counts.
+pub const WHEELS_SWAPPED: &str = "wheels_swapped";
+/// Rows repeating the previous row's encoders (then catching up), or pose samples
+/// repeating the previous pose, while the robot moves.
+pub const STALE_SAMPLES: &str = "stale_samples";
+/// The file's time going back (re-timed by the reader).
+pub const TIME_BACKWARDS: &str = "time_backwards";
+/// Written row times jittering by more than a logger's clock allows.
+pub const TIME_JITTER: &str = "time_jitter";
+/// The pose stream jumping: a single sample off (a marker swap) or the frame moved and
+/// staying (a relocalisation).
+pub const POSE_JUMP: &str = "pose_jump";
+
+/// Every recording artefact id.
+pub const RECORDING_IDS: [&str; 11] = [
+    TIME_OFFSET,
+    CLOCK_RATE,
+    SAMPLE_GLITCH,
+    COUNTS_PER_REV_ERROR,
+    ENCODER_SCALE,
+    ENCODER_SIGN,
+    WHEELS_SWAPPED,
+    STALE_SAMPLES,
+    TIME_BACKWARDS,
+    TIME_JITTER,
+    POSE_JUMP,
+];
+
 /// The name of mechanism `name` of effect `id` as it appears in [`MECHANISMS`] (a
 /// `&'static str` for callers that built the pair from input), if it is listed.
 pub fn mechanism(id: &str, name: &str) -> Option<&'static str> {

@@ -213,6 +213,7 @@ impl Recording {
             leg_front: self.leg_front.as_ref().map(|_| Vec::new()),
             leg_rear: self.leg_rear.as_ref().map(|_| Vec::new()),
             notes: self.notes.clone(),
+            time_faults: self.time_faults.clone(),
             ..Default::default()
         };
         for k in 0..self.len() {

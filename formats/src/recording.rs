@@ -44,6 +44,246 @@ pub struct Recording {
     /// Set when rows were merged (`crate::decimate`): the commands are then means over
     /// the intervals between rows, to be read as held, not as samples of a ramp.
     pub merged: Option<Decimation>,
+    /// Where the file's time went back, and how the rows were re-timed (empty when it
+    /// increased strictly, or when the recording was not read from a file).
+    pub time_faults: TimeFaults,
+}
+
+/// Largest step back of `t` (s) the reader re-times: a logger's clock step (ntpd slews
+/// offsets below 0.128 s and steps above; a late thread's timestamp is a few rows) is far
+/// shorter. Further back is two runs in one file or a clock reset, whose rows cannot be
+/// placed: refused.
+pub const MAX_TIME_BACK_S: f64 = 1.0;
+
+/// Most places a time going back are listed (all are counted).
+pub const MAX_TIME_BACK_LISTED: usize = 1000;
+
+/// Where the time written in a file went back, and what the reader did (formats.md §2).
+#[derive(Debug, Clone, PartialEq, Default)]
+pub struct TimeFaults {
+    /// The places, in file order (at most [`MAX_TIME_BACK_LISTED`]).
+    pub back: Vec<TimeBack>,
+    /// All places (listed or not).
+    pub count: usize,
+    /// Rows read, and the written steps' median and robust standard deviation (s), over
+    /// every row of the file before any merging (0 rows when not read from a file).
+    pub rows: usize,
+    /// Median written step between rows (s).
+    pub step_median_s: f64,
+    /// Robust standard deviation of the written steps (1.4826 MAD, s).
+    pub step_sd_s: f64,
+}
+
+/// One place where the written time went back.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct TimeBack {
+    /// Line of the file (the header is line 1).
+    pub line: usize,
+    /// The time written on that line (s).
+    pub written_s: f64,
+    /// The time it was given (s).
+    pub retimed_s: f64,
+    /// The clock's error there (s): how far the written time lay behind the re-timed one.
+    pub back_s: f64,
+    /// True when the clock stepped back and later rows followed it (they were all moved
+    /// on by `back_s`); false when this row alone was written early (re-timed halfway
+    /// between its neighbours).
+    pub clock_step: bool,
+}
+
+/// The parse's clock: re-times rows whose written time goes back.
+struct Clock {
+    /// Added to every written time from here on (the clock's steps back so far).
+    offset: f64,
+    last_t: f64,
+    last_written: f64,
+    /// Recent row interval (s), for a row re-timed after a step back.
+    dt: f64,
+    faults: TimeFaults,
+    /// Written steps (f32: 4 bytes a row), for their median and spread.
+    steps: Vec<f32>,
+}
+
+impl Clock {
+    fn new() -> Self {
+        Clock {
+            offset: 0.0,
+            last_t: f64::NEG_INFINITY,
+            last_written: f64::NEG_INFINITY,
+            dt: f64::NAN,
+            faults: TimeFaults::default(),
+            steps: Vec::new(),
+        }
+    }
+
+    fn advance(&mut self, t: f64, written: f64) {
+        if self.last_t.is_finite() {
+            let step = t - self.last_t;
+            // A gap (dropped rows) does not count as the interval.
+            if !self.dt.is_finite() {
+                self.dt = step;
+            } else if step < 3.0 * self.dt {
+                self.dt += 0.1 * (step - self.dt);
+            }
+            if self.last_written.is_finite() {
+                self.steps.push((written - self.last_written) as f32);
+            }
+        }
+        self.faults.rows += 1;
+        self.last_t = t;
+        self.last_written = written;
+    }
+
+    fn note(&mut self, b: TimeBack) {
+        self.faults.count += 1;
+        if self.faults.back.len() < MAX_TIME_BACK_LISTED {
+            self.faults.back.push(b);
+        }
+    }
+
+    /// The held row alone was early: halfway between its neighbours.
+    fn single(&mut self, h: &ReadRow, next: f64) -> f64 {
+        // (written so that times near f64::MAX do not overflow)
+        let t = self.last_t + 0.5 * (next - self.last_t);
+        let written = h.written + self.offset;
+        self.note(TimeBack {
+            line: h.line,
+            written_s: h.written,
+            retimed_s: t,
+            back_s: t - written,
+            clock_step: false,
+        });
+        self.faults.rows += 1;
+        self.last_t = t;
+        // The next step is measured from the row before this one.
+        t
+    }
+
+    /// The clock stepped back at the held row: it and every later row move on.
+    fn step(&mut self, h: &ReadRow) -> f64 {
+        let dt = if self.dt.is_finite() && self.dt > 0.0 {
+            self.dt
+        } else {
+            1e-3
+        };
+        let t = self.last_t + dt;
+        let back = t - (h.written + self.offset);
+        self.offset += back;
+        self.note(TimeBack {
+            line: h.line,
+            written_s: h.written,
+            retimed_s: t,
+            back_s: back,
+            clock_step: true,
+        });
+        self.faults.rows += 1;
+        self.last_t = t;
+        self.last_written = h.written;
+        t
+    }
+
+    /// The written steps' median and robust spread.
+    fn finish(&mut self) {
+        let mut d = std::mem::take(&mut self.steps);
+        if d.is_empty() {
+            self.faults.step_median_s = f64::NAN;
+            self.faults.step_sd_s = f64::NAN;
+            return;
+        }
+        let mid = d.len() / 2;
+        d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+        let med = d[mid];
+        for v in d.iter_mut() {
+            *v = (*v - med).abs();
+        }
+        d.select_nth_unstable_by(mid, |a, b| a.total_cmp(b));
+        self.faults.step_median_s = med as f64;
+        self.faults.step_sd_s = 1.4826 * d[mid] as f64;
+    }
+}
+
+/// One row read, before its time is placed.
+struct ReadRow {
+    written: f64,
+    line: usize,
+    enc_cells: Vec<(usize, usize, i64)>,
+    cells: Cells,
+}
+
+/// The checks between rows (speeds) and what they carry from row to row.
+struct Checks {
+    rim: Vec<f64>,
+    rad_per_count: Option<f64>,
+    /// Per wheel, the last encoder sample (t, count).
+    last_enc: Vec<Option<(f64, i64)>>,
+    /// The last measured pose (t, x, y).
+    last_pose: Option<(f64, f64, f64)>,
+    pose_travel: f64,
+    x_col: usize,
+}
+
+impl Checks {
+    /// Checks the row at its placed time `t` and hands it to `sink`.
+    fn emit(
+        &mut self,
+        rec: &mut Recording,
+        sink: &mut dyn RowSink,
+        row: ReadRow,
+        t: f64,
+        err: &dyn Fn(Option<usize>, Option<(usize, String)>, String) -> RecordingError,
+        headers: &csv::StringRecord,
+    ) -> Result<(), RecordingError> {
+        let line = row.line;
+        // Speeds between samples: an encoder or pose step no robot makes in the time
+        // between two samples is a glitch (a wrapped counter, a swapped marker) or a
+        // unit mistake.
+        if let Some(rpc) = self.rad_per_count {
+            for &(ci, i, v) in &row.enc_cells {
+                if let Some((t0, c0)) = self.last_enc[i] {
+                    let speed = (v as f64 - c0 as f64).abs() * rpc * self.rim[i] / (t - t0);
+                    if speed > MAX_SPEED_M_S {
+                        return Err(err(
+                            Some(line),
+                            Some((ci + 1, headers[ci].to_string())),
+                            format!(
+                                "the encoder moves {} counts in {:.4} s since the sample before ({c0}), {speed:.3e} m/s at the wheel's rim (at most {MAX_SPEED_M_S} m/s): a glitch or a counter that wrapped",
+                                v as i128 - c0 as i128,
+                                t - t0
+                            ),
+                        ));
+                    }
+                }
+                self.last_enc[i] = Some((t, v));
+            }
+        }
+        if let Some((x, y, _)) = row.cells.pose {
+            if let Some((t0, x0, y0)) = self.last_pose {
+                let step = (x - x0).hypot(y - y0);
+                let speed = step / (t - t0);
+                if speed > MAX_SPEED_M_S {
+                    let hint = if speed / 1000.0 <= MAX_SPEED_M_S {
+                        ": looks like millimetres (the pose columns are metres)"
+                    } else {
+                        ""
+                    };
+                    return Err(err(
+                        Some(line),
+                        Some((self.x_col + 1, "x".into())),
+                        format!(
+                            "the pose moves {step:.4} m in {:.4} s since the measurement before, {speed:.3e} m/s (at most {MAX_SPEED_M_S} m/s){hint}",
+                            t - t0
+                        ),
+                    ));
+                }
+                self.pose_travel += step;
+            }
+            self.last_pose = Some((t, x, y));
+        }
+        let mut cells = row.cells;
+        cells.t = t;
+        sink.push(rec, cells);
+        Ok(())
+    }
 }
 
 /// A recording that could not be read.
@@ -343,18 +583,19 @@ impl Recording {
         }
 
         let mut record = csv::StringRecord::new();
-        let mut last_t = f64::NEG_INFINITY;
-        let rim = |i: usize| robot.wheels[i].radius_m.abs();
-        let rad_per_count = robot.drive.rad_per_count();
-        // Per wheel, the last encoder sample (t, count); the last measured pose (t, x, y).
-        let mut last_enc: Vec<Option<(f64, i64)>> = vec![None; robot.wheels.len()];
-        let mut last_pose: Option<(f64, f64, f64)> = None;
-        let mut first_pose: Option<(f64, f64, f64)> = None;
-        let mut pose_travel = 0.0f64;
+        let mut clock = Clock::new();
+        let mut held: Option<ReadRow> = None;
+        let mut checks = Checks {
+            rim: robot.wheels.iter().map(|w| w.radius_m.abs()).collect(),
+            rad_per_count: robot.drive.rad_per_count(),
+            last_enc: vec![None; robot.wheels.len()],
+            last_pose: None,
+            pose_travel: 0.0,
+            x_col: cols.iter().position(|c| *c == Col::X).unwrap_or(0),
+        };
         let mut enc_cells: Vec<(usize, usize, i64)> = Vec::new();
         let t_col = cols.iter().position(|c| *c == Col::T).unwrap_or(0);
         let mut lines = crate::text_file::LineCounter::new(text);
-        let x_col = cols.iter().position(|c| *c == Col::X).unwrap_or(0);
         let mut cmd_row: Vec<Option<f64>> = vec![None; robot.wheels.len()];
         let mut enc_row: Vec<Option<i64>> = vec![None; robot.wheels.len()];
         loop {
@@ -415,7 +656,7 @@ impl Recording {
                         format!("must be a finite number, got '{cell}'"),
                     ));
                 }
-                if let Some(why) = implausible(*col, v, &rim) {
+                if let Some(why) = implausible(*col, v, &|i| checks.rim[i]) {
                     return Err(err(Some(line), at(), why));
                 }
                 match col {
@@ -429,30 +670,7 @@ impl Recording {
                     Col::Enc(_) | Col::Ignored => {}
                 }
             }
-            let t = t.expect("t column exists and is never blank");
-            if t <= last_t {
-                return Err(err(
-                    Some(line),
-                    Some((t_col + 1, "t".into())),
-                    format!(
-                        "time must increase strictly: {} after {}",
-                        short(t),
-                        short(last_t)
-                    ),
-                ));
-            }
-            if last_t.is_finite() && t - last_t > MAX_GAP_S {
-                return Err(err(
-                    Some(line),
-                    Some((t_col + 1, "t".into())),
-                    format!(
-                        "time jumps by {:.6e} s (from {} s on the row before to {} s): no run pauses for over {MAX_GAP_S} s; a logger that changed clocks (Unix time?) or a broken cell",
-                        t - last_t,
-                        short(last_t),
-                        short(t)
-                    ),
-                ));
-            }
+            let written = t.expect("t column exists and is never blank");
             if pose.iter().any(Option::is_some) && !pose.iter().all(Option::is_some) {
                 return Err(err(
                     Some(line),
@@ -460,65 +678,93 @@ impl Recording {
                     "x, y and theta must be all given or all blank".into(),
                 ));
             }
-            // Speeds between samples: an encoder or pose step no robot makes in the time
-            // between two samples is a glitch (a wrapped counter, a swapped marker) or a
-            // unit mistake.
-            if let Some(rpc) = rad_per_count {
-                for &(ci, i, v) in &enc_cells {
-                    if let Some((t0, c0)) = last_enc[i] {
-                        let speed = (v as f64 - c0 as f64).abs() * rpc * rim(i) / (t - t0);
-                        if speed > MAX_SPEED_M_S {
-                            return Err(err(
-                                Some(line),
-                                Some((ci + 1, headers[ci].to_string())),
-                                format!(
-                                    "the encoder moves {} counts in {:.4} s since the sample before ({c0}), {speed:.3e} m/s at the wheel's rim (at most {MAX_SPEED_M_S} m/s): a glitch or a counter that wrapped",
-                                    v as i128 - c0 as i128,
-                                    t - t0
-                                ),
-                            ));
-                        }
-                    }
-                    last_enc[i] = Some((t, v));
-                }
-            }
-            if let [Some(x), Some(y), Some(_)] = pose {
-                if let Some((t0, x0, y0)) = last_pose {
-                    let step = (x - x0).hypot(y - y0);
-                    let speed = step / (t - t0);
-                    if speed > MAX_SPEED_M_S {
-                        let hint = if speed / 1000.0 <= MAX_SPEED_M_S {
-                            ": looks like millimetres (the pose columns are metres)"
-                        } else {
-                            ""
-                        };
-                        return Err(err(
-                            Some(line),
-                            Some((x_col + 1, "x".into())),
-                            format!(
-                                "the pose moves {step:.4} m in {:.4} s since the measurement before, {speed:.3e} m/s (at most {MAX_SPEED_M_S} m/s){hint}",
-                                t - t0
-                            ),
-                        ));
-                    }
-                    pose_travel += step;
-                }
-                last_pose = Some((t, x, y));
-                first_pose.get_or_insert((t, x, y));
-            }
-            last_t = t;
-            let cells = Cells {
-                t,
-                cmd: cmd_row.clone(),
-                enc: enc_row.clone(),
-                pose: match pose {
-                    [Some(x), Some(y), Some(th)] => Some((x, y, th)),
-                    _ => None,
+            let row = ReadRow {
+                written,
+                line,
+                enc_cells: enc_cells.clone(),
+                cells: Cells {
+                    t: written,
+                    cmd: cmd_row.clone(),
+                    enc: enc_row.clone(),
+                    pose: match pose {
+                        [Some(x), Some(y), Some(th)] => Some((x, y, th)),
+                        _ => None,
+                    },
+                    legs,
                 },
-                legs,
             };
-            sink.push(&mut rec, cells);
+            // A row whose time goes back waits for the next row, which tells whether the
+            // clock stepped back (later rows follow it) or this row alone was written
+            // early (the next row is beyond the row before it).
+            if let Some(h) = held.take() {
+                let next = written + clock.offset;
+                // A clock step keeps the written interval from the held row to this one
+                // (one row); a single early row leaves this one two rows after the row
+                // before it. Whichever the written times fit better (a step back of
+                // under two rows leaves this row beyond the row before either way).
+                let dt = clock.dt;
+                let single = next > clock.last_t
+                    && (!dt.is_finite()
+                        || ((next - clock.last_t) - 2.0 * dt).abs()
+                            <= ((written - h.written) - dt).abs());
+                let t_h = if single {
+                    clock.single(&h, next)
+                } else {
+                    clock.step(&h)
+                };
+                checks.emit(&mut rec, sink, h, t_h, &err, &headers)?;
+            }
+            let t = written + clock.offset;
+            if t <= clock.last_t {
+                if clock.last_t - t > MAX_TIME_BACK_S {
+                    return Err(err(
+                        Some(line),
+                        Some((t_col + 1, "t".into())),
+                        format!(
+                            "time must increase: {} after {} goes back {:.6} s, more than a logger's clock step (at most {MAX_TIME_BACK_S} s): two runs in one file, or a clock reset",
+                            short(written),
+                            short(clock.last_written),
+                            clock.last_t - t
+                        ),
+                    ));
+                }
+                if !clock.dt.is_finite() {
+                    // No row interval yet (the first rows): nothing to re-time it by.
+                    return Err(err(
+                        Some(line),
+                        Some((t_col + 1, "t".into())),
+                        format!(
+                            "time must increase: {} after {} on the first rows, before the row interval is known (a later step back of at most {MAX_TIME_BACK_S} s is re-timed)",
+                            short(written),
+                            short(clock.last_written)
+                        ),
+                    ));
+                }
+                held = Some(row);
+                continue;
+            }
+            if clock.last_t.is_finite() && t - clock.last_t > MAX_GAP_S {
+                return Err(err(
+                    Some(line),
+                    Some((t_col + 1, "t".into())),
+                    format!(
+                        "time jumps by {:.6e} s (from {} s on the row before to {} s): no run pauses for over {MAX_GAP_S} s; a logger that changed clocks (Unix time?) or a broken cell",
+                        t - clock.last_t,
+                        short(clock.last_written),
+                        short(written)
+                    ),
+                ));
+            }
+            clock.advance(t, written);
+            checks.emit(&mut rec, sink, row, t, &err, &headers)?;
         }
+        if let Some(h) = held.take() {
+            let t_h = clock.step(&h);
+            checks.emit(&mut rec, sink, h, t_h, &err, &headers)?;
+        }
+        let Checks { pose_travel, .. } = checks;
+        clock.finish();
+        rec.time_faults = clock.faults;
         sink.finish(&mut rec);
         if rec.is_empty() {
             return Err(err(
@@ -863,9 +1109,10 @@ mod tests {
             e.to_string(),
             "runs/r.csv:3:2: column 'enc_left': encoder count must be an integer, got '1.5'"
         );
-        let e = error_of("t,enc_left,enc_right,x,y,theta\n0,1,2,0,0,0\n0,1,2,,,\n");
-        assert_eq!((e.line, e.column.as_ref().map(|c| c.0)), (Some(3), Some(1)));
-        assert!(e.message.contains("increase strictly"));
+        // A time going back further than a clock step (formats.md §2).
+        let e = error_of("t,enc_left,enc_right,x,y,theta\n0,1,2,0,0,0\n2,1,2,,,\n0.5,1,2,,,\n");
+        assert_eq!((e.line, e.column.as_ref().map(|c| c.0)), (Some(4), Some(1)));
+        assert!(e.message.contains("time must increase"), "{e}");
         let e = error_of("t,enc_left,enc_right,x,y,theta\n0,1,2,NaN,0,0\n");
         assert_eq!(e.line, Some(2));
         assert!(e.to_string().contains("column 'x'"));
@@ -905,6 +1152,38 @@ mod tests {
                 Some((0.0, 0.0, 0.0))
             );
         }
+    }
+
+    /// A logger's clock going back: a step (later rows follow it) moves the rows on, a
+    /// row written early alone is placed between its neighbours; both are listed with
+    /// their line and size, and the times increase strictly.
+    #[test]
+    fn times_going_back_are_retimed_and_listed() {
+        let text = "t,enc_left,enc_right,x,y,theta\n\
+                    0.00,0,0,0,0,0\n0.01,1,1,,,\n0.02,2,2,,,\n0.005,3,3,,,\n0.015,4,4,,,\n\
+                    0.025,5,5,,,\n0.005,6,6,,,\n0.045,7,7,,,\n0.055,8,8,,,\n0.055,9,9,,,\n";
+        let rec = Recording::parse(text, Path::new("r.csv"), &presets::mobolab()).unwrap();
+        assert!(rec.t.windows(2).all(|w| w[1] > w[0]), "{:?}", rec.t);
+        let f = &rec.time_faults;
+        assert_eq!(f.count, 3, "{f:?}");
+        // Line 5: the clock stepped back 25 ms (written 0.005 after 0.02).
+        assert_eq!((f.back[0].line, f.back[0].clock_step), (5, true));
+        assert!((f.back[0].back_s - 0.025).abs() < 1e-9, "{f:?}");
+        // Line 8: one row written 30 ms early (0.005 + 0.025 between 0.025 + 0.025 and
+        // 0.045 + 0.025).
+        assert_eq!((f.back[1].line, f.back[1].clock_step), (8, false));
+        assert!((f.back[1].back_s - 0.030).abs() < 1e-9, "{f:?}");
+        // Line 11: a repeated time at the end, placed one interval on.
+        // A clock step back of under two rows (80 ms at 50 ms rows) is a step too.
+        let text = "t,enc_left,enc_right,x,y,theta\n0,0,0,0,0,0\n0.05,1,1,,,\n0.1,2,2,,,\n\
+                    0.07,3,3,,,\n0.12,4,4,,,\n0.17,5,5,,,\n";
+        let r2 = Recording::parse(text, Path::new("r.csv"), &presets::mobolab()).unwrap();
+        let b = &r2.time_faults.back;
+        assert_eq!((b.len(), b[0].line, b[0].clock_step), (1, 5, true), "{b:?}");
+        assert!((b[0].back_s - 0.08).abs() < 1e-9, "{b:?}");
+        assert!((r2.t[5] - 0.25).abs() < 1e-9, "{:?}", r2.t);
+        assert_eq!((f.back[2].line, f.back[2].clock_step), (11, true));
+        assert_eq!(rec.len(), 10);
     }
 
     /// Issue 13.7: the check for the leg columns could not fire (the recording starts with

@@ -96,7 +96,7 @@ fn diagnose_many(a: &DiagnoseArgs, files: &[PathBuf], out: Output) -> Result<()>
     let robot = robot_file::load(&a.robot)?;
     let recs = files
         .iter()
-        .map(|f| recordings::load(f, &robot, &a.robot, &a.bag))
+        .map(|f| recordings::load_for_diagnosis(f, &robot, &a.robot, &a.bag))
         .collect::<Result<Vec<_>>>()?;
     let opts = diagnose::Options {
         max_effects: a.max_effects.into(),

@@ -22,6 +22,20 @@
 //!   size (a quarter row interval; 0.05 %), then the poses are moved onto the encoder
 //!   clock.
 
+mod encoder_scale;
+mod odometry;
+mod pose_jump;
+mod segments;
+mod stale;
+mod time;
+mod wiring;
+
+pub use encoder_scale::{POSES_AGREE, SCALE_MIN, SCALE_SIGMAS};
+pub use pose_jump::{JUMP_WINDOW, JUMP_Z};
+pub use stale::{MAX_STALE_RUN, STALE_MIN_COUNTS, STALE_POSE_Z};
+pub use time::JITTER_FRACTION;
+pub use wiring::{WIRING_MIN_CORR, WIRING_RATIO};
+
 use calib_core::correction::Corrections;
 use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::robot::Robot;
@@ -32,13 +46,8 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::fmt;
 
-/// Recording-stage catalogue ids.
-pub const RECORDING_IDS: [&str; 4] = [
-    "time_offset",
-    "clock_rate",
-    "sample_glitch",
-    "counts_per_rev_error",
-];
+/// Recording-stage catalogue ids (`formats::catalogue::RECORDING_IDS`).
+pub const RECORDING_IDS: [&str; 11] = formats::catalogue::RECORDING_IDS;
 
 /// One artefact found in the recording.
 #[derive(Debug, Clone, Serialize)]
@@ -57,6 +66,9 @@ pub struct Artefact {
     pub gaps: Vec<Gap>,
     /// Times of the duplicated rows (s).
     pub duplicated_at_s: Vec<f64>,
+    /// Each place the fault shows, with its time and size (at most [`MAX_EVENTS`]; the
+    /// parameters count them all).
+    pub events: Vec<Event>,
     /// Whether the physics stages saw the recording with this artefact removed.
     pub removed: bool,
     /// What was concluded per wheel, and what the data cannot tell (a counts ratio far
@@ -72,6 +84,7 @@ impl Artefact {
             uncertainties: BTreeMap::new(),
             gaps: vec![],
             duplicated_at_s: vec![],
+            events: vec![],
             removed: false,
             notes: vec![],
         }
@@ -113,6 +126,26 @@ impl fmt::Display for Artefact {
                 times(&self.duplicated_at_s)
             )?;
         }
+        if !self.events.is_empty() {
+            let mut s: Vec<String> = self
+                .events
+                .iter()
+                .take(8)
+                .map(|e| {
+                    let size: Vec<String> =
+                        e.size.iter().map(|(k, v)| format!("{k} {v:.4}")).collect();
+                    if size.is_empty() {
+                        format!("{:.3} s", e.at_s)
+                    } else {
+                        format!("{:.3} s ({})", e.at_s, size.join(", "))
+                    }
+                })
+                .collect();
+            if self.events.len() > 8 {
+                s.push(format!("... ({} listed)", self.events.len()));
+            }
+            write!(f, " at {}", s.join("; "))?;
+        }
         if self.removed {
             write!(f, " (removed before the physics)")?;
         }
@@ -121,6 +154,18 @@ impl fmt::Display for Artefact {
         }
         Ok(())
     }
+}
+
+/// Most events listed per artefact (the parameters count them all).
+pub const MAX_EVENTS: usize = 1000;
+
+/// One place a recording artefact shows: its time and its size by name.
+#[derive(Debug, Clone, PartialEq, Serialize)]
+pub struct Event {
+    /// Time (s), as written in the file.
+    pub at_s: f64,
+    /// Sizes by name (`back_s`, `dx_m`, `dy_m`, `dtheta_rad`, `rows`).
+    pub size: BTreeMap<String, f64>,
 }
 
 /// What the recording stage found, and the recording with it removed.
@@ -140,16 +185,86 @@ pub struct RecordingStage {
 pub fn analyse(robot: &Robot, rec: Recording) -> RecordingStage {
     let mut artefacts = Vec::new();
     let mut cur = rec;
-    if let Some(a) = sample_glitches(&mut cur) {
+    // Time first (the reader re-timed rows going back; jitter widens what a gap is),
+    // then the rows, the wiring, the counts, the poses, and the clocks last.
+    artefacts.extend(time::time_backwards(&cur));
+    let jitter = time::time_jitter(&cur);
+    let step_sd = time::step_stats(&cur).map_or(0.0, |s| s.1);
+    if let Some(a) = sample_glitches(&mut cur, step_sd) {
         artefacts.push(a);
     }
+    artefacts.extend(jitter);
+    artefacts.extend(stale::stale(&mut cur));
+    if let Some(segs) = segments::segments(robot, &cur) {
+        artefacts.extend(wiring::wiring(robot, &mut cur, &segs));
+    }
     artefacts.extend(counts_per_rev(robot, &mut cur));
+    if let Some(segs) = segments::segments(robot, &cur) {
+        artefacts.extend(encoder_scale::encoder_scale(robot, &mut cur, &segs));
+    }
+    artefacts.extend(pose_jump::pose_jumps(robot, &mut cur));
     let (clock_artefacts, geometry) = clocks(robot, &mut cur);
     artefacts.extend(clock_artefacts);
     RecordingStage {
         artefacts,
         corrected: cur,
         geometry,
+    }
+}
+
+/// The statistics the logger-fault checks compare with their thresholds, on a
+/// recording as given (no fault removed): what `logger_faults`' controls measure to state
+/// each threshold's false-alarm margin (docs/diagnose.md).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Statistics {
+    /// Smallest correlation of an encoder column with its own wheel's demand (a sign
+    /// flip needs <= -[`WIRING_MIN_CORR`]).
+    pub own_correlation_min: f64,
+    /// Smallest unexplained share of another order of the columns over the columns as
+    /// written (a swap needs < [`WIRING_RATIO`]).
+    pub permuted_ratio_min: f64,
+    /// Largest |encoder over commanded travel - 1| on a stepper robot (NaN otherwise;
+    /// [`SCALE_MIN`]).
+    pub scale_off_max: f64,
+    /// ... and in its own sigmas ([`SCALE_SIGMAS`]).
+    pub scale_off_sigmas_max: f64,
+    /// Largest pose innovation in its robust sigmas ([`JUMP_Z`]).
+    pub innovation_z_max: f64,
+    /// The written times' jitter over the row interval ([`JITTER_FRACTION`]).
+    pub jitter_fraction: f64,
+}
+
+/// [`Statistics`] of `rec` of `robot`.
+pub fn statistics(robot: &Robot, rec: &Recording) -> Statistics {
+    let (own, ratio, mut off, mut off_s) = match segments::segments(robot, rec) {
+        Some(segs) => {
+            let (own, ratio) = wiring::wiring_stats(robot, &segs);
+            let (mut off, mut off_s) = (f64::NAN, f64::NAN);
+            for (k, sigma, _) in encoder_scale::stepper_scales(robot, &segs)
+                .into_iter()
+                .flatten()
+            {
+                off = (k - 1.0).abs().max(if off.is_nan() { 0.0 } else { off });
+                let z = (k - 1.0).abs() / sigma;
+                off_s = z.max(if off_s.is_nan() { 0.0 } else { off_s });
+            }
+            (own, ratio, off, off_s)
+        }
+        None => (f64::NAN, f64::NAN, f64::NAN, f64::NAN),
+    };
+    if !off.is_finite() {
+        off = f64::NAN;
+        off_s = f64::NAN;
+    }
+    let jitter_fraction =
+        time::step_stats(rec).map_or(f64::NAN, |(med, sd)| sd / std::f64::consts::SQRT_2 / med);
+    Statistics {
+        own_correlation_min: own,
+        permuted_ratio_min: ratio,
+        scale_off_max: off,
+        scale_off_sigmas_max: off_s,
+        innovation_z_max: pose_jump::largest_innovation_z(robot, rec),
+        jitter_fraction,
     }
 }
 
@@ -181,11 +296,16 @@ pub fn gaps(t: &[f64]) -> (Vec<Gap>, f64) {
 }
 
 fn gaps_at(t: &[f64], dt: f64) -> (Vec<Gap>, f64) {
+    gaps_beyond(t, dt, 1.5 * dt)
+}
+
+/// Gaps: steps of at least `least` (s), counted in intervals of `dt`.
+fn gaps_beyond(t: &[f64], dt: f64, least: f64) -> (Vec<Gap>, f64) {
     let mut out = Vec::new();
     let mut total = 0.0;
     for w in t.windows(2) {
         let steps = (w[1] - w[0]) / dt;
-        if steps >= 1.5 {
+        if w[1] - w[0] >= least && steps >= 1.5 {
             // A step beyond f64 (1e308 s over a millisecond) counts as the largest.
             let missing = (steps.round() - 1.0).min(f64::MAX);
             total += missing;
@@ -199,8 +319,9 @@ fn gaps_at(t: &[f64], dt: f64) -> (Vec<Gap>, f64) {
     (out, total)
 }
 
-/// Missing rows (gaps of >= 1.5 median intervals) and duplicated rows (dropped).
-fn sample_glitches(rec: &mut Recording) -> Option<Artefact> {
+/// Missing rows (gaps of >= 1.5 median intervals, plus 4 sd of the written steps when
+/// the times jitter) and duplicated rows (dropped).
+fn sample_glitches(rec: &mut Recording, step_sd: f64) -> Option<Artefact> {
     let n = rec.len();
     if n < 4 {
         return None;
@@ -212,7 +333,13 @@ fn sample_glitches(rec: &mut Recording) -> Option<Artefact> {
         return None;
     }
     let mut a = Artefact::new("sample_glitch");
-    let (gaps, missing) = gaps_at(&rec.t, dt);
+    // Jittered steps reach past 1.5 intervals without a row missing.
+    let margin = if step_sd.is_finite() && step_sd > 0.0 {
+        4.0 * step_sd
+    } else {
+        0.0
+    };
+    let (gaps, missing) = gaps_beyond(&rec.t, dt, 1.5 * dt + margin);
     a.gaps = gaps;
     let enc = |k: usize| -> Vec<Option<i64>> {
         rec.wheels
