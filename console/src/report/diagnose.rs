@@ -158,10 +158,6 @@ pub fn write(r: &Report, dir: &Path) -> Result<PathBuf> {
         "{} rows, {} pose samples, {:.1} s.",
         r.rows, r.pose_samples, r.duration_s
     ));
-    if !r.depends_on.is_empty() {
-        page.heading("What the error left depends on");
-        page.list(&r.depends_on);
-    }
     page.heading("Findings");
     if r.findings.is_empty() {
         page.paragraph("No effect of the catalogue was accepted.");
@@ -193,6 +189,10 @@ pub fn write(r: &Report, dir: &Path) -> Result<PathBuf> {
         &["RMS error", "nominal model", "fitted model", "noise"],
         &rows,
     );
+    if !r.depends_on.is_empty() {
+        page.heading("What the error left depends on");
+        page.list(&r.depends_on);
+    }
     let mut caveats: Vec<String> = r
         .separability
         .0
