@@ -30,6 +30,10 @@ cargo build --locked -q -p wheelcal
 W="$(cargo metadata --format-version 1 --no-deps | python3 -c 'import json,sys; print(json.load(sys.stdin)["target_directory"])')/debug/wheelcal"
 rm -rf "$OUT"
 mkdir -p "$OUT"
+# The commands' notes go to a log, shown when one fails.
+LOG="$OUT/commands.log"
+trap 'rc=$?; [ $rc = 0 ] || { echo "check-reports: failed; the commands said:" >&2; cat "$LOG" >&2; }' EXIT
+exec 3>&2 2>>"$LOG"
 R=data/real
 DIFF=$R/diff-square-run-01/robot.toml
 OMNI=$R/omni3-square-run-01/robot.toml
@@ -83,5 +87,6 @@ pages=()
 for name in diagnose-diff diagnose-omni3 calibrate-diff calibrate-omni3 umbmark omni; do
   pages+=("$name=$OUT/$name/index.html")
 done
+exec 2>&3
 python3 scripts/check_reports.py "$OUT/screenshots" "${pages[@]}"
 echo "screenshots: $OUT/screenshots"

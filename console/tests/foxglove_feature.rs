@@ -32,6 +32,6 @@ fn without_the_feature_foxglove_says_how_to_get_it() {
 #[cfg(feature = "foxglove")]
 #[test]
 fn with_the_feature_foxglove_is_built_in() {
-    assert!(wheelcal::foxglove_live::BUILT);
+    const { assert!(wheelcal::foxglove_live::BUILT) };
     assert!(wheelcal::foxglove_live::require_built().is_ok());
 }
