@@ -8,7 +8,7 @@
 //! ([`SavedCalibration`]) and its factors for the robot fitted from must be ones the board
 //! takes; otherwise the page says why there is no command.
 
-use super::Page;
+use super::page::Page;
 use crate::calibration::saved::SavedCalibration;
 use anyhow::Result;
 use calib_core::robot::Robot;

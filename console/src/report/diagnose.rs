@@ -7,7 +7,7 @@
 //! words, any other string is an effect's id (the finding explaining the most), or a
 //! verdict this page does not know yet, shown as it is.
 
-use super::Page;
+use super::page::Page;
 use anyhow::Result;
 use diagnose::{Finding, Report};
 use std::path::{Path, PathBuf};

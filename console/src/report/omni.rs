@@ -2,7 +2,7 @@
 //! calibration method of [Redundant omni].
 
 use super::figures::{BarChart, Series, XyChart};
-use super::{prepare_dir, Page};
+use super::page::{prepare_dir, Page};
 use crate::calibration::omni::OmniReport;
 use anyhow::Result;
 use std::path::{Path, PathBuf};

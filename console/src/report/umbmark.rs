@@ -1,7 +1,7 @@
 //! The UMBmark report: the figures 13-26 and Table 1 of [Measuring errors] for one robot.
 
 use super::figures::{BarChart, Series, XyChart};
-use super::{prepare_dir, Page};
+use super::page::{prepare_dir, Page};
 use crate::calibration::umbmark::{DirectionStats, PhaseStats, UmbmarkReport};
 use anyhow::Result;
 use calib_core::stats;
