@@ -3,7 +3,7 @@
 //! Ivanjko paths of the nearest day, against the OptiOdom authors' parameters from the same
 //! session (see `tests/support/proxy.rs`). Prints a markdown table (docs/calibrate.md's).
 //!
-//!     cargo run --release -p calibrate --example heldout_proxy [-- OPTIONS]
+//!     cargo run --release -p calibrate --features examples --example heldout_proxy [-- OPTIONS]
 //!
 //! Options: `--robot diff|omni3|omni4` (default diff; omni3 trains on its two square
 //! sessions and tests on the 44 circles of the same day, against `omni3-sousa`; omni4, the

@@ -8,7 +8,7 @@
 //! (applying its law, as a board that stores it would). Prints a markdown table (mean
 //! RMS per session, mm) and the geometric mean of each over no law.
 //!
-//!     cargo run --release -p calibrate --example laws_across_sessions [-- --sessions DIR]
+//!     cargo run --release -p calibrate --features examples --example laws_across_sessions [-- --sessions DIR]
 
 #[path = "../tests/support/proxy.rs"]
 mod proxy;

@@ -483,36 +483,39 @@ pub fn error_file(s: &RecordingSeries) -> String {
 /// The correlation figure's file name.
 pub const CORRELATION_FILE: &str = "correlations.svg";
 
-/// Writes into `dir` (created if missing) `correlations.svg`, per recording
-/// `path_<key>.svg` and `error_<key>.svg`, and `index.html` showing `summary` and the
-/// figures; returns the file names written. Fails when the DejaVu Sans font the plots
-/// need is missing.
-pub fn write_calibration_figures(
+/// A figure written for the report: its file, title and one sentence saying what to see.
+#[derive(Debug, Clone, PartialEq)]
+pub struct ReportFigure {
+    /// The SVG's file name in the report folder.
+    pub file: String,
+    /// Its title on the page.
+    pub title: String,
+    /// What to see in it, one sentence.
+    pub what_to_see: String,
+}
+
+/// Writes into `dir` (created if missing) `correlations.svg` and per recording
+/// `path_<key>.svg` and `error_<key>.svg`; returns them in the page's order with their
+/// titles and what to see in each. Fails when the DejaVu Sans font the plots need is
+/// missing.
+pub fn write_calibration_svgs(
     cal: &Calibration,
     series: &[RecordingSeries],
-    summary: &str,
     dir: &Path,
-) -> std::io::Result<Vec<String>> {
+) -> std::io::Result<Vec<ReportFigure>> {
     fitkit::plot::require_font()?;
     std::fs::create_dir_all(dir)?;
-    let mut files = Vec::new();
-    let mut html = format!(
-        "<!doctype html><html><head><meta charset=\"utf-8\"><title>wheelcal calibrate: {0}</title>\
-         <style>body{{font-family:sans-serif;max-width:1000px;margin:auto}}img{{max-width:100%}}\
-         pre{{background:#f4f4f4;padding:8px}}</style></head><body>\
-         <h1>wheelcal calibrate: {0}</h1><pre>{1}</pre>",
-        esc(&cal.robot),
-        esc(summary)
-    );
+    let mut out = Vec::new();
     svg(
         &dir.join(CORRELATION_FILE),
         correlation_figure_size(cal.params.len()),
         |root| correlation_chart(cal, root),
     )?;
-    files.push(CORRELATION_FILE.to_string());
-    html.push_str(&format!(
-        "<h2>Parameter correlations</h2><img src=\"{CORRELATION_FILE}\">"
-    ));
+    out.push(ReportFigure {
+        file: CORRELATION_FILE.to_string(),
+        title: "Parameter correlations".into(),
+        what_to_see: "pairs near +1 or -1 (deep red or blue, outlined when not separable) are ones these recordings cannot tell apart: only their combination is known, so record the motion the caveats name to separate them.".into(),
+    });
     for s in series {
         let (pf, ef) = (path_file(s), error_file(s));
         svg(&dir.join(&pf), PATH_FIGURE, |root| {
@@ -522,20 +525,59 @@ pub fn write_calibration_figures(
             recording_error_chart(s, root)
         })?;
         let how = if s.heldout {
-            "held out: dead reckoning from its first measured pose"
+            "held out (not fitted), dead-reckoned from its first measured pose"
         } else {
-            "start pose and clocks fitted for each geometry, as the fit compared"
+            "a recording the fit used, placed as the fit compared it"
         };
+        out.push(ReportFigure {
+            file: pf,
+            title: format!("{}: path", s.name),
+            what_to_see: format!(
+                "{how}: the fitted dead reckoning (blue) should follow the measured path more closely than the nominal one (orange)."
+            ),
+        });
+        out.push(ReportFigure {
+            file: ef,
+            title: format!("{}: position error over time", s.name),
+            what_to_see: format!(
+                "the error grows along the run as dead reckoning drifts; with the fitted geometry it should stay lower ({:.2} mm RMS nominal, {:.2} mm fitted, {} pose samples).",
+                s.rms_nominal_m() * 1e3,
+                s.rms_fitted_m() * 1e3,
+                s.t.len()
+            ),
+        });
+    }
+    Ok(out)
+}
+
+/// Writes into `dir` (created if missing) the figures of [`write_calibration_svgs`] and
+/// a plain `index.html` showing `summary` and the figures; returns the file names
+/// written. (`wheelcal calibrate --report` writes its own page, which leads with the
+/// factors, over it.) Fails when the DejaVu Sans font the plots need is missing.
+pub fn write_calibration_figures(
+    cal: &Calibration,
+    series: &[RecordingSeries],
+    summary: &str,
+    dir: &Path,
+) -> std::io::Result<Vec<String>> {
+    let figures = write_calibration_svgs(cal, series, dir)?;
+    let mut html = format!(
+        "<!doctype html><html><head><meta charset=\"utf-8\"><title>wheelcal calibrate: {0}</title>\
+         <style>body{{font-family:sans-serif;max-width:1000px;margin:auto}}img{{max-width:100%}}\
+         pre{{background:#f4f4f4;padding:8px;white-space:pre-wrap;overflow-wrap:anywhere}}</style></head><body>\
+         <h1>wheelcal calibrate: {0}</h1><pre>{1}</pre>",
+        esc(&cal.robot),
+        esc(summary)
+    );
+    let mut files = Vec::new();
+    for f in &figures {
         html.push_str(&format!(
-            "<h2>{}</h2><p>{how}; position RMS nominal {:.2} mm, fitted {:.2} mm, {} pose samples</p>\
-             <img src=\"{pf}\"><img src=\"{ef}\">",
-            esc(&s.name),
-            s.rms_nominal_m() * 1e3,
-            s.rms_fitted_m() * 1e3,
-            s.t.len()
+            "<h2>{}</h2><p>{}</p><img src=\"{}\">",
+            esc(&f.title),
+            esc(&f.what_to_see),
+            f.file
         ));
-        files.push(pf);
-        files.push(ef);
+        files.push(f.file.clone());
     }
     html.push_str("</body></html>\n");
     formats::safe_write::replace_file(&dir.join("index.html"), html.as_bytes())?;

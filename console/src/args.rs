@@ -62,7 +62,8 @@ pub enum Command {
         /// With --follow, also serve the telemetry live to Foxglove (its WebSocket
         /// protocol, ROS 2 messages; docs/formats.md "MCAP channels") on ADDR: HOST:PORT,
         /// an IP or a port; without ADDR on 127.0.0.1:8765 (port 0: a free one). The
-        /// address is printed on stderr.
+        /// address is printed on stderr. Needs a wheelcal built with the cargo feature
+        /// `foxglove` (`cargo build --release -p wheelcal --features foxglove`).
         #[arg(long, value_name = "ADDR", requires = "follow", num_args = 0..=1,
               default_missing_value = crate::foxglove_live::DEFAULT_ADDR)]
         foxglove: Option<String>,

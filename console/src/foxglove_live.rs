@@ -11,15 +11,38 @@
 //! - `/joint_states`: `sensor_msgs/msg/JointState`, the measured wheel rates (rad/s) as
 //!   velocities (telemetry has no counts, so no positions);
 //! - `/wheelcal/wheel_commands`: `sensor_msgs/msg/JointState`, the commanded rates.
+//!
+//! The server is the console's cargo feature `foxglove` (off by default: the Foxglove SDK
+//! and its tokio stack are 60-odd crates a clone's first build would otherwise wait for).
+//! Without it `--foxglove` is refused with [`NOT_BUILT`] before the board is opened.
 
-use crate::mcap_out::{ros2, BASE_FRAME, ODOM_FRAME};
-use anyhow::{anyhow, Context as _, Result};
+use anyhow::{anyhow, Result};
 use calib_core::protocol::Status;
 use calib_core::robot::Robot;
-use foxglove::{ChannelBuilder, Context, PartialMetadata, RawChannel, Schema, WebSocketServer};
-use serde::Serialize;
 use std::net::{IpAddr, SocketAddr};
-use std::sync::Arc;
+#[cfg(feature = "foxglove")]
+use {
+    crate::mcap_out::{ros2, BASE_FRAME, ODOM_FRAME},
+    anyhow::Context as _,
+    foxglove::{ChannelBuilder, Context, PartialMetadata, RawChannel, Schema, WebSocketServer},
+    serde::Serialize,
+    std::sync::Arc,
+};
+
+/// What `--foxglove` says in a wheelcal built without the feature `foxglove`.
+pub const NOT_BUILT: &str = "--foxglove: this wheelcal was built without the live Foxglove server (the cargo feature `foxglove`, off by default); build it with `cargo build --release -p wheelcal --features foxglove` or install it with `cargo install --path console --features foxglove`. Without it, `log pull` to a .mcap file and `--report` still write MCAP files Foxglove opens";
+
+/// Whether this wheelcal serves `--foxglove` (built with the feature `foxglove`).
+pub const BUILT: bool = cfg!(feature = "foxglove");
+
+/// Refuses `--foxglove` with [`NOT_BUILT`] in a wheelcal built without the server.
+pub fn require_built() -> Result<()> {
+    if BUILT {
+        Ok(())
+    } else {
+        Err(anyhow!(NOT_BUILT))
+    }
+}
 
 /// The address `--foxglove` serves on without one: loopback, Foxglove's usual port.
 pub const DEFAULT_ADDR: &str = "127.0.0.1:8765";
@@ -33,6 +56,7 @@ pub const LIVE_TOPICS: [&str; 4] = [
 ];
 
 /// A running server and its channels.
+#[cfg(feature = "foxglove")]
 pub struct Live {
     server: Option<foxglove::WebSocketServerHandle>,
     addr: SocketAddr,
@@ -59,6 +83,35 @@ pub fn parse_addr(s: &str) -> Result<SocketAddr> {
     ))
 }
 
+/// No server in a wheelcal built without the feature `foxglove`: none can be made
+/// ([`Live::start`] refuses with [`NOT_BUILT`]).
+#[cfg(not(feature = "foxglove"))]
+pub enum Live {}
+
+#[cfg(not(feature = "foxglove"))]
+impl Live {
+    /// Refused: this wheelcal has no server ([`NOT_BUILT`]).
+    pub fn start(_addr: SocketAddr, _robot: &Robot) -> Result<Live> {
+        Err(anyhow!(NOT_BUILT))
+    }
+
+    /// The address served.
+    pub fn addr(&self) -> SocketAddr {
+        match *self {}
+    }
+
+    /// Clients connected now.
+    pub fn clients(&self) -> usize {
+        match *self {}
+    }
+
+    /// Sends one telemetry sample to the connected clients.
+    pub fn publish(&self, _s: &Status) -> Result<()> {
+        match *self {}
+    }
+}
+
+#[cfg(feature = "foxglove")]
 impl Live {
     /// Starts the server on `addr` with the channels of `robot`'s wheels.
     pub fn start(addr: SocketAddr, robot: &Robot) -> Result<Live> {
@@ -144,6 +197,7 @@ impl Live {
     }
 }
 
+#[cfg(feature = "foxglove")]
 impl Drop for Live {
     fn drop(&mut self) {
         if let Some(s) = self.server.take() {

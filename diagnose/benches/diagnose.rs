@@ -3,7 +3,7 @@
 //! `sim` crate with two wheel radius errors and motor lag hidden in it, and prints the
 //! wall time of each run.
 //!
-//!     cargo bench -p diagnose
+//!     cargo bench -p diagnose --features bench
 
 use calib_core::robot::presets;
 use sim::{record, Effect, Motion, RandomMotion, RecordConfig, Surface};

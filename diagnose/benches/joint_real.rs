@@ -3,7 +3,7 @@
 //! each square's own fit for the evidence table, and each square diagnosed against the
 //! shared geometry. Prints the wall time of each run; the goal is under 5 s.
 //!
-//!     cargo bench -p diagnose --bench joint_real
+//!     cargo bench -p diagnose --features bench --bench joint_real
 
 use formats::recording::Recording;
 use std::time::Instant;

@@ -5,7 +5,7 @@
 //! 3.6 M-row diagnose bench (8.9 s of its 10 s, BENCHMARKS.md). Prints the best of seven
 //! runs.
 //!
-//!     cargo bench -p diagnose --bench stepper_rotor
+//!     cargo bench -p diagnose --features bench --bench stepper_rotor
 
 use diagnose::actuator::{simulate_wheel, ActuatorParams};
 use std::time::Instant;

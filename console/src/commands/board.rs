@@ -40,6 +40,10 @@ pub fn status_live(
     ctx: &mut Ctx,
     out: Output,
 ) -> Result<()> {
+    if follow && foxglove.is_some() {
+        // Before the board is opened: a wheelcal without the server says how to get one.
+        crate::foxglove_live::require_built()?;
+    }
     let client = ctx.client()?;
     let live = match (follow, foxglove) {
         (true, Some(a)) => {

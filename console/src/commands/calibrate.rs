@@ -197,8 +197,9 @@ fn human(cal: &Calibration) -> String {
 pub const PATHS_MCAP: &str = "paths.mcap";
 
 /// Writes the `--report` folder: calibration.json, summary.txt, robot.toml, ros2.yaml
-/// (differential drive), the figures and index.html
-/// (`calibrate::plots::write_calibration_figures`) and paths.mcap (per
+/// (differential drive), the figures (`calibrate::plots::write_calibration_svgs`),
+/// index.html ([`crate::report::calibrate`]: the factors and the apply command first)
+/// and paths.mcap (per
 /// recording, held-out one included, `/<recording>/measured`, `/nominal`, `/fitted` at
 /// its pose samples).
 fn write_report(
@@ -223,7 +224,8 @@ fn write_report(
         replace_file(&dir.join("ros2.yaml"), y.as_bytes())?;
     }
     let series = plots::calibration_series(cal, robot, recs, held)?;
-    plots::write_calibration_figures(cal, &series, &summary, dir)?;
+    let figures = plots::write_calibration_svgs(cal, &series, dir)?;
+    crate::report::calibrate::write(cal, robot, &figures, &summary, dir)?;
     let names: Vec<[String; 3]> = series
         .iter()
         .map(|s| ["measured", "nominal", "fitted"].map(|k| format!("{}/{k}", s.key)))

@@ -65,6 +65,9 @@ pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
         formats::safe_write::claim_dir(dir)?;
         diagnose::plots::write_report_dir(&rep, dir)
             .with_context(|| format!("cannot write the report into {}", dir.display()))?;
+        // The page that leads with the verdict, over the plain one written with the plots.
+        crate::report::diagnose::write(&rep, dir)
+            .with_context(|| format!("cannot write the report into {}", dir.display()))?;
         out.note(&format!("report: {}", dir.join("index.html").display()));
         // The replayed paths for Foxglove / PlotJuggler beside the HTML.
         if let Some(poses) = &poses {

@@ -2,7 +2,7 @@
 //! calibration method of [Redundant omni].
 
 use super::figures::{BarChart, Series, XyChart};
-use super::{prepare_dir, Page};
+use super::page::{prepare_dir, Page};
 use crate::calibration::omni::OmniReport;
 use anyhow::Result;
 use std::path::{Path, PathBuf};
@@ -11,6 +11,19 @@ use std::path::{Path, PathBuf};
 pub fn write(rep: &OmniReport, dir: &Path) -> Result<PathBuf> {
     prepare_dir(dir)?;
     let mut page = Page::new(&format!("Omni calibration: {}", rep.robot));
+    let f_lat: Vec<String> = rep.f_lat.iter().map(|v| format!("{v:.5}")).collect();
+    let improvement = rep
+        .improvement_index_percent
+        .map(|i| format!("; mean radial error {i:.1} % better after"))
+        .unwrap_or_default();
+    page.answer(&format!(
+        "Factors: F_lat {} ({}), F_lon {:.5}{improvement}. The board takes them with `wheelcal factors set --f-lat {} --f-lon {:.5}` (or `wheelcal apply` on omni compute's --json result).",
+        f_lat.join(", "),
+        rep.wheels.join(", "),
+        rep.f_lon,
+        f_lat.join(","),
+        rep.f_lon
+    ));
     page.paragraph("Lateral (F_lat) and longitudinal (F_lon) corrective factors of the omni calibration method ([Redundant omni]) from straight-path runs; final wheel rates = F_lon * F_lat * J * twist ([Redundant omni] eq. 6).");
     page.heading("Factors");
     let rows: Vec<Vec<String>> = rep

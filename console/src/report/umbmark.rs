@@ -1,7 +1,7 @@
 //! The UMBmark report: the figures 13-26 and Table 1 of [Measuring errors] for one robot.
 
 use super::figures::{BarChart, Series, XyChart};
-use super::{prepare_dir, Page};
+use super::page::{prepare_dir, Page};
 use crate::calibration::umbmark::{DirectionStats, PhaseStats, UmbmarkReport};
 use anyhow::Result;
 use calib_core::stats;
@@ -56,6 +56,18 @@ fn pdf_curve(d: &DirectionStats) -> Vec<(f64, f64)> {
 pub fn write(rep: &UmbmarkReport, dir: &Path) -> Result<PathBuf> {
     prepare_dir(dir)?;
     let mut page = Page::new(&format!("UMBmark: {}", rep.robot));
+    let after = match (rep.e_max_sys_after_m, rep.improvement) {
+        (Some(a), Some(k)) => format!(
+            "; E_max,sys {:.2} mm before, {:.2} mm after ({k:.1}x smaller)",
+            rep.e_max_sys_before_m * 1e3,
+            a * 1e3
+        ),
+        _ => format!("; E_max,sys {:.2} mm", rep.e_max_sys_before_m * 1e3),
+    };
+    page.answer(&format!(
+        "Factors (exact model): c_L {:.6}, c_R {:.6}, E_b {:.6}{after}. The board takes them with `wheelcal factors set --c-l {:.6} --c-r {:.6} --e-b {:.6}` (or `wheelcal apply` on umbmark compute's --json result).",
+        rep.c_l, rep.c_r, rep.eb, rep.c_l, rep.c_r, rep.eb
+    ));
     page.paragraph(&format!(
         "{} m bidirectional square (UMBmark, [Borenstein 1996]), nominal wheelbase {:.4} m. Errors are measured minus odometry end positions in the start frame.",
         rep.side_m, rep.wheelbase_nominal_m
