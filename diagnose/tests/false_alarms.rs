@@ -90,6 +90,9 @@ fn noise_only_recordings_say_none() {
                             let g = control(k);
                             let rec = generate(&g).0.expect("clean clock");
                             let r = diagnose(&g.robot, &rec, &Options::default()).unwrap();
+                            let artefacts: Vec<&str> =
+                                r.recording_artefacts.iter().map(|a| a.id).collect();
+                            println!("control {k:2}: artefacts {artefacts:?}; {:?}", r.depends_on);
                             (
                                 k,
                                 g.robot.name.to_string(),

@@ -77,3 +77,28 @@ pub(super) fn robust_sd(v: &[f64]) -> f64 {
     }
     1.4826 * median(&mut w)
 }
+
+/// The resolution a pose channel was written at: the smallest step between consecutive
+/// values (0 when every value repeats or the series is short). Continuous readings give a
+/// step near the file's printed precision; quantised ones (a capture system reporting
+/// whole millimetres) give the quantum, which floors every noise estimate: a robust
+/// sigma of quantised data is zero when most steps repeat, and then every step looks like
+/// a jump or a stale sample.
+pub(super) fn quantum(v: &[f64]) -> f64 {
+    let q = v
+        .windows(2)
+        .map(|w| (w[1] - w[0]).abs())
+        .filter(|d| d.is_finite() && *d > 1e-12)
+        .fold(f64::INFINITY, f64::min);
+    if q.is_finite() {
+        q
+    } else {
+        0.0
+    }
+}
+
+/// The sd of the difference of two samples each rounded to a grid of step `q` (uniform
+/// error of sd q / sqrt 12 each).
+pub(super) fn quantum_sd(q: f64) -> f64 {
+    q / 6f64.sqrt()
+}

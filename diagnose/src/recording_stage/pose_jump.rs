@@ -7,7 +7,7 @@
 //! of the frame (positions turn with the heading) or as a translation with a heading
 //! offset, whichever makes the later steps agree with the wheels.
 
-use super::odometry::{body_steps, robust_sd};
+use super::odometry::{body_steps, quantum, quantum_sd, robust_sd};
 use super::{Artefact, Event, MAX_EVENTS};
 use calib_core::robot::Robot;
 use fitkit::series::unwrap_angles;
@@ -42,6 +42,14 @@ fn innovations(robot: &Robot, rec: &Recording) -> Option<Innovations> {
     }
     let mut th: Vec<f64> = rows.iter().map(|r| r.3).collect();
     unwrap_angles(&mut th);
+    // Each channel's noise is at least its quantisation's (see `odometry::quantum`).
+    let xs: Vec<f64> = rows.iter().map(|r| r.1).collect();
+    let ys: Vec<f64> = rows.iter().map(|r| r.2).collect();
+    let floor = [
+        quantum_sd(quantum(&xs)).max(1e-9),
+        quantum_sd(quantum(&ys)).max(1e-9),
+        quantum_sd(quantum(&th)).max(1e-9),
+    ];
     let mut d: Vec<f64> = rows
         .windows(2)
         .map(|w| rec.t[w[1].0] - rec.t[w[0].0])
@@ -85,7 +93,7 @@ fn innovations(robot: &Robot, rec: &Recording) -> Option<Innovations> {
     let s0: Vec<f64> = (0..3)
         .map(|c| {
             let v: Vec<f64> = (0..m).filter(|&j| usable[j]).map(|j| inn.q[c][j]).collect();
-            robust_sd(&v).max(1e-9)
+            robust_sd(&v).max(floor[c])
         })
         .collect();
     let dv = |j: usize, c: usize| -> f64 {
@@ -126,7 +134,7 @@ fn innovations(robot: &Robot, rec: &Recording) -> Option<Innovations> {
     let s: Vec<f64> = (0..3)
         .map(|c| {
             let v: Vec<f64> = (0..m).filter(|&j| usable[j]).map(|j| inn.q[c][j]).collect();
-            robust_sd(&v).max(1e-9)
+            robust_sd(&v).max(floor[c])
         })
         .collect();
     Some((rows, inn, usable, s))

@@ -186,7 +186,14 @@ fn stale_poses(rec: &mut Recording, events: &mut Vec<Event>) -> usize {
     };
     let sx = robust_sd(&d2(|r| r.1)) / 6f64.sqrt();
     let sy = robust_sd(&d2(|r| r.2)) / 6f64.sqrt();
-    let sigma = (0.5 * (sx * sx + sy * sy)).sqrt();
+    // At least the quantisation's noise: poses written at whole millimetres repeat
+    // honestly whenever the robot moves less than a millimetre between samples.
+    let xs: Vec<f64> = rows.iter().map(|r| r.1).collect();
+    let ys: Vec<f64> = rows.iter().map(|r| r.2).collect();
+    let q = super::odometry::quantum(&xs).max(super::odometry::quantum(&ys));
+    let sigma = (0.5 * (sx * sx + sy * sy))
+        .sqrt()
+        .max(super::odometry::quantum_sd(q) * 6f64.sqrt());
     if !sigma.is_finite() {
         return 0;
     }
