@@ -107,15 +107,25 @@ pub fn verdict_words(r: &Report) -> String {
             "Unexplained: the recording leaves its noise band and {found}. {explained} {improvement}"
         );
     }
+    // A partial verdict: the family explains at least half, and what is left still
+    // depends on the motion (said in words from `depends_on`).
+    let left = if r.fit == Some(diagnose::finding::Fit::Partial) {
+        match r.depends_on.first() {
+            Some(d) => format!(" Partial: what is left depends on {d}."),
+            None => " Partial: a remainder is left outside the noise.".to_string(),
+        }
+    } else {
+        String::new()
+    };
     match r.findings.iter().find(|f| f.effect == v) {
         Some(f) => format!(
-            "Main finding: {} (mechanism: {}, {} fit), explaining {} of the error beyond the noise. {explained} {improvement}",
+            "Main finding: {} (mechanism: {}, {} fit), explaining {} of the error beyond the noise.{left} {explained} {improvement}",
             words(&f.effect),
             f.mechanism,
             f.fit,
             pct(f.explained_share)
         ),
-        None => format!("Verdict: {}. {explained} {improvement}", words(v)),
+        None => format!("Verdict: {}.{left} {explained} {improvement}", words(v)),
     }
 }
 
