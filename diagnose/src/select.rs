@@ -540,9 +540,11 @@ pub fn select(ev: &Evaluator, max_effects: usize, identified: &[Effect]) -> Sele
                     && one_value_form(*e).is_some()
                     && *e != Effect::BacklashPerWheel
                 {
-                    let out = |c: Option<f64>| c.is_none_or(|c| c > crate::MISMATCH_CHI2);
+                    let out =
+                        |c: Option<f64>| c.is_none_or(|c| c > crate::thresholds::MISMATCH_CHI2);
                     return !deferred.iter().any(|(d, _)| *d == e.base())
-                        && base_chi2(Stage::Actuator).is_some_and(|c| c > crate::MISMATCH_CHI2)
+                        && base_chi2(Stage::Actuator)
+                            .is_some_and(|c| c > crate::thresholds::MISMATCH_CHI2)
                         && fitted
                             .iter()
                             .filter(|f| f.0.stage() == Stage::Actuator)
@@ -726,22 +728,23 @@ pub fn select(ev: &Evaluator, max_effects: usize, identified: &[Effect]) -> Sele
 }
 
 /// A stage whose chi-square per residual is above this many times
-/// [`crate::MISMATCH_CHI2`] is far from its noise.
+/// [`crate::thresholds::MISMATCH_CHI2`] is far from its noise.
 pub const FAR_FROM_NOISE: f64 = 10.0;
 
 /// Whether a default fitted this round brings `stage` from far above its noise
-/// ([`FAR_FROM_NOISE`]) back to it ([`crate::MISMATCH_CHI2`]): a grid-searched competitor
+/// ([`FAR_FROM_NOISE`]) back to it ([`crate::thresholds::MISMATCH_CHI2`]): a grid-searched competitor
 /// could then at best fit as well, and is tried next round on top of it.
 pub fn settled(
     stage: Stage,
     defaults: &[DefaultScore],
     base_chi2: impl Fn(Stage) -> Option<f64>,
 ) -> bool {
-    base_chi2(stage).is_some_and(|c| c > FAR_FROM_NOISE * crate::MISMATCH_CHI2)
+    base_chi2(stage).is_some_and(|c| c > FAR_FROM_NOISE * crate::thresholds::MISMATCH_CHI2)
         && defaults.iter().any(|x| {
             x.stage == stage
                 && x.delta_bic < BIC_THRESHOLD
-                && x.chi2_left.is_some_and(|c| c <= crate::MISMATCH_CHI2)
+                && x.chi2_left
+                    .is_some_and(|c| c <= crate::thresholds::MISMATCH_CHI2)
         })
 }
 
@@ -762,7 +765,7 @@ pub struct DefaultScore {
 /// Whether the other mechanism `variant` (evidence stage `stage`) is worth fitting this
 /// round: identification names its family; or its default lowers the BIC by at least
 /// [`VARIANT_SHARE`] of the most any default of its stage does; or its stage leaves the
-/// noise (`base_chi2` above [`crate::MISMATCH_CHI2`]) and no default of that stage
+/// noise (`base_chi2` above [`crate::thresholds::MISMATCH_CHI2`]) and no default of that stage
 /// brings it back.
 pub fn variant_worth_fitting(
     variant: Effect,
@@ -776,10 +779,11 @@ pub fn variant_worth_fitting(
     let leans = same.iter().any(|x| {
         x.effect == variant.base() && x.delta_bic < 0.0 && x.delta_bic <= VARIANT_SHARE * best
     });
-    let mismatch_left = base_chi2(stage).is_some_and(|c| c > crate::MISMATCH_CHI2)
-        && same
-            .iter()
-            .all(|x| x.chi2_left.is_none_or(|c| c > crate::MISMATCH_CHI2));
+    let mismatch_left = base_chi2(stage).is_some_and(|c| c > crate::thresholds::MISMATCH_CHI2)
+        && same.iter().all(|x| {
+            x.chi2_left
+                .is_none_or(|c| c > crate::thresholds::MISMATCH_CHI2)
+        });
     leans || mismatch_left || identified.contains(&variant.base())
 }
 
@@ -1069,7 +1073,7 @@ pub fn verdict(
     nominal_terms: &[crate::identify::Term],
 ) -> Decided {
     use crate::signature;
-    use crate::{MISMATCH_CHI2, RESIDUAL_CHI2};
+    use crate::thresholds::{MISMATCH_CHI2, RESIDUAL_CHI2};
     let (mut excess0, mut excess1) = (0.0, 0.0);
     let mut worst_final: f64 = 0.0;
     let mut mismatch = false;
@@ -1301,17 +1305,17 @@ pub struct Outcome {
 
 /// The verdict from the best plausible finding (`top`) and what the fit left. A finding
 /// named by its signature is the answer. Otherwise the top finding's family must explain
-/// at least [`crate::MIN_EXPLAINED`] of the excess (issue 55: the best supported
+/// at least [`crate::thresholds::MIN_EXPLAINED`] of the excess (issue 55: the best supported
 /// explanation is the verdict, partial when a remainder is left); a far fit
-/// ([`crate::RESIDUAL_CHI2`]) that leaves something following a quantity no catalogue
+/// ([`crate::thresholds::RESIDUAL_CHI2`]) that leaves something following a quantity no catalogue
 /// physics follows is not (a floor mechanism with four free parameters can bend a heading
 /// kick at every reversal most of the way, but what it leaves still follows the
 /// reversals), nor one for a family identification did not name in the residual unless
-/// it explains [`crate::WELL_EXPLAINED`] of it (a slip limit bending a tilted floor's
+/// it explains [`crate::thresholds::WELL_EXPLAINED`] of it (a slip limit bending a tilted floor's
 /// steady drift 71 % of the way is not; a stepper's quanta, which no regressor follows,
 /// at 95 % are).
 pub fn decide(top: Option<&Finding>, o: &Outcome) -> Verdict {
-    use crate::{MIN_EXPLAINED, RESIDUAL_CHI2, WELL_EXPLAINED};
+    use crate::thresholds::{MIN_EXPLAINED, RESIDUAL_CHI2, WELL_EXPLAINED};
     let far = o.mismatch && o.worst_final > RESIDUAL_CHI2;
     match top {
         None if o.mismatch => Verdict::Unexplained,

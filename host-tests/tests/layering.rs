@@ -337,8 +337,11 @@ fn no_module_circle_and_no_new_upward_import_in_any_crate() {
     // the modules they import from and its proxy left the library. What is left: mostly
     // children importing their crate root's re-exports (diagnose's verdict constants are
     // defined in its lib.rs), and calibrate's turn_law -> crate::Series, which hides a
-    // circle (turn_law -> series -> step -> turn_law). The count may only fall.
-    const UPWARD_NOW: usize = 53;
+    // circle (turn_law -> series -> step -> turn_law). The count may only fall. 40 once
+    // diagnose's verdict thresholds moved to their leaf module `thresholds` and the
+    // recording stage's artefact types to `recording_stage::artefact` (its checks had
+    // brought it to 64).
+    const UPWARD_NOW: usize = 40;
     assert!(
         upward.len() <= UPWARD_NOW,
         "{} upward imports (at most {UPWARD_NOW}):\n{}",

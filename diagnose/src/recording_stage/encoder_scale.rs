@@ -6,8 +6,8 @@
 //! make the poses disagree with the commands instead). On a DC robot a wheel's encoder
 //! scale against the poses is indistinguishable from its diameter: left to the physics.
 
+use super::artefact::{Artefact, Event};
 use super::segments::Segments;
-use super::{Artefact, Event};
 use calib_core::robot::{DriveType, Robot};
 use formats::recording::Recording;
 use std::collections::BTreeMap;

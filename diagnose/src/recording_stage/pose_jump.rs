@@ -7,8 +7,8 @@
 //! of the frame (positions turn with the heading) or as a translation with a heading
 //! offset, whichever makes the later steps agree with the wheels.
 
+use super::artefact::{Artefact, Event, MAX_EVENTS};
 use super::odometry::{body_steps, quantum, quantum_sd, robust_sd};
-use super::{Artefact, Event, MAX_EVENTS};
 use calib_core::robot::Robot;
 use fitkit::series::unwrap_angles;
 use formats::recording::Recording;

@@ -2,8 +2,8 @@
 //! turn, then catching up (a stale buffer), and pose samples repeating the previous pose
 //! sample while the robot moves (a tracker that did not update).
 
+use super::artefact::{Artefact, Event, MAX_EVENTS};
 use super::odometry::robust_sd;
-use super::{Artefact, Event, MAX_EVENTS};
 use formats::recording::Recording;
 use std::collections::BTreeMap;
 

@@ -1,8 +1,8 @@
 //! `time_backwards` (the file's time went back; the reader re-timed the rows) and
 //! `time_jitter` (the written row intervals vary by more than a logger's clock allows).
 
+use super::artefact::{Artefact, Event, MAX_EVENTS};
 use super::odometry::robust_sd;
-use super::{Artefact, Event, MAX_EVENTS};
 use formats::recording::Recording;
 use std::collections::BTreeMap;
 

@@ -3,8 +3,8 @@
 //! the opposite sign counts backwards; one that matches another wheel's demand far
 //! better than its own holds that wheel's counts.
 
+use super::artefact::{Artefact, Event};
 use super::segments::Segments;
-use super::{Artefact, Event};
 use calib_core::robot::Robot;
 use formats::recording::Recording;
 use std::collections::BTreeMap;
