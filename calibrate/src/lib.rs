@@ -77,10 +77,11 @@ pub use result::{
 };
 pub(crate) use series::Path;
 pub use series::{
-    board_dead_reckoning_errors, dead_reckoning_errors, dead_reckoning_rmse,
-    dead_reckoning_rmse_law, fitted_dead_reckoning_rmse, Event, Nuisance, Series, JUMP_MIN_M,
-    JUMP_ONE_STEP, JUMP_SIGMAS, JUMP_WINDOW, MIN_POSES, NOISY_POSES_M, PART_SEP,
-    PLAUSIBLE_CLOCK_DRIFT, PLAUSIBLE_TIME_OFFSET_S, SAMPLE_STEP_M,
+    board_dead_reckoned_poses, board_dead_reckoning_errors, dead_reckoned_poses,
+    dead_reckoning_errors, dead_reckoning_rmse, dead_reckoning_rmse_law,
+    fitted_dead_reckoning_rmse, Event, Nuisance, Series, Stamped, JUMP_MIN_M, JUMP_ONE_STEP,
+    JUMP_SIGMAS, JUMP_WINDOW, MIN_POSES, NOISY_POSES_M, PART_SEP, PLAUSIBLE_CLOCK_DRIFT,
+    PLAUSIBLE_TIME_OFFSET_S, SAMPLE_STEP_M,
 };
 pub use spread::MIN_SPREAD_GROUPS;
 use turn_law::Turning;

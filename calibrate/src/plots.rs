@@ -16,7 +16,7 @@
 //! [`Heldout`]: crate::Heldout
 
 use crate::error::CalibrateError;
-use crate::objective::{residuals_into, RES_UNIT_M};
+use crate::objective::{residuals_into, HEADING_LEVER_M, RES_UNIT_M};
 use crate::params::{robot_with, GeomKind};
 use crate::result::Calibration;
 use crate::series::{Nuisance, Path as DrPath, Series};
@@ -51,6 +51,12 @@ pub struct RecordingSeries {
     pub nominal: Vec<(f64, f64)>,
     /// Dead reckoning with the fitted geometry at the pose samples, m.
     pub fitted: Vec<(f64, f64)>,
+    /// Measured heading per pose sample, rad.
+    pub heading_measured: Vec<f64>,
+    /// Heading of the nominal dead reckoning per pose sample, rad.
+    pub heading_nominal: Vec<f64>,
+    /// Heading of the fitted dead reckoning per pose sample, rad.
+    pub heading_fitted: Vec<f64>,
     /// |nominal - measured| per pose sample, m.
     pub err_nominal: Vec<f64>,
     /// |fitted - measured| per pose sample, m.
@@ -76,23 +82,33 @@ impl RecordingSeries {
     }
 }
 
-/// Positions placed by `residuals_into` (the fit's own comparison) and their errors.
-fn placed(
-    s: &Series,
-    path: &DrPath,
-    nu: &Nuisance,
-    marker: (f64, f64),
-) -> (Vec<(f64, f64)>, Vec<f64>) {
+/// A dead-reckoned path at the pose samples as the fit compares it.
+struct Placed {
+    /// Positions, m.
+    xy: Vec<(f64, f64)>,
+    /// Headings, rad.
+    heading: Vec<f64>,
+    /// Position errors against the measured poses, m.
+    err: Vec<f64>,
+}
+
+/// Poses placed by `residuals_into` (the fit's own comparison) and their errors.
+fn placed(s: &Series, path: &DrPath, nu: &Nuisance, marker: (f64, f64)) -> Placed {
     let mut r = Vec::with_capacity(3 * s.pose_samples());
     residuals_into(s, path, nu, marker, &mut r);
-    let mut xy = Vec::with_capacity(s.pose_samples());
-    let mut err = Vec::with_capacity(s.pose_samples());
+    let mut p = Placed {
+        xy: Vec::with_capacity(s.pose_samples()),
+        heading: Vec::with_capacity(s.pose_samples()),
+        err: Vec::with_capacity(s.pose_samples()),
+    };
     for (j, c) in r.chunks(3).enumerate() {
         let (ex, ey) = (c[0] * RES_UNIT_M, c[1] * RES_UNIT_M);
-        xy.push((s.px[j] + ex, s.py[j] + ey));
-        err.push((ex * ex + ey * ey).sqrt());
+        p.xy.push((s.px[j] + ex, s.py[j] + ey));
+        p.heading
+            .push(s.pth[j] + c[2] * RES_UNIT_M / HEADING_LEVER_M);
+        p.err.push((ex * ex + ey * ey).sqrt());
     }
-    (xy, err)
+    p
 }
 
 /// The start pose that dead-reckons `path` from the first measured pose (heading
@@ -192,7 +208,7 @@ pub fn calibration_series(
         s.path(&r_nom, &kin_nom, &mut p_nom);
         // The fitted geometry with its turn law (fitted or given), as the errors reported.
         s.path_with(&r_fit, &kin_fit, &cal.turn_law, &mut p_fit);
-        let ((nom, e_nom), (fit, e_fit)) = match nuis {
+        let (nom, fit) = match nuis {
             Some((nu_nom, nu_fit)) => (
                 placed(s, &p_nom, &nu_nom, (0.0, 0.0)),
                 placed(s, &p_fit, &nu_fit, marker),
@@ -208,10 +224,13 @@ pub fn calibration_series(
             heldout: nuis.is_none(),
             t: s.pose_row.iter().map(|&k| s.t[k] - s.t[0]).collect(),
             measured: s.px.iter().copied().zip(s.py.iter().copied()).collect(),
-            nominal: nom,
-            fitted: fit,
-            err_nominal: e_nom,
-            err_fitted: e_fit,
+            nominal: nom.xy,
+            fitted: fit.xy,
+            heading_measured: s.pth.clone(),
+            heading_nominal: nom.heading,
+            heading_fitted: fit.heading,
+            err_nominal: nom.err,
+            err_fitted: fit.err,
         });
     };
     for (i, s) in series.iter().enumerate() {

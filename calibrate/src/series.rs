@@ -751,12 +751,21 @@ pub(crate) fn fitted_dead_reckoning_rmse_within(
 /// The position RMS of [`dead_reckoning_rmse_law`] and the position error at the last
 /// pose sample, m.
 pub fn dead_reckoning_errors(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<(f64, f64)> {
+    file_path(robot, law, s).map(|path| errors_along(s, &path))
+}
+
+/// The poses [`dead_reckoning_errors`] judges: `robot` (its separation following `law`)
+/// dead-reckoning `s` from its first measured pose, one `(t s, x m, y m, theta rad)` per
+/// pose sample. `None` when the kinematics do not solve.
+pub fn dead_reckoned_poses(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<Vec<Stamped>> {
+    file_path(robot, law, s).map(|path| placed_poses(s, &path))
+}
+
+/// A robot file's dead-reckoned pose per row of `s`, started at the origin.
+fn file_path(robot: &Robot, law: &TurnLaw, s: &Series) -> Option<Path> {
     let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
     let mut path = Path::default();
-    if !s.path_with(robot, &kin, law, &mut path) {
-        return None;
-    }
-    Some(errors_along(s, &path))
+    s.path_with(robot, &kin, law, &mut path).then_some(path)
 }
 
 /// [`dead_reckoning_errors`] of a board holding `corrections` (its factors and laws) for
@@ -770,6 +779,21 @@ pub fn board_dead_reckoning_errors(
     corrections: &Corrections,
     s: &Series,
 ) -> Option<(f64, f64)> {
+    board_path(robot, corrections, s).map(|path| errors_along(s, &path))
+}
+
+/// The poses [`board_dead_reckoning_errors`] judges, as [`dead_reckoned_poses`] gives a
+/// robot file's.
+pub fn board_dead_reckoned_poses(
+    robot: &Robot,
+    corrections: &Corrections,
+    s: &Series,
+) -> Option<Vec<Stamped>> {
+    board_path(robot, corrections, s).map(|path| placed_poses(s, &path))
+}
+
+/// The board's dead-reckoned pose per row of `s`, started at the origin.
+fn board_path(robot: &Robot, corrections: &Corrections, s: &Series) -> Option<Path> {
     if s.legs.is_some() {
         return None;
     }
@@ -784,7 +808,30 @@ pub fn board_dead_reckoning_errors(
         odo.update(&omni.apply(inc, |p| laws.apply(p, |q| kin.forward(q))));
         path.push(odo.pose());
     }
-    Some(errors_along(s, &path))
+    Some(path)
+}
+
+/// One planar pose at a time: (t s, x m, y m, theta rad).
+pub type Stamped = (f64, f64, f64, f64);
+
+/// `path` (a dead-reckoned pose per row started at row 0) at each pose sample, placed at
+/// the first measured pose as [`errors_along`] places it.
+fn placed_poses(s: &Series, path: &Path) -> Vec<Stamped> {
+    let k0 = s.pose_row[0];
+    let dth = s.pth[0] - path.th[k0];
+    let (c, sn) = (dth.cos(), dth.sin());
+    s.pose_row
+        .iter()
+        .map(|&k| {
+            let (dx, dy) = (path.x[k] - path.x[k0], path.y[k] - path.y[k0]);
+            (
+                s.t[k],
+                s.px[0] + c * dx - sn * dy,
+                s.py[0] + sn * dx + c * dy,
+                path.th[k] + dth,
+            )
+        })
+        .collect()
 }
 
 /// The position RMS over every pose sample and the error at the last of `path`, a

@@ -1,6 +1,6 @@
 //! MCAP output in ROS 2's standard messages, which Foxglove, Rerun and PlotJuggler open
-//! as they are: a pulled trial ([`write_trial`]) and the diagnose
-//! report's measured, nominal and fitted paths ([`write_report_paths`], or any poses with
+//! as they are: a pulled trial ([`write_trial`]), the diagnose report's measured, nominal
+//! and fitted paths ([`write_report_paths`]) and calibrate's per recording (any poses:
 //! [`write_pose_paths`]).
 //!
 //! Every message is CDR (little endian, ROS 2's encapsulation header `00 01 00 00`), each
@@ -15,15 +15,12 @@
 //! message (Foxglove's schema set has none), so one family holds poses, transforms and
 //! wheels, and the files are single-file ROS 2 bags in MCAP storage.
 //!
-//! `calibrate --report`'s paths.mcap is still written with JSON channels
-//! ([`write_paths_under`]); its test reads them.
 
 use anyhow::{bail, Context, Result};
 use calib_core::protocol::{Record, TrialInfo};
 use calib_core::robot::Robot;
 use mcap::records::MessageHeader;
 use serde::Serialize;
-use serde_json::json;
 use std::collections::BTreeMap;
 use std::io::{Seek, Write};
 use std::path::Path;
@@ -295,12 +292,6 @@ impl<W: Write + Seek> Out<W> {
             schemas: BTreeMap::new(),
         })
     }
-    fn json_channel(&mut self, topic: &str, name: &str, schema: serde_json::Value) -> Result<u16> {
-        let s = self
-            .w
-            .add_schema(name, "jsonschema", schema.to_string().as_bytes())?;
-        Ok(self.w.add_channel(s, topic, "json", &BTreeMap::new())?)
-    }
     /// A CDR channel of the ROS 2 type `ty` ([`ros2::schema`]).
     fn ros2_channel(&mut self, topic: &str, ty: &str) -> Result<u16> {
         let s = match self.schemas.get(ty) {
@@ -327,9 +318,6 @@ impl<W: Write + Seek> Out<W> {
             data,
         )?;
         Ok(())
-    }
-    fn put(&mut self, channel: u16, t_ns: u64, msg: &serde_json::Value) -> Result<()> {
-        self.put_bytes(channel, t_ns, msg.to_string().as_bytes())
     }
     fn put_cdr<T: Serialize>(&mut self, channel: u16, t_ns: u64, msg: &T) -> Result<()> {
         let data = ros2::cdr(msg).map_err(|e| anyhow::anyhow!("CDR: {e}"))?;
@@ -567,36 +555,4 @@ pub fn write_report_paths(rep: &diagnose::Report, poses: &ReportPoses, out: &Pat
         .map(|(name, pose)| PoseSeries { name, t, pose })
         .collect();
     write_pose_paths(&paths, out)
-}
-
-/// One replayed path of positions for [`write_paths_under`]: a name, sample times (s) and
-/// positions `(x m, y m)`.
-pub struct PathSeries<'a> {
-    /// The path's name (`<recording>/measured`...).
-    pub name: &'a str,
-    /// Sample times (s).
-    pub t: &'a [f64],
-    /// Positions (m) in the recording's world frame.
-    pub xy: &'a [(f64, f64)],
-}
-
-/// Positions as MCAP with JSON channels (`wheelcal.Position2D`: `t`, `x`, `y`), topic
-/// `<prefix>/<name>` per path (`prefix` empty: `/<name>`, as `calibrate --report` writes
-/// `/<recording>/measured`). Only `calibrate --report` still writes these.
-pub fn write_paths_under(prefix: &str, paths: &[PathSeries<'_>], out: &Path) -> Result<()> {
-    let mut o = Out::new(create(out)?)?;
-    for p in paths {
-        let ch = o.json_channel(
-            &format!("{prefix}/{}", p.name),
-            "wheelcal.Position2D",
-            json!({"type": "object", "properties": {
-                "t": {"type": "number"},
-                "x": {"type": "number", "description": "m"},
-                "y": {"type": "number", "description": "m"}}}),
-        )?;
-        for (&t, &(x, y)) in p.t.iter().zip(p.xy) {
-            o.put(ch, ns_of_s(t), &json!({"t": t, "x": x, "y": y}))?;
-        }
-    }
-    o.finish()
 }

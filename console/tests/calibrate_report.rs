@@ -1,7 +1,8 @@
 //! `wheelcal calibrate --report DIR` end to end: the folder holds the named
 //! files, the SVGs are well-formed XML with one polyline vertex per pose sample, and
-//! paths.mcap reads back with `/<recording>/measured|nominal|fitted` carrying every pose
-//! sample, the measured poses unchanged and the fitted error at the fit's RMSE.
+//! paths.mcap reads back as ROS 2 `PoseStamped` on `/paths/<recording>/measured|nominal|fitted`
+//! carrying every pose sample, the measured poses unchanged and the fitted error at the
+//! fit's RMSE (Python's independent reader: `interop.rs`).
 
 mod common;
 
@@ -168,21 +169,37 @@ fn the_xml_check_rejects_broken_svg() {
     }
 }
 
-/// Messages per topic: (log time ns, JSON body).
-type Topics = BTreeMap<String, Vec<(u64, serde_json::Value)>>;
+/// Planar poses per topic: (log time ns, (x m, y m, yaw rad)).
+type Topics = BTreeMap<String, Vec<(u64, (f64, f64, f64))>>;
 
-fn read_mcap(path: &Path) -> Topics {
+/// The `geometry_msgs/msg/PoseStamped` channels of `path` (CDR with their `ros2msg`
+/// schema, decoded by the ros2bag reader), and the number of `/tf` messages.
+fn read_mcap(path: &Path) -> (Topics, usize) {
+    use ros2bag::messages::{decode, PoseStamped};
     let bytes = std::fs::read(path).unwrap();
-    let mut by_topic = Topics::new();
+    let (mut by_topic, mut tf) = (Topics::new(), 0);
     for m in mcap::MessageStream::new(&bytes).unwrap() {
         let m = m.unwrap();
-        assert_eq!(m.channel.message_encoding, "json");
-        by_topic
-            .entry(m.channel.topic.clone())
-            .or_default()
-            .push((m.log_time, serde_json::from_slice(&m.data).unwrap()));
+        assert_eq!(m.channel.message_encoding, "cdr");
+        let schema = m.channel.schema.as_ref().unwrap();
+        assert_eq!(schema.encoding, "ros2msg");
+        if m.channel.topic == "/tf" {
+            assert_eq!(schema.name, "tf2_msgs/msg/TFMessage");
+            tf += 1;
+            continue;
+        }
+        assert_eq!(schema.name, "geometry_msgs/msg/PoseStamped");
+        let p: PoseStamped = decode(&m.data).unwrap();
+        let q = p.pose.orientation;
+        assert!(q.x == 0.0 && q.y == 0.0 && (q.z.hypot(q.w) - 1.0).abs() < 1e-12);
+        let stamp = p.header.stamp.sec as u64 * 1_000_000_000 + p.header.stamp.nanosec as u64;
+        assert_eq!(stamp, m.log_time);
+        by_topic.entry(m.channel.topic.clone()).or_default().push((
+            m.log_time,
+            (p.pose.position.x, p.pose.position.y, 2.0 * q.z.atan2(q.w)),
+        ));
     }
-    by_topic
+    (by_topic, tf)
 }
 
 #[test]
@@ -318,28 +335,34 @@ fn report_has_plots_index_and_mcap() {
         "the summary is in index.html"
     );
 
-    // MCAP: 3 topics per recording, one message per pose sample.
-    let topics = read_mcap(&report.join("paths.mcap"));
+    // MCAP: 3 PoseStamped topics per recording, one message per pose sample, and each
+    // pose as a transform on /tf.
+    let (topics, tf) = read_mcap(&report.join("paths.mcap"));
     let mut want_topics: Vec<String> = ["cw", "ccw", "held"]
         .iter()
-        .flat_map(|n| ["measured", "nominal", "fitted"].map(|k| format!("/{n}/{k}")))
+        .flat_map(|n| ["measured", "nominal", "fitted"].map(|k| format!("/paths/{n}/{k}")))
         .collect();
     want_topics.sort();
     assert_eq!(topics.keys().cloned().collect::<Vec<_>>(), want_topics);
+    assert_eq!(
+        tf,
+        3 * ["cw", "ccw", "held"].map(poses).iter().sum::<usize>()
+    );
     for name in ["cw", "ccw", "held"] {
         let rec = &recs[name];
         let n = poses(name);
-        let get = |k: &str| &topics[&format!("/{name}/{k}")];
+        let get = |k: &str| &topics[&format!("/paths/{name}/{k}")];
         for k in ["measured", "nominal", "fitted"] {
-            assert_eq!(get(k).len(), n, "/{name}/{k}");
+            assert_eq!(get(k).len(), n, "/paths/{name}/{k}");
         }
-        // Measured: the recording's poses unchanged (serde_json's default float parser
-        // may land one unit in the last place off: 4 eps relative, 1e-300 m absolute
-        // for zeros), stamped at the row's time since the first row (to the nanosecond).
-        let same = |a: f64, b: f64| (a - b).abs() <= 4.0 * f64::EPSILON * b.abs() + 1e-300;
-        for ((row, x, y, _), (t_ns, m)) in rec.pose_rows().zip(get("measured")) {
-            let (mx, my) = (m["x"].as_f64().unwrap(), m["y"].as_f64().unwrap());
-            assert!(same(mx, x) && same(my, y), "({mx}, {my}) vs ({x}, {y})");
+        // Measured: the recording's poses unchanged (the yaw through the quaternion's
+        // half angles: within 1e-12 rad), stamped at the row's time since the first row
+        // (to the nanosecond).
+        for ((row, x, y, th), (t_ns, (mx, my, mth))) in rec.pose_rows().zip(get("measured")) {
+            assert!(*mx == x && *my == y, "({mx}, {my}) vs ({x}, {y})");
+            let d = (mth - th + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                - std::f64::consts::PI;
+            assert!(d.abs() < 1e-12, "yaw {mth} vs {th}");
             let t = rec.t[row] - rec.t[0];
             assert_eq!(*t_ns, (t * 1e9).round() as u64);
         }
@@ -351,18 +374,30 @@ fn report_has_plots_index_and_mcap() {
             let sq: f64 = get(k)
                 .iter()
                 .zip(ms)
-                .map(|((_, a), (_, b))| {
-                    let dx = a["x"].as_f64().unwrap() - b["x"].as_f64().unwrap();
-                    let dy = a["y"].as_f64().unwrap() - b["y"].as_f64().unwrap();
-                    dx * dx + dy * dy
-                })
+                .map(|((_, a), (_, b))| (a.0 - b.0).powi(2) + (a.1 - b.1).powi(2))
                 .sum();
             let got = (sq / n as f64).sqrt();
             assert!(
                 (got - want).abs() <= 1e-9 * want,
-                "/{name}/{k}: RMS {got} vs calibration {want}"
+                "/paths/{name}/{k}: RMS {got} vs calibration {want}"
             );
         }
+        // The fitted heading follows the measured one: a 3 % wheelbase error fitted
+        // away leaves under 0.01 rad anywhere on a 4 m square (nominal: more).
+        let worst = |k: &str| {
+            get(k)
+                .iter()
+                .zip(get("measured"))
+                .map(|((_, a), (_, b))| {
+                    ((a.2 - b.2 + std::f64::consts::PI).rem_euclid(std::f64::consts::TAU)
+                        - std::f64::consts::PI)
+                        .abs()
+                })
+                .fold(0.0, f64::max)
+        };
+        let (wn, wf) = (worst("nominal"), worst("fitted"));
+        eprintln!("{name}: worst heading error nominal {wn:.4} rad, fitted {wf:.4} rad");
+        assert!(wf < 0.01 && wf < wn, "{name}: fitted {wf}, nominal {wn}");
     }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -1,9 +1,9 @@
 //! Files the tools people already use open as they are (issue 53 §3), each read by an
 //! independent reader:
-//! - `log pull --out X.mcap` and `diagnose --report`'s paths.mcap decoded by Python's
-//!   `mcap` + `mcap-ros2-support` (CDR from the files' own ros2msg schemas): every pose's
-//!   x, y and yaw and every joint position equal what the board logged or the recording
-//!   holds, within 1e-9;
+//! - `log pull --out X.mcap`, `diagnose --report`'s and `calibrate --report`'s paths.mcap
+//!   decoded by Python's `mcap` + `mcap-ros2-support` (CDR from the files' own ros2msg
+//!   schemas): every pose's x, y and yaw and every joint position equal what the board
+//!   logged or the recording holds, within 1e-9;
 //! - `--tum DIR` files read by evo (`evo_ape tum REF EST`): its RMSE equals the RMSE
 //!   computed here from the same files within 1e-6 m, and `evaluate --tum`'s files give
 //!   back `evaluate`'s own RMS.
@@ -342,6 +342,62 @@ fn diagnose_paths_decode_in_python_and_its_tum_files_give_evos_rmse() {
     let _ = std::fs::remove_dir_all(&dir);
 }
 
+/// `calibrate --report`'s paths.mcap decoded by Python's mcap-ros2-support: per
+/// recording `/paths/<recording>/measured|nominal|fitted` as `PoseStamped` (one per pose
+/// row, the measured ones the recording's poses to 1e-9) and each pose as a transform on
+/// `/tf`.
+#[test]
+fn calibrate_paths_decode_in_python_as_pose_stamped() {
+    let dir = common::scratch("interop-calibrate");
+    let files = [sim_recording(&dir, 3), sim_recording(&dir, 4)];
+    let report = dir.join("report");
+    let mut args: Vec<std::ffi::OsString> = Vec::new();
+    for f in &files {
+        args.push("--recording".into());
+        args.push(f.clone().into_os_string());
+    }
+    args.push("--report".into());
+    args.push(report.clone().into_os_string());
+    let o = common::calibrate_mobolab(&args, &[], &dir.join("fitted.toml"));
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let (topics, _) = python_decode(&report.join("paths.mcap"));
+    let nominal = robot_file::load(&common::robot("mobolab")).unwrap();
+    let mut want = vec!["/tf".to_string()];
+    let mut worst = 0f64;
+    let mut total = 0;
+    for (file, key) in files.iter().zip(["square3.csv", "square4.csv"]) {
+        let rows: Vec<(usize, f64, f64, f64)> = Recording::load(file, &nominal)
+            .unwrap()
+            .pose_rows()
+            .collect();
+        total += 3 * rows.len();
+        for k in ["measured", "nominal", "fitted"] {
+            let topic = format!("/paths/{key}/{k}");
+            let msgs = topics
+                .get(&topic)
+                .unwrap_or_else(|| panic!("{topic} in {:?}", topics.keys()));
+            assert_eq!(msgs.len(), rows.len(), "{topic}");
+            assert_eq!(msgs[0]["schema"], "geometry_msgs/msg/PoseStamped");
+            if k == "measured" {
+                for (m, &(_, x, y, th)) in msgs.iter().zip(&rows) {
+                    let p = &m["msg"]["pose"];
+                    worst = worst
+                        .max((f(&p["position"]["x"]) - x).abs())
+                        .max((f(&p["position"]["y"]) - y).abs())
+                        .max(angle_diff(yaw(&p["orientation"]), th).abs());
+                }
+            }
+            want.push(topic);
+        }
+    }
+    want.sort();
+    assert_eq!(topics.keys().cloned().collect::<Vec<_>>(), want);
+    assert_eq!(topics["/tf"].len(), total);
+    println!("worst |decoded - recording| {worst:.1e}");
+    assert!(worst <= 1e-9, "{worst}");
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
 #[test]
 fn evaluate_tum_files_give_evaluates_rms_and_evos() {
     let dir = common::scratch("interop-evaluate");
@@ -386,5 +442,74 @@ fn evaluate_tum_files_give_evaluates_rms_and_evos() {
         (ours - want).abs() <= 1e-6 * want.max(1e-3),
         "{ours} vs evaluate's {want}"
     );
+    let _ = std::fs::remove_dir_all(&dir);
+}
+
+/// `evaluate --tum` writes every candidate evaluate judges, each the replay it judged: a
+/// calibration as the board applies it (`--board`, through the firmware's odometry) and
+/// a skid-steer robot (rover4, whose sides step by their turn-radius law). From each
+/// TUM file and the measured one, the position RMS equals evaluate's to 1e-9 relative.
+#[test]
+fn evaluate_tum_writes_boards_and_skid_steer_robots_as_judged() {
+    let dir = common::scratch("interop-evaluate-all");
+    // A board: calibrate on one square, judged on another.
+    let (train, test) = (sim_recording(&dir, 6), sim_recording(&dir, 7));
+    let o = common::calibrate_mobolab(
+        &["--recording".into(), train.into_os_string()],
+        &[],
+        &dir.join("fitted.toml"),
+    );
+    assert!(o.status.success(), "{}", String::from_utf8_lossy(&o.stderr));
+    let cal = dir.join("cal.json");
+    std::fs::write(&cal, &o.stdout).unwrap();
+    // A skid-steer robot's square, judged with its own file.
+    let rover = robot_file::load(&common::robot("rover4")).unwrap();
+    let rover_rec = dir.join("rover.csv");
+    common::sim_square(&rover, Direction::Ccw, 8)
+        .save(&rover_rec)
+        .unwrap();
+    for (robot, extra, rec, stem) in [
+        (
+            "mobolab",
+            vec!["--board".into(), cal.into_os_string()],
+            test,
+            "__1_cal.txt",
+        ),
+        ("rover4", vec![], rover_rec, "__1_rover4.txt"),
+    ] {
+        let tum_dir = dir.join(format!("tum-{robot}"));
+        let o = common::wheelcal()
+            .args(["--json", "evaluate", "--robot"])
+            .arg(common::robot(robot))
+            .args(&extra)
+            .arg("--recording")
+            .arg(&rec)
+            .arg("--tum")
+            .arg(&tum_dir)
+            .output()
+            .unwrap();
+        let ev = common::json_of(&o);
+        let want = f(&ev["recordings"][0]["rmse_m"][0]);
+        let names: Vec<String> = std::fs::read_dir(&tum_dir)
+            .unwrap()
+            .map(|e| e.unwrap().file_name().to_string_lossy().into_owned())
+            .collect();
+        let find = |end: &str| {
+            tum_dir.join(
+                names
+                    .iter()
+                    .find(|n| n.ends_with(end))
+                    .unwrap_or_else(|| panic!("{robot}: no *{end} in {names:?}")),
+            )
+        };
+        let ours =
+            tum::ape_rmse(&read_tum(&find("__measured.txt")), &read_tum(&find(stem))).unwrap();
+        println!("{robot}: evaluate's RMS {want:.9} m, from the TUM files {ours:.9} m");
+        assert!(want > 1e-3, "{robot}: {want}");
+        assert!(
+            (ours - want).abs() <= 1e-9 * want,
+            "{robot}: {ours} vs evaluate's {want}"
+        );
+    }
     let _ = std::fs::remove_dir_all(&dir);
 }

@@ -4,7 +4,7 @@
 
 use crate::args::CalibrateArgs;
 use crate::calibration::saved::laws_from;
-use crate::mcap_out::{write_paths_under, PathSeries};
+use crate::mcap_out::{write_pose_paths, PoseSeries};
 use crate::output::Output;
 use crate::recordings::{load, load_all, load_encoders, recording_files, refuse_mixed_robots};
 use crate::ros2;
@@ -193,15 +193,19 @@ fn human(cal: &Calibration) -> String {
     s
 }
 
+/// A path's topic name under `/paths/` and its planar poses (x m, y m, yaw rad).
+type NamedPoses = (String, Vec<(f64, f64, f64)>);
+
 /// The MCAP file of `calibrate --report`.
 pub const PATHS_MCAP: &str = "paths.mcap";
 
 /// Writes the `--report` folder: calibration.json, summary.txt, robot.toml, ros2.yaml
 /// (differential drive), the figures (`calibrate::plots::write_calibration_svgs`),
 /// index.html ([`crate::report::calibrate`]: the factors and the apply command first)
-/// and paths.mcap (per
-/// recording, held-out one included, `/<recording>/measured`, `/nominal`, `/fitted` at
-/// its pose samples).
+/// and paths.mcap (per recording, held-out one included, its measured, nominal and
+/// fitted poses at its pose samples as `geometry_msgs/PoseStamped` on
+/// `/paths/<recording>/measured|nominal|fitted` and transforms on `/tf`:
+/// [`crate::mcap_out::write_pose_paths`]).
 fn write_report(
     cal: &Calibration,
     robot: &Robot,
@@ -226,21 +230,34 @@ fn write_report(
     let series = plots::calibration_series(cal, robot, recs, held)?;
     let figures = plots::write_calibration_svgs(cal, &series, dir)?;
     crate::report::calibrate::write(cal, robot, &figures, &summary, dir)?;
-    let names: Vec<[String; 3]> = series
+    // Per recording its measured, nominal and fitted poses, as PoseStamped on
+    // `/paths/<recording>/<path>` and transforms on `/tf`.
+    let poses: Vec<[NamedPoses; 3]> = series
         .iter()
-        .map(|s| ["measured", "nominal", "fitted"].map(|k| format!("{}/{k}", s.key)))
-        .collect();
-    let paths: Vec<PathSeries<'_>> = series
-        .iter()
-        .zip(&names)
-        .flat_map(|(s, n)| {
-            [&s.measured, &s.nominal, &s.fitted]
-                .into_iter()
-                .zip(n)
-                .map(|(xy, name)| PathSeries { name, t: &s.t, xy })
+        .map(|s| {
+            let with = |xy: &[(f64, f64)], th: &[f64]| -> Vec<(f64, f64, f64)> {
+                xy.iter().zip(th).map(|(&(x, y), &h)| (x, y, h)).collect()
+            };
+            [
+                ("measured", with(&s.measured, &s.heading_measured)),
+                ("nominal", with(&s.nominal, &s.heading_nominal)),
+                ("fitted", with(&s.fitted, &s.heading_fitted)),
+            ]
+            .map(|(k, p)| (format!("{}/{k}", s.key), p))
         })
         .collect();
-    write_paths_under("", &paths, &dir.join(PATHS_MCAP))
+    let paths: Vec<PoseSeries<'_>> = series
+        .iter()
+        .zip(&poses)
+        .flat_map(|(s, three)| {
+            three.iter().map(|(name, pose)| PoseSeries {
+                name,
+                t: &s.t,
+                pose,
+            })
+        })
+        .collect();
+    write_pose_paths(&paths, &dir.join(PATHS_MCAP))
 }
 
 #[cfg(test)]

@@ -10,12 +10,7 @@ use crate::output::Output;
 use crate::recordings::{load_all, refuse_mixed_robots};
 use crate::tum::Stamped;
 use anyhow::{anyhow, Result};
-use calib_core::correction::Corrections;
-use calib_core::kinematics::Kinematics;
-use calib_core::odometry::{integrate_arc, Pose};
-use calib_core::robot::RobotKind;
 use calibrate::{evaluate, same_wheels, Candidate};
-use formats::recording::Recording;
 use formats::robot_file;
 
 /// Runs `wheelcal evaluate`.
@@ -61,13 +56,13 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
     }
     let got = load_all(&a.recording, &robot, &a.robot, &a.bag, out)?;
     refuse_mixed_robots(&robot, &got.by_file())?;
-    let ev = evaluate(&candidates, &got.recs).map_err(|e| {
-        // Name the file, not only the short name.
-        match e.recording.as_deref().and_then(|r| got.file_of(r)) {
+    // Name the file, not only the short name.
+    let named =
+        |e: calibrate::CalibrateError| match e.recording.as_deref().and_then(|r| got.file_of(r)) {
             Some(file) => anyhow!("{}: {}", file.display(), e.message),
             None => anyhow!("{e}"),
-        }
-    })?;
+        };
+    let ev = evaluate(&candidates, &got.recs).map_err(&named)?;
     if let Some(dir) = &a.tum {
         let mut files = Vec::new();
         for (name, rec) in &got.recs {
@@ -81,19 +76,8 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
                     .file_stem()
                     .map_or_else(|| c.label.clone(), |s| s.to_string_lossy().into_owned());
                 let label = format!("{name}__{}_{stem}", i + 1);
-                match dead_reckoning(c, rec) {
-                    Some(p) => files.push((label, p)),
-                    None => out.note(&format!(
-                        "--tum: [{}] {} on {name}: not written ({})",
-                        i + 1,
-                        c.label,
-                        if c.board.is_some() {
-                            "a board's factors and laws are replayed by evaluate only"
-                        } else {
-                            "its wheels have legs or sides, whose replay evaluate keeps to itself"
-                        }
-                    )),
-                }
+                // The very replay evaluate judges: a board through its own odometry.
+                files.push((label, c.dead_reckoned(name, rec).map_err(&named)?));
             }
         }
         for f in crate::tum::write_dir(dir, &files)? {
@@ -101,50 +85,4 @@ pub fn run(a: &EvaluateArgs, out: Output) -> Result<()> {
         }
     }
     out.emit(&ev, || ev.to_string())
-}
-
-/// A robot file's dead reckoning of `rec` at its pose rows, started at its first measured
-/// pose: the encoder counts (missing cells carry the last count) as wheel angles, each
-/// row's increment through the robot's forward kinematics, integrated as an arc
-/// (calib-core's odometry). This is how `evaluate` replays a robot file (bar its mending
-/// of encoder glitches and pose jumps, which it reports as events). `None` for a board's
-/// calibration, a wheeled-legged or a skid-steer robot (their replay is evaluate's own),
-/// and for a recording without encoders or poses.
-pub fn dead_reckoning(c: &Candidate, rec: &Recording) -> Option<Vec<Stamped>> {
-    if c.board.is_some()
-        || matches!(
-            c.robot.kind,
-            RobotKind::WheeledLegged | RobotKind::SkidSteer
-        )
-    {
-        return None;
-    }
-    let rpc = c.robot.drive.rad_per_count()?;
-    let kin = Kinematics::<f64>::new(&c.robot, &Corrections::None).ok()?;
-    let n = c.robot.wheels.len();
-    if rec.wheels.len() != n {
-        return None;
-    }
-    // Counts per wheel, missing cells carrying the last (the first known before it).
-    let mut counts: Vec<Vec<i64>> = Vec::with_capacity(n);
-    for w in &rec.wheels {
-        counts.push(fitkit::series::fill(w.enc.as_ref()?)?);
-    }
-    let mut rows = rec.pose_rows().peekable();
-    let &(k0, x0, y0, th0) = rows.peek()?;
-    let mut pose = Pose::new(x0, y0, th0);
-    let mut out = Vec::new();
-    let mut inc = vec![0.0; n];
-    let mut k = k0;
-    for (row, ..) in rows {
-        while k < row {
-            for (w, c) in counts.iter().enumerate() {
-                inc[w] = (c[k + 1] as f64 - c[k] as f64) * rpc;
-            }
-            pose = integrate_arc(pose, &kin.forward(&inc));
-            k += 1;
-        }
-        out.push((rec.t[row], pose.x, pose.y, pose.theta));
-    }
-    Some(out)
 }
