@@ -24,6 +24,7 @@
 //! The entry point is [`diagnose`]; the console's `wheelcal diagnose` is a thin wrapper.
 
 pub mod actuator;
+pub mod drift;
 pub mod effects;
 pub mod finding;
 pub mod ground;
@@ -241,6 +242,27 @@ pub fn diagnose_owned(
         implausible,
     } = select::verdict(&ev, &sel, &mut findings, &left, &identification);
     let rmse_stage = findings.first().map_or(Stage::Ground, |f| f.rmse_stage);
+    // An unexplained ground residual whose changes follow none of the motion is what a
+    // wandering pose reference leaves: said, not decided (one recording cannot tell it
+    // from physics that random-walks the pose, docs/diagnose.md "Reference wander").
+    if verdict == Verdict::Unexplained {
+        if let Some(w) = reference_wander(&prepared, &sel.nominal_eval) {
+            notes.push(format!(
+                "the ground residual ({:.2} mm against {:.2} mm of white noise) wanders as a drifting pose reference would: its changes follow none of the motion (likelihood ratio {:.1} < {:.1}, spread {:.1} < {:.1}, body-frame shape {:.1} < {:.1} over {} windows of {:.1} s; {:.2} mm/sqrt(s)); if the capture frame or localiser may drift, check it before the robot",
+                sel.nominal.ground_rmse() * 1e3,
+                ev.noise.pose_sigma_m * 1e3,
+                w.statistic,
+                drift::CHI2_7_Q99,
+                w.spread,
+                drift::CHI2_4_Q99,
+                w.body_shape,
+                drift::CHI2_2_Q99,
+                w.windows,
+                w.window_s,
+                w.rate_m_per_sqrt_s * 1e3,
+            ));
+        }
+    }
 
     // Geometry this recording cannot separate (from the whole-geometry fit of the
     // recording stage), said next to any finding that names one side of it.
@@ -313,6 +335,20 @@ pub fn diagnose_owned(
         depends_on,
         windows_total,
     })
+}
+
+/// The wander test ([`drift::test`]) on the nominal ground residual, when it says the
+/// ground stage is a wandering reference (its changes follow none of the motion, and
+/// none jumps).
+fn reference_wander(p: &replay::Prepared, nominal: &residuals::Eval) -> Option<drift::Wander> {
+    let ps = &p.poses;
+    let t: Vec<f64> = ps.row.iter().map(|&r| p.t[r]).collect();
+    drift::test(
+        &t,
+        (&ps.x, &ps.y, &ps.theta),
+        (&nominal.ex, &nominal.ey, &nominal.eth),
+    )
+    .filter(|w| w.is_wander())
 }
 
 fn plot_data(ev: &Evaluator, sel: &select::Selection) -> report::PlotData {

@@ -93,11 +93,16 @@ fn noise_only_recordings_say_none() {
                             let artefacts: Vec<&str> =
                                 r.recording_artefacts.iter().map(|a| a.id).collect();
                             println!("control {k:2}: artefacts {artefacts:?}; {:?}", r.depends_on);
+                            let wander = r
+                                .notes
+                                .iter()
+                                .any(|n| n.contains("wanders as a drifting pose reference"));
                             (
                                 k,
                                 g.robot.name.to_string(),
                                 r.verdict.to_string(),
                                 r.findings.len(),
+                                wander,
                             )
                         })
                         .collect::<Vec<_>>()
@@ -108,14 +113,27 @@ fn noise_only_recordings_say_none() {
             .flat_map(|h| h.join().unwrap())
             .collect::<Vec<_>>()
     });
-    let alarms: Vec<&(usize, String, String, usize)> =
-        out.iter().filter(|(_, _, v, _)| v != "none").collect();
-    for (k, robot, v, n) in &out {
+    let alarms: Vec<&(usize, String, String, usize, bool)> =
+        out.iter().filter(|(_, _, v, ..)| v != "none").collect();
+    for (k, robot, v, n, w) in &out {
         println!(
-            "control {k:2} {robot:10} noise kind {} verdict {v} ({n} findings)",
-            (k / 6) % 6
+            "control {k:2} {robot:10} noise kind {} verdict {v} ({n} findings){}",
+            (k / 6) % 6,
+            if *w {
+                "; says the reference wanders"
+            } else {
+                ""
+            }
         );
     }
     println!("FALSE ALARMS: {} of {CONTROLS}: {:?}", alarms.len(), alarms);
     assert!(alarms.len() <= MOST_FALSE_ALARMS, "{alarms:?}");
+    // An unexplained drifting frame says what it looks like (drift::test; measured: every
+    // one of the drifting frame's false alarms).
+    let said = alarms.iter().filter(|a| a.4).count();
+    println!(
+        "the reference wander said on {said} of {} false alarms",
+        alarms.len()
+    );
+    assert_eq!(said, alarms.len(), "{alarms:?}");
 }
