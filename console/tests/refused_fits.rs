@@ -161,6 +161,29 @@ fn theta_in_degrees_is_refused() {
     }
 }
 
+/// mobolab's encoder counts four times the robot file's (quadrature edges against a
+/// per-line count): no plausible scale fits them, and the poses' spread is not explained.
+/// (Added with the fix: the heading checks pass it, the wheels-explain-the-motion rule
+/// refuses it.)
+#[test]
+fn encoder_counts_in_other_units_are_refused() {
+    let dir = scratch("units");
+    let truth = formats::robot_file::load(&robot("mobolab")).unwrap();
+    let run = drive(&dir, "run", &truth, 17);
+    rewrite(&run, |h, c| {
+        for col in ["enc_left", "enc_right"] {
+            let i = h.iter().position(|x| *x == col).unwrap();
+            c[i] = (c[i].parse::<i64>().unwrap() * 4).to_string();
+        }
+    });
+    let (o, fitted) = calibrate(&robot("mobolab"), &[run], &dir, false);
+    assert_refused(
+        &o,
+        &fitted,
+        &["run", "do not describe", "units", "% explained"],
+    );
+}
+
 /// The control: good recordings of mobolab (E_b 1.03, right wheel 1 % larger), omni3 and
 /// rover4 (as their files say) are accepted, one recording alone and two together, with
 /// the robot file written and the factors within tolerance of the truth.
