@@ -99,7 +99,7 @@ use options::Cfg;
 use params::advice;
 use pool::pool_map;
 use problem::Problem;
-use refusals::{check_inputs, refuse_bad_fit};
+use refusals::{check_inputs, refuse_bad_fit, refuse_broken_headings, refuse_unexplained};
 use result::E_B_FOR;
 use series::NUIS;
 use solve::{
@@ -143,6 +143,13 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         .into_iter()
         .flat_map(|s| s.split_at_jumps(robot))
         .collect();
+    // Broken input no geometry could make (headings in degrees, poses turning against
+    // the wheels) is refused before any fit.
+    let shapes: Vec<(String, Option<series::Shape>)> = series
+        .iter()
+        .map(|s| (s.name.clone(), series::shape(robot, s)))
+        .collect();
+    refuse_broken_headings(robot, &shapes)?;
     let held = holdout.map(|(n, r)| Series::new(n, robot, r)).transpose()?;
     let mut notes = Vec::new();
     let mut runs = 0;
@@ -529,6 +536,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         });
         offs.0 = offs.1;
     }
+    refuse_unexplained(&per_recording, &shapes)?;
     refuse_bad_fit(&per_recording, &specs, &fitted.geom, &cov)?;
     let heldout = held.as_ref().map(|h| Heldout {
         name: h.name.clone(),

@@ -852,6 +852,67 @@ fn errors_along(s: &Series, path: &Path) -> (f64, f64) {
     ((acc / s.pose_row.len() as f64).sqrt(), last.sqrt())
 }
 
+/// What a recording's poses and wheels show before any fit, for the refusals of
+/// broken input ([`crate::refusals`]): how far the poses spread, and how the measured
+/// heading follows the nominal wheels' heading.
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub(crate) struct Shape {
+    /// RMS distance of the measured positions from their mean, m.
+    pub(crate) spread_m: f64,
+    /// RMS of the measured heading about its mean (unwrapped by its steps, each wrapped
+    /// to half a turn), in the file's units.
+    pub(crate) heading_spread: f64,
+    /// Least-squares slope of the measured heading over the nominal wheels' (both about
+    /// their means): 1 / E_b-like, about 1.
+    pub(crate) heading_ratio: f64,
+    /// Correlation of the measured heading and the nominal wheels' (NaN when the wheels
+    /// do not turn at all).
+    pub(crate) heading_follow: f64,
+}
+
+/// [`Shape`] of `s` for the nominal `robot`; `None` when its kinematics do not solve.
+/// The headings themselves are compared, not their steps: a pose's heading noise
+/// stays its own size in the heading, while it adds up over the steps.
+pub(crate) fn shape(robot: &Robot, s: &Series) -> Option<Shape> {
+    let path = file_path(robot, &TurnLaw::default(), s)?;
+    let n = s.pose_row.len() as f64;
+    let mean = |v: &mut dyn Iterator<Item = f64>| v.sum::<f64>() / n;
+    let (mx, my) = (
+        mean(&mut s.px.iter().copied()),
+        mean(&mut s.py.iter().copied()),
+    );
+    let spread = mean(
+        &mut s
+            .px
+            .iter()
+            .zip(&s.py)
+            .map(|(x, y)| (x - mx).powi(2) + (y - my).powi(2)),
+    )
+    .sqrt();
+    let wrap = |a: f64| a - std::f64::consts::TAU * (a / std::f64::consts::TAU).round();
+    let mut hm = Vec::with_capacity(s.pose_row.len());
+    let mut h = s.pth[0];
+    hm.push(h);
+    for j in 1..s.pose_row.len() {
+        h += wrap(s.pth[j] - s.pth[j - 1]);
+        hm.push(h);
+    }
+    let hw: Vec<f64> = s.pose_row.iter().map(|&k| path.th[k]).collect();
+    let (am, aw) = (mean(&mut hm.iter().copied()), mean(&mut hw.iter().copied()));
+    let (mut cmw, mut cww, mut cmm) = (0.0, 0.0, 0.0);
+    for (m, w) in hm.iter().zip(&hw) {
+        cmw += (m - am) * (w - aw);
+        cww += (w - aw) * (w - aw);
+        cmm += (m - am) * (m - am);
+    }
+    Some(Shape {
+        spread_m: spread,
+        heading_spread: (cmm / n).sqrt(),
+        heading_ratio: cmw / cww,
+        heading_follow: cmw / (cww * cmm).sqrt(),
+    })
+}
+
 /// The range of no motion at all: the hull with any range is that range.
 pub(crate) fn empty_range() -> LawRange {
     LawRange {

@@ -91,6 +91,75 @@ pub fn expand(paths: &[PathBuf]) -> Result<Vec<PathBuf>> {
     Ok(v)
 }
 
+/// [`expand`], each recording once: a file given twice (by any path) or a byte-identical
+/// copy of one given before is dropped with a note naming both files (counted twice, a
+/// recording would weigh twice in a shared geometry).
+pub fn expand_distinct(paths: &[PathBuf], out: Output) -> Result<Vec<PathBuf>> {
+    let mut kept: Vec<PathBuf> = Vec::new();
+    for f in expand(paths)? {
+        if let Some(prev) = kept.iter().find(|q| same_recording(q, &f)) {
+            out.note(&twice_note(&f, prev));
+            continue;
+        }
+        kept.push(f);
+    }
+    Ok(kept)
+}
+
+/// The note for `f`, the same recording as `prev`: the same file given twice, or a copy.
+fn twice_note(f: &Path, prev: &Path) -> String {
+    let canon = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    if canon(f) == canon(prev) {
+        format!(
+            "warning: {} is given twice (also as {}): read once",
+            f.display(),
+            prev.display()
+        )
+    } else {
+        format!(
+            "warning: {} holds the same recording as {} (byte-identical contents): read once",
+            f.display(),
+            prev.display()
+        )
+    }
+}
+
+/// Whether `a` and `b` hold the same recording: the same file (by any path) or files
+/// of equal contents (compared in blocks, after their sizes; a bag folder by path only).
+pub fn same_recording(a: &Path, b: &Path) -> bool {
+    let canon = |p: &Path| std::fs::canonicalize(p).unwrap_or_else(|_| p.to_path_buf());
+    if canon(a) == canon(b) {
+        return true;
+    }
+    let (Ok(ma), Ok(mb)) = (std::fs::metadata(a), std::fs::metadata(b)) else {
+        return false;
+    };
+    if !ma.is_file() || !mb.is_file() || ma.len() != mb.len() {
+        return false;
+    }
+    let (Ok(fa), Ok(fb)) = (std::fs::File::open(a), std::fs::File::open(b)) else {
+        return false;
+    };
+    use std::io::Read;
+    let (mut ra, mut rb) = (
+        std::io::BufReader::new(fa.take(ma.len())),
+        std::io::BufReader::new(fb.take(mb.len())),
+    );
+    let (mut ba, mut bb) = (vec![0u8; 1 << 16], vec![0u8; 1 << 16]);
+    loop {
+        let n = match ra.read(&mut ba) {
+            Ok(n) => n,
+            Err(_) => return false,
+        };
+        if n == 0 {
+            return true;
+        }
+        if rb.read_exact(&mut bb[..n]).is_err() || ba[..n] != bb[..n] {
+            return false;
+        }
+    }
+}
+
 /// A short name: the run folder for `.../run/recording.csv`, else the file name.
 pub fn short_name(f: &Path) -> String {
     let file = f
@@ -317,8 +386,9 @@ impl Gathered {
 }
 
 /// Loads every recording `args` name (files, run folders, directories of them, bags)
-/// against `robot`, in order: a recording given twice (by another path too) is read once,
-/// with a warning; a robot.toml beside one naming another robot is an error.
+/// against `robot`, in order: a recording given twice (by another path, or a byte-identical
+/// copy: [`same_recording`]) is read once, with a warning naming both files; a
+/// robot.toml beside one naming another robot is an error.
 pub fn load_all(
     args: &[PathBuf],
     robot: &Robot,
@@ -330,16 +400,8 @@ pub fn load_all(
     let mut paths: Vec<PathBuf> = Vec::new();
     for p in args {
         for f in recording_files(p)? {
-            let canon = std::fs::canonicalize(&f).unwrap_or_else(|_| f.clone());
-            if let Some(prev) = paths
-                .iter()
-                .find(|q| std::fs::canonicalize(q).unwrap_or_else(|_| (*q).clone()) == canon)
-            {
-                out.note(&format!(
-                    "warning: {} is given twice (also as {}): read once",
-                    f.display(),
-                    prev.display()
-                ));
+            if let Some(prev) = paths.iter().find(|q| same_recording(q, &f)) {
+                out.note(&twice_note(&f, prev));
                 continue;
             }
             let r = load(&f, robot, robot_path, bag)?;

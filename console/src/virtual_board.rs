@@ -178,10 +178,29 @@ impl VirtualBoard {
     /// Boots a board for `robot` simulated by `sim`, with `flash` as its persistent store.
     /// A fresh flash boots with the robot file's geometry (as if it had been configured
     /// and saved once); stored values win over it, as on a real board.
+    ///
+    /// A flash image of the wrong size (`RamFlash::damaged`) is no flash of this board:
+    /// what it holds is never loaded, even an item that reads whole, and boot reports it
+    /// `corrupted` (nominal values in use).
     pub fn boot(robot: &Robot, sim: SimRobot, flash: RamFlash) -> Result<Self, BoardError> {
         let range = 0..flash.len() as u32;
+        let wrong_size = flash.damaged().is_some();
         let mut store = Store::new(flash, range).map_err(BoardError::Store)?;
-        let loaded = embassy_futures::block_on(store.load());
+        let mut loaded = embassy_futures::block_on(store.load());
+        if wrong_size {
+            let not_loaded = |s: Stored| {
+                if s == Stored::Loaded {
+                    Stored::Invalid
+                } else {
+                    s
+                }
+            };
+            loaded.boot = BootReport {
+                params: not_loaded(loaded.boot.params),
+                corrections: not_loaded(loaded.boot.corrections),
+            };
+            loaded.corrections = Corrections::None;
+        }
         let mut params = loaded.params.clone();
         let mut boot = loaded.boot;
         if loaded.boot.params != Stored::Loaded {

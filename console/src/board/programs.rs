@@ -170,8 +170,9 @@ pub fn start_program<L: Read + Write>(
     if !gone.is_empty() {
         let ids: Vec<String> = gone.iter().map(u16::to_string).collect();
         eprintln!(
-            "note: this run will evict trial(s) {} from the board's log to make room; pull any you still need first (`wheelcal log pull`)",
-            ids.join(", ")
+            "note: this run will evict trial(s) {} from the board's log to make room (it keeps the last {} trials and as many records as fit); pull any you still need first (`wheelcal log pull`)",
+            ids.join(", "),
+            calib_core::protocol::MAX_TRIALS
         );
     }
     c.run_program(program, log_rate_hz, link_timeout_ms)?;

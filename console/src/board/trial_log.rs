@@ -235,7 +235,13 @@ pub fn pull_trial_with<L: Read + Write>(
         .iter()
         .find(|t| t.id == trial)
         .cloned()
-        .with_context(|| format!("the board has no trial {trial} (see `wheelcal log list`)"))?;
+        .with_context(|| {
+            format!(
+                "the board has no trial {trial}: it keeps the last {} trials, a newer program evicting the oldest ({} evicted since boot; `wheelcal log list` shows those it holds)",
+                calib_core::protocol::MAX_TRIALS,
+                trials.evicted
+            )
+        })?;
     let robot = c.params()?.robot;
     let t0 = Instant::now();
     let data = c

@@ -11,7 +11,7 @@ use std::path::PathBuf;
 
 /// Where simulation and recording part, and the physics left out.
 pub fn run(a: DiagnoseArgs, out: Output) -> Result<()> {
-    let files = recordings::expand(&a.recording)?;
+    let files = recordings::expand_distinct(&a.recording, out)?;
     if files.len() > 1 {
         return diagnose_many(&a, &files, out);
     }
