@@ -165,7 +165,23 @@ impl ParamSpec {
     pub fn bounds(&self) -> (f64, f64) {
         (self.internal(self.min), self.internal(self.max))
     }
+
+    /// Whether `v` sits on the bound of the range nearest "no effect" (within
+    /// [`EDGE_SHARE`] of the range in the optimiser coordinate), for a parameter whose
+    /// null lies outside its range: the fit wanted no effect there (a wheel without the
+    /// per-wheel form's lag), and the bound is the range's, not a measurement.
+    pub fn at_null_edge(&self, v: f64) -> bool {
+        let (lo, hi) = self.bounds();
+        let u = self.internal(v);
+        let tol = EDGE_SHARE * (hi - lo);
+        (self.null < self.min && u <= lo + tol) || (self.null > self.max && u >= hi - tol)
+    }
 }
+
+/// The share of a parameter's range (optimiser coordinate) within which a value counts
+/// as on its bound: half a percent, well under what any fit resolves (the per-wheel
+/// delay's range, 1e-4 to 2 s, is 9.9 in log: 0.05, a 5 % step).
+pub const EDGE_SHARE: f64 = 0.005;
 
 impl Effect {
     /// Every effect: the catalogue's own first, then the mechanism variants.

@@ -198,12 +198,28 @@ pub fn diagnose_owned(
             .map(|(_, s)| s.clone())
             .unwrap_or_default();
         let names = select::named(robot, e, vals);
+        let specs = e.params(robot);
         let mut parameters = BTreeMap::new();
         let mut uncertainties = BTreeMap::new();
+        let mut at_edge = Vec::new();
         for (j, (n, v)) in names.into_iter().enumerate() {
+            // A parameter the fit pushed to the bound nearest "no effect" is not a
+            // measurement: said as no effect, not reported at the range's edge.
+            if let Some(spec) = specs.get(j).filter(|s| s.at_null_edge(v)) {
+                at_edge.push(format!("{n} (its range's bound {})", spec_bound(spec)));
+                continue;
+            }
             parameters.insert(n.clone(), v);
             let s = sig_vals.get(j).copied().filter(|s| s.is_finite());
             uncertainties.insert(n, s);
+        }
+        if !at_edge.is_empty() {
+            notes.push(format!(
+                "{} ({}): no effect fitted for {}; not reported",
+                e.id(),
+                e.mechanism(),
+                at_edge.join(", ")
+            ));
         }
         let stage = select::evidence_stage(&ev, e);
         let (b, a) = match stage {
@@ -335,6 +351,16 @@ pub fn diagnose_owned(
         depends_on,
         windows_total,
     })
+}
+
+/// The bound of `spec`'s range nearest its null, as written.
+fn spec_bound(spec: &effects::ParamSpec) -> String {
+    let b = if spec.null < spec.min {
+        spec.min
+    } else {
+        spec.max
+    };
+    format!("{b}")
 }
 
 /// The wander test ([`drift::test`]) on the nominal ground residual, when it says the

@@ -1,6 +1,7 @@
 //! Several recordings of one robot at once: the geometry is shared (fitted jointly by
-//! [`calibrate`](mod@calibrate), start pose and clocks per recording), then each recording is
-//! diagnosed against that shared geometry for what is left. Every finding says which
+//! [`calibrate`](mod@calibrate) as it fits by default, dead reckoning from each first
+//! pose; each recording's start pose and clocks from its own aligned fit), then each
+//! recording is diagnosed against that shared geometry for what is left. Every finding says which
 //! recordings carry it: a finding present in only some recordings is reported as such,
 //! not as a property of the robot.
 
@@ -19,10 +20,9 @@ pub struct RecordingResult {
     pub name: String,
     /// Rows in the recording.
     pub rows: usize,
-    /// Ground RMSE with the nominal geometry and with the shared geometry (start pose and
-    /// clocks fitted), m.
+    /// Ground RMSE with the nominal geometry, its start pose and clocks fitted, m.
     pub rmse_nominal_m: f64,
-    /// Ground RMSE with the shared geometry, m.
+    /// Ground RMSE with the shared geometry, its start pose and clocks fitted, m.
     pub rmse_shared_geometry_m: f64,
     /// Diagnosis of what the shared geometry leaves in this recording.
     pub verdict: crate::Verdict,
@@ -40,15 +40,17 @@ pub struct RecordingResult {
 pub struct MultiReport {
     /// The robot's name.
     pub robot: String,
-    /// Shared geometry, its identifiability and plausibility, per-recording nuisance.
+    /// The shared geometry as `calibrate` fits it by default (dead reckoning from each
+    /// recording's first pose), its identifiability, plausibility and cross-validation.
     pub geometry: Calibration,
     /// Each recording's diagnosis, in the order given.
     pub recordings: Vec<RecordingResult>,
     /// Finding id or geometry parameter -> recordings that carry it.
     pub carried_by: BTreeMap<String, Vec<String>>,
-    /// Ground RMSE of all recordings together with the nominal geometry, m.
+    /// Ground RMSE of all recordings together with the nominal geometry (each its start
+    /// pose and clocks fitted; pose samples weighted alike), m.
     pub joint_rmse_nominal_m: f64,
-    /// Ground RMSE of all recordings together with the shared geometry, m.
+    /// The same with the shared geometry, m.
     pub joint_rmse_shared_geometry_m: f64,
 }
 
@@ -58,26 +60,47 @@ pub fn diagnose_many(
     recordings: &[(String, Recording)],
     options: &Options,
 ) -> Result<MultiReport, CalibrateError> {
+    // The shared geometry as `calibrate` fits it by default (dead reckoning from each
+    // recording's first pose, cross-validated by run), so that the two commands agree.
+    // Its cost follows the rows: the aligned fit of every recording at once (a start
+    // pose and clocks per recording) holds a Jacobian of all rows by five columns per
+    // recording, n^2 in memory (issue 52: 48 real recordings took 3.7 GB).
     let cal = calibrate(
         robot,
         recordings,
         None,
         &CalOptions {
             leave_one_out: recordings.len() >= 3,
-            free_start: true,
             ..CalOptions::default()
         },
     )?;
     let mut carried_by: BTreeMap<String, Vec<String>> = BTreeMap::new();
     let mut out = Vec::new();
+    let (mut sum_n, mut sum_before, mut sum_after) = (0.0, 0.0, 0.0);
     for (i, (name, rec)) in recordings.iter().enumerate() {
-        let per = &cal.per_recording[i];
-        // Which geometry parameters this recording shows on its own.
+        // Its part of the joint fit (the first part when a pose jump split it).
+        let part = format!("{name}{}", calibrate::PART_SEP);
+        let per = cal
+            .per_recording
+            .iter()
+            .find(|p| p.name == *name || p.name.starts_with(&part))
+            .ok_or_else(|| CalibrateError {
+                recording: Some(name.clone()),
+                message: "the joint fit has no result for it".into(),
+            })?;
+        // Which geometry parameters this recording shows on its own, and its start pose
+        // and clocks (aligned: one recording's Jacobian, linear in its rows).
         let own_opts = CalOptions {
             free_start: true,
             ..CalOptions::default()
         };
         let own = calibrate(robot, &recordings[i..=i], None, &own_opts)?;
+        let Some(own_fit) = own.per_recording.first() else {
+            return Err(CalibrateError {
+                recording: Some(name.clone()),
+                message: "its own fit has no result".into(),
+            });
+        };
         let geometry_evidence: Vec<String> = own
             .params
             .iter()
@@ -89,7 +112,7 @@ pub fn diagnose_many(
             carried_by.entry(g.clone()).or_default().push(name.clone());
         }
         // Recording artefacts (late or fast pose clock) are removed before physics.
-        let rec = &crate::recording_stage::on_encoder_clock(rec, &per.nuisance);
+        let rec = &crate::recording_stage::on_encoder_clock(rec, &own_fit.nuisance);
         let rep = diagnose(&cal.fitted_robot, rec, options).map_err(|e| CalibrateError {
             recording: Some(name.clone()),
             message: e.to_string(),
@@ -106,11 +129,15 @@ pub fn diagnose_many(
             };
             carried_by.entry(key).or_default().push(name.clone());
         }
+        let n = per.pose_samples as f64;
+        sum_n += n;
+        sum_before += n * per.aligned_before_m.powi(2);
+        sum_after += n * per.aligned_after_m.powi(2);
         out.push(RecordingResult {
             name: name.clone(),
             rows: rec.len(),
-            rmse_nominal_m: per.rmse_before_m,
-            rmse_shared_geometry_m: per.rmse_after_m,
+            rmse_nominal_m: per.aligned_before_m,
+            rmse_shared_geometry_m: per.aligned_after_m,
             verdict: rep.verdict.clone(),
             findings: rep.findings.clone(),
             rmse_final_m: rep.rmse.ground.after_m,
@@ -119,8 +146,8 @@ pub fn diagnose_many(
     }
     Ok(MultiReport {
         robot: robot.name.to_string(),
-        joint_rmse_nominal_m: cal.joint_rmse_before_m,
-        joint_rmse_shared_geometry_m: cal.joint_rmse_after_m,
+        joint_rmse_nominal_m: (sum_before / sum_n).sqrt(),
+        joint_rmse_shared_geometry_m: (sum_after / sum_n).sqrt(),
         geometry: cal,
         recordings: out,
         carried_by,
@@ -132,7 +159,7 @@ impl fmt::Display for MultiReport {
         let n = self.recordings.len();
         writeln!(
             f,
-            "diagnose {}: {n} recordings jointly (geometry shared; start pose and clocks per recording)",
+            "diagnose {}: {n} recordings jointly (geometry shared, as calibrate fits it; start pose and clocks per recording)",
             self.robot
         )?;
         writeln!(
