@@ -178,3 +178,32 @@ fn factors_export_from_reads_only_a_regular_file() {
     refused(got, &p, "FIFO");
     assert!(!out.exists());
 }
+
+/// The files formats reads itself (robot file, runs file): a FIFO given as `--robot` or
+/// `--runs` waited for a writer forever; refused by name at once, as a FIFO.
+#[test]
+fn robot_and_runs_files_read_only_regular_files() {
+    let dir = scratch("bounded-robot");
+    let p = fifo(&dir);
+    let mobolab = robot("mobolab");
+    for args in [
+        vec![
+            "diagnose",
+            "--robot",
+            p.to_str().unwrap(),
+            "--recording",
+            mobolab.to_str().unwrap(),
+        ],
+        vec!["robot", "show", p.to_str().unwrap()],
+        vec![
+            "umbmark",
+            "compute",
+            "--robot",
+            mobolab.to_str().unwrap(),
+            "--runs",
+            p.to_str().unwrap(),
+        ],
+    ] {
+        refused(bounded(None, &args), &p, "FIFO");
+    }
+}
