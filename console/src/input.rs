@@ -18,26 +18,7 @@ pub const MAX_CALIBRATION_BYTES: u64 = 16 << 20;
 /// hand edits and comments.
 pub const MAX_SIDECAR_BYTES: u64 = 64 << 10;
 
-/// What a file system object that is not a regular file is, in words.
-pub fn kind_of(meta: &std::fs::Metadata) -> &'static str {
-    use std::os::unix::fs::FileTypeExt;
-    let t = meta.file_type();
-    if t.is_file() {
-        "a regular file"
-    } else if t.is_dir() {
-        "a folder"
-    } else if t.is_fifo() {
-        "a FIFO (named pipe)"
-    } else if t.is_char_device() {
-        "a character device"
-    } else if t.is_block_device() {
-        "a block device"
-    } else if t.is_socket() {
-        "a socket"
-    } else {
-        "not a regular file"
-    }
-}
+pub use formats::text_file::kind_of;
 
 /// `Ok(())` if `path` is a regular file (links followed); otherwise an error naming it
 /// and saying what it is, for a `what` ("calibration JSON"). A missing file is left to

@@ -194,7 +194,13 @@ fn robot_and_runs_files_read_only_regular_files() {
             "--recording",
             mobolab.to_str().unwrap(),
         ],
-        vec!["robot", "show", p.to_str().unwrap()],
+        vec![
+            "evaluate",
+            "--robot",
+            p.to_str().unwrap(),
+            "--recording",
+            mobolab.to_str().unwrap(),
+        ],
         vec![
             "umbmark",
             "compute",

@@ -1,6 +1,7 @@
-//! Reading a text input whatever the path names: the read is capped by the bytes actually
-//! read (a device such as `/dev/zero` reports a size of 0 and never ends), and binary data
-//! is refused at its first NUL byte instead of after reading it all.
+//! Reading a text input whatever the path names: only a regular file is opened (a FIFO
+//! would wait for a writer forever, a device such as `/dev/zero` never ends), the read is
+//! capped by the bytes actually read, and binary data is refused at its first NUL byte
+//! instead of after reading it all.
 
 use std::io::Read;
 use std::path::Path;
@@ -56,6 +57,27 @@ impl std::fmt::Display for ReadError {
 
 impl std::error::Error for ReadError {}
 
+/// What a file system object that is not a regular file is, in words.
+pub fn kind_of(meta: &std::fs::Metadata) -> &'static str {
+    use std::os::unix::fs::FileTypeExt;
+    let t = meta.file_type();
+    if t.is_file() {
+        "a regular file"
+    } else if t.is_dir() {
+        "a folder"
+    } else if t.is_fifo() {
+        "a FIFO (named pipe)"
+    } else if t.is_char_device() {
+        "a character device"
+    } else if t.is_block_device() {
+        "a block device"
+    } else if t.is_socket() {
+        "a socket"
+    } else {
+        "not a regular file"
+    }
+}
+
 /// Reads at most `max_bytes` of UTF-8 text from `path`; `what` names the kind of file in
 /// messages ("robot file"). More bytes, a NUL byte or invalid UTF-8 are errors, found
 /// within the first 64 KiB read past the fault.
@@ -65,6 +87,14 @@ pub fn read_capped(path: &Path, max_bytes: u64, what: &str) -> Result<String, Re
         std::fs::metadata(path).map_err(|e| ReadError(format!("cannot read {what}: {e}")))?;
     if meta.is_dir() {
         return Err(ReadError(format!("is a folder, not a {what}")));
+    }
+    // A device, FIFO or socket is refused before it is opened: opening a FIFO waits for
+    // a writer (forever), and a device such as /dev/zero never ends.
+    if !meta.is_file() {
+        return Err(ReadError(format!(
+            "{}, not a regular file: a {what} is read from a regular file",
+            kind_of(&meta)
+        )));
     }
     let file =
         std::fs::File::open(path).map_err(|e| ReadError(format!("cannot read {what}: {e}")))?;
@@ -105,11 +135,14 @@ mod tests {
     use super::*;
 
     #[test]
-    fn endless_devices_stop_at_the_cap_or_the_first_nul() {
+    fn devices_are_refused_and_files_stop_at_the_cap_or_the_first_nul() {
         for dev in ["/dev/zero", "/dev/full"] {
             if Path::new(dev).exists() {
                 let e = read_capped(Path::new(dev), 1 << 20, "robot file").unwrap_err();
-                assert!(e.0.contains("NUL byte at offset 0"), "{e}");
+                assert!(
+                    e.0.contains("a character device, not a regular file"),
+                    "{e}"
+                );
             }
         }
         let dir = std::env::temp_dir().join(format!("formats-capped-{}", std::process::id()));
@@ -122,6 +155,9 @@ mod tests {
         std::fs::write(&f, [b'a', 0xff, b'b']).unwrap();
         let e = read_capped(&f, 1000, "runs file").unwrap_err();
         assert!(e.0.contains("offset 1"), "{e}");
+        std::fs::write(&f, [b'a', 0, b'b']).unwrap();
+        let e = read_capped(&f, 1000, "runs file").unwrap_err();
+        assert!(e.0.contains("NUL byte at offset 1"), "{e}");
         let e = read_capped(&dir, 1000, "runs file").unwrap_err();
         assert!(e.0.contains("folder"), "{e}");
         let _ = std::fs::remove_dir_all(&dir);
