@@ -118,10 +118,12 @@ fn a_slipping_hub_is_found_on_its_wheel() {
     assert_eq!(mechanism, "per_wheel", "{p:?}");
     within("hub", &p, &format!("mu_{w3}"), mu, 0.4);
     // The slipping wheel has the lowest limit (the strict check, every other wheel's at
-    // least 5 times it, is not met: see `and_no_other`).
+    // least 5 times it, is not met: see `and_no_other`). A wheel whose limit went to the
+    // top of its range is not reported (no slip fitted there): higher still.
     for w in gen.robot.wheels.iter().filter(|w| w.name.as_str() != w3) {
-        let v = p[&format!("mu_{}", w.name)];
-        assert!(v > p[&format!("mu_{w3}")], "hub: mu_{} = {v:.4}", w.name);
+        if let Some(&v) = p.get(&format!("mu_{}", w.name)) {
+            assert!(v > p[&format!("mu_{w3}")], "hub: mu_{} = {v:.4}", w.name);
+        }
     }
 }
 
@@ -137,8 +139,10 @@ fn a_slipping_hub_is_found_on_its_wheel_and_no_other() {
         return;
     };
     for w in gen.robot.wheels.iter().filter(|w| w.name.as_str() != w3) {
-        let v = p[&format!("mu_{}", w.name)];
-        assert!(v >= 5.0 * mu, "hub: mu_{} = {v:.4} (no slip there)", w.name);
+        // Not reported: at the top of its range, no slip fitted there.
+        if let Some(&v) = p.get(&format!("mu_{}", w.name)) {
+            assert!(v >= 5.0 * mu, "hub: mu_{} = {v:.4} (no slip there)", w.name);
+        }
     }
 }
 
