@@ -8,7 +8,10 @@
 //! calib-core's odometry, laws included, not as the robot file that stands for them.
 
 use super::error::CalibrateError;
-use super::series::{board_dead_reckoning_errors, dead_reckoning_errors, Event, Series};
+use super::series::{
+    board_dead_reckoned_poses, board_dead_reckoning_errors, dead_reckoned_poses,
+    dead_reckoning_errors, Event, Series, Stamped,
+};
 use super::turn_law::TurnLaw;
 use calib_core::correction::Corrections;
 use calib_core::robot::Robot;
@@ -137,11 +140,11 @@ impl Candidate {
         &self,
         name: &str,
         rec: &Recording,
-    ) -> Result<Vec<crate::Stamped>, CalibrateError> {
+    ) -> Result<Vec<Stamped>, CalibrateError> {
         let s = Series::new(name, &self.robot, rec)?;
         match &self.board {
-            None => crate::dead_reckoned_poses(&self.robot, &TurnLaw::default(), &s),
-            Some(c) => crate::board_dead_reckoned_poses(&self.robot, c, &s),
+            None => dead_reckoned_poses(&self.robot, &TurnLaw::default(), &s),
+            Some(c) => board_dead_reckoned_poses(&self.robot, c, &s),
         }
         .ok_or_else(|| self.cannot_replay(name))
     }
