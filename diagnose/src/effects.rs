@@ -172,9 +172,21 @@ impl ParamSpec {
     /// per-wheel form's lag), and the bound is the range's, not a measurement.
     pub fn at_null_edge(&self, v: f64) -> bool {
         let (lo, hi) = self.bounds();
-        let u = self.internal(v);
         let tol = EDGE_SHARE * (hi - lo);
-        (self.null < self.min && u <= lo + tol) || (self.null > self.max && u >= hi - tol)
+        self.null_bound()
+            .is_some_and(|b| (self.internal(v) - self.internal(b)).abs() <= tol)
+    }
+
+    /// The bound of the range nearest "no effect", for a parameter whose null lies
+    /// outside its range.
+    pub fn null_bound(&self) -> Option<f64> {
+        if self.null < self.min {
+            Some(self.min)
+        } else if self.null > self.max {
+            Some(self.max)
+        } else {
+            None
+        }
     }
 }
 

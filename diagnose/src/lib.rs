@@ -206,7 +206,10 @@ pub fn diagnose_owned(
             // A parameter the fit pushed to the bound nearest "no effect" is not a
             // measurement: said as no effect, not reported at the range's edge.
             if let Some(spec) = specs.get(j).filter(|s| s.at_null_edge(v)) {
-                at_edge.push(format!("{n} (its range's bound {})", spec_bound(spec)));
+                at_edge.push(format!(
+                    "{n} (its range's bound {})",
+                    spec.null_bound().unwrap_or(v)
+                ));
                 continue;
             }
             parameters.insert(n.clone(), v);
@@ -351,16 +354,6 @@ pub fn diagnose_owned(
         depends_on,
         windows_total,
     })
-}
-
-/// The bound of `spec`'s range nearest its null, as written.
-fn spec_bound(spec: &effects::ParamSpec) -> String {
-    let b = if spec.null < spec.min {
-        spec.min
-    } else {
-        spec.max
-    };
-    format!("{b}")
 }
 
 /// The wander test ([`drift::test`]) on the nominal ground residual, when it says the

@@ -339,17 +339,7 @@ fn cases() -> Vec<Case> {
     out
 }
 
-struct Outcome {
-    name: String,
-    control: bool,
-    verdict: String,
-    verdict_ok: bool,
-    full_ok: bool,
-    seconds: f64,
-    detail: String,
-}
-
-fn run(case: &Case) -> Outcome {
+fn run(case: &Case) -> check::Outcome {
     let start = Instant::now();
     let (rec, stats) = generate(&case.gen);
     let gen_s = start.elapsed().as_secs_f64();
@@ -404,12 +394,13 @@ fn run(case: &Case) -> Outcome {
         r.recording_artefacts.len(),
         r.depends_on,
     );
-    Outcome {
+    check::Outcome {
         name: case.name.to_string(),
         control: case.control(),
         verdict: r.verdict.to_string(),
         verdict_ok,
         full_ok: problems.is_empty(),
+        wrong_effect: check::wrong_effect(r.verdict.as_str(), verdict_ok),
         seconds,
         detail: format!("{}; {detail}", problems.join("; ")),
     }
@@ -428,31 +419,10 @@ const RIGHT_VERDICTS_FLOOR: usize = 9;
 fn blind_physics() {
     let all = cases();
     let t0 = Instant::now();
-    let outcomes: Vec<Outcome> = check::run_selected(&all, |c| c.name, run);
-    for o in &outcomes {
-        let tag = match (o.full_ok, o.verdict_ok) {
-            (true, _) => "ok  ",
-            (false, true) => "part",
-            _ => "FAIL",
-        };
-        println!(
-            "{tag} {:34} {:5.1} s verdict {}; {}",
-            o.name, o.seconds, o.verdict, o.detail
-        );
-    }
-    let n = outcomes.len();
-    let full = outcomes.iter().filter(|o| o.full_ok).count();
-    let verdicts = outcomes.iter().filter(|o| o.verdict_ok).count();
-    let controls = outcomes.iter().filter(|o| o.control).count();
-    let controls_ok = outcomes
-        .iter()
-        .filter(|o| o.control && o.verdict_ok)
-        .count();
-    println!(
-        "SCORE: {full}/{n} fully right, {verdicts}/{n} right verdicts, {controls_ok}/{controls} \
-         controls none; {:.1} s",
-        t0.elapsed().as_secs_f64()
-    );
+    let outcomes: Vec<check::Outcome> = check::run_selected(&all, |c| c.name, run);
+    let check::Score {
+        n, full, verdicts, ..
+    } = check::score(&outcomes, t0);
     let bad: Vec<&str> = outcomes
         .iter()
         .filter(|o| o.control && !o.verdict_ok)

@@ -448,25 +448,13 @@ impl Case {
     }
 }
 
-struct Outcome {
-    name: String,
-    control: bool,
-    verdict: String,
-    verdict_ok: bool,
-    full_ok: bool,
-    /// A catalogue effect named as the verdict where another (or none) was right.
-    wrong_effect: bool,
-    seconds: f64,
-    detail: String,
-}
-
-fn run(case: &Case) -> Outcome {
+fn run(case: &Case) -> check::Outcome {
     let start = Instant::now();
     let (rec, stats) = generate(&case.gen);
     let rec = match rec {
         Ok(r) => r,
         Err(e) => {
-            return Outcome {
+            return check::Outcome {
                 name: case.name.into(),
                 control: case.control(),
                 verdict: "refused".into(),
@@ -481,7 +469,7 @@ fn run(case: &Case) -> Outcome {
     let r = match diagnose(&case.gen.robot, &rec, &Options::default()) {
         Ok(r) => r,
         Err(e) => {
-            return Outcome {
+            return check::Outcome {
                 name: case.name.into(),
                 control: case.control(),
                 verdict: "error".into(),
@@ -496,7 +484,7 @@ fn run(case: &Case) -> Outcome {
     let seconds = start.elapsed().as_secs_f64();
     let verdict = r.verdict.as_str().to_string();
     let verdict_ok = case.verdicts.contains(&verdict.as_str());
-    let wrong_effect = !verdict_ok && verdict != "none" && verdict != "unexplained";
+    let wrong_effect = check::wrong_effect(&verdict, verdict_ok);
     let (_, mut problems) = check::verdict_and_params(&r, "any", &case.also, &case.params);
     problems.retain(|p| !p.starts_with("verdict"));
     if !verdict_ok {
@@ -558,7 +546,7 @@ fn run(case: &Case) -> Outcome {
         stats.dr_rms_m * 1e3,
         stats.dr_rms_rad * 1e3,
     );
-    Outcome {
+    check::Outcome {
         name: case.name.into(),
         control: case.control(),
         verdict,
@@ -578,32 +566,10 @@ const RIGHT_VERDICTS_FLOOR: usize = 20;
 fn habits_physics() {
     let all = cases();
     let t0 = Instant::now();
-    let outcomes: Vec<Outcome> = check::run_selected(&all, |c| c.name, run);
-    for o in &outcomes {
-        let tag = match (o.full_ok, o.verdict_ok) {
-            (true, _) => "ok  ",
-            (false, true) => "part",
-            _ => "FAIL",
-        };
-        println!(
-            "{tag} {:32} {:5.1} s verdict {}; {}",
-            o.name, o.seconds, o.verdict, o.detail
-        );
-    }
-    let n = outcomes.len();
-    let full = outcomes.iter().filter(|o| o.full_ok).count();
-    let verdicts = outcomes.iter().filter(|o| o.verdict_ok).count();
-    let wrong = outcomes.iter().filter(|o| o.wrong_effect).count();
-    let controls = outcomes.iter().filter(|o| o.control).count();
-    let controls_ok = outcomes
-        .iter()
-        .filter(|o| o.control && o.verdict_ok)
-        .count();
-    println!(
-        "SCORE: {full}/{n} fully right, {verdicts}/{n} right verdicts, {controls_ok}/{controls} \
-         controls none, {wrong} wrong effects named; {:.1} s",
-        t0.elapsed().as_secs_f64()
-    );
+    let outcomes: Vec<check::Outcome> = check::run_selected(&all, |c| c.name, run);
+    let check::Score {
+        n, full, verdicts, ..
+    } = check::score(&outcomes, t0);
     if n == all.len() {
         assert!(full >= FULLY_RIGHT_FLOOR, "{full} fully right");
         assert!(

@@ -397,26 +397,11 @@ pub fn raw_counts_ratios(robot: &Robot, rec: &Recording) -> Vec<Option<RawRatio>
     let Ok(kin) = Kinematics::<f64>::new(robot, &Corrections::None) else {
         return none;
     };
-    let rows: Vec<(usize, f64, f64, f64)> = rec
-        .pose_rows()
-        .filter(|r| r.0 < rec.t.len() && rec.t[r.0].is_finite())
-        .collect();
-    if rows.len() < 20 {
-        return none;
-    }
-    let mut th: Vec<f64> = rows.iter().map(|r| r.3).collect();
-    unwrap_angles(&mut th);
     // Median pose interval: steps across a longer gap are skipped (a chord over a gap is
     // not the wheel's travel).
-    let mut d: Vec<f64> = rows
-        .windows(2)
-        .map(|w| rec.t[w[1].0] - rec.t[w[0].0])
-        .collect();
-    d.sort_by(|a, b| a.total_cmp(b));
-    let dt_med = d[d.len() / 2];
-    if dt_med.is_nan() || dt_med <= 0.0 {
+    let Some((rows, th, dt_med)) = segments::pose_track(rec) else {
         return none;
-    }
+    };
     // Per wheel, (measured, asked) travel per segment, rad.
     let mut segs: Vec<Vec<(f64, f64)>> = vec![Vec::new(); nw];
     let mut acc = vec![(0.0, 0.0); nw];

@@ -41,17 +41,18 @@ impl Segments {
     }
 }
 
-/// The segments of `rec`, between consecutive pose rows (steps across a gap longer than
-/// 2.5 median pose intervals end a segment). `None` without enough poses.
-pub(super) fn segments(robot: &Robot, rec: &Recording) -> Option<Segments> {
-    let nw = robot.wheels.len();
-    let rpc = robot.drive.rad_per_count().unwrap_or(f64::NAN);
-    let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
+/// A recording's pose rows with a finite time (row, x, y, theta), their headings
+/// unwrapped, and the median interval between them (s): what the segment statistics walk.
+/// `None` with fewer than 20 such rows or no positive median interval.
+pub(super) type PoseTrack = (Vec<(usize, f64, f64, f64)>, Vec<f64>, f64);
+
+/// See [`PoseTrack`].
+pub(super) fn pose_track(rec: &Recording) -> Option<PoseTrack> {
     let rows: Vec<(usize, f64, f64, f64)> = rec
         .pose_rows()
         .filter(|r| r.0 < rec.t.len() && rec.t[r.0].is_finite())
         .collect();
-    if rows.len() < 20 || rec.wheels.len() != nw {
+    if rows.len() < 20 {
         return None;
     }
     let mut th: Vec<f64> = rows.iter().map(|r| r.3).collect();
@@ -64,6 +65,19 @@ pub(super) fn segments(robot: &Robot, rec: &Recording) -> Option<Segments> {
     if dt_med.is_nan() || dt_med <= 0.0 {
         return None;
     }
+    Some((rows, th, dt_med))
+}
+
+/// The segments of `rec`, between consecutive pose rows (steps across a gap longer than
+/// 2.5 median pose intervals end a segment). `None` without enough poses.
+pub(super) fn segments(robot: &Robot, rec: &Recording) -> Option<Segments> {
+    let nw = robot.wheels.len();
+    let rpc = robot.drive.rad_per_count().unwrap_or(f64::NAN);
+    let kin = Kinematics::<f64>::new(robot, &Corrections::None).ok()?;
+    if rec.wheels.len() != nw {
+        return None;
+    }
+    let (rows, th, dt_med) = pose_track(rec)?;
     let mut out = Segments {
         enc: vec![],
         asked: vec![],

@@ -60,6 +60,23 @@ pub(super) fn correlations(segs: &Segments, nw: usize) -> Vec<Vec<f64>> {
         .collect()
 }
 
+/// The share of each judged column's motion its assigned wheel leaves unexplained
+/// (1 - r^2, 1 where the correlation is unknown), summed: column `cols[a]` read as wheel
+/// `cols[p[a]]`.
+fn order_cost(c: &[Vec<f64>], cols: &[usize], p: &[usize]) -> f64 {
+    p.iter()
+        .enumerate()
+        .map(|(a, &b)| {
+            let r = c[cols[a]][cols[b]];
+            if r.is_finite() {
+                1.0 - r * r
+            } else {
+                1.0
+            }
+        })
+        .sum()
+}
+
 /// The statistics the wiring thresholds bound: the smallest correlation of a column
 /// with its own wheel, and the smallest unexplained share of any other order of the
 /// columns over that of the columns as written.
@@ -68,19 +85,7 @@ pub(super) fn wiring_stats(robot: &Robot, segs: &Segments) -> (f64, f64) {
     let c = correlations(segs, nw);
     let cols: Vec<usize> = (0..nw).filter(|&i| c[i][i].is_finite()).collect();
     let own = cols.iter().map(|&i| c[i][i]).fold(f64::INFINITY, f64::min);
-    let cost = |p: &[usize]| -> f64 {
-        p.iter()
-            .enumerate()
-            .map(|(a, &b)| {
-                let r = c[cols[a]][cols[b]];
-                if r.is_finite() {
-                    1.0 - r * r
-                } else {
-                    1.0
-                }
-            })
-            .sum()
-    };
+    let cost = |p: &[usize]| order_cost(&c, &cols, p);
     let m = cols.len();
     let base = cost(&(0..m).collect::<Vec<_>>());
     let ratio = if (1..=MAX_PERMUTED).contains(&m) {
@@ -105,19 +110,7 @@ pub(super) fn wiring(robot: &Robot, rec: &mut Recording, segs: &Segments) -> Vec
     if m == 0 {
         return vec![];
     }
-    let cost = |p: &[usize]| -> f64 {
-        p.iter()
-            .enumerate()
-            .map(|(a, &b)| {
-                let r = c[cols[a]][cols[b]];
-                if r.is_finite() {
-                    1.0 - r * r
-                } else {
-                    1.0
-                }
-            })
-            .sum()
-    };
+    let cost = |p: &[usize]| order_cost(&c, &cols, p);
     let identity: Vec<usize> = (0..m).collect();
     let mut best = identity.clone();
     if m <= MAX_PERMUTED {

@@ -118,3 +118,70 @@ pub fn run_selected<C: Sync, O: Send>(
         hs.into_iter().flat_map(|h| h.join().unwrap()).collect()
     })
 }
+
+/// One case's result in a suite that scores verdicts (blind, habits).
+pub struct Outcome {
+    pub name: String,
+    /// A noise-only case (its right verdict is `none`).
+    pub control: bool,
+    pub verdict: String,
+    pub verdict_ok: bool,
+    /// The verdict and every check of the case right.
+    pub full_ok: bool,
+    /// A catalogue effect named as the verdict where another (or none) was right.
+    pub wrong_effect: bool,
+    pub seconds: f64,
+    pub detail: String,
+}
+
+/// Whether a wrong verdict named a catalogue effect (not `none` or `unexplained`): the
+/// worst miss, an answer a user would act on.
+pub fn wrong_effect(verdict: &str, verdict_ok: bool) -> bool {
+    !verdict_ok && verdict != "none" && verdict != "unexplained"
+}
+
+/// A suite's counts over its outcomes.
+pub struct Score {
+    pub n: usize,
+    pub full: usize,
+    pub verdicts: usize,
+    pub wrong: usize,
+    pub controls: usize,
+    pub controls_ok: usize,
+}
+
+/// Prints each outcome (tagged `ok`, `part`: the verdict right, `FAIL`) and the suite's
+/// SCORE line, started at `t0`; returns the counts.
+pub fn score(outcomes: &[Outcome], t0: std::time::Instant) -> Score {
+    for o in outcomes {
+        let tag = match (o.full_ok, o.verdict_ok) {
+            (true, _) => "ok  ",
+            (false, true) => "part",
+            _ => "FAIL",
+        };
+        println!(
+            "{tag} {:34} {:5.1} s verdict {}; {}",
+            o.name, o.seconds, o.verdict, o.detail
+        );
+    }
+    let count = |f: &dyn Fn(&Outcome) -> bool| outcomes.iter().filter(|o| f(o)).count();
+    let s = Score {
+        n: outcomes.len(),
+        full: count(&|o| o.full_ok),
+        verdicts: count(&|o| o.verdict_ok),
+        wrong: count(&|o| o.wrong_effect),
+        controls: count(&|o| o.control),
+        controls_ok: count(&|o| o.control && o.verdict_ok),
+    };
+    println!(
+        "SCORE: {}/{n} fully right, {}/{n} right verdicts, {}/{} controls none, {} wrong effects named; {:.1} s",
+        s.full,
+        s.verdicts,
+        s.controls_ok,
+        s.controls,
+        s.wrong,
+        t0.elapsed().as_secs_f64(),
+        n = s.n
+    );
+    s
+}
