@@ -751,7 +751,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
             )
         }) {
             notes.push(
-                "wheel angle, position and roller angle have no firmware factor: use --write-robot to carry them"
+                "wheel angle, position and roller angle have no firmware factor: `wheelcal apply` puts the fitted geometry on the board (`robot set`, the JSON's board_geometry) with factors of one; --write-robot and --write-board-robot write it for other tools"
                     .into(),
             );
         }

@@ -189,6 +189,9 @@ pub struct WheelGeometry {
     pub l_m: f64,
     /// Fitted mounting angle (direction of the wheel's position), degrees.
     pub alpha_deg: f64,
+    /// The wheel plane's angle to the chassis, degrees (moved with `alpha_deg` when the
+    /// wheels' centre is fitted, so the wheel keeps its heading).
+    pub beta_deg: f64,
     /// Roller angle, degrees (fitted for mecanum wheels in the roller model).
     pub gamma_deg: f64,
 }
@@ -485,7 +488,10 @@ pub struct Calibration {
     pub law_tests: Vec<LawTest>,
     /// With a turn law: the fitted robot with the separation of a turn in place, which
     /// the law widens on arcs ([`dead_reckoning_rmse_law`](crate::dead_reckoning_rmse_law)); else `fitted_robot`.
-    #[serde(skip)]
+    /// The JSON gives each wheel's geometry as `board_geometry`: what `wheelcal apply`
+    /// puts on a board when no factor carries the fitted geometry (an omni robot's wheel
+    /// distances, angles, centre or roller angle).
+    #[serde(rename = "board_geometry", serialize_with = "serialize_geometry")]
     pub law_base_robot: Robot,
     /// What `--e-b-for` placed in the robot file and ROS 2 (its notes give the values).
     #[serde(skip)]
@@ -538,6 +544,7 @@ fn wheel_geometry(robot: &Robot) -> Vec<WheelGeometry> {
             radius_m: w.radius_m,
             l_m: w.l_m,
             alpha_deg: w.alpha_rad.to_degrees(),
+            beta_deg: w.beta_rad.to_degrees(),
             gamma_deg: w.gamma_rad.to_degrees(),
         })
         .collect()

@@ -245,9 +245,17 @@ pub struct ApplyArgs {
     pub calibration: PathBuf,
     /// The geometry the board is to hold with the calibration's laws (`calibrate
     /// --write-board-robot`'s robot file); its factors are then ones and the laws.
-    /// Without it the board keeps its robot and gets the calibration's factors.
-    #[arg(long, value_name = "FILE.toml")]
+    /// Without it the board keeps its robot and gets the calibration's factors, unless
+    /// the calibration fitted geometry no factor carries (an omni robot's wheel
+    /// distances, angles, centre or roller angle): then the board takes the
+    /// calibration's own fitted geometry (its JSON's `board_geometry`) the same way.
+    #[arg(long, value_name = "FILE.toml", conflicts_with = "factors_only")]
     pub board_robot: Option<PathBuf>,
+    /// Set the calibration's factors only and keep the board's geometry, even when they
+    /// leave fitted parameters out (listed): for a board whose geometry was measured
+    /// some other way.
+    #[arg(long)]
+    pub factors_only: bool,
     /// Persist what was set in flash (the parameters, when a geometry was set, and the
     /// factors).
     #[arg(long)]

@@ -60,8 +60,10 @@ fn circle(board: &Board) -> (f64, f64) {
 /// too much turn, 0.30 rad, plus what the turned wheel adds; so over 0.2 rad. Applied
 /// whole, what is left is calibrate's own error (its held-out runs dead-reckon to about
 /// 4 mm): within 0.02 rad and 2 cm, at most a tenth of the error before. The factors
-/// alone (`apply` without `--board-robot`) cannot carry the wheels' distance and angle:
-/// the whole calibration must do at least ten times better. Measured: -0.409 rad and
+/// alone (`apply --factors-only`) cannot carry the wheels' distance and angle: the whole
+/// calibration must do at least ten times better. `apply` without either option puts the
+/// calibration's own fitted geometry on the board (its JSON's `board_geometry`), and is
+/// held to the same tolerances as `--board-robot`. Measured: -0.409 rad and
 /// 217 mm nominal, -0.300 rad and 162 mm by factors, -0.0008 rad and 0.5 mm whole. The
 /// board reads back the file's geometry and the calibration's law. Another kind of
 /// robot's calibration, another robot's, or a robot file of other wheels, is refused by
@@ -121,9 +123,14 @@ fn a_calibration_reaches_the_board_whole_and_its_odometry_follows_the_robot() {
     );
     assert_eq!(now, held);
 
-    // The factors alone: the board keeps its nominal robot; what no factor carries is
-    // listed.
-    let f = json_of(&board.run(&["--json", "apply", cal_json.to_str().unwrap()]));
+    // The factors alone (`--factors-only`): the board keeps its nominal robot; what no
+    // factor carries is listed.
+    let f = json_of(&board.run(&[
+        "--json",
+        "apply",
+        cal_json.to_str().unwrap(),
+        "--factors-only",
+    ]));
     let no_factor: Vec<&str> = c["params"]
         .as_array()
         .unwrap()
@@ -134,7 +141,33 @@ fn a_calibration_reaches_the_board_whole_and_its_odometry_follows_the_robot() {
     assert_eq!(f["without_factor"], serde_json::json!(no_factor), "{f}");
     assert_eq!(f["factors"]["f_lat"], c["factors"]["f_lat"], "{f}");
     assert_eq!(f["saved"], false, "{f}");
+    assert_eq!(f["geometry_from_calibration"], false, "{f}");
     let (heading_factors, pos_factors) = circle();
+
+    // By default a calibration whose fitted geometry no factor carries puts that geometry
+    // on the board (the JSON's `board_geometry`, as `--write-board-robot` writes it) with
+    // factors of one and its law: the board is then whole without a second file.
+    let d = json_of(&board.run(&["--json", "apply", cal_json.to_str().unwrap()]));
+    assert_eq!(d["geometry_from_calibration"], true, "{d}");
+    assert_eq!(d["without_factor"], serde_json::json!([]), "{d}");
+    assert_eq!(d["factors"]["l_arc"].as_f64(), Some(l_arc), "{d}");
+    assert_eq!(
+        d["factors"]["f_lat"],
+        serde_json::json!([1.0, 1.0, 1.0]),
+        "{d}"
+    );
+    let want = formats::robot_file::load(&board_file).unwrap();
+    for (w, got) in want
+        .wheels
+        .iter()
+        .zip(d["robot"]["wheels"].as_array().unwrap())
+    {
+        // The JSON's numbers are the board file's to its printed precision.
+        let near = |k: &str, v: f64| (got[k].as_f64().unwrap() - v).abs() < 1e-12;
+        assert!(near("l_m", w.l_m) && near("radius_m", w.radius_m), "{d}");
+    }
+    let (heading_default, pos_default) = circle();
+    assert_applied_whole(heading_before, heading_default, pos_default);
 
     let a = json_of(&board.run(&[
         "--json",

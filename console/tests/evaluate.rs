@@ -443,13 +443,17 @@ fn the_circle_tests_factors_are_judged_as_the_board_applies_them() {
 /// An omni robot whose geometry the board's factors cannot carry (omni3's wheels 3 %
 /// further out than its file says, w2 mounted 1 degree off) and whose wheels reach 2 %
 /// further still on arcs (`turn_scrub`): three 40 s random runs calibrated (seeds 70-72),
-/// a fourth held out (73). `evaluate --board` judges the calibration as a board holding
-/// its factors (radii and the law only) and, with `--board-robot`, as a board given
-/// `calibrate --write-board-robot`'s geometry (`wheelcal robot set`) with factors of one
-/// and the law. The second must be at most a third of the first's error and within 2 mm
-/// of the board holding the truth's geometry and law: what calibrate fits, the board can
-/// then apply (measured: 50.3 mm by factors, 3.9 mm with the board robot, 4.5 mm with
-/// the truth). A board robot of other wheels is refused, naming the file.
+/// a fourth held out (73). With `--board-robot`, `evaluate --board` judges the
+/// calibration as a board given `calibrate --write-board-robot`'s geometry (`wheelcal
+/// robot set`) with factors of one and the law; without it, as `apply` puts it on the
+/// board: the same geometry from the JSON's `board_geometry` (issue 56: the factors alone
+/// had been the default, and lost what they cannot carry), so the two agree to 1e-12
+/// relative and the label says where the geometry came from. The board as applied must
+/// be at most a third of the factors alone's error (`apply --factors-only`, judged
+/// through the library) and within 2 mm of the board holding the truth's geometry and
+/// law: what calibrate fits, the board can then apply (measured: 50.3 mm by factors, 3.9
+/// mm with the board robot, 4.5 mm with the truth). A board robot of other wheels is
+/// refused, naming the file.
 #[test]
 fn an_omni_boards_whole_geometry_is_judged_with_board_robot() {
     let dir = common::scratch("evaluate-board-robot");
@@ -469,7 +473,37 @@ fn an_omni_boards_whole_geometry_is_judged_with_board_robot() {
         }
         e.arg("--recording").arg(&runs[3]).output().unwrap()
     };
-    let factors_only = first_rmse(&common::json_of(&judge(None)))[0];
+    let applied = common::json_of(&judge(None));
+    let applied_label = applied["robots"][0]["robot"].as_str().unwrap();
+    assert!(
+        applied_label.contains("holding its fitted geometry"),
+        "{applied_label}"
+    );
+    let applied = first_rmse(&applied)[0];
+    let f = &c["factors"];
+    let f_lat: Vec<f64> = f["f_lat"]
+        .as_array()
+        .unwrap()
+        .iter()
+        .map(|v| v.as_f64().unwrap())
+        .collect();
+    let nominal = formats::robot_file::load(&nominal_file).unwrap();
+    let held_out = Recording::load(&runs[3].join("recording.csv"), &nominal).unwrap();
+    let factors_only = evaluate(
+        &[Candidate::board(
+            "factors alone",
+            nominal,
+            Corrections::omni(
+                f_lat.into_iter().collect(),
+                f["f_lon"].as_f64().unwrap(),
+                l_arc,
+            ),
+        )],
+        &[("held-out".into(), held_out)],
+    )
+    .unwrap()
+    .recordings[0]
+        .rmse_m[0];
     let j = common::json_of(&judge(Some(&board_file)));
     let label = j["robots"][0]["robot"].as_str().unwrap();
     let holding = format!("on the board holding {}", board_file.display());
@@ -492,6 +526,10 @@ fn an_omni_boards_whole_geometry_is_judged_with_board_robot() {
         factors_only * 1e3,
         whole * 1e3,
         truth_board * 1e3
+    );
+    assert!(
+        (applied - whole).abs() <= 1e-12 * whole,
+        "as apply puts it {applied} against {whole} with --board-robot"
     );
     assert!(
         whole <= factors_only / 3.0,

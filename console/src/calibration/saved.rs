@@ -345,6 +345,63 @@ impl SavedCalibration {
             .collect()
     }
 
+    /// The geometry a board holding `board` takes from this calibration when its factors
+    /// cannot carry what was fitted ([`SavedCalibration::without_factor`] not empty: an
+    /// omni robot's wheel distances, mounting angles, centre or roller angle): `board`
+    /// with each wheel's radius, distance, angles and roller angle from the JSON's
+    /// `board_geometry` (the geometry of `calibrate --write-board-robot`; `geometry` in
+    /// calibrations written before it, when they kept no law). `None` when the factors
+    /// carry everything, and for results that carry no geometry (`omni compute`'s, and
+    /// older calibrations with a law: those go without, as the notes say). Refused,
+    /// naming the file, when the wheels are not `board`'s.
+    pub fn board_geometry(&self, board: &Robot) -> Result<Option<Robot>> {
+        if self.without_factor().is_empty() || is_omni_compute(&self.json) {
+            return Ok(None);
+        }
+        let shown = self.file.display();
+        let law = self.json["factors"]["l_arc"].as_f64().unwrap_or(0.0) != 0.0;
+        let wheels = match (
+            self.json["board_geometry"].as_array(),
+            self.json["geometry"].as_array(),
+        ) {
+            (Some(w), _) => w,
+            (None, Some(w)) if !law => w,
+            _ => return Ok(None),
+        };
+        let names: Vec<&str> = wheels
+            .iter()
+            .map(|w| w["name"].as_str().unwrap_or("?"))
+            .collect();
+        let want: Vec<&str> = board.wheels.iter().map(|w| w.name.as_str()).collect();
+        if names != want {
+            bail!(
+                "{shown}: a geometry of wheels {}; the board's robot has wheels {}: not the calibrated robot",
+                names.join(", "),
+                want.join(", ")
+            );
+        }
+        let mut robot = board.clone();
+        for (w, j) in robot.wheels.iter_mut().zip(wheels) {
+            let num = |k: &str| {
+                j[k].as_f64().filter(|v| v.is_finite()).ok_or_else(|| {
+                    anyhow!(
+                        "{shown}: board_geometry: wheel '{}' has no number {k}",
+                        w.name
+                    )
+                })
+            };
+            w.radius_m = num("radius_m")?;
+            w.l_m = num("l_m")?;
+            w.alpha_rad = num("alpha_deg")?.to_radians();
+            // Calibrations written before `beta_deg` never moved it.
+            if j.get("beta_deg").is_some() {
+                w.beta_rad = num("beta_deg")?.to_radians();
+            }
+            w.gamma_rad = num("gamma_deg")?.to_radians();
+        }
+        Ok(Some(robot))
+    }
+
     /// The factors a board gets from it (`factors set` in full): a differential drive's
     /// with every law kept (the board's E_b is that of a turn in place, its c_L and c_R
     /// at standstill), an omni robot's f_lat and f_lon (and its turn law l_arc).
@@ -425,6 +482,25 @@ impl SavedCalibration {
     /// robot file this calibration wrote when the factors change the geometry (they
     /// correct the robot they were fitted from, so they would count twice).
     pub fn board_candidate(&self, robot: &Robot, robot_path: &Path) -> Result<Candidate> {
+        if let Some(geometry) = self
+            .board_geometry(robot)
+            .map_err(|e| anyhow!("{e} (--robot {})", robot_path.display()))?
+        {
+            let laws = self.law_corrections(geometry.wheels.len())?;
+            let board = Candidate::board(
+                format!(
+                    "{} on the board holding its fitted geometry (no firmware factor carries {}: apply puts the geometry there)",
+                    self.file.display(),
+                    self.without_factor().join(", ")
+                ),
+                geometry,
+                laws,
+            );
+            board
+                .check()
+                .map_err(|e| anyhow!("{e} (--robot {})", robot_path.display()))?;
+            return Ok(board);
+        }
         let factors = self.factors_for(robot).map_err(|e| {
             anyhow!(
                 "{e}: --board applies the calibration's factors to the robot it was fitted from; give that robot (the nominal) as --robot {}, and the fitted file as --against",

@@ -166,16 +166,22 @@ pub fn write(
         let c = s.factors_for(robot)?;
         c.validate(robot)
             .map_err(|e| anyhow::anyhow!("the board would refuse them: {e}"))?;
-        Ok(s.without_factor())
+        let carried = s.board_geometry(robot)?.is_some();
+        Ok((s.without_factor(), carried))
     });
     match checked {
-        Ok(lost) => {
+        Ok((lost, carried)) => {
             page.paragraph(&format!(
                 "On a board holding robot '{}' (the geometry fitted from), this sets the factors and saves them:",
                 robot.name
             ));
             page.command(&apply_command(dir));
-            if !lost.is_empty() {
+            if carried {
+                page.paragraph(&format!(
+                    "No firmware factor carries {}: apply puts the calibration's fitted geometry on the board (its board_geometry, with factors of one and the laws) and saves it too.",
+                    lost.join(", ")
+                ));
+            } else if !lost.is_empty() {
                 page.paragraph(&format!(
                     "No firmware factor carries {}: for those, give the board the fitted geometry (calibrate --write-board-robot, then apply --board-robot).",
                     lost.join(", ")
