@@ -49,6 +49,7 @@ mod step;
 #[cfg(test)]
 mod synth;
 mod turn_law;
+mod turning;
 
 pub use choice::{
     CORR_LIMIT, LADDER_FOLDS, LADDER_TOLERANCE, MIN_ARC_SHARE, TURN_LAW_HOLDOUT_RATIO,
@@ -152,6 +153,15 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
     refuse_broken_headings(robot, &shapes)?;
     let held = holdout.map(|(n, r)| Series::new(n, robot, r)).transpose()?;
     let mut notes = Vec::new();
+    let turning = turning::Turning::of(&series);
+    let turning_one_way = turning.one_way();
+    if let Some(sense) = turning_one_way {
+        let what = match robot.kind {
+            RobotKind::DiffDrive | RobotKind::SkidSteer => "E_d and E_b",
+            _ => "the wheels' sizes and distances",
+        };
+        notes.push(turning::one_way_note(sense, &turning, what));
+    }
     let mut runs = 0;
     let mut cfg = Cfg {
         free_start: opts.free_start,
@@ -818,6 +828,7 @@ pub fn calibrate<R: std::borrow::Borrow<Recording>>(
         unconstrained,
         implausible,
         notes,
+        turning_one_way,
         model_runs: runs,
         fitted_robot,
         turn_law,

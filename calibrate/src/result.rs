@@ -475,6 +475,10 @@ pub struct Calibration {
     pub implausible: Vec<Implausible>,
     /// Remarks for the reader.
     pub notes: Vec<String>,
+    /// `"clockwise"` or `"counter-clockwise"` when every recording turns that way (what
+    /// follows the turning direction then goes into the geometry unseen: a note says
+    /// so), `null` when they turn both ways.
+    pub turning_one_way: Option<&'static str>,
     /// Model evaluations the whole fit took.
     pub model_runs: usize,
     /// The robot with the fitted geometry applied; the JSON gives each wheel's fitted
@@ -853,10 +857,16 @@ impl fmt::Display for Calibration {
             }
         }
         if self.inseparable.0.is_empty() {
-            writeln!(
-                f,
-                "identifiability: every parameter is separable from these recordings"
-            )?;
+            match self.turning_one_way {
+                None => writeln!(
+                    f,
+                    "identifiability: every parameter is separable from these recordings"
+                )?,
+                Some(sense) => writeln!(
+                    f,
+                    "identifiability: the model's parameters are separable from these recordings, but every one turns {sense}: what follows the turning direction is not (see the notes)"
+                )?,
+            }
         }
         // Many pairs (a 4-wheel per-wheel model) would bury the summary: the strongest
         // few in words, the rest named; the JSON keeps every one.
