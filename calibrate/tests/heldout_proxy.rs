@@ -1057,3 +1057,108 @@ fn sessions_mecanum_board_carries_the_sideways_scale_to_other_runs() {
         );
     }
 }
+
+/// The re-implemented OptiOdom objective (`proxy::optiodom_fit`) is a fit that works: on
+/// two simulated squares (one each way) of a MoboLab whose left wheel is 0.5 % small,
+/// its right 0.5 % large and its separation 3 % wide, the three factors come back within
+/// 0.002 (the simulator's contact details and 1 mm motion-capture noise; measured
+/// below), and the fitted robot dead-reckons both squares at under a fifth of the
+/// nominal's error.
+#[test]
+fn optiodoms_objective_recovers_a_simulated_robot() {
+    use calib_core::motion::{Direction, Program};
+    let nominal = formats::robot_file::load(
+        &std::path::Path::new(env!("CARGO_MANIFEST_DIR")).join("../robots/mobolab.toml"),
+    )
+    .unwrap();
+    let mut truth = nominal.clone();
+    for w in truth.wheels.iter_mut() {
+        w.radius_m *= if w.is_left() { 0.995 } else { 1.005 };
+        w.l_m *= 1.03;
+    }
+    let runs: Vec<_> = [Direction::Cw, Direction::Ccw]
+        .into_iter()
+        .enumerate()
+        .map(|(i, d)| {
+            let motion = sim::Motion::Program {
+                program: Box::new(Program::umbmark_square(1.0, d)),
+                limits: Default::default(),
+            };
+            let mut cfg = sim::RecordConfig {
+                row_rate_hz: 50.0,
+                ..sim::RecordConfig::default()
+            };
+            cfg.sim.seed = 11 + i as u64;
+            let r = sim::record(&truth, &[], sim::Surface::flat(), &motion, &cfg).unwrap();
+            (format!("{d:?}"), r.recording)
+        })
+        .collect();
+    let prepared: Vec<_> = runs
+        .iter()
+        .map(|(n, r)| proxy::OptiOdomRun::new(n, &nominal, r).unwrap())
+        .collect();
+    let fit = proxy::optiodom_fit(&nominal, &prepared);
+    for ((f, t), n) in fit.wheels.iter().zip(&truth.wheels).zip(&nominal.wheels) {
+        let (got, want) = (f.radius_m / n.radius_m, t.radius_m / n.radius_m);
+        println!(
+            "{}: radius {got:.5} (true {want:.5}), l {:.5}",
+            f.name,
+            f.l_m / n.l_m
+        );
+        assert!((got - want).abs() < 2e-3, "{}: {got} for {want}", f.name);
+        assert!((f.l_m / n.l_m - 1.03).abs() < 2e-3, "{}", f.l_m / n.l_m);
+    }
+    for (name, rec) in &runs {
+        let s = calibrate::Series::new(name, &nominal, rec).unwrap();
+        let (a, b) = (
+            calibrate::dead_reckoning_rmse(&fit, &s).unwrap(),
+            calibrate::dead_reckoning_rmse(&nominal, &s).unwrap(),
+        );
+        println!(
+            "{name}: {:.2} mm fitted, {:.2} mm nominal",
+            a * 1e3,
+            b * 1e3
+        );
+        assert!(a * 5.0 < b, "{a} against {b}");
+    }
+}
+
+/// Issue 56 §3 on the sessions (the proxy: the free-form runs it judges on are kept
+/// apart): for each of its 20 training sets, `calibrate`'s board (factors and laws), the
+/// same calibration's constant geometry, and OptiOdom's objective re-implemented
+/// (`proxy::optiodom_fit`) trained on the same runs, each judged on every differential run
+/// it was not trained on (19 sets; all runs leaves none). The issue's bounds that hold
+/// here are asserted: no set's board over 1.10 of OptiOdom's, and the board never more
+/// than 2 % worse than its constant geometry; the geometric mean is asserted at most 1.01
+/// (the issue's "level with the best published method"): its goal of 0.97 is not met
+/// (measured 1.001, worst 1.032; no law is kept on any set, so the board is its constant
+/// geometry, 1.000). `examples/against_optiodom.rs` prints the table (docs/calibrate.md).
+#[test]
+#[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
+fn sessions_calibrate_against_optiodoms_objective_on_the_same_runs() {
+    let d = dir();
+    let all = proxy::list_runs(&d).unwrap();
+    let (mut ln, mut n) = (0.0, 0);
+    for (name, train) in proxy::issue56_training_sets() {
+        let test = |r: &proxy::RunDir| !train(r);
+        if !all.iter().any(|r| r.robot == "diff" && test(r)) {
+            continue;
+        }
+        let r = proxy::against_optiodom(&d, &name, &*train, &test).unwrap();
+        let (ro, rc) = (r.board_m / r.optiodom_m, r.board_m / r.constant_m);
+        println!(
+            "{name}: board {:.1} mm, constant {:.1} mm, OptiOdom {:.1} mm ({ro:.3}, {rc:.3})",
+            r.board_m * 1e3,
+            r.constant_m * 1e3,
+            r.optiodom_m * 1e3
+        );
+        assert!(ro <= 1.10, "{name}: {ro:.3} of OptiOdom's");
+        assert!(rc <= 1.02, "{name}: {rc:.3} of the constant geometry");
+        ln += ro.ln();
+        n += 1;
+    }
+    assert_eq!(n, 19);
+    let g = (ln / n as f64).exp();
+    println!("geometric mean {g:.3}");
+    assert!(g <= 1.01, "{g:.3}");
+}

@@ -733,3 +733,266 @@ pub fn mean_median_worst(v: &[f64]) -> (f64, f64, f64) {
     let s = Spread::of(v.iter().copied());
     (s.mean_m, s.median_m, s.worst_m)
 }
+
+/// OptiOdom's objective re-implemented (issue 56): the differential drive's three
+/// parameters (left and right wheel diameter, separation) by least squares on positions
+/// dead-reckoned from each run's first pose with no resets, compared every
+/// [`OPTIODOM_SAMPLE_M`] of the measured path's travel (the authors' MATLAB). Minimised by
+/// Levenberg-Marquardt from the nominal geometry, forward-difference Jacobian.
+pub const OPTIODOM_SAMPLE_M: f64 = 0.5;
+
+/// One run prepared for [`optiodom_fit`]: its series and the measured positions every
+/// [`OPTIODOM_SAMPLE_M`] of travel, `(t, x, y)`.
+pub struct OptiOdomRun {
+    series: Series,
+    samples: Vec<(f64, f64, f64)>,
+}
+
+impl OptiOdomRun {
+    /// `rec` of `robot`, named `name`.
+    pub fn new(name: &str, robot: &Robot, rec: &Recording) -> Result<OptiOdomRun, String> {
+        let series = Series::new(name, robot, rec).map_err(|e| e.to_string())?;
+        let mut samples = Vec::new();
+        let (mut travel, mut next) = (0.0, OPTIODOM_SAMPLE_M);
+        let mut last: Option<(f64, f64)> = None;
+        for i in 0..rec.t.len() {
+            let (Some(x), Some(y)) = (rec.x[i], rec.y[i]) else {
+                continue;
+            };
+            if let Some((lx, ly)) = last {
+                travel += (x - lx).hypot(y - ly);
+            }
+            last = Some((x, y));
+            if travel >= next {
+                samples.push((rec.t[i], x, y));
+                next += OPTIODOM_SAMPLE_M;
+            }
+        }
+        Ok(OptiOdomRun { series, samples })
+    }
+
+    /// The position residuals (m) of `robot` dead-reckoning this run, x and y per sample.
+    fn residuals(&self, robot: &Robot, out: &mut Vec<f64>) -> Option<()> {
+        let poses = calibrate::dead_reckoned_poses(robot, &TurnLaw::default(), &self.series)?;
+        let mut j = 0;
+        for &(t, x, y) in &self.samples {
+            while j + 1 < poses.len() && poses[j + 1].0 < t {
+                j += 1;
+            }
+            let (a, b) = (poses[j], poses[(j + 1).min(poses.len() - 1)]);
+            let f = if b.0 > a.0 {
+                ((t - a.0) / (b.0 - a.0)).clamp(0.0, 1.0)
+            } else {
+                0.0
+            };
+            out.push(a.1 + f * (b.1 - a.1) - x);
+            out.push(a.2 + f * (b.2 - a.2) - y);
+        }
+        Some(())
+    }
+}
+
+/// `nominal` with the left and right wheel radii and the separation scaled by `p`.
+fn diff_with(nominal: &Robot, p: [f64; 3]) -> Robot {
+    let mut r = nominal.clone();
+    for w in r.wheels.iter_mut() {
+        w.radius_m *= if w.is_left() { p[0] } else { p[1] };
+        w.l_m *= p[2];
+    }
+    r
+}
+
+/// OptiOdom's fit of `nominal` (a differential drive) on `runs`: the robot with its
+/// fitted diameters and separation.
+pub fn optiodom_fit(nominal: &Robot, runs: &[OptiOdomRun]) -> Robot {
+    let res = |p: [f64; 3]| {
+        let r = diff_with(nominal, p);
+        let mut out = Vec::new();
+        for run in runs {
+            if run.residuals(&r, &mut out).is_none() {
+                return None;
+            }
+        }
+        Some(out)
+    };
+    let cost = |v: &[f64]| v.iter().map(|e| e * e).sum::<f64>();
+    let mut p = [1.0; 3];
+    let Some(mut r0) = res(p) else {
+        return nominal.clone();
+    };
+    let mut lambda = 1e-3;
+    for _ in 0..50 {
+        let h = 1e-6;
+        let mut jac = [
+            vec![0.0; r0.len()],
+            vec![0.0; r0.len()],
+            vec![0.0; r0.len()],
+        ];
+        for k in 0..3 {
+            let mut q = p;
+            q[k] += h;
+            let Some(rk) = res(q) else {
+                return diff_with(nominal, p);
+            };
+            for (j, (a, b)) in rk.iter().zip(&r0).enumerate() {
+                jac[k][j] = (a - b) / h;
+            }
+        }
+        let mut jtj = [[0.0; 3]; 3];
+        let mut jtr = [0.0; 3];
+        for a in 0..3 {
+            for b in 0..3 {
+                jtj[a][b] = jac[a].iter().zip(&jac[b]).map(|(x, y)| x * y).sum();
+            }
+            jtr[a] = jac[a].iter().zip(&r0).map(|(x, y)| x * y).sum();
+        }
+        let mut improved = false;
+        for _ in 0..10 {
+            let mut m = jtj;
+            for (a, row) in m.iter_mut().enumerate() {
+                row[a] *= 1.0 + lambda;
+            }
+            let Some(step) = solve3(m, jtr.map(|v| -v)) else {
+                break;
+            };
+            let q = [p[0] + step[0], p[1] + step[1], p[2] + step[2]];
+            if let Some(rq) = res(q).filter(|rq| cost(rq) < cost(&r0)) {
+                let small = step.iter().all(|s| s.abs() < 1e-9);
+                p = q;
+                r0 = rq;
+                lambda = (lambda / 10.0).max(1e-9);
+                improved = !small;
+                break;
+            }
+            lambda *= 10.0;
+        }
+        if !improved {
+            break;
+        }
+    }
+    diff_with(nominal, p)
+}
+
+/// `m x = b` for a 3x3 system (Cramer's rule), `None` when singular.
+fn solve3(m: [[f64; 3]; 3], b: [f64; 3]) -> Option<[f64; 3]> {
+    let det = |m: [[f64; 3]; 3]| {
+        m[0][0] * (m[1][1] * m[2][2] - m[1][2] * m[2][1])
+            - m[0][1] * (m[1][0] * m[2][2] - m[1][2] * m[2][0])
+            + m[0][2] * (m[1][0] * m[2][1] - m[1][1] * m[2][0])
+    };
+    let d = det(m);
+    if d.abs() < 1e-300 || !d.is_finite() {
+        return None;
+    }
+    let mut x = [0.0; 3];
+    for (k, xk) in x.iter_mut().enumerate() {
+        let mut mk = m;
+        for r in 0..3 {
+            mk[r][k] = b[r];
+        }
+        *xk = det(mk) / d;
+    }
+    Some(x)
+}
+
+/// One training set of issue 56's comparison: `calibrate`'s board (its factors and laws)
+/// and the same calibration's constant geometry against OptiOdom's objective fitted on
+/// the same runs, each dead-reckoning the runs not trained on; mean RMS, m.
+#[derive(Debug, Clone, Serialize)]
+pub struct AgainstOptiOdom {
+    pub training: String,
+    pub train_runs: usize,
+    pub test_runs: usize,
+    pub law: Option<(String, f64)>,
+    pub board_m: f64,
+    pub constant_m: f64,
+    pub optiodom_m: f64,
+}
+
+/// The 20 training sets of issue 56 §3 for the differential robot, as (name, keep):
+/// each of the 8 square sessions, four circle sessions, six square + circle pairs,
+/// December's squares, circles and Ivanjko paths, and all runs.
+pub fn issue56_training_sets() -> Vec<(String, Box<dyn Fn(&RunDir) -> bool>)> {
+    type Keep = Box<dyn Fn(&RunDir) -> bool>;
+    let mut out: Vec<(String, Keep)> = Vec::new();
+    let sessions = |names: &[&'static str]| -> Keep {
+        let names = names.to_vec();
+        Box::new(move |r: &RunDir| names.contains(&r.session.as_str()))
+    };
+    for s in [
+        "230620202042",
+        "230620202144",
+        "230620202258",
+        "230620202317",
+        "231220200029",
+        "231220200040",
+        "231220200045",
+        "231220200048",
+        "231220200121",
+        "231220200134",
+        "250620202104",
+        "250620202251",
+    ] {
+        out.push((s.to_string(), sessions(&[s])));
+    }
+    for (a, b) in [
+        ("231220200029", "231220200121"),
+        ("231220200040", "231220200134"),
+        ("231220200045", "231220200121"),
+        ("231220200048", "231220200134"),
+        ("230620202042", "250620202104"),
+        ("230620202317", "250620202251"),
+    ] {
+        out.push((format!("{a} + {b}"), sessions(&[a, b])));
+    }
+    out.push((
+        "December (squares, circles, Ivanjko)".into(),
+        Box::new(|r: &RunDir| r.session.get(2..4) == Some("12")),
+    ));
+    out.push(("all runs".into(), Box::new(|_: &RunDir| true)));
+    out
+}
+
+/// `calibrate` and OptiOdom's objective trained on the differential robot's runs that
+/// `train` accepts, judged on the runs `test` accepts.
+pub fn against_optiodom(
+    dir: &Path,
+    training: &str,
+    train: &dyn Fn(&RunDir) -> bool,
+    test: &dyn Fn(&RunDir) -> bool,
+) -> Result<AgainstOptiOdom, String> {
+    use calibrate::{board_dead_reckoning_errors, calibrate, CalOptions};
+    let (robot, recs) = robot_runs(dir, "diff", train)?;
+    let (_, held) = robot_runs(dir, "diff", test)?;
+    let c = calibrate(&robot, &recs, None, &CalOptions::default()).map_err(|e| e.to_string())?;
+    let runs = recs
+        .iter()
+        .map(|(n, r)| OptiOdomRun::new(n, &robot, r))
+        .collect::<Result<Vec<_>, _>>()?;
+    let opti = optiodom_fit(&robot, &runs);
+    let board = board_of(&c);
+    let (mut b, mut k, mut o) = (0.0, 0.0, 0.0);
+    for (name, rec) in &held {
+        let s = Series::new(name, &robot, rec).map_err(|e| e.to_string())?;
+        b += board_dead_reckoning_errors(&robot, &board, &s)
+            .ok_or(format!("{name}: the board cannot dead-reckon it"))?
+            .0;
+        k += dead_reckoning_rmse(&c.fitted_robot, &s).ok_or(format!("{name}: no path"))?;
+        o += dead_reckoning_rmse(&opti, &s).ok_or(format!("{name}: no path"))?;
+    }
+    let n = held.len().max(1) as f64;
+    let law = c
+        .law_tests
+        .iter()
+        .find(|t| t.kept && !t.law.contains("lead"))
+        .map(|t| (t.law.to_string(), t.value));
+    Ok(AgainstOptiOdom {
+        training: training.into(),
+        train_runs: recs.len(),
+        test_runs: held.len(),
+        law,
+        board_m: b / n,
+        constant_m: k / n,
+        optiodom_m: o / n,
+    })
+}
