@@ -6,6 +6,7 @@
 //! them ([`advice`]). Every other part of calibrate builds on this one.
 
 use calib_core::robot::{Robot, RobotKind};
+use formats::catalogue as cat;
 use serde::Serialize;
 
 /// One geometry parameter of the fit.
@@ -289,7 +290,7 @@ pub fn turn_law_specs(robot: &Robot) -> Vec<ParamSpec> {
     v.push(spec(
         GeomKind::EbArc,
         "eb_arc".into(),
-        "wheelbase_error",
+        cat::WHEELBASE_ERROR,
         0.0,
         if robot.kind == RobotKind::SkidSteer {
             EB_ARC_RANGE
@@ -304,7 +305,7 @@ pub fn turn_law_specs(robot: &Robot) -> Vec<ParamSpec> {
     v.push(spec(
         GeomKind::IcrX,
         "icr_x_m".into(),
-        "wheelbase_error",
+        cat::WHEELBASE_ERROR,
         0.0,
         ICR_X_RANGE,
         ICR_X_STANDS,
@@ -320,7 +321,7 @@ pub fn omni_turn_law_spec() -> ParamSpec {
     spec(
         GeomKind::EbArc,
         "l_arc".into(),
-        "wheelbase_error",
+        cat::WHEELBASE_ERROR,
         0.0,
         DIFF_EB_ARC_RANGE,
         OMNI_L_ARC_STANDS,
@@ -337,7 +338,7 @@ pub fn speed_law_specs(robot: &Robot) -> Vec<ParamSpec> {
     v.push(spec(
         GeomKind::SpeedRel,
         "speed_rel".into(),
-        "wheel_scale",
+        cat::WHEEL_SCALE,
         0.0,
         SPEED_REL_RANGE,
         SPEED_REL_STANDS,
@@ -352,7 +353,7 @@ pub fn accel_law_specs(robot: &Robot) -> Vec<ParamSpec> {
     v.push(spec(
         GeomKind::AccelSlip,
         "accel_slip_s".into(),
-        "longitudinal_slip",
+        cat::LONGITUDINAL_SLIP,
         0.0,
         ACCEL_SLIP_RANGE,
         ACCEL_SLIP_STANDS,
@@ -379,7 +380,7 @@ fn param_specs_left_right() -> Vec<ParamSpec> {
         spec(
             GeomKind::Scale,
             "scale".into(),
-            "wheel_scale",
+            cat::WHEEL_SCALE,
             1.0,
             RADIUS_RANGE,
             SCALE_STANDS,
@@ -387,7 +388,7 @@ fn param_specs_left_right() -> Vec<ParamSpec> {
         spec(
             GeomKind::Ed,
             "ed".into(),
-            "wheel_diameter_mismatch",
+            cat::WHEEL_DIAMETER_MISMATCH,
             1.0,
             ED_RANGE,
             ED_STANDS,
@@ -395,7 +396,7 @@ fn param_specs_left_right() -> Vec<ParamSpec> {
         spec(
             GeomKind::Eb,
             "eb".into(),
-            "wheelbase_error",
+            cat::WHEELBASE_ERROR,
             1.0,
             BASE_RANGE,
             EB_STANDS,
@@ -427,7 +428,7 @@ fn param_specs_wheels(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
         v.push(spec(
             GeomKind::Radius(i),
             format!("radius_scale_{}", w.name),
-            "wheel_diameter_mismatch",
+            cat::WHEEL_DIAMETER_MISMATCH,
             1.0,
             if robot.kind == RobotKind::Omni && !is_mecanum(robot) {
                 OMNI_RADIUS_RANGE
@@ -442,7 +443,7 @@ fn param_specs_wheels(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
             v.push(spec(
                 GeomKind::Alpha(i),
                 format!("alpha_offset_rad_{}", w.name),
-                "wheel_angle_error",
+                cat::WHEEL_ANGLE_ERROR,
                 0.0,
                 ALPHA_RANGE,
                 ALPHA_STANDS,
@@ -452,7 +453,7 @@ fn param_specs_wheels(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
             v.push(spec(
                 GeomKind::L(i),
                 format!("l_scale_{}", w.name),
-                "wheel_position_error",
+                cat::WHEEL_POSITION_ERROR,
                 1.0,
                 BASE_RANGE,
                 L_STANDS,
@@ -465,7 +466,7 @@ fn param_specs_wheels(robot: &Robot, marker: bool) -> Vec<ParamSpec> {
         v.push(spec(
             GeomKind::Eb,
             "eb".into(),
-            "wheelbase_error",
+            cat::WHEELBASE_ERROR,
             1.0,
             BASE_RANGE,
             EB_STANDS,
@@ -598,7 +599,7 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
     let mut scale = spec(
         GeomKind::Scale,
         "scale".into(),
-        "wheel_scale",
+        cat::WHEEL_SCALE,
         1.0,
         radius_range(robot),
         SCALE_STANDS,
@@ -609,7 +610,7 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
     let distance = spec(
         GeomKind::Eb,
         "l_scale".into(),
-        "wheelbase_error",
+        cat::WHEELBASE_ERROR,
         1.0,
         BASE_RANGE,
         L_STANDS,
@@ -680,7 +681,7 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
                 v.push(spec(
                     GeomKind::CentreX,
                     "centre_x_m".into(),
-                    "wheelbase_error",
+                    cat::WHEELBASE_ERROR,
                     0.0,
                     CENTRE_RANGE,
                     CENTRE_STANDS,
@@ -688,7 +689,7 @@ pub fn ladder(robot: &Robot, marker: bool) -> Vec<(&'static str, Vec<ParamSpec>)
                 v.push(spec(
                     GeomKind::CentreY,
                     "centre_y_m".into(),
-                    "wheelbase_error",
+                    cat::WHEELBASE_ERROR,
                     0.0,
                     CENTRE_RANGE,
                     CENTRE_STANDS,

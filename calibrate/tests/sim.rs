@@ -205,7 +205,13 @@ fn one_turning_direction_is_said_and_a_tilted_floor_shows_why() {
     let said = |c: &Calibration| c.notes.iter().any(|n| n.contains("turns one way"));
     let ed = |c: &Calibration| c.param("ed").map(|p| (p.value, p.sigma)).unwrap();
     for (rec, sense) in [(&cw, "clockwise"), (&ccw, "counter-clockwise")] {
-        let c = calibrate(&nominal, &[rec.clone()], None, &CalOptions::default()).unwrap();
+        let c = calibrate(
+            &nominal,
+            std::slice::from_ref(rec),
+            None,
+            &CalOptions::default(),
+        )
+        .unwrap();
         println!("{c}");
         assert_eq!(c.turning_one_way, Some(sense), "{c}");
         assert!(said(&c), "{:?}", c.notes);

@@ -463,22 +463,22 @@ impl Effect {
     /// The effect with typical, clearly visible parameters.
     pub fn default_for(id: &str) -> Result<Effect, EffectError> {
         Ok(match id {
-            "wheel_diameter_mismatch" => Effect::WheelDiameterMismatch {
+            cat::WHEEL_DIAMETER_MISMATCH => Effect::WheelDiameterMismatch {
                 ed: Some(1.01),
                 radius_scale: Vec::new(),
             },
-            "wheelbase_error" => Effect::WheelbaseError { eb: 1.03 },
-            "longitudinal_slip" => Effect::LongitudinalSlip {
+            cat::WHEELBASE_ERROR => Effect::WheelbaseError { eb: 1.03 },
+            cat::LONGITUDINAL_SLIP => Effect::LongitudinalSlip {
                 mu: 0.3,
                 mechanism: Mechanism::Wheel,
                 creep_s: 0.05,
             },
-            "lateral_slip" => Effect::LateralSlip {
+            cat::LATERAL_SLIP => Effect::LateralSlip {
                 side_slip_s: 0.05,
                 mechanism: Mechanism::Linear,
                 sat_m_s: 0.01,
             },
-            "floor_bumps" => Effect::FloorBumps {
+            cat::FLOOR_BUMPS => Effect::FloorBumps {
                 spacing_m: 0.03,
                 loss_m: 0.0008,
                 mechanism: Mechanism::Whole,
@@ -486,26 +486,26 @@ impl Effect {
                 end_m: 1.0,
                 jitter: 0.4,
             },
-            "backlash" => Effect::Backlash {
+            cat::BACKLASH => Effect::Backlash {
                 backlash_rad: 0.05,
                 mechanism: Mechanism::Symmetric,
                 asymmetry: 0.5,
             },
-            "missed_steps" => Effect::MissedSteps {
+            cat::MISSED_STEPS => Effect::MissedSteps {
                 max_accel_rad_s2: 20.0,
                 mechanism: Mechanism::PullOut,
                 rate_hz: 10.0,
             },
-            "motor_lag" => Effect::MotorLag {
+            cat::MOTOR_LAG => Effect::MotorLag {
                 tau_s: 0.1,
                 mechanism: Mechanism::FirstOrder,
                 slew_rad_s2: 20.0,
             },
-            "coulomb_friction" => Effect::CoulombFriction {
+            cat::COULOMB_FRICTION => Effect::CoulombFriction {
                 deadband_rad_s: 0.5,
                 mechanism: Mechanism::DeadBand,
             },
-            "tilted_floor" => Effect::TiltedFloor {
+            cat::TILTED_FLOOR => Effect::TiltedFloor {
                 drift_m_s: 0.005,
                 direction_rad: std::f64::consts::FRAC_PI_2,
             },

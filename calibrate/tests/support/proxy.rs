@@ -809,9 +809,7 @@ pub fn optiodom_fit(nominal: &Robot, runs: &[OptiOdomRun]) -> Robot {
         let r = diff_with(nominal, p);
         let mut out = Vec::new();
         for run in runs {
-            if run.residuals(&r, &mut out).is_none() {
-                return None;
-            }
+            run.residuals(&r, &mut out)?;
         }
         Some(out)
     };
@@ -909,11 +907,13 @@ pub struct AgainstOptiOdom {
     pub optiodom_m: f64,
 }
 
+/// Which runs a training set takes.
+pub type Keep = Box<dyn Fn(&RunDir) -> bool>;
+
 /// The 20 training sets of issue 56 §3 for the differential robot, as (name, keep):
 /// each of the 8 square sessions, four circle sessions, six square + circle pairs,
 /// December's squares, circles and Ivanjko paths, and all runs.
-pub fn issue56_training_sets() -> Vec<(String, Box<dyn Fn(&RunDir) -> bool>)> {
-    type Keep = Box<dyn Fn(&RunDir) -> bool>;
+pub fn issue56_training_sets() -> Vec<(String, Keep)> {
     let mut out: Vec<(String, Keep)> = Vec::new();
     let sessions = |names: &[&'static str]| -> Keep {
         let names = names.to_vec();
