@@ -83,7 +83,7 @@ pub fn analyse(robot: &Robot, rec: Recording) -> RecordingStage {
         artefacts.extend(encoder_scale::encoder_scale(robot, &mut cur, &segs));
     }
     artefacts.extend(pose_jump::pose_jumps(robot, &mut cur));
-    let (clock_artefacts, geometry) = clocks(robot, &mut cur);
+    let (clock_artefacts, geometry) = clocks(robot, &mut cur, CLOCK_FIT_MAX_ROWS);
     artefacts.extend(clock_artefacts);
     RecordingStage {
         artefacts,
@@ -539,15 +539,37 @@ fn counts_per_rev(robot: &Robot, rec: &mut Recording) -> Vec<Artefact> {
     out
 }
 
-/// Time offset and clock ratio of the poses against the encoders.
-fn clocks(robot: &Robot, rec: &mut Recording) -> (Vec<Artefact>, Option<calibrate::Calibration>) {
-    // Borrowed: a copy of a long recording would be the stage's largest allocation.
-    let recs = [("recording".to_string(), &*rec)];
+/// Most rows the clock fit takes: 40 minutes at diagnose's 100 rows/s. A longer
+/// recording is fitted on its rows merged to this many (`Recording::decimated`): on a
+/// two-hour recording at 100 rows/s the fit's series, Jacobian and solver held 250 MB of
+/// the 290 MB heap peak, and its residuals are correlated over hundreds of rows, so the
+/// extra rows sharpen nothing (BENCHMARKS.md, the very large recording).
+pub const CLOCK_FIT_MAX_ROWS: usize = 240_000;
+
+/// Time offset and clock ratio of the poses against the encoders, fitted on at most
+/// `max_rows` rows ([`CLOCK_FIT_MAX_ROWS`] in [`analyse`]); the artefacts found are
+/// removed from `rec` (all its rows), and the fit is returned for its geometry evidence.
+pub fn clocks(
+    robot: &Robot,
+    rec: &mut Recording,
+    max_rows: usize,
+) -> (Vec<Artefact>, Option<calibrate::Calibration>) {
+    let span = match (rec.t.first(), rec.t.last()) {
+        (Some(a), Some(b)) => b - a,
+        _ => 0.0,
+    };
+    let thinned = (rec.len() > max_rows && span > 0.0)
+        .then(|| rec.clone().decimated(max_rows as f64 / span).0);
+    // Borrowed otherwise: a copy of a long recording would be the stage's largest
+    // allocation.
+    let recs = [("recording".to_string(), thinned.as_ref().unwrap_or(rec))];
     let opts = CalOptions {
         free_start: true,
         ..Default::default()
     };
-    let Ok(cal) = calibrate(robot, &recs, None, &opts) else {
+    let fitted = calibrate(robot, &recs, None, &opts);
+    drop(thinned);
+    let Ok(cal) = fitted else {
         return (vec![], None);
     };
     let p = &cal.per_recording[0];
