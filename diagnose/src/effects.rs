@@ -578,7 +578,7 @@ impl Effect {
             Effect::DeadBandPerWheel => one_or_all(log_grid(0.02, 20.0, 6), 1e-3),
             Effect::WheelAngle(_) => vec![vec![0.0]],
             Effect::WheelPosition(_) => vec![vec![1.0]],
-            // From the data: see `select::region_grid`.
+            // From the data: see `select::region::region_grid`.
             Effect::BumpsRegion => Vec::new(),
             Effect::FloorBumps => {
                 let mut g = Vec::new();

@@ -173,17 +173,108 @@ pub fn simulate(
     rows: Rows,
     out: &mut Path,
 ) {
-    let per_row = rows == Rows::All;
-    out.per_row = per_row;
-    out.x.clear();
-    out.y.clear();
-    out.theta.clear();
-    out.step.clear();
-    out.free.clear();
-    let (scales, eb) = model.geometry(&p.robot);
-    // (index, rolling row / effective radius) of the free wheels the recording measured.
-    let free: Vec<(usize, [f64; 3])> = p
-        .robot
+    out.reset(rows == Rows::All);
+    let (ground, cache) = GroundModel::new(p, angles, model);
+    let mut walk = Walk::start(p, &ground, cache, out);
+    // Steps between the ground rows (every pose row, at most 1 / GROUND_RATE_HZ apart);
+    // the rows between are interpolated (counts are cumulative, so the coarser
+    // step loses no odometry, and the stage runs at a fraction of the cost).
+    let gr = &p.ground_rows;
+    for s_idx in 0..gr.len().saturating_sub(1) {
+        let (k, k_next) = (gr[s_idx], gr[s_idx + 1]);
+        let dt = p.t[k_next] - p.t[k];
+        let d = walk.step(p, angles, model, &ground, s_idx, dt);
+        walk.record(p, &ground, (k, k_next), dt, &d, out);
+    }
+}
+
+impl Path {
+    /// Empties the path for a new walk that holds every row (`per_row`) or the pose rows.
+    fn reset(&mut self, per_row: bool) {
+        self.per_row = per_row;
+        self.x.clear();
+        self.y.clear();
+        self.theta.clear();
+        self.step.clear();
+        self.free.clear();
+    }
+}
+
+/// What the model makes of the wheels for the whole walk: which wheels vote, where they
+/// touch the ground, and the ground effects that act on them.
+struct GroundModel {
+    /// The wheels with an angle series (the others do not vote in the least squares).
+    known: Vec<usize>,
+    /// The known wheels' contacts.
+    wheels: Vec<ContactWheel>,
+    /// Traction limit of each known wheel, if the model has one.
+    mu: Option<Vec<f64>>,
+    /// Whether the model has side slip.
+    side: bool,
+    /// Cables across world x: (spacing, loss, lowest x, highest x).
+    bumps: Option<(f64, f64, f64, f64)>,
+    /// Whether each wheel's travel is worked out at its contact (traction or cables).
+    per_wheel: bool,
+    /// (index, rolling row / effective radius) of the free wheels the recording measured.
+    free: Vec<(usize, [f64; 3])>,
+}
+
+impl GroundModel {
+    /// The model's wheels on this recording, and the kinematics of the known wheels.
+    fn new(p: &Prepared, angles: &[Option<&[f64]>], model: &Model) -> (Self, KinCache) {
+        let (scales, eb) = model.geometry(&p.robot);
+        let free = free_wheels(p, &scales, eb);
+        // Wheels without any angle series must not vote in the least squares. A single
+        // wheel's mounting error moves that wheel.
+        let mut robot = model.apply_mounting(&p.robot);
+        let known: Vec<usize> = (0..angles.len()).filter(|&i| angles[i].is_some()).collect();
+        let mut scales_known = scales.clone();
+        if known.len() < robot.wheels.len() {
+            let keep: Vec<_> = known.iter().map(|&i| robot.wheels[i].clone()).collect();
+            robot.wheels.clear();
+            for w in keep {
+                let _ = robot.wheels.push(w);
+            }
+            scales_known = known.iter().map(|&i| scales[i]).collect();
+        }
+        let mu = traction_limits(p, model, &known);
+        // Mechanism variants live in `variants`.
+        let side = model.get(Effect::LateralSlip).is_some()
+            || model.get(Effect::LateralSaturating).is_some();
+        let bumps = variants::cables(model);
+        let per_wheel = mu.is_some() || bumps.is_some();
+        // Effective radii and body-frame rolling directions and positions of the known wheels.
+        let wheels: Vec<ContactWheel> = robot
+            .wheels
+            .iter()
+            .zip(&scales_known)
+            .map(|(w, s)| {
+                let row = w.rolling_row();
+                (
+                    w.radius_m * s * w.gamma_rad.cos(),
+                    (row[0], row[1]),
+                    w.position(),
+                    w.driven,
+                )
+            })
+            .collect();
+        let cache = KinCache::new(&robot, scales_known, eb);
+        let ground = GroundModel {
+            known,
+            wheels,
+            mu,
+            side,
+            bumps,
+            per_wheel,
+            free,
+        };
+        (ground, cache)
+    }
+}
+
+/// (index, rolling row / effective radius) of the free wheels the recording measured.
+fn free_wheels(p: &Prepared, scales: &[f64], eb: f64) -> Vec<(usize, [f64; 3])> {
+    p.robot
         .wheels
         .iter()
         .enumerate()
@@ -194,29 +285,13 @@ pub fn simulate(
             let l = eb;
             (i, [row[0] / r, row[1] / r, row[2] * l / r])
         })
-        .collect();
-    let mut free_angle = vec![0.0; free.len()];
-    for (i, _) in &free {
-        let mut v = Vec::with_capacity(p.rows());
-        v.push(0.0);
-        out.free.push((*i, v));
-    }
-    // Wheels without any angle series must not vote in the least squares. A single
-    // wheel's mounting error moves that wheel.
-    let mut robot = model.apply_mounting(&p.robot);
-    let known: Vec<usize> = (0..angles.len()).filter(|&i| angles[i].is_some()).collect();
-    let mut scales_known = scales.clone();
-    if known.len() < robot.wheels.len() {
-        let keep: Vec<_> = known.iter().map(|&i| robot.wheels[i].clone()).collect();
-        robot.wheels.clear();
-        for w in keep {
-            let _ = robot.wheels.push(w);
-        }
-        scales_known = known.iter().map(|&i| scales[i]).collect();
-    }
-    // Traction limits of the known wheels: one mu for every wheel, or each driven wheel
-    // its own (`SlipPerWheel`, in the robot's order of driven wheels).
-    let mu: Option<Vec<f64>> = match (
+        .collect()
+}
+
+/// Traction limits of the known wheels: one mu for every wheel, or each driven wheel
+/// its own (`SlipPerWheel`, in the robot's order of driven wheels).
+fn traction_limits(p: &Prepared, model: &Model, known: &[usize]) -> Option<Vec<f64>> {
+    match (
         model.get(Effect::LongitudinalSlip),
         model.get(Effect::SlipPerWheel),
     ) {
@@ -238,193 +313,286 @@ pub fn simulate(
             Some(known.iter().map(|&i| of_wheel[i]).collect())
         }
         _ => None,
-    };
-    // Mechanism variants live in `variants`.
-    let side = (model.get(Effect::LateralSlip).is_some()
-        || model.get(Effect::LateralSaturating).is_some())
-    .then_some(());
-    let bumps = variants::cables(model);
-    let per_wheel = mu.is_some() || bumps.is_some();
-    // Effective radii and body-frame rolling directions and positions of the known wheels.
-    let wheels: Vec<ContactWheel> = robot
-        .wheels
-        .iter()
-        .zip(&scales_known)
-        .map(|(w, s)| {
-            let row = w.rolling_row();
-            (
-                w.radius_m * s * w.gamma_rad.cos(),
-                (row[0], row[1]),
-                w.position(),
-                w.driven,
-            )
-        })
-        .collect();
-    let mut cache = KinCache::new(&robot, scales_known, eb);
-    let mut pose = Pose::new(0.0, 0.0, 0.0);
-    let mut heading = Heading::new();
-    // Per row: the ground rows' steps, the rows between interpolated. Else the pose rows
-    // (every pose row is a ground row).
-    let n = p.rows();
-    let pose_rows = &p.poses.row;
-    let mut next_pose = 0;
-    let kept = if per_row { n } else { pose_rows.len() };
-    out.x.reserve(kept);
-    out.y.reserve(kept);
-    out.theta.reserve(kept);
-    if per_row {
-        out.step.reserve(n);
     }
-    if per_row || pose_rows.first() == Some(&0) {
-        out.x.push(0.0);
-        out.y.push(0.0);
-        out.theta.push(0.0);
-        next_pose = 1;
-    }
-    let m = known.len();
-    let mut inc = vec![0.0; m];
-    let mut contact: Option<Vec<f64>> = None;
-    let mut owed = vec![0.0f64; m];
-    // Scratch buffers, reused every row (this loop is the diagnosis' hot path).
-    let (mut disp_buf, mut smooth_buf, mut ang_buf, mut sub_buf) =
-        (vec![0.0; m], vec![0.0; m], vec![0.0; m], vec![0.0; m]);
-    let world_x = |k: usize, (bx, by): (f64, f64)| -> f64 {
-        let x = p.pose_at_row[k].0;
-        let (c, s) = p.heading_cs_at_row[k];
-        x + c * bx - s * by
-    };
-    let world_dir = |k: usize, (dx, dy): (f64, f64)| -> f64 {
-        let (c, s) = p.heading_cs_at_row[k];
-        c * dx - s * dy
-    };
-    // Steps between the ground rows (every pose row, at most 1 / GROUND_RATE_HZ apart);
-    // the rows between are interpolated (counts are cumulative, so the coarser
-    // step loses no odometry, and the stage runs at a fraction of the cost).
-    let gr = &p.ground_rows;
-    // Each driven wheel's cable cell at the step's start (its end's at the step before).
-    let mut cells: Vec<f64> = match (bumps, gr.first()) {
-        (Some((spacing, _, lo, hi)), Some(&k0)) => wheels
-            .iter()
-            .map(|w| variants::cable_cell(world_x(k0, w.2), spacing.max(1e-6), lo, hi))
-            .collect(),
-        _ => Vec::new(),
-    };
-    for s_idx in 0..gr.len().saturating_sub(1) {
-        let (k, k_next) = (gr[s_idx], gr[s_idx + 1]);
-        let dt = p.t[k_next] - p.t[k];
-        cache.update(p.leg_angles(k), mu.is_some());
-        for (j, &i) in known.iter().enumerate() {
-            let a = angles[i].expect("known wheels have angles");
-            inc[j] = a[k_next] - a[k];
+}
+
+/// World x of a body-frame point at row `k`, on the measured pose.
+fn world_x(p: &Prepared, k: usize, (bx, by): (f64, f64)) -> f64 {
+    let x = p.pose_at_row[k].0;
+    let (c, s) = p.heading_cs_at_row[k];
+    x + c * bx - s * by
+}
+
+/// World x component of a body-frame direction at row `k`, on the measured pose.
+fn world_dir(p: &Prepared, k: usize, (dx, dy): (f64, f64)) -> f64 {
+    let (c, s) = p.heading_cs_at_row[k];
+    c * dx - s * dy
+}
+
+/// The walk's state from ground row to ground row: the dead-reckoned pose, the wheels'
+/// contacts, and scratch buffers reused every step (this loop is the diagnosis' hot
+/// path).
+struct Walk {
+    /// Forward kinematics at the current leg angles.
+    cache: KinCache,
+    /// The dead-reckoned pose.
+    pose: Pose<f64>,
+    /// Its heading's cosine and sine.
+    heading: Heading,
+    /// The next pose row to record (pose-row paths).
+    next_pose: usize,
+    /// Each known wheel's angle increment over the step.
+    inc: Vec<f64>,
+    /// Each known wheel's contact speed under a traction limit.
+    contact: Option<Vec<f64>>,
+    /// Travel each known wheel still owes to cables it rolled onto.
+    owed: Vec<f64>,
+    /// Each known wheel's travel at its contact over the step.
+    disp: Vec<f64>,
+    /// The same read over three samples (what a traction limit reacts to).
+    smooth: Vec<f64>,
+    /// The contact travel as a wheel angle.
+    ang: Vec<f64>,
+    /// The driven wheels' angles.
+    sub: Vec<f64>,
+    /// Each driven wheel's cable cell at the step's start (its end's at the step before).
+    cells: Vec<f64>,
+    /// Each free wheel's predicted angle.
+    free_angle: Vec<f64>,
+}
+
+impl Walk {
+    /// The walk at the first row: the path's first point where it holds one, its
+    /// storage reserved.
+    fn start(p: &Prepared, g: &GroundModel, cache: KinCache, out: &mut Path) -> Self {
+        for (i, _) in &g.free {
+            let mut v = Vec::with_capacity(p.rows());
+            v.push(0.0);
+            out.free.push((*i, v));
         }
-        let mut d = if per_wheel {
-            // Each wheel's travel at its contact: cables take their toll, traction bounds
-            // how fast the contact speed changes; the body takes the least-squares twist.
-            let disp = &mut disp_buf[..m];
-            for j in 0..m {
-                disp[j] = wheels[j].0 * inc[j];
-            }
-            let smooth_disp = &mut smooth_buf[..m];
-            smooth_disp.copy_from_slice(disp);
-            if mu.is_some() {
-                // The traction limit reacts to speed changes, and encoder quantisation
-                // makes per-sample speeds jitter by a count per sample: read the speed
-                // over three samples instead.
-                let (k1, k2) = (
-                    gr[s_idx.saturating_sub(1)],
-                    gr[(s_idx + 2).min(gr.len() - 1)],
-                );
-                let span = p.t[k2] - p.t[k1];
-                for (j, &i) in known.iter().enumerate() {
-                    let a = angles[i].expect("known wheels have angles");
-                    if span > 0.0 {
-                        smooth_disp[j] = wheels[j].0 * (a[k2] - a[k1]) / span * dt;
-                    }
-                }
-            }
-            for j in 0..m {
-                if owed[j] > 0.0 && disp[j] != 0.0 && wheels[j].3 {
-                    let take = owed[j].min(disp[j].abs());
-                    disp[j] -= take.copysign(disp[j]);
-                    owed[j] -= take;
-                }
-            }
-            if let Some(mu) = &mu {
-                let c = contact.get_or_insert_with(|| disp.iter().map(|d| d / dt).collect());
-                for j in 0..m {
-                    if !wheels[j].3 {
-                        continue;
-                    }
-                    let a = (mu[j] * G * p.driven_share[k]).max(1e-12);
-                    let want = (smooth_disp[j] - (wheels[j].0 * inc[j] - disp[j])) / dt;
-                    let gap = want - c[j];
-                    let t_reach = gap.abs() / a;
-                    if t_reach >= dt {
-                        let e = c[j] + gap.signum() * a * dt;
-                        disp[j] = 0.5 * (c[j] + e) * dt;
-                        c[j] = e;
-                    } else {
-                        disp[j] = 0.5 * (c[j] + want) * t_reach + want * (dt - t_reach);
-                        c[j] = want;
-                    }
-                }
-            }
-            let ang = &mut ang_buf[..m];
-            for j in 0..m {
-                ang[j] = disp[j] / wheels[j].0;
-            }
-            match (&cache.driven, mu.is_some()) {
-                (Some((kin, idx)), true) => {
-                    // Undriven wheels roll with the body, so the body follows the
-                    // (traction-limited) driven wheels; its sideways motion, which the
-                    // driven pair alone barely constrains, stays what all wheels say.
-                    let sub = &mut sub_buf[..idx.len()];
-                    for (o, &j) in sub.iter_mut().zip(idx) {
-                        *o = ang[j];
-                    }
-                    let mut t = kin.forward(sub);
-                    if let Some(all) = &cache.all {
-                        t.vy = all.forward(&inc).vy;
-                    }
-                    t
-                }
-                _ => match &cache.all {
-                    Some(kin) => kin.forward(ang),
-                    None => Twist::zero(),
-                },
-            }
+        // Per row: the ground rows' steps, the rows between interpolated. Else the pose rows
+        // (every pose row is a ground row).
+        let per_row = out.per_row;
+        let n = p.rows();
+        let pose_rows = &p.poses.row;
+        let mut next_pose = 0;
+        let kept = if per_row { n } else { pose_rows.len() };
+        out.x.reserve(kept);
+        out.y.reserve(kept);
+        out.theta.reserve(kept);
+        if per_row {
+            out.step.reserve(n);
+        }
+        if per_row || pose_rows.first() == Some(&0) {
+            out.x.push(0.0);
+            out.y.push(0.0);
+            out.theta.push(0.0);
+            next_pose = 1;
+        }
+        let m = g.known.len();
+        let cells: Vec<f64> = match (g.bumps, p.ground_rows.first()) {
+            (Some((spacing, _, lo, hi)), Some(&k0)) => g
+                .wheels
+                .iter()
+                .map(|w| variants::cable_cell(world_x(p, k0, w.2), spacing.max(1e-6), lo, hi))
+                .collect(),
+            _ => Vec::new(),
+        };
+        Walk {
+            cache,
+            pose: Pose::new(0.0, 0.0, 0.0),
+            heading: Heading::new(),
+            next_pose,
+            inc: vec![0.0; m],
+            contact: None,
+            owed: vec![0.0f64; m],
+            disp: vec![0.0; m],
+            smooth: vec![0.0; m],
+            ang: vec![0.0; m],
+            sub: vec![0.0; m],
+            cells,
+            free_angle: vec![0.0; g.free.len()],
+        }
+    }
+
+    /// One step from ground row `s_idx` to the next (`dt` apart): the body displacement
+    /// the wheels make, side slip added, integrated into the pose; cables crossed owe
+    /// travel to the next steps. Returns the displacement.
+    fn step(
+        &mut self,
+        p: &Prepared,
+        angles: &[Option<&[f64]>],
+        model: &Model,
+        g: &GroundModel,
+        s_idx: usize,
+        dt: f64,
+    ) -> Twist<f64> {
+        let gr = &p.ground_rows;
+        let (k, k_next) = (gr[s_idx], gr[s_idx + 1]);
+        self.cache.update(p.leg_angles(k), g.mu.is_some());
+        for (j, &i) in g.known.iter().enumerate() {
+            let a = angles[i].expect("known wheels have angles");
+            self.inc[j] = a[k_next] - a[k];
+        }
+        let mut d = if g.per_wheel {
+            self.contact_travel(p, angles, g, s_idx, dt);
+            self.body_twist(g)
         } else {
-            match &cache.all {
-                Some(kin) => kin.forward(&inc),
+            match &self.cache.all {
+                Some(kin) => kin.forward(&self.inc),
                 None => Twist::zero(),
             }
         };
-        if side.is_some() {
+        if g.side {
             // v_y = -k v_x omega (or its saturating form), as a displacement.
             d.vy += variants::side_slip(model, &d, dt);
         }
-        heading.advance(&mut pose, &d);
-        if let Some((spacing, loss, lo, hi)) = bumps {
-            // Cables at world x = k * spacing: a driven wheel rolling onto one owes `loss`
-            // of travel along its rolling direction's share of the crossing.
-            let spacing = spacing.max(1e-6);
+        self.heading.advance(&mut self.pose, &d);
+        if let Some(cables) = g.bumps {
+            self.cross_cables(p, g, cables, k_next);
+        }
+        d
+    }
+
+    /// Each wheel's travel at its contact over the step (into `disp`, as an angle into
+    /// `ang`): cables take their toll, traction bounds how fast the contact speed
+    /// changes.
+    fn contact_travel(
+        &mut self,
+        p: &Prepared,
+        angles: &[Option<&[f64]>],
+        g: &GroundModel,
+        s_idx: usize,
+        dt: f64,
+    ) {
+        let (wheels, inc, m) = (&g.wheels, &self.inc, g.known.len());
+        let k = p.ground_rows[s_idx];
+        let disp = &mut self.disp[..m];
+        for j in 0..m {
+            disp[j] = wheels[j].0 * inc[j];
+        }
+        let smooth_disp = &mut self.smooth[..m];
+        smooth_disp.copy_from_slice(disp);
+        if g.mu.is_some() {
+            // The traction limit reacts to speed changes, and encoder quantisation
+            // makes per-sample speeds jitter by a count per sample: read the speed
+            // over three samples instead.
+            let gr = &p.ground_rows;
+            let (k1, k2) = (
+                gr[s_idx.saturating_sub(1)],
+                gr[(s_idx + 2).min(gr.len() - 1)],
+            );
+            let span = p.t[k2] - p.t[k1];
+            for (j, &i) in g.known.iter().enumerate() {
+                let a = angles[i].expect("known wheels have angles");
+                if span > 0.0 {
+                    smooth_disp[j] = wheels[j].0 * (a[k2] - a[k1]) / span * dt;
+                }
+            }
+        }
+        let owed = &mut self.owed;
+        for j in 0..m {
+            if owed[j] > 0.0 && disp[j] != 0.0 && wheels[j].3 {
+                let take = owed[j].min(disp[j].abs());
+                disp[j] -= take.copysign(disp[j]);
+                owed[j] -= take;
+            }
+        }
+        if let Some(mu) = &g.mu {
+            let c = self
+                .contact
+                .get_or_insert_with(|| disp.iter().map(|d| d / dt).collect());
             for j in 0..m {
                 if !wheels[j].3 {
                     continue;
                 }
-                let cell = variants::cable_cell(world_x(k_next, wheels[j].2), spacing, lo, hi);
-                let crossed = (cell - cells[j]).abs();
-                cells[j] = cell;
-                if crossed > 0.0 {
-                    owed[j] += crossed * loss * world_dir(k_next, wheels[j].1).abs();
+                let a = (mu[j] * G * p.driven_share[k]).max(1e-12);
+                let want = (smooth_disp[j] - (wheels[j].0 * inc[j] - disp[j])) / dt;
+                let gap = want - c[j];
+                let t_reach = gap.abs() / a;
+                if t_reach >= dt {
+                    let e = c[j] + gap.signum() * a * dt;
+                    disp[j] = 0.5 * (c[j] + e) * dt;
+                    c[j] = e;
+                } else {
+                    disp[j] = 0.5 * (c[j] + want) * t_reach + want * (dt - t_reach);
+                    c[j] = want;
                 }
             }
         }
-        if !per_row && pose_rows.get(next_pose) == Some(&k_next) {
+        let ang = &mut self.ang[..m];
+        for j in 0..m {
+            ang[j] = disp[j] / wheels[j].0;
+        }
+    }
+
+    /// The body's least-squares twist from the wheels' contact travel (`ang`).
+    fn body_twist(&mut self, g: &GroundModel) -> Twist<f64> {
+        let ang = &self.ang[..g.known.len()];
+        match (&self.cache.driven, g.mu.is_some()) {
+            (Some((kin, idx)), true) => {
+                // Undriven wheels roll with the body, so the body follows the
+                // (traction-limited) driven wheels; its sideways motion, which the
+                // driven pair alone barely constrains, stays what all wheels say.
+                let sub = &mut self.sub[..idx.len()];
+                for (o, &j) in sub.iter_mut().zip(idx) {
+                    *o = ang[j];
+                }
+                let mut t = kin.forward(sub);
+                if let Some(all) = &self.cache.all {
+                    t.vy = all.forward(&self.inc).vy;
+                }
+                t
+            }
+            _ => match &self.cache.all {
+                Some(kin) => kin.forward(ang),
+                None => Twist::zero(),
+            },
+        }
+    }
+
+    /// Cables at world x = k * spacing: a driven wheel rolling onto one by row `k_next`
+    /// owes `loss` of travel along its rolling direction's share of the crossing.
+    fn cross_cables(
+        &mut self,
+        p: &Prepared,
+        g: &GroundModel,
+        (spacing, loss, lo, hi): (f64, f64, f64, f64),
+        k_next: usize,
+    ) {
+        let spacing = spacing.max(1e-6);
+        for j in 0..g.known.len() {
+            let w = &g.wheels[j];
+            if !w.3 {
+                continue;
+            }
+            let cell = variants::cable_cell(world_x(p, k_next, w.2), spacing, lo, hi);
+            let crossed = (cell - self.cells[j]).abs();
+            self.cells[j] = cell;
+            if crossed > 0.0 {
+                self.owed[j] += crossed * loss * world_dir(p, k_next, w.1).abs();
+            }
+        }
+    }
+
+    /// Records the step from row `k` to `k_next` (`dt` apart, body displacement `d`):
+    /// the pose at a pose row, or every row between, linear in time, and the free
+    /// wheels' angles.
+    fn record(
+        &mut self,
+        p: &Prepared,
+        g: &GroundModel,
+        (k, k_next): (usize, usize),
+        dt: f64,
+        d: &Twist<f64>,
+        out: &mut Path,
+    ) {
+        let (pose, per_row) = (&self.pose, out.per_row);
+        if !per_row && p.poses.row.get(self.next_pose) == Some(&k_next) {
             out.x.push(pose.x);
             out.y.push(pose.y);
             out.theta.push(pose.theta);
-            next_pose += 1;
+            self.next_pose += 1;
         }
         // Rows k+1 ..= k_next: linear in time between the step's ends (one row when the
         // recording is not faster than the ground rate).
@@ -439,7 +607,7 @@ pub fn simulate(
             } else {
                 1.0
             };
-            let g = if dt > 0.0 {
+            let share = if dt > 0.0 {
                 (p.t[r] - p.t[r - 1]) / dt
             } else {
                 1.0
@@ -447,14 +615,15 @@ pub fn simulate(
             out.x.push(x0 + f * (pose.x - x0));
             out.y.push(y0 + f * (pose.y - y0));
             out.theta.push(th0 + f * (pose.theta - th0));
-            out.step.push(d.scale(g));
+            out.step.push(d.scale(share));
         }
-        for ((_, g), (a, (_, series))) in free
+        for ((_, row), (a, (_, series))) in g
+            .free
             .iter()
-            .zip(free_angle.iter_mut().zip(out.free.iter_mut()))
+            .zip(self.free_angle.iter_mut().zip(out.free.iter_mut()))
         {
             let a0 = *a;
-            *a += g[0] * d.vx + g[1] * d.vy + g[2] * d.omega;
+            *a += row[0] * d.vx + row[1] * d.vy + row[2] * d.omega;
             for r in k + 1..=k_next {
                 let f = if dt > 0.0 {
                     (p.t[r] - p.t[k]) / dt

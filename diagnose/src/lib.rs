@@ -119,6 +119,49 @@ pub fn diagnose_owned(
     recording: Recording,
     options: &Options,
 ) -> Result<Report, DiagnoseError> {
+    check_input(robot, &recording)?;
+    let (prepared, recorded, notes) = prepare(robot, recording, options)?;
+    let ev = Evaluator::new(&prepared);
+    let mut run = Diagnosis {
+        robot,
+        ev: &ev,
+        notes,
+    };
+    // Identification of the nominal residual: what it depends on, before any fit. The
+    // selection fits the other mechanisms of the effects it names.
+    let nominal_eval = ev.evaluate(&Model::default(), residuals::Fold::All);
+    let identification = run.identify(&nominal_eval);
+    let sel = select::select(
+        &ev,
+        options.max_effects,
+        &identify::named_effects(&identification),
+    );
+    let windows = run.windows(&sel);
+    let mut findings = run.findings(&sel);
+    // Verdict: the finding explaining the largest share of the excess over noise, with
+    // signatures naming effects no mechanism fits fully. Identification of what the
+    // findings leave: the verdict weighs it, the report says it.
+    let left = run.identify(&sel.final_eval);
+    let decided = select::verdict(&ev, &sel, &mut findings, &left, &identification);
+    run.note_wander(&decided.verdict, &sel);
+    let separability = run.note_separability(recorded.geometry.as_ref(), &findings);
+    let depends_on = depends_on(&decided.verdict, &left, &identification);
+    Ok(run.report(
+        &sel,
+        Found {
+            findings,
+            decided,
+            windows,
+            identification,
+            depends_on,
+            separability,
+        },
+        recorded.artefacts,
+    ))
+}
+
+/// Refuses a recording that cannot be compared with `robot` at all.
+fn check_input(robot: &Robot, recording: &Recording) -> Result<(), DiagnoseError> {
     if recording.len() < 3 {
         return Err(DiagnoseError::NotEnoughData(format!(
             "{} rows (need at least 3)",
@@ -137,6 +180,25 @@ pub fn diagnose_owned(
             "the wheels cannot resolve the body twist".into(),
         ));
     }
+    Ok(())
+}
+
+/// What the recording stage found, kept for the report.
+struct Recorded {
+    /// The logging artefacts found (and removed where they could be).
+    artefacts: Vec<recording_stage::Artefact>,
+    /// The whole-geometry fit of the recording stage.
+    geometry: Option<calibrate::Calibration>,
+}
+
+/// Merges fast rows, finds and removes the recording's logging artefacts and prepares
+/// the replay; the recording is dropped once replayed. Returns the replay, what the
+/// recording stage found and the notes so far.
+fn prepare(
+    robot: &Robot,
+    recording: Recording,
+    options: &Options,
+) -> Result<(replay::Prepared, Recorded, Vec<String>), DiagnoseError> {
     // Fast rows merged first: the replays' cost and memory follow the rows kept.
     let recording = match options.max_row_rate_hz {
         Some(rate) if rate.is_finite() && rate > 0.0 => recording.decimated(rate).0,
@@ -167,28 +229,69 @@ pub fn diagnose_owned(
     if !prepared.has_commands() {
         notes.push("no commands: actuator effects cannot be tested".into());
     }
-    let ev = Evaluator::new(&prepared);
-    // Identification of the nominal residual: what it depends on, before any fit. The
-    // selection fits the other mechanisms of the effects it names.
-    let nominal_eval = ev.evaluate(&Model::default(), residuals::Fold::All);
-    let mut identification = identify::ground(&prepared, &nominal_eval);
-    identification.extend(identify::actuator(&ev, &nominal_eval));
-    let sel = select::select(
-        &ev,
-        options.max_effects,
-        &identify::named_effects(&identification),
-    );
-    let sig = windows::signals(&ev);
-    let (windows, windows_total) = windows::bounded(windows::locate(
-        &ev,
-        &sel.nominal_eval,
-        &sel.final_eval,
-        &sig,
-    ));
+    Ok((
+        prepared,
+        Recorded {
+            artefacts,
+            geometry,
+        },
+        notes,
+    ))
+}
 
-    // Findings, best first (selection order).
-    let mut findings = Vec::new();
-    for st in &sel.steps {
+/// A diagnosis under way: the robot, the evaluator of the prepared recording, and the
+/// notes each phase adds.
+struct Diagnosis<'a> {
+    robot: &'a Robot,
+    ev: &'a Evaluator<'a>,
+    notes: Vec<String>,
+}
+
+/// What the diagnosis found, for the report.
+struct Found {
+    /// The findings, ordered by the verdict.
+    findings: Vec<Finding>,
+    /// The verdict.
+    decided: select::Decided,
+    /// Windows where the recording departs, as listed, and how many were found.
+    windows: (Vec<Window>, usize),
+    /// Identification of the nominal residual.
+    identification: Vec<identify::Term>,
+    /// What the residual depends on, as the report says it.
+    depends_on: Vec<String>,
+    /// Geometry this recording cannot separate.
+    separability: report::Separability,
+}
+
+impl Diagnosis<'_> {
+    /// What residuals `e` depend on: identification of both stages.
+    fn identify(&self, e: &residuals::Eval) -> Vec<identify::Term> {
+        let mut terms = identify::ground(self.ev.p, e);
+        terms.extend(identify::actuator(self.ev, e));
+        terms
+    }
+
+    /// Where the recording departs from the nominal and the fitted model, as listed
+    /// (and how many were found).
+    fn windows(&self, sel: &select::Selection) -> (Vec<Window>, usize) {
+        let sig = windows::signals(self.ev);
+        windows::bounded(windows::locate(
+            self.ev,
+            &sel.nominal_eval,
+            &sel.final_eval,
+            &sig,
+        ))
+    }
+
+    /// Findings, best first (selection order).
+    fn findings(&mut self, sel: &select::Selection) -> Vec<Finding> {
+        sel.steps.iter().map(|st| self.finding(sel, st)).collect()
+    }
+
+    /// The finding of one selection step. A parameter the fit pushed to the bound
+    /// nearest "no effect" is left out and noted.
+    fn finding(&mut self, sel: &select::Selection, st: &select::Step) -> Finding {
+        let (robot, ev) = (self.robot, self.ev);
         let e = st.effect;
         let vals = sel.model.get(e).unwrap_or(&[]);
         let sig_vals = sel
@@ -217,19 +320,19 @@ pub fn diagnose_owned(
             uncertainties.insert(n, s);
         }
         if !at_edge.is_empty() {
-            notes.push(format!(
+            self.notes.push(format!(
                 "{} ({}): no effect fitted for {}; not reported",
                 e.id(),
                 e.mechanism(),
                 at_edge.join(", ")
             ));
         }
-        let stage = select::evidence_stage(&ev, e);
+        let stage = select::evidence_stage(ev, e);
         let (b, a) = match stage {
             Stage::Ground => (st.before.ground_rmse(), st.after.ground_rmse()),
             Stage::Actuator => (st.before.actuator_rmse(), st.after.actuator_rmse()),
         };
-        findings.push(Finding {
+        Finding {
             effect: e.id().to_string(),
             stage: e.stage(),
             rmse_stage: stage,
@@ -245,115 +348,135 @@ pub fn diagnose_owned(
             signature: None,
             residual_left_m: None,
             implausible_sign: false,
-        });
-    }
-
-    // Verdict: the finding explaining the largest share of the excess over noise, with
-    // signatures naming effects no mechanism fits fully.
-    // Identification of what the findings leave: the verdict weighs it, the report
-    // says it.
-    let mut left = identify::ground(&prepared, &sel.final_eval);
-    left.extend(identify::actuator(&ev, &sel.final_eval));
-    let select::Decided {
-        verdict,
-        fit,
-        explained_fraction,
-        implausible,
-    } = select::verdict(&ev, &sel, &mut findings, &left, &identification);
-    let rmse_stage = findings.first().map_or(Stage::Ground, |f| f.rmse_stage);
-    // An unexplained ground residual whose changes follow none of the motion is what a
-    // wandering pose reference leaves: said, not decided (one recording cannot tell it
-    // from physics that random-walks the pose, docs/diagnose.md "Reference wander").
-    if verdict == Verdict::Unexplained {
-        if let Some(w) = reference_wander(&prepared, &sel.nominal_eval) {
-            notes.push(format!(
-                "the ground residual ({:.2} mm against {:.2} mm of white noise) wanders as a drifting pose reference would: its changes follow none of the motion (likelihood ratio {:.1} < {:.1}, spread {:.1} < {:.1}, body-frame shape {:.1} < {:.1} over {} windows of {:.1} s; {:.2} mm/sqrt(s)); if the capture frame or localiser may drift, check it before the robot",
-                sel.nominal.ground_rmse() * 1e3,
-                ev.noise.pose_sigma_m * 1e3,
-                w.statistic,
-                drift::CHI2_7_Q99,
-                w.spread,
-                drift::CHI2_4_Q99,
-                w.body_shape,
-                drift::CHI2_2_Q99,
-                w.windows,
-                w.window_s,
-                w.rate_m_per_sqrt_s * 1e3,
-            ));
         }
     }
 
-    // Geometry this recording cannot separate (from the whole-geometry fit of the
-    // recording stage), said next to any finding that names one side of it.
-    let separability = report::Separability(
-        geometry
-            .as_ref()
-            .map(|c| c.inseparable.clone())
-            .unwrap_or_default(),
-    );
-    if let Some(f) = findings
-        .iter()
-        .find(|f| f.parameters.keys().any(|p| separability.0.involves(p)))
-    {
-        notes.push(format!(
-            "{} is one of several geometry explanations this recording cannot tell apart (not_separable)",
-            f.effect
+    /// An unexplained ground residual whose changes follow none of the motion is what a
+    /// wandering pose reference leaves: said, not decided (one recording cannot tell it
+    /// from physics that random-walks the pose, docs/diagnose.md "Reference wander").
+    fn note_wander(&mut self, verdict: &Verdict, sel: &select::Selection) {
+        if *verdict != Verdict::Unexplained {
+            return;
+        }
+        let Some(w) = reference_wander(self.ev.p, &sel.nominal_eval) else {
+            return;
+        };
+        self.notes.push(format!(
+            "the ground residual ({:.2} mm against {:.2} mm of white noise) wanders as a drifting pose reference would: its changes follow none of the motion (likelihood ratio {:.1} < {:.1}, spread {:.1} < {:.1}, body-frame shape {:.1} < {:.1} over {} windows of {:.1} s; {:.2} mm/sqrt(s)); if the capture frame or localiser may drift, check it before the robot",
+            sel.nominal.ground_rmse() * 1e3,
+            self.ev.noise.pose_sigma_m * 1e3,
+            w.statistic,
+            drift::CHI2_7_Q99,
+            w.spread,
+            drift::CHI2_4_Q99,
+            w.body_shape,
+            drift::CHI2_2_Q99,
+            w.windows,
+            w.window_s,
+            w.rate_m_per_sqrt_s * 1e3,
         ));
     }
-    // Identification: what the nominal residual depends on, and what the
-    // residual left after the findings still depends on.
-    let depends_on: Vec<String> = if !left.is_empty() || verdict != Verdict::Unexplained {
+
+    /// Geometry this recording cannot separate (from the whole-geometry fit of the
+    /// recording stage), said next to any finding that names one side of it.
+    fn note_separability(
+        &mut self,
+        geometry: Option<&calibrate::Calibration>,
+        findings: &[Finding],
+    ) -> report::Separability {
+        let separability =
+            report::Separability(geometry.map(|c| c.inseparable.clone()).unwrap_or_default());
+        if let Some(f) = findings
+            .iter()
+            .find(|f| f.parameters.keys().any(|p| separability.0.involves(p)))
+        {
+            self.notes.push(format!(
+                "{} is one of several geometry explanations this recording cannot tell apart (not_separable)",
+                f.effect
+            ));
+        }
+        separability
+    }
+
+    /// The report of the diagnosis.
+    fn report(
+        self,
+        sel: &select::Selection,
+        found: Found,
+        artefacts: Vec<recording_stage::Artefact>,
+    ) -> Report {
+        let (ev, p) = (self.ev, self.ev.p);
+        let Found {
+            findings,
+            decided,
+            windows: (windows, windows_total),
+            identification,
+            depends_on,
+            separability,
+        } = found;
+        let rmse_stage = findings.first().map_or(Stage::Ground, |f| f.rmse_stage);
+        let plot = plot_data(ev, sel);
+        let n_act = sel.nominal.n_act;
+        Report {
+            robot: self.robot.name.to_string(),
+            rows: p.rows(),
+            pose_samples: p.poses.len(),
+            duration_s: p.t.last().unwrap_or(&0.0) - p.t.first().unwrap_or(&0.0),
+            verdict: decided.verdict,
+            fit: decided.fit,
+            findings,
+            windows,
+            heading_rmse_nominal_rad: (sel.nominal.heading / sel.nominal.n_pose.max(1) as f64)
+                .sqrt(),
+            heading_rmse_final_rad: (sel.final_rss.heading / sel.final_rss.n_pose.max(1) as f64)
+                .sqrt(),
+            noise: ev.noise,
+            explained_fraction: decided.explained_fraction,
+            rmse_stage,
+            rmse: report::Rmses {
+                ground: report::StageRmse {
+                    before_m: sel.nominal.ground_rmse(),
+                    after_m: sel.final_rss.ground_rmse(),
+                },
+                actuator: (n_act > 0).then(|| report::StageRmse {
+                    before_m: sel.nominal.actuator_rmse(),
+                    after_m: sel.final_rss.actuator_rmse(),
+                }),
+            },
+            start_pose: [
+                sel.final_eval.start.0,
+                sel.final_eval.start.1,
+                sel.final_eval.start.2,
+            ],
+            candidates: sel.candidates.clone(),
+            notes: self.notes,
+            model_runs_ground: ev.runs.get().0,
+            model_runs_actuator: ev.runs.get().1,
+            model: sel.model.clone(),
+            plot,
+            recording_artefacts: artefacts,
+            implausible: decided.implausible,
+            separability,
+            identification,
+            depends_on,
+            windows_total,
+        }
+    }
+}
+
+/// What the report says the residual depends on: what the findings leave (`left`),
+/// or, for an unexplained verdict with nothing identified in what is left, what the
+/// nominal residual depends on.
+fn depends_on(
+    verdict: &Verdict,
+    left: &[identify::Term],
+    nominal: &[identify::Term],
+) -> Vec<String> {
+    if !left.is_empty() || *verdict != Verdict::Unexplained {
         left.iter().map(|t| t.depends_on.clone()).collect()
     } else {
-        identification
-            .iter()
-            .map(|t| t.depends_on.clone())
-            .collect()
-    };
-    let plot = plot_data(&ev, &sel);
-    let n_act = sel.nominal.n_act;
-    Ok(Report {
-        robot: robot.name.to_string(),
-        rows: prepared.rows(),
-        pose_samples: prepared.poses.len(),
-        duration_s: prepared.t.last().unwrap_or(&0.0) - prepared.t.first().unwrap_or(&0.0),
-        verdict,
-        fit,
-        findings,
-        windows,
-        heading_rmse_nominal_rad: (sel.nominal.heading / sel.nominal.n_pose.max(1) as f64).sqrt(),
-        heading_rmse_final_rad: (sel.final_rss.heading / sel.final_rss.n_pose.max(1) as f64).sqrt(),
-        noise: ev.noise,
-        explained_fraction,
-        rmse_stage,
-        rmse: report::Rmses {
-            ground: report::StageRmse {
-                before_m: sel.nominal.ground_rmse(),
-                after_m: sel.final_rss.ground_rmse(),
-            },
-            actuator: (n_act > 0).then(|| report::StageRmse {
-                before_m: sel.nominal.actuator_rmse(),
-                after_m: sel.final_rss.actuator_rmse(),
-            }),
-        },
-        start_pose: [
-            sel.final_eval.start.0,
-            sel.final_eval.start.1,
-            sel.final_eval.start.2,
-        ],
-        candidates: sel.candidates.clone(),
-        notes,
-        model_runs_ground: ev.runs.get().0,
-        model_runs_actuator: ev.runs.get().1,
-        model: sel.model.clone(),
-        plot,
-        recording_artefacts: artefacts,
-        implausible,
-        separability,
-        identification,
-        depends_on,
-        windows_total,
-    })
+        nominal.iter().map(|t| t.depends_on.clone()).collect()
+    }
 }
 
 /// The wander test ([`drift::test`]) on the nominal ground residual, when it says the
