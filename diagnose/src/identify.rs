@@ -15,6 +15,7 @@
 
 use crate::replay::Prepared;
 use crate::residuals::Eval;
+use formats::catalogue as cat;
 use serde::Serialize;
 
 /// One column of the regressor library, already integrated over the intervals.
@@ -118,7 +119,7 @@ pub fn named_effects(terms: &[Term]) -> Vec<crate::effects::Effect> {
         };
         let effect = if word == "floor" {
             Some(Effect::FloorBumps)
-        } else if word == "longitudinal_slip" && t.target == "heading" {
+        } else if word == cat::LONGITUDINAL_SLIP && t.target == "heading" {
             // A heading error that follows acceleration: the wheels' traction differs.
             Some(Effect::SlipPerWheel)
         } else {

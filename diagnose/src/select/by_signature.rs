@@ -8,6 +8,7 @@ use crate::effects::{Effect, Model, Stage};
 use crate::finding::{Finding, Fit};
 use crate::residuals::Evaluator;
 use crate::signature;
+use formats::catalogue as cat;
 
 /// Names the effects their signatures show in what the selection left: a stepper's
 /// quanta (missed steps) and travel lost over one stretch of the floor (floor bumps in
@@ -38,12 +39,12 @@ pub(super) fn name_by_signature(
     };
     if let Some(st) = &steps {
         let text = stepper_words(st);
-        match findings.iter_mut().find(|f| f.effect == "missed_steps") {
+        match findings.iter_mut().find(|f| f.effect == cat::MISSED_STEPS) {
             Some(f) => f.signature = Some(text),
             None => {
                 let (b, a) = stage_rmse(Stage::Actuator);
                 findings.push(partial(
-                    "missed_steps",
+                    cat::MISSED_STEPS,
                     "quanta",
                     Stage::Actuator,
                     b,
@@ -56,11 +57,11 @@ pub(super) fn name_by_signature(
     }
     if let Some(r) = &region {
         let text = region_words(r);
-        match findings.iter_mut().find(|f| f.effect == "floor_bumps") {
+        match findings.iter_mut().find(|f| f.effect == cat::FLOOR_BUMPS) {
             Some(f) => f.signature = Some(text),
             None => {
                 let (b, a) = stage_rmse(Stage::Ground);
-                let mut f = partial("floor_bumps", "region", Stage::Ground, b, a, left, text);
+                let mut f = partial(cat::FLOOR_BUMPS, "region", Stage::Ground, b, a, left, text);
                 f.parameters.insert("start_m".into(), r.start_m);
                 f.parameters.insert("end_m".into(), r.end_m);
                 f.parameters.insert("loss_per_m".into(), r.loss_per_m);
