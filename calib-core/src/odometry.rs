@@ -98,17 +98,58 @@ pub fn arc_coefficients<T: Float>(d: T) -> (T, T) {
     }
 }
 
+/// One exact-arc step in the frame of the pose it starts from: the chord of the circular
+/// arc a body-frame displacement draws at constant twist, with the arc coefficients that
+/// gave it. The one exact-arc step of the house: [`integrate_arc`] and [`Odometry`] turn
+/// it by their heading, and so do the host's calibration models (which also need the
+/// coefficients for their sensitivities).
+#[derive(Debug, Clone, Copy, PartialEq)]
+pub struct Chord<T> {
+    /// sin(omega)/omega of the step's turn omega ([`arc_coefficients`]).
+    pub s: T,
+    /// (1 - cos(omega))/omega.
+    pub c: T,
+    /// The chord along the start pose's heading (m).
+    pub lx: T,
+    /// The chord to the start pose's left (m).
+    pub ly: T,
+}
+
+impl<T: Float> Chord<T> {
+    /// The chord of the body-frame displacement `d` (forward, left, turn).
+    #[inline]
+    pub fn of(d: &Twist<T>) -> Self {
+        let (s, c) = arc_coefficients(d.omega);
+        Chord {
+            s,
+            c,
+            lx: s * d.vx - c * d.vy,
+            ly: c * d.vx + s * d.vy,
+        }
+    }
+
+    /// The point (`x`, `y`) moved by the chord, turned by a heading whose cosine and sine
+    /// are `ct` and `st`.
+    #[inline]
+    pub fn moved(&self, x: T, y: T, ct: T, st: T) -> (T, T) {
+        (
+            x + ct * self.lx - st * self.ly,
+            y + st * self.lx + ct * self.ly,
+        )
+    }
+}
+
 /// Moves `pose` by a body-frame displacement assumed to happen at constant twist (a
-/// circular arc), returning the new world pose. Used by the simulator and calibration
-/// models as well as by [`Odometry`].
+/// circular arc), returning the new world pose: its [`Chord`] turned by the pose's
+/// heading. Used by the simulator and calibration models; [`Odometry`] takes the same
+/// chord.
 pub fn integrate_arc<T: Float>(pose: Pose<T>, d: &Twist<T>) -> Pose<T> {
-    let (s, c) = arc_coefficients(d.omega);
-    let lx = s * d.vx - c * d.vy;
-    let ly = c * d.vx + s * d.vy;
+    let chord = Chord::of(d);
     let (st, ct) = pose.theta.sin_cos();
+    let (x, y) = chord.moved(pose.x, pose.y, ct, st);
     Pose {
-        x: pose.x + ct * lx - st * ly,
-        y: pose.y + st * lx + ct * ly,
+        x,
+        y,
         theta: pose.theta + d.omega,
     }
 }
@@ -170,9 +211,7 @@ impl<T: Float + FloatConst> Odometry<T> {
 
     /// Adds one tick's body displacement (dx, dy forward/left in metres, dtheta in rad).
     pub fn update(&mut self, d: &Twist<T>) {
-        let (s, c) = arc_coefficients(d.omega);
-        let lx = s * d.vx - c * d.vy;
-        let ly = c * d.vx + s * d.vy;
+        let Chord { s, c, lx, ly } = Chord::of(d);
         let (ct, st) = self.cos_sin;
         self.x.add(ct * lx - st * ly);
         self.y.add(st * lx + ct * ly);

@@ -18,7 +18,7 @@ use crate::series::{empty_range, fitted_dead_reckoning_rmse_within, Series};
 use crate::solve::{
     covariance, noise_scale, nuisance_start, refs, reweighed, solve, OneStep, Solved,
 };
-use crate::turn_law::Turning;
+use crate::turn_law::{TurnLaw, Turning};
 use calib_core::correction::LawRange;
 use calib_core::robot::{Robot, RobotKind};
 use nalgebra::DMatrix;
@@ -825,20 +825,7 @@ fn choose_turn_law(
     let base = cfg.unheld(param_specs(robot, false));
     held_note(cfg, Some(&base), notes);
     if let Some(known) = cfg.known_law {
-        if known.arc_rel != 0.0 {
-            notes.push(format!(
-                "turn law: given (--turn-law or --laws-from), held at eb_arc/eb {:+.4}: the separation on arcs is {:.2} % wider than in a turn in place; the geometry is fitted with it",
-                known.arc_rel,
-                known.arc_rel * 100.0
-            ));
-        }
-        if known.speed_rel != 0.0 {
-            notes.push(format!(
-                "speed law: given (--speed-law or --laws-from), held at speed_rel {:+.4} per m/s: at 0.5 m/s a wheel rolls {:+.1} % further than at a crawl; the geometry (the wheel size at standstill) is fitted with it",
-                known.speed_rel,
-                known.speed_rel * 50.0
-            ));
-        }
+        given_laws_note(known, notes);
         return base;
     }
     if series.len() < 2 {
@@ -849,6 +836,54 @@ fn choose_turn_law(
         }
         return base;
     }
+    let laws = laws_to_test(robot, series, cfg, who, notes);
+    if laws.is_empty() {
+        return base;
+    }
+    let on = Data { robot, series, cfg };
+    let round = FirstRound::held_out(on, &base, laws, runs);
+    let mut qualified: Vec<(usize, f64, usize)> = Vec::new();
+    for i in 0..round.laws.len() {
+        if let Some(q) = round.judge(i, who, notes, made) {
+            qualified.push(q);
+        }
+    }
+    let Some(i) = round.pick(&qualified, notes, made) else {
+        return base;
+    };
+    round.keep(i, notes, runs, made)
+}
+
+/// The laws a `--turn-law`, `--speed-law` or `--laws-from` gave, in the notes: they are
+/// held, not tested, so the notes say so and with what values.
+fn given_laws_note(known: TurnLaw, notes: &mut Vec<String>) {
+    if known.arc_rel != 0.0 {
+        notes.push(format!(
+            "turn law: given (--turn-law or --laws-from), held at eb_arc/eb {:+.4}: the separation on arcs is {:.2} % wider than in a turn in place; the geometry is fitted with it",
+            known.arc_rel,
+            known.arc_rel * 100.0
+        ));
+    }
+    if known.speed_rel != 0.0 {
+        notes.push(format!(
+            "speed law: given (--speed-law or --laws-from), held at speed_rel {:+.4} per m/s: at 0.5 m/s a wheel rolls {:+.1} % further than at a crawl; the geometry (the wheel size at standstill) is fitted with it",
+            known.speed_rel,
+            known.speed_rel * 50.0
+        ));
+    }
+}
+
+/// The laws worth testing against the constant model, each with its specs: the turn law
+/// only when the recordings turn enough on arcs ([`MIN_ARC_SHARE`]: squares turn in
+/// place, and a law fitted to them extrapolates; said in the notes), and on a
+/// differential drive the speed and acceleration laws.
+fn laws_to_test(
+    robot: &Robot,
+    series: &[Series],
+    cfg: Cfg,
+    who: &str,
+    notes: &mut Vec<String>,
+) -> Vec<(Law, Vec<ParamSpec>)> {
     let t = Turning::of_all(series, robot);
     let share = if t.all > 0.0 { t.arcs / t.all } else { 0.0 };
     // The laws tested against the constant model, each on its own.
@@ -862,34 +897,84 @@ fn choose_turn_law(
             MIN_ARC_SHARE * 100.0
         ));
     }
-    if !skid {
+    if robot.kind != RobotKind::SkidSteer {
         laws.push((Law::Speed, cfg.unheld(speed_law_specs(robot))));
         laws.push((Law::Acceleration, cfg.unheld(accel_law_specs(robot))));
     }
-    if laws.is_empty() {
-        return base;
+    laws
+}
+
+/// The first round of [`choose_turn_law`]: each law fitted on all the recordings, and
+/// each model (the constant one and every law) held out by recording, by session and by
+/// kind of motion. What the laws are judged ([`FirstRound::judge`]), picked
+/// ([`FirstRound::pick`]) and kept ([`FirstRound::keep`]) by.
+struct FirstRound<'a> {
+    on: Data<'a>,
+    skid: bool,
+    laws: Vec<(Law, Vec<ParamSpec>)>,
+    /// Each law's fit on all the recordings (with its covariance), in `laws` order.
+    fits: Vec<Fit>,
+    /// Per model (the constant one first, then the laws), the sums of held-out errors
+    /// over the folds: the [`k_folds`] of recordings first, then [`Groups::folds`].
+    sums: Vec<Vec<f64>>,
+    /// Per model, the mean held-out error over the folds of recordings.
+    e: Vec<f64>,
+    /// How many folds of recordings there are.
+    k: usize,
+    groups: Groups,
+}
+
+impl<'a> FirstRound<'a> {
+    /// Fits each law (on two threads) and holds every model out.
+    fn held_out(
+        on: Data<'a>,
+        base: &[ParamSpec],
+        laws: Vec<(Law, Vec<ParamSpec>)>,
+        runs: &mut usize,
+    ) -> Self {
+        let Data { robot, series, cfg } = on;
+        let fits: Vec<Fit> = pool_map(&laws, |(_, specs)| {
+            fit_specs(robot, specs, &refs(series), cfg, true)
+        });
+        *runs += fits.iter().map(|f| f.runs).sum::<usize>();
+        let n = series.len();
+        let recording_folds = k_folds(n);
+        let k = recording_folds.len();
+        let groups = Groups::of(series);
+        let folds = [recording_folds, groups.folds()].concat();
+        let mut models: Vec<&[ParamSpec]> = vec![base];
+        models.extend(laws.iter().map(|(_, specs)| specs.as_slice()));
+        let (sums, _) = heldout_folds(robot, &models, series, cfg, &folds, runs);
+        let e: Vec<f64> = sums
+            .iter()
+            .map(|f| f[..k].iter().sum::<f64>() / n as f64)
+            .collect();
+        FirstRound {
+            on,
+            skid: robot.kind == RobotKind::SkidSteer,
+            laws,
+            fits,
+            sums,
+            e,
+            k,
+            groups,
+        }
     }
-    let mut fits: Vec<Fit> = pool_map(&laws, |(_, specs)| {
-        fit_specs(robot, specs, &refs(series), cfg, true)
-    });
-    *runs += fits.iter().map(|f| f.runs).sum::<usize>();
-    let n = series.len();
-    let recording_folds = k_folds(n);
-    let k = recording_folds.len();
-    let groups = Groups::of(series);
-    let folds = [recording_folds, groups.folds()].concat();
-    let mut models: Vec<&[ParamSpec]> = vec![&base];
-    models.extend(laws.iter().map(|(_, specs)| specs.as_slice()));
-    let (sums, _) = heldout_folds(robot, &models, series, cfg, &folds, runs);
-    let e: Vec<f64> = sums
-        .iter()
-        .map(|f| f[..k].iter().sum::<f64>() / n as f64)
-        .collect();
-    let e_base = e[0];
-    // The laws that qualify: index, held-out error, their note.
-    let mut qualified: Vec<(usize, f64, usize)> = Vec::new();
-    for (i, ((law, specs), fit)) in laws.iter().zip(&fits).enumerate() {
-        let e_law = e[i + 1];
+
+    /// Law `i` judged against the constant model: significant, held out by recording,
+    /// within its plausible range, told from the geometry (speed, acceleration), and
+    /// better on every session and kind left out. Its test goes to `made.law_tests` and
+    /// its note (with the figures) to `notes`, both in `laws` order; returns `(i, its
+    /// held-out error, its note's index)` when it qualifies.
+    fn judge(
+        &self,
+        i: usize,
+        who: &str,
+        notes: &mut Vec<String>,
+        made: &mut Made,
+    ) -> Option<(usize, f64, usize)> {
+        let ((law, specs), fit) = (&self.laws[i], &self.fits[i]);
+        let (k, e_base, e_law) = (self.k, self.e[0], self.e[i + 1]);
         let at = |k: GeomKind| specs.iter().position(|s| s.kind == k);
         let sd = |i: usize| fit.cov[(i, i)].max(0.0).sqrt();
         let main = law.parameter();
@@ -946,7 +1031,9 @@ fn choose_turn_law(
                 specs[with].name
             ));
         }
-        let verdict = groups.verdict(&sums[0][k..], &sums[i + 1][k..]);
+        let verdict = self
+            .groups
+            .verdict(&self.sums[0][k..], &self.sums[i + 1][k..]);
         figures.push_str(&format!("; {}", verdict.words(constant)));
         let qualifies = significant && holds && in_range && separable && verdict.wins;
         // The turn law is reported relative to E_b, as TurnLaw::arc_rel.
@@ -969,126 +1056,172 @@ fn choose_turn_law(
             by_session: verdict.by_session,
             by_kind: verdict.by_kind,
         });
-        let rule = format!(
-            "kept only when significant, at most {:.0} % of the constant model's held-out error over folds of recordings, and the same on every session and every kind of motion left out",
-            TURN_LAW_HOLDOUT_RATIO * 100.0
-        );
-        let note = match (law, qualifies) {
-            (Law::Turn, true) => {
-                let what = if skid {
-                    "the tracks' ICRs move with the turn radius"
-                } else {
-                    "the effective wheelbase depends on how the robot turns (tyre scrub)"
-                };
-                format!("{who}: {what} and the law holds out ({figures})")
-            }
-            (Law::Turn, false) => format!(
-                "{who}: a constant effective separation explains the data ({figures}; the law is {rule})"
-            ),
-            (Law::Speed, true) => format!(
-                "speed law: the wheels' effective size depends on their speed and the law holds out ({figures}): at 0.5 m/s a wheel rolls {:+.1} % further than at a crawl",
-                v * 0.5 * 100.0
-            ),
-            (Law::Speed, false) => format!(
-                "speed law: a wheel size that does not depend on speed explains the data ({figures}; the law is {rule})"
-            ),
-            (Law::Acceleration, true) if v < 0.0 => format!(
-                "acceleration law: the poses lead the wheels by {:.1} ms, which no slip does (slip puts the ground behind its wheels): the signature of a timestamp offset between the pose stream and the encoders (a logging delay), and it holds out ({figures})",
-                -v * 1e3
-            ),
-            (Law::Acceleration, true) => format!(
-                "acceleration law: the wheels slip in proportion to their acceleration (the ground lags their speed) and the law holds out ({figures}): cruising at 0.3 m/s the robot is {:.1} mm behind what its wheels rolled, and catches up as it stops",
-                v * 0.3 * 1e3
-            ),
-            (Law::Acceleration, false) => format!(
-                "acceleration law: wheels that do not slip as they accelerate explain the data ({figures}; the law is {rule})"
-            ),
-        };
-        if qualifies {
-            qualified.push((i, e_law, notes.len()));
-        }
+        let note = law_note(*law, qualifies, v, who, self.skid, &figures);
+        let q = qualifies.then_some((i, e_law, notes.len()));
         notes.push(note);
+        q
     }
-    // Physics first: a pose lead (a negative acceleration term: poses stamped early) is
-    // the logger's, no rival of the robot's laws. When a law qualifies it is chosen among
-    // those, and the lead is tested again on top of it (the second round below).
-    let is_lead = |j: usize| laws[j].0 == Law::Acceleration && made.law_tests[j].value < 0.0;
-    let physical: Vec<(usize, f64, usize)> = qualified
-        .iter()
-        .copied()
-        .filter(|q| !is_lead(q.0))
-        .collect();
-    let pool = if physical.is_empty() {
-        &qualified
-    } else {
-        &physical
-    };
-    let Some(&(best, e_best, _)) = pool.iter().min_by(|a, b| a.1.total_cmp(&b.1)) else {
-        return base;
-    };
-    // Within the ladder's tolerance of the best, the turn law: on the real robot the two
-    // tie across sessions within a month (0.847 against 0.854 of no law's error,
-    // `proxy::laws_across_sessions`), the turn law carried better from one month to the
-    // other's squares (0.671 against 0.858 of the authors'), and boards of protocol v5
-    // apply it too.
-    let turn = pool
-        .iter()
-        .find(|(i, e, _)| laws[*i].0 == Law::Turn && *e <= (1.0 + LADDER_TOLERANCE) * e_best);
-    let i = turn.map_or(best, |t| t.0);
-    for &(j, _, at) in &qualified {
-        let tail = if j != i && is_lead(j) {
-            format!(
-                ": set aside for the {} law, the robot's own, and tested again on top of it",
-                laws[i].0.name()
-            )
-        } else if j != i {
-            let why = if i == best {
-                format!("the {} law holds out better", laws[i].0.name())
-            } else {
-                format!(
-                    "the turn law holds out within {:.0} % of it and is preferred on a tie",
-                    LADDER_TOLERANCE * 100.0
-                )
-            };
-            format!(": not fitted, one law at a time ({why})")
-        } else if laws[j].0 == Law::Acceleration && made.law_tests[j].value < 0.0 {
-            ": the offset is fitted with the geometry, so it does not bend it; it is the logger's, not the robot's, so neither the board nor the robot file nor ROS 2 gets it (--free-start fits one offset per recording instead)".to_string()
-        } else if laws[j].0 == Law::Acceleration {
-            ": the law is fitted (the board applies it (factors set --accel-slip-s); the robot file and ROS 2 get the geometry without it: over a run that starts and ends at rest the lag cancels)".to_string()
-        } else if laws[j].0 == Law::Speed {
-            ": the law is fitted (the board applies it (factors set --speed-rel, c_L and c_R at standstill); ROS 2 and the robot file get the wheel size at the recordings' mean speed)".to_string()
-        } else if skid {
-            ": the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn)".to_string()
+
+    /// The law to keep among those that `qualified` (`(law, held-out error, note)`): the
+    /// best held out of the robot's own laws (a pose lead only when none of them
+    /// qualifies), the turn law on a tie within [`LADDER_TOLERANCE`]. Each qualified
+    /// law's note says what became of it. None when none qualified.
+    fn pick(
+        &self,
+        qualified: &[(usize, f64, usize)],
+        notes: &mut [String],
+        made: &Made,
+    ) -> Option<usize> {
+        let laws = &self.laws;
+        // Physics first: a pose lead (a negative acceleration term: poses stamped early)
+        // is the logger's, no rival of the robot's laws. When a law qualifies it is
+        // chosen among those, and the lead is tested again on top of it (the second
+        // round, [`FirstRound::keep`]).
+        let is_lead = |j: usize| laws[j].0 == Law::Acceleration && made.law_tests[j].value < 0.0;
+        let physical: Vec<(usize, f64, usize)> = qualified
+            .iter()
+            .copied()
+            .filter(|q| !is_lead(q.0))
+            .collect();
+        let pool = if physical.is_empty() {
+            qualified
         } else {
-            ": the law is fitted (the board applies it (factors set --e-b-arc); ROS 2's diff_drive_controller and the robot file get E_b at the recordings' mean turn)".to_string()
+            &physical
         };
-        notes[at].push_str(&tail);
+        let &(best, e_best, _) = pool.iter().min_by(|a, b| a.1.total_cmp(&b.1))?;
+        // Within the ladder's tolerance of the best, the turn law: on the real robot the
+        // two tie across sessions within a month (0.847 against 0.854 of no law's error,
+        // `proxy::laws_across_sessions`), the turn law carried better from one month to
+        // the other's squares (0.671 against 0.858 of the authors'), and boards of
+        // protocol v5 apply it too.
+        let turn = pool
+            .iter()
+            .find(|(i, e, _)| laws[*i].0 == Law::Turn && *e <= (1.0 + LADDER_TOLERANCE) * e_best);
+        let i = turn.map_or(best, |t| t.0);
+        for &(j, _, at) in qualified {
+            let tail = if j != i && is_lead(j) {
+                format!(
+                    ": set aside for the {} law, the robot's own, and tested again on top of it",
+                    laws[i].0.name()
+                )
+            } else if j != i {
+                let why = if i == best {
+                    format!("the {} law holds out better", laws[i].0.name())
+                } else {
+                    format!(
+                        "the turn law holds out within {:.0} % of it and is preferred on a tie",
+                        LADDER_TOLERANCE * 100.0
+                    )
+                };
+                format!(": not fitted, one law at a time ({why})")
+            } else {
+                kept_tail(laws[j].0, is_lead(j), self.skid).to_string()
+            };
+            notes[at].push_str(&tail);
+        }
+        Some(i)
     }
-    let lead_chosen = is_lead(i);
-    // One test per law, pushed in `laws` order.
-    made.law_tests[i].kept = true;
-    let e_chosen = e[i + 1];
-    let fit = fits.swap_remove(i);
-    made.prefit = Some(Prefit {
-        specs: laws[i].1.clone(),
-        prior_scale: fit.prior_scale,
-        f: fit.f,
-    });
-    let tests_lead =
-        laws[i].0 != Law::Acceleration && laws.iter().any(|l| l.0 == Law::Acceleration);
-    let (law, specs) = laws.swap_remove(i);
-    let chosen = Chosen {
-        law,
-        specs,
-        heldout_m: e_chosen,
-    };
-    let on = Data { robot, series, cfg };
-    if tests_lead {
-        lead_on_top(on, notes, runs, made, chosen)
-    } else if lead_chosen {
-        laws_on_lead(on, notes, runs, made, chosen, &laws)
+
+    /// Keeps law `i`: its fit on all the recordings is the final fit's start
+    /// ([`Prefit`]), and a second round tests a pose lead on top of a robot's law
+    /// ([`lead_on_top`]) or the robot's laws on top of a chosen lead ([`laws_on_lead`]).
+    /// Returns the specs to fit.
+    fn keep(
+        self,
+        i: usize,
+        notes: &mut Vec<String>,
+        runs: &mut usize,
+        made: &mut Made,
+    ) -> Vec<ParamSpec> {
+        let FirstRound {
+            on,
+            mut laws,
+            mut fits,
+            e,
+            ..
+        } = self;
+        let lead_chosen = laws[i].0 == Law::Acceleration && made.law_tests[i].value < 0.0;
+        // One test per law, pushed in `laws` order.
+        made.law_tests[i].kept = true;
+        let e_chosen = e[i + 1];
+        let fit = fits.swap_remove(i);
+        made.prefit = Some(Prefit {
+            specs: laws[i].1.clone(),
+            prior_scale: fit.prior_scale,
+            f: fit.f,
+        });
+        let tests_lead =
+            laws[i].0 != Law::Acceleration && laws.iter().any(|l| l.0 == Law::Acceleration);
+        let (law, specs) = laws.swap_remove(i);
+        let chosen = Chosen {
+            law,
+            specs,
+            heldout_m: e_chosen,
+        };
+        if tests_lead {
+            lead_on_top(on, notes, runs, made, chosen)
+        } else if lead_chosen {
+            laws_on_lead(on, notes, runs, made, chosen, &laws)
+        } else {
+            chosen.specs
+        }
+    }
+}
+
+/// A law's note from the first round of [`choose_turn_law`]: what the law means for the
+/// robot when it `qualifies` (its value `v`), or that the model without it explains the
+/// data and the rule it failed; `figures` are the test's.
+fn law_note(law: Law, qualifies: bool, v: f64, who: &str, skid: bool, figures: &str) -> String {
+    let rule = format!(
+        "kept only when significant, at most {:.0} % of the constant model's held-out error over folds of recordings, and the same on every session and every kind of motion left out",
+        TURN_LAW_HOLDOUT_RATIO * 100.0
+    );
+    match (law, qualifies) {
+        (Law::Turn, true) => {
+            let what = if skid {
+                "the tracks' ICRs move with the turn radius"
+            } else {
+                "the effective wheelbase depends on how the robot turns (tyre scrub)"
+            };
+            format!("{who}: {what} and the law holds out ({figures})")
+        }
+        (Law::Turn, false) => format!(
+            "{who}: a constant effective separation explains the data ({figures}; the law is {rule})"
+        ),
+        (Law::Speed, true) => format!(
+            "speed law: the wheels' effective size depends on their speed and the law holds out ({figures}): at 0.5 m/s a wheel rolls {:+.1} % further than at a crawl",
+            v * 0.5 * 100.0
+        ),
+        (Law::Speed, false) => format!(
+            "speed law: a wheel size that does not depend on speed explains the data ({figures}; the law is {rule})"
+        ),
+        (Law::Acceleration, true) if v < 0.0 => format!(
+            "acceleration law: the poses lead the wheels by {:.1} ms, which no slip does (slip puts the ground behind its wheels): the signature of a timestamp offset between the pose stream and the encoders (a logging delay), and it holds out ({figures})",
+            -v * 1e3
+        ),
+        (Law::Acceleration, true) => format!(
+            "acceleration law: the wheels slip in proportion to their acceleration (the ground lags their speed) and the law holds out ({figures}): cruising at 0.3 m/s the robot is {:.1} mm behind what its wheels rolled, and catches up as it stops",
+            v * 0.3 * 1e3
+        ),
+        (Law::Acceleration, false) => format!(
+            "acceleration law: wheels that do not slip as they accelerate explain the data ({figures}; the law is {rule})"
+        ),
+    }
+}
+
+/// What the kept law's note adds: who applies it (the board, ROS 2, the robot file), or
+/// for a pose lead (`lead`) that it is the logger's and goes to none of them.
+fn kept_tail(law: Law, lead: bool, skid: bool) -> &'static str {
+    if law == Law::Acceleration && lead {
+        ": the offset is fitted with the geometry, so it does not bend it; it is the logger's, not the robot's, so neither the board nor the robot file nor ROS 2 gets it (--free-start fits one offset per recording instead)"
+    } else if law == Law::Acceleration {
+        ": the law is fitted (the board applies it (factors set --accel-slip-s); the robot file and ROS 2 get the geometry without it: over a run that starts and ends at rest the lag cancels)"
+    } else if law == Law::Speed {
+        ": the law is fitted (the board applies it (factors set --speed-rel, c_L and c_R at standstill); ROS 2 and the robot file get the wheel size at the recordings' mean speed)"
+    } else if skid {
+        ": the law is fitted (ROS 2's diff_drive_controller and the board apply a constant E_b, the law's value at the recordings' mean turn)"
     } else {
-        chosen.specs
+        ": the law is fitted (the board applies it (factors set --e-b-arc); ROS 2's diff_drive_controller and the robot file get E_b at the recordings' mean turn)"
     }
 }
 

@@ -52,6 +52,12 @@ pub(super) fn robust_sigma(r: &[f64]) -> f64 {
 /// Heading discrepancies (odometry minus motion capture) over [`EVENT_WINDOW_S`] that no
 /// geometry explains: reported, and kept out of the fit (a slip restarts dead reckoning
 /// from the measured pose after it; a clock lead's samples are not compared).
+///
+/// The phases: the discrepancy along the recording ([`Discrepancy::of`]); its step and
+/// largest transient across each window, less what a geometry error makes of them
+/// ([`Discrepancy::steps`]); the windows that stand out ([`Discrepancy::find`]); pairs
+/// of opposite steps merged into clock leads ([`merge_opposite_steps`]); then the
+/// events reported and a slip's samples kept out ([`Discrepancy::report`]).
 pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
     let Ok(kin) = Kinematics::<f64>::new(robot, &Corrections::None) else {
         return vec![];
@@ -60,53 +66,85 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
     if !s.path(robot, &kin, &mut path) {
         return vec![];
     }
-    let n = s.pose_row.len();
-    let e: Vec<f64> = (0..n)
-        .map(|j| (path.th[s.pose_row[j]] - path.th[s.pose_row[0]]) - (s.pth[j] - s.pth[0]))
-        .collect();
-    let t = |j: usize| s.t[s.pose_row[j]];
-    // Window ends.
-    let mut end = vec![n - 1; n];
-    let mut k = 0;
-    for (j, e_j) in end.iter_mut().enumerate() {
-        k = k.max(j);
-        while k + 1 < n && t(k) - t(j) < EVENT_WINDOW_S {
-            k += 1;
+    let d = Discrepancy::of(s, &path);
+    let steps = d.steps(s);
+    let mut found = d.find(&steps);
+    found.sort_by_key(|f| f.0);
+    let merged = merge_opposite_steps(&d.t, &found);
+    d.report(s, &path, &steps, merged)
+}
+
+/// One recording's heading discrepancy at its pose samples, and the windows the events
+/// are looked for in.
+struct Discrepancy {
+    /// Per pose sample: its time (s).
+    t: Vec<f64>,
+    /// Per pose sample: the heading turned by odometry less that measured since the
+    /// first (rad).
+    e: Vec<f64>,
+    /// Per pose sample: the measured distance driven since the first (m).
+    dist: Vec<f64>,
+    /// Per pose sample: the last sample of the window of [`EVENT_WINDOW_S`] from it.
+    end: Vec<usize>,
+    /// The times never decrease (samples are found by bisection).
+    ordered: bool,
+}
+
+/// Per window, what the discrepancy does across it ([`Discrepancy::steps`]).
+struct Steps {
+    /// The step between the mean levels before and after the window, less what the
+    /// regressed geometry error makes of it.
+    step: Vec<f64>,
+    /// The largest departure inside the window from the line between those levels.
+    transient: Vec<f64>,
+    /// The heading measured turned across the window (rad).
+    turned: Vec<f64>,
+    /// The geometry error regressed out: per radian turned and per metre driven.
+    coef: (f64, f64),
+}
+
+impl Discrepancy {
+    /// The discrepancy along `s` dead-reckoned as `path`, and each sample's window end.
+    fn of(s: &Series, path: &Path) -> Discrepancy {
+        let n = s.pose_row.len();
+        let e: Vec<f64> = (0..n)
+            .map(|j| (path.th[s.pose_row[j]] - path.th[s.pose_row[0]]) - (s.pth[j] - s.pth[0]))
+            .collect();
+        let t: Vec<f64> = (0..n).map(|j| s.t[s.pose_row[j]]).collect();
+        // Window ends.
+        let mut end = vec![n - 1; n];
+        let mut k = 0;
+        for (j, e_j) in end.iter_mut().enumerate() {
+            k = k.max(j);
+            while k + 1 < n && t[k] - t[j] < EVENT_WINDOW_S {
+                k += 1;
+            }
+            *e_j = k;
         }
-        *e_j = k;
+        let mut dist = vec![0.0; n];
+        for j in 1..n {
+            dist[j] = dist[j - 1] + (s.px[j] - s.px[j - 1]).hypot(s.py[j] - s.py[j - 1]);
+        }
+        let ordered = (1..n).all(|k| t[k - 1] <= t[k]);
+        Discrepancy {
+            t,
+            e,
+            dist,
+            end,
+            ordered,
+        }
     }
-    // Mean discrepancy over EVENT_GUARD_S before each window and after it: a slip is a
-    // step that stays; one clock leading the other for a moment is a transient inside
-    // the window that the means on either side do not see.
-    let mut pre = vec![0.0; n + 1];
-    for j in 0..n {
-        pre[j + 1] = pre[j] + e[j];
-    }
-    let mean = |a: usize, b: usize| (pre[b + 1] - pre[a]) / (b + 1 - a) as f64;
-    // What a geometry error makes of the same step: a wheelbase error grows with the
-    // heading turned, a diameter ratio with the distance driven. Both are regressed out
-    // (robustly) before a step counts as an event, so a geometry the event itself bent
-    // in the first fit does not hide it.
-    let mut dist = vec![0.0; n];
-    for j in 1..n {
-        dist[j] = dist[j - 1] + (s.px[j] - s.px[j - 1]).hypot(s.py[j] - s.py[j - 1]);
-    }
-    let (mut pth_pre, mut dist_pre) = (vec![0.0; n + 1], vec![0.0; n + 1]);
-    for j in 0..n {
-        pth_pre[j + 1] = pth_pre[j] + s.pth[j];
-        dist_pre[j + 1] = dist_pre[j] + dist[j];
-    }
-    let mean_of = |v: &[f64], a: usize, b: usize| (v[b + 1] - v[a]) / (b + 1 - a) as f64;
-    let mut reg = vec![(0.0, 0.0); n];
-    // The first sample at or after t0: by bisection when the times never decrease (the
-    // same sample as the scan, which is quadratic in the samples over the recording).
-    let ordered = (1..n).all(|k| t(k - 1) <= t(k));
-    let first_at = |t0: f64| {
-        if ordered && !t0.is_nan() {
+
+    /// The first sample at or after `t0`: by bisection when the times never decrease
+    /// (the same sample as the scan, which is quadratic in the samples over the
+    /// recording).
+    fn first_at(&self, t0: f64) -> usize {
+        let (t, n) = (&self.t, self.t.len());
+        if self.ordered && !t0.is_nan() {
             let (mut lo, mut hi) = (0, n);
             while lo < hi {
                 let mid = (lo + hi) / 2;
-                if t(mid) < t0 {
+                if t[mid] < t0 {
                     lo = mid + 1;
                 } else {
                     hi = mid;
@@ -114,30 +152,175 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
             }
             lo.min(n - 1)
         } else {
-            (0..n).find(|&k| t(k) >= t0).unwrap_or(n - 1)
+            (0..n).find(|&k| t[k] >= t0).unwrap_or(n - 1)
         }
-    };
-    let mut step = vec![0.0; n];
-    let mut transient = vec![0.0; n];
-    let mut turned = vec![0.0; n];
-    let mut after_end = vec![n - 1; n];
-    for j in 0..n {
-        let b = end[j];
-        let a0 = first_at(t(j) - EVENT_GUARD_S);
-        let b1 = first_at(t(b) + EVENT_GUARD_S).max(b);
-        after_end[j] = b1;
-        let (m0, m1) = (mean(a0, j), mean(b, b1));
-        step[j] = m1 - m0;
-        reg[j] = (
-            mean_of(&pth_pre, b, b1) - mean_of(&pth_pre, a0, j),
-            mean_of(&dist_pre, b, b1) - mean_of(&dist_pre, a0, j),
-        );
-        transient[j] = (j..=b)
-            .map(|k| e[k] - m0 - (m1 - m0) * (t(k) - t(j)) / (t(b) - t(j)).max(fitkit::MIN_DT_S))
-            .fold(0.0, |acc: f64, v| if v.abs() > acc.abs() { v } else { acc });
-        turned[j] = (s.pth[b] - s.pth[j]).abs();
     }
-    // Huber-weighted least squares of step on the two regressors, a few passes.
+
+    /// Per window, the step and the transient ([`Steps`]). The mean discrepancy over
+    /// [`EVENT_GUARD_S`] before each window and after it: a slip is a step that stays;
+    /// one clock leading the other for a moment is a transient inside the window that
+    /// the means on either side do not see. What a geometry error makes of the same step
+    /// (a wheelbase error grows with the heading turned, a diameter ratio with the
+    /// distance driven) is regressed out (robustly, [`geometry_coef`]) before a step
+    /// counts, so a geometry the event itself bent in the first fit does not hide it.
+    fn steps(&self, s: &Series) -> Steps {
+        let (t, e, end) = (&self.t, &self.e, &self.end);
+        let n = t.len();
+        let mut pre = vec![0.0; n + 1];
+        for j in 0..n {
+            pre[j + 1] = pre[j] + e[j];
+        }
+        let (mut pth_pre, mut dist_pre) = (vec![0.0; n + 1], vec![0.0; n + 1]);
+        for j in 0..n {
+            pth_pre[j + 1] = pth_pre[j] + s.pth[j];
+            dist_pre[j + 1] = dist_pre[j] + self.dist[j];
+        }
+        let mean_of = |v: &[f64], a: usize, b: usize| (v[b + 1] - v[a]) / (b + 1 - a) as f64;
+        let mut reg = vec![(0.0, 0.0); n];
+        let mut step = vec![0.0; n];
+        let mut transient = vec![0.0; n];
+        let mut turned = vec![0.0; n];
+        for j in 0..n {
+            let b = end[j];
+            let a0 = self.first_at(t[j] - EVENT_GUARD_S);
+            let b1 = self.first_at(t[b] + EVENT_GUARD_S).max(b);
+            let (m0, m1) = (mean_of(&pre, a0, j), mean_of(&pre, b, b1));
+            step[j] = m1 - m0;
+            reg[j] = (
+                mean_of(&pth_pre, b, b1) - mean_of(&pth_pre, a0, j),
+                mean_of(&dist_pre, b, b1) - mean_of(&dist_pre, a0, j),
+            );
+            transient[j] = (j..=b)
+                .map(|k| {
+                    e[k] - m0 - (m1 - m0) * (t[k] - t[j]) / (t[b] - t[j]).max(fitkit::MIN_DT_S)
+                })
+                .fold(0.0, |acc: f64, v| if v.abs() > acc.abs() { v } else { acc });
+            turned[j] = (s.pth[b] - s.pth[j]).abs();
+        }
+        let coef = geometry_coef(&step, &reg);
+        for j in 0..n {
+            step[j] -= coef.0 * reg[j].0 + coef.1 * reg[j].1;
+        }
+        Steps {
+            step,
+            transient,
+            turned,
+            coef,
+        }
+    }
+
+    /// The windows whose step (a slip: over [`EVENT_MIN_RAD`], [`EVENT_SIGMAS`] robust
+    /// sigmas and [`EVENT_PER_TURN`] of the turn) or transient (a time lead: over
+    /// [`EVENT_TRANSIENT_RAD`]) stands out, largest first, none overlapping another.
+    fn find(&self, w: &Steps) -> Vec<Found> {
+        let (n, end) = (self.t.len(), &self.end);
+        let sigma = robust_sigma(&w.step);
+        let thr = |j: usize| {
+            EVENT_MIN_RAD
+                .max(EVENT_SIGMAS * sigma)
+                .max(EVENT_PER_TURN * w.turned[j])
+        };
+        let mut found: Vec<Found> = vec![];
+        for (vals, kind, limit) in [
+            (&w.step, "slip", None),
+            (&w.transient, "time_lead", Some(EVENT_TRANSIENT_RAD)),
+        ] {
+            let mut used = vec![false; n];
+            for f in &found {
+                for u in used.iter_mut().take(f.1 + 1).skip(f.0) {
+                    *u = true;
+                }
+            }
+            loop {
+                let best = (0..n)
+                    .filter(|&j| !used[j])
+                    .max_by(|&a, &b| vals[a].abs().total_cmp(&vals[b].abs()));
+                let Some(j) = best.filter(|&j| vals[j].abs() > limit.unwrap_or_else(|| thr(j)))
+                else {
+                    break;
+                };
+                let (a, b) = (j, end[j]);
+                for (u, w) in used.iter_mut().enumerate() {
+                    if end[u] >= a && u <= b {
+                        *w = true;
+                    }
+                }
+                found.push((a, b, vals[j], kind));
+            }
+        }
+        found
+    }
+
+    /// The events, in the order of their windows ([`coalesce`]d), with what is done
+    /// about each: a slip keeps out of the fit only the samples where it happens
+    /// ([`slip_span`]) and dead reckoning restarts after it (an [`Anchor`]); a time lead
+    /// is reported only.
+    fn report(&self, s: &mut Series, path: &Path, w: &Steps, merged: Vec<Found>) -> Vec<Event> {
+        let (t, n) = (&self.t, self.t.len());
+        // The discrepancy less what the regressed geometry error makes of it along the
+        // recording, and its sample-to-sample noise: where within a slip's window it
+        // moves.
+        let e_geo: Vec<f64> = (0..n)
+            .map(|j| self.e[j] - w.coef.0 * s.pth[j] - w.coef.1 * self.dist[j])
+            .collect();
+        let d: Vec<f64> = e_geo.windows(2).map(|w| w[1] - w[0]).collect();
+        let noise = robust_sigma(&d) / std::f64::consts::SQRT_2;
+        let mut out = vec![];
+        let mut skip: Vec<(usize, usize)> = vec![];
+        for (a, b, h, kind) in coalesce(merged) {
+            let slip = kind == "slip";
+            // A slip keeps out only the samples where it happens, not its whole window
+            // (dropping 3 s of a square's data moved its wheel size by a sigma).
+            let (a, b) = if slip {
+                let a0 = self.first_at(t[a] - EVENT_GUARD_S).min(a);
+                let b1 = self.first_at(t[b] + EVENT_GUARD_S).max(b);
+                slip_span(&e_geo, (a0, a), (b, b1), noise)
+            } else {
+                (a, b)
+            };
+            out.push(Event {
+                recording: s.name.clone(),
+                kind,
+                t_s: t[a] - s.t[0],
+                duration_s: t[b] - t[a],
+                heading_rad: h,
+                position_m: 0.0,
+                handled: if slip {
+                    format!("dead reckoning restarts from the measured pose after it (its heading averaged over the next {ANCHOR_WINDOW_S} s)")
+                } else {
+                    "reported only: the heading it leads by is given back when the turn ends".into()
+                },
+            });
+            if slip {
+                skip.push((a, b));
+            }
+            if slip && !s.anchors.iter().any(|x| x.sample == b) {
+                // The heading dead reckoning restarts from: the measured heading at b less
+                // the odometry's turn since, averaged over the samples of the next
+                // ANCHOR_WINDOW_S (one sample's noise would tilt the rest of the
+                // recording).
+                let (mut sum, mut m) = (0.0, 0usize);
+                for k in (b..n).take_while(|&k| t[k] - t[b] <= ANCHOR_WINDOW_S) {
+                    sum += s.pth[k] - (path.th[s.pose_row[k]] - path.th[s.pose_row[b]]);
+                    m += 1;
+                }
+                s.anchors.push(Anchor {
+                    sample: b,
+                    pose: [s.px[b], s.py[b], sum / m.max(1) as f64],
+                });
+            }
+        }
+        s.anchors.sort_by_key(|x| x.sample);
+        s.samples
+            .retain(|&j| !skip.iter().any(|&(a, b)| j > a && j < b));
+        out
+    }
+}
+
+/// The geometry error in the windows' steps: Huber-weighted least squares of `step` on
+/// the two regressors `reg` (the heading turned, the distance driven), a few passes.
+fn geometry_coef(step: &[f64], reg: &[(f64, f64)]) -> (f64, f64) {
+    let n = step.len();
     let mut coef = (0.0, 0.0);
     for _ in 0..5 {
         let res: Vec<f64> = (0..n)
@@ -164,54 +347,15 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
         }
         coef = ((a22 * b1 - a12 * b2) / det, (a11 * b2 - a12 * b1) / det);
     }
-    for j in 0..n {
-        step[j] -= coef.0 * reg[j].0 + coef.1 * reg[j].1;
-    }
-    // The discrepancy less what the regressed geometry error makes of it along the
-    // recording, and its sample-to-sample noise: where within a slip's window it moves.
-    let e_geo: Vec<f64> = (0..n)
-        .map(|j| e[j] - coef.0 * s.pth[j] - coef.1 * dist[j])
-        .collect();
-    let d: Vec<f64> = e_geo.windows(2).map(|w| w[1] - w[0]).collect();
-    let noise = robust_sigma(&d) / std::f64::consts::SQRT_2;
-    let sigma = robust_sigma(&step);
-    let thr = |j: usize| {
-        EVENT_MIN_RAD
-            .max(EVENT_SIGMAS * sigma)
-            .max(EVENT_PER_TURN * turned[j])
-    };
-    let mut found: Vec<(usize, usize, f64, &'static str)> = vec![];
-    for (vals, kind, limit) in [
-        (&step, "slip", None),
-        (&transient, "time_lead", Some(EVENT_TRANSIENT_RAD)),
-    ] {
-        let mut used = vec![false; n];
-        for f in &found {
-            for u in used.iter_mut().take(f.1 + 1).skip(f.0) {
-                *u = true;
-            }
-        }
-        loop {
-            let best = (0..n)
-                .filter(|&j| !used[j])
-                .max_by(|&a, &b| vals[a].abs().total_cmp(&vals[b].abs()));
-            let Some(j) = best.filter(|&j| vals[j].abs() > limit.unwrap_or_else(|| thr(j))) else {
-                break;
-            };
-            let (a, b) = (j, end[j]);
-            for (u, w) in used.iter_mut().enumerate() {
-                if end[u] >= a && u <= b {
-                    *w = true;
-                }
-            }
-            found.push((a, b, vals[j], kind));
-        }
-    }
-    found.sort_by_key(|f| f.0);
-    // Two steps of opposite sign that undo each other within a few seconds: a clock
-    // leading the other through a turn, not a slip.
-    // (Transients between them belong to the same turn.)
-    let mut merged: Vec<(usize, usize, f64, &'static str)> = vec![];
+    coef
+}
+
+/// Two steps of opposite sign that undo each other within a few seconds: a clock leading
+/// the other through a turn, not a slip; they become one `time_lead` (with the
+/// transients between them, which belong to the same turn). `found` sorted by first
+/// sample; `t` the samples' times.
+fn merge_opposite_steps(t: &[f64], found: &[Found]) -> Vec<Found> {
+    let mut merged: Vec<Found> = vec![];
     let mut i = 0;
     while i < found.len() {
         let f = found[i];
@@ -219,7 +363,7 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
             let next = (i + 1..found.len()).find(|&j| found[j].3 == "slip");
             if let Some(j) = next {
                 let g = found[j];
-                if t(g.0) - t(f.1) < 2.0 * EVENT_WINDOW_S
+                if t[g.0] - t[f.1] < 2.0 * EVENT_WINDOW_S
                     && f.2 * g.2 < 0.0
                     && (f.2 + g.2).abs() < 0.3 * f.2.abs().max(g.2.abs())
                 {
@@ -239,54 +383,7 @@ pub(super) fn detect_events(robot: &Robot, s: &mut Series) -> Vec<Event> {
         merged.push(f);
         i += 1;
     }
-    let mut out = vec![];
-    let mut skip: Vec<(usize, usize)> = vec![];
-    for (a, b, h, kind) in coalesce(merged) {
-        let slip = kind == "slip";
-        // A slip keeps out only the samples where it happens, not its whole window
-        // (dropping 3 s of a square's data moved its wheel size by a sigma).
-        let (a, b) = if slip {
-            let a0 = first_at(t(a) - EVENT_GUARD_S).min(a);
-            let b1 = first_at(t(b) + EVENT_GUARD_S).max(b);
-            slip_span(&e_geo, (a0, a), (b, b1), noise)
-        } else {
-            (a, b)
-        };
-        out.push(Event {
-            recording: s.name.clone(),
-            kind,
-            t_s: t(a) - s.t[0],
-            duration_s: t(b) - t(a),
-            heading_rad: h,
-            position_m: 0.0,
-            handled: if slip {
-                format!("dead reckoning restarts from the measured pose after it (its heading averaged over the next {ANCHOR_WINDOW_S} s)")
-            } else {
-                "reported only: the heading it leads by is given back when the turn ends".into()
-            },
-        });
-        if slip {
-            skip.push((a, b));
-        }
-        if slip && !s.anchors.iter().any(|x| x.sample == b) {
-            // The heading dead reckoning restarts from: the measured heading at b less
-            // the odometry's turn since, averaged over the samples of the next
-            // ANCHOR_WINDOW_S (one sample's noise would tilt the rest of the recording).
-            let (mut sum, mut m) = (0.0, 0usize);
-            for k in (b..n).take_while(|&k| t(k) - t(b) <= ANCHOR_WINDOW_S) {
-                sum += s.pth[k] - (path.th[s.pose_row[k]] - path.th[s.pose_row[b]]);
-                m += 1;
-            }
-            s.anchors.push(Anchor {
-                sample: b,
-                pose: [s.px[b], s.py[b], sum / m.max(1) as f64],
-            });
-        }
-    }
-    s.anchors.sort_by_key(|x| x.sample);
-    s.samples
-        .retain(|&j| !skip.iter().any(|&(a, b)| j > a && j < b));
-    out
+    merged
 }
 
 /// Where a slip found in the window `(before.1, after.0)` happens: the last sample of the

@@ -17,7 +17,7 @@ use calib_core::kinematics::{Kinematics, Twist};
 use calib_core::robot::{Robot, RobotKind};
 use std::ops::Range;
 
-/// d/dd of [`arc_coefficients`]: (d(sin d / d), d((1 - cos d) / d)).
+/// d/dd of [`arc_coefficients`](calib_core::odometry::arc_coefficients): (d(sin d / d), d((1 - cos d) / d)).
 #[inline]
 fn arc_slopes(d: f64) -> (f64, f64) {
     if d.abs() < 0.1 {

@@ -5,6 +5,7 @@
 
 use crate::turn_law::{Sides, TurnLaw};
 use calib_core::kinematics::{Kinematics, Twist};
+use calib_core::odometry::Chord;
 use calib_core::robot::{Robot, RobotKind};
 
 /// The body twist of one row's wheel increments at one geometry.
@@ -139,9 +140,11 @@ impl Heading {
     }
 }
 
-/// One step of the exact arc from (`x`, `y`, `heading`) by the twist `tw` (as
-/// [`integrate_arc`](calib_core::odometry::integrate_arc)), returning the arc
-/// coefficients (S, C) and the body-frame displacement (lx, ly) used.
+/// One step of the exact arc from (`x`, `y`, `heading`) by the twist `tw`: calib-core's
+/// [`Chord`] (the exact-arc step the firmware's odometry and
+/// [`integrate_arc`](calib_core::odometry::integrate_arc) take) turned by the carried
+/// heading, returning the arc coefficients (S, C) and the body-frame displacement
+/// (lx, ly) used.
 #[inline]
 pub(crate) fn arc_step(
     x: &mut f64,
@@ -149,51 +152,43 @@ pub(crate) fn arc_step(
     heading: &mut Heading,
     tw: &Twist<f64>,
 ) -> (f64, f64, f64, f64) {
-    let (s, c) = arc_coefficients(tw.omega);
-    let lx = s * tw.vx - c * tw.vy;
-    let ly = c * tw.vx + s * tw.vy;
-    let (st, ct) = (heading.sin, heading.cos);
-    *x = *x + ct * lx - st * ly;
-    *y = *y + st * lx + ct * ly;
-    heading.turn(tw.omega, s, c);
-    (s, c, lx, ly)
-}
-
-/// [`arc_coefficients`](calib_core::odometry::arc_coefficients) of an `f64`, inlined into
-/// the paths' loops (a call per row cost a tenth of a calibration): the same operations
-/// in the same order, so the same bits.
-#[inline(always)]
-pub(crate) fn arc_coefficients(d: f64) -> (f64, f64) {
-    if d.abs() < 0.1 {
-        let d2 = d * d;
-        let s = 1.0 - d2 * (1.0 / 6.0 - d2 * (1.0 / 120.0 - d2 * (1.0 / 5040.0)));
-        let c = d * (0.5 - d2 * (1.0 / 24.0 - d2 * (1.0 / 720.0 - d2 * (1.0 / 40320.0))));
-        (s, c)
-    } else {
-        let h = (d / 2.0).sin();
-        (d.sin() / d, 2.0 * h * h / d)
-    }
+    let chord = Chord::of(tw);
+    (*x, *y) = chord.moved(*x, *y, heading.cos, heading.sin);
+    heading.turn(tw.omega, chord.s, chord.c);
+    (chord.s, chord.c, chord.lx, chord.ly)
 }
 
 #[cfg(test)]
 mod tests {
+    use super::*;
+    use calib_core::odometry::{integrate_arc, Pose};
+
+    /// From a heading whose cosine and sine are exact (the start, and every
+    /// [`HEADING_RESYNC`] steps), one step is calib-core's `integrate_arc` to the bit, over
+    /// turns from 1e-9 rad to 4 rad each way and across the series' edge at 0.1 rad.
     #[test]
-    fn arc_coefficients_are_calib_cores_to_the_bit() {
+    fn a_step_is_calib_cores_exact_arc_to_the_bit() {
         let mut d = 1e-9f64;
         while d < 4.0 {
-            for v in [d, -d, 0.1 * (1.0 - 1e-15), 0.1, -0.1] {
-                let (a, b) = (
-                    super::arc_coefficients(v),
-                    calib_core::odometry::arc_coefficients(v),
-                );
-                assert_eq!(a.0.to_bits(), b.0.to_bits(), "sin(d)/d at {v}");
-                assert_eq!(a.1.to_bits(), b.1.to_bits(), "(1 - cos d)/d at {v}");
+            for w in [d, -d, 0.1 * (1.0 - 1e-15), 0.1, -0.1] {
+                for th in [0.0, 0.7, -2.9] {
+                    let tw = Twist::new(0.013, -0.002, w);
+                    let (sin, cos) = f64::sin_cos(th);
+                    let mut h = Heading {
+                        th,
+                        cos,
+                        sin,
+                        steps: 0,
+                    };
+                    let (mut x, mut y) = (1.5, -0.25);
+                    arc_step(&mut x, &mut y, &mut h, &tw);
+                    let p = integrate_arc(Pose::new(1.5, -0.25, th), &tw);
+                    assert_eq!(x.to_bits(), p.x.to_bits(), "x at turn {w}, heading {th}");
+                    assert_eq!(y.to_bits(), p.y.to_bits(), "y at turn {w}, heading {th}");
+                    assert_eq!(h.th.to_bits(), p.theta.to_bits(), "heading at turn {w}");
+                }
             }
             d *= 1.01;
         }
-        assert_eq!(
-            super::arc_coefficients(0.0),
-            calib_core::odometry::arc_coefficients(0.0)
-        );
     }
 }

@@ -6,10 +6,10 @@
 use crate::bag::Bag;
 use crate::commands::{commands, wheel_commands};
 use crate::error::ImportError;
-use crate::joints::{joint_series, to_counts};
+use crate::joints::{joint_series, to_counts, JointSeries};
 use crate::jumps::{find_jumps, JumpReport};
 use crate::messages::types;
-use crate::poses::{pose_series, PoseQuery};
+use crate::poses::{pose_series, PoseQuery, PoseSeries};
 use crate::screen;
 use crate::sync::{poses_at, to_start_frame};
 use calib_core::robot::{Robot, RobotKind};
@@ -114,226 +114,347 @@ fn joint_names(robot: &Robot, o: &ImportOptions) -> Result<Vec<String>, String> 
 }
 
 /// Imports the bag (rosbag2 folder or `.mcap` file) at `path` for `robot`.
+///
+/// The phases: the robot and options checked (`Import::new`), the bag opened and its
+/// damage handled (`Import::open`), the joint and pose series read and screened
+/// (`Import::series`), the poses at the joints' instants (`Import::poses_at_joints`)
+/// with the rows across a pose jump left blank (`Import::blank_jumps`), the wheel
+/// commands (`Import::wheel_commands`), then one row per joint sample (`Import::rows`).
 pub fn import(path: &Path, robot: &Robot, o: &ImportOptions) -> Result<Imported, ImportError> {
-    if robot.kind == RobotKind::WheeledLegged {
-        return Err(ImportError::new(
-            path,
-            "wheeled-legged robots need leg angles, which the importer does not read yet",
-        ));
-    }
-    let cpr = robot.drive.encoder_counts_per_rev;
-    if cpr <= 0.0 {
-        return Err(ImportError::new(
-            path,
-            "the robot file has encoder_counts_per_rev = 0 (no encoder): the wheel joints are written as counts, so the robot file must say how many make a turn",
-        ));
-    }
-    if o.pose_topic.is_empty() {
-        return Err(ImportError::new(path, "no pose topic given (--pose-topic)"));
-    }
-    let joints = joint_names(robot, o).map_err(|e| ImportError::new(path, e))?;
-    let auto_cmd = "/cmd_vel";
-    let cmd_topic = o.cmd_topic.clone().unwrap_or_else(|| auto_cmd.to_string());
-    let wanted = [
-        o.joint_topic.as_str(),
-        o.pose_topic.as_str(),
-        o.tf_static_topic.as_str(),
-        cmd_topic.as_str(),
-    ];
-    let bag = Bag::open(path, &wanted)?;
-    let mut notes = Vec::new();
-    if let Some(d) = &bag.damage {
-        let t0 = bag.messages.values().flatten().map(|m| m.log_time_ns).min();
-        let lost = match t0.and_then(|t0| d.lost_span_s(t0)) {
-            Some((a, b)) => {
-                format!("; lost: the messages logged {a:.3} s to {b:.3} s after the bag's first")
-            }
-            None => "; what was lost after it cannot be told".into(),
-        };
-        if !o.keep_partial {
-            return Err(ImportError::new(
-                path,
-                format!("{d}{lost}; import what came before with --keep-partial"),
-            ));
-        }
-        notes.push(format!(
-            "damaged bag, the messages before the damage are kept: {d}{lost}"
-        ));
-    }
-
-    let mut js = joint_series(&bag, &o.joint_topic, &joints, o.use_receive_time)?;
-    if js.dropped > 0 {
-        notes.push(format!(
-            "{}: {} joint samples with a repeated or earlier stamp dropped",
-            o.joint_topic, js.dropped
-        ));
-    }
-    let mut ps = pose_series(
-        &bag,
-        &PoseQuery {
-            topic: &o.pose_topic,
-            pose_frame: o.pose_frame.as_deref(),
-            base_frame: o.base_frame.as_deref(),
-            tf_static_topic: &o.tf_static_topic,
-            use_receive_time: o.use_receive_time,
-        },
-    )?;
-    if ps.dropped > 0 {
-        notes.push(format!(
-            "{}: {} pose samples with a repeated or earlier stamp dropped",
-            o.pose_topic, ps.dropped
-        ));
-    }
-    // Every converted sample checked (crate::screen): refused ones are an error, or with
-    // --keep-partial dropped and said.
-    let t0 = js.stamps_ns.first().copied().unwrap_or(0);
-    let refused = [
-        (
-            o.joint_topic.as_str(),
-            screen::joints(&mut js, &joints, cpr),
-        ),
-        (o.pose_topic.as_str(), screen::poses(&mut ps)),
-    ];
-    for (topic, r) in &refused {
-        if r.is_empty() {
-            continue;
-        }
-        let said = screen::describe(topic, r, t0);
-        if !o.keep_partial {
-            return Err(ImportError::new(
-                path,
-                format!("{said}; import without them with --keep-partial"),
-            ));
-        }
-        notes.push(format!("{said}: dropped"));
-    }
-    if js.stamps_ns.is_empty() || ps.stamps_ns.is_empty() {
-        return Err(ImportError::new(
-            path,
-            "no valid wheel-joint or pose sample is left once the refused ones are dropped",
-        ));
-    }
-    if ps.max_tilt_rad > 5f64.to_radians() {
-        notes.push(format!(
-            "{}: the body tilts up to {:.1} deg; the recording keeps the floor-plane projection",
-            o.pose_topic,
-            ps.max_tilt_rad.to_degrees()
-        ));
-    }
-    let max_gap = (o.max_pose_gap_s * 1e9) as i64;
-    let mut poses = poses_at(&ps, &js.stamps_ns, max_gap);
-    if poses.iter().flatten().next().is_none() {
-        let span = |s: &[i64]| {
-            format!(
-                "{:.3}..{:.3} s",
-                s.first().copied().unwrap_or(0) as f64 * 1e-9,
-                s.last().copied().unwrap_or(0) as f64 * 1e-9
-            )
-        };
-        return Err(ImportError::new(
-            path,
-            format!(
-                "no wheel-joint sample falls within the poses: joints {} over {}, poses {} over {} (Unix seconds){}",
-                o.joint_topic,
-                span(&js.stamps_ns),
-                o.pose_topic,
-                span(&ps.stamps_ns),
-                if o.use_receive_time { "" } else { "; if one clock is not wall time, try --use-receive-time" }
-            ),
-        ));
-    }
-    // A jump is no motion: the rows between the two pose samples around it would be
-    // interpolated across it, so they stay blank.
-    let pose_jumps = find_jumps(robot, &js, &ps);
-    if let Some(r) = pose_jumps.as_ref().filter(|r| !r.jumps.is_empty()) {
-        for j in &r.jumps {
-            for (k, &t) in js.stamps_ns.iter().enumerate() {
-                if t > j.from_ns && t < j.to_ns {
-                    poses[k] = None;
-                }
-            }
-        }
-        let t0 = js.stamps_ns[0];
-        let list: Vec<String> = r
-            .jumps
-            .iter()
-            .map(|j| {
-                format!(
-                    "t = {:.3}..{:.3} s: {:.3} m, {:+.2} deg",
-                    (j.from_ns - t0) as f64 * 1e-9,
-                    (j.to_ns - t0) as f64 * 1e-9,
-                    j.position_m,
-                    j.heading_rad.to_degrees()
-                )
-            })
-            .collect();
-        notes.push(format!(
-            "{}: {} pose jump(s) against the wheel odometry (a SLAM loop closure or relocalisation; the pose steps scatter {:.1} mm, {:.2} deg otherwise), the rows across them left blank: {}",
-            o.pose_topic,
-            r.jumps.len(),
-            r.step_sigma_m * 1e3,
-            r.step_sigma_rad.to_degrees(),
-            list.join("; ")
-        ));
-    }
+    let mut im = Import::new(path, robot, o)?;
+    let bag = im.open()?;
+    let (js, ps) = im.series(&bag)?;
+    let mut poses = im.poses_at_joints(&js, &ps)?;
+    let pose_jumps = im.blank_jumps(&js, &ps, &mut poses);
     let rows_with_pose = poses.iter().flatten().count();
     to_start_frame(&mut poses);
+    let cmds = im.wheel_commands(&bag, &js)?;
+    let (recording, max_count_residual) = im.rows(&js, &poses, cmds.as_deref());
+    Ok(Imported {
+        recording,
+        joints: im.joints,
+        pose_frame: ps.frame,
+        t0_ns: js.stamps_ns[0],
+        pose_samples: ps.stamps_ns.len(),
+        rows_with_pose,
+        max_count_residual,
+        pose_jumps,
+        notes: im.notes,
+    })
+}
 
-    let cmds = if o.cmd_topic.is_some()
-        || bag
-            .topic(auto_cmd)
-            .is_some_and(|t| types::TWIST_TYPES.contains(&t.msg_type.as_str()))
-    {
-        let c = commands(&bag, &cmd_topic, o.use_receive_time)?;
+/// The topic read for commands when none is given.
+const AUTO_CMD_TOPIC: &str = "/cmd_vel";
+
+/// A pose in the floor plane: x and y (m), heading (rad).
+type PlanePose = (f64, f64, f64);
+
+/// Per joint sample, each wheel's commanded rate (rad/s); `None` before the first command.
+type WheelCommands = Vec<Option<Vec<f64>>>;
+
+/// One import: what it reads (the bag's path, the robot, the options, the joints of its
+/// wheels and the encoder's counts per turn) and the notes its phases gather for the
+/// reader.
+struct Import<'a> {
+    path: &'a Path,
+    robot: &'a Robot,
+    o: &'a ImportOptions,
+    /// Encoder counts per wheel revolution.
+    cpr: f64,
+    /// The joint of each wheel, in the robot's wheel order.
+    joints: Vec<String>,
+    /// The command topic asked for, or [`AUTO_CMD_TOPIC`].
+    cmd_topic: String,
+    notes: Vec<String>,
+}
+
+impl<'a> Import<'a> {
+    /// Refuses what cannot be imported before the bag is opened: a wheeled-legged robot
+    /// (no leg angles read), a robot without encoder counts (the joints are written as
+    /// counts), no pose topic, a `--joint` naming no wheel.
+    fn new(path: &'a Path, robot: &'a Robot, o: &'a ImportOptions) -> Result<Self, ImportError> {
+        if robot.kind == RobotKind::WheeledLegged {
+            return Err(ImportError::new(
+                path,
+                "wheeled-legged robots need leg angles, which the importer does not read yet",
+            ));
+        }
+        let cpr = robot.drive.encoder_counts_per_rev;
+        if cpr <= 0.0 {
+            return Err(ImportError::new(
+                path,
+                "the robot file has encoder_counts_per_rev = 0 (no encoder): the wheel joints are written as counts, so the robot file must say how many make a turn",
+            ));
+        }
+        if o.pose_topic.is_empty() {
+            return Err(ImportError::new(path, "no pose topic given (--pose-topic)"));
+        }
+        let joints = joint_names(robot, o).map_err(|e| ImportError::new(path, e))?;
+        Ok(Import {
+            path,
+            robot,
+            o,
+            cpr,
+            joints,
+            cmd_topic: o
+                .cmd_topic
+                .clone()
+                .unwrap_or_else(|| AUTO_CMD_TOPIC.to_string()),
+            notes: Vec::new(),
+        })
+    }
+
+    /// The bag's messages on the topics wanted. A damaged bag is an error (saying what
+    /// was lost), or with `--keep-partial` what came before the damage, said.
+    fn open(&mut self) -> Result<Bag, ImportError> {
+        let o = self.o;
+        let wanted = [
+            o.joint_topic.as_str(),
+            o.pose_topic.as_str(),
+            o.tf_static_topic.as_str(),
+            self.cmd_topic.as_str(),
+        ];
+        let bag = Bag::open(self.path, &wanted)?;
+        if let Some(d) = &bag.damage {
+            let t0 = bag.messages.values().flatten().map(|m| m.log_time_ns).min();
+            let lost = match t0.and_then(|t0| d.lost_span_s(t0)) {
+                Some((a, b)) => {
+                    format!(
+                        "; lost: the messages logged {a:.3} s to {b:.3} s after the bag's first"
+                    )
+                }
+                None => "; what was lost after it cannot be told".into(),
+            };
+            if !o.keep_partial {
+                return Err(ImportError::new(
+                    self.path,
+                    format!("{d}{lost}; import what came before with --keep-partial"),
+                ));
+            }
+            self.notes.push(format!(
+                "damaged bag, the messages before the damage are kept: {d}{lost}"
+            ));
+        }
+        Ok(bag)
+    }
+
+    /// The wheel joints and the poses as series, every converted sample screened
+    /// (`crate::screen`): refused samples are an error, or with `--keep-partial` dropped
+    /// and said; samples with a repeated or earlier stamp dropped and said; a tilted body
+    /// said.
+    fn series(&mut self, bag: &Bag) -> Result<(JointSeries, PoseSeries), ImportError> {
+        let (o, joints) = (self.o, &self.joints);
+        let mut js = joint_series(bag, &o.joint_topic, joints, o.use_receive_time)?;
+        if js.dropped > 0 {
+            self.notes.push(format!(
+                "{}: {} joint samples with a repeated or earlier stamp dropped",
+                o.joint_topic, js.dropped
+            ));
+        }
+        let mut ps = pose_series(
+            bag,
+            &PoseQuery {
+                topic: &o.pose_topic,
+                pose_frame: o.pose_frame.as_deref(),
+                base_frame: o.base_frame.as_deref(),
+                tf_static_topic: &o.tf_static_topic,
+                use_receive_time: o.use_receive_time,
+            },
+        )?;
+        if ps.dropped > 0 {
+            self.notes.push(format!(
+                "{}: {} pose samples with a repeated or earlier stamp dropped",
+                o.pose_topic, ps.dropped
+            ));
+        }
+        // Every converted sample checked (crate::screen): refused ones are an error, or with
+        // --keep-partial dropped and said.
+        let t0 = js.stamps_ns.first().copied().unwrap_or(0);
+        let refused = [
+            (
+                o.joint_topic.as_str(),
+                screen::joints(&mut js, joints, self.cpr),
+            ),
+            (o.pose_topic.as_str(), screen::poses(&mut ps)),
+        ];
+        for (topic, r) in &refused {
+            if r.is_empty() {
+                continue;
+            }
+            let said = screen::describe(topic, r, t0);
+            if !o.keep_partial {
+                return Err(ImportError::new(
+                    self.path,
+                    format!("{said}; import without them with --keep-partial"),
+                ));
+            }
+            self.notes.push(format!("{said}: dropped"));
+        }
+        if js.stamps_ns.is_empty() || ps.stamps_ns.is_empty() {
+            return Err(ImportError::new(
+                self.path,
+                "no valid wheel-joint or pose sample is left once the refused ones are dropped",
+            ));
+        }
+        if ps.max_tilt_rad > 5f64.to_radians() {
+            self.notes.push(format!(
+                "{}: the body tilts up to {:.1} deg; the recording keeps the floor-plane projection",
+                o.pose_topic,
+                ps.max_tilt_rad.to_degrees()
+            ));
+        }
+        Ok((js, ps))
+    }
+
+    /// The pose interpolated at each joint sample (none across a gap over
+    /// `--max-pose-gap`); an error, naming both streams' spans, when no joint sample
+    /// falls within the poses (often one clock that is not wall time).
+    fn poses_at_joints(
+        &self,
+        js: &JointSeries,
+        ps: &PoseSeries,
+    ) -> Result<Vec<Option<PlanePose>>, ImportError> {
+        let o = self.o;
+        let max_gap = (o.max_pose_gap_s * 1e9) as i64;
+        let poses = poses_at(ps, &js.stamps_ns, max_gap);
+        if poses.iter().flatten().next().is_none() {
+            let span = |s: &[i64]| {
+                format!(
+                    "{:.3}..{:.3} s",
+                    s.first().copied().unwrap_or(0) as f64 * 1e-9,
+                    s.last().copied().unwrap_or(0) as f64 * 1e-9
+                )
+            };
+            return Err(ImportError::new(
+                self.path,
+                format!(
+                    "no wheel-joint sample falls within the poses: joints {} over {}, poses {} over {} (Unix seconds){}",
+                    o.joint_topic,
+                    span(&js.stamps_ns),
+                    o.pose_topic,
+                    span(&ps.stamps_ns),
+                    if o.use_receive_time { "" } else { "; if one clock is not wall time, try --use-receive-time" }
+                ),
+            ));
+        }
+        Ok(poses)
+    }
+
+    /// The pose stream's jumps against the wheel odometry ([`find_jumps`]): a jump is no
+    /// motion, so the rows between the two pose samples around it (which would be
+    /// interpolated across it) stay blank, and the jumps are said.
+    fn blank_jumps(
+        &mut self,
+        js: &JointSeries,
+        ps: &PoseSeries,
+        poses: &mut [Option<PlanePose>],
+    ) -> Option<JumpReport> {
+        let pose_jumps = find_jumps(self.robot, js, ps);
+        if let Some(r) = pose_jumps.as_ref().filter(|r| !r.jumps.is_empty()) {
+            for j in &r.jumps {
+                for (k, &t) in js.stamps_ns.iter().enumerate() {
+                    if t > j.from_ns && t < j.to_ns {
+                        poses[k] = None;
+                    }
+                }
+            }
+            let t0 = js.stamps_ns[0];
+            let list: Vec<String> = r
+                .jumps
+                .iter()
+                .map(|j| {
+                    format!(
+                        "t = {:.3}..{:.3} s: {:.3} m, {:+.2} deg",
+                        (j.from_ns - t0) as f64 * 1e-9,
+                        (j.to_ns - t0) as f64 * 1e-9,
+                        j.position_m,
+                        j.heading_rad.to_degrees()
+                    )
+                })
+                .collect();
+            self.notes.push(format!(
+                "{}: {} pose jump(s) against the wheel odometry (a SLAM loop closure or relocalisation; the pose steps scatter {:.1} mm, {:.2} deg otherwise), the rows across them left blank: {}",
+                self.o.pose_topic,
+                r.jumps.len(),
+                r.step_sigma_m * 1e3,
+                r.step_sigma_rad.to_degrees(),
+                list.join("; ")
+            ));
+        }
+        pose_jumps
+    }
+
+    /// Each wheel's commanded rate at the joint samples, from the command topic asked
+    /// for, or from [`AUTO_CMD_TOPIC`] when the bag has Twist messages there (said);
+    /// `None` without commands.
+    fn wheel_commands(
+        &mut self,
+        bag: &Bag,
+        js: &JointSeries,
+    ) -> Result<Option<WheelCommands>, ImportError> {
+        let o = self.o;
+        if !(o.cmd_topic.is_some()
+            || bag
+                .topic(AUTO_CMD_TOPIC)
+                .is_some_and(|t| types::TWIST_TYPES.contains(&t.msg_type.as_str())))
+        {
+            return Ok(None);
+        }
+        let c = commands(bag, &self.cmd_topic, o.use_receive_time)?;
         if o.cmd_topic.is_none() {
-            notes.push(format!(
-                "commands from {auto_cmd} ({} messages)",
+            self.notes.push(format!(
+                "commands from {AUTO_CMD_TOPIC} ({} messages)",
                 c.stamps_ns.len()
             ));
         }
-        Some(
-            wheel_commands(robot, &c, &js.stamps_ns, (o.cmd_timeout_s * 1e9) as i64)
-                .map_err(|e| ImportError::new(path, e))?,
-        )
-    } else {
-        None
-    };
+        Ok(Some(
+            wheel_commands(
+                self.robot,
+                &c,
+                &js.stamps_ns,
+                (o.cmd_timeout_s * 1e9) as i64,
+            )
+            .map_err(|e| ImportError::new(self.path, e))?,
+        ))
+    }
 
-    let mut rec = Recording::new(robot, cmds.is_some(), true);
-    let t0 = js.stamps_ns[0];
-    let mut max_res = 0.0f64;
-    let mut counts = vec![0i64; joints.len()];
-    for (k, &t) in js.stamps_ns.iter().enumerate() {
-        for (c, &rad) in counts.iter_mut().zip(&js.positions[k]) {
-            let (n, res) = to_counts(rad, cpr);
-            *c = n;
-            max_res = max_res.max(res);
+    /// The recording: one row per joint sample, its time since the first, the joints as
+    /// encoder counts, the pose and the commands. Returns it with the largest distance
+    /// of a joint position from a whole count (said when over 0.01 count: the joints are
+    /// then not counts, or the robot file's counts per turn are not the driver's).
+    fn rows(
+        &mut self,
+        js: &JointSeries,
+        poses: &[Option<PlanePose>],
+        cmds: Option<&[Option<Vec<f64>>]>,
+    ) -> (Recording, f64) {
+        let cpr = self.cpr;
+        let mut rec = Recording::new(self.robot, cmds.is_some(), true);
+        let t0 = js.stamps_ns[0];
+        let mut max_res = 0.0f64;
+        let mut counts = vec![0i64; self.joints.len()];
+        for (k, &t) in js.stamps_ns.iter().enumerate() {
+            for (c, &rad) in counts.iter_mut().zip(&js.positions[k]) {
+                let (n, res) = to_counts(rad, cpr);
+                *c = n;
+                max_res = max_res.max(res);
+            }
+            let cmd = cmds.and_then(|c| c[k].as_deref());
+            rec.push_row(Row {
+                t: (t - t0) as f64 * 1e-9,
+                cmd,
+                enc: Some(&counts),
+                pose: poses[k],
+                legs: None,
+            });
         }
-        let cmd = cmds.as_ref().and_then(|c| c[k].as_deref());
-        rec.push_row(Row {
-            t: (t - t0) as f64 * 1e-9,
-            cmd,
-            enc: Some(&counts),
-            pose: poses[k],
-            legs: None,
-        });
+        if max_res > 0.01 {
+            self.notes.push(format!(
+                "joint positions are up to {max_res:.3} counts from whole counts of {cpr} per revolution: either the joints are not encoder counts (a simulator) or encoder_counts_per_rev differs from the one the robot's driver uses"
+            ));
+        }
+        (rec, max_res)
     }
-    if max_res > 0.01 {
-        notes.push(format!(
-            "joint positions are up to {max_res:.3} counts from whole counts of {cpr} per revolution: either the joints are not encoder counts (a simulator) or encoder_counts_per_rev differs from the one the robot's driver uses"
-        ));
-    }
-    Ok(Imported {
-        recording: rec,
-        joints,
-        pose_frame: ps.frame,
-        t0_ns: t0,
-        pose_samples: ps.stamps_ns.len(),
-        rows_with_pose,
-        max_count_residual: max_res,
-        pose_jumps,
-        notes,
-    })
 }
 
 /// The recording of a bag, for commands that take a bag where they take a recording

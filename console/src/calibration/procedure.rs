@@ -431,6 +431,12 @@ impl Trial {
 }
 
 /// Runs the procedure on a board.
+///
+/// The phases: the trials the board's robot takes (`umbmark_trials`, `omni_trials`),
+/// the runs file checked against them (`existing_runs`), on a second pass the factors it
+/// starts from (`second_pass_factors`), the before runs still missing
+/// (`Plan::run_before`), the factors computed (`umbmark_factors`, `omni_factors`) and put
+/// on the board (`upload`), then the after runs and the report (`finish`).
 pub fn run<L: Read + Write>(
     c: &mut Client<L>,
     opts: &Options,
@@ -448,64 +454,115 @@ pub fn run<L: Read + Write>(
         robot
     };
     let (test, trials, length) = match opts.kind {
-        Kind::Umbmark => {
-            if robot.kind == RobotKind::SkidSteer {
-                bail!("{SKID_UMBMARK}");
-            }
-            if robot.kind != RobotKind::DiffDrive {
-                bail!("the board's robot is {}: UMBmark is for differential drives (use `wheelcal omni run`)", robot.kind.as_str());
-            }
-            let mut trials = vec![Trial::Square(Direction::Cw), Trial::Square(Direction::Ccw)];
-            if let Some((radius_m, laps)) = opts.circles {
-                if opts.second_pass {
-                    bail!("--circle-radius measures the turn law against the squares' factors in one pass: drop --second-pass (a second pass composes factors, not laws)");
-                }
-                trials.push(Trial::Circle(Direction::Cw, radius_m, laps));
-                trials.push(Trial::Circle(Direction::Ccw, radius_m, laps));
-            }
-            (TestKind::Umbmark, trials, opts.side_m)
-        }
-        Kind::Omni => {
-            if robot.kind != RobotKind::Omni {
-                bail!("the board's robot is {}: the omni procedure is for omni robots (use `wheelcal umbmark run`)", robot.kind.as_str());
-            }
-            // Runs of one file share one idle-wheel mode; it is kept beside them so a
-            // later `omni compute` on the file models the same.
-            match omni::read_idle_sidecar(&opts.runs_file)? {
-                Some(m) if m != opts.idle_wheels && opts.runs_file.exists() => bail!(
-                    "{} was measured with idle wheels {}; use --idle-wheels {} to resume it, or a new --runs-file",
-                    opts.runs_file.display(),
-                    m.as_str(),
-                    m.as_str()
-                ),
-                _ => omni::write_idle_sidecar(&opts.runs_file, opts.idle_wheels)?,
-            }
-            let mut trials = vec![
-                Trial::Path(OmniPath::W1, opts.idle_wheels),
-                Trial::Path(OmniPath::W2, opts.idle_wheels),
-            ];
-            if let Some((radius_m, laps)) = opts.circles {
-                if opts.second_pass {
-                    bail!("--circle-radius measures the turn in place and the turn law against the straight paths' factors in one pass: drop --second-pass");
-                }
-                let l = robot.mean_wheel_distance_m();
-                if omni_circle_test::share(radius_m, l) < 0.75 {
-                    bail!(
-                        "--circle-radius {radius_m} m: the omni circle test compares turns in place with circles at least twice the wheels' distance from the centre ({l:.3} m here): use --circle-radius {:.2} or more",
-                        2.0 * l
-                    );
-                }
-                for r in [TURN_IN_PLACE_RADIUS_M, radius_m] {
-                    trials.push(Trial::Circle(Direction::Cw, r, laps));
-                    trials.push(Trial::Circle(Direction::Ccw, r, laps));
-                }
-            }
-            (TestKind::Omni, trials, opts.length_m)
-        }
+        Kind::Umbmark => umbmark_trials(&robot, opts)?,
+        Kind::Omni => omni_trials(&robot, opts)?,
     };
     if !(length.is_finite() && length > 0.0 && length <= 20.0) {
         bail!("the path length must be within (0, 20] m, got {length}");
     }
+    let plan = Plan {
+        opts,
+        test,
+        trials: &trials,
+        length,
+        existing: existing_runs(opts, test, length)?,
+    };
+    let have = |phase: Phase, t: Trial| plan.have(phase, t);
+    // Before: nominal geometry, unless resuming a procedure whose factors are already
+    // computed (then the before runs are complete and only the after runs remain).
+    let before_done = trials.iter().all(|&t| have(Phase::Before, t) >= opts.runs);
+    let previous = if opts.second_pass {
+        Some(second_pass_factors(c, &opts.runs_file)?)
+    } else {
+        None
+    };
+    if !before_done {
+        plan.run_before(c, m, previous.as_ref())?;
+    }
+    let runs = RunsFile::load(&opts.runs_file)?;
+    let corrections = match opts.kind {
+        Kind::Umbmark => umbmark_factors(&robot, &runs, m)?,
+        Kind::Omni => match omni_factors(c, opts, m, &robot, &runs)? {
+            Some(corrections) => corrections,
+            // The omni circle test put its robot and factors on the board.
+            None => return finish(c, opts, m, plan.measured(&robot, None), &have),
+        },
+    };
+    upload(c, m, &robot, previous.as_ref(), corrections)?;
+    finish(c, opts, m, plan.measured(&robot, previous.as_ref()), &have)
+}
+
+/// UMBmark's trials on the board's `robot` (a differential drive): a square each way,
+/// and with `--circle-radius` a circle each way (in one pass only). Returns the runs
+/// file's test, the trials and the square's side.
+fn umbmark_trials(robot: &Robot, opts: &Options) -> Result<(TestKind, Vec<Trial>, f64)> {
+    if robot.kind == RobotKind::SkidSteer {
+        bail!("{SKID_UMBMARK}");
+    }
+    if robot.kind != RobotKind::DiffDrive {
+        bail!(
+            "the board's robot is {}: UMBmark is for differential drives (use `wheelcal omni run`)",
+            robot.kind.as_str()
+        );
+    }
+    let mut trials = vec![Trial::Square(Direction::Cw), Trial::Square(Direction::Ccw)];
+    if let Some((radius_m, laps)) = opts.circles {
+        if opts.second_pass {
+            bail!("--circle-radius measures the turn law against the squares' factors in one pass: drop --second-pass (a second pass composes factors, not laws)");
+        }
+        trials.push(Trial::Circle(Direction::Cw, radius_m, laps));
+        trials.push(Trial::Circle(Direction::Ccw, radius_m, laps));
+    }
+    Ok((TestKind::Umbmark, trials, opts.side_m))
+}
+
+/// The omni procedure's trials on the board's `robot` (an omni robot): both straight
+/// paths with the idle-wheel mode (kept beside the runs file, and a resumed file's mode
+/// required), and with `--circle-radius` turns in place and circles each way (in one
+/// pass only, and circles wide enough to tell from the turns). Returns the runs file's
+/// test, the trials and the path length.
+fn omni_trials(robot: &Robot, opts: &Options) -> Result<(TestKind, Vec<Trial>, f64)> {
+    if robot.kind != RobotKind::Omni {
+        bail!("the board's robot is {}: the omni procedure is for omni robots (use `wheelcal umbmark run`)", robot.kind.as_str());
+    }
+    // Runs of one file share one idle-wheel mode; it is kept beside them so a
+    // later `omni compute` on the file models the same.
+    match omni::read_idle_sidecar(&opts.runs_file)? {
+        Some(m) if m != opts.idle_wheels && opts.runs_file.exists() => bail!(
+            "{} was measured with idle wheels {}; use --idle-wheels {} to resume it, or a new --runs-file",
+            opts.runs_file.display(),
+            m.as_str(),
+            m.as_str()
+        ),
+        _ => omni::write_idle_sidecar(&opts.runs_file, opts.idle_wheels)?,
+    }
+    let mut trials = vec![
+        Trial::Path(OmniPath::W1, opts.idle_wheels),
+        Trial::Path(OmniPath::W2, opts.idle_wheels),
+    ];
+    if let Some((radius_m, laps)) = opts.circles {
+        if opts.second_pass {
+            bail!("--circle-radius measures the turn in place and the turn law against the straight paths' factors in one pass: drop --second-pass");
+        }
+        let l = robot.mean_wheel_distance_m();
+        if omni_circle_test::share(radius_m, l) < 0.75 {
+            bail!(
+                "--circle-radius {radius_m} m: the omni circle test compares turns in place with circles at least twice the wheels' distance from the centre ({l:.3} m here): use --circle-radius {:.2} or more",
+                2.0 * l
+            );
+        }
+        for r in [TURN_IN_PLACE_RADIUS_M, radius_m] {
+            trials.push(Trial::Circle(Direction::Cw, r, laps));
+            trials.push(Trial::Circle(Direction::Ccw, r, laps));
+        }
+    }
+    Ok((TestKind::Omni, trials, opts.length_m))
+}
+
+/// The runs file as it stands (empty when new), checked before anything moves: a file
+/// that holds runs of another length, or circles of another radius, or has no laps
+/// column for circles of several laps cannot take this procedure's runs.
+fn existing_runs(opts: &Options, test: TestKind, length: f64) -> Result<RunsFile> {
     let existing = if opts.runs_file.exists() {
         RunsFile::load(&opts.runs_file)?
     } else {
@@ -549,38 +606,61 @@ pub fn run<L: Read + Write>(
             );
         }
     }
-    let have = |phase: Phase, t: Trial| {
-        existing
+    Ok(existing)
+}
+
+/// The factors a second pass measures with: those remembered beside the runs file (a
+/// resumed second pass composes with the same ones), else the board's, remembered now.
+fn second_pass_factors<L: Read + Write>(
+    c: &mut Client<L>,
+    runs_file: &Path,
+) -> Result<Corrections> {
+    let file = previous_file(runs_file);
+    let read = crate::input::read_text(&file, crate::input::MAX_SIDECAR_BYTES, "factors record");
+    let p: Corrections = match read {
+        Ok(text) => serde_json::from_str(&text)
+            .with_context(|| format!("{}: not a factors record", file.display()))?,
+        Err(e) if !crate::input::is_not_found(&e) => return Err(e),
+        Err(_) => {
+            let p = c.corrections()?;
+            std::fs::write(&file, serde_json::to_string(&p)?)
+                .with_context(|| format!("cannot write {}", file.display()))?;
+            p
+        }
+    };
+    Ok(p)
+}
+
+/// What a procedure runs and what its runs file held when it started: the trials, the
+/// path length and the rows already measured (a procedure resumes where it stopped).
+struct Plan<'a> {
+    opts: &'a Options,
+    test: TestKind,
+    trials: &'a [Trial],
+    length: f64,
+    existing: RunsFile,
+}
+
+impl Plan<'_> {
+    /// Runs of `t` in `phase` the runs file held when the procedure started.
+    fn have(&self, phase: Phase, t: Trial) -> usize {
+        self.existing
             .rows
             .iter()
             .filter(|r| r.phase == phase && t.counts(r))
             .count()
-    };
+    }
 
-    // Before: nominal geometry, unless resuming a procedure whose factors are already
-    // computed (then the before runs are complete and only the after runs remain).
-    let before_done = trials.iter().all(|&t| have(Phase::Before, t) >= opts.runs);
-    let previous = if opts.second_pass {
-        let file = previous_file(&opts.runs_file);
-        let read =
-            crate::input::read_text(&file, crate::input::MAX_SIDECAR_BYTES, "factors record");
-        let p: Corrections = match read {
-            Ok(text) => serde_json::from_str(&text)
-                .with_context(|| format!("{}: not a factors record", file.display()))?,
-            Err(e) if !crate::input::is_not_found(&e) => return Err(e),
-            Err(_) => {
-                let p = c.corrections()?;
-                std::fs::write(&file, serde_json::to_string(&p)?)
-                    .with_context(|| format!("cannot write {}", file.display()))?;
-                p
-            }
-        };
-        Some(p)
-    } else {
-        None
-    };
-    if !before_done {
-        if let Some(p) = &previous {
+    /// The before runs still missing, with the factors a second pass measures with
+    /// (`previous`) or none (nominal geometry).
+    fn run_before<L: Read + Write>(
+        &self,
+        c: &mut Client<L>,
+        m: &mut dyn Measure,
+        previous: Option<&Corrections>,
+    ) -> Result<()> {
+        let opts = self.opts;
+        if let Some(p) = previous {
             c.set_corrections(p.clone())?;
             m.say(&format!(
                 "second pass: measuring with {}",
@@ -592,7 +672,7 @@ pub fn run<L: Read + Write>(
         m.say(&format!(
             "before calibration: {} runs per {}",
             opts.runs,
-            if test == TestKind::Umbmark {
+            if self.test == TestKind::Umbmark {
                 "direction"
             } else {
                 "path"
@@ -601,70 +681,96 @@ pub fn run<L: Read + Write>(
         let plan = PhasePlan {
             runs: opts.runs,
             runs_file: &opts.runs_file,
-            trials: &trials,
-            length,
+            trials: self.trials,
+            length: self.length,
             phase: Phase::Before,
         };
-        run_phase(c, m, plan, &|t| have(Phase::Before, t))?;
+        run_phase(c, m, plan, &|t| self.have(Phase::Before, t))
     }
-    let runs = RunsFile::load(&opts.runs_file)?;
-    let corrections = match opts.kind {
-        Kind::Umbmark => {
-            let r = umbmark::compute(&robot, &runs)?;
-            if let Some(c) = &r.circles {
-                m.say(&format!("circle test: {}", c.verdict));
-            }
-            match &r.factors {
-                // The circle test kept a turn law: the board's odometry applies it.
-                Some(f) => f.board.corrections(),
-                None => Corrections::DiffDrive {
-                    c_l: r.c_l,
-                    c_r: r.c_r,
-                    e_b: r.eb,
-                },
-            }
+
+    /// What the runs were measured with, for [`finish`].
+    fn measured<'b>(&'b self, robot: &'b Robot, previous: Option<&'b Corrections>) -> Measured<'b> {
+        Measured {
+            robot,
+            trials: self.trials,
+            length: self.length,
+            previous,
         }
-        Kind::Omni => {
-            let r = omni::compute(&robot, &runs, opts.idle_wheels)?;
-            let r = omni::with_circles(r, &robot, &runs, None)?;
-            if let Some(board_robot) = r.board_robot(&robot)? {
-                // The circle test: the wheels' sizes and distance go on the board as its
-                // robot, with factors of one and the law, together or not at all.
-                let circles = r.circles.as_ref().map(|c| c.verdict.clone());
-                m.say(&format!(
-                    "omni circle test: {}",
-                    circles.unwrap_or_default()
-                ));
-                let n = board_robot.wheels.len();
-                let target = board::Target {
-                    params: Some(board::with_robot(
-                        &c.params()?,
-                        board_robot,
-                        &measured_robot_file(&opts.runs_file),
-                    )?),
-                    corrections: r.corrections()?.laws_only(n),
-                };
-                board::apply_settings(c, &target)
-                    .context("the omni circle test's geometry and factors were not uploaded")?;
-                c.save_params()?;
-                c.save_corrections()?;
-                m.say(&format!(
-                    "robot geometry and factors uploaded and saved: wheel distances x{:.5}, {}",
-                    r.circles.as_ref().map_or(1.0, |c| c.wheel_distance_scale),
-                    board::FactorsView::from(&target.corrections).human().trim()
-                ));
-                let measured = Measured {
-                    robot: &robot,
-                    trials: &trials,
-                    length,
-                    previous: None,
-                };
-                return finish(c, opts, m, measured, &have);
-            }
-            r.corrections()?
-        }
+    }
+}
+
+/// UMBmark's factors from the runs measured: the circle test's turn law with them when
+/// it kept one (the board's odometry applies it), else c_L, c_R and E_b.
+fn umbmark_factors(robot: &Robot, runs: &RunsFile, m: &mut dyn Measure) -> Result<Corrections> {
+    let r = umbmark::compute(robot, runs)?;
+    if let Some(c) = &r.circles {
+        m.say(&format!("circle test: {}", c.verdict));
+    }
+    Ok(match &r.factors {
+        // The circle test kept a turn law: the board's odometry applies it.
+        Some(f) => f.board.corrections(),
+        None => Corrections::DiffDrive {
+            c_l: r.c_l,
+            c_r: r.c_r,
+            e_b: r.eb,
+        },
+    })
+}
+
+/// The omni procedure's factors from the runs measured, or `None` when the omni circle
+/// test gave the board a robot: the wheels' sizes and distances then go on the board as
+/// its robot, with factors of one and the law, together or not at all, and are saved.
+fn omni_factors<L: Read + Write>(
+    c: &mut Client<L>,
+    opts: &Options,
+    m: &mut dyn Measure,
+    robot: &Robot,
+    runs: &RunsFile,
+) -> Result<Option<Corrections>> {
+    let r = omni::compute(robot, runs, opts.idle_wheels)?;
+    let r = omni::with_circles(r, robot, runs, None)?;
+    let Some(board_robot) = r.board_robot(robot)? else {
+        return Ok(Some(r.corrections()?));
     };
-    let corrections = match &previous {
+    // The circle test: the wheels' sizes and distance go on the board as its
+    // robot, with factors of one and the law, together or not at all.
+    let circles = r.circles.as_ref().map(|c| c.verdict.clone());
+    m.say(&format!(
+        "omni circle test: {}",
+        circles.unwrap_or_default()
+    ));
+    let n = board_robot.wheels.len();
+    let target = board::Target {
+        params: Some(board::with_robot(
+            &c.params()?,
+            board_robot,
+            &measured_robot_file(&opts.runs_file),
+        )?),
+        corrections: r.corrections()?.laws_only(n),
+    };
+    board::apply_settings(c, &target)
+        .context("the omni circle test's geometry and factors were not uploaded")?;
+    c.save_params()?;
+    c.save_corrections()?;
+    m.say(&format!(
+        "robot geometry and factors uploaded and saved: wheel distances x{:.5}, {}",
+        r.circles.as_ref().map_or(1.0, |c| c.wheel_distance_scale),
+        board::FactorsView::from(&target.corrections).human().trim()
+    ));
+    Ok(None)
+}
+
+/// Puts the computed factors on the board and saves them: on a second pass composed
+/// with the factors measured with (`previous`), and validated first, so nothing is
+/// uploaded from a computation the board would refuse.
+fn upload<L: Read + Write>(
+    c: &mut Client<L>,
+    m: &mut dyn Measure,
+    robot: &Robot,
+    previous: Option<&Corrections>,
+    corrections: Corrections,
+) -> Result<()> {
+    let corrections = match previous {
         Some(p) => p.compose(&corrections).with_context(|| {
             format!(
                 "cannot compose the board's factors ({}) with ({}): they do not fit this procedure",
@@ -675,7 +781,7 @@ pub fn run<L: Read + Write>(
         None => corrections,
     };
     // Validated here too: nothing is uploaded from a computation the board would refuse.
-    corrections.validate(&robot).map_err(|e| {
+    corrections.validate(robot).map_err(|e| {
         anyhow::anyhow!("computed factors are not usable ({e}); nothing was uploaded")
     })?;
     c.set_corrections(corrections.clone())?;
@@ -684,13 +790,7 @@ pub fn run<L: Read + Write>(
         "factors uploaded and saved: {}",
         board::FactorsView::from(&corrections).human().trim()
     ));
-    let measured = Measured {
-        robot: &robot,
-        trials: &trials,
-        length,
-        previous: previous.as_ref(),
-    };
-    finish(c, opts, m, measured, &have)
+    Ok(())
 }
 
 /// What a procedure measured with: the robot the board held, the trials, the path
