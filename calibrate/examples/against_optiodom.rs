@@ -11,20 +11,9 @@
 
 #[path = "../tests/support/proxy.rs"]
 mod proxy;
-use std::path::PathBuf;
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let dir = args
-        .iter()
-        .position(|a| a == "--sessions")
-        .and_then(|i| args.get(i + 1))
-        .map(PathBuf::from)
-        .or_else(|| testdata::sessions_dir_if_set().ok());
-    let Some(dir) = dir else {
-        eprintln!("the OptiOdom sessions are not given: --sessions DIR or WHEELCAL_SESSIONS (data/real/README.md)");
-        std::process::exit(2);
-    };
+    let dir = proxy::sessions_dir_from_args();
     println!("| training runs | trained | judged | law kept | board (mm) | constant (mm) | OptiOdom's objective (mm) | board / OptiOdom | board / constant |");
     println!("|---|---|---|---|---|---|---|---|---|");
     let (mut ln_opti, mut ln_const, mut n) = (0.0, 0.0, 0);

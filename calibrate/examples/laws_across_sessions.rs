@@ -12,20 +12,9 @@
 
 #[path = "../tests/support/proxy.rs"]
 mod proxy;
-use std::path::PathBuf;
 
 fn main() {
-    let args: Vec<String> = std::env::args().skip(1).collect();
-    let dir = args
-        .iter()
-        .position(|a| a == "--sessions")
-        .and_then(|i| args.get(i + 1))
-        .map(PathBuf::from)
-        .or_else(|| testdata::sessions_dir_if_set().ok());
-    let Some(dir) = dir else {
-        eprintln!("the OptiOdom sessions are not given: --sessions DIR or WHEELCAL_SESSIONS (data/real/README.md)");
-        std::process::exit(2);
-    };
+    let dir = proxy::sessions_dir_from_args();
     let t0 = std::time::Instant::now();
     let folds = proxy::laws_across_sessions(&dir).unwrap_or_else(|e| {
         eprintln!("{e}");

@@ -986,8 +986,7 @@ fn sessions_the_board_is_never_2_percent_worse_than_its_constant_geometry() {
 #[test]
 #[ignore = "needs the OptiOdom sessions: WHEELCAL_SESSIONS (data/real/README.md)"]
 fn sessions_mecanum_board_carries_the_sideways_scale_to_other_runs() {
-    use calib_core::Corrections;
-    use calibrate::{evaluate, Candidate, Factors};
+    use calibrate::{evaluate, Candidate};
     let d = dir();
     let session = "231220200550";
     let (nominal, train) =
@@ -995,29 +994,18 @@ fn sessions_mecanum_board_carries_the_sideways_scale_to_other_runs() {
     assert_eq!(train.len(), 12);
     let c = calibrate(&nominal, &train, None, &CalOptions::default()).unwrap();
     println!("{c}");
-    let Factors::Wheels {
-        f_lat,
-        f_lon,
-        l_arc,
-    } = &c.factors
-    else {
-        panic!("an omni calibration: {c}")
-    };
     let params: serde_json::Value =
         serde_json::from_str(&std::fs::read_to_string(d.join("authors_params.json")).unwrap())
             .unwrap();
     let authors =
         proxy::authors_omni_robot(&params, "omni4-sousa", &nominal, session, "square").unwrap();
+    let factors = proxy::board_of(&c);
     let candidates = [
-        Candidate::board(
-            "factors alone",
-            nominal.clone(),
-            Corrections::omni(f_lat.iter().copied().collect(), *f_lon, *l_arc),
-        ),
+        Candidate::board("factors alone", nominal.clone(), factors.clone()),
         Candidate::board(
             "fitted geometry",
             c.law_base_robot.clone(),
-            Corrections::omni([1.0; 4].into_iter().collect(), 1.0, *l_arc),
+            factors.laws_only(nominal.wheels.len()),
         ),
         Candidate::file("authors", authors),
     ];

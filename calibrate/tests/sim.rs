@@ -562,17 +562,7 @@ fn mecanum_lateral_and_longitudinal_scales_are_a_three_parameter_rung() {
     );
     // Said as a roboticist would: sideways, a wheel turn carries the robot tan 45 / tan 47
     // = 93.3 % as far as along (the printed percentage within 0.3 of it: 0.1 degree).
-    let note = c
-        .notes
-        .iter()
-        .find(|n| n.contains("sideways"))
-        .unwrap_or_else(|| panic!("no sideways note: {:?}", c.notes));
-    let pct: f64 = note
-        .split(" % ")
-        .next()
-        .and_then(|head| head.rsplit(' ').next())
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("no percentage in {note}"));
+    let (pct, note) = sideways_percent(&c);
     let want = 100.0 * 45f64.to_radians().tan() / 47f64.to_radians().tan();
     assert!((pct - want).abs() < 0.3, "{pct} against {want}: {note}");
     // The control: nothing but the wheels' size.
@@ -648,17 +638,7 @@ fn mecanum_sideways_grip_is_recovered_from_squares_and_circles() {
     println!("{c}");
     assert!(c.implausible.is_empty(), "{:?}", c.implausible);
     assert!(c.param("roller_angle_offset_rad").is_some(), "{c}");
-    let note = c
-        .notes
-        .iter()
-        .find(|n| n.contains("sideways"))
-        .unwrap_or_else(|| panic!("no sideways note: {:?}", c.notes));
-    let pct: f64 = note
-        .split(" % ")
-        .next()
-        .and_then(|head| head.rsplit(' ').next())
-        .and_then(|v| v.parse().ok())
-        .unwrap_or_else(|| panic!("no percentage in {note}"));
+    let (pct, note) = sideways_percent(&c);
     assert!((pct - 96.0).abs() < 0.3, "{pct}: {note}");
     // A held-out sideways square, on the board as apply puts it and by the factors alone.
     let motion = Motion::Program {
@@ -1053,6 +1033,23 @@ fn free_runs(truth: &Robot, seed: u64) -> Vec<(String, Recording)> {
     (0..3)
         .map(|i| (format!("run{i}"), random(truth, 40.0, seed + i).recording))
         .collect()
+}
+
+/// The sideways note's percentage (how far a wheel turn carries the robot sideways
+/// against along) and the note; a panic naming the notes when there is none.
+fn sideways_percent(c: &Calibration) -> (f64, String) {
+    let note = c
+        .notes
+        .iter()
+        .find(|n| n.contains("sideways"))
+        .unwrap_or_else(|| panic!("no sideways note: {:?}", c.notes));
+    let pct: f64 = note
+        .split(" % ")
+        .next()
+        .and_then(|head| head.rsplit(' ').next())
+        .and_then(|v| v.parse().ok())
+        .unwrap_or_else(|| panic!("no percentage in {note}"));
+    (pct, note.clone())
 }
 
 /// The fitted parameter `name` of `c` (a panic naming it, with the report, when absent).

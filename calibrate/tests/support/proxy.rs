@@ -23,6 +23,22 @@ use serde::Serialize;
 use std::collections::BTreeMap;
 use std::path::Path;
 
+/// The examples' sessions folder: `--sessions DIR` on the command line, else
+/// `WHEELCAL_SESSIONS`; without either the process exits (2) saying so.
+pub fn sessions_dir_from_args() -> std::path::PathBuf {
+    let args: Vec<String> = std::env::args().skip(1).collect();
+    let dir = args
+        .iter()
+        .position(|a| a == "--sessions")
+        .and_then(|i| args.get(i + 1))
+        .map(std::path::PathBuf::from)
+        .or_else(|| testdata::sessions_dir_if_set().ok());
+    dir.unwrap_or_else(|| {
+        eprintln!("the OptiOdom sessions are not given: --sessions DIR or WHEELCAL_SESSIONS (data/real/README.md)");
+        std::process::exit(2)
+    })
+}
+
 /// One run folder of the sessions directory: `<robot>-<path>-<session>-run-NN`.
 #[derive(Debug, Clone, PartialEq, Eq, PartialOrd, Ord)]
 pub struct RunDir {
@@ -640,17 +656,22 @@ impl KeptApart {
     }
 }
 
-/// The board a calibration sets: its factors and laws for a differential drive (plain
-/// factors when no law is kept).
+/// The board a calibration's factors set: its factors and laws for a differential drive
+/// (plain factors when no law is kept), an omni robot's per-wheel factors and turn law
+/// (without the geometry no factor carries: `apply --factors-only`).
 pub fn board_of(c: &calibrate::Calibration) -> calib_core::Corrections {
     match &c.factors {
+        calibrate::Factors::Wheels {
+            f_lat,
+            f_lon,
+            l_arc,
+        } => calib_core::Corrections::omni(f_lat.iter().copied().collect(), *f_lon, *l_arc),
         calibrate::Factors::Diff { board: Some(b), .. } => b.corrections(),
         calibrate::Factors::Diff { c_l, c_r, e_b, .. } => calib_core::Corrections::DiffDrive {
             c_l: *c_l,
             c_r: *c_r,
             e_b: *e_b,
         },
-        _ => calib_core::Corrections::None,
     }
 }
 
@@ -961,38 +982,26 @@ pub fn against_optiodom(
     train: &dyn Fn(&RunDir) -> bool,
     test: &dyn Fn(&RunDir) -> bool,
 ) -> Result<AgainstOptiOdom, String> {
-    use calibrate::{board_dead_reckoning_errors, calibrate, CalOptions};
+    let (k, _) = kept_apart(dir, training, "the rest", train, test)?;
     let (robot, recs) = robot_runs(dir, "diff", train)?;
     let (_, held) = robot_runs(dir, "diff", test)?;
-    let c = calibrate(&robot, &recs, None, &CalOptions::default()).map_err(|e| e.to_string())?;
     let runs = recs
         .iter()
         .map(|(n, r)| OptiOdomRun::new(n, &robot, r))
         .collect::<Result<Vec<_>, _>>()?;
     let opti = optiodom_fit(&robot, &runs);
-    let board = board_of(&c);
-    let (mut b, mut k, mut o) = (0.0, 0.0, 0.0);
+    let mut o = 0.0;
     for (name, rec) in &held {
         let s = Series::new(name, &robot, rec).map_err(|e| e.to_string())?;
-        b += board_dead_reckoning_errors(&robot, &board, &s)
-            .ok_or(format!("{name}: the board cannot dead-reckon it"))?
-            .0;
-        k += dead_reckoning_rmse(&c.fitted_robot, &s).ok_or(format!("{name}: no path"))?;
         o += dead_reckoning_rmse(&opti, &s).ok_or(format!("{name}: no path"))?;
     }
-    let n = held.len().max(1) as f64;
-    let law = c
-        .law_tests
-        .iter()
-        .find(|t| t.kept && !t.law.contains("lead"))
-        .map(|t| (t.law.to_string(), t.value));
     Ok(AgainstOptiOdom {
-        training: training.into(),
-        train_runs: recs.len(),
-        test_runs: held.len(),
-        law,
-        board_m: b / n,
-        constant_m: k / n,
-        optiodom_m: o / n,
+        training: k.training,
+        train_runs: k.train_runs,
+        test_runs: k.test_runs,
+        law: k.law,
+        board_m: k.board_m,
+        constant_m: k.constant_m,
+        optiodom_m: o / held.len().max(1) as f64,
     })
 }
